@@ -1,0 +1,23 @@
+//! CPU reference models and ground truth for Penumbra's GPU algorithms.
+//!
+//! Every GPU algorithm in Penumbra has a model here, written for clarity rather than
+//! speed, in `f32`/`f64` Rust with no Bevy dependency, so that:
+//! - the model itself can be checked against exact ground truth (analytic geometry,
+//!   triangle ray tracing, brute-force `f64` distance) in fast unit tests, and
+//! - the GPU output, read back from lavapipe by `penumbra_test`, can be compared with it.
+//!
+//! # Coordinate conventions
+//! Bevy's: right-handed, +Y up, the camera looks down its local −Z. World units are metres.
+//! Image pixel `(x, y)` has its origin at the top-left corner, +y down, and its centre at
+//! `(x + 0.5, y + 0.5)`; normalized device coordinates have +y up.
+//!
+//! # Modules
+//! - [`pbr`]: Bevy 0.19's `StandardMaterial` shading (Burley diffuse, GGX specular with
+//!   Bevy's multiscatter compensation, ambient light, exposure, sRGB output).
+//! - [`camera`]: perspective camera rays matching Bevy's `PerspectiveProjection`.
+//! - [`scene`]: an analytic ray-traced scene (spheres, planes, directional lights with hard
+//!   shadows) shaded with [`pbr`], the expected image of simple GPU render tests.
+
+pub mod camera;
+pub mod pbr;
+pub mod scene;

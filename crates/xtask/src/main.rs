@@ -1,0 +1,239 @@
+//! Project tasks, run as `cargo xtask <task>` (an alias in `.cargo/config.toml`).
+//!
+//! - `cargo xtask showcase [ARGS]`: the main job — render the showcase scene (in a
+//!   window when a display exists, else headless to a PNG whose path it prints).
+//! - `cargo xtask test [ARGS]`: the whole test suite (`cargo test --workspace`).
+//!
+//! Both first make sure a Vulkan driver is installed (Penumbra renders through Vulkan;
+//! on machines without a GPU that is Mesa's lavapipe, Debian package
+//! `mesa-vulkan-drivers`). When it is missing and this runs as root with apt, it installs
+//! the package; otherwise it stops at once, naming the package.
+
+use std::path::Path;
+use std::process::{Command, ExitCode};
+
+/// The Debian package providing lavapipe (it depends on the Vulkan loader, `libvulkan1`).
+const DRIVER_PACKAGE: &str = "mesa-vulkan-drivers";
+
+const USAGE: &str = "usage: cargo xtask <showcase|test> [ARGS...]
+  showcase [ARGS]  run examples/showcase.rs (ARGS go to the example: --headless --frames N --out PATH --size WxH)
+  test [ARGS]      run the whole test suite: cargo test --workspace [ARGS]";
+
+fn main() -> ExitCode {
+    let mut args = std::env::args().skip(1);
+    let task = args.next();
+    let rest: Vec<String> = args.collect();
+    let cargo_args: Vec<String> = match task.as_deref() {
+        Some("test") => ["test", "--workspace"]
+            .into_iter()
+            .map(String::from)
+            .chain(rest)
+            .collect(),
+        Some("showcase") => ["run", "--example", "showcase", "--"]
+            .into_iter()
+            .map(String::from)
+            .chain(rest)
+            .collect(),
+        _ => {
+            eprintln!("{USAGE}");
+            return ExitCode::from(2);
+        }
+    };
+    if let Err(e) = ensure_vulkan_driver() {
+        eprintln!("xtask: {e}");
+        return ExitCode::FAILURE;
+    }
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let mut command = Command::new(cargo);
+    command.args(&cargo_args);
+    let result = if task.as_deref() == Some("test") {
+        run_tests(command)
+    } else {
+        command.status().map_err(|e| e.to_string())
+    };
+    match result {
+        Ok(status) if status.success() => ExitCode::SUCCESS,
+        Ok(status) => ExitCode::from(status.code().map_or(1, |c| c.clamp(1, 255) as u8)),
+        Err(e) => {
+            eprintln!("xtask: could not run cargo: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Runs `cargo test`, passing its output through, and closes with one line totalling
+/// every `test result:` line (cargo prints one per test binary, the last often a
+/// doc-test run of 0 tests).
+fn run_tests(mut command: Command) -> Result<std::process::ExitStatus, String> {
+    use std::io::{BufRead, BufReader, Write};
+    let mut child = command
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .map_err(|e| e.to_string())?;
+    let stdout = child.stdout.take().expect("piped stdout");
+    let mut totals = Totals::default();
+    let mut out = std::io::stdout().lock();
+    for line in BufReader::new(stdout).lines() {
+        let line = line.map_err(|e| e.to_string())?;
+        totals.add_line(&line);
+        writeln!(out, "{line}").ok();
+        out.flush().ok();
+    }
+    let status = child.wait().map_err(|e| e.to_string())?;
+    writeln!(
+        out,
+        "total: {} passed, {} failed, {} skipped",
+        totals.passed, totals.failed, totals.ignored
+    )
+    .ok();
+    Ok(status)
+}
+
+/// Sums of cargo test's `test result:` lines.
+#[derive(Debug, Default, PartialEq)]
+struct Totals {
+    passed: u64,
+    failed: u64,
+    ignored: u64,
+}
+
+impl Totals {
+    /// Adds a line like `test result: ok. 8 passed; 0 failed; 1 ignored; 0 measured; …`.
+    fn add_line(&mut self, line: &str) {
+        let Some(rest) = line.trim().strip_prefix("test result: ") else {
+            return;
+        };
+        for part in rest.split(';') {
+            let mut words = part.split_whitespace().rev();
+            let (Some(label), Some(count)) = (words.next(), words.next()) else {
+                continue;
+            };
+            let Ok(n) = count.parse::<u64>() else {
+                continue;
+            };
+            match label {
+                "passed" => self.passed += n,
+                "failed" => self.failed += n,
+                "ignored" => self.ignored += n,
+                _ => {}
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Totals;
+
+    #[test]
+    fn totals_sum_cargo_result_lines() {
+        let mut t = Totals::default();
+        for line in [
+            "test result: ok. 8 passed; 0 failed; 1 ignored; 0 measured; 0 filtered out; finished in 0.08s",
+            "running 3 tests",
+            "test result: FAILED. 1 passed; 2 failed; 0 ignored; 0 measured; 0 filtered out",
+            "test totals_sum ... ok",
+            "   test result: ok. 0 passed; 0 failed; 0 ignored; 0 measured; 0 filtered out",
+        ] {
+            t.add_line(line);
+        }
+        assert_eq!(
+            t,
+            Totals {
+                passed: 9,
+                failed: 2,
+                ignored: 1
+            }
+        );
+    }
+}
+
+/// Directories where the Vulkan loader looks for installable client drivers (ICDs).
+const ICD_DIRS: &[&str] = &[
+    "/usr/share/vulkan/icd.d",
+    "/usr/local/share/vulkan/icd.d",
+    "/etc/vulkan/icd.d",
+];
+
+/// Where Debian-like and other distributions keep `libvulkan.so.1`.
+const LOADER_PATHS: &[&str] = &[
+    "/usr/lib/x86_64-linux-gnu/libvulkan.so.1",
+    "/lib/x86_64-linux-gnu/libvulkan.so.1",
+    "/usr/lib/aarch64-linux-gnu/libvulkan.so.1",
+    "/lib/aarch64-linux-gnu/libvulkan.so.1",
+    "/usr/lib64/libvulkan.so.1",
+    "/usr/lib/libvulkan.so.1",
+];
+
+/// What is missing for Vulkan, if anything (Linux only; elsewhere the OS provides it).
+fn missing_vulkan_parts() -> Vec<&'static str> {
+    if !cfg!(target_os = "linux") {
+        return Vec::new();
+    }
+    let mut missing = Vec::new();
+    if !LOADER_PATHS.iter().any(|p| Path::new(p).exists()) {
+        missing.push("the Vulkan loader (libvulkan.so.1)");
+    }
+    let env_icds = ["VK_ICD_FILENAMES", "VK_DRIVER_FILES"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()));
+    let has_icd = ICD_DIRS.iter().any(|dir| {
+        std::fs::read_dir(dir).is_ok_and(|entries| {
+            entries
+                .flatten()
+                .any(|e| e.path().extension().is_some_and(|x| x == "json"))
+        })
+    });
+    if !env_icds && !has_icd {
+        missing.push("a Vulkan driver (ICD)");
+    }
+    missing
+}
+
+fn is_root() -> bool {
+    std::fs::read_to_string("/proc/self/status").is_ok_and(|s| {
+        s.lines()
+            .find_map(|l| l.strip_prefix("Uid:"))
+            .and_then(|l| l.split_whitespace().nth(1)) // effective uid
+            == Some("0")
+    })
+}
+
+fn ensure_vulkan_driver() -> Result<(), String> {
+    let missing = missing_vulkan_parts();
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let what = missing.join(" and ");
+    let have_apt = Path::new("/usr/bin/apt-get").exists();
+    if !(is_root() && have_apt) {
+        return Err(format!(
+            "missing {what}. Install the Debian package `{DRIVER_PACKAGE}`: \
+             sudo apt-get install {DRIVER_PACKAGE}"
+        ));
+    }
+    eprintln!("xtask: missing {what}; installing `{DRIVER_PACKAGE}` with apt-get");
+    let run = |args: &[&str]| -> Result<(), String> {
+        let status = Command::new("apt-get")
+            .args(args)
+            .env("DEBIAN_FRONTEND", "noninteractive")
+            .status()
+            .map_err(|e| format!("apt-get: {e}"))?;
+        if status.success() {
+            Ok(())
+        } else {
+            Err(format!("`apt-get {}` failed ({status})", args.join(" ")))
+        }
+    };
+    run(&["update", "-qq"])?;
+    run(&["install", "-y", "-qq", DRIVER_PACKAGE])?;
+    let still = missing_vulkan_parts();
+    if still.is_empty() {
+        Ok(())
+    } else {
+        Err(format!(
+            "still missing {} after installing `{DRIVER_PACKAGE}`",
+            still.join(" and ")
+        ))
+    }
+}

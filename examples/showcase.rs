@@ -1,0 +1,344 @@
+//! Penumbra's showcase: the room later features light — thin walls with a window, a
+//! half ceiling, a few meshes, a sun, a point light and a spot light.
+//!
+//! ```text
+//! cargo run --example showcase                          # a window (if a display exists)
+//! cargo run --example showcase -- --headless --frames 30 --out showcase.png
+//! ```
+//!
+//! Flags: `--headless` (render into an image, no window; the default when neither
+//! `DISPLAY` nor `WAYLAND_DISPLAY` is set), `--frames N` (frames before the capture;
+//! in a window, exit after N frames), `--out PATH` (PNG to write; headless default
+//! `showcase.png`), `--size WxH` (default 256x256 headless, 1280x720 windowed).
+//!
+//! The scene is built in code (no asset files), so it runs on a fresh clone; its
+//! 256×256 headless screenshot is checked against `assets/reference/showcase.png` by
+//! `tests/showcase.rs`.
+
+use bevy::{
+    camera::Exposure,
+    light::GlobalAmbientLight,
+    prelude::*,
+    render::view::screenshot::{Screenshot, save_to_disk},
+    window::WindowResolution,
+};
+use penumbra::prelude::*;
+use std::path::PathBuf;
+
+/// Command-line options.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Options {
+    /// Render into an image instead of a window.
+    pub headless: bool,
+    /// Frames to render before the capture (headless) or before exiting (windowed).
+    pub frames: Option<u32>,
+    /// Where to write the PNG.
+    pub out: Option<PathBuf>,
+    /// Image or window size in pixels.
+    pub size: Option<UVec2>,
+}
+
+impl Options {
+    /// Parses `std::env::args()`-style arguments (without the program name).
+    pub fn parse(args: impl IntoIterator<Item = String>) -> Result<Self, String> {
+        let mut o = Options {
+            headless: false,
+            frames: None,
+            out: None,
+            size: None,
+        };
+        let mut args = args.into_iter();
+        while let Some(arg) = args.next() {
+            let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
+            match arg.as_str() {
+                "--headless" => o.headless = true,
+                "--frames" => {
+                    let v = value("--frames")?;
+                    let n: u32 = v
+                        .parse()
+                        .map_err(|_| format!("--frames: bad number {v:?}"))?;
+                    if n == 0 || n > 100_000 {
+                        return Err(format!("--frames must be in 1..=100000, got {n}"));
+                    }
+                    o.frames = Some(n);
+                }
+                "--out" => o.out = Some(PathBuf::from(value("--out")?)),
+                "--size" => {
+                    let v = value("--size")?;
+                    let (w, h) = v
+                        .split_once('x')
+                        .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
+                        .ok_or(format!("--size: expected WxH, got {v:?}"))?;
+                    if !(1..=8192).contains(&w) || !(1..=8192).contains(&h) {
+                        return Err(format!("--size must be within 1..=8192 per axis, got {v}"));
+                    }
+                    o.size = Some(UVec2::new(w, h));
+                }
+                "-h" | "--help" => return Err(USAGE.to_string()),
+                other => return Err(format!("unknown argument {other:?}\n{USAGE}")),
+            }
+        }
+        Ok(o)
+    }
+}
+
+const USAGE: &str = "usage: showcase [--headless] [--frames N] [--out PATH] [--size WxH]";
+
+/// Whether a display server is reachable (an X11 or Wayland socket named in the env).
+fn display_available() -> bool {
+    ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
+}
+
+#[allow(
+    dead_code,
+    reason = "tests/showcase.rs includes this file for its scene"
+)]
+fn main() -> std::process::ExitCode {
+    let options = match Options::parse(std::env::args().skip(1)) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("{e}");
+            return std::process::ExitCode::from(2);
+        }
+    };
+    let headless = options.headless || !display_available();
+    if headless && !options.headless {
+        println!("showcase: no display (DISPLAY/WAYLAND_DISPLAY unset); rendering headless");
+    }
+    let result = if headless {
+        run_headless(&options)
+    } else {
+        run_windowed(&options);
+        Ok(())
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("showcase: {e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+/// Renders into an image on whatever Vulkan adapter exists and writes a PNG.
+fn run_headless(options: &Options) -> Result<(), String> {
+    use penumbra_test::{HeadlessRender, vulkan_adapter};
+    let Some(adapter) = vulkan_adapter() else {
+        return Err(
+            "no Vulkan adapter found. Install Mesa's software Vulkan driver, \
+                    Debian package `mesa-vulkan-drivers` (`cargo xtask showcase` does it)"
+                .into(),
+        );
+    };
+    let size = options.size.unwrap_or(UVec2::splat(256));
+    let frames = options.frames.unwrap_or(30);
+    let out = options
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("showcase.png"));
+    let render = HeadlessRender::new(size.x, size.y).frames(frames);
+    let mut app = render.app();
+    app.add_plugins((PenumbraPlugins, ShowcaseScenePlugin));
+    let capture = render.run(app).map_err(|e| e.to_string())?;
+    capture
+        .to_rgba8()
+        .save(&out)
+        .map_err(|e| format!("writing {}: {e}", out.display()))?;
+    let steady = &capture.frame_times[capture.frame_times.len().min(1)..];
+    let mean_ms = if steady.is_empty() {
+        f64::NAN
+    } else {
+        steady.iter().map(|d| d.as_secs_f64()).sum::<f64>() * 1e3 / steady.len() as f64
+    };
+    let path = std::fs::canonicalize(&out).unwrap_or(out);
+    println!(
+        "showcase: {frames} frames at {}x{} on {adapter}; mean frame time after the first: {mean_ms:.1} ms",
+        size.x, size.y
+    );
+    println!("showcase: wrote {}", path.display());
+    Ok(())
+}
+
+/// Opens a window; with `--frames N` exits after N frames (saving `--out` if given).
+fn run_windowed(options: &Options) {
+    let size = options.size.unwrap_or(UVec2::new(1280, 720));
+    let mut app = App::new();
+    app.add_plugins((
+        DefaultPlugins.set(WindowPlugin {
+            primary_window: Some(Window {
+                title: "Penumbra showcase".into(),
+                resolution: WindowResolution::new(size.x, size.y),
+                ..default()
+            }),
+            ..default()
+        }),
+        PenumbraPlugins,
+        ShowcaseScenePlugin,
+    ));
+    if let Some(frames) = options.frames {
+        let out = options.out.clone();
+        app.add_systems(
+            Update,
+            move |mut commands: Commands, mut n: Local<u32>, mut exit: MessageWriter<AppExit>| {
+                *n += 1;
+                if *n == frames
+                    && let Some(out) = &out
+                {
+                    println!("showcase: saving {}", out.display());
+                    commands
+                        .spawn(Screenshot::primary_window())
+                        .observe(save_to_disk(out.clone()));
+                }
+                // Leave a few frames for the screenshot to be written.
+                if *n >= frames + 5 {
+                    exit.write(AppExit::Success);
+                }
+            },
+        );
+    }
+    app.run();
+}
+
+/// Spawns the showcase room.
+pub struct ShowcaseScenePlugin;
+
+impl Plugin for ShowcaseScenePlugin {
+    fn build(&self, app: &mut App) {
+        app.insert_resource(ClearColor(Color::srgb(0.55, 0.7, 0.9)))
+            .insert_resource(GlobalAmbientLight {
+                color: Color::srgb(0.7, 0.8, 1.0),
+                brightness: 120.0,
+                ..default()
+            })
+            .add_systems(Startup, spawn_scene);
+    }
+}
+
+/// The room: an 8 m × 8 m floor, 10 cm thick walls (back, and left with a window), a
+/// ceiling over the back half, five objects, a sun through the window and the open
+/// half, a warm point light and a spot light.
+pub fn spawn_scene(
+    mut commands: Commands,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+) {
+    let mut material = |color: Color, roughness: f32, metallic: f32| {
+        materials.add(StandardMaterial {
+            base_color: color,
+            perceptual_roughness: roughness,
+            metallic,
+            ..default()
+        })
+    };
+    let plaster = material(Color::srgb(0.82, 0.8, 0.76), 0.9, 0.0);
+    let floor = material(Color::srgb(0.45, 0.38, 0.3), 0.7, 0.0);
+    let red = material(Color::srgb(0.75, 0.12, 0.08), 0.5, 0.0);
+    let blue = material(Color::srgb(0.1, 0.25, 0.7), 0.35, 0.0);
+    let gold = material(Color::srgb(0.9, 0.7, 0.3), 0.3, 1.0);
+    let green = material(Color::srgb(0.2, 0.55, 0.25), 0.6, 0.0);
+    let white = material(Color::srgb(0.9, 0.9, 0.9), 0.4, 0.0);
+
+    let mut slab = |size: Vec3, at: Vec3, mat: &Handle<StandardMaterial>| {
+        commands.spawn((
+            Mesh3d(meshes.add(Cuboid::from_size(size))),
+            MeshMaterial3d(mat.clone()),
+            Transform::from_translation(at),
+        ));
+    };
+    const T: f32 = 0.1; // wall thickness
+    slab(
+        Vec3::new(8.0, T, 8.0),
+        Vec3::new(0.0, -T / 2.0, 0.0),
+        &floor,
+    );
+    slab(
+        Vec3::new(8.0, 4.0, T),
+        Vec3::new(0.0, 2.0, -4.0 - T / 2.0),
+        &plaster,
+    );
+    // Left wall (x = -4) with a 2 m × 1.6 m window from z = -2.5 to -0.5, y = 1 to 2.6.
+    let lx = -4.0 - T / 2.0;
+    slab(Vec3::new(T, 4.0, 1.5), Vec3::new(lx, 2.0, -3.25), &plaster);
+    slab(Vec3::new(T, 4.0, 4.5), Vec3::new(lx, 2.0, 1.75), &plaster);
+    slab(Vec3::new(T, 1.0, 2.0), Vec3::new(lx, 0.5, -1.5), &plaster);
+    slab(Vec3::new(T, 1.4, 2.0), Vec3::new(lx, 3.3, -1.5), &plaster);
+    // Ceiling over the back half.
+    slab(
+        Vec3::new(8.2, T, 4.0),
+        Vec3::new(0.0, 4.0 + T / 2.0, -2.0),
+        &plaster,
+    );
+
+    let mut object = |mesh: Mesh, mat: &Handle<StandardMaterial>, transform: Transform| {
+        commands.spawn((
+            Mesh3d(meshes.add(mesh)),
+            MeshMaterial3d(mat.clone()),
+            transform,
+        ));
+    };
+    object(
+        Sphere::new(0.7).mesh().uv(48, 24),
+        &red,
+        Transform::from_xyz(-1.2, 0.7, -0.6),
+    );
+    object(
+        Cuboid::new(1.0, 1.0, 1.0).into(),
+        &blue,
+        Transform::from_xyz(1.4, 0.5, -1.6).with_rotation(Quat::from_rotation_y(0.6)),
+    );
+    object(
+        Torus::new(0.3, 0.6).into(),
+        &gold,
+        Transform::from_xyz(0.6, 0.3, 1.2).with_rotation(Quat::from_rotation_x(0.25)),
+    );
+    object(
+        Cylinder::new(0.25, 3.0).into(),
+        &white,
+        Transform::from_xyz(-2.6, 1.5, -3.0),
+    );
+    object(
+        Capsule3d::new(0.3, 0.8).into(),
+        &green,
+        Transform::from_xyz(2.4, 0.7, 0.6),
+    );
+
+    commands.spawn((
+        DirectionalLight {
+            illuminance: 8_000.0,
+            shadow_maps_enabled: true,
+            ..default()
+        },
+        Transform::from_xyz(-3.0, 2.5, 1.0).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    commands.spawn((
+        PointLight {
+            color: Color::srgb(1.0, 0.75, 0.5),
+            intensity: 120_000.0, // lumens
+            range: 12.0,
+            radius: 0.1,
+            shadow_maps_enabled: true,
+            ..default()
+        },
+        Transform::from_xyz(2.0, 3.2, -3.0),
+    ));
+    commands.spawn((
+        SpotLight {
+            color: Color::srgb(0.8, 0.9, 1.0),
+            intensity: 300_000.0, // lumens
+            range: 15.0,
+            radius: 0.05,
+            outer_angle: 0.45,
+            inner_angle: 0.3,
+            shadow_maps_enabled: true,
+            ..default()
+        },
+        Transform::from_xyz(3.5, 3.8, 3.0).looking_at(Vec3::new(0.6, 0.0, 0.6), Vec3::Y),
+    ));
+    commands.spawn((
+        Camera3d::default(),
+        Exposure::default(),
+        Transform::from_xyz(3.2, 2.6, 6.8).looking_at(Vec3::new(-0.3, 1.1, -1.0), Vec3::Y),
+    ));
+}

@@ -1,0 +1,111 @@
+//! The showcase example runs headless (its own `run_headless`, in process) and its
+//! screenshot matches the reference kept in `assets/reference/showcase.png`.
+//!
+//! To accept a deliberate change of the scene: `PENUMBRA_BLESS=1 cargo test --test showcase`,
+//! then look at the new reference before committing it.
+
+#[path = "../examples/showcase.rs"]
+#[allow(dead_code, reason = "the example's main is not used here")]
+mod showcase;
+
+use penumbra_test::{Tolerance, assert_images_match, gpu_or_skip, output_dir};
+use showcase::Options;
+use std::path::PathBuf;
+
+fn reference_path() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/reference/showcase.png")
+}
+
+/// lavapipe is deterministic on one machine; the slack covers other Mesa/LLVM versions.
+const TOLERANCE: Tolerance = Tolerance {
+    per_pixel: 8,
+    max_differing_fraction: 0.01,
+    max_mean: 1.0,
+    max_p99: 8.0,
+};
+
+/// Not blank: many distinct colours and a wide spread of luminance.
+fn assert_not_blank(img: &image::RgbaImage) {
+    let lum: Vec<f32> = img
+        .pixels()
+        .map(|p| 0.2126 * p[0] as f32 + 0.7152 * p[1] as f32 + 0.0722 * p[2] as f32)
+        .collect();
+    let mean = lum.iter().sum::<f32>() / lum.len() as f32;
+    let std = (lum.iter().map(|l| (l - mean).powi(2)).sum::<f32>() / lum.len() as f32).sqrt();
+    let mut colours: Vec<[u8; 3]> = img.pixels().map(|p| [p[0], p[1], p[2]]).collect();
+    colours.sort_unstable();
+    colours.dedup();
+    assert!(std > 20.0, "luminance std-dev {std:.1}: image looks flat");
+    assert!(
+        colours.len() > 500,
+        "only {} distinct colours",
+        colours.len()
+    );
+}
+
+#[test]
+fn showcase_headless_matches_reference() {
+    if !gpu_or_skip("showcase_headless_matches_reference") {
+        return;
+    }
+    let dir = output_dir();
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("showcase.headless.png");
+    let options = Options::parse(
+        ["--headless", "--frames", "30", "--size", "256x256", "--out"]
+            .iter()
+            .map(|s| s.to_string())
+            .chain([out.display().to_string()]),
+    )
+    .unwrap();
+    showcase::run_headless(&options).unwrap();
+    let actual = image::open(&out).unwrap().to_rgba8();
+    assert_eq!(actual.dimensions(), (256, 256));
+    assert_not_blank(&actual);
+
+    let reference = reference_path();
+    if std::env::var("PENUMBRA_BLESS").is_ok_and(|v| v == "1") {
+        std::fs::create_dir_all(reference.parent().unwrap()).unwrap();
+        actual.save(&reference).unwrap();
+        println!("blessed {}", reference.display());
+        return;
+    }
+    let expected = image::open(&reference)
+        .unwrap_or_else(|e| panic!("{}: {e} (bless with PENUMBRA_BLESS=1)", reference.display()))
+        .to_rgba8();
+    assert_not_blank(&expected);
+    let cmp = assert_images_match("showcase", &actual, &expected, &TOLERANCE);
+    println!("showcase vs reference: {cmp}");
+}
+
+#[test]
+fn showcase_arguments_are_validated() {
+    let parse = |args: &[&str]| Options::parse(args.iter().map(|s| s.to_string()));
+    let ok = parse(&[
+        "--headless",
+        "--frames",
+        "3",
+        "--out",
+        "a.png",
+        "--size",
+        "64x32",
+    ])
+    .unwrap();
+    assert!(ok.headless);
+    assert_eq!(ok.frames, Some(3));
+    assert_eq!(ok.size, Some(bevy::math::UVec2::new(64, 32)));
+    assert_eq!(ok.out, Some(PathBuf::from("a.png")));
+    let bad: &[(&[&str], &str)] = &[
+        (&["--frames"], "needs a value"),
+        (&["--frames", "x"], "bad number"),
+        (&["--frames", "0"], "1..=100000"),
+        (&["--size", "64"], "WxH"),
+        (&["--size", "0x10"], "1..=8192"),
+        (&["--size", "100000x10"], "1..=8192"),
+        (&["--fast"], "unknown argument"),
+    ];
+    for (args, needle) in bad {
+        let err = parse(args).unwrap_err();
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+}
