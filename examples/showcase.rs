@@ -16,7 +16,7 @@
 //! `tests/showcase.rs`.
 
 use bevy::{
-    camera::Exposure,
+    camera::{Exposure, ShadowLodOrigin},
     light::GlobalAmbientLight,
     prelude::*,
     render::view::screenshot::{Screenshot, save_to_disk},
@@ -123,7 +123,7 @@ fn main() -> std::process::ExitCode {
 }
 
 /// Renders into an image on whatever Vulkan adapter exists and writes a PNG.
-fn run_headless(options: &Options) -> Result<(), String> {
+pub fn run_headless(options: &Options) -> Result<(), String> {
     use penumbra_test::{HeadlessRender, vulkan_adapter};
     let Some(adapter) = vulkan_adapter() else {
         return Err(
@@ -339,6 +339,8 @@ pub fn spawn_scene(
     commands.spawn((
         Camera3d::default(),
         Exposure::default(),
+        // Point/spot shadow LOD is measured from here, windowed or headless.
+        ShadowLodOrigin,
         Transform::from_xyz(3.2, 2.6, 6.8).looking_at(Vec3::new(-0.3, 1.1, -1.0), Vec3::Y),
     ));
 }

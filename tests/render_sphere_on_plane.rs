@@ -9,10 +9,10 @@
 //! camera by 5 cm fails the comparison (checked in this file).
 
 use bevy::{
+    camera::Hdr,
     core_pipeline::tonemapping::{DebandDither, Tonemapping},
     light::GlobalAmbientLight,
     prelude::*,
-    render::view::Hdr,
 };
 use penumbra_reference::{
     camera::PerspectiveCamera,
@@ -21,7 +21,7 @@ use penumbra_reference::{
 };
 use penumbra_test::{
     Capture, CaptureFormat, HeadlessRender, Tolerance, assert_images_match, compare_rgba8,
-    gpu_or_skip,
+    gpu_or_skip, image,
 };
 use std::f32::consts::FRAC_PI_4;
 use std::sync::OnceLock;
@@ -174,13 +174,14 @@ fn baseline_capture() -> Option<&'static image::RgbaImage> {
     Some(CAPTURE.get_or_init(|| render(BASELINE, CaptureFormat::Srgb8).to_rgba8()))
 }
 
-/// Shadow-map and silhouette edges cover ~2 % of the pixels at 128²; elsewhere the
-/// render matches the model to within sRGB rounding and interpolated-normal error.
+/// Measured on lavapipe (Mesa 22.3.6): mean 0.23, p99 1, 0.16 % of pixels over 4 (the
+/// shadow-map and silhouette edges). Elsewhere the render matches the model to within
+/// sRGB rounding and interpolated-normal error.
 const TOLERANCE: Tolerance = Tolerance {
     per_pixel: 4,
-    max_differing_fraction: 0.03,
-    max_mean: 1.5,
-    max_p99: 24.0,
+    max_differing_fraction: 0.003,
+    max_mean: 0.4,
+    max_p99: 2.0,
 };
 
 #[test]
@@ -253,7 +254,8 @@ fn linear_float_readback_matches_cpu_model() {
     let p95 = errors[errors.len() * 95 / 100];
     println!("linear readback vs model: mean {mean:.5}, median {median:.5}, p95 {p95:.5}");
     // f16 has 11 bits of mantissa: the median error must be far below 8-bit sRGB steps.
-    assert!(median < 2e-3, "median {median}");
-    assert!(p95 < 0.01, "p95 {p95}");
-    assert!(mean < 0.01, "mean {mean}");
+    // Measured: mean 4.2e-4, median 2.3e-4, p95 4.7e-4.
+    assert!(median < 1e-3, "median {median}");
+    assert!(p95 < 2e-3, "p95 {p95}");
+    assert!(mean < 2e-3, "mean {mean}");
 }

@@ -1,4 +1,4 @@
-//! Every `.wgsl` file under `shaders/` composes with naga_oil (as Bevy composes shaders)
+//! Every `.wgsl` file under `shaders/` composes with `naga_oil` (as Bevy composes shaders)
 //! and the composed module passes naga's validator. No GPU needed.
 
 use naga::valid::{Capabilities, ValidationFlags, Validator};
@@ -21,7 +21,7 @@ fn wgsl_files_on_disk(dir: &Path, out: &mut Vec<String>) {
     }
 }
 
-/// Adds every importable module to a composer, dependencies first (naga_oil needs a
+/// Adds every importable module to a composer, dependencies first (`naga_oil` needs a
 /// module's imports to be present when it is added).
 fn composer_with_library(files: &[ShaderFile]) -> Result<Composer, String> {
     let mut composer = Composer::default().with_capabilities(Capabilities::all());

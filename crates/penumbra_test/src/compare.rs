@@ -118,7 +118,9 @@ pub fn output_dir() -> PathBuf {
     std::env::var_os("PENUMBRA_TEST_OUTPUT")
         .map(PathBuf::from)
         .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/penumbra_test")
+            let crate_dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+            let workspace = crate_dir.ancestors().nth(2).unwrap_or(crate_dir);
+            workspace.join("target/penumbra_test")
         })
 }
 

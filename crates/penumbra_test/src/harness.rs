@@ -238,7 +238,10 @@ impl HeadlessRender {
             })
             .set(LogPlugin {
                 // lavapipe is a software adapter (Bevy warning B0006): expected here.
-                filter: "wgpu=error,naga=warn,bevy_render::renderer=error".into(),
+                // The last in-flight readback may land after the app is dropped: harmless.
+                filter: "wgpu=error,naga=warn,bevy_render::renderer=error,\
+                         bevy_render::gpu_readback=error"
+                    .into(),
                 level: bevy::log::Level::WARN,
                 ..default()
             })

@@ -24,6 +24,8 @@
 //! - [`harness`]: [`HeadlessRender`], [`Capture`].
 //! - [`compare`]: [`Tolerance`], [`compare_rgba8`], [`assert_images_match`].
 
+pub use image;
+
 pub mod compare;
 pub mod gpu;
 pub mod harness;

@@ -121,33 +121,6 @@ impl Totals {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::Totals;
-
-    #[test]
-    fn totals_sum_cargo_result_lines() {
-        let mut t = Totals::default();
-        for line in [
-            "test result: ok. 8 passed; 0 failed; 1 ignored; 0 measured; 0 filtered out; finished in 0.08s",
-            "running 3 tests",
-            "test result: FAILED. 1 passed; 2 failed; 0 ignored; 0 measured; 0 filtered out",
-            "test totals_sum ... ok",
-            "   test result: ok. 0 passed; 0 failed; 0 ignored; 0 measured; 0 filtered out",
-        ] {
-            t.add_line(line);
-        }
-        assert_eq!(
-            t,
-            Totals {
-                passed: 9,
-                failed: 2,
-                ignored: 1
-            }
-        );
-    }
-}
-
 /// Directories where the Vulkan loader looks for installable client drivers (ICDs).
 const ICD_DIRS: &[&str] = &[
     "/usr/share/vulkan/icd.d",
@@ -235,5 +208,32 @@ fn ensure_vulkan_driver() -> Result<(), String> {
             "still missing {} after installing `{DRIVER_PACKAGE}`",
             still.join(" and ")
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Totals;
+
+    #[test]
+    fn totals_sum_cargo_result_lines() {
+        let mut t = Totals::default();
+        for line in [
+            "test result: ok. 8 passed; 0 failed; 1 ignored; 0 measured; 0 filtered out; finished in 0.08s",
+            "running 3 tests",
+            "test result: FAILED. 1 passed; 2 failed; 0 ignored; 0 measured; 0 filtered out",
+            "test totals_sum ... ok",
+            "   test result: ok. 0 passed; 0 failed; 0 ignored; 0 measured; 0 filtered out",
+        ] {
+            t.add_line(line);
+        }
+        assert_eq!(
+            t,
+            Totals {
+                passed: 9,
+                failed: 2,
+                ignored: 1
+            }
+        );
     }
 }
