@@ -1,0 +1,255 @@
+//! Grid policy: where the samples of a bake go.
+//!
+//! The grid covers the mesh bounds padded by [`GridPolicy::border_voxels`] samples on
+//! every side. Voxels are cubes (one `voxel_size` for all axes). The border lies outside
+//! the mesh bounds, so it is outside every closed surface; the baker forces it positive
+//! for open meshes too, which keeps sphere tracing from entering through the volume's
+//! faces.
+
+use crate::geometry::Aabb;
+use glam::{UVec3, Vec3};
+
+/// How many samples a bake takes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Resolution {
+    /// `n` samples along the longest axis of the padded box (the CLI's `--resolution`).
+    LongestAxis(u32),
+    /// `density` samples per mesh unit (× the instance's scale, for runtime bakes), each
+    /// axis clamped to `[min, max]` samples. Unreal-like default: 32 per metre, 8..=256,
+    /// which gives about 50³ for a 1.5 m mesh.
+    PerUnit {
+        /// Samples per mesh unit.
+        density: f32,
+        /// Fewest samples along an axis.
+        min: u32,
+        /// Most samples along an axis.
+        max: u32,
+    },
+}
+
+/// Where samples go.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridPolicy {
+    /// Resolution rule.
+    pub resolution: Resolution,
+    /// Samples of padding outside the mesh bounds on each side (default 2).
+    pub border_voxels: u32,
+}
+
+impl Default for GridPolicy {
+    fn default() -> Self {
+        Self {
+            resolution: Resolution::PerUnit {
+                density: 32.0,
+                min: 8,
+                max: 256,
+            },
+            border_voxels: 2,
+        }
+    }
+}
+
+/// The largest grid a bake accepts: 2^27 samples (512³ = 256 MiB of f16).
+pub const MAX_SAMPLES: u64 = 1 << 27;
+
+/// A resolved grid.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridSpec {
+    /// Samples per axis.
+    pub dims: UVec3,
+    /// Position of sample (0, 0, 0).
+    pub origin: Vec3,
+    /// Sample spacing.
+    pub voxel_size: f32,
+    /// Border samples on each side.
+    pub border: u32,
+}
+
+impl GridSpec {
+    /// Total samples.
+    pub fn samples(&self) -> u64 {
+        self.dims.x as u64 * self.dims.y as u64 * self.dims.z as u64
+    }
+}
+
+/// Why a grid cannot be made.
+#[derive(Clone, Debug, PartialEq)]
+pub enum GridError {
+    /// A resolution parameter is zero, negative, NaN or otherwise unusable.
+    BadResolution(String),
+    /// The grid would exceed [`MAX_SAMPLES`].
+    TooLarge {
+        /// Requested samples per axis.
+        dims: [u64; 3],
+    },
+}
+
+impl std::fmt::Display for GridError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            GridError::BadResolution(why) => write!(f, "bad resolution: {why}"),
+            GridError::TooLarge { dims } => write!(
+                f,
+                "grid {}×{}×{} = {} samples exceeds the limit of {MAX_SAMPLES} (512³)",
+                dims[0],
+                dims[1],
+                dims[2],
+                dims[0] * dims[1] * dims[2]
+            ),
+        }
+    }
+}
+
+impl std::error::Error for GridError {}
+
+impl GridPolicy {
+    /// Resolves the grid for mesh bounds `bounds` (must be finite and non-empty).
+    pub fn resolve(&self, bounds: &Aabb) -> Result<GridSpec, GridError> {
+        let extent = bounds.size().max(Vec3::ZERO);
+        let border = self.border_voxels;
+        let pad = 2 * border as u64 + 1; // border on both sides, plus the fence post
+        let voxel_size = match self.resolution {
+            Resolution::LongestAxis(n) => {
+                if (n as u64) < pad + 1 {
+                    return Err(GridError::BadResolution(format!(
+                        "{n} samples along the longest axis leaves none inside a {border}-sample border"
+                    )));
+                }
+                extent.max_element() / (n as u64 - pad) as f32
+            }
+            Resolution::PerUnit { density, min, max } => {
+                if !(density.is_finite() && density > 0.0) {
+                    return Err(GridError::BadResolution(format!("density {density}")));
+                }
+                if min < 2 || max < min {
+                    return Err(GridError::BadResolution(format!("min {min}, max {max}")));
+                }
+                if (max as u64) < pad + 1 {
+                    return Err(GridError::BadResolution(format!(
+                        "max {max} leaves no samples inside a {border}-sample border"
+                    )));
+                }
+                // Cap the longest axis at `max` samples by growing the voxel.
+                (1.0 / density).max(extent.max_element() / (max as u64 - pad) as f32)
+            }
+        };
+        // A point-like or flat mesh: give the voxel a size from the other axes, or 1.
+        let voxel_size = if voxel_size > 0.0 && voxel_size.is_finite() {
+            voxel_size
+        } else {
+            let fallback = extent.max_element();
+            if fallback > 0.0 { fallback } else { 1.0 }
+        };
+        let min_samples = match self.resolution {
+            Resolution::PerUnit { min, .. } => min as u64,
+            Resolution::LongestAxis(_) => 2,
+        };
+        let dims_u64 = extent.to_array().map(|e| {
+            let inner = (e / voxel_size - 1e-4).ceil().max(0.0) as u64;
+            (inner + pad).max(min_samples)
+        });
+        if dims_u64.iter().product::<u64>() > MAX_SAMPLES
+            || dims_u64.iter().any(|&d| d > u32::MAX as u64)
+        {
+            return Err(GridError::TooLarge { dims: dims_u64 });
+        }
+        let dims = UVec3::new(dims_u64[0] as u32, dims_u64[1] as u32, dims_u64[2] as u32);
+        // Centre the samples on the mesh bounds.
+        let span = voxel_size * (dims.as_vec3() - Vec3::ONE);
+        let origin = bounds.center() - 0.5 * span;
+        Ok(GridSpec {
+            dims,
+            origin,
+            voxel_size,
+            border,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bounds(size: Vec3) -> Aabb {
+        Aabb {
+            min: Vec3::new(1.0, 2.0, 3.0),
+            max: Vec3::new(1.0, 2.0, 3.0) + size,
+        }
+    }
+
+    #[test]
+    fn longest_axis_gets_exactly_n_samples_and_border_is_outside() {
+        let b = bounds(Vec3::new(2.0, 1.0, 0.5));
+        let g = GridPolicy {
+            resolution: Resolution::LongestAxis(64),
+            border_voxels: 2,
+        }
+        .resolve(&b)
+        .unwrap();
+        assert_eq!(g.dims.x, 64);
+        assert!(g.dims.y < 64 && g.dims.z < g.dims.y);
+        // Border samples lie at least `border` voxels outside the bounds.
+        let last = g.origin + g.voxel_size * (g.dims.as_vec3() - Vec3::ONE);
+        for axis in 0..3 {
+            assert!(b.min[axis] - g.origin[axis] >= 2.0 * g.voxel_size - 1e-5);
+            assert!(last[axis] - b.max[axis] >= 2.0 * g.voxel_size - 1e-5);
+        }
+    }
+
+    #[test]
+    fn per_unit_density_is_clamped() {
+        let policy = GridPolicy::default();
+        // 1.5 units at 32 per unit: ~50 samples.
+        let g = policy.resolve(&bounds(Vec3::splat(1.5))).unwrap();
+        assert!((50..=54).contains(&g.dims.x), "{}", g.dims);
+        // 100 units would be 3200 samples: capped at 256 by growing the voxel.
+        let g = policy.resolve(&bounds(Vec3::new(100.0, 1.0, 1.0))).unwrap();
+        assert_eq!(g.dims.x, 256);
+        // A flat mesh still gets the minimum along its flat axis.
+        let g = policy.resolve(&bounds(Vec3::new(1.0, 0.0, 1.0))).unwrap();
+        assert_eq!(g.dims.y, 8);
+    }
+
+    #[test]
+    fn bad_and_huge_resolutions_are_errors() {
+        let b = bounds(Vec3::ONE);
+        let bad = [
+            Resolution::LongestAxis(0),
+            Resolution::LongestAxis(5),
+            Resolution::PerUnit {
+                density: 0.0,
+                min: 8,
+                max: 256,
+            },
+            Resolution::PerUnit {
+                density: f32::NAN,
+                min: 8,
+                max: 256,
+            },
+            Resolution::PerUnit {
+                density: 10.0,
+                min: 300,
+                max: 256,
+            },
+        ];
+        for resolution in bad {
+            let e = GridPolicy {
+                resolution,
+                border_voxels: 2,
+            }
+            .resolve(&b)
+            .unwrap_err();
+            assert!(
+                matches!(e, GridError::BadResolution(_)),
+                "{resolution:?}: {e}"
+            );
+        }
+        let e = GridPolicy {
+            resolution: Resolution::LongestAxis(100_000),
+            border_voxels: 2,
+        }
+        .resolve(&b)
+        .unwrap_err();
+        assert!(matches!(e, GridError::TooLarge { .. }), "{e}");
+    }
+}

@@ -1,0 +1,215 @@
+//! Triangle meshes as baking input, and their validation.
+
+use crate::geometry::Aabb;
+use glam::Vec3;
+
+/// An indexed triangle mesh in its own (local) units. Triangles are counter-clockwise
+/// seen from outside (glTF's and Bevy's convention), so `(b − a) × (c − a)` points out.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriMesh {
+    /// Vertex positions.
+    pub positions: Vec<Vec3>,
+    /// Vertex indices, three per triangle.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Why a mesh cannot be baked.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MeshError {
+    /// No triangles (or no vertices).
+    Empty,
+    /// A flat index list whose length is not a multiple of 3.
+    IndexCountNotMultipleOfThree(usize),
+    /// A triangle refers to a vertex that does not exist.
+    IndexOutOfRange {
+        /// Triangle number.
+        triangle: usize,
+        /// The bad index.
+        index: u32,
+        /// Number of vertices.
+        vertex_count: usize,
+    },
+    /// A vertex used by a triangle has a NaN or infinite coordinate.
+    NonFinitePosition {
+        /// Vertex number.
+        vertex: usize,
+    },
+    /// Every triangle has zero area: there is no surface.
+    AllTrianglesDegenerate,
+}
+
+impl std::fmt::Display for MeshError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MeshError::Empty => write!(f, "the mesh has no triangles"),
+            MeshError::IndexCountNotMultipleOfThree(n) => {
+                write!(f, "{n} indices is not a whole number of triangles")
+            }
+            MeshError::IndexOutOfRange {
+                triangle,
+                index,
+                vertex_count,
+            } => write!(
+                f,
+                "triangle {triangle} uses vertex {index}, but the mesh has {vertex_count} vertices"
+            ),
+            MeshError::NonFinitePosition { vertex } => {
+                write!(f, "vertex {vertex} has a NaN or infinite coordinate")
+            }
+            MeshError::AllTrianglesDegenerate => {
+                write!(
+                    f,
+                    "every triangle has zero area: there is no surface to bake"
+                )
+            }
+        }
+    }
+}
+
+impl std::error::Error for MeshError {}
+
+/// What [`TriMesh::validate`] found and dropped.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct MeshReport {
+    /// Triangles kept.
+    pub triangles: usize,
+    /// Zero-area triangles dropped (they contribute nothing to distance or winding).
+    pub degenerate_dropped: usize,
+}
+
+impl TriMesh {
+    /// A mesh from positions and a flat index list (three per triangle).
+    pub fn from_indices(positions: Vec<Vec3>, indices: &[u32]) -> Result<Self, MeshError> {
+        if !indices.len().is_multiple_of(3) {
+            return Err(MeshError::IndexCountNotMultipleOfThree(indices.len()));
+        }
+        Ok(TriMesh {
+            positions,
+            triangles: indices
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect(),
+        })
+    }
+
+    /// Bounds of the vertices used by triangles.
+    pub fn bounds(&self) -> Aabb {
+        let mut b = Aabb::EMPTY;
+        for t in &self.triangles {
+            for &i in t {
+                if let Some(&p) = self.positions.get(i as usize) {
+                    b.grow(p);
+                }
+            }
+        }
+        b
+    }
+
+    /// Checks the mesh and returns its triangles as corner positions, dropping zero-area
+    /// triangles. Errors: empty, bad indices, non-finite positions, no area at all.
+    pub fn validate(&self) -> Result<(Vec<[Vec3; 3]>, MeshReport), MeshError> {
+        if self.triangles.is_empty() || self.positions.is_empty() {
+            return Err(MeshError::Empty);
+        }
+        let mut tris = Vec::with_capacity(self.triangles.len());
+        let mut report = MeshReport::default();
+        for (t, idx) in self.triangles.iter().enumerate() {
+            let mut corners = [Vec3::ZERO; 3];
+            for (k, &i) in idx.iter().enumerate() {
+                let p = *self
+                    .positions
+                    .get(i as usize)
+                    .ok_or(MeshError::IndexOutOfRange {
+                        triangle: t,
+                        index: i,
+                        vertex_count: self.positions.len(),
+                    })?;
+                if !p.is_finite() {
+                    return Err(MeshError::NonFinitePosition { vertex: i as usize });
+                }
+                corners[k] = p;
+            }
+            let cross = (corners[1] - corners[0]).cross(corners[2] - corners[0]);
+            if cross.length_squared() > 0.0 && cross.is_finite() {
+                tris.push(corners);
+            } else {
+                report.degenerate_dropped += 1;
+            }
+        }
+        if tris.is_empty() {
+            return Err(MeshError::AllTrianglesDegenerate);
+        }
+        report.triangles = tris.len();
+        Ok((tris, report))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_meshes_are_rejected_with_clear_errors() {
+        let quad = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::ONE];
+        let cases: Vec<(TriMesh, MeshError)> = vec![
+            (TriMesh::default(), MeshError::Empty),
+            (
+                TriMesh {
+                    positions: quad.clone(),
+                    triangles: vec![[0, 1, 7]],
+                },
+                MeshError::IndexOutOfRange {
+                    triangle: 0,
+                    index: 7,
+                    vertex_count: 4,
+                },
+            ),
+            (
+                TriMesh {
+                    positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(f32::NAN, 0.0, 0.0)],
+                    triangles: vec![[0, 1, 2]],
+                },
+                MeshError::NonFinitePosition { vertex: 2 },
+            ),
+            (
+                TriMesh {
+                    positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(0.0, f32::INFINITY, 0.0)],
+                    triangles: vec![[0, 1, 2]],
+                },
+                MeshError::NonFinitePosition { vertex: 2 },
+            ),
+            (
+                TriMesh {
+                    positions: quad.clone(),
+                    triangles: vec![[0, 0, 1], [1, 1, 1]],
+                },
+                MeshError::AllTrianglesDegenerate,
+            ),
+        ];
+        for (mesh, expected) in cases {
+            assert_eq!(mesh.validate().unwrap_err(), expected);
+            assert!(!expected.to_string().is_empty());
+        }
+        assert_eq!(
+            TriMesh::from_indices(quad, &[0, 1]).unwrap_err(),
+            MeshError::IndexCountNotMultipleOfThree(2)
+        );
+    }
+
+    #[test]
+    fn degenerate_triangles_are_dropped_and_counted() {
+        let mesh = TriMesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::X * 2.0],
+            triangles: vec![[0, 1, 2], [0, 1, 3], [2, 2, 2]],
+        };
+        let (tris, report) = mesh.validate().unwrap();
+        assert_eq!(tris.len(), 1);
+        assert_eq!(
+            report,
+            MeshReport {
+                triangles: 1,
+                degenerate_dropped: 2
+            }
+        );
+    }
+}
