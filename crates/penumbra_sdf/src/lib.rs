@@ -21,6 +21,7 @@ pub mod bvh;
 pub mod exact;
 pub mod format;
 pub mod geometry;
+pub mod gltf_input;
 pub mod grid;
 pub mod mesh;
 pub mod obj;
@@ -31,3 +32,86 @@ pub use bake::{Bake, BakeError, BakeSettings, SignMethod, bake};
 pub use grid::{GridPolicy, GridSpec, Resolution};
 pub use mesh::{MeshError, TriMesh};
 pub use volume::SdfVolume;
+
+/// Why a mesh file could not be loaded.
+#[derive(Debug)]
+pub enum LoadError {
+    /// Reading the file failed.
+    Io(std::io::Error),
+    /// Malformed OBJ.
+    Obj(obj::ObjError),
+    /// Malformed or unusable glTF.
+    Gltf(gltf_input::GltfError),
+    /// Not `.obj`, `.gltf` or `.glb`.
+    UnknownFormat(String),
+    /// `--mesh NAME` given for a format without named meshes.
+    NamedMeshUnsupported,
+}
+
+impl std::fmt::Display for LoadError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LoadError::Io(e) => write!(f, "{e}"),
+            LoadError::Obj(e) => write!(f, "{e}"),
+            LoadError::Gltf(e) => write!(f, "{e}"),
+            LoadError::UnknownFormat(ext) => {
+                write!(
+                    f,
+                    "unknown mesh format {ext:?} (expected .obj, .gltf or .glb)"
+                )
+            }
+            LoadError::NamedMeshUnsupported => {
+                write!(f, "selecting a mesh by name needs a glTF file")
+            }
+        }
+    }
+}
+
+impl std::error::Error for LoadError {}
+
+/// Loads a mesh file by extension: `.obj` (whole file), `.gltf` / `.glb` (the default
+/// scene with node transforms, or the mesh named `mesh`). Returns the mesh and notes
+/// worth showing a user (skipped primitives, skinned meshes read in bind pose).
+pub fn load_mesh_file(
+    path: &std::path::Path,
+    mesh: Option<&str>,
+) -> Result<(TriMesh, Vec<String>), LoadError> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "obj" => {
+            if mesh.is_some() {
+                return Err(LoadError::NamedMeshUnsupported);
+            }
+            let text = std::fs::read_to_string(path).map_err(LoadError::Io)?;
+            obj::parse_obj(&text)
+                .map(|m| (m, Vec::new()))
+                .map_err(LoadError::Obj)
+        }
+        "gltf" | "glb" => {
+            let bytes = std::fs::read(path).map_err(LoadError::Io)?;
+            let selection = mesh.map_or(gltf_input::GltfSelection::Scene, |m| {
+                gltf_input::GltfSelection::Mesh(m.to_string())
+            });
+            let (m, report) = gltf_input::load_gltf(&bytes, path.parent(), &selection)
+                .map_err(LoadError::Gltf)?;
+            let mut notes = Vec::new();
+            if report.skipped_primitives > 0 {
+                notes.push(format!(
+                    "{} point/line primitives skipped",
+                    report.skipped_primitives
+                ));
+            }
+            if report.skinned_instances > 0 {
+                notes.push(format!(
+                    "{} skinned mesh instances read in their bind pose",
+                    report.skinned_instances
+                ));
+            }
+            Ok((m, notes))
+        }
+        other => Err(LoadError::UnknownFormat(other.to_string())),
+    }
+}

@@ -180,3 +180,43 @@ fn output_is_identical_for_any_thread_count() {
     );
     assert_eq!(a, b);
 }
+
+/// A plate thinner than a voxel, placed between sample layers, and a single-sided quad
+/// (no inside at all) both keep negative samples next to every point of their surface.
+#[test]
+fn thin_features_keep_a_negative_sample() {
+    // Tilted so that no sample layer lies in its plane.
+    let tilt = glam::Quat::from_rotation_x(0.3) * glam::Quat::from_rotation_z(0.2);
+    let quad = TriMesh {
+        positions: [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            .map(|(x, z)| tilt * Vec3::new(x, 0.0, z))
+            .to_vec(),
+        triangles: vec![[0, 2, 1], [0, 3, 2]],
+    };
+    let mut plate = shapes::thin_plate(1.0, 1.0, 0.004);
+    for p in &mut plate.positions {
+        p.y += 0.0123; // off the sample lattice
+    }
+    for (name, mesh) in [("plate", plate), ("quad", quad)] {
+        let baked = bake(&mesh, &settings(33), None).unwrap();
+        let v = &baked.volume;
+        assert!(
+            baked.thin_feature_samples > 0,
+            "{name}: the guard had nothing to do"
+        );
+        // Every surface point's cell has a sample ≤ 0.
+        let (tris, _) = mesh.validate().unwrap();
+        for t in &tris {
+            for (u, w) in [(0.2, 0.3), (0.5, 0.25), (0.1, 0.8)] {
+                let s = t[0] + (t[1] - t[0]) * u + (t[2] - t[0]) * w;
+                let g = ((s - v.origin) / v.voxel_size).floor().as_uvec3();
+                let inside = (0..8u32)
+                    .any(|c| v.get(g.x + (c & 1), g.y + ((c >> 1) & 1), g.z + (c >> 2)) <= 0.0);
+                assert!(inside, "{name}: no negative sample around {s}");
+            }
+        }
+        // Distances keep their exact magnitude.
+        let a = accuracy(&mesh, v, true, None);
+        assert!(a.max_error <= 0.1, "{name}: {a:?}");
+    }
+}

@@ -5,7 +5,9 @@
 //!               [--out FILE] [--npy FILE]
 //! ```
 
-use penumbra_sdf::{BakeSettings, GridPolicy, Resolution, SignMethod, bake, format, obj};
+use penumbra_sdf::{
+    BakeSettings, GridPolicy, Resolution, SignMethod, bake, format, load_mesh_file,
+};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -13,9 +15,11 @@ use std::time::Instant;
 
 const USAGE: &str = "\
 usage: penumbra-bake MESH [--resolution N | --voxels-per-unit V] [--sign METHOD]
-                     [--two-sided] [--out FILE] [--npy FILE]
+                     [--two-sided] [--out FILE] [--npy FILE] [--mesh NAME]
 
-  MESH                 a Wavefront .obj file
+  MESH                 a Wavefront .obj, or a .gltf / .glb scene (all meshes of the
+                       default scene, placed by their node transforms)
+  --mesh NAME          glTF only: bake the mesh NAME alone, in its own space
   --resolution N       N samples along the longest axis (including a 2-sample border)
   --voxels-per-unit V  V samples per mesh unit, each axis clamped to 8..=256
                        (default: 32 per unit, like Unreal's defaults)
@@ -32,6 +36,7 @@ struct Args {
     sign: SignMethod,
     out: Option<PathBuf>,
     npy: Option<PathBuf>,
+    mesh_name: Option<String>,
 }
 
 fn parse(args: impl IntoIterator<Item = String>) -> Result<Args, String> {
@@ -42,6 +47,7 @@ fn parse(args: impl IntoIterator<Item = String>) -> Result<Args, String> {
         sign: SignMethod::WindingNumber,
         out: None,
         npy: None,
+        mesh_name: None,
     };
     let mut args = args.into_iter();
     while let Some(a) = args.next() {
@@ -88,6 +94,7 @@ fn parse(args: impl IntoIterator<Item = String>) -> Result<Args, String> {
             "--two-sided" => out.sign = SignMethod::TWO_SIDED,
             "--out" => out.out = Some(value("--out")?.into()),
             "--npy" => out.npy = Some(value("--npy")?.into()),
+            "--mesh" => out.mesh_name = Some(value("--mesh")?),
             flag if flag.starts_with("--") => {
                 return Err(format!("unknown option {flag}\n{USAGE}"));
             }
@@ -108,9 +115,11 @@ fn write(path: &Path, bytes: &[u8]) -> Result<(), String> {
 
 fn run(args: Args) -> Result<(), String> {
     let start = Instant::now();
-    let text = std::fs::read_to_string(&args.mesh)
-        .map_err(|e| format!("reading {}: {e}", args.mesh.display()))?;
-    let mesh = obj::parse_obj(&text).map_err(|e| format!("{}: {e}", args.mesh.display()))?;
+    let (mesh, notes) = load_mesh_file(&args.mesh, args.mesh_name.as_deref())
+        .map_err(|e| format!("{}: {e}", args.mesh.display()))?;
+    for note in notes {
+        eprintln!("penumbra-bake: note: {note}");
+    }
     let settings = BakeSettings {
         grid: GridPolicy {
             resolution: args.resolution.unwrap_or(GridPolicy::default().resolution),

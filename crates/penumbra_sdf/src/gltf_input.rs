@@ -1,0 +1,252 @@
+//! glTF 2.0 / GLB input: every mesh of a scene placed by its node transforms, or one
+//! named mesh in its own space.
+//!
+//! Buffers may be the GLB binary chunk, base64 `data:` URIs, or files next to the
+//! `.gltf` (relative URIs only; nothing is fetched from the network). Only triangle-list
+//! primitives are read; strips and fans are triangulated; points and lines are skipped.
+//! Skinned meshes are read in their bind pose (the node transforms, not the skin), and
+//! morph targets are ignored — both reported in [`GltfReport`].
+
+use crate::mesh::TriMesh;
+use glam::{Mat4, Vec3};
+use gltf::mesh::Mode;
+use std::path::Path;
+
+/// What to read from a glTF file.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum GltfSelection {
+    /// All meshes of the default scene (or the first scene), each instance placed by
+    /// its node's world transform.
+    Scene,
+    /// The mesh with this name, in its own local space (all of its primitives).
+    Mesh(String),
+}
+
+/// Why a glTF file could not be read.
+#[derive(Debug)]
+pub enum GltfError {
+    /// The file is not valid glTF / GLB.
+    Parse(String),
+    /// A buffer is missing or cannot be loaded.
+    Buffer(String),
+    /// The selection matched nothing.
+    NotFound(String),
+}
+
+impl std::fmt::Display for GltfError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            GltfError::Parse(e) => write!(f, "invalid glTF: {e}"),
+            GltfError::Buffer(e) => write!(f, "glTF buffer: {e}"),
+            GltfError::NotFound(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for GltfError {}
+
+/// Notes about what was read.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct GltfReport {
+    /// Primitives read.
+    pub primitives: usize,
+    /// Primitives skipped (points, lines, or without positions).
+    pub skipped_primitives: usize,
+    /// Mesh instances that have a skin (read in bind pose).
+    pub skinned_instances: usize,
+    /// Names of the meshes in the file (to help pick one).
+    pub mesh_names: Vec<String>,
+}
+
+/// Reads triangles from glTF or GLB bytes. `base_dir` resolves relative buffer URIs
+/// of `.gltf` files (`None`: only GLB and `data:` buffers).
+pub fn load_gltf(
+    bytes: &[u8],
+    base_dir: Option<&Path>,
+    selection: &GltfSelection,
+) -> Result<(TriMesh, GltfReport), GltfError> {
+    // The gltf crate validates structure but can still panic on inconsistent accessor
+    // data; a corrupt file must be an error, never a crash.
+    std::panic::catch_unwind(|| load_gltf_unguarded(bytes, base_dir, selection)).unwrap_or_else(
+        |_| {
+            Err(GltfError::Parse(
+                "inconsistent accessor or buffer data".into(),
+            ))
+        },
+    )
+}
+
+fn load_gltf_unguarded(
+    bytes: &[u8],
+    base_dir: Option<&Path>,
+    selection: &GltfSelection,
+) -> Result<(TriMesh, GltfReport), GltfError> {
+    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| GltfError::Parse(e.to_string()))?;
+    let mut buffers = Vec::new();
+    for buffer in gltf.document.buffers() {
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => gltf
+                .blob
+                .clone()
+                .ok_or_else(|| GltfError::Buffer("GLB binary chunk missing".into()))?,
+            gltf::buffer::Source::Uri(uri) => load_uri(uri, base_dir)?,
+        };
+        if data.len() < buffer.length() {
+            return Err(GltfError::Buffer(format!(
+                "buffer {} holds {} bytes, needs {}",
+                buffer.index(),
+                data.len(),
+                buffer.length()
+            )));
+        }
+        buffers.push(data);
+    }
+    let mut out = TriMesh::default();
+    let mut report = GltfReport {
+        mesh_names: gltf
+            .document
+            .meshes()
+            .map(|m| m.name().unwrap_or("").to_string())
+            .collect(),
+        ..Default::default()
+    };
+    match selection {
+        GltfSelection::Mesh(name) => {
+            let mesh = gltf
+                .document
+                .meshes()
+                .find(|m| m.name() == Some(name.as_str()))
+                .ok_or_else(|| {
+                    GltfError::NotFound(format!(
+                        "no mesh named {name:?} (meshes: {:?})",
+                        report.mesh_names
+                    ))
+                })?;
+            append_mesh(&mesh, Mat4::IDENTITY, &buffers, &mut out, &mut report)?;
+        }
+        GltfSelection::Scene => {
+            let scene = gltf
+                .document
+                .default_scene()
+                .or_else(|| gltf.document.scenes().next())
+                .ok_or_else(|| GltfError::NotFound("the file has no scene".into()))?;
+            let mut stack: Vec<(gltf::Node, Mat4)> =
+                scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+            while let Some((node, parent)) = stack.pop() {
+                let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+                if let Some(mesh) = node.mesh() {
+                    report.skinned_instances += usize::from(node.skin().is_some());
+                    append_mesh(&mesh, world, &buffers, &mut out, &mut report)?;
+                }
+                stack.extend(node.children().map(|c| (c, world)));
+            }
+        }
+    }
+    Ok((out, report))
+}
+
+fn load_uri(uri: &str, base_dir: Option<&Path>) -> Result<Vec<u8>, GltfError> {
+    if let Some(rest) = uri.strip_prefix("data:") {
+        let (_, payload) = rest
+            .split_once(";base64,")
+            .ok_or_else(|| GltfError::Buffer("only base64 data URIs are supported".into()))?;
+        use base64::Engine;
+        return base64::engine::general_purpose::STANDARD
+            .decode(payload)
+            .map_err(|e| GltfError::Buffer(format!("bad base64 data URI: {e}")));
+    }
+    if uri.contains("://") {
+        return Err(GltfError::Buffer(format!(
+            "remote buffer {uri:?} is not fetched"
+        )));
+    }
+    let dir = base_dir.ok_or_else(|| {
+        GltfError::Buffer(format!(
+            "external buffer {uri:?} needs the file's directory"
+        ))
+    })?;
+    let decoded = percent_decode(uri);
+    let path = dir.join(&decoded);
+    std::fs::read(&path).map_err(|e| GltfError::Buffer(format!("{}: {e}", path.display())))
+}
+
+fn percent_decode(s: &str) -> String {
+    let hex = |b: u8| (b as char).to_digit(16).map(|d| d as u8);
+    let bytes = s.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let escaped = (bytes[i] == b'%' && i + 2 < bytes.len())
+            .then(|| Some(hex(bytes[i + 1])? * 16 + hex(bytes[i + 2])?))
+            .flatten();
+        if let Some(v) = escaped {
+            out.push(v);
+            i += 3;
+        } else {
+            out.push(bytes[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+fn append_mesh(
+    mesh: &gltf::Mesh,
+    transform: Mat4,
+    buffers: &[Vec<u8>],
+    out: &mut TriMesh,
+    report: &mut GltfReport,
+) -> Result<(), GltfError> {
+    // A mirroring transform flips the winding: swap two corners to keep outside out.
+    let flip = transform.determinant() < 0.0;
+    for primitive in mesh.primitives() {
+        let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+        let (Some(positions), true) = (
+            reader.read_positions(),
+            matches!(
+                primitive.mode(),
+                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+            ),
+        ) else {
+            report.skipped_primitives += 1;
+            continue;
+        };
+        let base = out.positions.len() as u32;
+        out.positions
+            .extend(positions.map(|p| transform.transform_point3(Vec3::from_array(p))));
+        let count = out.positions.len() as u32 - base;
+        let indices: Vec<u32> = match reader.read_indices() {
+            Some(i) => i.into_u32().collect(),
+            None => (0..count).collect(),
+        };
+        let tris: Vec<[u32; 3]> = match primitive.mode() {
+            Mode::Triangles => indices
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect(),
+            Mode::TriangleStrip => indices
+                .windows(3)
+                .enumerate()
+                .map(|(k, t)| {
+                    if k % 2 == 0 {
+                        [t[0], t[1], t[2]]
+                    } else {
+                        [t[1], t[0], t[2]]
+                    }
+                })
+                .collect(),
+            _ => (1..indices.len().saturating_sub(1))
+                .map(|k| [indices[0], indices[k], indices[k + 1]])
+                .collect(),
+        };
+        for t in tris {
+            // Out-of-range indices stay out of range (base + i ≥ len) and are reported
+            // by `TriMesh::validate`.
+            let t = t.map(|i| base.saturating_add(i));
+            out.triangles
+                .push(if flip { [t[0], t[2], t[1]] } else { t });
+        }
+        report.primitives += 1;
+    }
+    Ok(())
+}
