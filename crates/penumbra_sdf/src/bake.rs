@@ -8,7 +8,7 @@ use crate::bvh::Bvh;
 use crate::grid::{GridError, GridPolicy, GridSpec};
 use crate::mesh::{MeshError, MeshReport, TriMesh};
 use crate::volume::SdfVolume;
-use glam::Vec3;
+use glam::{UVec3, Vec3};
 use half::f16;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -105,6 +105,21 @@ pub struct Bake {
     pub grid: GridSpec,
     /// Samples made negative by the thin-feature guard (see [`bake`]).
     pub thin_feature_samples: usize,
+    /// Wall-clock time of each phase.
+    pub timings: BakeTimings,
+}
+
+/// Wall-clock time of each phase of a bake.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BakeTimings {
+    /// Mesh validation and BVH construction.
+    pub setup: std::time::Duration,
+    /// Exact unsigned distances.
+    pub distance: std::time::Duration,
+    /// Inside/outside decisions.
+    pub sign: std::time::Duration,
+    /// The thin-feature guard.
+    pub thin_features: std::time::Duration,
 }
 
 /// Bakes a signed distance field. `progress`, if given, is called with the fraction of
@@ -135,6 +150,7 @@ pub fn bake(
         }
         _ => {}
     }
+    let t_start = std::time::Instant::now();
     let (tris, report) = mesh.validate()?;
     // Work relative to the bounds' centre: keeps f32 precision for meshes far from
     // their origin.
@@ -146,49 +162,90 @@ pub fn bake(
     let bvh = Bvh::build(&local);
 
     let dims = grid.dims;
-    let slice = (dims.x * dims.y) as usize;
-    let mut data = vec![f16::ZERO; slice * dims.z as usize];
-    let done = AtomicUsize::new(0);
     let origin = grid.origin - center;
     let h = grid.voxel_size;
+    let position = |i: u32, j: u32, k: u32| origin + h * Vec3::new(i as f32, j as f32, k as f32);
+    let slice = (dims.x * dims.y) as usize;
+    let done = AtomicUsize::new(0);
+    let report_slice = || {
+        let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+        if let Some(report_progress) = progress {
+            // Distances are most of the work; signs are the rest.
+            report_progress(n as f32 / (dims.z as f32 * 1.25));
+        }
+    };
+
+    let t_setup = t_start.elapsed();
+    // Pass 1: exact unsigned distances. Each sample searches from the closest triangles
+    // of its neighbours in the row and in the previous row, bounded by their distance
+    // plus one voxel (the distance function is 1-Lipschitz).
+    let mut distance = vec![0.0f32; slice * dims.z as usize];
+    distance
+        .par_chunks_mut(slice)
+        .enumerate()
+        .for_each(|(k, out)| {
+            let mut above = vec![(f32::INFINITY, u32::MAX); dims.x as usize];
+            for j in 0..dims.y {
+                let mut left = (f32::INFINITY, u32::MAX);
+                for i in 0..dims.x {
+                    let p = position(i, j, k as u32);
+                    let up = above[i as usize];
+                    let bound = left.0.min(up.0) + h;
+                    let hints = [left.1, up.1];
+                    let hints = &hints[..hints.iter().position(|&t| t == u32::MAX).unwrap_or(2)];
+                    let hit = bvh
+                        .closest(p, bound * bound * (1.0 + 1e-5) + 1e-30, hints)
+                        .or_else(|| bvh.closest(p, f32::INFINITY, &[]))
+                        .expect("a validated mesh has triangles");
+                    let d = hit.distance_squared.sqrt();
+                    left = (d, hit.triangle);
+                    above[i as usize] = left;
+                    out[(i + dims.x * j) as usize] = d;
+                }
+            }
+            report_slice();
+        });
+
+    let t_distance = t_start.elapsed();
+    // Pass 2: signs.
+    let coarse = match settings.sign {
+        SignMethod::WindingNumber => Some(coarse_winding(&bvh, dims, &position)),
+        _ => None,
+    };
     let directions = match settings.sign {
         SignMethod::BackfaceRatio { .. } => fibonacci_directions(64),
         _ => Vec::new(),
     };
+    let mut data = vec![f16::ZERO; distance.len()];
     data.par_chunks_mut(slice).enumerate().for_each(|(k, out)| {
+        let k = k as u32;
         for j in 0..dims.y {
-            let mut hint = None;
-            let mut bound = f32::INFINITY;
             for i in 0..dims.x {
-                let p = origin + h * Vec3::new(i as f32, j as f32, k as f32);
-                let hit = bvh
-                    .closest(p, bound, hint)
-                    .or_else(|| bvh.closest(p, f32::INFINITY, None))
-                    .expect("a validated mesh has triangles");
-                let d = hit.distance_squared.sqrt();
-                hint = Some(hit.triangle);
-                // The next sample is at most one voxel farther from this closest point.
-                bound = (d + h) * (d + h) * (1.0 + 1e-5) + 1e-12;
-                let on_border = [i, j, k as u32]
+                let index = (i + dims.x * j) as usize;
+                let d = distance[index + slice * k as usize];
+                let p = position(i, j, k);
+                let on_border = [i, j, k]
                     .iter()
                     .zip(dims.to_array())
                     .any(|(&c, n)| c < grid.border || c + grid.border >= n);
-                let signed = match settings.sign {
-                    _ if on_border => d,
-                    SignMethod::TwoSided { shell_voxels } => d - shell_voxels * h,
+                let inside = match settings.sign {
+                    _ if on_border => false,
+                    SignMethod::TwoSided { shell_voxels } => {
+                        out[index] = f16::from_f32(d - shell_voxels * h);
+                        continue;
+                    }
                     SignMethod::WindingNumber => {
-                        if bvh.winding_number(p) > 0.5 {
-                            -d
-                        } else {
-                            d
-                        }
+                        let coarse = coarse.as_ref().expect("computed for this method");
+                        coarse
+                            .decisive_sign(i, j, k, d, h)
+                            .unwrap_or_else(|| bvh.winding_number(p) > 0.5)
                     }
                     SignMethod::RayParity => {
                         let odd = PARITY_DIRECTIONS
                             .iter()
                             .filter(|dir| bvh.ray_crossings(p, dir.normalize(), 0.0) % 2 == 1)
                             .count();
-                        if odd >= 2 { -d } else { d }
+                        odd >= 2
                     }
                     SignMethod::BackfaceRatio { threshold } => {
                         let (mut hits, mut back) = (0u32, 0u32);
@@ -200,21 +257,17 @@ pub fn bake(
                                 back += u32::from(!front);
                             }
                         }
-                        if hits > 0 && back as f32 > threshold * hits as f32 {
-                            -d
-                        } else {
-                            d
-                        }
+                        hits > 0 && back as f32 > threshold * hits as f32
                     }
                 };
-                out[(i + dims.x * j) as usize] = f16::from_f32(signed);
+                out[index] = f16::from_f32(if inside { -d } else { d });
             }
         }
-        let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-        if let Some(report_progress) = progress {
-            report_progress(n as f32 / dims.z as f32);
-        }
     });
+    if let Some(report_progress) = progress {
+        report_progress(1.0);
+    }
+    let t_sign = t_start.elapsed();
     let mut volume = SdfVolume {
         dims,
         origin: grid.origin,
@@ -222,7 +275,15 @@ pub fn bake(
         data,
     };
     let thin_feature_samples = keep_thin_features(&mut volume, &local, origin, grid.border);
+    drop(distance);
+    let t_end = t_start.elapsed();
     Ok(Bake {
+        timings: BakeTimings {
+            setup: t_setup,
+            distance: t_distance - t_setup,
+            sign: t_sign - t_distance,
+            thin_features: t_end - t_sign,
+        },
         volume,
         mesh: report,
         grid,
@@ -290,6 +351,66 @@ fn keep_thin_features(
         }
     }
     flipped
+}
+
+/// Winding numbers on every second sample along each axis, used to skip exact
+/// evaluations where the answer is certain.
+struct CoarseWinding {
+    dims: UVec3,
+    w: Vec<f32>,
+}
+
+fn coarse_winding(
+    bvh: &Bvh,
+    dims: UVec3,
+    position: &(dyn Fn(u32, u32, u32) -> Vec3 + Sync),
+) -> CoarseWinding {
+    let cd = (dims + UVec3::ONE) / 2;
+    let slice = (cd.x * cd.y) as usize;
+    let mut w = vec![0.0f32; slice * cd.z as usize];
+    w.par_chunks_mut(slice).enumerate().for_each(|(ck, out)| {
+        for cj in 0..cd.y {
+            for ci in 0..cd.x {
+                out[(ci + cd.x * cj) as usize] =
+                    bvh.winding_number(position(2 * ci, 2 * cj, 2 * ck as u32));
+            }
+        }
+    });
+    CoarseWinding { dims: cd, w }
+}
+
+impl CoarseWinding {
+    /// The inside/outside answer at sample `(i, j, k)` when it is certain without an
+    /// exact evaluation: no surface within the coarse cell (the sample's distance `d`
+    /// exceeds the cell's diagonal, so the winding number is harmonic across it) and all
+    /// eight coarse corners agree with margin. `None`: evaluate exactly.
+    fn decisive_sign(&self, i: u32, j: u32, k: u32, d: f32, h: f32) -> Option<bool> {
+        const MARGIN: f32 = 0.25;
+        let (ci, cj, ck) = (i / 2, j / 2, k / 2);
+        if i % 2 == 0 && j % 2 == 0 && k % 2 == 0 {
+            let w = self.w[(ci + self.dims.x * (cj + self.dims.y * ck)) as usize];
+            return Some(w > 0.5);
+        }
+        if d <= 2.0 * 3f32.sqrt() * h {
+            return None;
+        }
+        let mut sign = None;
+        for corner in 0..8u32 {
+            let x = (ci + (corner & 1)).min(self.dims.x - 1);
+            let y = (cj + ((corner >> 1) & 1)).min(self.dims.y - 1);
+            let z = (ck + (corner >> 2)).min(self.dims.z - 1);
+            let w = self.w[(x + self.dims.x * (y + self.dims.y * z)) as usize];
+            if (w - 0.5).abs() <= MARGIN {
+                return None;
+            }
+            match sign {
+                None => sign = Some(w > 0.5),
+                Some(s) if s != (w > 0.5) => return None,
+                Some(_) => {}
+            }
+        }
+        sign
+    }
 }
 
 /// Skewed directions for parity rays (axis-aligned rays hit edges of axis-aligned

@@ -5,7 +5,7 @@
 //! tree order so leaves are contiguous in memory.
 
 use crate::geometry::{self, Aabb, Feature};
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 const LEAF_SIZE: usize = 4;
 const BINS: usize = 16;
@@ -15,7 +15,8 @@ const BETA: f32 = 2.0;
 
 #[derive(Clone, Copy, Debug)]
 struct Node {
-    bounds: Aabb,
+    min: Vec3A,
+    max: Vec3A,
     /// Leaf: first triangle (tree order). Interior: index of the right child (the left
     /// child is the next node).
     start_or_right: u32,
@@ -28,8 +29,8 @@ struct Node {
 /// containing every triangle of the node.
 #[derive(Clone, Copy, Debug)]
 struct Dipole {
-    normal_sum: Vec3,
-    center: Vec3,
+    normal_sum: Vec3A,
+    center: Vec3A,
     radius: f32,
 }
 
@@ -39,7 +40,7 @@ struct Dipole {
 /// far-field closest-point queries cheap.
 #[derive(Clone, Copy, Debug)]
 struct Slab {
-    axis: Vec3,
+    axis: Vec3A,
     offset: f32,
     half_thickness: f32,
 }
@@ -64,7 +65,7 @@ pub struct Bvh {
     dipoles: Vec<Dipole>,
     slabs: Vec<Slab>,
     /// Triangle corners in tree order.
-    tris: Vec<[Vec3; 3]>,
+    tris: Vec<[Vec3A; 3]>,
     /// Input index of each tree-order triangle.
     order: Vec<u32>,
     /// Tree-order index of each input triangle (inverse of `order`).
@@ -98,7 +99,10 @@ impl Bvh {
             build_recursive(&mut items, 0, &mut nodes);
         }
         let order: Vec<u32> = items.iter().map(|t| t.index).collect();
-        let tris: Vec<[Vec3; 3]> = order.iter().map(|&i| tris[i as usize]).collect();
+        let tris: Vec<[Vec3A; 3]> = order
+            .iter()
+            .map(|&i| tris[i as usize].map(Vec3A::from))
+            .collect();
         let mut inverse = vec![0u32; order.len()];
         for (tree, &input) in order.iter().enumerate() {
             inverse[input as usize] = tree as u32;
@@ -108,8 +112,8 @@ impl Bvh {
             inverse,
             dipoles: vec![
                 Dipole {
-                    normal_sum: Vec3::ZERO,
-                    center: Vec3::ZERO,
+                    normal_sum: Vec3A::ZERO,
+                    center: Vec3A::ZERO,
                     radius: 0.0
                 };
                 nodes.len()
@@ -144,7 +148,7 @@ impl Bvh {
         let len = n.length();
         if len <= 0.0 || !len.is_finite() {
             return Slab {
-                axis: Vec3::ZERO,
+                axis: Vec3A::ZERO,
                 offset: 0.0,
                 half_thickness: 0.0,
             };
@@ -169,8 +173,9 @@ impl Bvh {
 
     /// A lower bound on the squared distance from `p` to any triangle of `node`.
     #[inline]
-    fn lower_bound_squared(&self, node: usize, p: Vec3) -> f32 {
-        let b = self.nodes[node].bounds.distance_squared(p);
+    fn lower_bound_squared(&self, node: usize, p: Vec3A) -> f32 {
+        let n = &self.nodes[node];
+        let b = (n.min - p).max(p - n.max).max(Vec3A::ZERO).length_squared();
         let s = &self.slabs[node];
         let d = ((s.axis.dot(p) - s.offset).abs() - s.half_thickness).max(0.0);
         b.max(d * d)
@@ -183,15 +188,18 @@ impl Bvh {
 
     /// Bounds of all triangles (the empty box for an empty tree).
     pub fn bounds(&self) -> Aabb {
-        self.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds)
+        self.nodes.first().map_or(Aabb::EMPTY, |n| Aabb {
+            min: n.min.into(),
+            max: n.max.into(),
+        })
     }
 
     /// Returns (area-weighted normal sum, area-weighted centroid sum, area sum).
-    fn compute_dipoles(&mut self, node: usize) -> (Vec3, Vec3, f32) {
+    fn compute_dipoles(&mut self, node: usize) -> (Vec3A, Vec3A, f32) {
         let n = self.nodes[node];
         let (normal_sum, weighted_center, area) = if n.count > 0 {
             let range = n.start_or_right as usize..(n.start_or_right + n.count) as usize;
-            let mut acc = (Vec3::ZERO, Vec3::ZERO, 0.0);
+            let mut acc = (Vec3A::ZERO, Vec3A::ZERO, 0.0);
             for t in &self.tris[range] {
                 let cross = (t[1] - t[0]).cross(t[2] - t[0]);
                 let a = 0.5 * cross.length();
@@ -208,13 +216,10 @@ impl Bvh {
         let center = if area > 0.0 {
             weighted_center / area
         } else {
-            n.bounds.center()
+            (n.min + n.max) * 0.5
         };
         // A ball around `center` containing the node's box contains its triangles.
-        let radius = (n.bounds.min - center)
-            .abs()
-            .max((n.bounds.max - center).abs())
-            .length();
+        let radius = (n.min - center).abs().max((n.max - center).abs()).length();
         self.dipoles[node] = Dipole {
             normal_sum,
             center,
@@ -224,83 +229,77 @@ impl Bvh {
     }
 
     /// The closest point of any triangle to `p`, searching only closer than
-    /// `sqrt(max_distance_squared)` (pass `f32::INFINITY` for no bound). `hint` is a
-    /// triangle (input index) likely to be close, e.g. the previous voxel's: it tightens
-    /// the bound before the traversal starts.
-    pub fn closest(
-        &self,
-        p: Vec3,
-        max_distance_squared: f32,
-        hint: Option<u32>,
-    ) -> Option<ClosestHit> {
+    /// `sqrt(max_distance_squared)` (pass `f32::INFINITY` for no bound). `hints` are
+    /// triangles (input indices) likely to be close, e.g. the neighbouring samples'
+    /// closest triangles: they tighten the bound before the traversal starts. The
+    /// returned distance does not depend on the hints.
+    pub fn closest(&self, p: Vec3, max_distance_squared: f32, hints: &[u32]) -> Option<ClosestHit> {
         if self.nodes.is_empty() {
             return None;
         }
-        let mut best: Option<ClosestHit> = None;
+        let p = Vec3A::from(p);
+        let mut best: Option<(f32, usize, Vec3A, Feature)> = None;
         let mut best_d2 = max_distance_squared;
-        if let Some(h) = hint.and_then(|h| self.tree_index_of(h)) {
-            let t = &self.tris[h];
-            let (q, f) = geometry::closest_point_on_triangle(p, t[0], t[1], t[2]);
-            let d2 = (q - p).length_squared();
-            if d2 < best_d2 {
-                best_d2 = d2;
-                best = Some(ClosestHit {
-                    distance_squared: d2,
-                    triangle: self.order[h],
-                    point: q,
-                    feature: f,
-                });
+        let consider =
+            |i: usize, best_d2: &mut f32, best: &mut Option<(f32, usize, Vec3A, Feature)>| {
+                let t = &self.tris[i];
+                let (q, f) = geometry::closest_point_on_triangle_a(p, t[0], t[1], t[2]);
+                let d2 = (q - p).length_squared();
+                // Ties go to the lowest input index, whatever the traversal order.
+                if d2 < *best_d2
+                    || (d2 == *best_d2 && best.is_some_and(|b| self.order[i] < self.order[b.1]))
+                {
+                    *best_d2 = d2;
+                    *best = Some((d2, i, q, f));
+                }
+            };
+        for &h in hints {
+            if let Some(i) = self.tree_index_of(h) {
+                consider(i, &mut best_d2, &mut best);
             }
         }
-        let mut stack = [0u32; 64];
+        // Stack of (node, lower bound of its squared distance).
+        let mut stack = [(0u32, 0.0f32); 64];
+        stack[0] = (0, self.lower_bound_squared(0, p));
         let mut top = 1;
         while top > 0 {
             top -= 1;
-            let node = &self.nodes[stack[top] as usize];
-            if self.lower_bound_squared(stack[top] as usize, p) >= best_d2 {
+            let (index, lb) = stack[top];
+            if lb >= best_d2 {
                 continue;
             }
+            let node = &self.nodes[index as usize];
             if node.count > 0 {
                 let start = node.start_or_right as usize;
                 for i in start..start + node.count as usize {
-                    let t = &self.tris[i];
-                    let (q, f) = geometry::closest_point_on_triangle(p, t[0], t[1], t[2]);
-                    let d2 = (q - p).length_squared();
-                    // Ties go to the lowest input index: deterministic across traversal orders.
-                    if d2 < best_d2
-                        || (d2 == best_d2 && best.is_some_and(|b| self.order[i] < b.triangle))
-                    {
-                        best_d2 = d2;
-                        best = Some(ClosestHit {
-                            distance_squared: d2,
-                            triangle: self.order[i],
-                            point: q,
-                            feature: f,
-                        });
-                    }
+                    consider(i, &mut best_d2, &mut best);
                 }
+                continue;
+            }
+            let (left, right) = (index + 1, node.start_or_right);
+            let dl = self.lower_bound_squared(left as usize, p);
+            let dr = self.lower_bound_squared(right as usize, p);
+            // Push the farther child first so the nearer one is visited first.
+            let (near, far) = if dl <= dr {
+                ((left, dl), (right, dr))
             } else {
-                let left = stack[top] + 1;
-                let right = node.start_or_right;
-                let dl = self.lower_bound_squared(left as usize, p);
-                let dr = self.lower_bound_squared(right as usize, p);
-                // Push the farther child first so the nearer one is visited first.
-                let (near, far, d_far) = if dl <= dr {
-                    (left, right, dr)
-                } else {
-                    (right, left, dl)
-                };
-                if d_far < best_d2 && top < stack.len() {
-                    stack[top] = far;
-                    top += 1;
-                }
-                if top < stack.len() {
-                    stack[top] = near;
-                    top += 1;
-                }
+                ((right, dr), (left, dl))
+            };
+            if far.1 < best_d2 && top < stack.len() {
+                stack[top] = far;
+                top += 1;
+            }
+            if near.1 < best_d2 && top < stack.len() {
+                stack[top] = near;
+                top += 1;
             }
         }
-        best
+        best.map(|(d2, i, q, f)| ClosestHit {
+            distance_squared: d2,
+            triangle: self.order[i],
+            point: q.into(),
+            feature: f,
+        })
     }
 
     fn tree_index_of(&self, input_index: u32) -> Option<usize> {
@@ -315,6 +314,7 @@ impl Bvh {
         if self.nodes.is_empty() {
             return 0.0;
         }
+        let q = Vec3A::from(q);
         let mut w = 0.0;
         let mut stack = [0u32; 64];
         let mut top = 1;
@@ -332,7 +332,7 @@ impl Bvh {
             if node.count > 0 {
                 let start = node.start_or_right as usize;
                 for t in &self.tris[start..start + node.count as usize] {
-                    w += geometry::winding_contribution(q, t[0], t[1], t[2]);
+                    w += geometry::winding_contribution_a(q, t[0], t[1], t[2]);
                 }
             } else if top + 2 <= stack.len() {
                 stack[top] = index as u32 + 1;
@@ -354,6 +354,7 @@ impl Bvh {
         if self.nodes.is_empty() {
             return None;
         }
+        let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
         let inv = dir.recip();
         let mut best: Option<(f32, bool, u32)> = None;
         let mut t_best = t_max;
@@ -363,7 +364,7 @@ impl Bvh {
             top -= 1;
             let index = stack[top] as usize;
             let node = &self.nodes[index];
-            if !node.bounds.hit_by_ray(origin, inv, t_min, t_best) {
+            if !hit_box(node, origin, inv, t_min, t_best) {
                 continue;
             }
             if node.count > 0 {
@@ -371,7 +372,7 @@ impl Bvh {
                 for i in start..start + node.count as usize {
                     let t = &self.tris[i];
                     if let Some((th, front)) =
-                        geometry::ray_triangle(origin, dir, t[0], t[1], t[2], t_min, t_best)
+                        geometry::ray_triangle_a(origin, dir, *t, t_min, t_best)
                     {
                         t_best = th;
                         best = Some((th, front, self.order[i]));
@@ -391,6 +392,7 @@ impl Bvh {
         if self.nodes.is_empty() {
             return 0;
         }
+        let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
         let inv = dir.recip();
         let mut count = 0;
         let mut stack = [0u32; 64];
@@ -399,15 +401,13 @@ impl Bvh {
             top -= 1;
             let index = stack[top] as usize;
             let node = &self.nodes[index];
-            if !node.bounds.hit_by_ray(origin, inv, t_min, f32::INFINITY) {
+            if !hit_box(node, origin, inv, t_min, f32::INFINITY) {
                 continue;
             }
             if node.count > 0 {
                 let start = node.start_or_right as usize;
                 for t in &self.tris[start..start + node.count as usize] {
-                    if geometry::ray_triangle(origin, dir, t[0], t[1], t[2], t_min, f32::INFINITY)
-                        .is_some()
-                    {
+                    if geometry::ray_triangle_a(origin, dir, *t, t_min, f32::INFINITY).is_some() {
                         count += 1;
                     }
                 }
@@ -421,11 +421,22 @@ impl Bvh {
     }
 }
 
+/// Ray slab test against a node's box within `(t_min, t_max)`.
+#[inline]
+fn hit_box(node: &Node, origin: Vec3A, inv_dir: Vec3A, t_min: f32, t_max: f32) -> bool {
+    let t0 = (node.min - origin) * inv_dir;
+    let t1 = (node.max - origin) * inv_dir;
+    let near = t0.min(t1).max_element().max(t_min);
+    let far = t0.max(t1).min_element().min(t_max);
+    near <= far
+}
+
 fn build_recursive(items: &mut [BuildTri], offset: usize, nodes: &mut Vec<Node>) -> usize {
     let index = nodes.len();
     let bounds = items.iter().fold(Aabb::EMPTY, |b, t| b.union(&t.bounds));
     nodes.push(Node {
-        bounds,
+        min: bounds.min.into(),
+        max: bounds.max.into(),
         start_or_right: offset as u32,
         count: items.len() as u32,
     });
@@ -491,8 +502,13 @@ fn sah_split(items: &mut [BuildTri]) -> Option<usize> {
         }
     }
     let split_bin = best_bin?;
-    // Stable partition keeps the build deterministic.
-    items.sort_by_key(|t| bin_of(t.centroid) >= split_bin);
-    let split = items.iter().position(|t| bin_of(t.centroid) >= split_bin)?;
+    // In-place partition (deterministic: a fixed sequence of swaps).
+    let mut split = 0;
+    for i in 0..items.len() {
+        if bin_of(items[i].centroid) < split_bin {
+            items.swap(i, split);
+            split += 1;
+        }
+    }
     (split > 0 && split < items.len()).then_some(split)
 }

@@ -1,6 +1,6 @@
 //! Triangle primitives: closest point, solid angle, ray intersection.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 /// Which feature of a triangle a closest point lies on (used to pick pseudonormals and
 /// to reason about ties at shared vertices and edges).
@@ -19,6 +19,13 @@ pub enum Feature {
 /// (the result is the closest point of the segment or point they collapse to).
 #[inline]
 pub fn closest_point_on_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> (Vec3, Feature) {
+    let (q, f) = closest_point_on_triangle_a(p.into(), a.into(), b.into(), c.into());
+    (q.into(), f)
+}
+
+/// [`closest_point_on_triangle`] on SIMD vectors (the BVH's hot path).
+#[inline]
+pub fn closest_point_on_triangle_a(p: Vec3A, a: Vec3A, b: Vec3A, c: Vec3A) -> (Vec3A, Feature) {
     let ab = b - a;
     let ac = c - a;
     let ap = p - a;
@@ -69,7 +76,7 @@ pub fn closest_point_on_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> (Vec3, F
     (a + ab * v + ac * w, Feature::Face)
 }
 
-fn closest_on_segment(p: Vec3, a: Vec3, b: Vec3) -> Vec3 {
+fn closest_on_segment(p: Vec3A, a: Vec3A, b: Vec3A) -> Vec3A {
     let ab = b - a;
     let len2 = ab.length_squared();
     if len2 <= 0.0 {
@@ -78,7 +85,7 @@ fn closest_on_segment(p: Vec3, a: Vec3, b: Vec3) -> Vec3 {
     a + ab * ((p - a).dot(ab) / len2).clamp(0.0, 1.0)
 }
 
-fn closest_on_degenerate(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> (Vec3, Feature) {
+fn closest_on_degenerate(p: Vec3A, a: Vec3A, b: Vec3A, c: Vec3A) -> (Vec3A, Feature) {
     let candidates = [
         (closest_on_segment(p, a, b), Feature::Edge(0)),
         (closest_on_segment(p, b, c), Feature::Edge(1)),
@@ -100,6 +107,12 @@ fn closest_on_degenerate(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> (Vec3, Feature) 
 /// `(b − a) × (c − a)`), so a closed, outward-oriented mesh sums to 1 inside.
 #[inline]
 pub fn winding_contribution(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> f32 {
+    winding_contribution_a(p.into(), a.into(), b.into(), c.into())
+}
+
+/// [`winding_contribution`] on SIMD vectors.
+#[inline]
+pub fn winding_contribution_a(p: Vec3A, a: Vec3A, b: Vec3A, c: Vec3A) -> f32 {
     let a = a - p;
     let b = b - p;
     let c = c - p;
@@ -121,6 +134,24 @@ pub fn ray_triangle(
     a: Vec3,
     b: Vec3,
     c: Vec3,
+    t_min: f32,
+    t_max: f32,
+) -> Option<(f32, bool)> {
+    ray_triangle_a(
+        origin.into(),
+        dir.into(),
+        [a.into(), b.into(), c.into()],
+        t_min,
+        t_max,
+    )
+}
+
+/// [`ray_triangle`] on SIMD vectors.
+#[inline]
+pub fn ray_triangle_a(
+    origin: Vec3A,
+    dir: Vec3A,
+    [a, b, c]: [Vec3A; 3],
     t_min: f32,
     t_max: f32,
 ) -> Option<(f32, bool)> {

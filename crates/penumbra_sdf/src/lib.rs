@@ -28,7 +28,7 @@ pub mod obj;
 pub mod shapes;
 pub mod volume;
 
-pub use bake::{Bake, BakeError, BakeSettings, SignMethod, bake};
+pub use bake::{Bake, BakeError, BakeSettings, BakeTimings, SignMethod, bake};
 pub use grid::{GridPolicy, GridSpec, Resolution};
 pub use mesh::{MeshError, TriMesh};
 pub use volume::SdfVolume;

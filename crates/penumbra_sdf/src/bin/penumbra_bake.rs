@@ -145,6 +145,9 @@ fn run(args: Args) -> Result<(), String> {
         eprintln!();
     }
     let v = &baked.volume;
+    if std::env::var_os("PENUMBRA_BAKE_TIMINGS").is_some() {
+        eprintln!("penumbra-bake: timings {:?}", baked.timings);
+    }
     let out = args.out.unwrap_or_else(|| args.mesh.with_extension("psdf"));
     write(&out, &format::to_bytes(v))?;
     if let Some(npy) = &args.npy {
