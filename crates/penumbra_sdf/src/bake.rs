@@ -302,13 +302,31 @@ fn keep_thin_features(
     let h = volume.voxel_size;
     let dims = volume.dims;
     let mut flipped = 0;
-    for t in tris {
+    // Lattice spacing ≤ h/2 along every edge. A pathological mesh (a dense soup of
+    // huge triangles) could ask for billions of points: past a budget of 16 points per
+    // sample the lattice is coarsened uniformly (documented cost bound, never a hang).
+    let lattice = |t: &[Vec3; 3]| {
         let longest = (t[1] - t[0])
             .length()
             .max((t[2] - t[1]).length())
             .max((t[0] - t[2]).length());
-        // Lattice spacing ≤ h/2 along every edge; capped for absurdly large triangles.
-        let n = ((2.0 * longest / h).ceil() as u32).clamp(1, 2048);
+        (2.0 * longest / h).ceil().max(1.0)
+    };
+    let total: f64 = tris
+        .iter()
+        .map(|t| {
+            let n = lattice(t) as f64;
+            (n + 1.0) * (n + 2.0) / 2.0
+        })
+        .sum();
+    let budget = 16.0 * volume.data.len() as f64 + 1e6;
+    let scale = if total > budget {
+        (budget / total).sqrt()
+    } else {
+        1.0
+    };
+    for t in tris {
+        let n = ((lattice(t) as f64 * scale).ceil() as u32).clamp(1, 2048);
         for a in 0..=n {
             for b in 0..=(n - a) {
                 let (u, v) = (a as f32 / n as f32, b as f32 / n as f32);
@@ -387,7 +405,7 @@ impl CoarseWinding {
     fn decisive_sign(&self, i: u32, j: u32, k: u32, d: f32, h: f32) -> Option<bool> {
         const MARGIN: f32 = 0.25;
         let (ci, cj, ck) = (i / 2, j / 2, k / 2);
-        if i % 2 == 0 && j % 2 == 0 && k % 2 == 0 {
+        if i.is_multiple_of(2) && j.is_multiple_of(2) && k.is_multiple_of(2) {
             let w = self.w[(ci + self.dims.x * (cj + self.dims.y * ck)) as usize];
             return Some(w > 0.5);
         }

@@ -17,6 +17,7 @@ const BETA: f32 = 2.0;
 struct Node {
     min: Vec3A,
     max: Vec3A,
+    slab: Slab,
     /// Leaf: first triangle (tree order). Interior: index of the right child (the left
     /// child is the next node).
     start_or_right: u32,
@@ -38,7 +39,7 @@ struct Dipole {
 /// node, with `axis` the node's mean normal. For near-flat patches seen from afar it
 /// bounds the distance far more tightly than the box does, which is what makes
 /// far-field closest-point queries cheap.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 struct Slab {
     axis: Vec3A,
     offset: f32,
@@ -63,7 +64,6 @@ pub struct ClosestHit {
 pub struct Bvh {
     nodes: Vec<Node>,
     dipoles: Vec<Dipole>,
-    slabs: Vec<Slab>,
     /// Triangle corners in tree order.
     tris: Vec<[Vec3A; 3]>,
     /// Input index of each tree-order triangle.
@@ -108,7 +108,6 @@ impl Bvh {
             inverse[input as usize] = tree as u32;
         }
         let mut bvh = Bvh {
-            slabs: Vec::new(),
             inverse,
             dipoles: vec![
                 Dipole {
@@ -125,7 +124,9 @@ impl Bvh {
         if !bvh.nodes.is_empty() {
             bvh.compute_dipoles(0);
         }
-        bvh.slabs = (0..bvh.nodes.len()).map(|i| bvh.compute_slab(i)).collect();
+        for i in 0..bvh.nodes.len() {
+            bvh.nodes[i].slab = bvh.compute_slab(i);
+        }
         bvh
     }
 
@@ -176,7 +177,7 @@ impl Bvh {
     fn lower_bound_squared(&self, node: usize, p: Vec3A) -> f32 {
         let n = &self.nodes[node];
         let b = (n.min - p).max(p - n.max).max(Vec3A::ZERO).length_squared();
-        let s = &self.slabs[node];
+        let s = &n.slab;
         let d = ((s.axis.dot(p) - s.offset).abs() - s.half_thickness).max(0.0);
         b.max(d * d)
     }
@@ -437,6 +438,7 @@ fn build_recursive(items: &mut [BuildTri], offset: usize, nodes: &mut Vec<Node>)
     nodes.push(Node {
         min: bounds.min.into(),
         max: bounds.max.into(),
+        slab: Slab::default(),
         start_or_right: offset as u32,
         count: items.len() as u32,
     });

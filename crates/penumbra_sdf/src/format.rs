@@ -153,8 +153,8 @@ pub fn from_bytes(bytes: &[u8]) -> Result<SdfVolume, FormatError> {
     let dims = UVec3::new(u32_at(8), u32_at(12), u32_at(16));
     let origin = Vec3::new(f32_at(20), f32_at(24), f32_at(28));
     let voxel_size = f32_at(32);
-    let n = dims.x as u64 * dims.y as u64 * dims.z as u64;
-    if dims.min_element() < 2 || n > MAX_SAMPLES {
+    let n = dims.x as u128 * dims.y as u128 * dims.z as u128;
+    if dims.min_element() < 2 || n > MAX_SAMPLES as u128 {
         return Err(FormatError::BadHeader(format!("dims {dims}")));
     }
     if !origin.is_finite() {

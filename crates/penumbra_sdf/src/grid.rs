@@ -94,7 +94,7 @@ impl std::fmt::Display for GridError {
                 dims[0],
                 dims[1],
                 dims[2],
-                dims[0] * dims[1] * dims[2]
+                dims.iter().map(|&d| d as u128).product::<u128>()
             ),
         }
     }
@@ -148,9 +148,9 @@ impl GridPolicy {
             let inner = (e / voxel_size - 1e-4).ceil().max(0.0) as u64;
             (inner + pad).max(min_samples)
         });
-        if dims_u64.iter().product::<u64>() > MAX_SAMPLES
-            || dims_u64.iter().any(|&d| d > u32::MAX as u64)
-        {
+        // u128: three saturated u64 axes must not overflow the product.
+        let samples: u128 = dims_u64.iter().map(|&d| d as u128).product();
+        if samples > MAX_SAMPLES as u128 || dims_u64.iter().any(|&d| d > u32::MAX as u64) {
             return Err(GridError::TooLarge { dims: dims_u64 });
         }
         let dims = UVec3::new(dims_u64[0] as u32, dims_u64[1] as u32, dims_u64[2] as u32);
@@ -251,5 +251,23 @@ mod tests {
         .resolve(&b)
         .unwrap_err();
         assert!(matches!(e, GridError::TooLarge { .. }), "{e}");
+        // Absurd densities and extents saturate instead of overflowing.
+        for (density, size) in [(1e30, 1.0), (1e20, 1e20), (f32::MAX, f32::MAX)] {
+            let e = GridPolicy {
+                resolution: Resolution::PerUnit {
+                    density,
+                    min: 8,
+                    max: u32::MAX,
+                },
+                border_voxels: 2,
+            }
+            .resolve(&bounds(Vec3::splat(size)))
+            .unwrap_err();
+            assert!(
+                matches!(e, GridError::TooLarge { .. }),
+                "{density} {size}: {e}"
+            );
+            assert!(!e.to_string().is_empty());
+        }
     }
 }

@@ -1,0 +1,200 @@
+//! Bad input gets a clear error or documented handling, never a panic.
+
+use glam::Vec3;
+use penumbra_sdf::{
+    BakeError, BakeSettings, GridPolicy, Resolution, SignMethod, TriMesh, bake,
+    gltf_input::{GltfSelection, load_gltf},
+    mesh::MeshError,
+    shapes,
+};
+
+fn settings(n: u32) -> BakeSettings {
+    BakeSettings {
+        grid: GridPolicy {
+            resolution: Resolution::LongestAxis(n),
+            border_voxels: 2,
+        },
+        sign: SignMethod::WindingNumber,
+    }
+}
+
+#[test]
+fn bad_meshes_and_settings_are_errors() {
+    let tri = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+    type Check = fn(&BakeError) -> bool;
+    let cases: Vec<(&str, TriMesh, BakeSettings, Check)> = vec![
+        ("empty", TriMesh::default(), settings(16), |e| {
+            *e == BakeError::Mesh(MeshError::Empty)
+        }),
+        (
+            "nan",
+            TriMesh {
+                positions: vec![Vec3::ZERO, Vec3::X, Vec3::NAN],
+                triangles: vec![[0, 1, 2]],
+            },
+            settings(16),
+            |e| matches!(e, BakeError::Mesh(MeshError::NonFinitePosition { .. })),
+        ),
+        (
+            "index",
+            TriMesh {
+                positions: tri.clone(),
+                triangles: vec![[0, 1, 3]],
+            },
+            settings(16),
+            |e| matches!(e, BakeError::Mesh(MeshError::IndexOutOfRange { .. })),
+        ),
+        (
+            "zero area",
+            TriMesh {
+                positions: tri.clone(),
+                triangles: vec![[0, 0, 1]],
+            },
+            settings(16),
+            |e| *e == BakeError::Mesh(MeshError::AllTrianglesDegenerate),
+        ),
+        (
+            "huge",
+            shapes::cuboid(Vec3::ONE),
+            settings(1_000_000),
+            |e| matches!(e, BakeError::Grid(_)),
+        ),
+        ("tiny", shapes::cuboid(Vec3::ONE), settings(3), |e| {
+            matches!(e, BakeError::Grid(_))
+        }),
+        (
+            "threshold",
+            shapes::cuboid(Vec3::ONE),
+            BakeSettings {
+                sign: SignMethod::BackfaceRatio { threshold: 1.5 },
+                ..settings(16)
+            },
+            |e| matches!(e, BakeError::Settings(_)),
+        ),
+        (
+            "shell",
+            shapes::cuboid(Vec3::ONE),
+            BakeSettings {
+                sign: SignMethod::TwoSided {
+                    shell_voxels: f32::NAN,
+                },
+                ..settings(16)
+            },
+            |e| matches!(e, BakeError::Settings(_)),
+        ),
+    ];
+    for (name, mesh, s, expected) in cases {
+        let e = bake(&mesh, &s, None).unwrap_err();
+        assert!(expected(&e), "{name}: {e:?}");
+        assert!(!e.to_string().is_empty());
+    }
+}
+
+/// Documented handling: a flat mesh bakes (its plane gets zero or negative samples by
+/// the thin-feature guard); degenerate triangles are dropped and counted.
+#[test]
+fn flat_and_partly_degenerate_meshes_bake() {
+    let mesh = TriMesh {
+        positions: vec![Vec3::ZERO, Vec3::X, Vec3::Z, Vec3::X * 2.0],
+        triangles: vec![[0, 2, 1], [0, 1, 3]],
+    };
+    let baked = bake(&mesh, &settings(16), None).unwrap();
+    assert_eq!(baked.mesh.degenerate_dropped, 1);
+    assert!(baked.volume.data.iter().all(|v| v.to_f32().is_finite()));
+    assert!(baked.volume.data.iter().any(|v| v.to_f32() <= 0.0));
+}
+
+#[test]
+fn every_sign_method_agrees_on_a_closed_box_away_from_the_surface() {
+    let mesh = shapes::cuboid(Vec3::new(1.0, 0.7, 0.4));
+    let reference = bake(&mesh, &settings(24), None).unwrap().volume;
+    for sign in [SignMethod::BACKFACE_RATIO, SignMethod::RayParity] {
+        let v = bake(
+            &mesh,
+            &BakeSettings {
+                sign,
+                ..settings(24)
+            },
+            None,
+        )
+        .unwrap()
+        .volume;
+        let h = v.voxel_size;
+        for (a, b) in v.data.iter().zip(&reference.data) {
+            let (a, b) = (a.to_f32(), b.to_f32());
+            assert_eq!(a.abs(), b.abs());
+            if b.abs() > h {
+                assert_eq!(a < 0.0, b < 0.0, "{sign:?}");
+            }
+        }
+    }
+    // Two-sided: unsigned minus the shell.
+    let v = bake(
+        &mesh,
+        &BakeSettings {
+            sign: SignMethod::TWO_SIDED,
+            ..settings(24)
+        },
+        None,
+    )
+    .unwrap()
+    .volume;
+    let inside = v.data.iter().filter(|x| x.to_f32() < 0.0).count();
+    let ref_inside = reference.data.iter().filter(|x| x.to_f32() < 0.0).count();
+    assert!(
+        inside > 0 && inside < ref_inside,
+        "two-sided makes a shell, not a solid"
+    );
+}
+
+#[test]
+fn bad_gltf_files_are_errors() {
+    let tetra_json = |uri: &str, byte_length: usize| {
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"uri":"{uri}","byteLength":{byte_length}}}],
+            "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":36}}],
+            "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3",
+            "min":[0,0,0],"max":[1,1,0]}}],
+            "meshes":[{{"name":"tri","primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+            "nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#
+        )
+    };
+    let floats: Vec<u8> = [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+        .iter()
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    use base64::Engine;
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&floats)
+    );
+    // The good file reads one triangle, by scene and by name.
+    let good = tetra_json(&uri, 36);
+    let (m, report) = load_gltf(good.as_bytes(), None, &GltfSelection::Scene).unwrap();
+    assert_eq!((m.triangles.len(), report.primitives), (1, 1));
+    let (m, _) = load_gltf(good.as_bytes(), None, &GltfSelection::Mesh("tri".into())).unwrap();
+    assert_eq!(m.positions[1], Vec3::X);
+    // Bad ones.
+    let cases: Vec<(&str, String)> = vec![
+        ("garbage", "not json at all".into()),
+        ("glb header only", "glTF\u{2}\0\0\0".into()),
+        ("short buffer", tetra_json(&uri, 360)),
+        (
+            "bad base64",
+            tetra_json("data:application/octet-stream;base64,@@@@", 36),
+        ),
+        ("missing file", tetra_json("nope.bin", 36)),
+        ("remote", tetra_json("https://example.invalid/x.bin", 36)),
+    ];
+    for (name, text) in cases {
+        let r = load_gltf(
+            text.as_bytes(),
+            Some(std::path::Path::new("/nonexistent")),
+            &GltfSelection::Scene,
+        );
+        let e = r.err().unwrap_or_else(|| panic!("{name}: accepted"));
+        assert!(!e.to_string().is_empty(), "{name}");
+    }
+    let e = load_gltf(good.as_bytes(), None, &GltfSelection::Mesh("nope".into())).unwrap_err();
+    assert!(e.to_string().contains("\"tri\""), "{e}");
+}
