@@ -149,7 +149,7 @@ fn comparison(c: &mut Criterion) {
         .sample_size(10)
         .measurement_time(Duration::from_secs(8));
     group.bench_function("penumbra_sdf", |b| {
-        b.iter(|| bake(&mesh, &settings(64), None).unwrap())
+        b.iter(|| bake(&mesh, &settings(64), None).unwrap());
     });
     group.finish();
 }
