@@ -8,12 +8,14 @@
 //! cameras with Penumbra's components. A scene pays only for what it uses: features whose
 //! components are absent run no pass and upload nothing.
 //!
-//! This release holds the foundation: the plugin group and the shader library that
-//! every feature's WGSL imports (`#import penumbra::math::…`). See `ARCHITECTURE.md`.
+//! So far: the plugin group, the shader library every feature's WGSL imports
+//! (`#import penumbra::math::…`), and signed distance fields as assets (`.psdf`
+//! loading, runtime baking of meshes with a disk cache). See `ARCHITECTURE.md`.
 
 use bevy::app::plugin_group;
 use bevy::prelude::*;
 
+pub use bevy_penumbra_df as df;
 pub use penumbra_shaders as shaders;
 
 plugin_group! {
@@ -21,6 +23,7 @@ plugin_group! {
     /// `app.add_plugins((DefaultPlugins, PenumbraPlugins))`.
     pub struct PenumbraPlugins {
         :PenumbraCorePlugin,
+        bevy_penumbra_df::sdf_asset:::SdfAssetPlugin,
     }
 }
 
@@ -56,4 +59,7 @@ impl Plugin for PenumbraCorePlugin {
 /// Common imports: `use penumbra::prelude::*;`.
 pub mod prelude {
     pub use crate::{PenumbraCorePlugin, PenumbraPlugins};
+    pub use bevy_penumbra_df::{
+        SdfAssetPlugin, SdfBakeFailed, SdfBakeRequest, SdfBakeTask, SdfBaked, SdfVolumeAsset,
+    };
 }

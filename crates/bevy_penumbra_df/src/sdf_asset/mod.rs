@@ -1,0 +1,360 @@
+//! Signed distance fields as Bevy assets.
+//!
+//! - [`SdfVolumeAsset`] wraps a [`penumbra_sdf::SdfVolume`]; [`SdfVolumeLoader`] loads
+//!   `.psdf` files (written by `penumbra-bake` or by the cache below). Truncated, corrupt
+//!   or other-version files fail to load with a clear error (Bevy logs it); nothing
+//!   panics.
+//! - Runtime baking: put an [`SdfBakeRequest`] (a `Handle<Mesh>` and
+//!   [`BakeSettings`]) on an entity. Once the mesh is loaded, the bake runs on Bevy's
+//!   `AsyncComputeTaskPool`; meanwhile the entity carries an [`SdfBakeTask`] whose
+//!   [`SdfBakeTask::progress`] goes from 0 to 1. When done the entity gets
+//!   [`SdfBaked`] (the asset handle) or, on bad input, [`SdfBakeFailed`] with the reason.
+//! - Caching ([`SdfBakeCache`]): bakes are keyed by mesh content (positions, indices) and
+//!   settings. The same key is never baked twice in a run (instances share one asset),
+//!   and with a cache directory (the default: `$XDG_CACHE_HOME/penumbra/sdf`, else
+//!   `~/.cache/penumbra/sdf`) not across runs either. [`SdfBakeStats`] counts bakes and
+//!   hits.
+//!
+//! Meshes must be triangle lists or strips with `Float32x3` positions still readable in
+//! the main world (`RenderAssetUsages::MAIN_WORLD`); others fail with a reason.
+
+use bevy::{
+    asset::{AssetLoader, LoadContext, io::Reader},
+    mesh::{Indices, PrimitiveTopology, VertexAttributeValues},
+    platform::collections::HashMap,
+    prelude::*,
+    tasks::{AsyncComputeTaskPool, Task, futures::check_ready},
+};
+use penumbra_sdf::{BakeSettings, SdfVolume, TriMesh, format};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+/// Registers [`SdfVolumeAsset`], its loader, and the runtime baking systems.
+#[derive(Default)]
+pub struct SdfAssetPlugin;
+
+impl Plugin for SdfAssetPlugin {
+    fn build(&self, app: &mut App) {
+        app.init_asset::<SdfVolumeAsset>()
+            .init_asset_loader::<SdfVolumeLoader>()
+            .init_resource::<SdfBakeCache>()
+            .init_resource::<SdfBakeStats>()
+            .add_systems(Update, (start_sdf_bakes, finish_sdf_bakes).chain());
+    }
+}
+
+/// A signed distance field asset (see [`penumbra_sdf::SdfVolume`] for its layout and
+/// conventions: mesh-local units, negative inside).
+#[derive(Asset, TypePath, Clone, Debug, PartialEq)]
+pub struct SdfVolumeAsset {
+    /// The distance field.
+    pub volume: SdfVolume,
+}
+
+/// Loads `.psdf` files.
+#[derive(Default, TypePath)]
+pub struct SdfVolumeLoader;
+
+/// Why a `.psdf` file failed to load.
+#[derive(Debug)]
+pub enum SdfLoadError {
+    /// Reading failed.
+    Io(std::io::Error),
+    /// The file is not a valid `.psdf` of this version.
+    Format(format::FormatError),
+}
+
+impl std::fmt::Display for SdfLoadError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SdfLoadError::Io(e) => write!(f, "reading SDF file: {e}"),
+            SdfLoadError::Format(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for SdfLoadError {}
+
+impl AssetLoader for SdfVolumeLoader {
+    type Asset = SdfVolumeAsset;
+    type Settings = ();
+    type Error = SdfLoadError;
+
+    async fn load(
+        &self,
+        reader: &mut dyn Reader,
+        _settings: &(),
+        _load_context: &mut LoadContext<'_>,
+    ) -> Result<Self::Asset, Self::Error> {
+        let mut bytes = Vec::new();
+        reader
+            .read_to_end(&mut bytes)
+            .await
+            .map_err(SdfLoadError::Io)?;
+        let volume = format::from_bytes(&bytes).map_err(SdfLoadError::Format)?;
+        Ok(SdfVolumeAsset { volume })
+    }
+
+    fn extensions(&self) -> &[&str] {
+        &["psdf"]
+    }
+}
+
+/// Asks for the mesh's distance field to be baked (or fetched from the cache).
+#[derive(Component, Clone, Debug)]
+pub struct SdfBakeRequest {
+    /// The mesh to bake (waits until it is loaded).
+    pub mesh: Handle<Mesh>,
+    /// Bake settings (grid policy, sign method).
+    pub settings: BakeSettings,
+}
+
+/// A bake in flight.
+#[derive(Component, Debug)]
+pub struct SdfBakeTask {
+    progress: Arc<AtomicU32>,
+    key: u64,
+    task: Task<Result<(SdfVolume, bool), String>>,
+}
+
+impl SdfBakeTask {
+    /// Fraction done, in [0, 1].
+    pub fn progress(&self) -> f32 {
+        f32::from_bits(self.progress.load(Ordering::Relaxed))
+    }
+}
+
+/// The finished distance field of an entity's [`SdfBakeRequest`].
+#[derive(Component, Clone, Debug)]
+pub struct SdfBaked(pub Handle<SdfVolumeAsset>);
+
+/// The bake could not be done; the reason, also logged once as a warning.
+#[derive(Component, Clone, Debug)]
+pub struct SdfBakeFailed(pub String);
+
+/// Where and what has been baked.
+#[derive(Resource, Debug)]
+pub struct SdfBakeCache {
+    /// Directory of cached `.psdf` files, or `None` to bake every run (memory only).
+    pub directory: Option<PathBuf>,
+    memory: HashMap<u64, Handle<SdfVolumeAsset>>,
+}
+
+impl Default for SdfBakeCache {
+    fn default() -> Self {
+        let base = std::env::var_os("XDG_CACHE_HOME")
+            .map(PathBuf::from)
+            .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")));
+        Self::with_directory(base.map(|b| b.join("penumbra/sdf")))
+    }
+}
+
+impl SdfBakeCache {
+    /// A cache using `directory` for `.psdf` files (`None`: memory only).
+    pub fn with_directory(directory: Option<PathBuf>) -> Self {
+        Self {
+            directory,
+            memory: HashMap::default(),
+        }
+    }
+
+    fn path(&self, key: u64) -> Option<PathBuf> {
+        self.directory
+            .as_ref()
+            .map(|d| d.join(format!("{key:016x}.psdf")))
+    }
+}
+
+/// Counts of what the bake systems did.
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SdfBakeStats {
+    /// Bakes actually computed.
+    pub baked: u32,
+    /// Results read from the disk cache.
+    pub disk_hits: u32,
+    /// Requests answered by an asset already baked or loaded this run.
+    pub memory_hits: u32,
+    /// Requests that failed.
+    pub failed: u32,
+}
+
+/// Converts a Bevy mesh to baking input: `Float32x3` positions, triangle list or strip.
+pub fn mesh_to_tri_mesh(mesh: &Mesh) -> Result<TriMesh, String> {
+    let positions = match mesh.try_attribute(Mesh::ATTRIBUTE_POSITION) {
+        Ok(VertexAttributeValues::Float32x3(p)) => {
+            p.iter().map(|&v| Vec3::from_array(v)).collect::<Vec<_>>()
+        }
+        Ok(other) => {
+            return Err(format!(
+                "positions are {:?}, not Float32x3",
+                bevy::mesh::VertexFormat::from(other)
+            ));
+        }
+        Err(e) => {
+            return Err(format!(
+                "positions not readable in the main world ({e:?}); keep RenderAssetUsages::MAIN_WORLD for SDF casters"
+            ));
+        }
+    };
+    let indices: Vec<u32> = match mesh.try_indices_option() {
+        Ok(Some(Indices::U16(i))) => i.iter().map(|&x| x as u32).collect(),
+        Ok(Some(Indices::U32(i))) => i.clone(),
+        Ok(None) => (0..positions.len() as u32).collect(),
+        Err(e) => return Err(format!("indices not readable ({e:?})")),
+    };
+    let triangles = match mesh.primitive_topology() {
+        PrimitiveTopology::TriangleList => indices
+            .chunks_exact(3)
+            .map(|t| [t[0], t[1], t[2]])
+            .collect(),
+        PrimitiveTopology::TriangleStrip => indices
+            .windows(3)
+            .enumerate()
+            .map(|(k, t)| {
+                if k % 2 == 0 {
+                    [t[0], t[1], t[2]]
+                } else {
+                    [t[1], t[0], t[2]]
+                }
+            })
+            .collect(),
+        other => return Err(format!("{other:?} meshes have no surface to bake")),
+    };
+    Ok(TriMesh {
+        positions,
+        triangles,
+    })
+}
+
+/// FNV-1a 64: a stable content hash (the same across runs and Rust versions).
+fn fnv1a(mut hash: u64, bytes: &[u8]) -> u64 {
+    for &b in bytes {
+        hash ^= b as u64;
+        hash = hash.wrapping_mul(0x0100_0000_01b3);
+    }
+    hash
+}
+
+/// The cache key of a bake: mesh content, settings and file-format version.
+fn bake_key(mesh: &TriMesh, settings: &BakeSettings) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325;
+    for p in &mesh.positions {
+        for c in p.to_array() {
+            h = fnv1a(h, &c.to_bits().to_le_bytes());
+        }
+    }
+    for t in &mesh.triangles {
+        for i in t {
+            h = fnv1a(h, &i.to_le_bytes());
+        }
+    }
+    h = fnv1a(h, format!("{settings:?}").as_bytes());
+    fnv1a(h, &format::VERSION.to_le_bytes())
+}
+
+/// Requests not yet started, finished or failed.
+type PendingRequest = (
+    Without<SdfBakeTask>,
+    Without<SdfBaked>,
+    Without<SdfBakeFailed>,
+);
+
+fn start_sdf_bakes(
+    mut commands: Commands,
+    requests: Query<(Entity, &SdfBakeRequest), PendingRequest>,
+    in_flight: Query<&SdfBakeTask>,
+    meshes: Res<Assets<Mesh>>,
+    cache: Res<SdfBakeCache>,
+    mut stats: ResMut<SdfBakeStats>,
+) {
+    for (entity, request) in &requests {
+        let Some(mesh) = meshes.get(&request.mesh) else {
+            continue; // not loaded yet
+        };
+        let tri_mesh = match mesh_to_tri_mesh(mesh) {
+            Ok(m) => m,
+            Err(why) => {
+                warn!("SDF bake for {entity}: {why}");
+                stats.failed += 1;
+                commands.entity(entity).insert(SdfBakeFailed(why));
+                continue;
+            }
+        };
+        let key = bake_key(&tri_mesh, &request.settings);
+        if let Some(handle) = cache.memory.get(&key) {
+            stats.memory_hits += 1;
+            commands.entity(entity).insert(SdfBaked(handle.clone()));
+            continue;
+        }
+        if in_flight.iter().any(|t| t.key == key) {
+            continue; // the same bake is running: answer from memory when it lands
+        }
+        let progress = Arc::new(AtomicU32::new(0.0f32.to_bits()));
+        let path = cache.path(key);
+        let settings = request.settings;
+        let task_progress = progress.clone();
+        let task = AsyncComputeTaskPool::get().spawn(async move {
+            if let Some(volume) = path
+                .as_ref()
+                .and_then(|p| std::fs::read(p).ok())
+                .and_then(|bytes| format::from_bytes(&bytes).ok())
+            {
+                task_progress.store(1.0f32.to_bits(), Ordering::Relaxed);
+                return Ok((volume, true));
+            }
+            let report = |f: f32| task_progress.store(f.min(1.0).to_bits(), Ordering::Relaxed);
+            let baked = penumbra_sdf::bake(&tri_mesh, &settings, Some(&report))
+                .map_err(|e| e.to_string())?;
+            task_progress.store(1.0f32.to_bits(), Ordering::Relaxed);
+            if let Some(path) = path {
+                let write = path
+                    .parent()
+                    .map_or(Ok(()), std::fs::create_dir_all)
+                    .and_then(|()| std::fs::write(&path, format::to_bytes(&baked.volume)));
+                if let Err(e) = write {
+                    warn!("SDF cache: could not write {}: {e}", path.display());
+                }
+            }
+            Ok((baked.volume, false))
+        });
+        commands.entity(entity).insert(SdfBakeTask {
+            progress,
+            key,
+            task,
+        });
+    }
+}
+
+fn finish_sdf_bakes(
+    mut commands: Commands,
+    mut tasks: Query<(Entity, &mut SdfBakeTask)>,
+    mut assets: ResMut<Assets<SdfVolumeAsset>>,
+    mut cache: ResMut<SdfBakeCache>,
+    mut stats: ResMut<SdfBakeStats>,
+) {
+    for (entity, mut task) in &mut tasks {
+        let Some(result) = check_ready(&mut task.task) else {
+            continue;
+        };
+        let mut e = commands.entity(entity);
+        e.remove::<SdfBakeTask>();
+        match result {
+            Ok((volume, from_disk)) => {
+                if from_disk {
+                    stats.disk_hits += 1;
+                } else {
+                    stats.baked += 1;
+                }
+                let handle = assets.add(SdfVolumeAsset { volume });
+                cache.memory.insert(task.key, handle.clone());
+                e.insert(SdfBaked(handle));
+            }
+            Err(why) => {
+                warn!("SDF bake for {entity}: {why}");
+                stats.failed += 1;
+                e.insert(SdfBakeFailed(why));
+            }
+        }
+    }
+}

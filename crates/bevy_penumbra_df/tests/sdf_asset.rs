@@ -1,0 +1,201 @@
+//! SDF assets in a Bevy app: the `.psdf` loader (good and corrupt files), runtime baking
+//! with progress, instance sharing, and the disk cache across app runs.
+
+use bevy::{asset::LoadState, prelude::*};
+use bevy_penumbra_df::{
+    SdfAssetPlugin, SdfBakeCache, SdfBakeFailed, SdfBakeRequest, SdfBakeStats, SdfBakeTask,
+    SdfBaked, SdfVolumeAsset, mesh_to_tri_mesh,
+};
+use penumbra_sdf::{BakeSettings, GridPolicy, Resolution, format};
+use std::path::PathBuf;
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("bevy_penumbra_df_{name}_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn app(asset_dir: &std::path::Path, cache: Option<PathBuf>) -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        AssetPlugin {
+            file_path: asset_dir.display().to_string(),
+            ..default()
+        },
+        SdfAssetPlugin,
+    ))
+    .init_asset::<Mesh>()
+    .insert_resource(SdfBakeCache::with_directory(cache));
+    app.finish();
+    app.cleanup();
+    app
+}
+
+fn settings() -> BakeSettings {
+    BakeSettings {
+        grid: GridPolicy {
+            resolution: Resolution::LongestAxis(24),
+            border_voxels: 2,
+        },
+        ..default()
+    }
+}
+
+fn update_until(app: &mut App, mut done: impl FnMut(&mut App) -> bool) {
+    for _ in 0..2000 {
+        app.update();
+        if done(app) {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    panic!("condition not reached in 2000 frames");
+}
+
+#[test]
+fn loads_psdf_files_and_rejects_corrupt_ones() {
+    let dir = temp_dir("loader");
+    let mesh = penumbra_sdf::shapes::sphere(1.0, 16, 8);
+    let volume = penumbra_sdf::bake(&mesh, &settings(), None).unwrap().volume;
+    let bytes = format::to_bytes(&volume);
+    std::fs::write(dir.join("good.psdf"), &bytes).unwrap();
+    let mut corrupt = bytes.clone();
+    corrupt[100] ^= 0xff;
+    std::fs::write(dir.join("corrupt.psdf"), &corrupt).unwrap();
+    std::fs::write(dir.join("truncated.psdf"), &bytes[..50]).unwrap();
+
+    let mut app = app(&dir, None);
+    let server = app.world().resource::<AssetServer>().clone();
+    let good: Handle<SdfVolumeAsset> = server.load("good.psdf");
+    let bad: Vec<Handle<SdfVolumeAsset>> =
+        vec![server.load("corrupt.psdf"), server.load("truncated.psdf")];
+    update_until(&mut app, |app| {
+        let server = app.world().resource::<AssetServer>();
+        server.is_loaded(&good)
+            && bad
+                .iter()
+                .all(|h| matches!(server.load_state(h), LoadState::Failed(_)))
+    });
+    let assets = app.world().resource::<Assets<SdfVolumeAsset>>();
+    assert_eq!(assets.get(&good).unwrap().volume, volume);
+    let server = app.world().resource::<AssetServer>();
+    for h in &bad {
+        let LoadState::Failed(e) = server.load_state(h) else {
+            unreachable!()
+        };
+        let message = e.to_string();
+        assert!(
+            message.contains("checksum") || message.contains("truncated"),
+            "{message}"
+        );
+    }
+}
+
+#[test]
+fn bakes_meshes_with_progress_shares_instances_and_caches_on_disk() {
+    let dir = temp_dir("bake");
+    let cache = dir.join("cache");
+    let sphere = Sphere::new(0.5).mesh().ico(3).unwrap();
+    let expected = penumbra_sdf::bake(&mesh_to_tri_mesh(&sphere).unwrap(), &settings(), None)
+        .unwrap()
+        .volume;
+
+    let run = |expect: SdfBakeStats| {
+        let mut app = app(&dir, Some(cache.clone()));
+        let handle = app
+            .world_mut()
+            .resource_mut::<Assets<Mesh>>()
+            .add(sphere.clone());
+        let first = app
+            .world_mut()
+            .spawn(SdfBakeRequest {
+                mesh: handle.clone(),
+                settings: settings(),
+            })
+            .id();
+        // A second instance of the same mesh, requested one frame later.
+        app.update();
+        let progress_seen = app
+            .world()
+            .get::<SdfBakeTask>(first)
+            .map(SdfBakeTask::progress);
+        let second = app
+            .world_mut()
+            .spawn(SdfBakeRequest {
+                mesh: handle,
+                settings: settings(),
+            })
+            .id();
+        update_until(&mut app, |app| {
+            app.world().get::<SdfBaked>(first).is_some()
+                && app.world().get::<SdfBaked>(second).is_some()
+        });
+        let a = app.world().get::<SdfBaked>(first).unwrap().0.clone();
+        let b = app.world().get::<SdfBaked>(second).unwrap().0.clone();
+        assert_eq!(a, b, "instances share one asset");
+        let assets = app.world().resource::<Assets<SdfVolumeAsset>>();
+        assert_eq!(assets.get(&a).unwrap().volume, expected);
+        assert_eq!(*app.world().resource::<SdfBakeStats>(), expect);
+        assert!(progress_seen.is_none_or(|p| (0.0..=1.0).contains(&p)));
+    };
+    // First run bakes once; second instance is a memory hit.
+    run(SdfBakeStats {
+        baked: 1,
+        disk_hits: 0,
+        memory_hits: 1,
+        failed: 0,
+    });
+    assert_eq!(std::fs::read_dir(&cache).unwrap().count(), 1);
+    // A new app (a second run of the game) reads the disk cache instead of baking.
+    run(SdfBakeStats {
+        baked: 0,
+        disk_hits: 1,
+        memory_hits: 1,
+        failed: 0,
+    });
+}
+
+#[test]
+fn unbakeable_meshes_fail_with_a_reason() {
+    let dir = temp_dir("fail");
+    let mut app = app(&dir, None);
+    let lines = Mesh::new(
+        bevy::mesh::PrimitiveTopology::LineList,
+        bevy::asset::RenderAssetUsages::default(),
+    )
+    .with_inserted_attribute(
+        Mesh::ATTRIBUTE_POSITION,
+        vec![[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0]],
+    );
+    let empty = Mesh::new(
+        bevy::mesh::PrimitiveTopology::TriangleList,
+        bevy::asset::RenderAssetUsages::default(),
+    )
+    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, Vec::<[f32; 3]>::new());
+    let mut entities = Vec::new();
+    for mesh in [lines, empty] {
+        let handle = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
+        entities.push(
+            app.world_mut()
+                .spawn(SdfBakeRequest {
+                    mesh: handle,
+                    settings: settings(),
+                })
+                .id(),
+        );
+    }
+    update_until(&mut app, |app| {
+        entities
+            .iter()
+            .all(|&e| app.world().get::<SdfBakeFailed>(e).is_some())
+    });
+    let reasons: Vec<String> = entities
+        .iter()
+        .map(|&e| app.world().get::<SdfBakeFailed>(e).unwrap().0.clone())
+        .collect();
+    assert!(reasons[0].contains("LineList"), "{}", reasons[0]);
+    assert!(reasons[1].contains("no triangles"), "{}", reasons[1]);
+    assert_eq!(app.world().resource::<SdfBakeStats>().failed, 2);
+}
