@@ -12,20 +12,12 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{UVec3, Vec3};
-use penumbra_sdf::{
-    BakeSettings, GridPolicy, Resolution, SdfVolume, SignMethod, TriMesh, bake, exact, obj, shapes,
-};
+use penumbra_sdf::{BakeSettings, SdfVolume, TriMesh, bake, exact, obj, shapes};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 fn settings(n: u32) -> BakeSettings {
-    BakeSettings {
-        grid: GridPolicy {
-            resolution: Resolution::LongestAxis(n),
-            border_voxels: 2,
-        },
-        sign: SignMethod::WindingNumber,
-    }
+    BakeSettings::longest_axis(n)
 }
 
 fn bunny() -> Option<TriMesh> {

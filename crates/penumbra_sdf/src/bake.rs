@@ -59,6 +59,19 @@ pub struct BakeSettings {
     pub sign: SignMethod,
 }
 
+impl BakeSettings {
+    /// `n` samples along the longest axis (2-sample border), winding-number sign.
+    pub fn longest_axis(n: u32) -> Self {
+        Self {
+            grid: GridPolicy {
+                resolution: crate::grid::Resolution::LongestAxis(n),
+                border_voxels: 2,
+            },
+            sign: SignMethod::WindingNumber,
+        }
+    }
+}
+
 /// Why a bake failed.
 #[derive(Clone, Debug, PartialEq)]
 pub enum BakeError {

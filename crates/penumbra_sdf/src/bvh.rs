@@ -352,64 +352,52 @@ impl Bvh {
         t_min: f32,
         t_max: f32,
     ) -> Option<(f32, bool, u32)> {
-        if self.nodes.is_empty() {
-            return None;
-        }
-        let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
-        let inv = dir.recip();
-        let mut best: Option<(f32, bool, u32)> = None;
-        let mut t_best = t_max;
-        let mut stack = [0u32; 64];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let index = stack[top] as usize;
-            let node = &self.nodes[index];
-            if !hit_box(node, origin, inv, t_min, t_best) {
-                continue;
-            }
-            if node.count > 0 {
-                let start = node.start_or_right as usize;
-                for i in start..start + node.count as usize {
-                    let t = &self.tris[i];
-                    if let Some((th, front)) =
-                        geometry::ray_triangle_a(origin, dir, *t, t_min, t_best)
-                    {
-                        t_best = th;
-                        best = Some((th, front, self.order[i]));
-                    }
-                }
-            } else if top + 2 <= stack.len() {
-                stack[top] = index as u32 + 1;
-                stack[top + 1] = node.start_or_right;
-                top += 2;
-            }
-        }
+        let mut best = None;
+        self.traverse_ray(origin, dir, t_min, t_max, |i, hit, t_best| {
+            *t_best = hit.0;
+            best = Some((hit.0, hit.1, self.order[i]));
+        });
         best
     }
 
     /// Number of ray crossings within `(t_min, ∞)` (for parity tests).
     pub fn ray_crossings(&self, origin: Vec3, dir: Vec3, t_min: f32) -> u32 {
+        let mut count = 0;
+        self.traverse_ray(origin, dir, t_min, f32::INFINITY, |_, _, _| count += 1);
+        count
+    }
+
+    /// Calls `on_hit(tree index, (t, front_facing), &mut t_max)` for every triangle the
+    /// ray hits within `(t_min, t_max)`; the callback may shrink `t_max`.
+    fn traverse_ray(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        t_min: f32,
+        mut t_max: f32,
+        mut on_hit: impl FnMut(usize, (f32, bool), &mut f32),
+    ) {
         if self.nodes.is_empty() {
-            return 0;
+            return;
         }
         let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
         let inv = dir.recip();
-        let mut count = 0;
         let mut stack = [0u32; 64];
         let mut top = 1;
         while top > 0 {
             top -= 1;
             let index = stack[top] as usize;
             let node = &self.nodes[index];
-            if !hit_box(node, origin, inv, t_min, f32::INFINITY) {
+            if !hit_box(node, origin, inv, t_min, t_max) {
                 continue;
             }
             if node.count > 0 {
                 let start = node.start_or_right as usize;
-                for t in &self.tris[start..start + node.count as usize] {
-                    if geometry::ray_triangle_a(origin, dir, *t, t_min, f32::INFINITY).is_some() {
-                        count += 1;
+                for i in start..start + node.count as usize {
+                    if let Some(hit) =
+                        geometry::ray_triangle_a(origin, dir, self.tris[i], t_min, t_max)
+                    {
+                        on_hit(i, hit, &mut t_max);
                     }
                 }
             } else if top + 2 <= stack.len() {
@@ -418,7 +406,6 @@ impl Bvh {
                 top += 2;
             }
         }
-        count
     }
 }
 

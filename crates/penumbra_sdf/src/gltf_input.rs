@@ -7,7 +7,7 @@
 //! Skinned meshes are read in their bind pose (the node transforms, not the skin), and
 //! morph targets are ignored — both reported in [`GltfReport`].
 
-use crate::mesh::TriMesh;
+use crate::mesh::{Topology, TriMesh, triangles_from};
 use glam::{Mat4, Vec3};
 use gltf::mesh::Mode;
 use std::path::Path;
@@ -219,26 +219,12 @@ fn append_mesh(
             Some(i) => i.into_u32().collect(),
             None => (0..count).collect(),
         };
-        let tris: Vec<[u32; 3]> = match primitive.mode() {
-            Mode::Triangles => indices
-                .chunks_exact(3)
-                .map(|t| [t[0], t[1], t[2]])
-                .collect(),
-            Mode::TriangleStrip => indices
-                .windows(3)
-                .enumerate()
-                .map(|(k, t)| {
-                    if k % 2 == 0 {
-                        [t[0], t[1], t[2]]
-                    } else {
-                        [t[1], t[0], t[2]]
-                    }
-                })
-                .collect(),
-            _ => (1..indices.len().saturating_sub(1))
-                .map(|k| [indices[0], indices[k], indices[k + 1]])
-                .collect(),
+        let topology = match primitive.mode() {
+            Mode::Triangles => Topology::List,
+            Mode::TriangleStrip => Topology::Strip,
+            _ => Topology::Fan,
         };
+        let tris = triangles_from(&indices, topology);
         for t in tris {
             // Out-of-range indices stay out of range (base + i ≥ len) and are reported
             // by `TriMesh::validate`.

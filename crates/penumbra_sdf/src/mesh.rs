@@ -68,6 +68,43 @@ impl std::fmt::Display for MeshError {
 
 impl std::error::Error for MeshError {}
 
+/// How an index list forms triangles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Topology {
+    /// Every three indices form a triangle.
+    List,
+    /// Each index after the second forms a triangle with the two before it, the winding
+    /// alternating so that all triangles face the same way.
+    Strip,
+    /// Each index after the second forms a triangle with the first and the previous one.
+    Fan,
+}
+
+/// Triangles formed by `indices` under `topology` (incomplete trailing triangles of a
+/// list are ignored).
+pub fn triangles_from(indices: &[u32], topology: Topology) -> Vec<[u32; 3]> {
+    match topology {
+        Topology::List => indices
+            .chunks_exact(3)
+            .map(|t| [t[0], t[1], t[2]])
+            .collect(),
+        Topology::Strip => indices
+            .windows(3)
+            .enumerate()
+            .map(|(k, t)| {
+                if k % 2 == 0 {
+                    [t[0], t[1], t[2]]
+                } else {
+                    [t[1], t[0], t[2]]
+                }
+            })
+            .collect(),
+        Topology::Fan => (1..indices.len().saturating_sub(1))
+            .map(|k| [indices[0], indices[k], indices[k + 1]])
+            .collect(),
+    }
+}
+
 /// What [`TriMesh::validate`] found and dropped.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct MeshReport {
@@ -194,6 +231,21 @@ mod tests {
             TriMesh::from_indices(quad, &[0, 1]).unwrap_err(),
             MeshError::IndexCountNotMultipleOfThree(2)
         );
+    }
+
+    #[test]
+    fn topologies_form_consistently_wound_triangles() {
+        let i = [0, 1, 2, 3, 4];
+        assert_eq!(triangles_from(&i, Topology::List), vec![[0, 1, 2]]);
+        assert_eq!(
+            triangles_from(&i, Topology::Strip),
+            vec![[0, 1, 2], [2, 1, 3], [2, 3, 4]]
+        );
+        assert_eq!(
+            triangles_from(&i, Topology::Fan),
+            vec![[0, 1, 2], [0, 2, 3], [0, 3, 4]]
+        );
+        assert!(triangles_from(&i[..2], Topology::Fan).is_empty());
     }
 
     #[test]

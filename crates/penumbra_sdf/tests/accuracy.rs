@@ -4,9 +4,7 @@
 //! winding number is decisive (|w − ½| > 0.3).
 
 use glam::{UVec3, Vec3};
-use penumbra_sdf::{
-    BakeSettings, GridPolicy, Resolution, SdfVolume, SignMethod, TriMesh, bake, exact, obj, shapes,
-};
+use penumbra_sdf::{BakeSettings, SdfVolume, TriMesh, bake, exact, obj, shapes};
 use std::path::PathBuf;
 
 /// Statistics of a bake against ground truth, in voxels.
@@ -62,13 +60,7 @@ fn accuracy(
 }
 
 fn settings(n: u32) -> BakeSettings {
-    BakeSettings {
-        grid: GridPolicy {
-            resolution: Resolution::LongestAxis(n),
-            border_voxels: 2,
-        },
-        sign: SignMethod::WindingNumber,
-    }
+    BakeSettings::longest_axis(n)
 }
 
 fn assert_accurate(name: &str, a: &Accuracy) {

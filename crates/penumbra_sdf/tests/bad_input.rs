@@ -2,20 +2,14 @@
 
 use glam::Vec3;
 use penumbra_sdf::{
-    BakeError, BakeSettings, GridPolicy, Resolution, SignMethod, TriMesh, bake,
+    BakeError, BakeSettings, SignMethod, TriMesh, bake,
     gltf_input::{GltfSelection, load_gltf},
     mesh::MeshError,
     shapes,
 };
 
 fn settings(n: u32) -> BakeSettings {
-    BakeSettings {
-        grid: GridPolicy {
-            resolution: Resolution::LongestAxis(n),
-            border_voxels: 2,
-        },
-        sign: SignMethod::WindingNumber,
-    }
+    BakeSettings::longest_axis(n)
 }
 
 #[test]

@@ -25,7 +25,10 @@ use bevy::{
     prelude::*,
     tasks::{AsyncComputeTaskPool, Task, futures::check_ready},
 };
-use penumbra_sdf::{BakeSettings, SdfVolume, TriMesh, format};
+use penumbra_sdf::{
+    BakeSettings, SdfVolume, TriMesh, format,
+    mesh::{Topology, triangles_from},
+};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -203,24 +206,12 @@ pub fn mesh_to_tri_mesh(mesh: &Mesh) -> Result<TriMesh, String> {
         Ok(None) => (0..positions.len() as u32).collect(),
         Err(e) => return Err(format!("indices not readable ({e:?})")),
     };
-    let triangles = match mesh.primitive_topology() {
-        PrimitiveTopology::TriangleList => indices
-            .chunks_exact(3)
-            .map(|t| [t[0], t[1], t[2]])
-            .collect(),
-        PrimitiveTopology::TriangleStrip => indices
-            .windows(3)
-            .enumerate()
-            .map(|(k, t)| {
-                if k % 2 == 0 {
-                    [t[0], t[1], t[2]]
-                } else {
-                    [t[1], t[0], t[2]]
-                }
-            })
-            .collect(),
+    let topology = match mesh.primitive_topology() {
+        PrimitiveTopology::TriangleList => Topology::List,
+        PrimitiveTopology::TriangleStrip => Topology::Strip,
         other => return Err(format!("{other:?} meshes have no surface to bake")),
     };
+    let triangles = triangles_from(&indices, topology);
     Ok(TriMesh {
         positions,
         triangles,
