@@ -183,8 +183,8 @@ pub fn bake(
     let report_slice = || {
         let n = done.fetch_add(1, Ordering::Relaxed) + 1;
         if let Some(report_progress) = progress {
-            // Distances are most of the work; signs are the rest.
-            report_progress(n as f32 / (dims.z as f32 * 1.25));
+            // Two passes over the slices: distances, then signs.
+            report_progress(n as f32 / (2 * dims.z) as f32);
         }
     };
 
@@ -229,6 +229,7 @@ pub fn bake(
         SignMethod::BackfaceRatio { .. } => fibonacci_directions(64),
         _ => Vec::new(),
     };
+    let parity_directions = PARITY_DIRECTIONS.map(Vec3::normalize);
     let mut data = vec![f16::ZERO; distance.len()];
     data.par_chunks_mut(slice).enumerate().for_each(|(k, out)| {
         let k = k as u32;
@@ -254,9 +255,9 @@ pub fn bake(
                             .unwrap_or_else(|| bvh.winding_number(p) > 0.5)
                     }
                     SignMethod::RayParity => {
-                        let odd = PARITY_DIRECTIONS
+                        let odd = parity_directions
                             .iter()
-                            .filter(|dir| bvh.ray_crossings(p, dir.normalize(), 0.0) % 2 == 1)
+                            .filter(|&&dir| bvh.ray_crossings(p, dir, 0.0) % 2 == 1)
                             .count();
                         odd >= 2
                     }
@@ -276,10 +277,8 @@ pub fn bake(
                 out[index] = f16::from_f32(if inside { -d } else { d });
             }
         }
+        report_slice();
     });
-    if let Some(report_progress) = progress {
-        report_progress(1.0);
-    }
     let t_sign = t_start.elapsed();
     let mut volume = SdfVolume {
         dims,
@@ -287,8 +286,8 @@ pub fn bake(
         voxel_size: h,
         data,
     };
-    let thin_feature_samples = keep_thin_features(&mut volume, &local, origin, grid.border);
     drop(distance);
+    let thin_feature_samples = keep_thin_features(&mut volume, &local, origin, grid.border);
     let t_end = t_start.elapsed();
     Ok(Bake {
         timings: BakeTimings {
@@ -411,10 +410,13 @@ fn coarse_winding(
 }
 
 impl CoarseWinding {
-    /// The inside/outside answer at sample `(i, j, k)` when it is certain without an
-    /// exact evaluation: no surface within the coarse cell (the sample's distance `d`
-    /// exceeds the cell's diagonal, so the winding number is harmonic across it) and all
-    /// eight coarse corners agree with margin. `None`: evaluate exactly.
+    /// The inside/outside answer at sample `(i, j, k)` taken from the coarse grid, when
+    /// that is safe: no surface within the coarse cell (the sample's distance `d` exceeds
+    /// the cell's diagonal, so the winding number is smooth — harmonic — across it) and
+    /// all eight coarse corners agree by a margin of 0.25. This is a heuristic, not a
+    /// proof (a harmonic function is bounded by its values on the cell's faces, not its
+    /// corners); the accuracy tests check every sample's sign against exact winding
+    /// numbers. `None`: evaluate exactly.
     fn decisive_sign(&self, i: u32, j: u32, k: u32, d: f32, h: f32) -> Option<bool> {
         const MARGIN: f32 = 0.25;
         let (ci, cj, ck) = (i / 2, j / 2, k / 2);

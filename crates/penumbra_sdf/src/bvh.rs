@@ -8,6 +8,9 @@ use crate::geometry::{self, Aabb, Feature};
 use glam::{Vec3, Vec3A};
 
 const LEAF_SIZE: usize = 4;
+/// Deepest level the build splits to; deeper nodes become (larger) leaves. Keeps the
+/// fixed 64-entry traversal stacks from ever overflowing on adversarial meshes.
+const MAX_DEPTH: usize = 48;
 const BINS: usize = 16;
 /// Fast-winding-number accuracy: a node's dipole stands in for its triangles when the
 /// query is farther than `BETA ×` the node's radius from its centre (Barill et al. use 2).
@@ -81,6 +84,10 @@ struct BuildTri {
 impl Bvh {
     /// Builds the tree over triangles given by corner positions.
     pub fn build(tris: &[[Vec3; 3]]) -> Bvh {
+        Self::build_with_max_depth(tris, MAX_DEPTH)
+    }
+
+    fn build_with_max_depth(tris: &[[Vec3; 3]], max_depth: usize) -> Bvh {
         let mut items: Vec<BuildTri> = tris
             .iter()
             .enumerate()
@@ -96,7 +103,7 @@ impl Bvh {
             .collect();
         let mut nodes = Vec::with_capacity(2 * tris.len() / LEAF_SIZE + 1);
         if !items.is_empty() {
-            build_recursive(&mut items, 0, &mut nodes);
+            build_recursive(&mut items, 0, max_depth, &mut nodes);
         }
         let order: Vec<u32> = items.iter().map(|t| t.index).collect();
         let tris: Vec<[Vec3A; 3]> = order
@@ -419,7 +426,13 @@ fn hit_box(node: &Node, origin: Vec3A, inv_dir: Vec3A, t_min: f32, t_max: f32) -
     near <= far
 }
 
-fn build_recursive(items: &mut [BuildTri], offset: usize, nodes: &mut Vec<Node>) -> usize {
+/// `depth_left`: levels still allowed below this node (0: make a leaf).
+fn build_recursive(
+    items: &mut [BuildTri],
+    offset: usize,
+    depth_left: usize,
+    nodes: &mut Vec<Node>,
+) -> usize {
     let index = nodes.len();
     let bounds = items.iter().fold(Aabb::EMPTY, |b, t| b.union(&t.bounds));
     nodes.push(Node {
@@ -429,15 +442,15 @@ fn build_recursive(items: &mut [BuildTri], offset: usize, nodes: &mut Vec<Node>)
         start_or_right: offset as u32,
         count: items.len() as u32,
     });
-    if items.len() <= LEAF_SIZE {
+    if items.len() <= LEAF_SIZE || depth_left == 0 {
         return index;
     }
     let Some(split) = sah_split(items) else {
         return index; // no useful split (all centroids equal, or SAH prefers a leaf)
     };
     let (left, right) = items.split_at_mut(split);
-    build_recursive(left, offset, nodes);
-    let right_index = build_recursive(right, offset + split, nodes);
+    build_recursive(left, offset, depth_left - 1, nodes);
+    let right_index = build_recursive(right, offset + split, depth_left - 1, nodes);
     nodes[index].start_or_right = right_index as u32;
     nodes[index].count = 0;
     index
@@ -500,4 +513,50 @@ fn sah_split(items: &mut [BuildTri]) -> Option<usize> {
         }
     }
     (split > 0 && split < items.len()).then_some(split)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::exact;
+
+    fn depth(bvh: &Bvh) -> usize {
+        let mut max = 0;
+        let mut stack = vec![(0usize, 1usize)];
+        while let Some((n, d)) = stack.pop() {
+            max = max.max(d);
+            if bvh.nodes[n].count == 0 {
+                stack.push((n + 1, d + 1));
+                stack.push((bvh.nodes[n].start_or_right as usize, d + 1));
+            }
+        }
+        max
+    }
+
+    /// The depth cap (which keeps the fixed 64-entry traversal stacks from overflowing on
+    /// adversarial meshes) holds, and capped trees, with their larger leaves, stay exact.
+    #[test]
+    fn depth_is_capped_and_capped_trees_stay_exact() {
+        let m = crate::shapes::sphere(1.0, 64, 32);
+        let (tris, _) = m.validate().unwrap();
+        assert!(depth(&Bvh::build(&tris)) > 5);
+        let capped = Bvh::build_with_max_depth(&tris, 3);
+        assert!(depth(&capped) <= 4, "depth {}", depth(&capped));
+        for k in 0..100 {
+            let a = k as f32 * 0.7;
+            let p = Vec3::new(a.cos() * 1.3, (a * 0.3).sin(), a.sin() * 0.4);
+            let got = capped
+                .closest(p, f32::INFINITY, &[])
+                .unwrap()
+                .distance_squared
+                .sqrt();
+            let want = exact::distance(p, &tris);
+            assert!((got as f64 - want).abs() <= 1e-5, "{p}: {got} vs {want}");
+            let w = capped.winding_number(p) as f64;
+            assert!(
+                (w - exact::winding_number(p, &tris)).abs() < 0.05,
+                "{p}: {w}"
+            );
+        }
+    }
 }
