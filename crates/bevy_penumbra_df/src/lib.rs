@@ -8,5 +8,5 @@ pub mod sdf_asset;
 
 pub use sdf_asset::{
     SdfAssetPlugin, SdfBakeCache, SdfBakeFailed, SdfBakeRequest, SdfBakeStats, SdfBakeTask,
-    SdfBaked, SdfVolumeAsset, SdfVolumeLoader, mesh_to_tri_mesh,
+    SdfBakeWaiting, SdfBaked, SdfVolumeAsset, SdfVolumeLoader, mesh_to_tri_mesh,
 };

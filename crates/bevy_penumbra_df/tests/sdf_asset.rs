@@ -115,6 +115,14 @@ fn bakes_meshes_with_progress_shares_instances_and_caches_on_disk() {
                 settings: settings(),
             })
             .id();
+        // A duplicate in the same frame must not start a second bake.
+        let same_frame = app
+            .world_mut()
+            .spawn(SdfBakeRequest {
+                mesh: handle.clone(),
+                settings: settings(),
+            })
+            .id();
         // A second instance of the same mesh, requested one frame later.
         app.update();
         let progress_seen = app
@@ -129,9 +137,14 @@ fn bakes_meshes_with_progress_shares_instances_and_caches_on_disk() {
             })
             .id();
         update_until(&mut app, |app| {
-            app.world().get::<SdfBaked>(first).is_some()
-                && app.world().get::<SdfBaked>(second).is_some()
+            [first, same_frame, second]
+                .iter()
+                .all(|&e| app.world().get::<SdfBaked>(e).is_some())
         });
+        assert_eq!(
+            app.world().get::<SdfBaked>(same_frame).unwrap().0,
+            app.world().get::<SdfBaked>(first).unwrap().0
+        );
         let a = app.world().get::<SdfBaked>(first).unwrap().0.clone();
         let b = app.world().get::<SdfBaked>(second).unwrap().0.clone();
         assert_eq!(a, b, "instances share one asset");
@@ -144,7 +157,7 @@ fn bakes_meshes_with_progress_shares_instances_and_caches_on_disk() {
     run(SdfBakeStats {
         baked: 1,
         disk_hits: 0,
-        memory_hits: 1,
+        memory_hits: 2,
         failed: 0,
     });
     assert_eq!(std::fs::read_dir(&cache).unwrap().count(), 1);
@@ -152,7 +165,7 @@ fn bakes_meshes_with_progress_shares_instances_and_caches_on_disk() {
     run(SdfBakeStats {
         baked: 0,
         disk_hits: 1,
-        memory_hits: 1,
+        memory_hits: 2,
         failed: 0,
     });
 }

@@ -9,6 +9,7 @@
 //!   `AsyncComputeTaskPool`; meanwhile the entity carries an [`SdfBakeTask`] whose
 //!   [`SdfBakeTask::progress`] goes from 0 to 1. When done the entity gets
 //!   [`SdfBaked`] (the asset handle) or, on bad input, [`SdfBakeFailed`] with the reason.
+//!   Requests identical to a bake already running wait for it ([`SdfBakeWaiting`]).
 //! - Caching ([`SdfBakeCache`]): bakes are keyed by mesh content (positions, indices) and
 //!   settings. The same key is never baked twice in a run (instances share one asset),
 //!   and with a cache directory (the default: `$XDG_CACHE_HOME/penumbra/sdf`, else
@@ -21,7 +22,7 @@
 use bevy::{
     asset::{AssetLoader, LoadContext, io::Reader},
     mesh::{Indices, PrimitiveTopology, VertexAttributeValues},
-    platform::collections::HashMap,
+    platform::collections::{HashMap, HashSet},
     prelude::*,
     tasks::{AsyncComputeTaskPool, Task, futures::check_ready},
 };
@@ -132,6 +133,11 @@ impl SdfBakeTask {
 #[derive(Component, Clone, Debug)]
 pub struct SdfBaked(pub Handle<SdfVolumeAsset>);
 
+/// Waiting for an identical bake (same mesh content and settings) already running for
+/// another entity; answered from memory when it lands.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct SdfBakeWaiting(u64);
+
 /// The bake could not be done; the reason, also logged once as a warning.
 #[derive(Component, Clone, Debug)]
 pub struct SdfBakeFailed(pub String);
@@ -142,6 +148,8 @@ pub struct SdfBakeCache {
     /// Directory of cached `.psdf` files, or `None` to bake every run (memory only).
     pub directory: Option<PathBuf>,
     memory: HashMap<u64, Handle<SdfVolumeAsset>>,
+    /// Keys being baked now (so same-frame duplicates do not start a second bake).
+    in_flight: HashSet<u64>,
 }
 
 impl Default for SdfBakeCache {
@@ -159,6 +167,7 @@ impl SdfBakeCache {
         Self {
             directory,
             memory: HashMap::default(),
+            in_flight: HashSet::default(),
         }
     }
 
@@ -254,9 +263,8 @@ type PendingRequest = (
 fn start_sdf_bakes(
     mut commands: Commands,
     requests: Query<(Entity, &SdfBakeRequest), PendingRequest>,
-    in_flight: Query<&SdfBakeTask>,
     meshes: Res<Assets<Mesh>>,
-    cache: Res<SdfBakeCache>,
+    mut cache: ResMut<SdfBakeCache>,
     mut stats: ResMut<SdfBakeStats>,
 ) {
     for (entity, request) in &requests {
@@ -278,8 +286,10 @@ fn start_sdf_bakes(
             commands.entity(entity).insert(SdfBaked(handle.clone()));
             continue;
         }
-        if in_flight.iter().any(|t| t.key == key) {
-            continue; // the same bake is running: answer from memory when it lands
+        if !cache.in_flight.insert(key) {
+            // The same bake is running: wait for it (converted and hashed only once).
+            commands.entity(entity).insert(SdfBakeWaiting(key));
+            continue;
         }
         let progress = Arc::new(AtomicU32::new(0.0f32.to_bits()));
         let path = cache.path(key);
@@ -320,6 +330,7 @@ fn start_sdf_bakes(
 fn finish_sdf_bakes(
     mut commands: Commands,
     mut tasks: Query<(Entity, &mut SdfBakeTask)>,
+    waiting: Query<(Entity, &SdfBakeWaiting)>,
     mut assets: ResMut<Assets<SdfVolumeAsset>>,
     mut cache: ResMut<SdfBakeCache>,
     mut stats: ResMut<SdfBakeStats>,
@@ -328,6 +339,12 @@ fn finish_sdf_bakes(
         let Some(result) = check_ready(&mut task.task) else {
             continue;
         };
+        cache.in_flight.remove(&task.key);
+        let waiters: Vec<Entity> = waiting
+            .iter()
+            .filter(|(_, w)| w.0 == task.key)
+            .map(|(e, _)| e)
+            .collect();
         let mut e = commands.entity(entity);
         e.remove::<SdfBakeTask>();
         match result {
@@ -339,12 +356,25 @@ fn finish_sdf_bakes(
                 }
                 let handle = assets.add(SdfVolumeAsset { volume });
                 cache.memory.insert(task.key, handle.clone());
-                e.insert(SdfBaked(handle));
+                e.insert(SdfBaked(handle.clone()));
+                for w in waiters {
+                    stats.memory_hits += 1;
+                    commands
+                        .entity(w)
+                        .remove::<SdfBakeWaiting>()
+                        .insert(SdfBaked(handle.clone()));
+                }
             }
             Err(why) => {
                 warn!("SDF bake for {entity}: {why}");
-                stats.failed += 1;
-                e.insert(SdfBakeFailed(why));
+                stats.failed += 1 + waiters.len() as u32;
+                e.insert(SdfBakeFailed(why.clone()));
+                for w in waiters {
+                    commands
+                        .entity(w)
+                        .remove::<SdfBakeWaiting>()
+                        .insert(SdfBakeFailed(why.clone()));
+                }
             }
         }
     }
