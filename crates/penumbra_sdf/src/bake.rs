@@ -221,8 +221,8 @@ pub fn bake(
 
     let t_distance = t_start.elapsed();
     // Pass 2: signs.
-    let coarse = match settings.sign {
-        SignMethod::WindingNumber => Some(coarse_winding(&bvh, dims, &position)),
+    let levels = match settings.sign {
+        SignMethod::WindingNumber => Some(WindingLevels::new(&bvh, dims, &position, &distance, h)),
         _ => None,
     };
     let directions = match settings.sign {
@@ -249,10 +249,8 @@ pub fn bake(
                         continue;
                     }
                     SignMethod::WindingNumber => {
-                        let coarse = coarse.as_ref().expect("computed for this method");
-                        coarse
-                            .decisive_sign(i, j, k, d, h)
-                            .unwrap_or_else(|| bvh.winding_number(p) > 0.5)
+                        let levels = levels.as_ref().expect("computed for this method");
+                        levels.inside(&bvh, UVec3::new(i, j, k), p, d, h)
                     }
                     SignMethod::RayParity => {
                         let odd = parity_directions
@@ -383,66 +381,129 @@ fn keep_thin_features(
     flipped
 }
 
-/// Winding numbers on every second sample along each axis, used to skip exact
-/// evaluations where the answer is certain.
-struct CoarseWinding {
+/// Winding numbers on a hierarchy of sub-grids (every 4th, then every 2nd sample along
+/// each axis), used to skip exact evaluations where the answer is certain.
+///
+/// A sample takes its sign from the coarser level's samples bracketing it when the
+/// ball of radius `d` around it (surface-free: `d` is its exact distance) contains the
+/// whole bracket, so the winding number is harmonic — smooth — across it, and all
+/// bracketing values agree by a margin of 0.25. Decided samples store the bracketing
+/// value nearest ½, so margins never grow on the way down. This is a heuristic, not a
+/// proof (a harmonic function is bounded by its values on the bracket's faces, not its
+/// corners); the accuracy tests check every sample's sign against direct evaluation.
+/// Only samples near the surface or near ½ are evaluated exactly.
+struct WindingLevels {
+    dims: UVec3,
+    /// The level with spacing 2.
+    fine: Level,
+}
+
+/// Winding numbers (exact or decided) on every `spacing`-th sample along each axis,
+/// plus the last sample of each axis.
+struct Level {
+    spacing: u32,
     dims: UVec3,
     w: Vec<f32>,
 }
 
-fn coarse_winding(
-    bvh: &Bvh,
-    dims: UVec3,
-    position: &(dyn Fn(u32, u32, u32) -> Vec3 + Sync),
-) -> CoarseWinding {
-    let cd = (dims + UVec3::ONE) / 2;
-    let slice = (cd.x * cd.y) as usize;
-    let mut w = vec![0.0f32; slice * cd.z as usize];
-    w.par_chunks_mut(slice).enumerate().for_each(|(ck, out)| {
-        for cj in 0..cd.y {
-            for ci in 0..cd.x {
-                out[(ci + cd.x * cj) as usize] =
-                    bvh.winding_number(position(2 * ci, 2 * cj, 2 * ck as u32));
+/// How far from ½ all bracketing winding numbers must be for a sample to take their
+/// side without an evaluation of its own.
+const SIGN_MARGIN: f32 = 0.25;
+
+impl Level {
+    fn new(spacing: u32, sample_dims: UVec3) -> Level {
+        let dims = (sample_dims - UVec3::ONE + UVec3::splat(spacing - 1)) / spacing + UVec3::ONE;
+        Level {
+            spacing,
+            dims,
+            w: vec![0.0; (dims.x * dims.y * dims.z) as usize],
+        }
+    }
+
+    /// Sample index of level index `c` along an axis of `n` samples.
+    fn position(&self, c: u32, n: u32) -> u32 {
+        (self.spacing * c).min(n - 1)
+    }
+
+    /// The winding number's side at sample `s` (exact distance `d`) decided from this
+    /// level, when safe: `Some(w)` with `w` the bracketing value nearest ½.
+    fn decide(&self, s: UVec3, sample_dims: UVec3, d: f32, h: f32) -> Option<f32> {
+        let mut lo = [0u32; 3];
+        let mut count = [1u32; 3];
+        let mut reach2 = 0u32;
+        for axis in 0..3 {
+            let c0 = s[axis] / self.spacing;
+            let p0 = self.position(c0, sample_dims[axis]);
+            lo[axis] = c0;
+            if p0 != s[axis] {
+                let p1 = self.position(c0 + 1, sample_dims[axis]);
+                let far = (s[axis] - p0).max(p1 - s[axis]);
+                reach2 += far * far;
+                count[axis] = 2;
             }
         }
-    });
-    CoarseWinding { dims: cd, w }
-}
-
-impl CoarseWinding {
-    /// The inside/outside answer at sample `(i, j, k)` taken from the coarse grid, when
-    /// that is safe: no surface within the coarse cell (the sample's distance `d` exceeds
-    /// the cell's diagonal, so the winding number is smooth — harmonic — across it) and
-    /// all eight coarse corners agree by a margin of 0.25. This is a heuristic, not a
-    /// proof (a harmonic function is bounded by its values on the cell's faces, not its
-    /// corners); the accuracy tests check every sample's sign against exact winding
-    /// numbers. `None`: evaluate exactly.
-    fn decisive_sign(&self, i: u32, j: u32, k: u32, d: f32, h: f32) -> Option<bool> {
-        const MARGIN: f32 = 0.25;
-        let (ci, cj, ck) = (i / 2, j / 2, k / 2);
-        if i.is_multiple_of(2) && j.is_multiple_of(2) && k.is_multiple_of(2) {
-            let w = self.w[(ci + self.dims.x * (cj + self.dims.y * ck)) as usize];
-            return Some(w > 0.5);
-        }
-        if d <= 2.0 * 3f32.sqrt() * h {
+        if reach2 > 0 && d * d <= reach2 as f32 * h * h {
             return None;
         }
-        let mut sign = None;
-        for corner in 0..8u32 {
-            let x = (ci + (corner & 1)).min(self.dims.x - 1);
-            let y = (cj + ((corner >> 1) & 1)).min(self.dims.y - 1);
-            let z = (ck + (corner >> 2)).min(self.dims.z - 1);
-            let w = self.w[(x + self.dims.x * (y + self.dims.y * z)) as usize];
-            if (w - 0.5).abs() <= MARGIN {
-                return None;
-            }
-            match sign {
-                None => sign = Some(w > 0.5),
-                Some(s) if s != (w > 0.5) => return None,
-                Some(_) => {}
+        let mut nearest: Option<f32> = None;
+        for dz in 0..count[2] {
+            for dy in 0..count[1] {
+                for dx in 0..count[0] {
+                    let c = UVec3::new(lo[0] + dx, lo[1] + dy, lo[2] + dz);
+                    let w = self.w[(c.x + self.dims.x * (c.y + self.dims.y * c.z)) as usize];
+                    if (w - 0.5).abs() <= SIGN_MARGIN {
+                        return None;
+                    }
+                    match nearest {
+                        Some(n) if (n > 0.5) != (w > 0.5) => return None,
+                        Some(n) if (n - 0.5).abs() <= (w - 0.5).abs() => {}
+                        _ => nearest = Some(w),
+                    }
+                }
             }
         }
-        sign
+        nearest
+    }
+}
+
+impl WindingLevels {
+    fn new(
+        bvh: &Bvh,
+        dims: UVec3,
+        position: &(dyn Fn(u32, u32, u32) -> Vec3 + Sync),
+        distance: &[f32],
+        h: f32,
+    ) -> WindingLevels {
+        let fill = |level: &mut Level, parent: Option<&Level>| {
+            let ld = level.dims;
+            let slice = (ld.x * ld.y) as usize;
+            let spacing = level.spacing;
+            let at = |c: u32, n: u32| (spacing * c).min(n - 1);
+            level.w.par_chunks_mut(slice).enumerate().for_each(|(ck, out)| {
+                for cj in 0..ld.y {
+                    for ci in 0..ld.x {
+                        let s = UVec3::new(at(ci, dims.x), at(cj, dims.y), at(ck as u32, dims.z));
+                        let d = distance[(s.x + dims.x * (s.y + dims.y * s.z)) as usize];
+                        out[(ci + ld.x * cj) as usize] = parent
+                            .and_then(|p| p.decide(s, dims, d, h))
+                            .unwrap_or_else(|| bvh.winding_number(position(s.x, s.y, s.z)));
+                    }
+                }
+            });
+        };
+        let mut coarse = Level::new(4, dims);
+        fill(&mut coarse, None);
+        let mut fine = Level::new(2, dims);
+        fill(&mut fine, Some(&coarse));
+        WindingLevels { dims, fine }
+    }
+
+    /// Whether sample `s` (position `p`, exact distance `d`) is inside.
+    fn inside(&self, bvh: &Bvh, s: UVec3, p: Vec3, d: f32, h: f32) -> bool {
+        self.fine
+            .decide(s, self.dims, d, h)
+            .unwrap_or_else(|| bvh.winding_number(p))
+            > 0.5
     }
 }
 

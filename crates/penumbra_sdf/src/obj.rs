@@ -21,17 +21,103 @@ impl std::fmt::Display for ObjError {
 
 impl std::error::Error for ObjError {}
 
+/// Bytes per parallel parsing chunk (cut at the next line end).
+const CHUNK_BYTES: usize = 256 * 1024;
+
 /// Parses OBJ text into a triangle mesh. Faces may refer only to vertices defined
 /// before them (as the format requires).
+///
+/// Large files are parsed in chunks on the rayon pool; indices are resolved afterwards
+/// in file order, so the mesh and the first error reported are the same as a
+/// sequential parse.
 pub fn parse_obj(text: &str) -> Result<TriMesh, ObjError> {
+    use rayon::prelude::*;
+    let mut bounds = vec![0];
+    while let Some(&last) = bounds.last() {
+        if last >= text.len() {
+            break;
+        }
+        let cut = (last + CHUNK_BYTES).min(text.len());
+        let end = text.as_bytes()[cut..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(text.len(), |p| cut + p + 1);
+        bounds.push(end);
+    }
+    let chunks: Vec<Chunk> = bounds
+        .par_windows(2)
+        .map(|w| Chunk::parse(&text[w[0]..w[1]]))
+        .collect();
     let mut mesh = TriMesh::default();
-    let mut face = Vec::with_capacity(8);
-    for (n, raw) in text.lines().enumerate() {
-        let line = raw.trim();
-        let err = |message: String| ObjError {
-            line: n + 1,
-            message,
-        };
+    let mut first_line = 1;
+    for chunk in chunks {
+        let base = mesh.positions.len() as i64;
+        mesh.positions.extend_from_slice(&chunk.positions);
+        let mut resolved = Vec::with_capacity(8);
+        for face in &chunk.faces {
+            let count = base + face.vertices_before as i64;
+            resolved.clear();
+            for &i in &chunk.indices[face.first as usize..(face.first + face.len) as usize] {
+                let r = if i > 0 { i - 1 } else { count + i };
+                if i == 0 || r < 0 || r >= count {
+                    return Err(ObjError {
+                        line: first_line + face.line,
+                        message: format!("face index {i} out of range ({count} vertices so far)"),
+                    });
+                }
+                resolved.push(r as u32);
+            }
+            for k in 1..resolved.len() - 1 {
+                mesh.triangles
+                    .push([resolved[0], resolved[k], resolved[k + 1]]);
+            }
+        }
+        if let Some(mut e) = chunk.error {
+            e.line += first_line;
+            return Err(e);
+        }
+        first_line += chunk.lines;
+    }
+    Ok(mesh)
+}
+
+/// One chunk of lines, parsed without knowing the vertices before it.
+#[derive(Default)]
+struct Chunk {
+    positions: Vec<Vec3>,
+    /// Raw (1-based or negative) indices of all faces.
+    indices: Vec<i64>,
+    faces: Vec<Face>,
+    /// Lines in the chunk.
+    lines: usize,
+    /// The first syntax error, with a 0-based line number within the chunk; faces
+    /// before it are kept so that an earlier out-of-range index still wins.
+    error: Option<ObjError>,
+}
+
+struct Face {
+    /// 0-based line within the chunk.
+    line: usize,
+    /// Vertices defined earlier in the chunk.
+    vertices_before: u32,
+    first: u32,
+    len: u32,
+}
+
+impl Chunk {
+    fn parse(text: &str) -> Chunk {
+        let mut chunk = Chunk::default();
+        for (n, raw) in text.lines().enumerate() {
+            chunk.lines = n + 1;
+            if let Err(message) = chunk.parse_line(n, raw.trim()) {
+                chunk.error = Some(ObjError { line: n, message });
+                break;
+            }
+        }
+        chunk
+    }
+
+    fn parse_line(&mut self, n: usize, line: &str) -> Result<(), String> {
         let mut words = line.split_ascii_whitespace();
         match words.next() {
             Some("v") => {
@@ -39,43 +125,37 @@ pub fn parse_obj(text: &str) -> Result<TriMesh, ObjError> {
                 for (k, slot) in c.iter_mut().enumerate() {
                     let w = words
                         .next()
-                        .ok_or_else(|| err(format!("vertex needs 3 coordinates, got {k}")))?;
+                        .ok_or_else(|| format!("vertex needs 3 coordinates, got {k}"))?;
                     *slot = w
                         .parse()
-                        .map_err(|_| err(format!("bad vertex coordinate {w:?}")))?;
+                        .map_err(|_| format!("bad vertex coordinate {w:?}"))?;
                 }
-                mesh.positions.push(Vec3::from_array(c));
+                self.positions.push(Vec3::from_array(c));
             }
             Some("f") => {
-                face.clear();
+                let first = self.indices.len();
                 for w in words {
                     let index_text = w.split('/').next().unwrap_or("");
                     let i: i64 = index_text
                         .parse()
-                        .map_err(|_| err(format!("bad face index {w:?}")))?;
-                    let count = mesh.positions.len() as i64;
-                    let resolved = if i > 0 { i - 1 } else { count + i };
-                    if i == 0 || resolved < 0 || resolved >= count {
-                        return Err(err(format!(
-                            "face index {i} out of range ({count} vertices so far)"
-                        )));
-                    }
-                    face.push(resolved as u32);
+                        .map_err(|_| format!("bad face index {w:?}"))?;
+                    self.indices.push(i);
                 }
-                if face.len() < 3 {
-                    return Err(err(format!(
-                        "face needs at least 3 vertices, got {}",
-                        face.len()
-                    )));
+                let len = self.indices.len() - first;
+                if len < 3 {
+                    return Err(format!("face needs at least 3 vertices, got {len}"));
                 }
-                for k in 1..face.len() - 1 {
-                    mesh.triangles.push([face[0], face[k], face[k + 1]]);
-                }
+                self.faces.push(Face {
+                    line: n,
+                    vertices_before: self.positions.len() as u32,
+                    first: first as u32,
+                    len: len as u32,
+                });
             }
             _ => {}
         }
+        Ok(())
     }
-    Ok(mesh)
 }
 
 #[cfg(test)]
@@ -89,6 +169,38 @@ mod tests {
         let m = parse_obj(text).unwrap();
         assert_eq!(m.positions.len(), 4);
         assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 2]]);
+    }
+
+    /// A file long enough to be parsed in several chunks gives the same mesh as its
+    /// parts, and errors keep their file line numbers and order.
+    #[test]
+    fn chunked_parsing_matches_and_reports_the_first_error() {
+        let mut text = String::new();
+        let n = 40_000;
+        for k in 0..n {
+            text.push_str(&format!("v {k} {}.5 -{k}e-3\n", k % 7));
+            if k >= 2 {
+                text.push_str(&format!("f {} -2 -1\n", k - 1));
+            }
+        }
+        assert!(text.len() > 3 * CHUNK_BYTES);
+        let m = parse_obj(&text).unwrap();
+        assert_eq!(m.positions.len(), n);
+        assert_eq!(m.positions[n - 1], Vec3::new((n - 1) as f32, ((n - 1) % 7) as f32 + 0.5, -((n - 1) as f32) * 1e-3));
+        assert_eq!(m.triangles.len(), n - 2);
+        assert!(m.triangles.iter().enumerate().all(|(t, tri)| *tri == [t as u32, t as u32 + 1, t as u32 + 2]));
+        // An out-of-range index late in the file, then a syntax error after it.
+        let lines: Vec<&str> = text.lines().collect();
+        let mut bad = lines.clone();
+        let late = lines.len() - 10;
+        bad[late] = "f 1 2 999999";
+        bad[late + 5] = "v 1 x 2";
+        let e = parse_obj(&bad.join("\n")).unwrap_err();
+        assert_eq!((e.line, e.message.contains("out of range")), (late + 1, true), "{e}");
+        // A syntax error in an early chunk wins over everything after it.
+        bad[100] = "f 1 2";
+        let e = parse_obj(&bad.join("\n")).unwrap_err();
+        assert_eq!((e.line, e.message.contains("at least 3")), (101, true), "{e}");
     }
 
     #[test]

@@ -212,3 +212,42 @@ fn thin_features_keep_a_negative_sample() {
         assert!(a.max_error <= 0.1, "{name}: {a:?}");
     }
 }
+
+/// The baker decides most signs from coarser winding-number grids (a heuristic): on
+/// every sample of the real meshes it must agree with a direct fast-winding-number
+/// evaluation wherever that is decisive (|w − ½| > 0.3) and the sample is farther than a
+/// voxel from the surface (nearer, the thin-feature guard may legitimately flip it).
+#[test]
+fn hierarchical_signs_match_direct_winding_numbers_everywhere() {
+    let Some(dir) = shared_meshes() else {
+        assert!(
+            std::env::var("CI").is_err(),
+            "CI must have ../shared/meshes"
+        );
+        return;
+    };
+    for file in ["spot.obj", "teapot.obj", "stanford-bunny.obj"] {
+        let text = std::fs::read_to_string(dir.join(file)).unwrap();
+        let mesh = obj::parse_obj(&text).unwrap();
+        let baked = bake(&mesh, &settings(64), None).unwrap();
+        let v = &baked.volume;
+        let (tris, _) = mesh.validate().unwrap();
+        let bvh = penumbra_sdf::bvh::Bvh::build(&tris);
+        let (mut checked, mut wrong) = (0usize, 0usize);
+        for k in 0..v.dims.z {
+            for j in 0..v.dims.y {
+                for i in 0..v.dims.x {
+                    let d = v.get(i, j, k);
+                    let w = bvh.winding_number(v.position(i, j, k));
+                    if d.abs() > v.voxel_size && (w - 0.5).abs() > 0.3 {
+                        checked += 1;
+                        wrong += usize::from((d < 0.0) != (w > 0.5));
+                    }
+                }
+            }
+        }
+        println!("{file}: {wrong} sign disagreements of {checked} samples");
+        assert!(checked as f64 > 0.9 * v.data.len() as f64);
+        assert_eq!(wrong, 0, "{file}");
+    }
+}

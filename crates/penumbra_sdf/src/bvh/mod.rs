@@ -4,7 +4,9 @@
 //! Built with binned SAH, single-threaded and deterministic. Triangles are copied into
 //! tree order so leaves are contiguous in memory.
 
-use crate::geometry::{self, Aabb, Feature};
+use crate::geometry::{self, Aabb};
+
+mod wide;
 use glam::{Vec3, Vec3A};
 
 const LEAF_SIZE: usize = 4;
@@ -17,15 +19,14 @@ const BINS: usize = 16;
 const BETA: f32 = 2.0;
 
 #[derive(Clone, Copy, Debug)]
-struct Node {
-    min: Vec3A,
-    max: Vec3A,
-    slab: Slab,
+pub(crate) struct Node {
+    pub(crate) min: Vec3A,
+    pub(crate) max: Vec3A,
     /// Leaf: first triangle (tree order). Interior: index of the right child (the left
     /// child is the next node).
-    start_or_right: u32,
+    pub(crate) start_or_right: u32,
     /// Triangles in a leaf; 0 for interior nodes.
-    count: u32,
+    pub(crate) count: u32,
 }
 
 /// Per-node data of the fast winding number: the area-weighted normal sum (first-order
@@ -38,17 +39,6 @@ struct Dipole {
     radius: f32,
 }
 
-/// A slab `{x : |axis · x − offset| ≤ half_thickness}` containing every triangle of a
-/// node, with `axis` the node's mean normal. For near-flat patches seen from afar it
-/// bounds the distance far more tightly than the box does, which is what makes
-/// far-field closest-point queries cheap.
-#[derive(Clone, Copy, Debug, Default)]
-struct Slab {
-    axis: Vec3A,
-    offset: f32,
-    half_thickness: f32,
-}
-
 /// The result of a closest-point query.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClosestHit {
@@ -56,23 +46,21 @@ pub struct ClosestHit {
     pub distance_squared: f32,
     /// Index of the triangle in the input mesh.
     pub triangle: u32,
-    /// The closest point.
-    pub point: Vec3,
-    /// The triangle feature it lies on.
-    pub feature: Feature,
 }
 
 /// The BVH.
 #[derive(Clone, Debug)]
 pub struct Bvh {
-    nodes: Vec<Node>,
+    pub(crate) nodes: Vec<Node>,
     dipoles: Vec<Dipole>,
     /// Triangle corners in tree order.
-    tris: Vec<[Vec3A; 3]>,
+    pub(crate) tris: Vec<[Vec3A; 3]>,
     /// Input index of each tree-order triangle.
-    order: Vec<u32>,
+    pub(crate) order: Vec<u32>,
     /// Tree-order index of each input triangle (inverse of `order`).
     inverse: Vec<u32>,
+    /// The closest-point query's 4-wide SIMD layout of the same tree.
+    wide: wide::WideTree,
 }
 
 struct BuildTri {
@@ -103,7 +91,7 @@ impl Bvh {
             .collect();
         let mut nodes = Vec::with_capacity(2 * tris.len() / LEAF_SIZE + 1);
         if !items.is_empty() {
-            build_recursive(&mut items, 0, max_depth, &mut nodes);
+            build_recursive(&mut items, 0, max_depth, &mut nodes, 0);
         }
         let order: Vec<u32> = items.iter().map(|t| t.index).collect();
         let tris: Vec<[Vec3A; 3]> = order
@@ -127,66 +115,13 @@ impl Bvh {
             nodes,
             tris,
             order,
+            wide: wide::WideTree::default(),
         };
         if !bvh.nodes.is_empty() {
             bvh.compute_dipoles(0);
         }
-        for i in 0..bvh.nodes.len() {
-            bvh.nodes[i].slab = bvh.compute_slab(i);
-        }
+        bvh.wide = wide::WideTree::build(&bvh);
         bvh
-    }
-
-    /// The triangle range (tree order) under a node.
-    fn triangle_range(&self, node: usize) -> std::ops::Range<usize> {
-        let mut first = node;
-        while self.nodes[first].count == 0 {
-            first += 1; // left child
-        }
-        let mut last = node;
-        while self.nodes[last].count == 0 {
-            last = self.nodes[last].start_or_right as usize; // right child
-        }
-        let (f, l) = (&self.nodes[first], &self.nodes[last]);
-        f.start_or_right as usize..(l.start_or_right + l.count) as usize
-    }
-
-    fn compute_slab(&self, node: usize) -> Slab {
-        let n = self.dipoles[node].normal_sum;
-        let len = n.length();
-        if len <= 0.0 || !len.is_finite() {
-            return Slab {
-                axis: Vec3A::ZERO,
-                offset: 0.0,
-                half_thickness: 0.0,
-            };
-        }
-        let axis = n / len;
-        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        for t in &self.tris[self.triangle_range(node)] {
-            for v in t {
-                let x = axis.dot(*v);
-                lo = lo.min(x);
-                hi = hi.max(x);
-            }
-        }
-        // Widen by a relative epsilon so rounding never makes the bound exceed the truth.
-        let pad = 1e-6 * (hi.abs().max(lo.abs()) + (hi - lo));
-        Slab {
-            axis,
-            offset: 0.5 * (lo + hi),
-            half_thickness: 0.5 * (hi - lo) + pad,
-        }
-    }
-
-    /// A lower bound on the squared distance from `p` to any triangle of `node`.
-    #[inline]
-    fn lower_bound_squared(&self, node: usize, p: Vec3A) -> f32 {
-        let n = &self.nodes[node];
-        let b = (n.min - p).max(p - n.max).max(Vec3A::ZERO).length_squared();
-        let s = &n.slab;
-        let d = ((s.axis.dot(p) - s.offset).abs() - s.half_thickness).max(0.0);
-        b.max(d * d)
     }
 
     /// Number of triangles.
@@ -236,78 +171,20 @@ impl Bvh {
         (normal_sum, weighted_center, area)
     }
 
-    /// The closest point of any triangle to `p`, searching only closer than
+    /// The closest triangle to `p`, searching only closer than
     /// `sqrt(max_distance_squared)` (pass `f32::INFINITY` for no bound). `hints` are
     /// triangles (input indices) likely to be close, e.g. the neighbouring samples'
     /// closest triangles: they tighten the bound before the traversal starts. The
-    /// returned distance does not depend on the hints.
+    /// returned distance does not depend on the hints (the triangle may, among exact
+    /// ties).
     pub fn closest(&self, p: Vec3, max_distance_squared: f32, hints: &[u32]) -> Option<ClosestHit> {
-        if self.nodes.is_empty() {
-            return None;
-        }
-        let p = Vec3A::from(p);
-        let mut best: Option<(f32, usize, Vec3A, Feature)> = None;
-        let mut best_d2 = max_distance_squared;
-        let consider =
-            |i: usize, best_d2: &mut f32, best: &mut Option<(f32, usize, Vec3A, Feature)>| {
-                let t = &self.tris[i];
-                let (q, f) = geometry::closest_point_on_triangle_a(p, t[0], t[1], t[2]);
-                let d2 = (q - p).length_squared();
-                // Ties go to the lowest input index, whatever the traversal order.
-                if d2 < *best_d2
-                    || (d2 == *best_d2 && best.is_some_and(|b| self.order[i] < self.order[b.1]))
-                {
-                    *best_d2 = d2;
-                    *best = Some((d2, i, q, f));
-                }
-            };
-        for &h in hints {
-            if let Some(i) = self.tree_index_of(h) {
-                consider(i, &mut best_d2, &mut best);
-            }
-        }
-        // Stack of (node, lower bound of its squared distance).
-        let mut stack = [(0u32, 0.0f32); 64];
-        stack[0] = (0, self.lower_bound_squared(0, p));
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let (index, lb) = stack[top];
-            if lb >= best_d2 {
-                continue;
-            }
-            let node = &self.nodes[index as usize];
-            if node.count > 0 {
-                let start = node.start_or_right as usize;
-                for i in start..start + node.count as usize {
-                    consider(i, &mut best_d2, &mut best);
-                }
-                continue;
-            }
-            let (left, right) = (index + 1, node.start_or_right);
-            let dl = self.lower_bound_squared(left as usize, p);
-            let dr = self.lower_bound_squared(right as usize, p);
-            // Push the farther child first so the nearer one is visited first.
-            let (near, far) = if dl <= dr {
-                ((left, dl), (right, dr))
-            } else {
-                ((right, dr), (left, dl))
-            };
-            if far.1 < best_d2 && top < stack.len() {
-                stack[top] = far;
-                top += 1;
-            }
-            if near.1 < best_d2 && top < stack.len() {
-                stack[top] = near;
-                top += 1;
-            }
-        }
-        best.map(|(d2, i, q, f)| ClosestHit {
-            distance_squared: d2,
-            triangle: self.order[i],
-            point: q.into(),
-            feature: f,
-        })
+        let hints = hints.iter().filter_map(|&h| self.tree_index_of(h));
+        self.wide
+            .closest(p.into(), max_distance_squared, hints, &self.order)
+            .map(|(distance_squared, i)| ClosestHit {
+                distance_squared,
+                triangle: self.order[i],
+            })
     }
 
     fn tree_index_of(&self, input_index: u32) -> Option<usize> {
@@ -426,19 +303,26 @@ fn hit_box(node: &Node, origin: Vec3A, inv_dir: Vec3A, t_min: f32, t_max: f32) -
     near <= far
 }
 
-/// `depth_left`: levels still allowed below this node (0: make a leaf).
+/// Subtrees with more triangles than this build their halves in parallel.
+const PARALLEL_BUILD: usize = 4096;
+
+/// `depth_left`: levels still allowed below this node (0: make a leaf). Appends the
+/// subtree in depth-first order (node indices relative to `nodes`' length on entry plus
+/// `base`) and returns its root's index. Large subtrees build their right half on
+/// another thread into a separate vector that is appended afterwards, so the result is
+/// the same for any thread count.
 fn build_recursive(
     items: &mut [BuildTri],
     offset: usize,
     depth_left: usize,
     nodes: &mut Vec<Node>,
+    base: usize,
 ) -> usize {
-    let index = nodes.len();
+    let index = base + nodes.len();
     let bounds = items.iter().fold(Aabb::EMPTY, |b, t| b.union(&t.bounds));
     nodes.push(Node {
         min: bounds.min.into(),
         max: bounds.max.into(),
-        slab: Slab::default(),
         start_or_right: offset as u32,
         count: items.len() as u32,
     });
@@ -448,11 +332,31 @@ fn build_recursive(
     let Some(split) = sah_split(items) else {
         return index; // no useful split (all centroids equal, or SAH prefers a leaf)
     };
+    let parallel = items.len() > PARALLEL_BUILD;
     let (left, right) = items.split_at_mut(split);
-    build_recursive(left, offset, depth_left - 1, nodes);
-    let right_index = build_recursive(right, offset + split, depth_left - 1, nodes);
-    nodes[index].start_or_right = right_index as u32;
-    nodes[index].count = 0;
+    let right_index = if parallel {
+        let mut right_nodes = Vec::with_capacity(2 * right.len() / LEAF_SIZE + 1);
+        // The right subtree's indices start after the left subtree, unknown until it is
+        // built: build it relative to 0 and shift it on appending.
+        rayon::join(
+            || build_recursive(left, offset, depth_left - 1, nodes, base),
+            || build_recursive(right, offset + split, depth_left - 1, &mut right_nodes, 0),
+        );
+        let shift = (base + nodes.len()) as u32;
+        for n in &mut right_nodes {
+            if n.count == 0 {
+                n.start_or_right += shift;
+            }
+        }
+        nodes.append(&mut right_nodes);
+        shift as usize
+    } else {
+        build_recursive(left, offset, depth_left - 1, nodes, base);
+        build_recursive(right, offset + split, depth_left - 1, nodes, base)
+    };
+    let local = index - base;
+    nodes[local].start_or_right = right_index as u32;
+    nodes[local].count = 0;
     index
 }
 
