@@ -1,12 +1,14 @@
 //! Bake benchmarks: run time and error together.
 //!
 //! `cargo bench -p penumbra_sdf --bench bake` (release). Prints, for the Stanford bunny
-//! at 64 samples along its longest axis, Penumbra's and `mesh_to_sdf` 0.4's times (same
-//! sample positions, same machine, one run), their errors against f64 brute force on
-//! 3,000 random samples (max and p99 in voxels, sign errors where the exact winding
-//! number is decisive, |w − ½| > 0.3), and the time ratio; then how Penumbra's time
-//! scales with samples (32³…128³) and with triangles (spheres of 1k…64k triangles).
-//! Needs `../shared/meshes` for the bunny parts.
+//! at 64 samples along its longest axis, the times of Penumbra, `mesh_to_sdf` 0.4 and —
+//! when `python3` can `import igl` (`pip install numpy libigl`) — libigl's
+//! fast-winding-number signed distance (`benches/libigl_sdf.py`), all on the same
+//! sample positions in one run; their errors against f64 brute force on 3,000 random
+//! samples (max and p99 in voxels, sign errors where the exact winding number is
+//! decisive, |w − ½| > 0.3); and the time ratios. Then how Penumbra's time scales with
+//! samples (32…256 along the longest axis) and with triangles (spheres of 1k…64k
+//! triangles). Needs `../shared/meshes` for the bunny parts.
 
 #![allow(missing_docs, reason = "criterion_group! generates undocumented items")]
 
@@ -20,9 +22,12 @@ fn settings(n: u32) -> BakeSettings {
     BakeSettings::longest_axis(n)
 }
 
+fn bunny_path() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/meshes/stanford-bunny.obj")
+}
+
 fn bunny() -> Option<TriMesh> {
-    let path =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/meshes/stanford-bunny.obj");
+    let path = bunny_path();
     let text = std::fs::read_to_string(&path)
         .map_err(|e| eprintln!("SKIPPED bunny benches: {}: {e}", path.display()))
         .ok()?;
@@ -86,6 +91,49 @@ fn mesh_to_sdf_bake(mesh: &TriMesh, v: &SdfVolume) -> Vec<f32> {
     )
 }
 
+/// libigl's signed distance on `v`'s samples through `benches/libigl_sdf.py`: its best
+/// time and values by cell (`(k, j, i)` order), or `None` when python or libigl is
+/// missing.
+fn libigl_bake(mesh_path: &std::path::Path, v: &SdfVolume) -> Option<(Duration, Vec<f32>)> {
+    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("benches/libigl_sdf.py");
+    let out = std::env::temp_dir().join(format!("penumbra_libigl_{}.npy", std::process::id()));
+    let o = v.origin;
+    let result = std::process::Command::new("python3")
+        .arg(&script)
+        .arg(mesh_path)
+        .args([o.x, o.y, o.z, v.voxel_size].map(|x| format!("{x:.9e}")))
+        .args([v.dims.x, v.dims.y, v.dims.z].map(|n| n.to_string()))
+        .arg(&out)
+        .output()
+        .ok()?;
+    if !result.status.success() {
+        eprintln!(
+            "SKIPPED libigl comparison: {}",
+            String::from_utf8_lossy(&result.stderr)
+                .lines()
+                .last()
+                .unwrap_or("python3 failed")
+        );
+        return None;
+    }
+    let stdout = String::from_utf8_lossy(&result.stdout);
+    let seconds: f64 = stdout
+        .split_whitespace()
+        .skip_while(|w| *w != "libigl_seconds")
+        .nth(1)?
+        .parse()
+        .ok()?;
+    let bytes = std::fs::read(&out).ok()?;
+    let _ = std::fs::remove_file(&out);
+    // .npy v1: magic (6), version (2), header length (u16 LE), header, data.
+    let header = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let values = bytes[10 + header..]
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    Some((Duration::from_secs_f64(seconds), values))
+}
+
 fn time<T>(f: impl FnMut() -> T, runs: u32) -> (Duration, T) {
     let mut f = f;
     let mut best = Duration::MAX;
@@ -110,6 +158,8 @@ fn comparison(c: &mut Criterion) {
     let e_theirs = errors(&tris, v, |c| {
         theirs[(c.z + c.y * nz + c.x * ny * nz) as usize]
     });
+    let igl = libigl_bake(&bunny_path(), v)
+        .map(|(t, values)| (t, errors(&tris, v, |c| values[v.index(c.x, c.y, c.z)])));
     println!(
         "\nbunny {} triangles, {nx}x{ny}x{nz} samples (best of runs, bake only, {} threads)",
         mesh.triangles.len(),
@@ -117,10 +167,14 @@ fn comparison(c: &mut Criterion) {
     );
     println!("| | time | max error (voxel) | p99 (voxel) | sign errors |");
     println!("|---|---|---|---|---|");
-    for (name, t, e) in [
+    let mut rows = vec![
         ("penumbra_sdf", t_ours, &e_ours),
         ("mesh_to_sdf 0.4", t_theirs, &e_theirs),
-    ] {
+    ];
+    if let Some((t, e)) = &igl {
+        rows.push(("libigl 2.6 (FWN sign, python)", *t, e));
+    }
+    for (name, t, e) in rows {
         println!(
             "| {name} | {:.3} s | {:.4} | {:.4} | {} of {} |",
             t.as_secs_f64(),
@@ -134,6 +188,12 @@ fn comparison(c: &mut Criterion) {
         "speed-up over mesh_to_sdf: {:.2}x",
         t_theirs.as_secs_f64() / t_ours.as_secs_f64()
     );
+    if let Some((t, _)) = &igl {
+        println!(
+            "speed-up over libigl: {:.2}x",
+            t.as_secs_f64() / t_ours.as_secs_f64()
+        );
+    }
     println!("penumbra phases: {:?}\n", ours.timings);
 
     let mut group = c.benchmark_group("bunny_64");
@@ -151,8 +211,9 @@ fn scaling(_c: &mut Criterion) {
         println!("\nbunny, samples along the longest axis:");
         println!("| n | samples | time | ns/sample |");
         println!("|---|---|---|---|");
-        for n in [32, 64, 128] {
-            let (t, b) = time(|| bake(&mesh, &settings(n), None).unwrap(), 2);
+        for n in [32, 64, 128, 256] {
+            let runs = if n >= 256 { 1 } else { 2 };
+            let (t, b) = time(|| bake(&mesh, &settings(n), None).unwrap(), runs);
             let samples = b.volume.len();
             println!(
                 "| {n} | {samples} | {:.3} s | {:.0} |",

@@ -51,12 +51,25 @@ impl SignMethod {
 }
 
 /// Bake settings.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BakeSettings {
     /// Where samples go.
     pub grid: GridPolicy,
     /// Inside/outside decision.
     pub sign: SignMethod,
+    /// Run the thin-feature guard (see [`bake`]): surfaces thinner than a voxel keep a
+    /// negative sample. Default `true`; turn it off only to inspect raw signs.
+    pub keep_thin_features: bool,
+}
+
+impl Default for BakeSettings {
+    fn default() -> Self {
+        Self {
+            grid: GridPolicy::default(),
+            sign: SignMethod::default(),
+            keep_thin_features: true,
+        }
+    }
 }
 
 impl BakeSettings {
@@ -67,7 +80,7 @@ impl BakeSettings {
                 resolution: crate::grid::Resolution::LongestAxis(n),
                 border_voxels: 2,
             },
-            sign: SignMethod::WindingNumber,
+            ..Self::default()
         }
     }
 }
@@ -250,7 +263,7 @@ pub fn bake(
                     }
                     SignMethod::WindingNumber => {
                         let levels = levels.as_ref().expect("computed for this method");
-                        levels.inside(&bvh, UVec3::new(i, j, k), p, d, h)
+                        levels.inside(&bvh, UVec3::new(i, j, k), p, d, h, &distance)
                     }
                     SignMethod::RayParity => {
                         let odd = parity_directions
@@ -285,7 +298,11 @@ pub fn bake(
         data,
     };
     drop(distance);
-    let thin_feature_samples = keep_thin_features(&mut volume, &local, origin, grid.border);
+    let thin_feature_samples = if settings.keep_thin_features {
+        keep_thin_features(&mut volume, &local, origin, grid.border)
+    } else {
+        0
+    };
     let t_end = t_start.elapsed();
     Ok(Bake {
         timings: BakeTimings {
@@ -302,7 +319,13 @@ pub fn bake(
 }
 
 /// The thin-feature guard (see [`bake`]). `tris` and `origin` are in the same (local)
-/// frame. Sequential, in triangle order: deterministic.
+/// frame.
+///
+/// Its result is defined sequentially — lattice points in triangle order, each flipping
+/// the nearest sample of its cell if the cell has no sample ≤ 0 *at that moment* — and
+/// computed in two phases with the same result: in parallel, every lattice point whose
+/// cell has no sample ≤ 0 in the unguarded field becomes a candidate (cells with one
+/// never flip); then the candidates, in triangle order, are replayed sequentially.
 fn keep_thin_features(
     volume: &mut SdfVolume,
     tris: &[[Vec3; 3]],
@@ -311,7 +334,6 @@ fn keep_thin_features(
 ) -> usize {
     let h = volume.voxel_size;
     let dims = volume.dims;
-    let mut flipped = 0;
     // Lattice spacing ≤ h/2 along every edge. A pathological mesh (a dense soup of
     // huge triangles) could ask for billions of points: past a budget of 16 points per
     // sample the lattice is coarsened uniformly (documented cost bound, never a hang).
@@ -323,7 +345,7 @@ fn keep_thin_features(
         (2.0 * longest / h).ceil().max(1.0)
     };
     let total: f64 = tris
-        .iter()
+        .par_iter()
         .map(|t| {
             let n = lattice(t) as f64;
             (n + 1.0) * (n + 2.0) / 2.0
@@ -335,47 +357,74 @@ fn keep_thin_features(
     } else {
         1.0
     };
-    for t in tris {
-        let n = ((lattice(t) as f64 * scale).ceil() as u32).clamp(1, 2048);
-        for a in 0..=n {
-            for b in 0..=(n - a) {
-                let (u, v) = (a as f32 / n as f32, b as f32 / n as f32);
-                let s = t[0] + (t[1] - t[0]) * u + (t[2] - t[0]) * v;
-                let g = (s - origin) / h;
-                let base = g.floor();
-                if base.min_element() < 0.0 {
-                    continue;
-                }
-                let (i, j, k) = (base.x as u32, base.y as u32, base.z as u32);
-                // Leave the border alone: it is outside by construction.
-                if i < border || j < border || k < border {
-                    continue;
-                }
-                if i + 1 + border >= dims.x || j + 1 + border >= dims.y || k + 1 + border >= dims.z
-                {
-                    continue;
-                }
-                let mut nearest = (f32::INFINITY, 0usize);
-                let mut has_inside = false;
-                for corner in 0..8u32 {
-                    let (di, dj, dk) = (corner & 1, (corner >> 1) & 1, corner >> 2);
-                    let index = volume.index(i + di, j + dj, k + dk);
-                    if volume.data[index].to_f32() <= 0.0 {
-                        has_inside = true;
-                        break;
+    let field = &*volume;
+    // Phase 1: candidates `(cell corner 0, nearest sample)`, in triangle order.
+    let candidates: Vec<(usize, usize)> = tris
+        .par_iter()
+        .flat_map_iter(|t| {
+            let n = ((lattice(t) as f64 * scale).ceil() as u32).clamp(1, 2048);
+            let mut out = Vec::new();
+            let mut last_cell = usize::MAX;
+            for a in 0..=n {
+                for b in 0..=(n - a) {
+                    let (u, v) = (a as f32 / n as f32, b as f32 / n as f32);
+                    let s = t[0] + (t[1] - t[0]) * u + (t[2] - t[0]) * v;
+                    let g = (s - origin) / h;
+                    let base = g.floor();
+                    if base.min_element() < 0.0 {
+                        continue;
                     }
-                    let p = Vec3::new((i + di) as f32, (j + dj) as f32, (k + dk) as f32);
-                    let d2 = (p - g).length_squared();
-                    if d2 < nearest.0 {
-                        nearest = (d2, index);
+                    let (i, j, k) = (base.x as u32, base.y as u32, base.z as u32);
+                    // Leave the border alone: it is outside by construction.
+                    if i < border || j < border || k < border {
+                        continue;
                     }
-                }
-                if !has_inside {
-                    let v = &mut volume.data[nearest.1];
-                    *v = -*v;
-                    flipped += 1;
+                    if i + 1 + border >= dims.x
+                        || j + 1 + border >= dims.y
+                        || k + 1 + border >= dims.z
+                    {
+                        continue;
+                    }
+                    let cell = field.index(i, j, k);
+                    if cell == last_cell {
+                        continue; // a later point of the same triangle and cell: a no-op
+                    }
+                    last_cell = cell;
+                    let mut nearest = (f32::INFINITY, 0usize);
+                    let mut has_inside = false;
+                    for corner in 0..8u32 {
+                        let (di, dj, dk) = (corner & 1, (corner >> 1) & 1, corner >> 2);
+                        let index = field.index(i + di, j + dj, k + dk);
+                        if field.data[index].to_f32() <= 0.0 {
+                            has_inside = true;
+                            break;
+                        }
+                        let p = Vec3::new((i + di) as f32, (j + dj) as f32, (k + dk) as f32);
+                        let d2 = (p - g).length_squared();
+                        if d2 < nearest.0 {
+                            nearest = (d2, index);
+                        }
+                    }
+                    if !has_inside {
+                        out.push((cell, nearest.1));
+                    }
                 }
             }
+            out
+        })
+        .collect();
+    // Phase 2: replay in order against the field as it changes.
+    let (sx, sxy) = (1, (dims.x * dims.y) as usize);
+    let dx = dims.x as usize;
+    let mut flipped = 0;
+    for (cell, nearest) in candidates {
+        let has_inside = [0, sx, dx, dx + sx, sxy, sxy + sx, sxy + dx, sxy + dx + sx]
+            .iter()
+            .any(|&o| volume.data[cell + o].to_f32() <= 0.0);
+        if !has_inside {
+            let v = &mut volume.data[nearest];
+            *v = -*v;
+            flipped += 1;
         }
     }
     flipped
@@ -426,8 +475,20 @@ impl Level {
     }
 
     /// The winding number's side at sample `s` (exact distance `d`) decided from this
-    /// level, when safe: `Some(w)` with `w` the bracketing value nearest ½.
-    fn decide(&self, s: UVec3, sample_dims: UVec3, d: f32, h: f32) -> Option<f32> {
+    /// level, when safe: `Some(w)` with `w` the bracketing value nearest ½. Safe means
+    /// either that `s`'s own surface-free ball contains the whole bracket, or — for
+    /// samples near the surface — that `s` lies inside the surface-free ball of a
+    /// bracketing sample (the winding number is smooth across that ball too; a sample
+    /// across the surface never qualifies, its ball ends at the surface). `distance`:
+    /// exact distances of all samples.
+    fn decide(
+        &self,
+        s: UVec3,
+        sample_dims: UVec3,
+        d: f32,
+        h: f32,
+        distance: &[f32],
+    ) -> Option<f32> {
         let mut lo = [0u32; 3];
         let mut count = [1u32; 3];
         let mut reach2 = 0u32;
@@ -443,7 +504,7 @@ impl Level {
             }
         }
         if reach2 > 0 && d * d <= reach2 as f32 * h * h {
-            return None;
+            return self.decide_near_surface(s, sample_dims, h, distance, lo, count);
         }
         let mut nearest: Option<f32> = None;
         for dz in 0..count[2] {
@@ -453,6 +514,48 @@ impl Level {
                     let w = self.w[(c.x + self.dims.x * (c.y + self.dims.y * c.z)) as usize];
                     if (w - 0.5).abs() <= SIGN_MARGIN {
                         return None;
+                    }
+                    match nearest {
+                        Some(n) if (n > 0.5) != (w > 0.5) => return None,
+                        Some(n) if (n - 0.5).abs() <= (w - 0.5).abs() => {}
+                        _ => nearest = Some(w),
+                    }
+                }
+            }
+        }
+        nearest
+    }
+
+    /// [`Level::decide`] for a sample whose own ball is too small: the side of every
+    /// decisive bracketing sample whose surface-free ball contains `s`, if they agree.
+    fn decide_near_surface(
+        &self,
+        s: UVec3,
+        sample_dims: UVec3,
+        h: f32,
+        distance: &[f32],
+        lo: [u32; 3],
+        count: [u32; 3],
+    ) -> Option<f32> {
+        let mut nearest: Option<f32> = None;
+        for dz in 0..count[2] {
+            for dy in 0..count[1] {
+                for dx in 0..count[0] {
+                    let c = UVec3::new(lo[0] + dx, lo[1] + dy, lo[2] + dz);
+                    let at = UVec3::new(
+                        self.position(c.x, sample_dims.x),
+                        self.position(c.y, sample_dims.y),
+                        self.position(c.z, sample_dims.z),
+                    );
+                    let gap2 = (at.as_ivec3() - s.as_ivec3()).length_squared() as f32 * h * h;
+                    let dc =
+                        distance[(at.x + sample_dims.x * (at.y + sample_dims.y * at.z)) as usize];
+                    if dc * dc <= gap2 * (1.0 + 1e-4) {
+                        continue;
+                    }
+                    let w = self.w[(c.x + self.dims.x * (c.y + self.dims.y * c.z)) as usize];
+                    if (w - 0.5).abs() <= SIGN_MARGIN {
+                        continue;
                     }
                     match nearest {
                         Some(n) if (n > 0.5) != (w > 0.5) => return None,
@@ -479,17 +582,22 @@ impl WindingLevels {
             let slice = (ld.x * ld.y) as usize;
             let spacing = level.spacing;
             let at = |c: u32, n: u32| (spacing * c).min(n - 1);
-            level.w.par_chunks_mut(slice).enumerate().for_each(|(ck, out)| {
-                for cj in 0..ld.y {
-                    for ci in 0..ld.x {
-                        let s = UVec3::new(at(ci, dims.x), at(cj, dims.y), at(ck as u32, dims.z));
-                        let d = distance[(s.x + dims.x * (s.y + dims.y * s.z)) as usize];
-                        out[(ci + ld.x * cj) as usize] = parent
-                            .and_then(|p| p.decide(s, dims, d, h))
-                            .unwrap_or_else(|| bvh.winding_number(position(s.x, s.y, s.z)));
+            level
+                .w
+                .par_chunks_mut(slice)
+                .enumerate()
+                .for_each(|(ck, out)| {
+                    for cj in 0..ld.y {
+                        for ci in 0..ld.x {
+                            let s =
+                                UVec3::new(at(ci, dims.x), at(cj, dims.y), at(ck as u32, dims.z));
+                            let d = distance[(s.x + dims.x * (s.y + dims.y * s.z)) as usize];
+                            out[(ci + ld.x * cj) as usize] = parent
+                                .and_then(|p| p.decide(s, dims, d, h, distance))
+                                .unwrap_or_else(|| bvh.winding_number(position(s.x, s.y, s.z)));
+                        }
                     }
-                }
-            });
+                });
         };
         let mut coarse = Level::new(4, dims);
         fill(&mut coarse, None);
@@ -499,9 +607,9 @@ impl WindingLevels {
     }
 
     /// Whether sample `s` (position `p`, exact distance `d`) is inside.
-    fn inside(&self, bvh: &Bvh, s: UVec3, p: Vec3, d: f32, h: f32) -> bool {
+    fn inside(&self, bvh: &Bvh, s: UVec3, p: Vec3, d: f32, h: f32, distance: &[f32]) -> bool {
         self.fine
-            .decide(s, self.dims, d, h)
+            .decide(s, self.dims, d, h, distance)
             .unwrap_or_else(|| bvh.winding_number(p))
             > 0.5
     }

@@ -186,9 +186,21 @@ mod tests {
         assert!(text.len() > 3 * CHUNK_BYTES);
         let m = parse_obj(&text).unwrap();
         assert_eq!(m.positions.len(), n);
-        assert_eq!(m.positions[n - 1], Vec3::new((n - 1) as f32, ((n - 1) % 7) as f32 + 0.5, -((n - 1) as f32) * 1e-3));
+        assert_eq!(
+            m.positions[n - 1],
+            Vec3::new(
+                (n - 1) as f32,
+                ((n - 1) % 7) as f32 + 0.5,
+                -((n - 1) as f32) * 1e-3
+            )
+        );
         assert_eq!(m.triangles.len(), n - 2);
-        assert!(m.triangles.iter().enumerate().all(|(t, tri)| *tri == [t as u32, t as u32 + 1, t as u32 + 2]));
+        assert!(
+            m.triangles
+                .iter()
+                .enumerate()
+                .all(|(t, tri)| *tri == [t as u32, t as u32 + 1, t as u32 + 2])
+        );
         // An out-of-range index late in the file, then a syntax error after it.
         let lines: Vec<&str> = text.lines().collect();
         let mut bad = lines.clone();
@@ -196,11 +208,19 @@ mod tests {
         bad[late] = "f 1 2 999999";
         bad[late + 5] = "v 1 x 2";
         let e = parse_obj(&bad.join("\n")).unwrap_err();
-        assert_eq!((e.line, e.message.contains("out of range")), (late + 1, true), "{e}");
+        assert_eq!(
+            (e.line, e.message.contains("out of range")),
+            (late + 1, true),
+            "{e}"
+        );
         // A syntax error in an early chunk wins over everything after it.
         bad[100] = "f 1 2";
         let e = parse_obj(&bad.join("\n")).unwrap_err();
-        assert_eq!((e.line, e.message.contains("at least 3")), (101, true), "{e}");
+        assert_eq!(
+            (e.line, e.message.contains("at least 3")),
+            (101, true),
+            "{e}"
+        );
     }
 
     #[test]

@@ -236,7 +236,7 @@ fn fnv1a(mut hash: u64, bytes: &[u8]) -> u64 {
     hash
 }
 
-/// The cache key of a bake: mesh content, settings and file-format version.
+/// The cache key of a bake: mesh content, settings, baker and file-format versions.
 fn bake_key(mesh: &TriMesh, settings: &BakeSettings) -> u64 {
     let mut h = 0xcbf2_9ce4_8422_2325;
     for p in &mesh.positions {
@@ -250,6 +250,7 @@ fn bake_key(mesh: &TriMesh, settings: &BakeSettings) -> u64 {
         }
     }
     h = fnv1a(h, format!("{settings:?}").as_bytes());
+    h = fnv1a(h, &penumbra_sdf::BAKER_VERSION.to_le_bytes());
     fnv1a(h, &format::VERSION.to_le_bytes())
 }
 

@@ -126,6 +126,7 @@ fn run(args: Args) -> Result<(), String> {
             ..Default::default()
         },
         sign: args.sign,
+        ..Default::default()
     };
     let show_progress = std::io::stderr().is_terminal();
     let progress = |f: f32| {

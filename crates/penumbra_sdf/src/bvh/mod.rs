@@ -33,9 +33,9 @@ pub(crate) struct Node {
 /// dipole moment), its expansion centre, and the radius of a ball around the centre
 /// containing every triangle of the node.
 #[derive(Clone, Copy, Debug)]
-struct Dipole {
-    normal_sum: Vec3A,
-    center: Vec3A,
+pub(crate) struct Dipole {
+    pub(crate) normal_sum: Vec3A,
+    pub(crate) center: Vec3A,
     radius: f32,
 }
 
@@ -52,7 +52,7 @@ pub struct ClosestHit {
 #[derive(Clone, Debug)]
 pub struct Bvh {
     pub(crate) nodes: Vec<Node>,
-    dipoles: Vec<Dipole>,
+    pub(crate) dipoles: Vec<Dipole>,
     /// Triangle corners in tree order.
     pub(crate) tris: Vec<[Vec3A; 3]>,
     /// Input index of each tree-order triangle.
@@ -122,6 +122,20 @@ impl Bvh {
         }
         bvh.wide = wide::WideTree::build(&bvh);
         bvh
+    }
+
+    /// The triangle range (tree order) under a node.
+    pub(crate) fn triangle_range(&self, node: usize) -> std::ops::Range<usize> {
+        let mut first = node;
+        while self.nodes[first].count == 0 {
+            first += 1; // left child
+        }
+        let mut last = node;
+        while self.nodes[last].count == 0 {
+            last = self.nodes[last].start_or_right as usize; // right child
+        }
+        let (f, l) = (&self.nodes[first], &self.nodes[last]);
+        f.start_or_right as usize..(l.start_or_right + l.count) as usize
     }
 
     /// Number of triangles.
@@ -461,6 +475,70 @@ mod tests {
                 (w - exact::winding_number(p, &tris)).abs() < 0.05,
                 "{p}: {w}"
             );
+        }
+    }
+
+    /// Triangles that pass validation but are nearly degenerate: slivers with a vertex
+    /// 1e-9 off the line of the other two, and needles.
+    fn slivers() -> Vec<[Vec3; 3]> {
+        (0..40)
+            .map(|k| {
+                let a = k as f32 * 0.37;
+                let base = Vec3::new(a.cos(), (a * 1.7).sin() * 0.5, a.sin());
+                let dir = Vec3::new((a * 2.3).sin(), (a * 0.7).cos(), 0.3).normalize();
+                let off = if k % 2 == 0 {
+                    dir.cross(Vec3::Z).normalize_or(Vec3::X) * 1e-9
+                } else {
+                    Vec3::new(1e-6, 0.0, 0.0)
+                };
+                [base, base + dir * 0.5, base + dir * 0.25 + off]
+            })
+            .collect()
+    }
+
+    /// The SIMD closest-point query (4-wide tree, box and cylinder bounds, triangle
+    /// packets) equals f64 brute force near and far from surfaces of every kind, with
+    /// and without (possibly misleading) hints.
+    #[test]
+    fn closest_matches_brute_force_near_and_far() {
+        let mut cases: Vec<(&str, Vec<[Vec3; 3]>)> = [
+            ("sphere", crate::shapes::sphere(1.0, 48, 24)),
+            ("torus", crate::shapes::torus(1.0, 0.3, 40, 16)),
+            ("thin plate", crate::shapes::thin_plate(1.0, 0.7, 0.001)),
+            ("open bowl", crate::shapes::open_bowl(1.0, 32, 8)),
+            ("soup", crate::shapes::intersecting_soup()),
+        ]
+        .into_iter()
+        .map(|(name, m)| (name, m.validate().unwrap().0))
+        .collect();
+        cases.push(("slivers", slivers()));
+        let mut s = 99u64;
+        let mut next = move || {
+            s = s
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (s >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for (name, tris) in cases {
+            let bvh = Bvh::build(&tris);
+            for k in 0..2000 {
+                // Scales from 1e-3 (on the surface) to 4 (far outside).
+                let scale = 10f32.powf(-3.0 + 3.6 * next());
+                let p = Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 2.0 * scale
+                    + tris[k % tris.len()][0];
+                let hint = [(next() * tris.len() as f32) as u32 % tris.len() as u32];
+                let hints: &[u32] = if k % 3 == 0 { &[] } else { &hint };
+                let got = bvh
+                    .closest(p, f32::INFINITY, hints)
+                    .unwrap()
+                    .distance_squared
+                    .sqrt() as f64;
+                let want = exact::distance(p, &tris);
+                assert!(
+                    (got - want).abs() <= 2e-6 * (1.0 + want) + 1e-6 * want.max(1e-3),
+                    "{name} {p}: {got} vs {want}"
+                );
+            }
         }
     }
 }

@@ -19,12 +19,27 @@ const NONE: u32 = u32::MAX;
 /// `MAX_DEPTH + 1` deep.
 const STACK: usize = 3 * (super::MAX_DEPTH + 2);
 
+/// Subtrees with at most this many triangles get a bounding cylinder.
+const CYLINDER_MAX_TRIANGLES: usize = 256;
+
 /// Four children's bounds, structure-of-arrays. Unused lanes have an empty box
 /// (`min = +∞`, `max = −∞`), whose lower bound is `+∞`.
+///
+/// Besides its box, each small child has a bounding *cylinder*: a disc around its
+/// area-weighted centre, perpendicular to its mean normal, of radius `cyl_radius`,
+/// thickened by `cyl_half` on both sides. A surface patch seen from a far sample
+/// lies almost flat across the line of sight, where a box bound is loose by up to the
+/// patch size and the disc bound by only its thickness: that is what prunes the many
+/// near-tangent leaves of far-field queries. (Children without one have infinite
+/// cylinder dimensions, a zero bound.)
 #[derive(Clone, Copy, Debug)]
 struct Node4 {
     min: [Vec4; 3],
     max: [Vec4; 3],
+    cyl_center: [Vec4; 3],
+    cyl_axis: [Vec4; 3],
+    cyl_radius: Vec4,
+    cyl_half: Vec4,
     /// Interior node index, `LEAF | first packet`, or `NONE`.
     child: [u32; 4],
     /// Packets of a leaf child.
@@ -40,11 +55,15 @@ struct Packet {
     e1: [Vec4; 3],
     /// Unit normal (zero for degenerate triangles).
     normal: [Vec4; 3],
-    /// Inverse Gram matrix `[g00, g01, g11]` of `(e0, e1)`: the barycentric
-    /// coordinates of the projection of `p − a` are `(g00 s + g01 t, g01 s + g11 t)`
-    /// with `s = (p − a)·e0`, `t = (p − a)·e1`. NaN for (near-)degenerate triangles, so
-    /// the in-face test fails and only the edges count.
-    gram_inv: [Vec4; 3],
+    /// In-plane inward normals `n × e` of the edges ab, bc, ca (any length): `p`
+    /// projects inside the triangle iff `(p − a)·m_ab ≥ 0`, `(p − a)·m_bc ≥ e0·m_bc`
+    /// and `(p − a)·m_ca ≥ 0` — a well-conditioned test even for slivers (barycentric
+    /// coordinates from the inverse Gram matrix are not: the first version used them
+    /// and a thin plate's side triangles came out up to 18 % too far).
+    edge_normal: [[Vec4; 3]; 3],
+    /// `e0·m_bc`; `+∞` for (near-)degenerate triangles, so the in-face test fails and
+    /// only the edges count.
+    bc_threshold: Vec4,
     /// `1 / |e|²` of the edges ab, bc, ca (0 for a zero-length edge).
     inv_len2: [Vec4; 3],
     /// `|e0|² − e0·e1`: turns `(s, t)` into `(p − b)·(c − b)`.
@@ -60,35 +79,88 @@ pub(crate) struct WideTree {
     packets: Vec<Packet>,
     /// Packet holding each tree-order triangle.
     packet_of: Vec<u32>,
+    /// Packets numbered so far while collapsing.
+    next_packet: u32,
 }
 
 impl WideTree {
-    /// Collapses `bvh` (whose `nodes` and `tris` must be built).
+    /// Collapses `bvh` (whose `nodes`, `tris` and `dipoles` must be built). The tree
+    /// shape is chosen sequentially; bounding cylinders and triangle packets, the bulk
+    /// of the work, are computed in parallel (each independently, so the result does
+    /// not depend on the thread count).
     pub(crate) fn build(bvh: &Bvh) -> WideTree {
-        let mut tree = WideTree {
-            packet_of: vec![0; bvh.tris.len()],
-            ..Default::default()
-        };
-        if !bvh.nodes.is_empty() {
-            tree.collapse(bvh, 0);
+        use rayon::prelude::*;
+        let mut tree = WideTree::default();
+        if bvh.nodes.is_empty() {
+            return tree;
+        }
+        let mut leaves = Vec::new();
+        let mut kids_of = Vec::new();
+        tree.collapse(bvh, 0, &mut leaves, &mut kids_of);
+        // Packets: leaf after leaf, in the order `collapse` numbered them, each leaf
+        // filling its own slice.
+        tree.packets = vec![Packet::EMPTY; tree.next_packet as usize];
+        let mut slices = Vec::with_capacity(leaves.len());
+        let mut rest = tree.packets.as_mut_slice();
+        for &(start, count) in &leaves {
+            let (mine, others) = rest.split_at_mut(count.div_ceil(4));
+            slices.push((start, count, mine));
+            rest = others;
+        }
+        slices
+            .into_par_iter()
+            .for_each(|(start, count, out)| fill_leaf_packets(bvh, start, count, out));
+        tree.packet_of = vec![0; bvh.tris.len()];
+        for (q, packet) in tree.packets.iter().enumerate() {
+            for &t in &packet.tri {
+                tree.packet_of[t as usize] = q as u32;
+            }
+        }
+        let cylinders: Vec<[Option<Cylinder>; 4]> = kids_of
+            .par_iter()
+            .map(|kids| kids.map(|k| k.and_then(|k| bounding_cylinder(bvh, k))))
+            .collect();
+        for (node, cylinders) in tree.nodes.iter_mut().zip(cylinders) {
+            for (lane, cylinder) in cylinders.into_iter().enumerate() {
+                if let Some(c) = cylinder {
+                    for axis in 0..3 {
+                        node.cyl_center[axis][lane] = c.center[axis];
+                        node.cyl_axis[axis][lane] = c.axis[axis];
+                    }
+                    node.cyl_radius[lane] = c.radius;
+                    node.cyl_half[lane] = c.half_thickness;
+                }
+            }
         }
         tree
     }
 
     /// Adds the 4-wide node standing for binary node `root` (and, recursively, its
-    /// subtree); returns its index.
-    fn collapse(&mut self, bvh: &Bvh, root: usize) -> u32 {
+    /// subtree); returns its index. Leaf children get packet ranges numbered in the
+    /// order they are pushed to `leaves` (`(first triangle, count)`); `kids_of[node]`
+    /// records each lane's binary node.
+    fn collapse(
+        &mut self,
+        bvh: &Bvh,
+        root: usize,
+        leaves: &mut Vec<(usize, usize)>,
+        kids_of: &mut Vec<[Option<usize>; 4]>,
+    ) -> u32 {
         let node = &bvh.nodes[root];
-        let mut kids: Vec<usize> = if node.count > 0 {
-            vec![root] // a leaf root: a 4-wide node with one leaf child
+        let mut slots = [0usize; 4];
+        let mut len = if node.count > 0 {
+            slots[0] = root; // a leaf root: a 4-wide node with one leaf child
+            1
         } else {
-            vec![root + 1, node.start_or_right as usize]
+            slots[0] = root + 1;
+            slots[1] = node.start_or_right as usize;
+            2
         };
         // Open the largest interior child until there are 4 (deterministic: ties keep
         // the first).
-        while kids.len() < 4 {
+        while len < 4 {
             let mut best: Option<(usize, f32)> = None;
-            for (pos, &k) in kids.iter().enumerate() {
+            for (pos, &k) in slots[..len].iter().enumerate() {
                 let n = &bvh.nodes[k];
                 if n.count == 0 {
                     let area = half_area(n.min, n.max);
@@ -98,25 +170,39 @@ impl WideTree {
                 }
             }
             let Some((pos, _)) = best else { break };
-            let k = kids[pos];
-            kids[pos] = k + 1;
-            kids.insert(pos + 1, bvh.nodes[k].start_or_right as usize);
+            let k = slots[pos];
+            slots.copy_within(pos + 1..len, pos + 2);
+            slots[pos] = k + 1;
+            slots[pos + 1] = bvh.nodes[k].start_or_right as usize;
+            len += 1;
         }
+        let kids = &slots[..len];
         let index = self.nodes.len();
         self.nodes.push(Node4 {
             min: [Vec4::INFINITY; 3],
             max: [Vec4::NEG_INFINITY; 3],
+            cyl_center: [Vec4::ZERO; 3],
+            cyl_axis: [Vec4::ZERO; 3],
+            cyl_radius: Vec4::INFINITY,
+            cyl_half: Vec4::INFINITY,
             child: [NONE; 4],
             packets: [0; 4],
         });
+        let mut lanes = [None; 4];
+        for (lane, &k) in kids.iter().enumerate() {
+            lanes[lane] = Some(k);
+        }
+        kids_of.push(lanes);
         for (lane, &k) in kids.iter().enumerate() {
             let n = &bvh.nodes[k];
             let (child, packets) = if n.count > 0 {
-                let first = self.packets.len() as u32;
-                self.add_leaf(bvh, n.start_or_right as usize, n.count as usize);
-                (LEAF | first, self.packets.len() as u32 - first)
+                let first = self.next_packet;
+                let count = (n.count as usize).div_ceil(4) as u32;
+                self.next_packet += count;
+                leaves.push((n.start_or_right as usize, n.count as usize));
+                (LEAF | first, count)
             } else {
-                (self.collapse(bvh, k), 0)
+                (self.collapse(bvh, k, leaves, kids_of), 0)
             };
             let w = &mut self.nodes[index];
             for axis in 0..3 {
@@ -127,55 +213,6 @@ impl WideTree {
             w.packets[lane] = packets;
         }
         index as u32
-    }
-
-    fn add_leaf(&mut self, bvh: &Bvh, start: usize, count: usize) {
-        for first in (start..start + count).step_by(4) {
-            let mut p = Packet {
-                a: [Vec4::ZERO; 3],
-                e0: [Vec4::ZERO; 3],
-                e1: [Vec4::ZERO; 3],
-                normal: [Vec4::ZERO; 3],
-                gram_inv: [Vec4::ZERO; 3],
-                inv_len2: [Vec4::ZERO; 3],
-                bc_offset: Vec4::ZERO,
-                tri: [0; 4],
-            };
-            for lane in 0..4 {
-                let i = if first + lane < start + count {
-                    first + lane
-                } else {
-                    first
-                };
-                self.packet_of[i] = self.packets.len() as u32;
-                let [a, b, c] = bvh.tris[i];
-                let (e0, e1, e2) = (b - a, c - a, c - b);
-                let g = gram_inverse(e0, e1);
-                let n = e0.cross(e1);
-                let n = if g[0].is_nan() {
-                    Vec3A::ZERO
-                } else {
-                    n.normalize_or_zero()
-                };
-                let inv = |e: Vec3A| {
-                    let l = e.length_squared();
-                    if l > 0.0 { 1.0 / l } else { 0.0 }
-                };
-                for axis in 0..3 {
-                    p.a[axis][lane] = a[axis];
-                    p.e0[axis][lane] = e0[axis];
-                    p.e1[axis][lane] = e1[axis];
-                    p.normal[axis][lane] = n[axis];
-                    p.gram_inv[axis][lane] = g[axis];
-                }
-                p.inv_len2[0][lane] = inv(e0);
-                p.inv_len2[1][lane] = inv(e2);
-                p.inv_len2[2][lane] = inv(e1);
-                p.bc_offset[lane] = e0.length_squared() - e0.dot(e1);
-                p.tri[lane] = i as u32;
-            }
-            self.packets.push(p);
-        }
     }
 
     /// The closest triangle to `p` closer than `sqrt(best_d2)`: `(squared distance,
@@ -254,23 +291,47 @@ impl WideTree {
 }
 
 impl Node4 {
-    /// Squared distance from `p` to each child's box: a lower bound of the squared
-    /// distance to its triangles. (Bounding slabs along the mean normal were tried as a
-    /// second bound: no faster on the bunny, and they double the node size.)
+    /// Lower bounds of the squared distance from `p` to each child's triangles: the
+    /// larger of the squared distances to its box and to its cylinder. (A slab along
+    /// the mean normal alone was tried first: it never prunes a convex patch seen from
+    /// outside, and did not pay for itself.)
     #[inline]
     fn lower_bounds(&self, p: &[Vec4; 3]) -> Vec4 {
         let mut box_d2 = Vec4::ZERO;
+        let mut v = [Vec4::ZERO; 3];
+        let mut along = Vec4::ZERO;
         for axis in 0..3 {
             let d = (self.min[axis] - p[axis])
                 .max(p[axis] - self.max[axis])
                 .max(Vec4::ZERO);
             box_d2 += d * d;
+            v[axis] = p[axis] - self.cyl_center[axis];
+            along += v[axis] * self.cyl_axis[axis];
         }
-        box_d2
+        let mut lateral2 = Vec4::ZERO;
+        for axis in 0..3 {
+            let l = v[axis] - along * self.cyl_axis[axis];
+            lateral2 += l * l;
+        }
+        let a = (along.abs() - self.cyl_half).max(Vec4::ZERO);
+        let b = (lateral2.sqrt() - self.cyl_radius).max(Vec4::ZERO);
+        box_d2.max(a * a + b * b)
     }
 }
 
 impl Packet {
+    const EMPTY: Packet = Packet {
+        a: [Vec4::ZERO; 3],
+        e0: [Vec4::ZERO; 3],
+        e1: [Vec4::ZERO; 3],
+        normal: [Vec4::ZERO; 3],
+        edge_normal: [[Vec4::ZERO; 3]; 3],
+        bc_threshold: Vec4::ZERO,
+        inv_len2: [Vec4::ZERO; 3],
+        bc_offset: Vec4::ZERO,
+        tri: [0; 4],
+    };
+
     /// Squared distance from `p` to each lane's triangle: to its plane when `p` projects
     /// inside it, else to the nearest of its three edges.
     #[inline]
@@ -279,10 +340,10 @@ impl Packet {
         let dot = |x: &[Vec4; 3], y: &[Vec4; 3]| x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
         let s = dot(&ap, &self.e0);
         let t = dot(&ap, &self.e1);
-        let [g00, g01, g11] = self.gram_inv;
-        let u = g00 * s + g01 * t;
-        let v = g01 * s + g11 * t;
-        let inside: BVec4A = u.cmpge(Vec4::ZERO) & v.cmpge(Vec4::ZERO) & (u + v).cmple(Vec4::ONE);
+        let [m_ab, m_bc, m_ca] = &self.edge_normal;
+        let inside: BVec4A = dot(&ap, m_ab).cmpge(Vec4::ZERO)
+            & dot(&ap, m_bc).cmpge(self.bc_threshold)
+            & dot(&ap, m_ca).cmpge(Vec4::ZERO);
         let h = dot(&ap, &self.normal);
         let plane = h * h;
         let segment = |d: &[Vec4; 3], e: &[Vec4; 3], x: Vec4| {
@@ -303,21 +364,102 @@ impl Packet {
     }
 }
 
-/// Inverse Gram matrix `[g00, g01, g11]` of edges `(e0, e1)`, computed in f64; NaN when
-/// the triangle is degenerate (its area is below 1e-6 of its edge lengths' product, so
-/// its interior is within 1e-6 × its size of its edges).
-fn gram_inverse(e0: Vec3A, e1: Vec3A) -> [f32; 3] {
-    let (e0, e1) = (e0.as_dvec3(), e1.as_dvec3());
-    let (a, b, c) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
-    let det = a * c - b * b;
-    if !(det > 1e-12 * a * c) || !det.is_finite() {
-        return [f32::NAN; 3];
+/// Fills `out` with the packets of the leaf holding tree-order triangles
+/// `start..start + count`.
+fn fill_leaf_packets(bvh: &Bvh, start: usize, count: usize, out: &mut [Packet]) {
+    for (p, first) in out.iter_mut().zip((start..start + count).step_by(4)) {
+        {
+            for lane in 0..4 {
+                let i = if first + lane < start + count {
+                    first + lane
+                } else {
+                    first
+                };
+                let [a, b, c] = bvh.tris[i];
+                let (e0, e1, e2) = (b - a, c - a, c - b);
+                let n = unit_normal(e0, e1).unwrap_or(Vec3A::ZERO);
+                let m = [n.cross(e0), n.cross(e2), n.cross(-e1)];
+                let inv = |e: Vec3A| {
+                    let l = e.length_squared();
+                    if l > 0.0 { 1.0 / l } else { 0.0 }
+                };
+                for axis in 0..3 {
+                    p.a[axis][lane] = a[axis];
+                    p.e0[axis][lane] = e0[axis];
+                    p.e1[axis][lane] = e1[axis];
+                    p.normal[axis][lane] = n[axis];
+                    for (edge, m) in m.iter().enumerate() {
+                        p.edge_normal[edge][axis][lane] = m[axis];
+                    }
+                }
+                p.bc_threshold[lane] = if n == Vec3A::ZERO {
+                    f32::INFINITY
+                } else {
+                    e0.dot(m[1])
+                };
+                p.inv_len2[0][lane] = inv(e0);
+                p.inv_len2[1][lane] = inv(e2);
+                p.inv_len2[2][lane] = inv(e1);
+                p.bc_offset[lane] = e0.length_squared() - e0.dot(e1);
+                p.tri[lane] = i as u32;
+            }
+        }
     }
-    [(c / det) as f32, (-b / det) as f32, (a / det) as f32]
+}
+
+/// A disc perpendicular to `axis` through `center`, thickened by `half_thickness`.
+#[derive(Clone, Copy, Debug)]
+struct Cylinder {
+    center: Vec3A,
+    axis: Vec3A,
+    radius: f32,
+    half_thickness: f32,
+}
+
+/// The bounding cylinder of binary node `node`'s triangles, padded for rounding, or
+/// `None` for a big or normal-less node.
+fn bounding_cylinder(bvh: &Bvh, node: usize) -> Option<Cylinder> {
+    let range = bvh.triangle_range(node);
+    if range.len() > CYLINDER_MAX_TRIANGLES {
+        return None;
+    }
+    let dipole = &bvh.dipoles[node];
+    let axis = dipole.normal_sum.try_normalize()?;
+    let center = dipole.center;
+    let (mut radius2, mut half) = (0.0f32, 0.0f32);
+    for t in &bvh.tris[range] {
+        for &v in t {
+            let d = v - center;
+            let h = d.dot(axis);
+            half = half.max(h.abs());
+            radius2 = radius2.max((d - h * axis).length_squared());
+        }
+    }
+    let radius = radius2.sqrt();
+    // Rounding in the build and in the query: pad by a relative 1e-5 of the scale.
+    let pad = 1e-5 * (center.abs().max_element() + radius + half);
+    Some(Cylinder {
+        center,
+        axis,
+        radius: radius + pad,
+        half_thickness: half + pad,
+    })
+}
+
+/// The unit normal of a triangle with edges `e0`, `e1`, computed in f64, or `None`
+/// when the triangle is degenerate (its area is below 1e-6 of its edge lengths'
+/// product, so its interior is within 1e-6 × its size of its edges).
+fn unit_normal(e0: Vec3A, e1: Vec3A) -> Option<Vec3A> {
+    let (e0, e1) = (e0.as_dvec3(), e1.as_dvec3());
+    let n = e0.cross(e1);
+    let area2 = n.length_squared();
+    if !(area2 > 1e-12 * e0.length_squared() * e1.length_squared()) || !area2.is_finite() {
+        return None;
+    }
+    Some((n / area2.sqrt()).as_vec3a())
 }
 
 fn half_area(min: Vec3A, max: Vec3A) -> f32 {
     let s = (max - min).max(Vec3A::ZERO);
     s.x * s.y + s.y * s.z + s.z * s.x
 }
-
