@@ -309,8 +309,8 @@ impl Node4 {
             along += v[axis] * self.cyl_axis[axis];
         }
         let mut lateral2 = Vec4::ZERO;
-        for axis in 0..3 {
-            let l = v[axis] - along * self.cyl_axis[axis];
+        for (v, axis) in v.iter().zip(&self.cyl_axis) {
+            let l = *v - along * *axis;
             lateral2 += l * l;
         }
         let a = (along.abs() - self.cyl_half).max(Vec4::ZERO);
@@ -453,7 +453,8 @@ fn unit_normal(e0: Vec3A, e1: Vec3A) -> Option<Vec3A> {
     let (e0, e1) = (e0.as_dvec3(), e1.as_dvec3());
     let n = e0.cross(e1);
     let area2 = n.length_squared();
-    if !(area2 > 1e-12 * e0.length_squared() * e1.length_squared()) || !area2.is_finite() {
+    let thin = area2.partial_cmp(&(1e-12 * e0.length_squared() * e1.length_squared()));
+    if thin != Some(std::cmp::Ordering::Greater) || !area2.is_finite() {
         return None;
     }
     Some((n / area2.sqrt()).as_vec3a())
