@@ -395,7 +395,7 @@ fn keep_thin_features(
                     for corner in 0..8u32 {
                         let (di, dj, dk) = (corner & 1, (corner >> 1) & 1, corner >> 2);
                         let index = field.index(i + di, j + dj, k + dk);
-                        if field.data[index].to_f32() <= 0.0 {
+                        if non_positive(field.data[index]) {
                             has_inside = true;
                             break;
                         }
@@ -420,7 +420,7 @@ fn keep_thin_features(
     for (cell, nearest) in candidates {
         let has_inside = [0, sx, dx, dx + sx, sxy, sxy + sx, sxy + dx, sxy + dx + sx]
             .iter()
-            .any(|&o| volume.data[cell + o].to_f32() <= 0.0);
+            .any(|&o| non_positive(volume.data[cell + o]));
         if !has_inside {
             let v = &mut volume.data[nearest];
             *v = -*v;
@@ -428,6 +428,14 @@ fn keep_thin_features(
         }
     }
     flipped
+}
+
+/// `v <= 0` for a non-NaN half, from its bits (the `half` crate converts in software
+/// where the CPU lacks F16C, and this is the guard's inner loop).
+#[inline]
+fn non_positive(v: f16) -> bool {
+    let bits = v.to_bits();
+    bits >= 0x8000 || bits == 0
 }
 
 /// Winding numbers on a hierarchy of sub-grids (every 4th, then every 2nd sample along

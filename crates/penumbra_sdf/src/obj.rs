@@ -135,7 +135,7 @@ impl Chunk {
             Some("f") => {
                 let first = self.indices.len();
                 for w in words {
-                    let index_text = w.split('/').next().unwrap_or("");
+                    let index_text = w.split_once('/').map_or(w, |(index, _)| index);
                     let i: i64 = index_text
                         .parse()
                         .map_err(|_| format!("bad face index {w:?}"))?;
