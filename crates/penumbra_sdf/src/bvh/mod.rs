@@ -11,7 +11,7 @@ use glam::{Vec3, Vec3A};
 
 mod wide;
 
-const LEAF_SIZE: usize = 4;
+const LEAF_SIZE: usize = 8;
 /// Deepest level the build splits to; deeper nodes become (larger) leaves. Keeps the
 /// fixed 64-entry traversal stacks from ever overflowing on adversarial meshes.
 const MAX_DEPTH: usize = 48;
