@@ -44,6 +44,8 @@ struct Node4 {
     child: [u32; 4],
     /// Packets of a leaf child.
     packets: [u32; 4],
+    /// Bit `i` set: lane `i` is a leaf.
+    leaf_lanes: u32,
 }
 
 /// Four triangles `(a, a + e0, a + e1)`, structure-of-arrays. Lanes past the end of a
@@ -187,6 +189,7 @@ impl WideTree {
             cyl_half: Vec4::INFINITY,
             child: [NONE; 4],
             packets: [0; 4],
+            leaf_lanes: 0,
         });
         let mut lanes = [None; 4];
         for (lane, &k) in kids.iter().enumerate() {
@@ -211,6 +214,9 @@ impl WideTree {
             }
             w.child[lane] = child;
             w.packets[lane] = packets;
+            if child & LEAF != 0 {
+                w.leaf_lanes |= 1 << lane;
+            }
         }
         index as u32
     }
@@ -232,10 +238,12 @@ impl WideTree {
         let mut best: Option<usize> = None;
         let visit_packet = |packet: &Packet, best_d2: &mut f32, best: &mut Option<usize>| {
             let d2 = packet.distance_squared(&px);
-            if d2.min_element() > *best_d2 {
-                return;
-            }
-            for lane in 0..4 {
+            let mut lanes = d2.cmple(Vec4::splat(*best_d2)).bitmask();
+            // Plain arrays: indexing a `Vec4` by a runtime lane compiles to a jump table.
+            let d2 = d2.to_array();
+            while lanes != 0 {
+                let lane = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
                 let (d, t) = (d2[lane], packet.tri[lane] as usize);
                 if d < *best_d2 || (d == *best_d2 && best.is_some_and(|b| order[t] < order[b])) {
                     *best_d2 = d;
@@ -259,29 +267,28 @@ impl WideTree {
             let node = &self.nodes[reference as usize];
             let lb = node.lower_bounds(&px);
             let useful = lb.cmplt(Vec4::splat(best_d2)).bitmask();
+            let lb = lb.to_array();
             // Leaves are measured now, interior children pushed so that they pop in lane
             // order. (Sorting the lanes by bound costs more in branch mispredictions than
             // it saves: the hints already make the bound nearly exact.)
-            let mut lanes = useful;
+            let mut lanes = useful & node.leaf_lanes;
             while lanes != 0 {
                 let lane = lanes.trailing_zeros() as usize;
                 lanes &= lanes - 1;
-                let child = node.child[lane];
-                if child & LEAF != 0 && lb[lane] < best_d2 {
-                    let first = (child & !LEAF) as usize;
+                if lb[lane] < best_d2 {
+                    let first = (node.child[lane] & !LEAF) as usize;
                     let count = node.packets[lane] as usize;
                     for packet in &self.packets[first..first + count] {
                         visit_packet(packet, &mut best_d2, &mut best);
                     }
                 }
             }
-            let mut lanes = useful;
+            let mut lanes = useful & !node.leaf_lanes;
             while lanes != 0 {
                 let lane = 31 - lanes.leading_zeros() as usize;
                 lanes &= !(1 << lane);
-                let child = node.child[lane];
-                if child & LEAF == 0 && lb[lane] < best_d2 && top < STACK {
-                    stack[top] = (child, lb[lane]);
+                if lb[lane] < best_d2 && top < STACK {
+                    stack[top] = (node.child[lane], lb[lane]);
                     top += 1;
                 }
             }
