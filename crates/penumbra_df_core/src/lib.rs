@@ -1,0 +1,30 @@
+//! # `penumbra_df_core`
+//!
+//! The Bevy-free core of Penumbra's distance-field scene, the data side of Unreal's
+//! "all SDFs in one atlas, all objects in one buffer, the CPU sends deltas" design
+//! (Wright, *Dynamic Occlusion with Signed Distance Fields*, SIGGRAPH 2015):
+//!
+//! - [`atlas`]: places SDF volumes in one 3D texture (`R16Float`) under a memory budget,
+//!   reusing freed space; reports when it is full so the caller can fall back.
+//! - [`object`]: the 128-byte GPU record of one caster instance — world-from-local and
+//!   local-from-world 3×4 matrices, conservative scale, atlas location or analytic shape,
+//!   flags — and its exact byte encoding (the WGSL struct in
+//!   `shaders/df/object.wgsl` is checked against it).
+//! - [`table`]: the CPU mirror of the GPU object buffer. It hands out slots (reusing
+//!   freed ones), and turns a frame's adds, removes and changes into a compact list of
+//!   `(slot, record)` writes: a static scene sends nothing, `k` changes send `O(k)` bytes.
+//! - [`cull`]: frustum planes and the oriented-box test the GPU culling pass runs, as the
+//!   CPU reference the GPU output is compared with.
+//!
+//! ## Conventions
+//!
+//! Glam/Bevy: right-handed, y up, metres, column vectors (`world = M · local`).
+//! An object's *local* space is its mesh's space (the units its SDF distances are in).
+//! World positions are stored relative to a **tile** — the nearest multiple of
+//! [`object::TILE_SIZE`] metres — so that a record stays precise 10⁵ m from the origin:
+//! shaders subtract the camera's tile first and work with small camera-relative numbers.
+
+pub mod atlas;
+pub mod cull;
+pub mod object;
+pub mod table;
