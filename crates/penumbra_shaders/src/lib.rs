@@ -30,6 +30,9 @@ macro_rules! shader_files {
 
 shader_files! {
     "common/math.wgsl" => Some("penumbra::math"),
+    "df/object.wgsl" => Some("penumbra::df::object"),
+    "df/apply_deltas.wgsl" => Some("penumbra::df::apply_deltas"),
+    "df/cull.wgsl" => Some("penumbra::df::cull"),
 }
 
 /// Absolute path of the workspace's `shaders/` folder at build time (for tests and tools).
@@ -44,4 +47,76 @@ pub fn declared_import_path(source: &str) -> Option<&str> {
             .strip_prefix("#define_import_path")
             .map(str::trim)
     })
+}
+
+/// The library file declaring `import_path`.
+pub fn by_import_path(import_path: &str) -> Option<&'static ShaderFile> {
+    SHADERS.iter().find(|f| f.import_path == Some(import_path))
+}
+
+/// Why [`flatten`] failed.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FlattenError(pub String);
+
+impl std::fmt::Display for FlattenError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for FlattenError {}
+
+/// `source` with every `#import penumbra::…` replaced by the imported module's text
+/// (recursively, each module once) and `#define_import_path` lines dropped: plain WGSL
+/// for tools that do not speak `naga_oil`, such as contract tests that drive wgpu
+/// directly. Penumbra's modules are written so that this textual inclusion and
+/// `naga_oil` composition mean the same thing (imported items are used by their bare
+/// names, and no two modules define the same name).
+pub fn flatten(source: &str) -> Result<String, FlattenError> {
+    let mut out = String::new();
+    let mut included = Vec::new();
+    flatten_into(source, &mut out, &mut included)?;
+    Ok(out)
+}
+
+fn flatten_into(
+    source: &str,
+    out: &mut String,
+    included: &mut Vec<&'static str>,
+) -> Result<(), FlattenError> {
+    let mut lines = source.lines();
+    while let Some(line) = lines.next() {
+        let trimmed = line.trim();
+        if trimmed.starts_with("#define_import_path") {
+            continue;
+        }
+        let Some(rest) = trimmed.strip_prefix("#import") else {
+            out.push_str(line);
+            out.push('\n');
+            continue;
+        };
+        // `#import path` or `#import path::{items}`, the list possibly spanning lines.
+        let mut statement = rest.trim().to_string();
+        if statement.contains('{') {
+            while !statement.contains('}') {
+                let next = lines
+                    .next()
+                    .ok_or_else(|| FlattenError(format!("unterminated import: {line}")))?;
+                statement.push_str(next.trim());
+            }
+        }
+        let path = statement
+            .split("::{")
+            .next()
+            .unwrap_or_default()
+            .trim()
+            .trim_end_matches(';');
+        let file = by_import_path(path)
+            .ok_or_else(|| FlattenError(format!("unknown import {path:?}")))?;
+        if !included.contains(&file.path) {
+            included.push(file.path);
+            flatten_into(file.source, out, included)?;
+        }
+    }
+    Ok(())
 }

@@ -1,0 +1,100 @@
+//! The WGSL view of GPU data and the Rust encoders agree: struct sizes and member
+//! offsets, and every shared constant.
+
+use naga::{Expression, Literal, Module, TypeInner};
+use penumbra_df_core::object::{RECORD_BYTES, ShapeKind, TILE_SIZE, flags};
+use penumbra_shaders::flatten;
+
+fn parse(source: &str) -> Module {
+    let wgsl = flatten(source).expect("flatten");
+    naga::front::wgsl::parse_str(&wgsl).unwrap_or_else(|e| panic!("{}", e.emit_to_string(&wgsl)))
+}
+
+/// `(member name, byte offset)` of a struct, and its size.
+fn struct_layout(module: &Module, name: &str) -> (Vec<(String, u32)>, u32) {
+    for (_, ty) in module.types.iter() {
+        if ty.name.as_deref() == Some(name)
+            && let TypeInner::Struct { members, span } = &ty.inner
+        {
+            let m = members
+                .iter()
+                .map(|m| (m.name.clone().unwrap_or_default(), m.offset))
+                .collect();
+            return (m, *span);
+        }
+    }
+    panic!("no struct {name}");
+}
+
+/// The value of a scalar `const` as f64.
+fn constant(module: &Module, name: &str) -> f64 {
+    let (_, c) = module
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("no const {name}"));
+    match module.global_expressions[c.init] {
+        Expression::Literal(Literal::U32(v)) => v as f64,
+        Expression::Literal(Literal::I32(v)) => v as f64,
+        Expression::Literal(Literal::F32(v)) => v as f64,
+        Expression::Literal(Literal::AbstractInt(v)) => v as f64,
+        Expression::Literal(Literal::AbstractFloat(v)) => v,
+        ref e => panic!("{name}: not a literal: {e:?}"),
+    }
+}
+
+#[test]
+fn object_record_layout_matches_the_encoder() {
+    let m = parse("#import penumbra::df::object\n");
+    let (members, size) = struct_layout(&m, "DistanceFieldObject");
+    assert_eq!(size as usize, RECORD_BYTES);
+    // Word offsets documented in penumbra_df_core::object (× 4 bytes).
+    let want = [
+        ("shape_from_world", 0),
+        ("world_from_shape", 12),
+        ("tile", 24),
+        ("flags", 27),
+        ("params", 28),
+        ("conservative_scale", 31),
+    ];
+    let got: Vec<(&str, u32)> = members.iter().map(|(n, o)| (n.as_str(), *o)).collect();
+    let want: Vec<(&str, u32)> = want.iter().map(|&(n, w)| (n, w * 4)).collect();
+    assert_eq!(got, want);
+}
+
+#[test]
+fn shared_constants_match() {
+    let m = parse("#import penumbra::df::object\n");
+    let cases = [
+        ("TILE_SIZE", TILE_SIZE as f64),
+        ("FLAG_CASTS_SHADOWS", flags::CASTS_SHADOWS as f64),
+        ("FLAG_CASTS_OCCLUSION", flags::CASTS_OCCLUSION as f64),
+        ("FLAG_TWO_SIDED", flags::TWO_SIDED as f64),
+        ("FLAG_VISIBLE", flags::VISIBLE as f64),
+        ("FLAG_UNBOUNDED", flags::UNBOUNDED as f64),
+        ("FLAG_LIVE", flags::LIVE as f64),
+        ("KIND_SHIFT", flags::KIND_SHIFT as f64),
+        ("KIND_MASK", flags::KIND_MASK as f64),
+        ("KIND_VOLUME", ShapeKind::Volume as u32 as f64),
+        ("KIND_SPHERE", ShapeKind::Sphere as u32 as f64),
+        ("KIND_CUBOID", ShapeKind::Cuboid as u32 as f64),
+        ("KIND_CAPSULE", ShapeKind::Capsule as u32 as f64),
+        ("KIND_PLANE", ShapeKind::Plane as u32 as f64),
+    ];
+    for (name, want) in cases {
+        assert_eq!(constant(&m, name), want, "{name}");
+    }
+    let deltas = parse("#import penumbra::df::apply_deltas\n");
+    assert_eq!(
+        constant(&deltas, "WRITE_WORDS") as usize,
+        penumbra_df_core::table::DeltaWrite::WORDS
+    );
+}
+
+#[test]
+fn flatten_inlines_each_module_once_and_rejects_unknown_imports() {
+    let text = flatten("#import penumbra::df::cull\n#import penumbra::df::object\n").unwrap();
+    assert_eq!(text.matches("struct DistanceFieldObject").count(), 1);
+    assert!(!text.contains("#import") && !text.contains("#define_import_path"));
+    assert!(flatten("#import penumbra::nope\n").is_err());
+}
