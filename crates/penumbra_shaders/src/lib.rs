@@ -111,8 +111,8 @@ fn flatten_into(
             .unwrap_or_default()
             .trim()
             .trim_end_matches(';');
-        let file = by_import_path(path)
-            .ok_or_else(|| FlattenError(format!("unknown import {path:?}")))?;
+        let file =
+            by_import_path(path).ok_or_else(|| FlattenError(format!("unknown import {path:?}")))?;
         if !included.contains(&file.path) {
             included.push(file.path);
             flatten_into(file.source, out, included)?;

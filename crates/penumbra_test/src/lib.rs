@@ -23,13 +23,17 @@
 //! - [`gpu`]: adapter probing and the CI rule (under `CI=true` a missing adapter fails).
 //! - [`harness`]: [`HeadlessRender`], [`Capture`].
 //! - [`compare`]: [`Tolerance`], [`compare_rgba8`], [`assert_images_match`].
+//! - [`compute`]: [`GpuCompute`], a bare wgpu device for compute-shader contract tests.
 
 pub use image;
+pub use wgpu;
 
 pub mod compare;
+pub mod compute;
 pub mod gpu;
 pub mod harness;
 
 pub use compare::{Comparison, Tolerance, assert_images_match, compare_rgba8, output_dir};
+pub use compute::GpuCompute;
 pub use gpu::{gpu_or_skip, vulkan_adapter};
 pub use harness::{Capture, CaptureFormat, HarnessError, HeadlessRender};

@@ -1,0 +1,166 @@
+//! A bare wgpu device on the Vulkan adapter (lavapipe in CI) for *contract tests*:
+//! dispatch one of Penumbra's compute shaders on known input, read the result back,
+//! compare with the CPU reference. No Bevy app, no render graph: the shader and the
+//! data are the whole test.
+
+use wgpu::util::DeviceExt;
+
+/// A device and its queue.
+pub struct GpuCompute {
+    /// The device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+}
+
+impl GpuCompute {
+    /// A device on the first Vulkan adapter with that adapter's own limits, or `None`
+    /// without one (use with [`crate::gpu_or_skip`]).
+    pub fn new() -> Option<GpuCompute> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: wgpu::Backends::VULKAN,
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        });
+        let adapter =
+            bevy::tasks::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+                power_preference: wgpu::PowerPreference::HighPerformance,
+                force_fallback_adapter: false,
+                compatible_surface: None,
+            }))
+            .ok()?;
+        let (device, queue) =
+            bevy::tasks::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+                label: Some("penumbra_test_compute"),
+                required_features: wgpu::Features::empty(),
+                required_limits: adapter.limits(),
+                experimental_features: wgpu::ExperimentalFeatures::disabled(),
+                memory_hints: wgpu::MemoryHints::Performance,
+                trace: wgpu::Trace::Off,
+            }))
+            .ok()?;
+        Some(GpuCompute { device, queue })
+    }
+
+    /// A compute pipeline (layout from the shader) for `entry` in WGSL `source`.
+    pub fn pipeline(&self, source: &str, entry: &str) -> wgpu::ComputePipeline {
+        let module = self
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(entry),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            });
+        self.device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: None,
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+    }
+
+    /// A buffer initialised with `bytes` (padded to 4 bytes, at least 16), usable as a
+    /// storage buffer, copy source and destination, plus `extra` usages.
+    pub fn buffer(&self, label: &str, bytes: &[u8], extra: wgpu::BufferUsages) -> wgpu::Buffer {
+        let mut data = bytes.to_vec();
+        data.resize(data.len().next_multiple_of(4).max(16), 0);
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: &data,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST
+                    | extra,
+            })
+    }
+
+    /// A zeroed storage buffer of `size` bytes (rounded up to 16).
+    pub fn zeroed(&self, label: &str, size: u64, extra: wgpu::BufferUsages) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: size.next_multiple_of(16).max(16),
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST
+                | extra,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// A bind group of `pipeline`'s group 0 from `(binding, buffer)` pairs (a layout
+    /// derived from the shader holds only the bindings its entry point uses).
+    pub fn bind(
+        &self,
+        pipeline: &wgpu::ComputePipeline,
+        buffers: &[(u32, &wgpu::Buffer)],
+    ) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .map(|(binding, b)| wgpu::BindGroupEntry {
+                binding: *binding,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        })
+    }
+
+    /// Records and submits one dispatch of `workgroups`.
+    pub fn dispatch(
+        &self,
+        pipeline: &wgpu::ComputePipeline,
+        bind: &wgpu::BindGroup,
+        workgroups: [u32; 3],
+    ) {
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, bind, &[]);
+            pass.dispatch_workgroups(workgroups[0], workgroups[1], workgroups[2]);
+        }
+        self.queue.submit([encoder.finish()]);
+    }
+
+    /// Waits for the queue and copies `buffer`'s first `size` bytes back.
+    pub fn read(&self, buffer: &wgpu::Buffer, size: u64) -> Vec<u8> {
+        let size = size.next_multiple_of(4);
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("penumbra_test_readback"),
+            size: size.max(4),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, size.max(4));
+        self.queue.submit([encoder.finish()]);
+        let slice = staging.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |r| r.expect("map readback buffer"));
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .expect("device poll");
+        let out = slice.get_mapped_range().to_vec();
+        staging.unmap();
+        out[..size as usize].to_vec()
+    }
+
+    /// Waits until all submitted work is done (for timing).
+    pub fn wait(&self) {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .expect("device poll");
+    }
+}
+
+/// Workgroups for `n` invocations of 64 as a 2D grid (x ≤ 65535): `[x, y, 1]` and the
+/// row width in groups, which shaders use to rebuild the linear index.
+pub fn grid_64(n: u32) -> ([u32; 3], u32) {
+    let groups = n.div_ceil(64).max(1);
+    let x = groups.min(65_535);
+    ([x, groups.div_ceil(x), 1], x)
+}
