@@ -15,9 +15,12 @@
 //! - [`pbr`]: Bevy 0.19's `StandardMaterial` shading (Burley diffuse, GGX specular with
 //!   Bevy's multiscatter compensation, ambient light, exposure, sRGB output).
 //! - [`camera`]: perspective camera rays matching Bevy's `PerspectiveProjection`.
+//! - [`df`]: distance-field passes — object distances (atlas volumes and analytic
+//!   shapes) and the debug view's sphere tracing.
 //! - [`scene`]: an analytic ray-traced scene (spheres, planes, directional lights with hard
 //!   shadows) shaded with [`pbr`], the expected image of simple GPU render tests.
 
 pub mod camera;
+pub mod df;
 pub mod pbr;
 pub mod scene;

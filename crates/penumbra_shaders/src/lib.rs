@@ -33,6 +33,8 @@ shader_files! {
     "df/object.wgsl" => Some("penumbra::df::object"),
     "df/apply_deltas.wgsl" => Some("penumbra::df::apply_deltas"),
     "df/cull.wgsl" => Some("penumbra::df::cull"),
+    "df/distance.wgsl" => Some("penumbra::df::distance"),
+    "df/debug_view.wgsl" => Some("penumbra::df::debug_view"),
 }
 
 /// Absolute path of the workspace's `shaders/` folder at build time (for tests and tools).
@@ -111,8 +113,17 @@ fn flatten_into(
             .unwrap_or_default()
             .trim()
             .trim_end_matches(';');
-        let file =
-            by_import_path(path).ok_or_else(|| FlattenError(format!("unknown import {path:?}")))?;
+        // `#import a::b::item` imports `item` from module `a::b`.
+        let mut module = path;
+        let file = loop {
+            if let Some(file) = by_import_path(module) {
+                break file;
+            }
+            match module.rsplit_once("::") {
+                Some((parent, _)) => module = parent,
+                None => return Err(FlattenError(format!("unknown import {path:?}"))),
+            }
+        };
         if !included.contains(&file.path) {
             included.push(file.path);
             flatten_into(file.source, out, included)?;

@@ -97,4 +97,6 @@ fn flatten_inlines_each_module_once_and_rejects_unknown_imports() {
     assert_eq!(text.matches("struct DistanceFieldObject").count(), 1);
     assert!(!text.contains("#import") && !text.contains("#define_import_path"));
     assert!(flatten("#import penumbra::nope\n").is_err());
+    let item = flatten("#import penumbra::df::object::DistanceFieldObject\n").unwrap();
+    assert!(item.contains("struct DistanceFieldObject"));
 }

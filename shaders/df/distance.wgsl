@@ -1,0 +1,74 @@
+// Distances to distance-field objects: the shared evaluation every distance-field pass
+// uses. CPU reference: `penumbra_reference::df::object_distance`.
+#define_import_path penumbra::df::distance
+
+#import penumbra::df::object::{
+    DistanceFieldObject, KIND_CAPSULE, KIND_CUBOID, KIND_PLANE, KIND_SPHERE, KIND_VOLUME,
+    TILE_SIZE, object_kind, transform_rows, unpack_10_10_12,
+}
+
+// Trilinear sample of a volume at voxel coordinates `c` (inside [0, dims − 1]), read
+// with exact texel loads (no filtering hardware: the same arithmetic on every device
+// and on the CPU).
+fn sample_volume(atlas: texture_3d<f32>, origin: vec3<u32>, dims: vec3<u32>, c: vec3<f32>) -> f32 {
+    let hi = vec3<f32>(dims - vec3<u32>(1u));
+    let i0 = min(floor(c), hi - vec3<f32>(1.0));
+    let f = c - i0;
+    let base = vec3<i32>(origin) + vec3<i32>(i0);
+    let c000 = textureLoad(atlas, base, 0).r;
+    let c100 = textureLoad(atlas, base + vec3<i32>(1, 0, 0), 0).r;
+    let c010 = textureLoad(atlas, base + vec3<i32>(0, 1, 0), 0).r;
+    let c110 = textureLoad(atlas, base + vec3<i32>(1, 1, 0), 0).r;
+    let c001 = textureLoad(atlas, base + vec3<i32>(0, 0, 1), 0).r;
+    let c101 = textureLoad(atlas, base + vec3<i32>(1, 0, 1), 0).r;
+    let c011 = textureLoad(atlas, base + vec3<i32>(0, 1, 1), 0).r;
+    let c111 = textureLoad(atlas, base + vec3<i32>(1, 1, 1), 0).r;
+    let x00 = c000 + (c100 - c000) * f.x;
+    let x10 = c010 + (c110 - c010) * f.x;
+    let x01 = c001 + (c101 - c001) * f.x;
+    let x11 = c011 + (c111 - c011) * f.x;
+    let y0 = x00 + (x10 - x00) * f.y;
+    let y1 = x01 + (x11 - x01) * f.y;
+    return y0 + (y1 - y0) * f.z;
+}
+
+// Conservative world distance (metres) from camera-relative point `p` to `o`.
+// Outside an SDF volume's box: the clamped sample plus the distance to the box.
+fn object_distance(
+    o: DistanceFieldObject,
+    p: vec3<f32>,
+    camera_tile: vec3<i32>,
+    camera_offset: vec3<f32>,
+    atlas: texture_3d<f32>,
+) -> f32 {
+    let p_tile = vec3<f32>(camera_tile - o.tile) * TILE_SIZE + (p + camera_offset);
+    let q = transform_rows(o.shape_from_world, p_tile);
+    let f = bitcast<vec3<f32>>(o.params);
+    var d = 0.0;
+    switch object_kind(o) {
+        case KIND_VOLUME: {
+            let dims = unpack_10_10_12(o.params.y) + vec3<u32>(1u);
+            let c = clamp(q, vec3<f32>(0.0), vec3<f32>(dims - vec3<u32>(1u)));
+            let outside = length(q - c);
+            d = sample_volume(atlas, unpack_10_10_12(o.params.x), dims, c) + outside * f.z;
+        }
+        case KIND_SPHERE: {
+            d = length(q) - f.x;
+        }
+        case KIND_CUBOID: {
+            let a = abs(q) - f;
+            d = length(max(a, vec3<f32>(0.0))) + min(max(a.x, max(a.y, a.z)), 0.0);
+        }
+        case KIND_CAPSULE: {
+            let y = clamp(q.y, -f.y, f.y);
+            d = length(q - vec3<f32>(0.0, y, 0.0)) - f.x;
+        }
+        case KIND_PLANE: {
+            d = q.y;
+        }
+        default: {
+            d = 1e30;
+        }
+    }
+    return d * o.conservative_scale;
+}
