@@ -9,8 +9,10 @@
 //! components are absent run no pass and upload nothing.
 //!
 //! So far: the plugin group, the shader library every feature's WGSL imports
-//! (`#import penumbra::math::…`), and signed distance fields as assets (`.psdf`
-//! loading, runtime baking of meshes with a disk cache). See `ARCHITECTURE.md`.
+//! (`#import penumbra::…`), signed distance fields as assets (`.psdf` loading, runtime
+//! baking of meshes with a disk cache), the distance-field scene (casters, SDF atlas,
+//! GPU object buffer kept in sync by deltas, GPU culling) and its debug view. See
+//! `ARCHITECTURE.md`.
 
 use bevy::app::plugin_group;
 use bevy::prelude::*;
@@ -24,6 +26,8 @@ plugin_group! {
     pub struct PenumbraPlugins {
         :PenumbraCorePlugin,
         bevy_penumbra_df::sdf_asset:::SdfAssetPlugin,
+        bevy_penumbra_df::scene:::DistanceFieldScenePlugin,
+        bevy_penumbra_df::debug_view:::DistanceFieldDebugPlugin,
     }
 }
 
@@ -33,26 +37,11 @@ plugin_group! {
 #[derive(Default)]
 pub struct PenumbraCorePlugin;
 
-/// Strong handles keeping Penumbra's shader library loaded.
-#[derive(Resource, Debug, Default)]
-pub struct PenumbraShaderLibrary {
-    /// One handle per `penumbra_shaders::SHADERS` entry, in the same order.
-    pub handles: Vec<Handle<Shader>>,
-}
+pub use bevy_penumbra_df::PenumbraShaderLibrary;
 
 impl Plugin for PenumbraCorePlugin {
     fn build(&self, app: &mut App) {
-        let Some(mut shaders) = app.world_mut().get_resource_mut::<Assets<Shader>>() else {
-            warn!(
-                "PenumbraCorePlugin: no `Assets<Shader>` (add DefaultPlugins first); Penumbra's shaders are not registered"
-            );
-            return;
-        };
-        let handles = penumbra_shaders::SHADERS
-            .iter()
-            .map(|s| shaders.add(Shader::from_wgsl(s.source, format!("penumbra/{}", s.path))))
-            .collect();
-        app.insert_resource(PenumbraShaderLibrary { handles });
+        bevy_penumbra_df::register_shader_library(app);
     }
 }
 
@@ -60,6 +49,8 @@ impl Plugin for PenumbraCorePlugin {
 pub mod prelude {
     pub use crate::{PenumbraCorePlugin, PenumbraPlugins};
     pub use bevy_penumbra_df::{
-        SdfAssetPlugin, SdfBakeFailed, SdfBakeRequest, SdfBakeTask, SdfBaked, SdfVolumeAsset,
+        CasterSource, DistanceFieldCaster, DistanceFieldDebugMode, DistanceFieldDebugView,
+        DistanceFieldSceneSettings, DistanceFieldUploadStats, SdfAssetPlugin, SdfBakeFailed,
+        SdfBakeRequest, SdfBakeTask, SdfBaked, SdfVolumeAsset,
     };
 }

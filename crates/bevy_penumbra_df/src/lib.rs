@@ -3,10 +3,24 @@
 //! - [`sdf_asset`]: signed distance fields as Bevy assets — the `.psdf` loader, runtime
 //!   baking of `Mesh`es on the async compute pool with observable progress, and a
 //!   content-keyed disk cache so a mesh is baked once, ever.
+//! - [`scene`]: distance-field casters, the SDF atlas and the GPU object buffer kept in
+//!   sync by per-frame deltas, GPU culling.
+//! - [`debug_view`]: a camera component that ray-marches the scene (step-count heat map,
+//!   shaded surfaces).
+//! - [`shader_library`]: Penumbra's WGSL modules as Bevy shader assets.
 
+pub mod debug_view;
+pub mod scene;
 pub mod sdf_asset;
+pub mod shader_library;
 
+pub use debug_view::{DistanceFieldDebugMode, DistanceFieldDebugPlugin, DistanceFieldDebugView};
+pub use scene::{
+    CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldScenePlugin,
+    DistanceFieldSceneSettings, DistanceFieldUploadStats,
+};
 pub use sdf_asset::{
     SdfAssetPlugin, SdfBakeCache, SdfBakeFailed, SdfBakeRequest, SdfBakeStats, SdfBakeTask,
     SdfBakeWaiting, SdfBaked, SdfVolumeAsset, SdfVolumeLoader, mesh_to_tri_mesh,
 };
+pub use shader_library::{PenumbraShaderLibrary, register_shader_library};

@@ -174,7 +174,9 @@ impl AtlasAllocator {
         let need = (dims + UVec3::splat(BLOCK - 1)) / BLOCK;
         let sat = self.summed_volume();
         let n = self.blocks;
-        let at = |x: u32, y: u32, z: u32| sat[(x + (n.x + 1) * (y + (n.y + 1) * z)) as usize];
+        // Signed: inclusion–exclusion passes through negative partial sums.
+        let at =
+            |x: u32, y: u32, z: u32| i64::from(sat[(x + (n.x + 1) * (y + (n.y + 1) * z)) as usize]);
         for z in 0..=n.z - need.z {
             for y in 0..=n.y - need.y {
                 for x in 0..=n.x - need.x {

@@ -269,7 +269,7 @@ mod tests {
             );
             let q_rel = p_rel - Vec3::new(0.0, 1.5, 0.0);
             let d = object_distance(&cube, q_rel, &camera, &atlas);
-            assert!(d <= 0.75 + 1e-4 && d >= 0.75 * 0.5 - 1e-4, "{far}: {d}");
+            assert!((0.75 * 0.5 - 1e-4..=0.75 + 1e-4).contains(&d), "{far}: {d}");
         }
     }
 

@@ -264,7 +264,13 @@ impl HeadlessRender {
 
     /// Renders `frames` frames of `app` (built with [`HeadlessRender::app`]) and reads
     /// the target back.
-    pub fn run(&self, mut app: App) -> Result<Capture, HarnessError> {
+    pub fn run(&self, app: App) -> Result<Capture, HarnessError> {
+        self.run_keeping_app(app).map(|(capture, _)| capture)
+    }
+
+    /// [`HeadlessRender::run`], also returning the app so that tests can inspect the
+    /// main world after rendering.
+    pub fn run_keeping_app(&self, mut app: App) -> Result<(Capture, App), HarnessError> {
         if crate::vulkan_adapter().is_none() {
             return Err(HarnessError::NoAdapter);
         }
@@ -308,7 +314,7 @@ impl HeadlessRender {
             })?;
         let mut capture = self.unpad(data)?;
         capture.frame_times = frame_times;
-        Ok(capture)
+        Ok((capture, app))
     }
 
     /// Removes wgpu's 256-byte row alignment from a texture readback.

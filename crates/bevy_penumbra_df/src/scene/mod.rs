@@ -1,0 +1,613 @@
+//! The distance-field scene: casters, the SDF atlas and the GPU object buffer.
+//!
+//! Unreal keeps every distance-field object on the GPU and sends only changes (Wright,
+//! *Dynamic Occlusion with Signed Distance Fields*, SIGGRAPH 2015). Here the ECS is the
+//! source of truth:
+//!
+//! - [`DistanceFieldCaster`] on an entity makes it a caster. Its distances come from the
+//!   entity's `Mesh3d` (baked automatically on the async pool and cached, see
+//!   [`crate::sdf_asset`]; instances of one mesh share one SDF), from an explicit
+//!   [`SdfVolumeAsset`] handle, or from an analytic shape (sphere, box, capsule, plane).
+//! - Every SDF in use is placed once in a 3D `R16Float` **atlas** under a memory budget
+//!   ([`DistanceFieldSceneSettings::atlas_budget_bytes`]); freed space is reused. When a
+//!   volume does not fit, one warning is logged and the volume is halved in resolution
+//!   (up to twice); if it still does not fit its casters are skipped.
+//! - Every caster instance is one 128-byte record in the GPU **object buffer**
+//!   (`penumbra_df_core::object`). The CPU keeps a mirror; change detection on
+//!   `GlobalTransform`, `InheritedVisibility`, the caster and its SDF turns a frame's
+//!   adds, removes and changes into slot writes, which a compute pass applies before the
+//!   cameras render. A static scene uploads nothing; `k` changes upload `O(k)` bytes
+//!   ([`DistanceFieldUploadStats`]).
+//! - Views that consume the scene (today [`crate::debug_view::DistanceFieldDebugView`])
+//!   cull the buffer on the GPU into a compact list with indirect dispatch arguments.
+//!
+//! **Skip what is not needed**: with no caster, no buffer or atlas exists, nothing is
+//! uploaded and no pass runs.
+//!
+//! Conventions: Bevy's (right-handed, y up, metres). Records store positions relative
+//! to 512 m tiles and shaders work camera-relative, so casters 10⁵ m from the origin
+//! are as precise as near it. Non-uniform scale is safe: distances are scaled by the
+//! transform's smallest singular value (conservative).
+//!
+//! Limits: skinned and morphing meshes use their bind-pose SDF; the atlas is never
+//! defragmented; casters are capped by the 128 MiB storage-binding limit of some devices
+//! at one million.
+
+mod render;
+
+use crate::sdf_asset::{SdfBakeRequest, SdfBaked, SdfVolumeAsset};
+use bevy::ecs::entity::EntityHashMap;
+use bevy::platform::collections::{HashMap, HashSet};
+use bevy::prelude::*;
+use bevy::render::RenderApp;
+use penumbra_df_core::atlas::{AtlasAllocator, AtlasError, AtlasRegion};
+use penumbra_df_core::object::{CasterShape, ObjectDesc, encode, flags};
+use penumbra_df_core::table::{Deltas, ObjectTable};
+use penumbra_sdf::{BakeSettings, GridPolicy, Resolution, SdfVolume, SignMethod};
+
+pub use render::{CulledObjects, DistanceFieldGpu, DistanceFieldPipelines, cull_objects};
+
+/// Adds distance-field casters, the atlas and the object buffer. Part of
+/// `PenumbraPlugins`; needs [`crate::SdfAssetPlugin`] for mesh casters.
+#[derive(Default)]
+pub struct DistanceFieldScenePlugin;
+
+/// Where a caster's distances come from.
+#[derive(Reflect, Clone, Debug, PartialEq)]
+pub enum CasterSource {
+    /// The entity's `Mesh3d`, baked automatically (and cached) at
+    /// 32 samples per mesh unit × [`DistanceFieldCaster::resolution_scale`].
+    Mesh,
+    /// A baked or loaded SDF.
+    Sdf(Handle<SdfVolumeAsset>),
+    /// A sphere of `radius` around the entity's origin (local units).
+    Sphere {
+        /// Radius, local units.
+        radius: f32,
+    },
+    /// A box of `half_size` centred on the entity's origin (local units).
+    Cuboid {
+        /// Half extents, local units.
+        half_size: Vec3,
+    },
+    /// A capsule along the local y axis (local units).
+    Capsule {
+        /// Radius.
+        radius: f32,
+        /// Half the length of the core segment.
+        half_length: f32,
+    },
+    /// The entity's local `y = 0` plane, solid below (floors, walls).
+    Plane,
+}
+
+/// Makes an entity a distance-field caster.
+///
+/// Cost: one 128-byte record on the GPU per instance, uploaded only when the instance
+/// changes; one atlas placement per distinct SDF (50³ samples ≈ 250 KB); for mesh
+/// casters, one bake per distinct mesh and settings, cached on disk.
+#[derive(Component, Reflect, Clone, Debug)]
+#[reflect(Component, Clone, Default)]
+#[require(Transform, Visibility)]
+pub struct DistanceFieldCaster {
+    /// Where distances come from. Default: [`CasterSource::Mesh`].
+    pub source: CasterSource,
+    /// Multiplier of the default bake density (32 samples per mesh unit) for mesh
+    /// casters. Default 1. Atlas memory and bake time grow with its cube.
+    pub resolution_scale: f32,
+    /// Foliage: the surface is a shell, never solid (bakes with the two-sided sign).
+    /// Default `false`.
+    pub two_sided: bool,
+    /// Shadows distance-field-shadowed lights. Default `true`.
+    pub casts_shadows: bool,
+    /// Occludes distance-field ambient occlusion. Default `true`.
+    pub casts_occlusion: bool,
+}
+
+impl Default for DistanceFieldCaster {
+    fn default() -> Self {
+        Self {
+            source: CasterSource::Mesh,
+            resolution_scale: 1.0,
+            two_sided: false,
+            casts_shadows: true,
+            casts_occlusion: true,
+        }
+    }
+}
+
+/// Scene-wide settings (a resource; change before the first caster appears).
+#[derive(Resource, Reflect, Clone, Debug)]
+#[reflect(Resource, Clone, Default)]
+pub struct DistanceFieldSceneSettings {
+    /// Memory for the SDF atlas, bytes. Default 64 MiB (a 256×256×512 `R16Float`
+    /// texture: about 260 volumes of 50³). Capped by the device's 3D texture size.
+    pub atlas_budget_bytes: u64,
+}
+
+impl Default for DistanceFieldSceneSettings {
+    fn default() -> Self {
+        Self {
+            atlas_budget_bytes: 64 << 20,
+        }
+    }
+}
+
+/// What the scene uploaded, for profiling and tests.
+#[derive(Resource, Reflect, Clone, Debug, Default, PartialEq)]
+#[reflect(Resource, Clone, Default)]
+pub struct DistanceFieldUploadStats {
+    /// Object-buffer bytes uploaded this frame (slot writes).
+    pub frame_object_bytes: usize,
+    /// Records written this frame.
+    pub frame_records: usize,
+    /// Atlas bytes uploaded this frame (new SDF placements).
+    pub frame_atlas_bytes: usize,
+    /// Object-buffer and atlas bytes uploaded since startup.
+    pub total_bytes: u64,
+    /// Live casters in the object buffer.
+    pub objects: usize,
+    /// Slots of the object buffer (live and free).
+    pub slots: u32,
+    /// Atlas texture size, bytes (0 until the first SDF caster).
+    pub atlas_bytes: u64,
+    /// Atlas bytes holding SDFs.
+    pub atlas_used_bytes: u64,
+    /// Distinct SDFs in the atlas.
+    pub atlas_volumes: usize,
+}
+
+/// One SDF placed in the atlas.
+#[derive(Clone, Debug)]
+struct PlacedVolume {
+    region: AtlasRegion,
+    local_origin: Vec3,
+    voxel_size: f32,
+    users: u32,
+}
+
+/// A volume to copy into the atlas this frame: `f16` bits, x fastest.
+#[derive(Clone, Debug)]
+pub(crate) struct AtlasUpload {
+    pub(crate) region: AtlasRegion,
+    pub(crate) data: Vec<u16>,
+}
+
+/// The main-world state: the CPU mirror of the GPU scene.
+#[derive(Resource, Default)]
+pub struct DistanceFieldScene {
+    table: ObjectTable,
+    atlas: Option<AtlasAllocator>,
+    volumes: HashMap<AssetId<SdfVolumeAsset>, PlacedVolume>,
+    /// Volumes that could not be placed (warned once).
+    unplaceable: HashSet<AssetId<SdfVolumeAsset>>,
+    /// Which volume each caster uses.
+    caster_volume: EntityHashMap<AssetId<SdfVolumeAsset>>,
+    /// Casters waiting for their SDF (not yet loaded, baked or placed).
+    waiting: HashSet<Entity>,
+    uploads: Vec<AtlasUpload>,
+    max_texture_3d: u32,
+}
+
+impl DistanceFieldScene {
+    /// Live casters.
+    pub fn len(&self) -> usize {
+        self.table.len()
+    }
+
+    /// Whether there is no live caster.
+    pub fn is_empty(&self) -> bool {
+        self.table.is_empty()
+    }
+
+    /// The CPU mirror of the object buffer, by slot.
+    pub fn records(&self) -> &[penumbra_df_core::object::ObjectRecord] {
+        self.table.records()
+    }
+
+    /// The buffer slot of a caster.
+    pub fn slot(&self, entity: Entity) -> Option<u32> {
+        self.table.slot(entity.to_bits())
+    }
+
+    /// Atlas size in voxels, once created.
+    pub fn atlas_size(&self) -> Option<UVec3> {
+        self.atlas.as_ref().map(AtlasAllocator::size)
+    }
+}
+
+/// This frame's changes, handed to the render world.
+#[derive(Resource, Clone, Default)]
+pub(crate) struct DistanceFieldFrame {
+    pub(crate) deltas: Deltas,
+    pub(crate) uploads: Vec<AtlasUpload>,
+    pub(crate) atlas_size: Option<UVec3>,
+}
+
+/// System sets of the scene's main-world work, in `PostUpdate` after transform
+/// propagation and visibility.
+#[derive(SystemSet, Clone, Debug, PartialEq, Eq, Hash)]
+pub enum DistanceFieldSystems {
+    /// Bake requests for mesh casters.
+    RequestBakes,
+    /// Atlas placement and object records.
+    UpdateObjects,
+}
+
+impl Plugin for DistanceFieldScenePlugin {
+    fn build(&self, app: &mut App) {
+        crate::shader_library::register_shader_library(app);
+        app.register_type::<DistanceFieldCaster>()
+            .register_type::<DistanceFieldSceneSettings>()
+            .register_type::<DistanceFieldUploadStats>()
+            .init_resource::<DistanceFieldSceneSettings>()
+            .init_resource::<DistanceFieldUploadStats>()
+            .init_resource::<DistanceFieldScene>()
+            .init_resource::<DistanceFieldFrame>()
+            .configure_sets(
+                PostUpdate,
+                (
+                    DistanceFieldSystems::RequestBakes,
+                    DistanceFieldSystems::UpdateObjects,
+                )
+                    .chain()
+                    .after(TransformSystems::Propagate)
+                    .after(bevy::camera::visibility::VisibilitySystems::VisibilityPropagate),
+            )
+            .add_systems(
+                PostUpdate,
+                (
+                    request_caster_bakes.in_set(DistanceFieldSystems::RequestBakes),
+                    (
+                        remove_distance_field_casters,
+                        update_distance_field_casters,
+                        finish_frame,
+                    )
+                        .chain()
+                        .in_set(DistanceFieldSystems::UpdateObjects),
+                ),
+            );
+        if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
+            render::build(render_app);
+        }
+    }
+
+    fn finish(&self, app: &mut App) {
+        let max_3d = app
+            .world()
+            .get_resource::<bevy::render::renderer::RenderDevice>()
+            .map(|d| d.limits().max_texture_dimension_3d);
+        app.world_mut()
+            .resource_mut::<DistanceFieldScene>()
+            .max_texture_3d = max_3d.unwrap_or(2048);
+        if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
+            render::finish(render_app);
+        }
+    }
+}
+
+/// Bake settings of a mesh caster.
+fn bake_settings(caster: &DistanceFieldCaster) -> BakeSettings {
+    let scale = if caster.resolution_scale.is_finite() && caster.resolution_scale > 0.0 {
+        caster.resolution_scale.clamp(1.0 / 16.0, 8.0)
+    } else {
+        1.0
+    };
+    BakeSettings {
+        grid: GridPolicy {
+            resolution: Resolution::PerUnit {
+                density: 32.0 * scale,
+                min: 8,
+                max: 256,
+            },
+            ..GridPolicy::default()
+        },
+        sign: if caster.two_sided {
+            SignMethod::TWO_SIDED
+        } else {
+            SignMethod::WindingNumber
+        },
+        ..BakeSettings::default()
+    }
+}
+
+/// Mesh casters get a bake request (answered from the cache when possible).
+#[allow(clippy::type_complexity)]
+fn request_caster_bakes(
+    mut commands: Commands,
+    casters: Query<
+        (
+            Entity,
+            &DistanceFieldCaster,
+            &Mesh3d,
+            Option<&SdfBakeRequest>,
+        ),
+        Or<(Changed<DistanceFieldCaster>, Changed<Mesh3d>)>,
+    >,
+) {
+    for (entity, caster, mesh, request) in &casters {
+        if caster.source != CasterSource::Mesh {
+            continue;
+        }
+        let settings = bake_settings(caster);
+        if request.is_some_and(|r| r.mesh == mesh.0 && r.settings == settings) {
+            continue;
+        }
+        commands
+            .entity(entity)
+            .remove::<SdfBaked>()
+            .insert(SdfBakeRequest {
+                mesh: mesh.0.clone(),
+                settings,
+            });
+    }
+}
+
+fn release_volume(scene: &mut DistanceFieldScene, entity: Entity) {
+    let Some(id) = scene.caster_volume.remove(&entity) else {
+        return;
+    };
+    let Some(placed) = scene.volumes.get_mut(&id) else {
+        return;
+    };
+    placed.users -= 1;
+    if placed.users == 0 {
+        let region = placed.region;
+        scene.volumes.remove(&id);
+        if let Some(atlas) = scene.atlas.as_mut() {
+            atlas.free(&region);
+        }
+    }
+}
+
+fn remove_distance_field_casters(
+    mut removed: RemovedComponents<DistanceFieldCaster>,
+    casters: Query<(), With<DistanceFieldCaster>>,
+    mut scene: ResMut<DistanceFieldScene>,
+) {
+    for entity in removed.read() {
+        if casters.contains(entity) {
+            continue; // removed and re-added this frame: updated below
+        }
+        scene.table.remove(entity.to_bits());
+        scene.waiting.remove(&entity);
+        release_volume(&mut scene, entity);
+    }
+}
+
+/// Halves a volume's resolution (every other sample; the last sample kept so the box is
+/// covered).
+fn downsample(volume: &SdfVolume) -> SdfVolume {
+    let dims = (volume.dims + UVec3::ONE) / 2 + UVec3::ONE;
+    let mut data = Vec::with_capacity((dims.x * dims.y * dims.z) as usize);
+    for k in 0..dims.z {
+        for j in 0..dims.y {
+            for i in 0..dims.x {
+                let p = (UVec3::new(i, j, k) * 2).min(volume.dims - UVec3::ONE);
+                data.push(volume.data[volume.index(p.x, p.y, p.z)]);
+            }
+        }
+    }
+    // Sample spacing doubles; the clamped last layer makes the far edge approximate
+    // (it lies inside the original box, so distances there stay conservative within
+    // one original voxel).
+    SdfVolume {
+        dims,
+        origin: volume.origin,
+        voxel_size: volume.voxel_size * 2.0,
+        data,
+    }
+}
+
+/// Places `id` in the atlas (or finds it there) and counts a user.
+fn place_volume(
+    scene: &mut DistanceFieldScene,
+    settings: &DistanceFieldSceneSettings,
+    id: AssetId<SdfVolumeAsset>,
+    asset: &SdfVolumeAsset,
+) -> Option<PlacedVolume> {
+    if let Some(placed) = scene.volumes.get_mut(&id) {
+        placed.users += 1;
+        return Some(placed.clone());
+    }
+    if scene.unplaceable.contains(&id) {
+        return None;
+    }
+    if scene.atlas.is_none() {
+        match AtlasAllocator::for_budget(settings.atlas_budget_bytes, scene.max_texture_3d) {
+            Ok(a) => scene.atlas = Some(a),
+            Err(e) => {
+                warn!("Penumbra: distance-field atlas: {e}; SDF casters are skipped");
+                scene.unplaceable.insert(id);
+                return None;
+            }
+        }
+    }
+    let atlas = scene.atlas.as_mut().expect("created above");
+    let mut volume = std::borrow::Cow::Borrowed(&asset.volume);
+    let mut halvings = 0;
+    let region = loop {
+        match atlas.allocate(volume.dims) {
+            Ok(region) => break region,
+            Err(e @ (AtlasError::Full { .. } | AtlasError::TooLarge { .. })) if halvings < 2 => {
+                if halvings == 0 {
+                    warn!(
+                        "Penumbra: {e} (budget {} bytes, DistanceFieldSceneSettings::atlas_budget_bytes); \
+                         placing it at half resolution",
+                        settings.atlas_budget_bytes
+                    );
+                }
+                volume = std::borrow::Cow::Owned(downsample(&volume));
+                halvings += 1;
+            }
+            Err(e) => {
+                warn!("Penumbra: {e}; its casters are skipped");
+                scene.unplaceable.insert(id);
+                return None;
+            }
+        }
+    };
+    scene.uploads.push(AtlasUpload {
+        region,
+        data: volume.data.iter().map(|h| h.to_bits()).collect(),
+    });
+    let placed = PlacedVolume {
+        region,
+        local_origin: volume.origin,
+        voxel_size: volume.voxel_size,
+        users: 1,
+    };
+    scene.volumes.insert(id, placed.clone());
+    Some(placed)
+}
+
+/// Re-encodes changed casters (and those whose SDF just arrived).
+#[allow(clippy::type_complexity)]
+fn update_distance_field_casters(
+    mut scene: ResMut<DistanceFieldScene>,
+    settings: Res<DistanceFieldSceneSettings>,
+    sdfs: Res<Assets<SdfVolumeAsset>>,
+    changed: Query<
+        Entity,
+        (
+            With<DistanceFieldCaster>,
+            Or<(
+                Changed<GlobalTransform>,
+                Changed<DistanceFieldCaster>,
+                Changed<InheritedVisibility>,
+                Changed<SdfBaked>,
+            )>,
+        ),
+    >,
+    casters: Query<(
+        &DistanceFieldCaster,
+        &GlobalTransform,
+        Option<&InheritedVisibility>,
+        Option<&SdfBaked>,
+    )>,
+) {
+    let scene = &mut *scene;
+    let mut todo: Vec<Entity> = changed.iter().collect();
+    todo.extend(scene.waiting.drain());
+    todo.sort_unstable();
+    todo.dedup();
+    for entity in todo {
+        let Ok((caster, transform, visibility, baked)) = casters.get(entity) else {
+            continue;
+        };
+        let volume_handle = match &caster.source {
+            CasterSource::Mesh => baked.map(|b| b.0.id()),
+            CasterSource::Sdf(handle) => Some(handle.id()),
+            _ => None,
+        };
+        // The volume this caster used before, released after placing the new one so an
+        // unchanged volume is not freed and re-uploaded.
+        let previous = scene.caster_volume.get(&entity).copied();
+        let shape = match (&caster.source, volume_handle) {
+            (CasterSource::Sphere { radius }, _) => Some(CasterShape::Sphere { radius: *radius }),
+            (CasterSource::Cuboid { half_size }, _) => Some(CasterShape::Cuboid {
+                half_extents: *half_size,
+            }),
+            (
+                CasterSource::Capsule {
+                    radius,
+                    half_length,
+                },
+                _,
+            ) => Some(CasterShape::Capsule {
+                radius: *radius,
+                half_length: *half_length,
+            }),
+            (CasterSource::Plane, _) => Some(CasterShape::Plane),
+            (_, Some(id)) if previous == Some(id) => {
+                let placed = &scene.volumes[&id];
+                Some(CasterShape::Volume {
+                    region: placed.region,
+                    local_origin: placed.local_origin,
+                    voxel_size: placed.voxel_size,
+                })
+            }
+            (_, Some(id)) => match sdfs.get(id) {
+                Some(asset) => place_volume(scene, &settings, id, asset).map(|placed| {
+                    release_volume(scene, entity);
+                    scene.caster_volume.insert(entity, id);
+                    CasterShape::Volume {
+                        region: placed.region,
+                        local_origin: placed.local_origin,
+                        voxel_size: placed.voxel_size,
+                    }
+                }),
+                None => {
+                    scene.waiting.insert(entity); // not loaded yet
+                    None
+                }
+            },
+            (_, None) => {
+                if caster.source == CasterSource::Mesh {
+                    scene.waiting.insert(entity); // bake pending
+                }
+                None
+            }
+        };
+        if volume_handle.is_none() && previous.is_some() {
+            release_volume(scene, entity);
+        }
+        let Some(shape) = shape else {
+            scene.table.remove(entity.to_bits());
+            continue;
+        };
+        let mut f = 0;
+        if visibility.is_none_or(|v| v.get()) {
+            f |= flags::VISIBLE;
+        }
+        if caster.casts_shadows {
+            f |= flags::CASTS_SHADOWS;
+        }
+        if caster.casts_occlusion {
+            f |= flags::CASTS_OCCLUSION;
+        }
+        if caster.two_sided {
+            f |= flags::TWO_SIDED;
+        }
+        let desc = ObjectDesc {
+            world_from_local: transform.affine(),
+            shape,
+            flags: f,
+        };
+        match encode(&desc) {
+            Ok(record) => {
+                scene.table.upsert(entity.to_bits(), record);
+            }
+            Err(e) => {
+                // Transient for animated transforms: warn at debug level, skip.
+                debug!("Penumbra: distance-field caster {entity}: {e}; skipped this frame");
+                scene.table.remove(entity.to_bits());
+            }
+        }
+    }
+}
+
+/// Moves the frame's deltas and atlas uploads out for extraction, and updates stats.
+fn finish_frame(
+    mut scene: ResMut<DistanceFieldScene>,
+    mut frame: ResMut<DistanceFieldFrame>,
+    mut stats: ResMut<DistanceFieldUploadStats>,
+) {
+    let deltas = scene.table.take_deltas();
+    let uploads = std::mem::take(&mut scene.uploads);
+    let atlas_bytes: usize = uploads.iter().map(|u| u.data.len() * 2).sum();
+    stats.frame_object_bytes = deltas.bytes();
+    stats.frame_records = deltas.writes.len();
+    stats.frame_atlas_bytes = atlas_bytes;
+    stats.total_bytes += (deltas.bytes() + atlas_bytes) as u64;
+    stats.objects = scene.table.len();
+    stats.slots = scene.table.slot_count();
+    stats.atlas_bytes = scene.atlas.as_ref().map_or(0, AtlasAllocator::bytes);
+    stats.atlas_used_bytes = scene.atlas.as_ref().map_or(0, AtlasAllocator::used_bytes);
+    stats.atlas_volumes = scene.volumes.len();
+    *frame = DistanceFieldFrame {
+        deltas,
+        uploads,
+        atlas_size: scene.atlas_size(),
+    };
+}

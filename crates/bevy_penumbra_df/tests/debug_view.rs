@@ -1,0 +1,272 @@
+//! The distance-field debug view rendered by Bevy on lavapipe equals the CPU reference
+//! (`penumbra_reference::df::debug_pixel`) of the same scene — analytic casters, a
+//! baked SDF volume in the atlas, rotation and non-uniform scale — in both modes; and
+//! the scene's upload statistics follow the "skip what is not needed" rules.
+
+use bevy::prelude::*;
+use bevy_penumbra_df::{
+    CasterSource, DistanceFieldCaster, DistanceFieldDebugMode, DistanceFieldDebugPlugin,
+    DistanceFieldDebugView, DistanceFieldScene, DistanceFieldScenePlugin, DistanceFieldUploadStats,
+    SdfAssetPlugin, SdfVolumeAsset,
+};
+use penumbra_df_core::cull::{self, CameraOrigin, Frustum};
+use penumbra_df_core::object::{ShapeKind, unpack_10_10_12};
+use penumbra_reference::df::{Atlas, DebugMode, DebugScene, debug_pixel};
+use penumbra_sdf::{BakeSettings, bake, shapes};
+use penumbra_test::{HeadlessRender, gpu_or_skip};
+
+const SIZE: u32 = 96;
+const EYE: Vec3 = Vec3::new(0.5, 2.2, 6.5);
+
+fn camera_transform() -> Transform {
+    Transform::from_translation(EYE).looking_at(Vec3::new(0.0, 0.6, 0.0), Vec3::Y)
+}
+
+fn torus_volume() -> SdfVolumeAsset {
+    let mesh = shapes::torus(0.6, 0.22, 48, 24);
+    SdfVolumeAsset {
+        volume: bake(&mesh, &BakeSettings::longest_axis(40), None)
+            .expect("torus bakes")
+            .volume,
+    }
+}
+
+fn scene_app(render: &HeadlessRender, mode: DistanceFieldDebugMode) -> App {
+    let mut app = render.app();
+    app.add_plugins((
+        SdfAssetPlugin,
+        DistanceFieldScenePlugin,
+        DistanceFieldDebugPlugin,
+    ));
+    app.add_systems(
+        Startup,
+        move |mut commands: Commands, mut sdfs: ResMut<Assets<SdfVolumeAsset>>| {
+            commands.spawn((
+                Camera3d::default(),
+                camera_transform(),
+                DistanceFieldDebugView {
+                    mode,
+                    max_steps: 64,
+                    max_distance: 40.0,
+                },
+            ));
+            let caster = |source| DistanceFieldCaster {
+                source,
+                ..default()
+            };
+            commands.spawn((caster(CasterSource::Plane), Transform::default()));
+            commands.spawn((
+                caster(CasterSource::Sphere { radius: 0.7 }),
+                Transform::from_xyz(-1.6, 0.7, -0.5),
+            ));
+            commands.spawn((
+                caster(CasterSource::Cuboid {
+                    half_size: Vec3::new(0.5, 0.5, 0.5),
+                }),
+                Transform::from_xyz(1.5, 0.6, -0.3)
+                    .with_rotation(Quat::from_rotation_y(0.6) * Quat::from_rotation_x(0.3))
+                    .with_scale(Vec3::new(1.4, 0.8, 1.0)),
+            ));
+            commands.spawn((
+                caster(CasterSource::Capsule {
+                    radius: 0.25,
+                    half_length: 0.6,
+                }),
+                Transform::from_xyz(0.3, 0.85, -1.8).with_rotation(Quat::from_rotation_z(0.9)),
+            ));
+            let torus = sdfs.add(torus_volume());
+            commands.spawn((
+                caster(CasterSource::Sdf(torus)),
+                Transform::from_xyz(0.1, 0.45, 0.9)
+                    .with_rotation(Quat::from_rotation_x(1.2))
+                    .with_scale(Vec3::new(1.3, 1.0, 0.9)),
+            ));
+        },
+    );
+    app
+}
+
+/// The CPU reference image (linear RGB) of the scene in `app`'s main world.
+fn reference(app: &App, mode: DebugMode, sdf: &SdfVolumeAsset) -> Vec<Vec3> {
+    let scene = app.world().resource::<DistanceFieldScene>();
+    let size = scene.atlas_size().expect("the torus made an atlas");
+    let mut atlas = Atlas::new(size);
+    for r in scene.records() {
+        if r.flags() != 0 && r.kind() == ShapeKind::Volume as u32 {
+            let [origin, dims_minus_one, _] = r.params();
+            let dims = unpack_10_10_12(dims_minus_one) + UVec3::ONE;
+            assert_eq!(dims, sdf.volume.dims);
+            let bits: Vec<u16> = sdf.volume.data.iter().map(|h| h.to_bits()).collect();
+            atlas.write(unpack_10_10_12(origin), dims, &bits);
+        }
+    }
+    let t = camera_transform().compute_affine();
+    let proj = Mat4::perspective_infinite_reverse_rh(std::f32::consts::FRAC_PI_4, 1.0, 0.1);
+    let clip_from_relative = proj * Mat4::from_mat3a(t.matrix3).inverse();
+    let camera = CameraOrigin::at(EYE).unwrap();
+    let frustum = Frustum::from_clip_from_relative(clip_from_relative);
+    let culled = cull::cull(scene.records(), &camera, &frustum);
+    assert!(culled.len() == 5, "culled {culled:?}");
+    let debug = DebugScene {
+        objects: culled
+            .iter()
+            .map(|&s| &scene.records()[s as usize])
+            .collect(),
+        atlas: &atlas,
+        camera,
+        relative_from_clip: clip_from_relative.inverse(),
+        max_steps: 64,
+        max_distance: 40.0,
+    };
+    (0..SIZE * SIZE)
+        .map(|i| {
+            let uv = Vec2::new(
+                ((i % SIZE) as f32 + 0.5) / SIZE as f32,
+                ((i / SIZE) as f32 + 0.5) / SIZE as f32,
+            );
+            debug_pixel(&debug, mode, uv)
+        })
+        .collect()
+}
+
+fn srgb8(linear: f32) -> u8 {
+    let c = linear.clamp(0.0, 1.0);
+    let s = if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0).round() as u8
+}
+
+/// Per-pixel max channel difference (0–255) between the GPU image and the reference.
+fn differences(gpu: &image::RgbaImage, reference: &[Vec3]) -> Vec<u8> {
+    gpu.pixels()
+        .zip(reference)
+        .map(|(p, r)| {
+            let want = [srgb8(r.x), srgb8(r.y), srgb8(r.z)];
+            (0..3).map(|c| p.0[c].abs_diff(want[c])).max().unwrap_or(0)
+        })
+        .collect()
+}
+
+fn check(mode: DistanceFieldDebugMode, reference_mode: DebugMode, name: &str) {
+    if !gpu_or_skip(name) {
+        return;
+    }
+    let render = HeadlessRender::new(SIZE, SIZE).frames(4);
+    let app = scene_app(&render, mode);
+    let (capture, app) = render.run_keeping_app(app).expect("render");
+    let image = capture.to_rgba8();
+    let want = reference(&app, reference_mode, &torus_volume());
+    let diff = differences(&image, &want);
+    let mean = diff.iter().map(|&d| d as f64).sum::<f64>() / diff.len() as f64;
+    let over = diff.iter().filter(|&&d| d > 8).count() as f64 / diff.len() as f64;
+    let mut sorted = diff.clone();
+    sorted.sort_unstable();
+    let p99 = sorted[sorted.len() * 99 / 100];
+    println!(
+        "{name}: mean {mean:.3}, p99 {p99}, {:.3} % of pixels over 8/255",
+        over * 100.0
+    );
+    // Distinct content: the image is not flat.
+    let distinct: std::collections::HashSet<[u8; 4]> = image.pixels().map(|p| p.0).collect();
+    assert!(
+        distinct.len() > 16,
+        "{name}: {} distinct colours",
+        distinct.len()
+    );
+    if mean > 0.2 || over > 0.003 || std::env::var_os("PENUMBRA_SAVE_IMAGES").is_some() {
+        let dir = penumbra_test::output_dir();
+        image.save(dir.join(format!("{name}.actual.png"))).ok();
+        let expected = image::RgbaImage::from_fn(SIZE, SIZE, |x, y| {
+            let r = want[(x + SIZE * y) as usize];
+            image::Rgba([srgb8(r.x), srgb8(r.y), srgb8(r.z), 255])
+        });
+        expected.save(dir.join(format!("{name}.expected.png"))).ok();
+        panic!(
+            "{name}: GPU differs from the CPU reference: mean {mean:.3}, {:.3} % over 8/255",
+            over * 100.0
+        );
+    }
+}
+
+#[test]
+fn shaded_debug_view_matches_the_cpu_reference() {
+    check(
+        DistanceFieldDebugMode::Shaded,
+        DebugMode::Shaded,
+        "df_debug_view_shaded",
+    );
+}
+
+#[test]
+fn step_count_debug_view_matches_the_cpu_reference() {
+    check(
+        DistanceFieldDebugMode::StepCount,
+        DebugMode::Steps,
+        "df_debug_view_steps",
+    );
+}
+
+/// Without casters nothing is allocated or uploaded; a static scene uploads nothing
+/// after its first frame; moving k casters uploads k records.
+#[test]
+fn uploads_follow_changes_only() {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        TransformPlugin,
+        AssetPlugin::default(),
+        bevy::mesh::MeshPlugin,
+        bevy::camera::visibility::VisibilityPlugin,
+    ));
+    app.init_asset::<Shader>();
+    app.add_plugins((SdfAssetPlugin, DistanceFieldScenePlugin));
+    app.finish();
+    app.update();
+    let stats = app.world().resource::<DistanceFieldUploadStats>().clone();
+    assert_eq!(
+        stats,
+        DistanceFieldUploadStats::default(),
+        "no casters: nothing"
+    );
+    let ids: Vec<Entity> = (0..200)
+        .map(|i| {
+            app.world_mut()
+                .spawn((
+                    DistanceFieldCaster {
+                        source: CasterSource::Sphere { radius: 0.5 },
+                        ..default()
+                    },
+                    Transform::from_xyz(i as f32, 0.0, 0.0),
+                ))
+                .id()
+        })
+        .collect();
+    app.update();
+    let stats = app.world().resource::<DistanceFieldUploadStats>().clone();
+    assert_eq!((stats.frame_records, stats.objects), (200, 200));
+    assert_eq!(stats.frame_object_bytes, 200 * (4 + 128));
+    for _ in 0..3 {
+        app.update();
+        let stats = app.world().resource::<DistanceFieldUploadStats>();
+        assert_eq!(
+            (stats.frame_records, stats.frame_object_bytes),
+            (0, 0),
+            "static frame"
+        );
+    }
+    for &e in &ids[..7] {
+        app.world_mut()
+            .get_mut::<Transform>(e)
+            .unwrap()
+            .translation
+            .y += 1.0;
+    }
+    app.world_mut().despawn(ids[100]);
+    app.update();
+    let stats = app.world().resource::<DistanceFieldUploadStats>().clone();
+    assert_eq!(stats.frame_records, 8, "7 moved + 1 removed");
+    assert_eq!(stats.objects, 199);
+}
