@@ -18,8 +18,8 @@ use penumbra_test::{HeadlessRender, gpu_or_skip};
 const SIZE: u32 = 96;
 const EYE: Vec3 = Vec3::new(0.5, 2.2, 6.5);
 
-fn camera_transform() -> Transform {
-    Transform::from_translation(EYE).looking_at(Vec3::new(0.0, 0.6, 0.0), Vec3::Y)
+fn camera_transform(offset: Vec3) -> Transform {
+    Transform::from_translation(EYE + offset).looking_at(Vec3::new(0.0, 0.6, 0.0) + offset, Vec3::Y)
 }
 
 fn torus_volume() -> SdfVolumeAsset {
@@ -31,7 +31,8 @@ fn torus_volume() -> SdfVolumeAsset {
     }
 }
 
-fn scene_app(render: &HeadlessRender, mode: DistanceFieldDebugMode) -> App {
+/// The test scene, everything shifted by `offset` (world metres).
+fn scene_app(render: &HeadlessRender, mode: DistanceFieldDebugMode, offset: Vec3) -> App {
     let mut app = render.app();
     app.add_plugins((
         SdfAssetPlugin,
@@ -43,7 +44,7 @@ fn scene_app(render: &HeadlessRender, mode: DistanceFieldDebugMode) -> App {
         move |mut commands: Commands, mut sdfs: ResMut<Assets<SdfVolumeAsset>>| {
             commands.spawn((
                 Camera3d::default(),
-                camera_transform(),
+                camera_transform(offset),
                 DistanceFieldDebugView {
                     mode,
                     max_steps: 64,
@@ -54,16 +55,18 @@ fn scene_app(render: &HeadlessRender, mode: DistanceFieldDebugMode) -> App {
                 source,
                 ..default()
             };
-            commands.spawn((caster(CasterSource::Plane), Transform::default()));
+            let at =
+                |x: f32, y: f32, z: f32| Transform::from_translation(Vec3::new(x, y, z) + offset);
+            commands.spawn((caster(CasterSource::Plane), at(0.0, 0.0, 0.0)));
             commands.spawn((
                 caster(CasterSource::Sphere { radius: 0.7 }),
-                Transform::from_xyz(-1.6, 0.7, -0.5),
+                at(-1.6, 0.7, -0.5),
             ));
             commands.spawn((
                 caster(CasterSource::Cuboid {
                     half_size: Vec3::new(0.5, 0.5, 0.5),
                 }),
-                Transform::from_xyz(1.5, 0.6, -0.3)
+                at(1.5, 0.6, -0.3)
                     .with_rotation(Quat::from_rotation_y(0.6) * Quat::from_rotation_x(0.3))
                     .with_scale(Vec3::new(1.4, 0.8, 1.0)),
             ));
@@ -72,12 +75,12 @@ fn scene_app(render: &HeadlessRender, mode: DistanceFieldDebugMode) -> App {
                     radius: 0.25,
                     half_length: 0.6,
                 }),
-                Transform::from_xyz(0.3, 0.85, -1.8).with_rotation(Quat::from_rotation_z(0.9)),
+                at(0.3, 0.85, -1.8).with_rotation(Quat::from_rotation_z(0.9)),
             ));
             let torus = sdfs.add(torus_volume());
             commands.spawn((
                 caster(CasterSource::Sdf(torus)),
-                Transform::from_xyz(0.1, 0.45, 0.9)
+                at(0.1, 0.45, 0.9)
                     .with_rotation(Quat::from_rotation_x(1.2))
                     .with_scale(Vec3::new(1.3, 1.0, 0.9)),
             ));
@@ -100,7 +103,7 @@ fn reference(app: &App, mode: DebugMode, sdf: &SdfVolumeAsset) -> Vec<Vec3> {
             atlas.write(unpack_10_10_12(origin), dims, &bits);
         }
     }
-    let t = camera_transform().compute_affine();
+    let t = camera_transform(Vec3::ZERO).compute_affine();
     let proj = Mat4::perspective_infinite_reverse_rh(std::f32::consts::FRAC_PI_4, 1.0, 0.1);
     let clip_from_relative = proj * Mat4::from_mat3a(t.matrix3).inverse();
     let camera = CameraOrigin::at(EYE).unwrap();
@@ -155,7 +158,7 @@ fn check(mode: DistanceFieldDebugMode, reference_mode: DebugMode, name: &str) {
         return;
     }
     let render = HeadlessRender::new(SIZE, SIZE).frames(4);
-    let app = scene_app(&render, mode);
+    let app = scene_app(&render, mode, Vec3::ZERO);
     let (capture, app) = render.run_keeping_app(app).expect("render");
     let image = capture.to_rgba8();
     let want = reference(&app, reference_mode, &torus_volume());
@@ -207,6 +210,42 @@ fn step_count_debug_view_matches_the_cpu_reference() {
         DebugMode::Steps,
         "df_debug_view_steps",
     );
+}
+
+/// The same scene 10⁵ m from the origin renders the same image: records keep positions
+/// in 512 m tiles and the shaders work camera-relative. (Without that, f32 world
+/// positions there are only 8 mm apart and the image breaks up.)
+#[test]
+fn far_from_the_origin_the_image_is_unchanged() {
+    if !gpu_or_skip("far_from_the_origin_the_image_is_unchanged") {
+        return;
+    }
+    let render = HeadlessRender::new(SIZE, SIZE).frames(4);
+    let near = render
+        .run(scene_app(
+            &render,
+            DistanceFieldDebugMode::Shaded,
+            Vec3::ZERO,
+        ))
+        .expect("render")
+        .to_rgba8();
+    let far = render
+        .run(scene_app(
+            &render,
+            DistanceFieldDebugMode::Shaded,
+            Vec3::new(1e5, 0.0, -1e5),
+        ))
+        .expect("render")
+        .to_rgba8();
+    let tolerance = penumbra_test::Tolerance {
+        per_pixel: 8,
+        max_differing_fraction: 0.005,
+        max_mean: 0.5,
+        max_p99: 8.0,
+    };
+    let c = penumbra_test::compare_rgba8(&far, &near, &tolerance);
+    println!("far vs near: {c:?}");
+    assert!(c.passed, "{c:?}");
 }
 
 /// Without casters nothing is allocated or uploaded; a static scene uploads nothing
