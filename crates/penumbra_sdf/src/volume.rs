@@ -10,7 +10,7 @@
 //! conservative for sphere tracing.
 
 use glam::{UVec3, Vec3};
-use half::f16;
+pub use half::f16;
 
 /// A signed distance grid (see the module docs for the layout).
 #[derive(Clone, Debug, PartialEq)]

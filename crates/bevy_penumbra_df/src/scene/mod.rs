@@ -155,6 +155,10 @@ pub struct DistanceFieldUploadStats {
     pub atlas_used_bytes: u64,
     /// Distinct SDFs in the atlas.
     pub atlas_volumes: usize,
+    /// SDFs placed at reduced resolution because the atlas was full (since startup).
+    pub atlas_downsampled: usize,
+    /// SDFs whose casters are skipped: they fit nowhere, even at quarter resolution.
+    pub atlas_skipped: usize,
 }
 
 /// One SDF placed in the atlas.
@@ -187,6 +191,9 @@ pub struct DistanceFieldScene {
     waiting: HashSet<Entity>,
     uploads: Vec<AtlasUpload>,
     max_texture_3d: u32,
+    /// The atlas has been reported full once (later overflows are only counted).
+    warned_full: bool,
+    downsampled: usize,
 }
 
 impl DistanceFieldScene {
@@ -375,10 +382,11 @@ fn remove_distance_field_casters(
     }
 }
 
-/// Halves a volume's resolution (every other sample; the last sample kept so the box is
-/// covered).
+/// Halves a volume's resolution: every other sample, `⌈(n − 1) / 2⌉ + 1` per axis so the
+/// box stays covered (an even `n − 1` ends on the last sample exactly; an odd one
+/// repeats it, half a new voxel past the old box).
 fn downsample(volume: &SdfVolume) -> SdfVolume {
-    let dims = (volume.dims + UVec3::ONE) / 2 + UVec3::ONE;
+    let dims = volume.dims / 2 + UVec3::ONE; // = ⌈(n − 1) / 2⌉ + 1
     let mut data = Vec::with_capacity((dims.x * dims.y * dims.z) as usize);
     for k in 0..dims.z {
         for j in 0..dims.y {
@@ -388,9 +396,6 @@ fn downsample(volume: &SdfVolume) -> SdfVolume {
             }
         }
     }
-    // Sample spacing doubles; the clamped last layer makes the far edge approximate
-    // (it lies inside the original box, so distances there stay conservative within
-    // one original voxel).
     SdfVolume {
         dims,
         origin: volume.origin,
@@ -430,23 +435,32 @@ fn place_volume(
         match atlas.allocate(volume.dims) {
             Ok(region) => break region,
             Err(e @ (AtlasError::Full { .. } | AtlasError::TooLarge { .. })) if halvings < 2 => {
-                if halvings == 0 {
+                if !scene.warned_full {
                     warn!(
-                        "Penumbra: {e} (budget {} bytes, DistanceFieldSceneSettings::atlas_budget_bytes); \
-                         placing it at half resolution",
+                        "Penumbra: distance-field {e} (budget {} bytes, see \
+                         DistanceFieldSceneSettings::atlas_budget_bytes): volumes that do not fit \
+                         are placed at half, then quarter resolution, else their casters are \
+                         skipped; counts in DistanceFieldUploadStats. Reported once.",
                         settings.atlas_budget_bytes
                     );
+                    scene.warned_full = true;
                 }
                 volume = std::borrow::Cow::Owned(downsample(&volume));
                 halvings += 1;
             }
             Err(e) => {
-                warn!("Penumbra: {e}; its casters are skipped");
+                if !scene.warned_full {
+                    warn!("Penumbra: distance-field {e}; its casters are skipped. Reported once.");
+                    scene.warned_full = true;
+                }
                 scene.unplaceable.insert(id);
                 return None;
             }
         }
     };
+    if halvings > 0 {
+        scene.downsampled += 1;
+    }
     scene.uploads.push(AtlasUpload {
         region,
         data: volume.data.iter().map(|h| h.to_bits()).collect(),
@@ -605,6 +619,8 @@ fn finish_frame(
     stats.atlas_bytes = scene.atlas.as_ref().map_or(0, AtlasAllocator::bytes);
     stats.atlas_used_bytes = scene.atlas.as_ref().map_or(0, AtlasAllocator::used_bytes);
     stats.atlas_volumes = scene.volumes.len();
+    stats.atlas_downsampled = scene.downsampled;
+    stats.atlas_skipped = scene.unplaceable.len();
     *frame = DistanceFieldFrame {
         deltas,
         uploads,

@@ -1,0 +1,224 @@
+//! The distance-field scene's main-world behaviour (no GPU): mesh casters are baked
+//! once per mesh and share one atlas placement, freed space is reused, an over-budget
+//! atlas falls back to half resolution and then skips with a warning, bad transforms
+//! are skipped, and the memory of a 1,000-instance / 50-asset scene.
+
+use bevy::prelude::*;
+use bevy_penumbra_df::{
+    CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldScenePlugin,
+    DistanceFieldSceneSettings, DistanceFieldUploadStats, SdfAssetPlugin, SdfBakeCache,
+    SdfVolumeAsset,
+};
+use penumbra_df_core::object::{ShapeKind, unpack_10_10_12};
+use penumbra_sdf::SdfVolume;
+
+fn app(settings: DistanceFieldSceneSettings) -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        TransformPlugin,
+        AssetPlugin::default(),
+        bevy::mesh::MeshPlugin,
+        bevy::camera::visibility::VisibilityPlugin,
+    ))
+    .init_asset::<Shader>()
+    .insert_resource(settings)
+    .insert_resource(SdfBakeCache::with_directory(None))
+    .add_plugins((SdfAssetPlugin, DistanceFieldScenePlugin));
+    app.finish();
+    app.cleanup();
+    app
+}
+
+fn update_until(app: &mut App, mut done: impl FnMut(&App) -> bool) {
+    for _ in 0..3000 {
+        app.update();
+        if done(app) {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    panic!("condition not reached in 3000 frames");
+}
+
+fn stats(app: &App) -> DistanceFieldUploadStats {
+    app.world().resource::<DistanceFieldUploadStats>().clone()
+}
+
+/// A synthetic SDF of `n³` samples (a sphere), 1 cm voxels.
+fn volume(n: u32) -> SdfVolumeAsset {
+    let c = (n - 1) as f32 * 0.5;
+    let data = (0..n * n * n)
+        .map(|i| {
+            let p = Vec3::new((i % n) as f32, ((i / n) % n) as f32, (i / (n * n)) as f32);
+            half_bits((p - Vec3::splat(c)).length() * 0.01 - c * 0.008)
+        })
+        .collect();
+    SdfVolumeAsset {
+        volume: SdfVolume {
+            dims: UVec3::splat(n),
+            origin: Vec3::splat(-c * 0.01),
+            voxel_size: 0.01,
+            data,
+        },
+    }
+}
+
+fn half_bits(x: f32) -> penumbra_sdf::volume::f16 {
+    penumbra_sdf::volume::f16::from_f32(x)
+}
+
+#[test]
+fn mesh_casters_bake_once_and_share_one_placement() {
+    let mut app = app(DistanceFieldSceneSettings::default());
+    let mesh = app
+        .world_mut()
+        .resource_mut::<Assets<Mesh>>()
+        .add(Sphere::new(0.5).mesh().ico(3).unwrap());
+    let instances: Vec<Entity> = (0..5)
+        .map(|i| {
+            app.world_mut()
+                .spawn((
+                    Mesh3d(mesh.clone()),
+                    DistanceFieldCaster::default(),
+                    Transform::from_xyz(i as f32 * 2.0, 0.0, 0.0).with_scale(Vec3::new(
+                        1.0,
+                        1.0 + i as f32 * 0.2,
+                        1.0,
+                    )),
+                ))
+                .id()
+        })
+        .collect();
+    update_until(&mut app, |app| stats(app).objects == 5);
+    let s = stats(&app);
+    assert_eq!(s.atlas_volumes, 1, "five instances, one SDF");
+    assert!(s.atlas_used_bytes > 0 && s.atlas_used_bytes <= s.atlas_bytes);
+    let scene = app.world().resource::<DistanceFieldScene>();
+    let regions: std::collections::HashSet<[u32; 3]> = instances
+        .iter()
+        .map(|&e| scene.records()[scene.slot(e).unwrap() as usize].params())
+        .collect();
+    assert_eq!(regions.len(), 1, "all instances point at one atlas region");
+    let r = &scene.records()[scene.slot(instances[0]).unwrap() as usize];
+    assert_eq!(r.kind(), ShapeKind::Volume as u32);
+    // Despawning every instance frees the atlas.
+    for e in instances {
+        app.world_mut().despawn(e);
+    }
+    app.update();
+    let s = stats(&app);
+    assert_eq!((s.objects, s.atlas_volumes, s.atlas_used_bytes), (0, 0, 0));
+}
+
+#[test]
+fn over_budget_volumes_fall_back_then_skip() {
+    // The smallest atlas: 32×32×8 texels.
+    let mut app = app(DistanceFieldSceneSettings {
+        atlas_budget_bytes: 32 * 32 * 8 * 2,
+    });
+    let (small, big, huge) = {
+        let mut sdfs = app.world_mut().resource_mut::<Assets<SdfVolumeAsset>>();
+        (
+            sdfs.add(volume(8)),
+            sdfs.add(volume(16)),
+            sdfs.add(volume(64)),
+        )
+    };
+    let spawn = |app: &mut App, h: &Handle<SdfVolumeAsset>| {
+        app.world_mut()
+            .spawn(DistanceFieldCaster {
+                source: CasterSource::Sdf(h.clone()),
+                ..default()
+            })
+            .id()
+    };
+    let a = spawn(&mut app, &small);
+    let b = spawn(&mut app, &big); // 16³ → 9³ (still > 8 deep) → 5³
+    let c = spawn(&mut app, &huge); // 64³ → 33³ → 17³: never fits, skipped
+    app.update();
+    let scene = app.world().resource::<DistanceFieldScene>();
+    let dims = |e: Entity| {
+        let r = &scene.records()[scene.slot(e).unwrap() as usize];
+        unpack_10_10_12(r.params()[1]) + UVec3::ONE
+    };
+    assert_eq!(dims(a), UVec3::splat(8));
+    assert_eq!(dims(b), UVec3::splat(5));
+    assert!(scene.slot(c).is_none(), "the huge volume is skipped");
+    let s = stats(&app);
+    assert_eq!((s.objects, s.atlas_downsampled, s.atlas_skipped), (2, 1, 1));
+    // Freed space is reused: despawn the small one, a new small one fits again.
+    app.world_mut().despawn(a);
+    app.update();
+    let d = spawn(&mut app, &small);
+    app.update();
+    assert!(
+        app.world()
+            .resource::<DistanceFieldScene>()
+            .slot(d)
+            .is_some()
+    );
+}
+
+#[test]
+fn bad_transforms_are_skipped_not_fatal() {
+    let mut app = app(DistanceFieldSceneSettings::default());
+    let cases = [
+        Transform::from_scale(Vec3::new(1.0, 0.0, 1.0)),
+        Transform::from_xyz(f32::NAN, 0.0, 0.0),
+        Transform::from_xyz(0.0, f32::INFINITY, 0.0),
+    ];
+    let ok = app
+        .world_mut()
+        .spawn((
+            DistanceFieldCaster {
+                source: CasterSource::Sphere { radius: 1.0 },
+                ..default()
+            },
+            Transform::default(),
+        ))
+        .id();
+    for t in cases {
+        app.world_mut().spawn((
+            DistanceFieldCaster {
+                source: CasterSource::Sphere { radius: 1.0 },
+                ..default()
+            },
+            t,
+        ));
+    }
+    app.update();
+    let scene = app.world().resource::<DistanceFieldScene>();
+    assert_eq!(scene.len(), 1);
+    assert!(scene.slot(ok).is_some());
+}
+
+/// 50 distinct 50³ SDFs and 1,000 instances: the memory a typical level needs.
+#[test]
+fn memory_of_a_thousand_instances_of_fifty_assets() {
+    let mut app = app(DistanceFieldSceneSettings::default());
+    let handles: Vec<Handle<SdfVolumeAsset>> = {
+        let mut sdfs = app.world_mut().resource_mut::<Assets<SdfVolumeAsset>>();
+        (0..50).map(|_| sdfs.add(volume(50))).collect()
+    };
+    for i in 0..1000 {
+        app.world_mut().spawn((
+            DistanceFieldCaster {
+                source: CasterSource::Sdf(handles[i % 50].clone()),
+                ..default()
+            },
+            Transform::from_xyz((i % 40) as f32, 0.0, (i / 40) as f32),
+        ));
+    }
+    app.update();
+    let s = stats(&app);
+    assert_eq!((s.objects, s.atlas_volumes), (1000, 50));
+    let object_buffer = s.slots as u64 * 128;
+    println!(
+        "1,000 instances / 50 assets of 50³: atlas texture {} bytes ({} used by SDFs), object buffer {} bytes, first-frame upload {} bytes",
+        s.atlas_bytes, s.atlas_used_bytes, object_buffer, s.total_bytes
+    );
+    // 50 volumes of 56³ blocks (50 rounded up to 8) × 2 bytes.
+    assert_eq!(s.atlas_used_bytes, 50 * 56u64.pow(3) * 2);
+    assert_eq!(object_buffer, 128_000);
+}
