@@ -169,17 +169,32 @@ impl GpuObjects {
     }
 }
 
+/// The culling pass's two pipelines.
+struct CullPipelines {
+    cull: wgpu::ComputePipeline,
+    indirect: wgpu::ComputePipeline,
+}
+
+impl CullPipelines {
+    fn new(gpu: &GpuCompute) -> CullPipelines {
+        let wgsl = flatten("#import penumbra::df::cull\n").unwrap();
+        CullPipelines {
+            cull: gpu.pipeline(&wgsl, "cull"),
+            indirect: gpu.pipeline(&wgsl, "write_indirect"),
+        }
+    }
+}
+
 /// Culls `slots` records on the GPU: (sorted survivors, count, indirect args).
 fn gpu_cull(
     gpu: &GpuCompute,
+    pipelines: &CullPipelines,
     objects: &wgpu::Buffer,
     slots: u32,
     camera: &CameraOrigin,
     frustum: &Frustum,
 ) -> (Vec<u32>, u32, [u32; 3]) {
-    let wgsl = flatten("#import penumbra::df::cull\n").unwrap();
-    let cull = gpu.pipeline(&wgsl, "cull");
-    let indirect_pipeline = gpu.pipeline(&wgsl, "write_indirect");
+    let (cull, indirect_pipeline) = (&pipelines.cull, &pipelines.indirect);
     let (groups, groups_x) = grid_64(slots);
     let mut view = Vec::new();
     for p in frustum.planes {
@@ -202,9 +217,9 @@ fn gpu_cull(
         &cull,
         &[(0, objects), (1, &view), (2, &culled), (3, &count)],
     );
-    gpu.dispatch(&cull, &bind, groups);
-    let bind = gpu.bind(&indirect_pipeline, &[(3, &count), (4, &indirect)]);
-    gpu.dispatch(&indirect_pipeline, &bind, [1, 1, 1]);
+    gpu.dispatch(cull, &bind, groups);
+    let bind = gpu.bind(indirect_pipeline, &[(3, &count), (4, &indirect)]);
+    gpu.dispatch(indirect_pipeline, &bind, [1, 1, 1]);
     let words = |b: Vec<u8>| -> Vec<u32> {
         b.chunks_exact(4)
             .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
@@ -321,9 +336,17 @@ fn gpu_object_buffer_follows_churn_and_culls_like_the_cpu() {
         frustum_looking(far + Vec3::new(0.0, 2.0, 30.0), Vec3::new(0.0, 0.0, -1.0)),
         frustum_looking(far + Vec3::new(35.0, 0.0, 35.0), Vec3::new(-1.0, 0.0, -1.0)),
     ];
+    let pipelines = CullPipelines::new(&gpu);
     for (i, (camera, frustum)) in cameras.iter().enumerate() {
         let want = cull::cull(table.records(), camera, frustum);
-        let (got, count, args) = gpu_cull(&gpu, &gpu_objects.buffer, slots, camera, frustum);
+        let (got, count, args) = gpu_cull(
+            &gpu,
+            &pipelines,
+            &gpu_objects.buffer,
+            slots,
+            camera,
+            frustum,
+        );
         println!("camera {i}: {} of {slots} slots survive", want.len());
         assert!(
             !want.is_empty() && want.len() < table.len(),
@@ -344,4 +367,112 @@ fn gpu_object_buffer_follows_churn_and_culls_like_the_cpu() {
         );
         assert_eq!(args, [count.div_ceil(64), 1, 1], "camera {i}");
     }
+}
+
+/// One million casters through the delta pass (uploaded in chunks below the 128 MiB
+/// binding limit) and the culling pass on lavapipe; prints the times, asserts the
+/// buffer equals the mirror and the culled set equals the CPU's. Slow on a CPU
+/// rasterizer: run it on purpose,
+/// `cargo test --release -p bevy_penumbra_df --test gpu_object_buffer -- --ignored --nocapture`.
+#[test]
+#[ignore = "a benchmark: about a minute on lavapipe"]
+fn million_objects_apply_and_cull() {
+    if !gpu_or_skip("million_objects_apply_and_cull") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter present");
+    let n = 1_000_000u64;
+    let mut rng = Rng(7);
+    let mut table = ObjectTable::new();
+    let t = std::time::Instant::now();
+    for key in 0..n {
+        let desc = random_desc(&mut rng, Vec3::ZERO, 500.0);
+        table.upsert(key, encode(&desc).unwrap());
+    }
+    let deltas = table.take_deltas();
+    println!(
+        "encode + mirror of {n} records: {:.3} s (CPU)",
+        t.elapsed().as_secs_f64()
+    );
+    let mut objects = GpuObjects::new(&gpu);
+    let t = std::time::Instant::now();
+    for chunk in deltas.writes.chunks(400_000) {
+        objects.apply(
+            &gpu,
+            &Deltas {
+                writes: chunk.to_vec(),
+                slot_count: deltas.slot_count,
+            },
+        );
+    }
+    gpu.read(&objects.buffer, 16); // waits for everything queued
+    let with_upload = t.elapsed().as_secs_f64();
+    // The pass alone: re-apply the same writes from buffers already on the GPU.
+    let prepared: Vec<(wgpu::BindGroup, [u32; 3])> = deltas
+        .writes
+        .chunks(400_000)
+        .map(|chunk| {
+            let d = Deltas {
+                writes: chunk.to_vec(),
+                slot_count: deltas.slot_count,
+            };
+            let bytes: Vec<u8> = d.to_words().iter().flat_map(|w| w.to_le_bytes()).collect();
+            let writes = gpu.buffer("writes", &bytes, BufferUsages::empty());
+            let (groups, groups_x) = grid_64(chunk.len() as u32);
+            let params: Vec<u8> = [chunk.len() as u32, groups_x, 0, 0]
+                .iter()
+                .flat_map(|w| w.to_le_bytes())
+                .collect();
+            let params = gpu.buffer("params", &params, BufferUsages::UNIFORM);
+            let bind = gpu.bind(
+                &objects.apply,
+                &[(0, &objects.buffer), (1, &writes), (2, &params)],
+            );
+            (bind, groups)
+        })
+        .collect();
+    gpu.read(&objects.buffer, 16);
+    let t = std::time::Instant::now();
+    for (bind, groups) in &prepared {
+        gpu.dispatch(&objects.apply, bind, *groups);
+    }
+    gpu.read(&objects.buffer, 16);
+    println!(
+        "apply {n} writes ({} MB): delta pass {:.3} s on the GPU; {with_upload:.3} s with CPU conversion and upload",
+        objects.uploaded_bytes / 1_000_000,
+        t.elapsed().as_secs_f64()
+    );
+    let back = objects.read(&gpu, table.slot_count());
+    assert!(
+        back.as_slice() == table.records(),
+        "GPU buffer differs from the mirror"
+    );
+    let (camera, frustum) =
+        frustum_looking(Vec3::new(0.0, 50.0, 400.0), Vec3::new(0.0, -0.2, -1.0));
+    let pipelines = CullPipelines::new(&gpu);
+    gpu_cull(
+        &gpu,
+        &pipelines,
+        &objects.buffer,
+        table.slot_count(),
+        &camera,
+        &frustum,
+    ); // warm-up
+    let t = std::time::Instant::now();
+    let (got, count, _) = gpu_cull(
+        &gpu,
+        &pipelines,
+        &objects.buffer,
+        table.slot_count(),
+        &camera,
+        &frustum,
+    );
+    let gpu_time = t.elapsed().as_secs_f64();
+    let t = std::time::Instant::now();
+    let want = cull::cull(table.records(), &camera, &frustum);
+    println!(
+        "cull {n} objects -> {count} survivors: GPU {gpu_time:.3} s (with buffer setup and reading the list back), CPU reference {:.3} s",
+        t.elapsed().as_secs_f64()
+    );
+    assert_eq!(got, want);
 }
