@@ -13,6 +13,36 @@
 //! baking of meshes with a disk cache), the distance-field scene (casters, SDF atlas,
 //! GPU object buffer kept in sync by deltas, GPU culling) and its debug view. See
 //! `ARCHITECTURE.md`.
+//!
+//! ```no_run
+//! use bevy::prelude::*;
+//! use penumbra::prelude::*;
+//!
+//! fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>) {
+//!     // A mesh caster: its SDF is baked in the background (once per mesh, cached on disk).
+//!     commands.spawn((
+//!         Mesh3d(meshes.add(Torus::default())),
+//!         DistanceFieldCaster::default(),
+//!         Transform::from_xyz(0.0, 0.5, 0.0),
+//!     ));
+//!     // Analytic casters cost no bake and no atlas space.
+//!     commands.spawn((
+//!         DistanceFieldCaster { source: CasterSource::Plane, ..default() },
+//!         Transform::default(),
+//!     ));
+//!     // See what the distance fields look like (step heat map or shaded).
+//!     commands.spawn((
+//!         Camera3d::default(),
+//!         DistanceFieldDebugView { mode: DistanceFieldDebugMode::Shaded, ..default() },
+//!         Transform::from_xyz(0.0, 2.0, 6.0).looking_at(Vec3::ZERO, Vec3::Y),
+//!     ));
+//! }
+//!
+//! App::new()
+//!     .add_plugins((DefaultPlugins, PenumbraPlugins))
+//!     .add_systems(Startup, setup)
+//!     .run();
+//! ```
 
 use bevy::app::plugin_group;
 use bevy::prelude::*;
