@@ -213,10 +213,7 @@ fn gpu_cull(
     let culled = gpu.zeroed("culled", slots.max(1) as u64 * 4, BufferUsages::empty());
     let count = gpu.zeroed("count", 4, BufferUsages::empty());
     let indirect = gpu.zeroed("indirect", 12, BufferUsages::INDIRECT);
-    let bind = gpu.bind(
-        &cull,
-        &[(0, objects), (1, &view), (2, &culled), (3, &count)],
-    );
+    let bind = gpu.bind(cull, &[(0, objects), (1, &view), (2, &culled), (3, &count)]);
     gpu.dispatch(cull, &bind, groups);
     let bind = gpu.bind(indirect_pipeline, &[(3, &count), (4, &indirect)]);
     gpu.dispatch(indirect_pipeline, &bind, [1, 1, 1]);
