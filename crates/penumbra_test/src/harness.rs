@@ -185,6 +185,9 @@ pub struct HeadlessRender {
     pub frames: u32,
     /// Target format.
     pub format: CaptureFormat,
+    /// Render on a separate thread, one frame behind (Bevy's default). Off: the render
+    /// world stays a sub-app of the main app, where tests can inspect it.
+    pub pipelined: bool,
 }
 
 /// One Bevy app at a time per process: lavapipe has 2 cores to share, and a global
@@ -199,7 +202,14 @@ impl HeadlessRender {
             height,
             frames: 5,
             format: CaptureFormat::Srgb8,
+            pipelined: true,
         }
+    }
+
+    /// Renders on the main thread so that `app.sub_app(RenderApp)` stays reachable.
+    pub fn without_pipelining(mut self) -> Self {
+        self.pipelined = false;
+        self
     }
 
     /// Sets the number of frames rendered before the capture.
@@ -246,6 +256,11 @@ impl HeadlessRender {
                 ..default()
             })
             .disable::<WinitPlugin>();
+        let plugins = if self.pipelined {
+            plugins
+        } else {
+            plugins.disable::<bevy::render::pipelined_rendering::PipelinedRenderingPlugin>()
+        };
         if first_logger {
             app.add_plugins(plugins);
         } else {
