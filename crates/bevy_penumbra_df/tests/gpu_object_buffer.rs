@@ -4,13 +4,12 @@
 
 use glam::{Affine3A, Mat4, Quat, UVec3, Vec3};
 use penumbra_df_core::atlas::AtlasRegion;
-use penumbra_df_core::cull::{self, CameraOrigin, Frustum};
+use penumbra_df_core::cull::{self, CameraOrigin, Frustum, cull_view_words, grid_64};
 use penumbra_df_core::object::{
     CasterShape, ObjectDesc, ObjectRecord, RECORD_BYTES, encode, flags,
 };
 use penumbra_df_core::table::{Deltas, ObjectTable};
 use penumbra_shaders::flatten;
-use penumbra_test::compute::grid_64;
 use penumbra_test::wgpu::{self, BufferUsages};
 use penumbra_test::{GpuCompute, gpu_or_skip};
 
@@ -196,18 +195,7 @@ fn gpu_cull(
 ) -> (Vec<u32>, u32, [u32; 3]) {
     let (cull, indirect_pipeline) = (&pipelines.cull, &pipelines.indirect);
     let (groups, groups_x) = grid_64(slots);
-    let mut view = Vec::new();
-    for p in frustum.planes {
-        view.extend(p.to_array().map(f32::to_bits));
-    }
-    view.extend([
-        camera.tile[0] as u32,
-        camera.tile[1] as u32,
-        camera.tile[2] as u32,
-        0,
-    ]);
-    view.extend(camera.offset.extend(0.0).to_array().map(f32::to_bits));
-    view.extend([slots, groups_x, 0, 0]);
+    let view = cull_view_words(frustum, camera, slots, groups_x);
     let view: Vec<u8> = view.iter().flat_map(|w| w.to_le_bytes()).collect();
     let view = gpu.buffer("view", &view, BufferUsages::UNIFORM);
     let culled = gpu.zeroed("culled", slots.max(1) as u64 * 4, BufferUsages::empty());

@@ -38,7 +38,7 @@ fn churn(
     mut transforms: Query<&mut Transform, With<DistanceFieldCaster>>,
 ) {
     state.frames += 1;
-    if state.frames % 9 == 0 {
+    if state.frames.is_multiple_of(9) {
         return; // a static frame now and then
     }
     for _ in 0..45 {

@@ -90,6 +90,37 @@ impl Frustum {
     }
 }
 
+/// Words of the culling pass's `CullView` uniform (`shaders/df/cull.wgsl`, 144 bytes):
+/// planes, camera tile, camera offset, object count and the dispatch row width.
+pub fn cull_view_words(
+    frustum: &Frustum,
+    camera: &CameraOrigin,
+    objects: u32,
+    groups_x: u32,
+) -> Vec<u32> {
+    let mut words = Vec::with_capacity(36);
+    for p in frustum.planes {
+        words.extend(p.to_array().map(f32::to_bits));
+    }
+    words.extend([
+        camera.tile[0] as u32,
+        camera.tile[1] as u32,
+        camera.tile[2] as u32,
+        0,
+    ]);
+    words.extend(camera.offset.extend(0.0).to_array().map(f32::to_bits));
+    words.extend([objects, groups_x, 0, 0]);
+    words
+}
+
+/// Workgroups of 64 covering `n` invocations as a 2D grid (x ≤ 65535, the portable
+/// limit): `([x, y, 1], x)`; shaders rebuild the index as `id.x + id.y · x · 64`.
+pub fn grid_64(n: u32) -> ([u32; 3], u32) {
+    let groups = n.div_ceil(64).max(1);
+    let x = groups.min(65_535);
+    ([x, groups.div_ceil(x), 1], x)
+}
+
 /// Whether a record survives culling: live, visible, and unbounded or intersecting the
 /// frustum.
 pub fn is_visible(record: &ObjectRecord, camera: &CameraOrigin, frustum: &Frustum) -> bool {

@@ -156,11 +156,3 @@ impl GpuCompute {
             .expect("device poll");
     }
 }
-
-/// Workgroups for `n` invocations of 64 as a 2D grid (x ≤ 65535): `[x, y, 1]` and the
-/// row width in groups, which shaders use to rebuild the linear index.
-pub fn grid_64(n: u32) -> ([u32; 3], u32) {
-    let groups = n.div_ceil(64).max(1);
-    let x = groups.min(65_535);
-    ([x, groups.div_ceil(x), 1], x)
-}

@@ -17,7 +17,7 @@ use bevy::render::render_resource::{
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
-use penumbra_df_core::cull::{CameraOrigin, Frustum};
+use penumbra_df_core::cull::{CameraOrigin, Frustum, cull_view_words, grid_64};
 use penumbra_df_core::object::{ObjectRecord, RECORD_BYTES};
 use penumbra_df_core::table::{DeltaWrite, Deltas};
 use std::collections::BTreeMap;
@@ -307,13 +307,6 @@ fn write_atlas(queue: &RenderQueue, texture: &Texture, upload: &AtlasUpload) {
     );
 }
 
-/// Workgroups for `n` invocations of 64, as a 2D grid (x ≤ 65535), and the row width.
-pub(crate) fn grid_64(n: u32) -> ([u32; 3], u32) {
-    let groups = n.div_ceil(64).max(1);
-    let x = groups.min(65_535);
-    ([x, groups.div_ceil(x), 1], x)
-}
-
 fn apply_distance_field_deltas(
     mut ctx: RenderContext,
     gpu: Res<DistanceFieldGpu>,
@@ -380,18 +373,7 @@ pub fn cull_objects(
     let frustum = Frustum::from_clip_from_relative(clip_from_relative);
     let slots = gpu.slot_count;
     let (groups, groups_x) = grid_64(slots);
-    let mut view = Vec::with_capacity(36);
-    for p in frustum.planes {
-        view.extend(p.to_array().map(f32::to_bits));
-    }
-    view.extend([
-        origin.tile[0] as u32,
-        origin.tile[1] as u32,
-        origin.tile[2] as u32,
-        0,
-    ]);
-    view.extend(origin.offset.extend(0.0).to_array().map(f32::to_bits));
-    view.extend([slots, groups_x, 0, 0]);
+    let view = cull_view_words(&frustum, &origin, slots, groups_x);
     let view: Vec<u8> = view.iter().flat_map(|w| w.to_le_bytes()).collect();
     let device = ctx.render_device().clone();
     let view = device.create_buffer_with_data(&BufferInitDescriptor {
