@@ -90,7 +90,7 @@ fn scene_app(render: &HeadlessRender, mode: DistanceFieldDebugMode, offset: Vec3
 }
 
 /// The CPU reference image (linear RGB) of the scene in `app`'s main world.
-fn reference(app: &App, mode: DebugMode, sdf: &SdfVolumeAsset) -> Vec<Vec3> {
+fn reference(app: &App, mode: DebugMode, sdf: &SdfVolumeAsset, objects: usize) -> Vec<Vec3> {
     let scene = app.world().resource::<DistanceFieldScene>();
     let size = scene.atlas_size().expect("the torus made an atlas");
     let mut atlas = Atlas::new(size);
@@ -109,7 +109,7 @@ fn reference(app: &App, mode: DebugMode, sdf: &SdfVolumeAsset) -> Vec<Vec3> {
     let camera = CameraOrigin::at(EYE).unwrap();
     let frustum = Frustum::from_clip_from_relative(clip_from_relative);
     let culled = cull::cull(scene.records(), &camera, &frustum);
-    assert!(culled.len() == 5, "culled {culled:?}");
+    assert!(culled.len() == objects, "culled {culled:?}");
     let debug = DebugScene {
         objects: culled
             .iter()
@@ -161,8 +161,14 @@ fn check(mode: DistanceFieldDebugMode, reference_mode: DebugMode, name: &str) {
     let app = scene_app(&render, mode, Vec3::ZERO);
     let (capture, app) = render.run_keeping_app(app).expect("render");
     let image = capture.to_rgba8();
-    let want = reference(&app, reference_mode, &torus_volume());
-    let diff = differences(&image, &want);
+    let want = reference(&app, reference_mode, &torus_volume(), 5);
+    assert_matches_reference(&image, &want, name);
+}
+
+/// Compares with tolerances (mean ≤ 0.2/255, ≤ 0.3 % of pixels over 8/255), writing the
+/// actual and expected PNGs on failure (or always with `PENUMBRA_SAVE_IMAGES`).
+fn assert_matches_reference(image: &image::RgbaImage, want: &[Vec3], name: &str) {
+    let diff = differences(image, want);
     let mean = diff.iter().map(|&d| d as f64).sum::<f64>() / diff.len() as f64;
     let over = diff.iter().filter(|&&d| d > 8).count() as f64 / diff.len() as f64;
     let mut sorted = diff.clone();
@@ -210,6 +216,67 @@ fn step_count_debug_view_matches_the_cpu_reference() {
         DebugMode::Steps,
         "df_debug_view_steps",
     );
+}
+
+/// A `Mesh3d` caster goes the whole way: baked in the background, placed in the atlas,
+/// uploaded, culled and traced — the image equals the CPU reference of the baked SDF.
+#[test]
+fn mesh_casters_are_baked_and_traced() {
+    if !gpu_or_skip("mesh_casters_are_baked_and_traced") {
+        return;
+    }
+    let render = HeadlessRender::new(SIZE, SIZE).frames(40);
+    let mut app = render.app();
+    app.insert_resource(bevy_penumbra_df::SdfBakeCache::with_directory(None))
+        .add_plugins((
+            SdfAssetPlugin,
+            DistanceFieldScenePlugin,
+            DistanceFieldDebugPlugin,
+        ))
+        .add_systems(
+            Startup,
+            |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+                commands.spawn((
+                    Camera3d::default(),
+                    camera_transform(Vec3::ZERO),
+                    DistanceFieldDebugView {
+                        mode: DistanceFieldDebugMode::Shaded,
+                        max_steps: 64,
+                        max_distance: 40.0,
+                    },
+                ));
+                commands.spawn((
+                    DistanceFieldCaster {
+                        source: CasterSource::Plane,
+                        ..default()
+                    },
+                    Transform::default(),
+                ));
+                commands.spawn((
+                    Mesh3d(meshes.add(Torus::new(0.4, 0.9))),
+                    DistanceFieldCaster::default(),
+                    Transform::from_xyz(0.0, 0.6, 0.0).with_rotation(Quat::from_rotation_x(0.8)),
+                ));
+            },
+        );
+    let (capture, mut app) = render.run_keeping_app(app).expect("render");
+    let stats = app.world().resource::<DistanceFieldUploadStats>().clone();
+    assert_eq!((stats.objects, stats.atlas_volumes), (2, 1), "{stats:?}");
+    let baked = app
+        .world_mut()
+        .query::<&bevy_penumbra_df::SdfBaked>()
+        .single(app.world())
+        .expect("one baked caster")
+        .0
+        .clone();
+    let sdf = app
+        .world()
+        .resource::<Assets<SdfVolumeAsset>>()
+        .get(&baked)
+        .expect("baked asset")
+        .clone();
+    let want = reference(&app, DebugMode::Shaded, &sdf, 2);
+    assert_matches_reference(&capture.to_rgba8(), &want, "df_debug_view_mesh_caster");
 }
 
 /// The same scene 10⁵ m from the origin renders the same image: records keep positions
