@@ -17,10 +17,13 @@
 //! - [`camera`]: perspective camera rays matching Bevy's `PerspectiveProjection`.
 //! - [`df`]: distance-field passes — object distances (atlas volumes and analytic
 //!   shapes) and the debug view's sphere tracing.
+//! - [`df_shadow`]: distance-field soft shadows (the march) and Monte Carlo area-light
+//!   ground truth.
 //! - [`scene`]: an analytic ray-traced scene (spheres, planes, directional lights with hard
 //!   shadows) shaded with [`pbr`], the expected image of simple GPU render tests.
 
 pub mod camera;
 pub mod df;
+pub mod df_shadow;
 pub mod pbr;
 pub mod scene;

@@ -1,0 +1,330 @@
+//! Distance-field soft shadows: the CPU model of the shadow march (Wright 2015, Unreal's
+//! distance-field shadows) and Monte Carlo ground truth for area lights.
+//!
+//! **The march** ([`df_visibility`]), per occluding object, from the shaded point toward
+//! the light's centre: sphere-trace the object's distance field; at each step the object
+//! leaves a fraction `d / r(t)` of the light's cone open, `r(t)` being the cone's radius
+//! at distance `t` (from the light's angular size or radius). The visibility is the
+//! smallest such fraction along the ray (clamped to [0, 1]), and the smallest over the
+//! objects. Stops when inside (visibility 0: the penumbra never extends into negative
+//! distances — no umbra is invented from them), at the light, or at the step limit.
+//! An object of bounding radius `R` can cover at most `(R / r)²` of the cone's section,
+//! so its visibility is clamped to at least `1 − (R / r)²`: tiny objects on the cone axis
+//! dim the light instead of blacking it out.
+//!
+//! **Ground truth** ([`monte_carlo_visibility`]): the fraction of rays toward uniformly
+//! distributed points of the light's solid angle that no occluder intersects.
+//!
+//! The march is a heuristic: exact for a point light (r = 0: hard shadows); for area
+//! lights its mean error across a sphere's penumbra is a few percent, with the largest
+//! error (about ½) at the geometric shadow edge, where half the light is visible but the
+//! penumbra-only march reports almost none (tested).
+
+use glam::Vec3;
+
+/// An area light as seen from a shaded point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AreaLight {
+    /// The sun: every point sees the same cone.
+    Directional {
+        /// Unit vector toward the light.
+        to_light: Vec3,
+        /// Angular diameter, radians (the sun: 0.0093).
+        angular_diameter: f32,
+    },
+    /// A point or spot light with a source radius.
+    Sphere {
+        /// Centre, world.
+        center: Vec3,
+        /// Source radius, world units.
+        radius: f32,
+    },
+}
+
+/// March limits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowSettings {
+    /// Longest shadow ray, world units (directional lights).
+    pub max_distance: f32,
+    /// Step limit per object.
+    pub max_steps: u32,
+    /// Start offset along the ray, world units (the world-space bias).
+    pub bias: f32,
+}
+
+impl Default for ShadowSettings {
+    fn default() -> Self {
+        Self {
+            max_distance: 50.0,
+            max_steps: 64,
+            bias: 0.01,
+        }
+    }
+}
+
+/// An occluder: what the march and the ground truth need.
+pub trait Occluder {
+    /// Signed distance (conservative: never more than the true distance).
+    fn distance(&self, p: Vec3) -> f32;
+    /// Whether the segment `origin + t · dir`, `t ∈ (0, t_max)`, hits the occluder.
+    fn blocks(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool;
+    /// Radius of a ball around [`Occluder::center`] containing it.
+    fn bounding_radius(&self) -> f32;
+    /// Centre of that ball.
+    fn center(&self) -> Vec3;
+}
+
+/// An analytic sphere occluder.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SphereOccluder {
+    /// Centre.
+    pub center: Vec3,
+    /// Radius.
+    pub radius: f32,
+}
+
+impl Occluder for SphereOccluder {
+    fn distance(&self, p: Vec3) -> f32 {
+        (p - self.center).length() - self.radius
+    }
+
+    fn blocks(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        let oc = origin - self.center;
+        let b = oc.dot(dir);
+        let c = oc.length_squared() - self.radius * self.radius;
+        let disc = b * b - c;
+        if disc < 0.0 {
+            return false;
+        }
+        let s = disc.sqrt();
+        let (t0, t1) = (-b - s, -b + s);
+        (t0 > 0.0 && t0 < t_max) || (t1 > 0.0 && t1 < t_max) || (t0 <= 0.0 && t1 >= t_max)
+    }
+
+    fn bounding_radius(&self) -> f32 {
+        self.radius
+    }
+
+    fn center(&self) -> Vec3 {
+        self.center
+    }
+}
+
+impl AreaLight {
+    /// Direction from `p` toward the light's centre, and the ray length.
+    pub fn ray(&self, p: Vec3, settings: &ShadowSettings) -> (Vec3, f32) {
+        match *self {
+            AreaLight::Directional { to_light, .. } => {
+                (to_light.normalize(), settings.max_distance)
+            }
+            AreaLight::Sphere { center, radius } => {
+                let v = center - p;
+                let len = v.length();
+                (v / len, (len - radius).max(0.0))
+            }
+        }
+    }
+
+    /// Half-angle of the light's cone seen from `p`.
+    pub fn half_angle(&self, p: Vec3) -> f32 {
+        match *self {
+            AreaLight::Directional {
+                angular_diameter, ..
+            } => 0.5 * angular_diameter,
+            AreaLight::Sphere { center, radius } => {
+                let d = (center - p).length();
+                (radius / d.max(radius)).clamp(0.0, 1.0).asin()
+            }
+        }
+    }
+}
+
+/// Distance-field visibility of `light` from `p` (1 lit, 0 shadowed).
+pub fn df_visibility(
+    occluders: &[&dyn Occluder],
+    p: Vec3,
+    light: &AreaLight,
+    settings: &ShadowSettings,
+) -> f32 {
+    let (dir, t_max) = light.ray(p, settings);
+    let tan_half = light.half_angle(p).tan();
+    let mut visibility = 1.0f32;
+    for o in occluders {
+        let mut t = settings.bias;
+        let mut v = 1.0f32;
+        let size = o.bounding_radius();
+        for _ in 0..settings.max_steps {
+            if t >= t_max {
+                break;
+            }
+            let d = o.distance(p + dir * t);
+            if d <= 0.0 {
+                v = 0.0;
+                break;
+            }
+            let r = (t * tan_half).max(1e-6);
+            let floor = 1.0 - (size / r).powi(2).min(1.0);
+            v = v.min((d / r).max(floor));
+            t += d;
+        }
+        visibility = visibility.min(v.clamp(0.0, 1.0));
+        if visibility == 0.0 {
+            break;
+        }
+    }
+    visibility
+}
+
+/// Ground truth: the unoccluded fraction of `n²` stratified directions spread uniformly
+/// over the light's cone as seen from `p`.
+pub fn monte_carlo_visibility(
+    occluders: &[&dyn Occluder],
+    p: Vec3,
+    light: &AreaLight,
+    settings: &ShadowSettings,
+    n: u32,
+) -> f32 {
+    let (axis, t_max) = light.ray(p, settings);
+    let cos_max = light.half_angle(p).cos();
+    let (u, v) = orthonormal_basis(axis);
+    let mut open = 0u32;
+    for i in 0..n {
+        for j in 0..n {
+            // Uniform on the spherical cap: cos θ uniform in [cos_max, 1].
+            let a = (i as f32 + 0.5) / n as f32;
+            let b = (j as f32 + 0.5) / n as f32;
+            let cos_t = 1.0 - a * (1.0 - cos_max);
+            let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+            let phi = std::f32::consts::TAU * b;
+            let dir = axis * cos_t + (u * phi.cos() + v * phi.sin()) * sin_t;
+            let origin = p + dir * settings.bias;
+            if !occluders.iter().any(|o| o.blocks(origin, dir, t_max)) {
+                open += 1;
+            }
+        }
+    }
+    open as f32 / (n * n) as f32
+}
+
+fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
+    let helper = if n.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
+    let u = n.cross(helper).normalize();
+    (u, n.cross(u))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sun(angle: f32) -> AreaLight {
+        AreaLight::Directional {
+            to_light: Vec3::Y,
+            angular_diameter: angle,
+        }
+    }
+
+    /// Visibility along a line across the shadow of a sphere on the ground: the march
+    /// against Monte Carlo ground truth, for a soft sun and a sphere light.
+    #[test]
+    fn march_tracks_ground_truth_across_a_penumbra() {
+        let ball = SphereOccluder {
+            center: Vec3::new(0.0, 1.0, 0.0),
+            radius: 0.5,
+        };
+        let occluders: [&dyn Occluder; 1] = [&ball];
+        let settings = ShadowSettings::default();
+        for (name, light) in [
+            ("sun 10°", sun(10f32.to_radians())),
+            (
+                "sphere light",
+                AreaLight::Sphere {
+                    center: Vec3::new(0.0, 4.0, 0.0),
+                    radius: 0.5,
+                },
+            ),
+        ] {
+            let (mut sum, mut worst, mut n) = (0.0f32, 0.0f32, 0);
+            for k in 0..=60 {
+                let x = -1.2 + 2.4 * k as f32 / 60.0;
+                let p = Vec3::new(x, 0.0, 0.0);
+                let march = df_visibility(&occluders, p, &light, &settings);
+                let truth = monte_carlo_visibility(&occluders, p, &light, &settings, 48);
+                sum += (march - truth).abs();
+                worst = worst.max((march - truth).abs());
+                n += 1;
+            }
+            let mean = sum / n as f32;
+            println!("{name}: mean |march − truth| {mean:.4}, max {worst:.4}");
+            // Measured: 0.037 (sun), 0.085 (sphere light, 0.5 m source 3 m above the
+            // occluder): the gap #5's shaping control and bench are for.
+            assert!(mean < 0.1, "{name}: mean {mean}");
+            // The penumbra-only heuristic is darkest at the geometric shadow edge, where
+            // half the light is really visible: its largest error is about ½ there.
+            assert!(worst < 0.6, "{name}: max {worst}");
+        }
+    }
+
+    /// Contact hardening: the penumbra (10 %–90 % visibility) is wider for an occluder
+    /// higher above the ground.
+    #[test]
+    fn penumbrae_widen_with_occluder_distance() {
+        let width = |height: f32| {
+            let ball = SphereOccluder {
+                center: Vec3::new(0.0, height, 0.0),
+                radius: 0.3,
+            };
+            let occluders: [&dyn Occluder; 1] = [&ball];
+            let samples: Vec<f32> = (0..400)
+                .map(|k| {
+                    let p = Vec3::new(2.0 * k as f32 / 400.0, 0.0, 0.0);
+                    df_visibility(
+                        &occluders,
+                        p,
+                        &sun(8f32.to_radians()),
+                        &ShadowSettings::default(),
+                    )
+                })
+                .collect();
+            let first = |level: f32| samples.iter().position(|&v| v >= level).unwrap_or(400);
+            (first(0.9) - first(0.1)) as f32 * 2.0 / 400.0
+        };
+        let (low, high) = (width(0.5), width(2.0));
+        println!("penumbra width: occluder at 0.5 m {low:.3} m, at 2 m {high:.3} m");
+        assert!(high > 2.0 * low, "{low} vs {high}");
+    }
+
+    /// A point-sized light gives hard shadows that equal exact ray casts; points far
+    /// from any occluder are fully lit; a point inside an occluder is shadowed.
+    #[test]
+    fn limits_are_exact() {
+        let ball = SphereOccluder {
+            center: Vec3::new(0.0, 1.0, 0.0),
+            radius: 0.5,
+        };
+        let occluders: [&dyn Occluder; 1] = [&ball];
+        let settings = ShadowSettings::default();
+        let point = AreaLight::Sphere {
+            center: Vec3::new(0.3, 5.0, 0.0),
+            radius: 1e-4,
+        };
+        for k in 0..=40 {
+            let p = Vec3::new(-1.0 + k as f32 * 0.05, 0.0, 0.1);
+            let (dir, t_max) = point.ray(p, &settings);
+            let hard = if ball.blocks(p, dir, t_max) { 0.0 } else { 1.0 };
+            let v = df_visibility(&occluders, p, &point, &settings);
+            assert!(
+                (v - hard).abs() < 0.02
+                    || (v > 0.0 && v < 1.0 && ball.distance(p + dir * 1.0).abs() < 0.05),
+                "{p}: {v} vs {hard}"
+            );
+        }
+        assert_eq!(
+            df_visibility(&occluders, Vec3::new(10.0, 0.0, 0.0), &sun(0.1), &settings),
+            1.0
+        );
+        assert_eq!(
+            df_visibility(&occluders, Vec3::new(0.0, 0.9, 0.0), &sun(0.1), &settings),
+            0.0
+        );
+    }
+}
