@@ -212,36 +212,7 @@ impl Bvh {
     /// far clusters. ≈ 1 inside a closed outward-oriented mesh, ≈ 0 outside, fractional
     /// near holes of open meshes.
     pub fn winding_number(&self, q: Vec3) -> f32 {
-        if self.nodes.is_empty() {
-            return 0.0;
-        }
-        let q = Vec3A::from(q);
-        let mut w = 0.0;
-        let mut stack = [0u32; 64];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let index = stack[top] as usize;
-            let node = &self.nodes[index];
-            let dip = &self.dipoles[index];
-            let d = dip.center - q;
-            let dist2 = d.length_squared();
-            if dist2 > (BETA * dip.radius) * (BETA * dip.radius) {
-                w += dip.normal_sum.dot(d) / (4.0 * std::f32::consts::PI * dist2 * dist2.sqrt());
-                continue;
-            }
-            if node.count > 0 {
-                let start = node.start_or_right as usize;
-                for t in &self.tris[start..start + node.count as usize] {
-                    w += geometry::winding_contribution_a(q, t[0], t[1], t[2]);
-                }
-            } else if top + 2 <= stack.len() {
-                stack[top] = index as u32 + 1;
-                stack[top + 1] = node.start_or_right;
-                top += 2;
-            }
-        }
-        w
+        self.wide.winding_number(q.into())
     }
 
     /// The nearest hit of a ray within `(t_min, t_max)`: `(t, front_facing, input index)`.

@@ -72,12 +72,25 @@ struct Packet {
     bc_offset: Vec4,
     /// Tree-order triangle index of each lane.
     tri: [u32; 4],
+    /// 1 for real lanes, 0 for padding (repeats of the first triangle).
+    real: Vec4,
+}
+
+/// Fast-winding-number data of a node's four children: each child's dipole (area-weighted
+/// normal sum at its area-weighted centre) and the squared distance beyond which the
+/// dipole stands in for its triangles (`(β · radius)²`; `+∞` for unused lanes, never far).
+#[derive(Clone, Copy, Debug)]
+struct Dipole4 {
+    normal: [Vec4; 3],
+    center: [Vec4; 3],
+    far2: Vec4,
 }
 
 /// The 4-wide tree.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct WideTree {
     nodes: Vec<Node4>,
+    dipoles: Vec<Dipole4>,
     packets: Vec<Packet>,
     /// Packet holding each tree-order triangle.
     packet_of: Vec<u32>,
@@ -121,6 +134,27 @@ impl WideTree {
         let cylinders: Vec<[Option<Cylinder>; 4]> = kids_of
             .par_iter()
             .map(|kids| kids.map(|k| k.and_then(|k| bounding_cylinder(bvh, k))))
+            .collect();
+        tree.dipoles = kids_of
+            .iter()
+            .map(|kids| {
+                let mut d = Dipole4 {
+                    normal: [Vec4::ZERO; 3],
+                    center: [Vec4::ZERO; 3],
+                    far2: Vec4::INFINITY,
+                };
+                for (lane, kid) in kids.iter().enumerate() {
+                    if let Some(k) = *kid {
+                        let dip = &bvh.dipoles[k];
+                        for axis in 0..3 {
+                            d.normal[axis][lane] = dip.normal_sum[axis];
+                            d.center[axis][lane] = dip.center[axis];
+                        }
+                        d.far2[lane] = (super::BETA * dip.radius).powi(2);
+                    }
+                }
+                d
+            })
             .collect();
         for (node, cylinders) in tree.nodes.iter_mut().zip(cylinders) {
             for (lane, cylinder) in cylinders.into_iter().enumerate() {
@@ -297,6 +331,55 @@ impl WideTree {
     }
 }
 
+impl WideTree {
+    /// The fast winding number at `q` (Barill et al. 2018): a child's dipole stands in
+    /// for its triangles beyond `β` times its radius, exact solid angles nearer; four
+    /// children or four triangles per SIMD evaluation.
+    pub(crate) fn winding_number(&self, q: Vec3A) -> f32 {
+        if self.nodes.is_empty() {
+            return 0.0;
+        }
+        let qx = [Vec4::splat(q.x), Vec4::splat(q.y), Vec4::splat(q.z)];
+        let mut sum = Vec4::ZERO;
+        let mut stack = [0u32; STACK];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let index = stack[top] as usize;
+            let (node, dip) = (&self.nodes[index], &self.dipoles[index]);
+            let d = [
+                dip.center[0] - qx[0],
+                dip.center[1] - qx[1],
+                dip.center[2] - qx[2],
+            ];
+            let dist2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            let far = dist2.cmpgt(dip.far2);
+            let n_dot_d = dip.normal[0] * d[0] + dip.normal[1] * d[1] + dip.normal[2] * d[2];
+            let far_term = n_dot_d / (dist2 * dist2.sqrt() * (4.0 * std::f32::consts::PI));
+            sum += Vec4::select(far, far_term, Vec4::ZERO);
+            let mut near = !far.bitmask() & 0xf;
+            while near != 0 {
+                let lane = near.trailing_zeros() as usize;
+                near &= near - 1;
+                let child = node.child[lane];
+                if child == NONE {
+                    continue;
+                }
+                if child & LEAF != 0 {
+                    let first = (child & !LEAF) as usize;
+                    for packet in &self.packets[first..first + node.packets[lane] as usize] {
+                        sum += packet.solid_angles(&qx);
+                    }
+                } else if top < STACK {
+                    stack[top] = child;
+                    top += 1;
+                }
+            }
+        }
+        sum.x + sum.y + sum.z + sum.w
+    }
+}
+
 impl Node4 {
     /// Lower bounds of the squared distance from `p` to each child's triangles: the
     /// larger of the squared distances to its box and to its cylinder. (A slab along
@@ -327,6 +410,29 @@ impl Node4 {
 }
 
 impl Packet {
+    /// Each real lane's signed solid angle over 4π seen from `q` (Van Oosterom &
+    /// Strackee), padding lanes 0.
+    #[inline]
+    fn solid_angles(&self, q: &[Vec4; 3]) -> Vec4 {
+        let va = [self.a[0] - q[0], self.a[1] - q[1], self.a[2] - q[2]];
+        let vb = [va[0] + self.e0[0], va[1] + self.e0[1], va[2] + self.e0[2]];
+        let vc = [va[0] + self.e1[0], va[1] + self.e1[1], va[2] + self.e1[2]];
+        let dot = |x: &[Vec4; 3], y: &[Vec4; 3]| x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+        let (la, lb, lc) = (
+            dot(&va, &va).sqrt(),
+            dot(&vb, &vb).sqrt(),
+            dot(&vc, &vc).sqrt(),
+        );
+        let cross = [
+            vb[1] * vc[2] - vb[2] * vc[1],
+            vb[2] * vc[0] - vb[0] * vc[2],
+            vb[0] * vc[1] - vb[1] * vc[0],
+        ];
+        let det = dot(&va, &cross);
+        let div = la * lb * lc + dot(&va, &vb) * lc + dot(&vb, &vc) * la + dot(&vc, &va) * lb;
+        atan2(det, div) * self.real * (1.0 / (2.0 * std::f32::consts::PI))
+    }
+
     const EMPTY: Packet = Packet {
         a: [Vec4::ZERO; 3],
         e0: [Vec4::ZERO; 3],
@@ -337,6 +443,7 @@ impl Packet {
         inv_len2: [Vec4::ZERO; 3],
         bc_offset: Vec4::ZERO,
         tri: [0; 4],
+        real: Vec4::ZERO,
     };
 
     /// Squared distance from `p` to each lane's triangle: to its plane when `p` projects
@@ -409,6 +516,11 @@ fn fill_leaf_packets(bvh: &Bvh, start: usize, count: usize, out: &mut [Packet]) 
                 p.inv_len2[2][lane] = inv(e1);
                 p.bc_offset[lane] = e0.length_squared() - e0.dot(e1);
                 p.tri[lane] = i as u32;
+                p.real[lane] = if first + lane < start + count {
+                    1.0
+                } else {
+                    0.0
+                };
             }
         }
     }
@@ -453,6 +565,46 @@ fn bounding_cylinder(bvh: &Bvh, node: usize) -> Option<Cylinder> {
     })
 }
 
+/// Four-lane `atan2(y, x)`, absolute error below 2·10⁻⁵ rad (an odd minimax polynomial
+/// for `atan` on [0, 1] and the usual octant reductions).
+#[inline]
+fn atan2(y: Vec4, x: Vec4) -> Vec4 {
+    let (ax, ay) = (x.abs(), y.abs());
+    let (hi, lo) = (ax.max(ay), ax.min(ay));
+    let a = Vec4::select(hi.cmpgt(Vec4::ZERO), lo / hi, Vec4::ZERO);
+    let s = a * a;
+    let poly = Vec4::splat(-0.011_721_2)
+        .mul_add_fallback(s, 0.052_653_32)
+        .mul_add_fallback(s, -0.116_432_87)
+        .mul_add_fallback(s, 0.193_543_46)
+        .mul_add_fallback(s, -0.332_623_47)
+        .mul_add_fallback(s, 0.999_977_26);
+    let mut r = a * poly;
+    r = Vec4::select(
+        ay.cmpgt(ax),
+        Vec4::splat(std::f32::consts::FRAC_PI_2) - r,
+        r,
+    );
+    r = Vec4::select(
+        x.cmplt(Vec4::ZERO),
+        Vec4::splat(std::f32::consts::PI) - r,
+        r,
+    );
+    Vec4::select(y.cmplt(Vec4::ZERO), -r, r)
+}
+
+/// `self · s + c` without fused multiply-add (SSE2 has none; an emulated one is slow).
+trait MulAddFallback {
+    fn mul_add_fallback(self, s: Vec4, c: f32) -> Vec4;
+}
+
+impl MulAddFallback for Vec4 {
+    #[inline]
+    fn mul_add_fallback(self, s: Vec4, c: f32) -> Vec4 {
+        self * s + Vec4::splat(c)
+    }
+}
+
 /// The unit normal of a triangle with edges `e0`, `e1`, computed in f64, or `None`
 /// when the triangle is degenerate (its area is below 1e-6 of its edge lengths'
 /// product, so its interior is within 1e-6 × its size of its edges).
@@ -470,4 +622,51 @@ fn unit_normal(e0: Vec3A, e1: Vec3A) -> Option<Vec3A> {
 fn half_area(min: Vec3A, max: Vec3A) -> f32 {
     let s = (max - min).max(Vec3A::ZERO);
     s.x * s.y + s.y * s.z + s.z * s.x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn simd_atan2_is_accurate_in_every_octant() {
+        let mut worst = 0.0f32;
+        for i in -40..=40 {
+            for j in -40..=40 {
+                let (y, x) = (i as f32 * 0.37, j as f32 * 0.29);
+                let got = atan2(Vec4::splat(y), Vec4::splat(x)).x;
+                let want = if x == 0.0 && y == 0.0 {
+                    0.0
+                } else {
+                    y.atan2(x)
+                };
+                worst = worst.max((got - want).abs());
+            }
+        }
+        assert!(worst < 2e-5, "{worst}");
+        assert_eq!(atan2(Vec4::ZERO, Vec4::ONE).x, 0.0);
+    }
+
+    /// The SIMD fast winding number against the exact (f64) generalized winding number,
+    /// near and far, on closed, open and self-intersecting meshes.
+    #[test]
+    fn fast_winding_number_tracks_the_exact_one() {
+        for (name, mesh) in [
+            ("sphere", crate::shapes::sphere(1.0, 32, 16)),
+            ("bowl", crate::shapes::open_bowl(1.0, 32, 8)),
+            ("soup", crate::shapes::intersecting_soup()),
+        ] {
+            let (tris, _) = mesh.validate().unwrap();
+            let bvh = Bvh::build(&tris);
+            let mut worst = 0.0f64;
+            for k in 0..400 {
+                let a = k as f32 * 0.61;
+                let r = 0.05 + 2.5 * ((k * 37) % 100) as f32 / 100.0;
+                let p = glam::Vec3::new(a.cos() * r, (a * 1.7).sin() * r * 0.8, a.sin() * r);
+                let w = bvh.winding_number(p) as f64;
+                worst = worst.max((w - crate::exact::winding_number(p, &tris)).abs());
+            }
+            assert!(worst < 0.1, "{name}: {worst}");
+        }
+    }
 }
