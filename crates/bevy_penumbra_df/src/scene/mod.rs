@@ -193,6 +193,8 @@ pub struct DistanceFieldScene {
     max_texture_3d: u32,
     /// The atlas has been reported full once (later overflows are only counted).
     warned_full: bool,
+    /// Casters whose transform or shape was reported unusable (once each).
+    warned_casters: HashSet<Entity>,
     downsampled: usize,
 }
 
@@ -378,6 +380,7 @@ fn remove_distance_field_casters(
         }
         scene.table.remove(entity.to_bits());
         scene.waiting.remove(&entity);
+        scene.warned_casters.remove(&entity);
         release_volume(&mut scene, entity);
     }
 }
@@ -593,8 +596,12 @@ fn update_distance_field_casters(
                 scene.table.upsert(entity.to_bits(), record);
             }
             Err(e) => {
-                // Transient for animated transforms: warn at debug level, skip.
-                debug!("Penumbra: distance-field caster {entity}: {e}; skipped this frame");
+                if scene.warned_casters.insert(entity) {
+                    warn!(
+                        "Penumbra: distance-field caster {entity}: {e}; it is skipped while it \
+                         stays so (reported once)"
+                    );
+                }
                 scene.table.remove(entity.to_bits());
             }
         }
