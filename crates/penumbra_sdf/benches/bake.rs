@@ -1,7 +1,7 @@
 //! Bake benchmarks: run time and error together.
 //!
 //! `cargo bench -p penumbra_sdf --bench bake` (release). Prints, for the Stanford bunny
-//! at 64 samples along its longest axis, the times of Penumbra, `mesh_to_sdf` 0.4 and —
+//! at 64 samples along its longest axis, the median times of Penumbra, `mesh_to_sdf` 0.4 and —
 //! when `python3` can `import igl` (`pip install numpy libigl`) — libigl's
 //! fast-winding-number signed distance (`benches/libigl_sdf.py`), all on the same
 //! sample positions in one run; their errors against f64 brute force on 3,000 random
@@ -91,7 +91,7 @@ fn mesh_to_sdf_bake(mesh: &TriMesh, v: &SdfVolume) -> Vec<f32> {
     )
 }
 
-/// libigl's signed distance on `v`'s samples through `benches/libigl_sdf.py`: its best
+/// libigl's signed distance on `v`'s samples through `benches/libigl_sdf.py`: its median
 /// time and values by cell (`(k, j, i)` order), or `None` when python or libigl is
 /// missing.
 fn libigl_bake(mesh_path: &std::path::Path, v: &SdfVolume) -> Option<(Duration, Vec<f32>)> {
@@ -134,25 +134,28 @@ fn libigl_bake(mesh_path: &std::path::Path, v: &SdfVolume) -> Option<(Duration, 
     Some((Duration::from_secs_f64(seconds), values))
 }
 
+/// The median time of `runs` runs (the host's run-to-run noise is about ±10 %: a
+/// median is steadier than a best), and the last result.
 fn time<T>(f: impl FnMut() -> T, runs: u32) -> (Duration, T) {
     let mut f = f;
-    let mut best = Duration::MAX;
+    let mut times = Vec::with_capacity(runs as usize);
     let mut out = None;
     for _ in 0..runs {
         let t = Instant::now();
         let r = f();
-        best = best.min(t.elapsed());
+        times.push(t.elapsed());
         out = Some(r);
     }
-    (best, out.expect("runs > 0"))
+    times.sort_unstable();
+    (times[times.len() / 2], out.expect("runs > 0"))
 }
 
 fn comparison(c: &mut Criterion) {
     let Some(mesh) = bunny() else { return };
     let (tris, _) = mesh.validate().unwrap();
-    let (t_ours, ours) = time(|| bake(&mesh, &settings(64), None).unwrap(), 5);
+    let (t_ours, ours) = time(|| bake(&mesh, &settings(64), None).unwrap(), 9);
     let v = &ours.volume;
-    let (t_theirs, theirs) = time(|| mesh_to_sdf_bake(&mesh, v), 3);
+    let (t_theirs, theirs) = time(|| mesh_to_sdf_bake(&mesh, v), 5);
     let (nx, ny, nz) = (v.dims.x, v.dims.y, v.dims.z);
     let e_ours = errors(&tris, v, |c| v.get(c.x, c.y, c.z));
     let e_theirs = errors(&tris, v, |c| {
@@ -161,7 +164,7 @@ fn comparison(c: &mut Criterion) {
     let igl = libigl_bake(&bunny_path(), v)
         .map(|(t, values)| (t, errors(&tris, v, |c| values[v.index(c.x, c.y, c.z)])));
     println!(
-        "\nbunny {} triangles, {nx}x{ny}x{nz} samples (best of runs, bake only, {} threads)",
+        "\nbunny {} triangles, {nx}x{ny}x{nz} samples (median of runs: 9 / 5 / 5, bake only, {} threads)",
         mesh.triangles.len(),
         rayon::current_num_threads()
     );
