@@ -285,8 +285,14 @@ impl WideTree {
                 }
             }
         };
-        for h in hints {
-            if let Some(&q) = self.packet_of.get(h) {
+        // Neighbouring samples often share their closest triangle's packet: visit each
+        // hinted packet once.
+        let mut seen = [u32::MAX; 4];
+        for (n, h) in hints.into_iter().take(4).enumerate() {
+            if let Some(&q) = self.packet_of.get(h)
+                && !seen[..n].contains(&q)
+            {
+                seen[n] = q;
                 visit_packet(&self.packets[q as usize], &mut best_d2, &mut best);
             }
         }
