@@ -143,16 +143,11 @@ impl GpuObjects {
         if deltas.writes.is_empty() {
             return; // a static frame: nothing uploaded, no pass
         }
-        let words = deltas.to_words();
-        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-        self.uploaded_bytes += bytes.len();
-        let writes = gpu.buffer("writes", &bytes, BufferUsages::empty());
-        let (groups, groups_x) = grid_64(deltas.writes.len() as u32);
-        let params: Vec<u8> = [deltas.writes.len() as u32, groups_x, 0, 0]
-            .iter()
-            .flat_map(|w| w.to_le_bytes())
-            .collect();
-        let params = gpu.buffer("params", &params, BufferUsages::UNIFORM);
+        let upload = deltas.upload();
+        self.uploaded_bytes += upload.writes.len();
+        let writes = gpu.buffer("writes", &upload.writes, BufferUsages::empty());
+        let params = gpu.buffer("params", &upload.params, BufferUsages::UNIFORM);
+        let groups = upload.groups;
         let bind = gpu.bind(
             &self.apply,
             &[(0, &self.buffer), (1, &writes), (2, &params)],
@@ -401,14 +396,10 @@ fn million_objects_apply_and_cull() {
                 writes: chunk.to_vec(),
                 slot_count: deltas.slot_count,
             };
-            let bytes: Vec<u8> = d.to_words().iter().flat_map(|w| w.to_le_bytes()).collect();
-            let writes = gpu.buffer("writes", &bytes, BufferUsages::empty());
-            let (groups, groups_x) = grid_64(chunk.len() as u32);
-            let params: Vec<u8> = [chunk.len() as u32, groups_x, 0, 0]
-                .iter()
-                .flat_map(|w| w.to_le_bytes())
-                .collect();
-            let params = gpu.buffer("params", &params, BufferUsages::UNIFORM);
+            let upload = d.upload();
+            let writes = gpu.buffer("writes", &upload.writes, BufferUsages::empty());
+            let params = gpu.buffer("params", &upload.params, BufferUsages::UNIFORM);
+            let groups = upload.groups;
             let bind = gpu.bind(
                 &objects.apply,
                 &[(0, &objects.buffer), (1, &writes), (2, &params)],

@@ -53,6 +53,25 @@ impl Deltas {
         self.writes.len() * DeltaWrite::BYTES
     }
 
+    /// Everything the delta pass needs: the writes buffer's bytes, its `DeltaParams`
+    /// uniform (`shaders/df/apply_deltas.wgsl`) and the workgroups to dispatch.
+    pub fn upload(&self) -> DeltaUpload {
+        let count = self.writes.len() as u32;
+        let (groups, groups_x) = crate::cull::grid_64(count);
+        let mut params = [0u8; 16];
+        params[..4].copy_from_slice(&count.to_le_bytes());
+        params[4..8].copy_from_slice(&groups_x.to_le_bytes());
+        DeltaUpload {
+            writes: self
+                .to_words()
+                .iter()
+                .flat_map(|w| w.to_le_bytes())
+                .collect(),
+            params,
+            groups,
+        }
+    }
+
     /// The writes as the upload buffer's words: per write, the slot then the record.
     pub fn to_words(&self) -> Vec<u32> {
         let mut out = Vec::with_capacity(self.writes.len() * DeltaWrite::WORDS);
@@ -62,6 +81,17 @@ impl Deltas {
         }
         out
     }
+}
+
+/// A frame's delta upload ([`Deltas::upload`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DeltaUpload {
+    /// The writes, little-endian words.
+    pub writes: Vec<u8>,
+    /// The `DeltaParams` uniform: write count, dispatch row width, padding.
+    pub params: [u8; 16],
+    /// Workgroups of 64 to dispatch.
+    pub groups: [u32; 3],
 }
 
 /// The mirror.

@@ -222,26 +222,18 @@ fn prepare_distance_field_gpu(
             .collect(),
         slot_count: gpu.slot_count,
     };
-    let bytes: Vec<u8> = deltas
-        .to_words()
-        .iter()
-        .flat_map(|w| w.to_le_bytes())
-        .collect();
+    let upload = deltas.upload();
     let writes = device.create_buffer_with_data(&BufferInitDescriptor {
         label: Some("penumbra_df_object_writes"),
-        contents: &bytes,
+        contents: &upload.writes,
         usage: BufferUsages::STORAGE,
     });
-    let (groups, groups_x) = grid_64(deltas.writes.len() as u32);
-    let params: Vec<u8> = [deltas.writes.len() as u32, groups_x, 0, 0]
-        .iter()
-        .flat_map(|w| w.to_le_bytes())
-        .collect();
     let params = device.create_buffer_with_data(&BufferInitDescriptor {
         label: Some("penumbra_df_object_writes_params"),
-        contents: &params,
+        contents: &upload.params,
         usage: BufferUsages::UNIFORM,
     });
+    let groups = upload.groups;
     gpu.frame_writes = Some((writes, params, groups));
 }
 
