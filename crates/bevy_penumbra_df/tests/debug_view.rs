@@ -218,6 +218,43 @@ fn step_count_debug_view_matches_the_cpu_reference() {
     );
 }
 
+/// An `Hdr` camera (`Rgba16Float` target) gets the same image, in linear values.
+#[test]
+fn hdr_cameras_get_the_same_linear_image() {
+    if !gpu_or_skip("hdr_cameras_get_the_same_linear_image") {
+        return;
+    }
+    let render = HeadlessRender::new(SIZE, SIZE)
+        .frames(4)
+        .format(penumbra_test::CaptureFormat::LinearF16);
+    let mut app = scene_app(&render, DistanceFieldDebugMode::Shaded, Vec3::ZERO);
+    app.add_systems(
+        PostStartup,
+        |mut commands: Commands, cameras: Query<Entity, With<DistanceFieldDebugView>>| {
+            for camera in &cameras {
+                commands.entity(camera).insert(bevy::camera::Hdr);
+            }
+        },
+    );
+    let (capture, app) = render.run_keeping_app(app).expect("render");
+    let want = reference(&app, DebugMode::Shaded, &torus_volume(), 5);
+    let got = capture.to_linear();
+    let mut errors: Vec<f32> = got
+        .iter()
+        .zip(&want)
+        .map(|(g, w)| (0..3).map(|c| (g[c] - w[c]).abs()).fold(0.0, f32::max))
+        .collect();
+    errors.sort_by(f32::total_cmp);
+    let mean = errors.iter().sum::<f32>() / errors.len() as f32;
+    let over = errors.iter().filter(|&&e| e > 0.02).count() as f32 / errors.len() as f32;
+    println!(
+        "hdr: mean {mean:.5}, median {:.5}, {:.3} % over 0.02",
+        errors[errors.len() / 2],
+        over * 100.0
+    );
+    assert!(mean < 2e-3 && over < 0.003, "mean {mean}, {over} over 0.02");
+}
+
 /// A `Mesh3d` caster goes the whole way: baked in the background, placed in the atlas,
 /// uploaded, culled and traced — the image equals the CPU reference of the baked SDF.
 #[test]
