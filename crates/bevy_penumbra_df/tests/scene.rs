@@ -147,6 +147,14 @@ fn over_budget_volumes_fall_back_then_skip() {
     assert!(scene.slot(c).is_none(), "the huge volume is skipped");
     let s = stats(&app);
     assert_eq!((s.objects, s.atlas_downsampled, s.atlas_skipped), (2, 1, 1));
+    // Switching a caster to a volume that fits nowhere lets its old volume go.
+    app.world_mut()
+        .get_mut::<DistanceFieldCaster>(a)
+        .unwrap()
+        .source = CasterSource::Sdf(huge.clone());
+    app.update();
+    let s = stats(&app);
+    assert_eq!((s.objects, s.atlas_volumes), (1, 1), "{s:?}");
     // Freed space is reused: despawn the small one, a new small one fits again.
     app.world_mut().despawn(a);
     app.update();

@@ -545,15 +545,19 @@ fn update_distance_field_casters(
                 })
             }
             (_, Some(id)) => match sdfs.get(id) {
-                Some(asset) => place_volume(scene, &settings, id, asset).map(|placed| {
+                Some(asset) => {
+                    let placed = place_volume(scene, &settings, id, asset);
+                    // Whether or not the new volume found room, the old one is let go.
                     release_volume(scene, entity);
-                    scene.caster_volume.insert(entity, id);
-                    CasterShape::Volume {
-                        region: placed.region,
-                        local_origin: placed.local_origin,
-                        voxel_size: placed.voxel_size,
-                    }
-                }),
+                    placed.map(|placed| {
+                        scene.caster_volume.insert(entity, id);
+                        CasterShape::Volume {
+                            region: placed.region,
+                            local_origin: placed.local_origin,
+                            voxel_size: placed.voxel_size,
+                        }
+                    })
+                }
                 None => {
                     scene.waiting.insert(entity); // not loaded yet
                     None
