@@ -42,7 +42,11 @@ pub(super) fn build(render_app: &mut SubApp) {
         )
         .add_systems(
             Core3d,
-            distance_field_debug_view.in_set(Core3dSystems::PostProcess),
+            // After tonemapping: the debug image is shown as it is (it is not a radiance).
+            // Left unordered, HDR cameras were tonemapped in some runs and not in others.
+            distance_field_debug_view
+                .in_set(Core3dSystems::PostProcess)
+                .after(bevy::core_pipeline::tonemapping::tonemapping),
         );
 }
 
