@@ -271,7 +271,8 @@ fn mesh_casters_are_baked_and_traced() {
     if !gpu_or_skip("mesh_casters_are_baked_and_traced") {
         return;
     }
-    let render = HeadlessRender::new(SIZE, SIZE).frames(40);
+    // Enough frames for the background bake (≈ 0.2 s) with a wide margin.
+    let render = HeadlessRender::new(SIZE, SIZE).frames(80);
     let mut app = render.app();
     app.insert_resource(bevy_penumbra_df::SdfBakeCache::with_directory(None))
         .add_plugins((
