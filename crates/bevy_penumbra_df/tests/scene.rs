@@ -1,7 +1,8 @@
 //! The distance-field scene's main-world behaviour (no GPU): mesh casters are baked
 //! once per mesh and share one atlas placement, freed space is reused, an over-budget
 //! atlas falls back to half resolution and then skips with a warning, bad transforms
-//! are skipped, and the memory of a 1,000-instance / 50-asset scene.
+//! are skipped, uploads follow changes only ("skip what is not needed"), and the memory
+//! of a 1,000-instance / 50-asset scene.
 
 use bevy::prelude::*;
 use bevy_penumbra_df::{
@@ -229,4 +230,56 @@ fn memory_of_a_thousand_instances_of_fifty_assets() {
     // 50 volumes of 56³ blocks (50 rounded up to 8) × 2 bytes.
     assert_eq!(s.atlas_used_bytes, 50 * 56u64.pow(3) * 2);
     assert_eq!(object_buffer, 128_000);
+}
+
+/// Without casters nothing is allocated or uploaded; a static scene uploads nothing
+/// after its first frame; moving k casters uploads k records.
+#[test]
+fn uploads_follow_changes_only() {
+    let mut app = app(DistanceFieldSceneSettings::default());
+    app.update();
+    let stats = app.world().resource::<DistanceFieldUploadStats>().clone();
+    assert_eq!(
+        stats,
+        DistanceFieldUploadStats::default(),
+        "no casters: nothing"
+    );
+    let ids: Vec<Entity> = (0..200)
+        .map(|i| {
+            app.world_mut()
+                .spawn((
+                    DistanceFieldCaster {
+                        source: CasterSource::Sphere { radius: 0.5 },
+                        ..default()
+                    },
+                    Transform::from_xyz(i as f32, 0.0, 0.0),
+                ))
+                .id()
+        })
+        .collect();
+    app.update();
+    let stats = app.world().resource::<DistanceFieldUploadStats>().clone();
+    assert_eq!((stats.frame_records, stats.objects), (200, 200));
+    assert_eq!(stats.frame_object_bytes, 200 * (4 + 128));
+    for _ in 0..3 {
+        app.update();
+        let stats = app.world().resource::<DistanceFieldUploadStats>();
+        assert_eq!(
+            (stats.frame_records, stats.frame_object_bytes),
+            (0, 0),
+            "static frame"
+        );
+    }
+    for &e in &ids[..7] {
+        app.world_mut()
+            .get_mut::<Transform>(e)
+            .unwrap()
+            .translation
+            .y += 1.0;
+    }
+    app.world_mut().despawn(ids[100]);
+    app.update();
+    let stats = app.world().resource::<DistanceFieldUploadStats>().clone();
+    assert_eq!(stats.frame_records, 8, "7 moved + 1 removed");
+    assert_eq!(stats.objects, 199);
 }
