@@ -338,6 +338,9 @@ pub fn spawn_scene(
     ));
     commands.spawn((
         Camera3d::default(),
+        // Penumbra's lighting pass (deferred: no MSAA).
+        PenumbraLighting,
+        Msaa::Off,
         Exposure::default(),
         // Point/spot shadow LOD is measured from here, windowed or headless.
         ShadowLodOrigin,

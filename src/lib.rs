@@ -58,6 +58,7 @@ plugin_group! {
         bevy_penumbra_df::sdf_asset:::SdfAssetPlugin,
         bevy_penumbra_df::scene:::DistanceFieldScenePlugin,
         bevy_penumbra_df::debug_view:::DistanceFieldDebugPlugin,
+        bevy_penumbra_df::lighting:::PenumbraLightingPlugin,
     }
 }
 
@@ -80,7 +81,7 @@ pub mod prelude {
     pub use crate::{PenumbraCorePlugin, PenumbraPlugins};
     pub use bevy_penumbra_df::{
         CasterSource, DistanceFieldCaster, DistanceFieldDebugMode, DistanceFieldDebugView,
-        DistanceFieldSceneSettings, DistanceFieldUploadStats, SdfAssetPlugin, SdfBakeFailed,
-        SdfBakeRequest, SdfBakeTask, SdfBaked, SdfVolumeAsset,
+        DistanceFieldSceneSettings, DistanceFieldUploadStats, PenumbraLighting, SdfAssetPlugin,
+        SdfBakeFailed, SdfBakeRequest, SdfBakeTask, SdfBaked, SdfVolumeAsset,
     };
 }

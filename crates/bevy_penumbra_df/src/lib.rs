@@ -7,14 +7,18 @@
 //!   sync by per-frame deltas, GPU culling.
 //! - [`debug_view`]: a camera component that ray-marches the scene (step-count heat map,
 //!   shaded surfaces).
+//! - [`lighting`]: Penumbra's lighting pass — deferred shading with Penumbra's light loop,
+//!   where lights can take their visibility from Penumbra's shadow masks.
 //! - [`shader_library`]: Penumbra's WGSL modules as Bevy shader assets.
 
 pub mod debug_view;
+pub mod lighting;
 pub mod scene;
 pub mod sdf_asset;
 pub mod shader_library;
 
 pub use debug_view::{DistanceFieldDebugMode, DistanceFieldDebugPlugin, DistanceFieldDebugView};
+pub use lighting::{PenumbraLighting, PenumbraLightingPlugin};
 pub use scene::{
     CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldScenePlugin,
     DistanceFieldSceneSettings, DistanceFieldUploadStats,

@@ -35,6 +35,20 @@ shader_files! {
     "df/cull.wgsl" => Some("penumbra::df::cull"),
     "df/distance.wgsl" => Some("penumbra::df::distance"),
     "df/debug_view.wgsl" => Some("penumbra::df::debug_view"),
+    "lighting/masks.wgsl" => Some("penumbra::lighting::masks"),
+    "lighting/lights.wgsl" => Some("penumbra::lighting::lights"),
+    "lighting/pass.wgsl" => None,
+}
+
+impl ShaderFile {
+    /// Whether the file imports Bevy's shader modules (`bevy_pbr::…`): those compose
+    /// only inside Bevy, with its shader definitions, so they are checked by the
+    /// renderer tests on lavapipe rather than by this crate's composition test.
+    pub fn imports_bevy(&self) -> bool {
+        self.source
+            .lines()
+            .any(|l| l.trim_start().starts_with("#import bevy_"))
+    }
 }
 
 /// Absolute path of the workspace's `shaders/` folder at build time (for tests and tools).

@@ -104,10 +104,21 @@ fn every_wgsl_file_is_embedded_with_its_import_path() {
     }
 }
 
+fn standalone() -> Vec<ShaderFile> {
+    SHADERS
+        .iter()
+        .filter(|f| !f.imports_bevy())
+        .copied()
+        .collect()
+}
+
 #[test]
 fn every_shader_composes_and_validates() {
-    let mut composer = composer_with_library(SHADERS).unwrap_or_else(|e| panic!("{e}"));
-    let failures: Vec<String> = SHADERS
+    // Files importing Bevy's modules compose only inside Bevy (its shader defs): the
+    // lighting-pass tests on lavapipe build them.
+    let standalone = standalone();
+    let mut composer = composer_with_library(&standalone).unwrap_or_else(|e| panic!("{e}"));
+    let failures: Vec<String> = standalone
         .iter()
         .filter_map(|f| compose_and_validate(&mut composer, f).err())
         .collect();
@@ -117,7 +128,7 @@ fn every_shader_composes_and_validates() {
 /// The check can fail: a type error in a module that imports the library is reported.
 #[test]
 fn broken_shader_is_rejected() {
-    let mut composer = composer_with_library(SHADERS).unwrap();
+    let mut composer = composer_with_library(&standalone()).unwrap();
     let good = ShaderFile {
         path: "probe_good.wgsl",
         import_path: None,

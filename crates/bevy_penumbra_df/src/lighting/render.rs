@@ -1,0 +1,486 @@
+//! Render-world side of Penumbra's lighting pass.
+
+use super::PenumbraLightingView;
+use crate::shader_library::PenumbraShaderLibrary;
+use bevy::core_pipeline::core_3d::main_opaque_pass_3d;
+use bevy::core_pipeline::deferred::{
+    DEFERRED_LIGHTING_PASS_ID_DEPTH_FORMAT, copy_lighting_id::DeferredLightingIdDepthTexture,
+};
+use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
+use bevy::pbr::{
+    MeshPipeline, MeshPipelineKey, MeshPipelineSystems, MeshViewBindGroup,
+    TONEMAPPING_LUT_SAMPLER_BINDING_INDEX, TONEMAPPING_LUT_TEXTURE_BINDING_INDEX, ViewKeyCache,
+};
+use bevy::prelude::*;
+use bevy::render::render_resource::binding_types::{
+    storage_buffer_read_only_sized, texture_2d_array, uniform_buffer_sized,
+};
+use bevy::render::render_resource::{
+    BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
+    BufferDescriptor, BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites,
+    CompareFunction, DepthStencilState, Extent3d, FragmentState, LoadOp, Operations, PipelineCache,
+    RenderPassDepthStencilAttachment, RenderPassDescriptor, RenderPipelineDescriptor, ShaderStages,
+    SpecializedRenderPipeline, SpecializedRenderPipelines, StoreOp, TextureDescriptor,
+    TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
+    TextureViewDescriptor, TextureViewDimension, VertexState,
+};
+use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
+use bevy::render::view::{ExtractedView, ViewTarget};
+use bevy::render::{Render, RenderStartup, RenderSystems};
+use bevy::shader::ShaderDefVal;
+use std::num::NonZeroU64;
+
+/// Bytes of `PenumbraLightingUniform` (`lighting/masks.wgsl`).
+const UNIFORM_BYTES: u64 = 16;
+/// Bevy's (crate-private) `IRRADIANCE_VOLUMES_ARE_USABLE`: off on the web, where they
+/// overflow the texture bindings of deferred rendering.
+const IRRADIANCE_VOLUMES_ARE_USABLE: bool = cfg!(not(target_arch = "wasm32"));
+/// Bytes of one `PenumbraShadowedLight` (`lighting/masks.wgsl`).
+const SHADOWED_LIGHT_BYTES: u64 = 32;
+
+/// Which light a mask belongs to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ShadowedLightKind {
+    /// A directional light, identified by its unit direction toward the light (Bevy
+    /// exposes no index for directional lights: the shader matches directions).
+    Directional {
+        /// Unit vector toward the light.
+        direction: Vec3,
+    },
+    /// A point or spot light, by its clustered light id
+    /// (`GlobalClusterableObjectMeta::entity_to_index`).
+    Clustered {
+        /// Index into Bevy's clustered light array.
+        light_id: u32,
+    },
+}
+
+/// One light whose visibility the lighting pass reads from a mask layer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PenumbraShadowedLight {
+    /// The light.
+    pub kind: ShadowedLightKind,
+    /// Layer of [`PenumbraLightingInputs::masks`] holding its visibility (1 lit, 0
+    /// shadowed), one texel per view pixel.
+    pub layer: u32,
+}
+
+/// A view's shadow masks, inserted on the render-world view by the features that make
+/// them (distance-field shadows). Without it every light uses Bevy's shadow maps.
+#[derive(Component, Clone)]
+pub struct PenumbraLightingInputs {
+    /// The lights with a mask.
+    pub lights: Vec<PenumbraShadowedLight>,
+    /// `texture_2d_array<f32>` at the view's size, one layer per masked light.
+    pub masks: TextureView,
+}
+
+/// The lighting pass's pipeline family and its group 2.
+#[derive(Resource)]
+pub struct PenumbraLightingPipeline {
+    mesh_pipeline: MeshPipeline,
+    layout: BindGroupLayoutDescriptor,
+    shader: Handle<Shader>,
+    /// One white layer: bound when a view has no masks.
+    no_masks: TextureView,
+}
+
+/// A view's specialised lighting pipeline.
+#[derive(Component)]
+pub struct PenumbraLightingPipelineId(pub CachedRenderPipelineId);
+
+/// A view's group 2 and the buffers behind it (reused across frames).
+#[derive(Component)]
+struct PenumbraLightingBindGroup {
+    uniform: Buffer,
+    lights: Buffer,
+    light_capacity: u64,
+    bind_group: Option<BindGroup>,
+}
+
+pub(super) fn build(render_app: &mut SubApp) {
+    render_app
+        .init_resource::<SpecializedRenderPipelines<PenumbraLightingPipeline>>()
+        .add_systems(
+            Render,
+            (
+                prepare_penumbra_lighting_pipelines.in_set(RenderSystems::Prepare),
+                prepare_penumbra_lighting_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+            ),
+        )
+        .add_systems(
+            Core3d,
+            penumbra_lighting
+                .after(bevy::pbr::deferred::deferred_lighting)
+                .before(main_opaque_pass_3d)
+                .in_set(Core3dSystems::MainPass),
+        );
+}
+
+pub(super) fn finish(render_app: &mut SubApp) {
+    render_app.add_systems(
+        RenderStartup,
+        init_penumbra_lighting_pipeline.after(MeshPipelineSystems),
+    );
+}
+
+fn init_penumbra_lighting_pipeline(
+    mut commands: Commands,
+    mesh_pipeline: Res<MeshPipeline>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    library: Option<Res<PenumbraShaderLibrary>>,
+) {
+    let Some(library) = library else {
+        return;
+    };
+    let layout = BindGroupLayoutDescriptor::new(
+        "penumbra_lighting_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::VERTEX_FRAGMENT,
+            (
+                uniform_buffer_sized(false, NonZeroU64::new(UNIFORM_BYTES)),
+                storage_buffer_read_only_sized(false, NonZeroU64::new(SHADOWED_LIGHT_BYTES)),
+                texture_2d_array(TextureSampleType::Float { filterable: false }),
+            ),
+        ),
+    );
+    let texture = device.create_texture(&TextureDescriptor {
+        label: Some("penumbra_lighting_no_masks"),
+        size: Extent3d {
+            width: 1,
+            height: 1,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: TextureDimension::D2,
+        format: TextureFormat::R32Float,
+        usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    queue.write_texture(
+        texture.as_image_copy(),
+        &1.0f32.to_le_bytes(),
+        bevy::render::render_resource::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(4),
+            rows_per_image: None,
+        },
+        Extent3d {
+            width: 1,
+            height: 1,
+            depth_or_array_layers: 1,
+        },
+    );
+    let no_masks = texture.create_view(&TextureViewDescriptor {
+        dimension: Some(TextureViewDimension::D2Array),
+        ..default()
+    });
+    commands.insert_resource(PenumbraLightingPipeline {
+        mesh_pipeline: mesh_pipeline.clone(),
+        layout,
+        shader: library.handle("lighting/pass.wgsl"),
+        no_masks,
+    });
+}
+
+impl SpecializedRenderPipeline for PenumbraLightingPipeline {
+    type Key = MeshPipelineKey;
+
+    /// The shader definitions follow Bevy's deferred lighting pipeline: the view bind
+    /// group layout (chosen from the same key) must match what the shader declares.
+    fn specialize(&self, key: Self::Key) -> RenderPipelineDescriptor {
+        let mut defs: Vec<ShaderDefVal> = vec![
+            "DEFERRED_LIGHTING_PIPELINE".into(),
+            "DEFERRED_PREPASS".into(),
+            "STANDARD_MATERIAL_CLEARCOAT".into(),
+        ];
+        if key.contains(MeshPipelineKey::TONEMAP_IN_SHADER) {
+            defs.push("TONEMAP_IN_SHADER".into());
+            defs.push(ShaderDefVal::UInt(
+                "TONEMAPPING_LUT_TEXTURE_BINDING_INDEX".into(),
+                TONEMAPPING_LUT_TEXTURE_BINDING_INDEX,
+            ));
+            defs.push(ShaderDefVal::UInt(
+                "TONEMAPPING_LUT_SAMPLER_BINDING_INDEX".into(),
+                TONEMAPPING_LUT_SAMPLER_BINDING_INDEX,
+            ));
+            let method = key.intersection(MeshPipelineKey::TONEMAP_METHOD_RESERVED_BITS);
+            let name = [
+                (MeshPipelineKey::TONEMAP_METHOD_NONE, "TONEMAP_METHOD_NONE"),
+                (
+                    MeshPipelineKey::TONEMAP_METHOD_REINHARD,
+                    "TONEMAP_METHOD_REINHARD",
+                ),
+                (
+                    MeshPipelineKey::TONEMAP_METHOD_REINHARD_LUMINANCE,
+                    "TONEMAP_METHOD_REINHARD_LUMINANCE",
+                ),
+                (
+                    MeshPipelineKey::TONEMAP_METHOD_ACES_FITTED,
+                    "TONEMAP_METHOD_ACES_FITTED",
+                ),
+                (MeshPipelineKey::TONEMAP_METHOD_AGX, "TONEMAP_METHOD_AGX"),
+                (
+                    MeshPipelineKey::TONEMAP_METHOD_SOMEWHAT_BORING_DISPLAY_TRANSFORM,
+                    "TONEMAP_METHOD_SOMEWHAT_BORING_DISPLAY_TRANSFORM",
+                ),
+                (
+                    MeshPipelineKey::TONEMAP_METHOD_BLENDER_FILMIC,
+                    "TONEMAP_METHOD_BLENDER_FILMIC",
+                ),
+                (
+                    MeshPipelineKey::TONEMAP_METHOD_TONY_MC_MAPFACE,
+                    "TONEMAP_METHOD_TONY_MC_MAPFACE",
+                ),
+                (
+                    MeshPipelineKey::TONEMAP_METHOD_PBR_NEUTRAL,
+                    "TONEMAP_METHOD_PBR_NEUTRAL",
+                ),
+            ]
+            .into_iter()
+            .find(|(bits, _)| method == *bits)
+            .map(|(_, name)| name);
+            if let Some(name) = name {
+                defs.push(name.into());
+            }
+            if key.contains(MeshPipelineKey::DEBAND_DITHER) {
+                defs.push("DEBAND_DITHER".into());
+            }
+        }
+        for (flag, def) in [
+            (
+                MeshPipelineKey::SCREEN_SPACE_AMBIENT_OCCLUSION,
+                "SCREEN_SPACE_AMBIENT_OCCLUSION",
+            ),
+            (MeshPipelineKey::ENVIRONMENT_MAP, "ENVIRONMENT_MAP"),
+            (MeshPipelineKey::NORMAL_PREPASS, "NORMAL_PREPASS"),
+            (MeshPipelineKey::DEPTH_PREPASS, "DEPTH_PREPASS"),
+            (
+                MeshPipelineKey::MOTION_VECTOR_PREPASS,
+                "MOTION_VECTOR_PREPASS",
+            ),
+            (
+                MeshPipelineKey::SCREEN_SPACE_REFLECTIONS,
+                "SCREEN_SPACE_REFLECTIONS",
+            ),
+            (MeshPipelineKey::CONTACT_SHADOWS, "CONTACT_SHADOWS"),
+            (MeshPipelineKey::HAS_PREVIOUS_SKIN, "HAS_PREVIOUS_SKIN"),
+            (MeshPipelineKey::HAS_PREVIOUS_MORPH, "HAS_PREVIOUS_MORPH"),
+            (MeshPipelineKey::DISTANCE_FOG, "DISTANCE_FOG"),
+            (MeshPipelineKey::ATMOSPHERE, "ATMOSPHERE"),
+        ] {
+            if key.contains(flag) {
+                defs.push(def.into());
+            }
+        }
+        if key.contains(MeshPipelineKey::IRRADIANCE_VOLUME) && IRRADIANCE_VOLUMES_ARE_USABLE {
+            defs.push("IRRADIANCE_VOLUME".into());
+        }
+        let filter = key.intersection(MeshPipelineKey::SHADOW_FILTER_METHOD_RESERVED_BITS);
+        if filter == MeshPipelineKey::SHADOW_FILTER_METHOD_HARDWARE_2X2 {
+            defs.push("SHADOW_FILTER_METHOD_HARDWARE_2X2".into());
+        } else if filter == MeshPipelineKey::SHADOW_FILTER_METHOD_GAUSSIAN {
+            defs.push("SHADOW_FILTER_METHOD_GAUSSIAN".into());
+        } else if filter == MeshPipelineKey::SHADOW_FILTER_METHOD_TEMPORAL {
+            defs.push("SHADOW_FILTER_METHOD_TEMPORAL".into());
+        }
+        if self.mesh_pipeline.binding_arrays_are_usable {
+            defs.push("MULTIPLE_LIGHT_PROBES_IN_ARRAY".into());
+            defs.push("MULTIPLE_LIGHTMAPS_IN_ARRAY".into());
+        }
+        if IRRADIANCE_VOLUMES_ARE_USABLE {
+            defs.push("IRRADIANCE_VOLUMES_ARE_USABLE".into());
+        }
+        if self.mesh_pipeline.clustered_decals_are_usable {
+            defs.push("CLUSTERED_DECALS_ARE_USABLE".into());
+        }
+        let view_layout = self.mesh_pipeline.get_view_layout(key.into());
+        RenderPipelineDescriptor {
+            label: Some("penumbra_lighting_pipeline".into()),
+            layout: vec![
+                view_layout.main_layout,
+                view_layout.binding_array_layout,
+                self.layout.clone(),
+            ],
+            vertex: VertexState {
+                shader: self.shader.clone(),
+                shader_defs: defs.clone(),
+                ..default()
+            },
+            fragment: Some(FragmentState {
+                shader: self.shader.clone(),
+                shader_defs: defs,
+                targets: vec![Some(ColorTargetState {
+                    format: key.target_format(),
+                    blend: None,
+                    write_mask: ColorWrites::ALL,
+                })],
+                ..default()
+            }),
+            depth_stencil: Some(DepthStencilState {
+                format: DEFERRED_LIGHTING_PASS_ID_DEPTH_FORMAT,
+                depth_write_enabled: Some(false),
+                depth_compare: Some(CompareFunction::Equal),
+                stencil: default(),
+                bias: default(),
+            }),
+            ..default()
+        }
+    }
+}
+
+fn prepare_penumbra_lighting_pipelines(
+    mut commands: Commands,
+    pipeline_cache: Res<PipelineCache>,
+    view_key_cache: Res<ViewKeyCache>,
+    mut pipelines: ResMut<SpecializedRenderPipelines<PenumbraLightingPipeline>>,
+    pipeline: Option<Res<PenumbraLightingPipeline>>,
+    views: Query<(Entity, &ExtractedView), With<PenumbraLightingView>>,
+) {
+    let Some(pipeline) = pipeline else {
+        return;
+    };
+    for (entity, view) in &views {
+        // The same key as Bevy's forward and deferred passes for this view.
+        let Some(key) = view_key_cache.get(&view.retained_view_entity) else {
+            continue;
+        };
+        let id = pipelines.specialize(&pipeline_cache, &pipeline, *key);
+        commands
+            .entity(entity)
+            .insert(PenumbraLightingPipelineId(id));
+    }
+}
+
+fn prepare_penumbra_lighting_bind_groups(
+    mut commands: Commands,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    pipeline_cache: Res<PipelineCache>,
+    pipeline: Option<Res<PenumbraLightingPipeline>>,
+    mut views: Query<(
+        Entity,
+        &PenumbraLightingView,
+        Option<&PenumbraLightingInputs>,
+        Option<&mut PenumbraLightingBindGroup>,
+    )>,
+) {
+    let Some(pipeline) = pipeline else {
+        return;
+    };
+    for (entity, view, inputs, bind_group) in &mut views {
+        let lights = inputs.map_or(&[][..], |i| i.lights.as_slice());
+        let needed = (lights.len() as u64).max(1);
+        let mut fresh = None;
+        let group = match bind_group {
+            Some(group) if group.light_capacity >= needed => group.into_inner(),
+            _ => {
+                let capacity = needed.next_power_of_two();
+                fresh = Some(PenumbraLightingBindGroup {
+                    uniform: device.create_buffer(&BufferDescriptor {
+                        label: Some("penumbra_lighting_uniform"),
+                        size: UNIFORM_BYTES,
+                        usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    }),
+                    lights: device.create_buffer(&BufferDescriptor {
+                        label: Some("penumbra_lighting_shadowed_lights"),
+                        size: capacity * SHADOWED_LIGHT_BYTES,
+                        usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    }),
+                    light_capacity: capacity,
+                    bind_group: None,
+                });
+                fresh.as_mut().expect("just set")
+            }
+        };
+        let uniform = [view.depth_id, lights.len() as u32, 0, 0];
+        queue.write_buffer(&group.uniform, 0, &bytemuck_u32(&uniform));
+        if !lights.is_empty() {
+            queue.write_buffer(&group.lights, 0, &encode_shadowed_lights(lights));
+        }
+        let masks = inputs.map_or(&pipeline.no_masks, |i| &i.masks);
+        group.bind_group = Some(device.create_bind_group(
+            "penumbra_lighting_bind_group",
+            &pipeline_cache.get_bind_group_layout(&pipeline.layout),
+            &BindGroupEntries::sequential((
+                group.uniform.as_entire_binding(),
+                group.lights.as_entire_binding(),
+                masks,
+            )),
+        ));
+        if let Some(fresh) = fresh {
+            commands.entity(entity).insert(fresh);
+        }
+    }
+}
+
+fn bytemuck_u32(words: &[u32]) -> Vec<u8> {
+    words.iter().flat_map(|w| w.to_le_bytes()).collect()
+}
+
+/// `PenumbraShadowedLight` records as `lighting/masks.wgsl` reads them.
+pub(crate) fn encode_shadowed_lights(lights: &[PenumbraShadowedLight]) -> Vec<u8> {
+    let mut bytes = Vec::with_capacity(lights.len() * SHADOWED_LIGHT_BYTES as usize);
+    for light in lights {
+        let (kind, id, direction) = match light.kind {
+            ShadowedLightKind::Directional { direction } => (0u32, 0u32, direction),
+            ShadowedLightKind::Clustered { light_id } => (1, light_id, Vec3::ZERO),
+        };
+        for w in [kind, id, light.layer, 0] {
+            bytes.extend_from_slice(&w.to_le_bytes());
+        }
+        for f in [direction.x, direction.y, direction.z, 0.0] {
+            bytes.extend_from_slice(&f.to_le_bytes());
+        }
+    }
+    bytes
+}
+
+/// The lighting pass: Bevy's deferred lighting pass with Penumbra's shader and group 2.
+fn penumbra_lighting(
+    view: ViewQuery<(
+        &MeshViewBindGroup,
+        &ViewTarget,
+        &DeferredLightingIdDepthTexture,
+        &PenumbraLightingPipelineId,
+        &PenumbraLightingBindGroup,
+    )>,
+    pipeline_cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    let (mesh_view_bind_group, target, lighting_id_depth, pipeline_id, group) = view.into_inner();
+    let Some(pipeline) = pipeline_cache.get_render_pipeline(pipeline_id.0) else {
+        return; // compiling
+    };
+    let Some(bind_group) = &group.bind_group else {
+        return;
+    };
+    let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
+        label: Some("penumbra_lighting"),
+        color_attachments: &[Some(target.get_color_attachment())],
+        depth_stencil_attachment: Some(RenderPassDepthStencilAttachment {
+            view: &lighting_id_depth.texture.default_view,
+            depth_ops: Some(Operations {
+                load: LoadOp::Load,
+                store: StoreOp::Discard,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    pass.set_render_pipeline(pipeline);
+    pass.set_bind_group(
+        0,
+        &mesh_view_bind_group.main,
+        &mesh_view_bind_group.main_offsets,
+    );
+    pass.set_bind_group(1, &mesh_view_bind_group.binding_array, &[]);
+    pass.set_bind_group(2, bind_group, &[]);
+    pass.draw(0..3, 0..1);
+}

@@ -1,0 +1,55 @@
+// Penumbra's lighting pass: a fullscreen triangle over the deferred G-buffer (depth-id
+// tested like Bevy's deferred lighting pass, which Penumbra replaces on its cameras),
+// lit by Penumbra's light loop.
+
+#import bevy_pbr::{
+    prepass_utils,
+    pbr_types::STANDARD_MATERIAL_FLAGS_UNLIT_BIT,
+    pbr_functions,
+    pbr_deferred_functions::pbr_input_from_deferred_gbuffer,
+    lighting,
+    mesh_view_bindings::deferred_prepass_texture,
+}
+#import penumbra::lighting::lights::apply_lighting
+#import penumbra::lighting::masks::penumbra_lighting
+
+#ifdef SCREEN_SPACE_AMBIENT_OCCLUSION
+#import bevy_pbr::mesh_view_bindings::screen_space_ambient_occlusion_texture
+#import bevy_pbr::ssao_utils::ssao_multibounce
+#endif
+
+struct FullscreenVertexOutput {
+    @builtin(position) position: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+}
+
+@vertex
+fn vertex(@builtin(vertex_index) vertex_index: u32) -> FullscreenVertexOutput {
+    let uv = vec2<f32>(f32(vertex_index >> 1u), f32(vertex_index & 1u)) * 2.0;
+    // The lighting-id depth texture stores the material's pass id as unorm depth.
+    let depth = f32(penumbra_lighting.depth_id) / 255.0;
+    return FullscreenVertexOutput(vec4(uv * vec2(2.0, -2.0) + vec2(-1.0, 1.0), depth, 1.0), uv);
+}
+
+@fragment
+fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
+    var frag_coord = vec4(in.position.xy, 0.0, 0.0);
+    let gbuffer = textureLoad(deferred_prepass_texture, vec2<i32>(frag_coord.xy), 0);
+#ifdef DEPTH_PREPASS
+    frag_coord.z = prepass_utils::prepass_depth(in.position, 0u);
+#endif
+    var pbr_input = pbr_input_from_deferred_gbuffer(frag_coord, gbuffer);
+    var color = pbr_input.material.base_color;
+    if (pbr_input.material.flags & STANDARD_MATERIAL_FLAGS_UNLIT_BIT) == 0u {
+#ifdef SCREEN_SPACE_AMBIENT_OCCLUSION
+        let ssao = textureLoad(screen_space_ambient_occlusion_texture, vec2<i32>(in.position.xy), 0i).r;
+        pbr_input.diffuse_occlusion = min(pbr_input.diffuse_occlusion, ssao_multibounce(ssao, pbr_input.material.base_color.rgb));
+        // Specular occlusion from SSAO (Lagarde and Rousiers 2014), as Bevy does.
+        let NdotV = max(dot(pbr_input.N, pbr_input.V), 0.0001);
+        let roughness = lighting::perceptualRoughnessToRoughness(pbr_input.material.perceptual_roughness);
+        pbr_input.specular_occlusion = saturate(pow(NdotV + ssao, exp2(-16.0 * roughness - 1.0)) - 1.0 + ssao);
+#endif
+        color = apply_lighting(pbr_input);
+    }
+    return pbr_functions::main_pass_post_lighting_processing(pbr_input, color);
+}
