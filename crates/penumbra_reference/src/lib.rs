@@ -19,6 +19,8 @@
 //!   shapes) and the debug view's sphere tracing.
 //! - [`df_shadow`]: distance-field soft shadows (the march) and Monte Carlo area-light
 //!   ground truth.
+//! - [`shadow_mask`]: the distance-field shadow-mask pass — per pixel, the march over the
+//!   GPU object records with its per-object cone culling.
 //! - [`scene`]: an analytic ray-traced scene (spheres, planes, directional lights with hard
 //!   shadows) shaded with [`pbr`], the expected image of simple GPU render tests.
 
@@ -27,3 +29,4 @@ pub mod df;
 pub mod df_shadow;
 pub mod pbr;
 pub mod scene;
+pub mod shadow_mask;

@@ -1,0 +1,383 @@
+//! The CPU model of the distance-field shadow-mask pass (`shaders/df/shadow.wgsl`): for
+//! each pixel, the visibility of one light through the scene's distance-field objects —
+//! the march of [`crate::df_shadow`] over the GPU object records, with the same
+//! per-object cone culling, tiny-object clamp and contrast, in the same order.
+//!
+//! Conventions: positions are camera-relative world metres (see
+//! [`penumbra_df_core::cull::CameraOrigin`]); a pixel's position comes from its depth
+//! ([`position_from_depth`]: Bevy's reverse-Z, NDC +y up, pixel centres).
+//!
+//! **Per-object culling.** An object can lower a pixel's visibility only where the
+//! light's cone from the pixel comes closer to it than the cone's radius: the cone is
+//! contained in the *round cone* (convex hull of two balls) from `(p, 0)` to
+//! `(p + t_max · dir, t_max · tan θ)`, so objects whose bounding sphere misses it are
+//! skipped. The GPU also culls per 8×8 tile with a round cone containing every pixel's
+//! (from the tile's bounding ball to the light), which never changes a result.
+
+use crate::df::{Atlas, object_distance};
+use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
+use penumbra_df_core::cull::CameraOrigin;
+use penumbra_df_core::object::{ObjectRecord, ShapeKind, flags};
+
+/// A light as the mask pass sees it (the `ShadowLight` uniform).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MaskLight {
+    /// Where the light is.
+    pub kind: MaskLightKind,
+    /// Point and spot lights: the source radius, metres. Directional lights: the tangent
+    /// of half the angular diameter.
+    pub source: f32,
+    /// Directional lights: the shadow ray's length, metres.
+    pub max_distance: f32,
+    /// Start offset along the ray, metres (world-space bias).
+    pub bias: f32,
+    /// Penumbra contrast: visibility `v` becomes `clamp((v − ½) · contrast + ½, 0, 1)`.
+    pub contrast: f32,
+    /// Step limit per object.
+    pub max_steps: u32,
+}
+
+/// Directional or positional.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MaskLightKind {
+    /// Unit vector toward the light.
+    Directional(Vec3),
+    /// Camera-relative position (point and spot lights).
+    Positional(Vec3),
+}
+
+/// Bounds of a cull volume: `(centre, radius)` in camera-relative metres.
+pub type Ball = (Vec3, f32);
+
+/// The bounding sphere of a live object's shape (camera-relative), or `None` for
+/// unbounded shapes (planes): for spheres and capsules, their own radius (and half
+/// length) scaled by a bound of the transform's largest singular value (Gershgorin on
+/// `MᵀM`: exact without shear); for boxes and volumes, the largest of the transformed
+/// box's four half-diagonals (exact for the parallelepiped).
+pub fn bounding_sphere(r: &ObjectRecord, camera: &CameraOrigin) -> Option<Ball> {
+    let (min, max) = r.shape_bounds()?;
+    let m = r.world_from_shape();
+    let half = (max - min) * 0.5;
+    let center = camera.relative(r.tile(), m.transform_point3((min + max) * 0.5));
+    let (cx, cy, cz) = (
+        Vec3::from(m.matrix3.x_axis),
+        Vec3::from(m.matrix3.y_axis),
+        Vec3::from(m.matrix3.z_axis),
+    );
+    let [p0, p1, _] = r.params();
+    let radius = match r.kind() {
+        k if k == ShapeKind::Sphere as u32 => f32::from_bits(p0) * max_scale(cx, cy, cz),
+        k if k == ShapeKind::Capsule as u32 => {
+            cy.length() * f32::from_bits(p1) + f32::from_bits(p0) * max_scale(cx, cy, cz)
+        }
+        _ => {
+            let (ax, ay, az) = (cx * half.x, cy * half.y, cz * half.z);
+            (ax + ay + az)
+                .length()
+                .max((ax + ay - az).length())
+                .max((ax - ay + az).length().max((ax - ay - az).length()))
+        }
+    };
+    Some((center, radius))
+}
+
+/// An upper bound of the largest singular value of the matrix with columns `c0, c1, c2`:
+/// the square root of Gershgorin's bound on `MᵀM`'s largest eigenvalue (exact when the
+/// columns are orthogonal: rotation times scale).
+pub fn max_scale(c0: Vec3, c1: Vec3, c2: Vec3) -> f32 {
+    let (g01, g02, g12) = (c0.dot(c1).abs(), c0.dot(c2).abs(), c1.dot(c2).abs());
+    (c0.length_squared() + g01 + g02)
+        .max(c1.length_squared() + g01 + g12)
+        .max(c2.length_squared() + g02 + g12)
+        .sqrt()
+}
+
+/// Signed distance from `p` to the convex hull of balls `(a, ra)` and `(b, rb)` (a
+/// "round cone"; Quílez's formulation, exact when neither ball contains the other).
+pub fn round_cone_distance(p: Vec3, a: Vec3, b: Vec3, ra: f32, rb: f32) -> f32 {
+    let ba = b - a;
+    let l2 = ba.dot(ba);
+    let rr = ra - rb;
+    let a2 = l2 - rr * rr;
+    if a2 <= 0.0 {
+        // One ball contains the other: the hull is the larger ball.
+        return ((p - a).length() - ra).min((p - b).length() - rb);
+    }
+    let il2 = 1.0 / l2;
+    let pa = p - a;
+    let y = pa.dot(ba);
+    let z = y - l2;
+    let x2 = (pa * l2 - ba * y).length_squared();
+    let y2 = y * y * l2;
+    let z2 = z * z * l2;
+    let k = rr.signum() * rr * rr * x2;
+    if z.signum() * a2 * z2 > k {
+        return (x2 + z2).sqrt() * il2 - rb;
+    }
+    if y.signum() * a2 * y2 < k {
+        return (x2 + y2).sqrt() * il2 - ra;
+    }
+    ((x2 * a2 * il2).sqrt() + y * rr) * il2 - ra
+}
+
+/// Culling slack: a bounding sphere counts as touching a cull volume up to this much
+/// beyond it (relative to its radius, plus an absolute floor), so rounding never drops
+/// an object the other side keeps.
+pub fn cull_slack(radius: f32) -> f32 {
+    radius * 1e-4 + 1e-4
+}
+
+/// The shadow ray from camera-relative `p`: direction, length and the tangent of the
+/// cone's half-angle.
+pub fn shadow_ray(p: Vec3, light: &MaskLight) -> (Vec3, f32, f32) {
+    match light.kind {
+        MaskLightKind::Directional(to_light) => (to_light, light.max_distance, light.source),
+        MaskLightKind::Positional(position) => {
+            let v = position - p;
+            let d = v.length().max(1e-6);
+            let s = (light.source / d.max(light.source)).clamp(0.0, 1.0);
+            let tan_half = s / (1.0 - s * s).max(1e-12).sqrt();
+            (v / d, (d - light.source).max(0.0), tan_half)
+        }
+    }
+}
+
+/// The visibility of `light` from camera-relative `p` (1 lit, 0 shadowed): the GPU mask
+/// pass's per-pixel result. `records` are the object buffer's slots (free slots are
+/// skipped).
+pub fn pixel_visibility(
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    camera: &CameraOrigin,
+    p: Vec3,
+    light: &MaskLight,
+) -> f32 {
+    let (dir, t_max, tan_half) = shadow_ray(p, light);
+    let end = p + dir * t_max;
+    let end_radius = t_max * tan_half;
+    let mut visibility = 1.0f32;
+    for r in records {
+        let f = r.flags();
+        if f & flags::LIVE == 0 || f & flags::CASTS_SHADOWS == 0 {
+            continue;
+        }
+        let sphere = bounding_sphere(r, camera);
+        if let Some((center, radius)) = sphere
+            && round_cone_distance(center, p, end, 0.0, end_radius) >= radius + cull_slack(radius)
+        {
+            continue;
+        }
+        let mut t = light.bias;
+        let mut v = 1.0f32;
+        for _ in 0..light.max_steps {
+            if t >= t_max {
+                break;
+            }
+            let d = object_distance(r, p + dir * t, camera, atlas);
+            if d <= 0.0 {
+                v = 0.0;
+                break;
+            }
+            let cone = (t * tan_half).max(1e-6);
+            // A bounded object covers at most (R / r)² of the cone's section.
+            let floor = sphere.map_or(0.0, |(_, radius)| 1.0 - (radius / cone).powi(2).min(1.0));
+            v = v.min((d / cone).max(floor));
+            t += d;
+        }
+        visibility = visibility.min(v.clamp(0.0, 1.0));
+    }
+    finish(visibility, light.contrast)
+}
+
+/// Contrast, clamping, and no NaN: what the pass writes.
+pub fn finish(visibility: f32, contrast: f32) -> f32 {
+    let v = ((visibility - 0.5) * contrast + 0.5).clamp(0.0, 1.0);
+    if v >= 0.0 { v } else { 1.0 }
+}
+
+/// Camera-relative world position of the pixel centre `(x + ½, y + ½)` at reverse-Z
+/// `depth` (> 0), for a `size` image: NDC from the pixel, through `view_from_clip`, then
+/// rotated by the camera's world-from-view rotation (no translation: camera-relative).
+pub fn position_from_depth(
+    view_from_clip: Mat4,
+    world_from_view: Mat3,
+    size: Vec2,
+    pixel: Vec2,
+    depth: f32,
+) -> Vec3 {
+    let uv = (pixel + Vec2::splat(0.5)) / size;
+    let ndc = Vec4::new(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
+    let v = view_from_clip * ndc;
+    world_from_view * (v.truncate() / v.w)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Brute force: the distance from `p` to the hull of two balls is the minimum over
+    /// the interpolated balls (the hull is their union).
+    fn brute_round_cone(p: Vec3, a: Vec3, b: Vec3, ra: f32, rb: f32) -> f32 {
+        (0..=20_000)
+            .map(|i| {
+                let s = i as f32 / 20_000.0;
+                (p - a.lerp(b, s)).length() - (ra + (rb - ra) * s)
+            })
+            .fold(f32::INFINITY, f32::min)
+    }
+
+    #[test]
+    fn round_cone_distance_matches_brute_force_outside() {
+        let mut state = 12345u32;
+        let mut rnd = || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 8) as f32 / (1u32 << 24) as f32 * 2.0 - 1.0
+        };
+        let mut worst = 0.0f32;
+        for _ in 0..400 {
+            let a = Vec3::new(rnd(), rnd(), rnd()) * 3.0;
+            let b = Vec3::new(rnd(), rnd(), rnd()) * 3.0;
+            let (ra, rb) = (rnd().abs() * 0.5, rnd().abs() * 1.5);
+            let p = Vec3::new(rnd(), rnd(), rnd()) * 6.0;
+            let want = brute_round_cone(p, a, b, ra, rb);
+            if want > 0.0 {
+                // Outside the hull the formula is exact (the brute force samples the
+                // balls finely; its own error is below 1e-3 here).
+                let got = round_cone_distance(p, a, b, ra, rb);
+                worst = worst.max((got - want).abs());
+            } else {
+                assert!(round_cone_distance(p, a, b, ra, rb) <= 1e-3);
+            }
+        }
+        assert!(worst < 2e-3, "worst {worst}");
+    }
+
+    #[test]
+    fn bounding_sphere_contains_the_shape_under_rotation_and_scale() {
+        use penumbra_df_core::object::{CasterShape, ObjectDesc, encode};
+        let desc = ObjectDesc {
+            shape: CasterShape::Cuboid {
+                half_extents: Vec3::new(0.5, 0.2, 1.0),
+            },
+            world_from_local: glam::Affine3A::from_scale_rotation_translation(
+                Vec3::new(2.0, 1.0, 0.5),
+                glam::Quat::from_rotation_y(0.7) * glam::Quat::from_rotation_x(0.4),
+                Vec3::new(3.0, 1.0, -2.0),
+            ),
+            flags: flags::LIVE,
+        };
+        let r = encode(&desc).expect("encodes");
+        let camera = CameraOrigin::at(Vec3::new(1.0, 2.0, 3.0)).expect("finite");
+        let (c, radius) = bounding_sphere(&r, &camera).expect("bounded");
+        let mut far = 0.0f32;
+        for i in 0..8 {
+            let s = Vec3::new(
+                if i & 1 == 0 { -1.0 } else { 1.0 },
+                if i & 2 == 0 { -1.0 } else { 1.0 },
+                if i & 4 == 0 { -1.0 } else { 1.0 },
+            );
+            let corner = desc
+                .world_from_local
+                .transform_point3(s * Vec3::new(0.5, 0.2, 1.0));
+            far = far.max((corner - Vec3::new(1.0, 2.0, 3.0) - c).length());
+        }
+        assert!(
+            (far - radius).abs() < 1e-4,
+            "farthest corner {far}, radius {radius}"
+        );
+    }
+
+    /// On analytic spheres the pass model equals `df_shadow`'s march (whose error
+    /// against Monte Carlo ground truth is tested there): the record encoding, the cone
+    /// culling and the clamps change nothing.
+    #[test]
+    fn pass_model_equals_the_march_on_spheres() {
+        use crate::df_shadow::{
+            AreaLight, Occluder, ShadowSettings, SphereOccluder, df_visibility,
+        };
+        use penumbra_df_core::object::{CasterShape, ObjectDesc, encode};
+        let balls = [
+            SphereOccluder {
+                center: Vec3::new(0.0, 1.0, 0.0),
+                radius: 0.5,
+            },
+            SphereOccluder {
+                center: Vec3::new(1.2, 0.4, -0.3),
+                radius: 0.2,
+            },
+            // Small and high: its cone section is wide, the tiny-object clamp acts.
+            SphereOccluder {
+                center: Vec3::new(-1.2, 3.0, -1.2),
+                radius: 0.05,
+            },
+            // Far off the rays: culled by the cone test, must not matter.
+            SphereOccluder {
+                center: Vec3::new(-30.0, 5.0, 20.0),
+                radius: 0.3,
+            },
+        ];
+        let eye = Vec3::new(0.3, 2.0, 5.0);
+        let camera = CameraOrigin::at(eye).expect("finite");
+        let records: Vec<ObjectRecord> = balls
+            .iter()
+            .map(|b| {
+                encode(&ObjectDesc {
+                    world_from_local: glam::Affine3A::from_translation(b.center),
+                    shape: CasterShape::Sphere { radius: b.radius },
+                    flags: flags::LIVE | flags::CASTS_SHADOWS,
+                })
+                .expect("encodes")
+            })
+            .collect();
+        let atlas = Atlas::new(glam::UVec3::ONE);
+        let occluders: Vec<&dyn Occluder> = balls.iter().map(|b| b as &dyn Occluder).collect();
+        let settings = ShadowSettings {
+            max_distance: 40.0,
+            max_steps: 64,
+            bias: 0.01,
+        };
+        let sun = Vec3::new(0.3, 1.0, 0.2).normalize();
+        let lamp = Vec3::new(0.5, 4.0, 0.5);
+        let cases = [
+            (
+                AreaLight::Directional {
+                    to_light: sun,
+                    angular_diameter: 0.2,
+                },
+                MaskLightKind::Directional(sun),
+                (0.1f32).tan(),
+            ),
+            (
+                AreaLight::Sphere {
+                    center: lamp,
+                    radius: 0.4,
+                },
+                MaskLightKind::Positional(lamp - eye),
+                0.4,
+            ),
+        ];
+        for (area, kind, source) in cases {
+            let light = MaskLight {
+                kind,
+                source,
+                max_distance: settings.max_distance,
+                bias: settings.bias,
+                contrast: 1.0,
+                max_steps: settings.max_steps,
+            };
+            let mut worst = 0.0f32;
+            let mut shadowed = 0;
+            for i in 0..40 {
+                for j in 0..40 {
+                    let p = Vec3::new(-2.0 + 0.1 * i as f32, 0.0, -2.0 + 0.1 * j as f32);
+                    let want = df_visibility(&occluders, p, &area, &settings);
+                    let got = pixel_visibility(&records, &atlas, &camera, p - eye, &light);
+                    worst = worst.max((got - want).abs());
+                    shadowed += usize::from(want < 0.99);
+                }
+            }
+            assert!(shadowed > 100, "{area:?}: only {shadowed} shadowed points");
+            assert!(worst < 2e-4, "{area:?}: worst {worst}");
+        }
+    }
+}
