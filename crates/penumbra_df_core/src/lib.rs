@@ -13,6 +13,8 @@
 //! - [`table`]: the CPU mirror of the GPU object buffer. It hands out slots (reusing
 //!   freed ones), and turns a frame's adds, removes and changes into a compact list of
 //!   `(slot, record)` writes: a static scene sends nothing, `k` changes send `O(k)` bytes.
+//! - [`shadow`]: the GPU parameters of distance-field shadows (light and mask-pass view
+//!   uniforms).
 //! - [`cull`]: frustum planes and the oriented-box test the GPU culling pass runs, as the
 //!   CPU reference the GPU output is compared with.
 //!
@@ -27,4 +29,5 @@
 pub mod atlas;
 pub mod cull;
 pub mod object;
+pub mod shadow;
 pub mod table;

@@ -19,32 +19,7 @@ use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::object::{ObjectRecord, ShapeKind, flags};
 
-/// A light as the mask pass sees it (the `ShadowLight` uniform).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MaskLight {
-    /// Where the light is.
-    pub kind: MaskLightKind,
-    /// Point and spot lights: the source radius, metres. Directional lights: the tangent
-    /// of half the angular diameter.
-    pub source: f32,
-    /// Directional lights: the shadow ray's length, metres.
-    pub max_distance: f32,
-    /// Start offset along the ray, metres (world-space bias).
-    pub bias: f32,
-    /// Penumbra contrast: visibility `v` becomes `clamp((v − ½) · contrast + ½, 0, 1)`.
-    pub contrast: f32,
-    /// Step limit per object.
-    pub max_steps: u32,
-}
-
-/// Directional or positional.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum MaskLightKind {
-    /// Unit vector toward the light.
-    Directional(Vec3),
-    /// Camera-relative position (point and spot lights).
-    Positional(Vec3),
-}
+pub use penumbra_df_core::shadow::{ShadowLight as MaskLight, ShadowLightKind as MaskLightKind};
 
 /// Bounds of a cull volume: `(centre, radius)` in camera-relative metres.
 pub type Ball = (Vec3, f32);
@@ -363,6 +338,7 @@ mod tests {
                 max_distance: settings.max_distance,
                 bias: settings.bias,
                 contrast: 1.0,
+                range: 100.0,
                 max_steps: settings.max_steps,
             };
             let mut worst = 0.0f32;

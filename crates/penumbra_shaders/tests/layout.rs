@@ -100,3 +100,51 @@ fn flatten_inlines_each_module_once_and_rejects_unknown_imports() {
     let item = flatten("#import penumbra::df::object::DistanceFieldObject\n").unwrap();
     assert!(item.contains("struct DistanceFieldObject"));
 }
+
+/// The shadow passes' uniforms have the sizes and member offsets their Rust encoders
+/// (`penumbra_df_core::shadow`) write.
+#[test]
+fn shadow_uniform_layouts_match_the_encoders() {
+    use penumbra_df_core::shadow::{SHADOW_LIGHT_BYTES, SHADOW_TRACE_VIEW_BYTES};
+    let m = parse("#import penumbra::df::shadow_trace\n");
+    let (members, size) = struct_layout(&m, "ShadowLight");
+    assert_eq!(size as usize, SHADOW_LIGHT_BYTES);
+    let got: Vec<(&str, u32)> = members.iter().map(|(n, o)| (n.as_str(), *o)).collect();
+    // Word order of `ShadowLight::to_words`.
+    let want = [
+        ("position_or_direction", 0),
+        ("source", 4),
+        ("max_distance", 5),
+        ("bias", 6),
+        ("contrast", 7),
+        ("range", 8),
+        ("max_steps", 9),
+        ("reserved", 10),
+    ];
+    let want: Vec<(&str, u32)> = want.iter().map(|&(n, w)| (n, w * 4)).collect();
+    assert_eq!(got, want);
+
+    let (members, size) = struct_layout(&m, "ShadowTraceView");
+    assert_eq!(size as usize, SHADOW_TRACE_VIEW_BYTES);
+    let got: Vec<(&str, u32)> = members.iter().map(|(n, o)| (n.as_str(), *o)).collect();
+    // Word order of `trace_view_words`.
+    let want = [
+        ("view_from_clip", 0),
+        ("world_from_view", 16),
+        ("camera_tile", 28),
+        ("camera_offset", 32),
+        ("size", 36),
+    ];
+    let want: Vec<(&str, u32)> = want.iter().map(|&(n, w)| (n, w * 4)).collect();
+    assert_eq!(got, want);
+
+    // The light cull reads the same view words as the frustum cull
+    // (`penumbra_df_core::cull::cull_view_words`).
+    let m = parse("#import penumbra::df::shadow_cull\n");
+    let (shadow, shadow_size) = struct_layout(&m, "ShadowCullView");
+    let m = parse("#import penumbra::df::cull\n");
+    let (frustum, frustum_size) = struct_layout(&m, "CullView");
+    assert_eq!(shadow_size, frustum_size);
+    let offsets = |v: &[(String, u32)]| v.iter().map(|(_, o)| *o).collect::<Vec<_>>();
+    assert_eq!(offsets(&shadow)[..5], offsets(&frustum)[..5]);
+}

@@ -60,6 +60,121 @@ impl GpuCompute {
             })
     }
 
+    /// A compute pipeline for `entry` with explicit bind group layouts (needed where the
+    /// derived layout would not fit, e.g. unfilterable float textures).
+    pub fn pipeline_with_layouts(
+        &self,
+        source: &str,
+        entry: &str,
+        layouts: &[&wgpu::BindGroupLayout],
+    ) -> wgpu::ComputePipeline {
+        let module = self
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(entry),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            });
+        let layout = self
+            .device
+            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(entry),
+                bind_group_layouts: &layouts.iter().map(|l| Some(*l)).collect::<Vec<_>>(),
+                immediate_size: 0,
+            });
+        self.device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+    }
+
+    /// A texture holding tightly packed `data` (`bytes_per_texel` each, rows along x),
+    /// usable as a texture binding, storage texture and copy source/destination.
+    pub fn texture(
+        &self,
+        label: &str,
+        size: wgpu::Extent3d,
+        dimension: wgpu::TextureDimension,
+        format: wgpu::TextureFormat,
+        bytes_per_texel: u32,
+        data: &[u8],
+    ) -> wgpu::Texture {
+        let usage = wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC
+            | wgpu::TextureUsages::COPY_DST
+            | if format == wgpu::TextureFormat::R32Float {
+                wgpu::TextureUsages::STORAGE_BINDING
+            } else {
+                wgpu::TextureUsages::empty()
+            };
+        let texture = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension,
+            format,
+            usage,
+            view_formats: &[],
+        });
+        if !data.is_empty() {
+            self.queue.write_texture(
+                texture.as_image_copy(),
+                data,
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(size.width * bytes_per_texel),
+                    rows_per_image: Some(size.height),
+                },
+                size,
+            );
+        }
+        texture
+    }
+
+    /// Reads a 2D texture of 4-byte texels back as tightly packed rows.
+    pub fn read_texture_2d(&self, texture: &wgpu::Texture) -> Vec<u8> {
+        let (width, height) = (texture.width(), texture.height());
+        let row = width * 4;
+        let padded = row.next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("penumbra_test_texture_readback"),
+            size: (padded * height) as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded),
+                    rows_per_image: Some(height),
+                },
+            },
+            texture.size(),
+        );
+        self.queue.submit([encoder.finish()]);
+        let slice = buffer.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |r| r.expect("map readback buffer"));
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .expect("device poll");
+        let mapped = slice.get_mapped_range();
+        let mut out = Vec::with_capacity((row * height) as usize);
+        for y in 0..height {
+            let start = (y * padded) as usize;
+            out.extend_from_slice(&mapped[start..start + row as usize]);
+        }
+        out
+    }
+
     /// A buffer initialised with `bytes` (padded to 4 bytes, at least 16), usable as a
     /// storage buffer, copy source and destination, plus `extra` usages.
     pub fn buffer(&self, label: &str, bytes: &[u8], extra: wgpu::BufferUsages) -> wgpu::Buffer {

@@ -1,0 +1,525 @@
+//! Contract test of the distance-field shadow passes on lavapipe: the light cull
+//! (`df/shadow_cull.wgsl`) and the mask pass (`df/shadow_trace.wgsl`), run through wgpu
+//! directly on a known scene and depth buffer, produce the mask the CPU model
+//! (`penumbra_reference::shadow_mask::pixel_visibility`, over *all* objects) computes
+//! from the same depth values — for a soft sun and a sphere light, near the origin and
+//! 10⁵ m away.
+//!
+//! The scene: a ground plane, a sphere, a rotated non-uniformly scaled box, a capsule, a
+//! baked torus SDF in the atlas, and a small sphere high up (the tiny-object clamp).
+//! Its depth buffer is sphere-traced on the CPU through the same objects.
+
+use glam::{Affine3A, Mat3, Mat4, Quat, UVec2, UVec3, Vec2, Vec3};
+use penumbra_df_core::atlas::AtlasRegion;
+use penumbra_df_core::cull::{CameraOrigin, Frustum, cull_view_words, grid_64};
+use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, encode, flags};
+use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind, trace_view_words, words_to_bytes};
+use penumbra_reference::df::{Atlas, object_distance};
+use penumbra_reference::shadow_mask::{pixel_visibility, position_from_depth};
+use penumbra_sdf::{BakeSettings, bake, shapes};
+use penumbra_shaders::flatten;
+use penumbra_test::wgpu::{self, BufferUsages};
+use penumbra_test::{GpuCompute, gpu_or_skip};
+
+const WIDTH: u32 = 124;
+const HEIGHT: u32 = 90;
+const EYE: Vec3 = Vec3::new(0.9, 2.6, 3.6);
+
+struct Scene {
+    records: Vec<ObjectRecord>,
+    atlas: Atlas,
+    atlas_size: UVec3,
+    atlas_bits: Vec<u16>,
+}
+
+fn scene(offset: Vec3) -> Scene {
+    let torus = bake(
+        &shapes::torus(0.5, 0.18, 48, 24),
+        &BakeSettings::longest_axis(36),
+        None,
+    )
+    .expect("torus bakes")
+    .volume;
+    let dims = torus.dims;
+    let bits: Vec<u16> = torus.data.iter().map(|h| h.to_bits()).collect();
+    let mut atlas = Atlas::new(dims);
+    atlas.write(UVec3::ZERO, dims, &bits);
+    let live = flags::LIVE | flags::CASTS_SHADOWS | flags::VISIBLE;
+    let at = |p: Vec3| Affine3A::from_translation(p + offset);
+    let descs = [
+        ObjectDesc {
+            world_from_local: at(Vec3::ZERO),
+            shape: CasterShape::Plane,
+            flags: live | flags::UNBOUNDED,
+        },
+        ObjectDesc {
+            world_from_local: at(Vec3::new(-1.3, 0.6, -0.4)),
+            shape: CasterShape::Sphere { radius: 0.6 },
+            flags: live,
+        },
+        ObjectDesc {
+            world_from_local: Affine3A::from_scale_rotation_translation(
+                Vec3::new(1.4, 0.8, 1.0),
+                Quat::from_rotation_y(0.6) * Quat::from_rotation_x(0.3),
+                Vec3::new(1.4, 0.6, -0.6) + offset,
+            ),
+            shape: CasterShape::Cuboid {
+                half_extents: Vec3::splat(0.45),
+            },
+            flags: live,
+        },
+        ObjectDesc {
+            world_from_local: Affine3A::from_rotation_translation(
+                Quat::from_rotation_z(0.9),
+                Vec3::new(0.2, 0.9, -1.9) + offset,
+            ),
+            shape: CasterShape::Capsule {
+                radius: 0.22,
+                half_length: 0.6,
+            },
+            flags: live,
+        },
+        ObjectDesc {
+            world_from_local: Affine3A::from_rotation_translation(
+                Quat::from_rotation_x(1.2),
+                Vec3::new(0.1, 0.75, 0.6) + offset,
+            ),
+            shape: CasterShape::Volume {
+                region: AtlasRegion {
+                    origin: UVec3::ZERO,
+                    dims,
+                },
+                local_origin: torus.origin,
+                voxel_size: torus.voxel_size,
+            },
+            flags: live,
+        },
+        ObjectDesc {
+            world_from_local: at(Vec3::new(0.9, 2.6, 1.0)),
+            shape: CasterShape::Sphere { radius: 0.06 },
+            flags: live,
+        },
+        // Off screen toward the sun: its shadow falls into the view (the light cull must
+        // keep it).
+        ObjectDesc {
+            world_from_local: at(Vec3::new(4.0, 3.8, 1.6)),
+            shape: CasterShape::Sphere { radius: 0.5 },
+            flags: live,
+        },
+        // Off screen, shadowing nothing visible, and beyond the sphere light's range:
+        // the light cull drops it.
+        ObjectDesc {
+            world_from_local: at(Vec3::new(-25.0, 1.0, 25.0)),
+            shape: CasterShape::Cuboid {
+                half_extents: Vec3::splat(1.0),
+            },
+            flags: live,
+        },
+        // Does not cast shadows.
+        ObjectDesc {
+            world_from_local: at(Vec3::new(-0.6, 0.3, 1.0)),
+            shape: CasterShape::Sphere { radius: 0.3 },
+            flags: flags::LIVE | flags::VISIBLE,
+        },
+    ];
+    Scene {
+        records: descs.iter().map(|d| encode(d).expect("encodes")).collect(),
+        atlas,
+        atlas_size: dims,
+        atlas_bits: bits,
+    }
+}
+
+struct View {
+    camera: CameraOrigin,
+    view_from_clip: Mat4,
+    world_from_view: Mat3,
+    frustum: Frustum,
+    /// Reverse-Z depth per pixel, rows from the top; 0 where the ray escapes.
+    depth: Vec<f32>,
+}
+
+/// A camera 4 m from the scene, and the depth buffer sphere-traced through it.
+fn view(scene: &Scene, offset: Vec3) -> View {
+    let eye = EYE + offset;
+    let view_from_world = Mat4::look_at_rh(eye, Vec3::new(0.0, 0.3, -0.6) + offset, Vec3::Y);
+    let world_from_view = Mat3::from_mat4(view_from_world).transpose();
+    let clip_from_view =
+        Mat4::perspective_infinite_reverse_rh(0.9, WIDTH as f32 / HEIGHT as f32, 0.1);
+    let view_from_clip = clip_from_view.inverse();
+    let camera = CameraOrigin::at(eye).expect("finite");
+    let relative_view = Mat4::from_mat3(world_from_view.transpose());
+    let frustum = Frustum::from_clip_from_relative(clip_from_view * relative_view);
+    let mut depth = vec![0.0f32; (WIDTH * HEIGHT) as usize];
+    for y in 0..HEIGHT {
+        for x in 0..WIDTH {
+            // The pixel's ray: the far point of its NDC through the camera.
+            let uv = (Vec2::new(x as f32, y as f32) + 0.5) / Vec2::new(WIDTH as f32, HEIGHT as f32);
+            let ndc = glam::Vec4::new(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, 0.5, 1.0);
+            let v = view_from_clip * ndc;
+            let dir = (world_from_view * (v.truncate() / v.w)).normalize();
+            let mut t = 0.1;
+            for _ in 0..256 {
+                let p = dir * t;
+                let d = scene
+                    .records
+                    .iter()
+                    .map(|r| object_distance(r, p, &camera, &scene.atlas))
+                    .fold(f32::INFINITY, f32::min);
+                if d < 1e-4 {
+                    let view_p = world_from_view.transpose() * p;
+                    let clip = clip_from_view * view_p.extend(1.0);
+                    depth[(y * WIDTH + x) as usize] = clip.z / clip.w;
+                    break;
+                }
+                t += d;
+                if t > 60.0 {
+                    break;
+                }
+            }
+        }
+    }
+    View {
+        camera,
+        view_from_clip,
+        world_from_view,
+        frustum,
+        depth,
+    }
+}
+
+fn reference_mask(scene: &Scene, view: &View, light: &ShadowLight) -> Vec<f32> {
+    let size = Vec2::new(WIDTH as f32, HEIGHT as f32);
+    (0..WIDTH * HEIGHT)
+        .map(|i| {
+            let depth = view.depth[i as usize];
+            if depth <= 0.0 {
+                return 1.0;
+            }
+            let pixel = Vec2::new((i % WIDTH) as f32, (i / WIDTH) as f32);
+            let p = position_from_depth(
+                view.view_from_clip,
+                view.world_from_view,
+                size,
+                pixel,
+                depth,
+            );
+            pixel_visibility(&scene.records, &scene.atlas, &view.camera, p, light)
+        })
+        .collect()
+}
+
+struct Passes {
+    cull: wgpu::ComputePipeline,
+    trace: wgpu::ComputePipeline,
+    trace_layout: wgpu::BindGroupLayout,
+}
+
+fn passes(gpu: &GpuCompute) -> Passes {
+    let cull = gpu.pipeline(
+        &flatten("#import penumbra::df::shadow_cull\n").unwrap(),
+        "cull",
+    );
+    use wgpu::{BindGroupLayoutEntry as E, BindingType as B, ShaderStages};
+    let storage = |binding| E {
+        binding,
+        visibility: ShaderStages::COMPUTE,
+        ty: B::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only: true },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let uniform = |binding| E {
+        binding,
+        visibility: ShaderStages::COMPUTE,
+        ty: B::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let texture = |binding, dim| E {
+        binding,
+        visibility: ShaderStages::COMPUTE,
+        ty: B::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: dim,
+            multisampled: false,
+        },
+        count: None,
+    };
+    let trace_layout = gpu
+        .device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("shadow_trace"),
+            entries: &[
+                storage(0),
+                storage(1),
+                storage(2),
+                texture(3, wgpu::TextureViewDimension::D3),
+                texture(4, wgpu::TextureViewDimension::D2),
+                uniform(5),
+                uniform(6),
+                E {
+                    binding: 7,
+                    visibility: ShaderStages::COMPUTE,
+                    ty: B::StorageTexture {
+                        access: wgpu::StorageTextureAccess::WriteOnly,
+                        format: wgpu::TextureFormat::R32Float,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                    },
+                    count: None,
+                },
+            ],
+        });
+    let trace = gpu.pipeline_with_layouts(
+        &flatten("#import penumbra::df::shadow_trace\n").unwrap(),
+        "trace",
+        &[&trace_layout],
+    );
+    Passes {
+        cull,
+        trace,
+        trace_layout,
+    }
+}
+
+/// Runs the light cull and the mask pass: (mask, number of objects the cull kept).
+fn gpu_mask(
+    gpu: &GpuCompute,
+    passes: &Passes,
+    scene: &Scene,
+    view: &View,
+    light: &ShadowLight,
+) -> (Vec<f32>, u32) {
+    let n = scene.records.len() as u32;
+    let record_bytes: Vec<u8> = scene.records.iter().flat_map(|r| r.to_bytes()).collect();
+    let objects = gpu.buffer("objects", &record_bytes, BufferUsages::empty());
+    let (groups, groups_x) = grid_64(n);
+    let cull_view = gpu.buffer(
+        "cull_view",
+        &words_to_bytes(&cull_view_words(&view.frustum, &view.camera, n, groups_x)),
+        BufferUsages::UNIFORM,
+    );
+    let light_buffer = gpu.buffer(
+        "light",
+        &words_to_bytes(&light.to_words()),
+        BufferUsages::UNIFORM,
+    );
+    let list = gpu.zeroed("list", n as u64 * 4, BufferUsages::empty());
+    let count = gpu.zeroed("count", 4, BufferUsages::empty());
+    let bind = gpu.bind(
+        &passes.cull,
+        &[
+            (0, &objects),
+            (1, &cull_view),
+            (2, &light_buffer),
+            (3, &list),
+            (4, &count),
+        ],
+    );
+    gpu.dispatch(&passes.cull, &bind, groups);
+    let kept = u32::from_le_bytes(gpu.read(&count, 4)[..4].try_into().expect("4 bytes"));
+
+    let size = |w, h, d| wgpu::Extent3d {
+        width: w,
+        height: h,
+        depth_or_array_layers: d,
+    };
+    let atlas_bytes: Vec<u8> = scene
+        .atlas_bits
+        .iter()
+        .flat_map(|b| b.to_le_bytes())
+        .collect();
+    let s = scene.atlas_size;
+    let atlas = gpu.texture(
+        "atlas",
+        size(s.x, s.y, s.z),
+        wgpu::TextureDimension::D3,
+        wgpu::TextureFormat::R16Float,
+        2,
+        &atlas_bytes,
+    );
+    let depth_bytes: Vec<u8> = view.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
+    let depth = gpu.texture(
+        "depth",
+        size(WIDTH, HEIGHT, 1),
+        wgpu::TextureDimension::D2,
+        wgpu::TextureFormat::R32Float,
+        4,
+        &depth_bytes,
+    );
+    let mask = gpu.texture(
+        "mask",
+        size(WIDTH, HEIGHT, 1),
+        wgpu::TextureDimension::D2,
+        wgpu::TextureFormat::R32Float,
+        4,
+        &[],
+    );
+    let trace_view = gpu.buffer(
+        "trace_view",
+        &words_to_bytes(&trace_view_words(
+            view.view_from_clip,
+            view.world_from_view,
+            &view.camera,
+            UVec2::new(WIDTH, HEIGHT),
+        )),
+        BufferUsages::UNIFORM,
+    );
+    let views = [
+        atlas.create_view(&Default::default()),
+        depth.create_view(&Default::default()),
+        mask.create_view(&Default::default()),
+    ];
+    let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("shadow_trace"),
+        layout: &passes.trace_layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: objects.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: list.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: count.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: wgpu::BindingResource::TextureView(&views[0]),
+            },
+            wgpu::BindGroupEntry {
+                binding: 4,
+                resource: wgpu::BindingResource::TextureView(&views[1]),
+            },
+            wgpu::BindGroupEntry {
+                binding: 5,
+                resource: trace_view.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 6,
+                resource: light_buffer.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 7,
+                resource: wgpu::BindingResource::TextureView(&views[2]),
+            },
+        ],
+    });
+    gpu.dispatch(
+        &passes.trace,
+        &bind,
+        [WIDTH.div_ceil(8), HEIGHT.div_ceil(8), 1],
+    );
+    let mask = gpu
+        .read_texture_2d(&mask)
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
+    (mask, kept)
+}
+
+fn lights(offset: Vec3, eye: Vec3) -> [(&'static str, ShadowLight); 2] {
+    let base = ShadowLight {
+        kind: ShadowLightKind::Directional(Vec3::new(0.7, 0.6, 0.4).normalize()),
+        source: (6.0f32.to_radians() * 0.5).tan(),
+        max_distance: 30.0,
+        bias: 0.02,
+        contrast: 1.0,
+        range: 20.0,
+        max_steps: 64,
+    };
+    [
+        ("sun 6°", base),
+        (
+            "sphere light r = 0.25 m",
+            ShadowLight {
+                kind: ShadowLightKind::Positional(Vec3::new(-0.5, 3.5, 1.5) + offset - eye),
+                source: 0.25,
+                ..base
+            },
+        ),
+    ]
+}
+
+/// `(mean |gpu − cpu|, fraction over 0.05, max)`.
+fn compare(gpu: &[f32], cpu: &[f32]) -> (f32, f32, f32) {
+    let diffs: Vec<f32> = gpu.iter().zip(cpu).map(|(a, b)| (a - b).abs()).collect();
+    let mean = diffs.iter().sum::<f32>() / diffs.len() as f32;
+    let over = diffs.iter().filter(|&&d| d > 0.05).count() as f32 / diffs.len() as f32;
+    (mean, over, diffs.iter().copied().fold(0.0, f32::max))
+}
+
+fn check(name: &str, offset: Vec3) {
+    if !gpu_or_skip(name) {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let passes = passes(&gpu);
+    let scene = scene(offset);
+    let view = view(&scene, offset);
+    let surface = view.depth.iter().filter(|&&d| d > 0.0).count();
+    assert!(
+        surface > (WIDTH * HEIGHT / 2) as usize,
+        "only {surface} surface pixels"
+    );
+    let eye = EYE + offset;
+    for (light_name, light) in lights(offset, eye) {
+        let want = reference_mask(&scene, &view, &light);
+        let (got, kept) = gpu_mask(&gpu, &passes, &scene, &view, &light);
+        assert!(got.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
+        let shadowed = want.iter().filter(|&&v| v < 0.5).count();
+        let penumbra = want.iter().filter(|&&v| v > 0.05 && v < 0.95).count();
+        let (mean, over, max) = compare(&got, &want);
+        save_png(
+            &format!("{name}_{}", light_name.split(' ').next().unwrap_or("light")),
+            &got,
+        );
+        println!(
+            "{name}, {light_name}: {kept} of {} objects after the light cull; {shadowed} \
+             shadowed and {penumbra} penumbra pixels of {}; |gpu − cpu| mean {mean:.5}, \
+             {:.3} % over 0.05, max {max:.3}",
+            scene.records.len(),
+            WIDTH * HEIGHT,
+            over * 100.0
+        );
+        assert!(
+            shadowed > 300 && penumbra > 100,
+            "{light_name}: scene not shadowed enough"
+        );
+        assert!(
+            mean < 2e-3 && over < 0.003,
+            "{light_name}: mean {mean}, over {over}"
+        );
+    }
+}
+
+#[test]
+fn gpu_shadow_mask_matches_the_cpu_model() {
+    check("gpu_shadow_mask_matches_the_cpu_model", Vec3::ZERO);
+}
+
+#[test]
+fn gpu_shadow_mask_matches_far_from_the_origin() {
+    check(
+        "gpu_shadow_mask_matches_far_from_the_origin",
+        Vec3::new(1.0e5, 0.0, -1.0e5),
+    );
+}
+
+/// The mask as a grey PNG in the test output folder (for inspection).
+fn save_png(name: &str, mask: &[f32]) {
+    let dir = penumbra_test::output_dir();
+    let _ = std::fs::create_dir_all(&dir);
+    let image = image::GrayImage::from_fn(WIDTH, HEIGHT, |x, y| {
+        image::Luma([(mask[(y * WIDTH + x) as usize] * 255.0 + 0.5) as u8])
+    });
+    let _ = image.save(dir.join(format!("{name}.png")));
+}

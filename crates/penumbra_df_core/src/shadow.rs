@@ -1,0 +1,101 @@
+//! The GPU parameters of distance-field shadows: one light as the shadow passes see it
+//! ([`ShadowLight`], the `ShadowLight` uniform of `shaders/df/shadow.wgsl`) and the mask
+//! pass's view ([`trace_view_words`], the `ShadowTraceView` uniform of
+//! `shaders/df/shadow_trace.wgsl`). Byte layouts are checked against the WGSL by
+//! `penumbra_shaders/tests/layout.rs`.
+
+use crate::cull::CameraOrigin;
+use glam::{Mat3, Mat4, UVec2, Vec3};
+
+/// Bytes of the `ShadowLight` uniform.
+pub const SHADOW_LIGHT_BYTES: usize = 48;
+/// Bytes of the `ShadowTraceView` uniform.
+pub const SHADOW_TRACE_VIEW_BYTES: usize = 64 + 48 + 16 + 16 + 16;
+
+/// Where a shadowed light is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ShadowLightKind {
+    /// Unit vector toward the light.
+    Directional(Vec3),
+    /// Camera-relative position, metres (point and spot lights).
+    Positional(Vec3),
+}
+
+/// One light as the shadow passes see it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowLight {
+    /// Where the light is.
+    pub kind: ShadowLightKind,
+    /// Point and spot lights: the source radius, metres. Directional lights: the tangent
+    /// of half the angular diameter.
+    pub source: f32,
+    /// Directional lights: the shadow ray's length, metres.
+    pub max_distance: f32,
+    /// Start offset along the ray, metres (world-space bias).
+    pub bias: f32,
+    /// Penumbra contrast: visibility `v` becomes `clamp((v − ½) · contrast + ½, 0, 1)`.
+    pub contrast: f32,
+    /// Point and spot lights: the range, metres (objects beyond it are culled).
+    pub range: f32,
+    /// Step limit per object.
+    pub max_steps: u32,
+}
+
+impl ShadowLight {
+    /// The uniform's 12 words.
+    pub fn to_words(&self) -> [u32; SHADOW_LIGHT_BYTES / 4] {
+        let (v, w) = match self.kind {
+            ShadowLightKind::Directional(d) => (d, 0.0),
+            ShadowLightKind::Positional(p) => (p, 1.0),
+        };
+        let f = f32::to_bits;
+        [
+            f(v.x),
+            f(v.y),
+            f(v.z),
+            f(w),
+            f(self.source),
+            f(self.max_distance),
+            f(self.bias),
+            f(self.contrast),
+            f(self.range),
+            self.max_steps,
+            0,
+            0,
+        ]
+    }
+}
+
+/// The `ShadowTraceView` uniform: the camera's `view_from_clip` (inverse projection),
+/// its world-from-view rotation (camera-relative positions need no translation), its
+/// tile origin, and the mask size.
+pub fn trace_view_words(
+    view_from_clip: Mat4,
+    world_from_view: Mat3,
+    camera: &CameraOrigin,
+    size: UVec2,
+) -> Vec<u32> {
+    let mut words = Vec::with_capacity(SHADOW_TRACE_VIEW_BYTES / 4);
+    words.extend(view_from_clip.to_cols_array().map(f32::to_bits));
+    for c in [
+        world_from_view.x_axis,
+        world_from_view.y_axis,
+        world_from_view.z_axis,
+    ] {
+        words.extend(c.extend(0.0).to_array().map(f32::to_bits));
+    }
+    words.extend([
+        camera.tile[0] as u32,
+        camera.tile[1] as u32,
+        camera.tile[2] as u32,
+        0,
+    ]);
+    words.extend(camera.offset.extend(0.0).to_array().map(f32::to_bits));
+    words.extend([size.x, size.y, 0, 0]);
+    words
+}
+
+/// Little-endian bytes of words.
+pub fn words_to_bytes(words: &[u32]) -> Vec<u8> {
+    words.iter().flat_map(|w| w.to_le_bytes()).collect()
+}

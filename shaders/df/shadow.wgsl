@@ -1,0 +1,186 @@
+// Distance-field soft shadows: the per-pixel visibility of one light through the
+// scene's distance-field objects. CPU model: `penumbra_reference::shadow_mask` (same
+// culling, march, clamps and contrast, in the same order).
+//
+// Per object, sphere-trace toward the light; the object leaves `d / r(t)` of the
+// light's cone open (`r(t) = t · tan θ`); the smallest value along the ray wins, and the
+// smallest over the objects. Penumbra only: stopping inside gives 0, negative distances
+// never widen the umbra. A bounded object of radius R covers at most (R / r)² of the
+// cone's section, so it never darkens below 1 − (R / r)² (tiny objects on the axis).
+#define_import_path penumbra::df::shadow
+
+#import penumbra::df::object::{
+    DistanceFieldObject, FLAG_CASTS_SHADOWS, FLAG_LIVE, KIND_CAPSULE, KIND_SPHERE,
+    camera_relative, object_kind, rows_column, shape_bounds, transform_rows,
+}
+#import penumbra::df::distance::object_distance
+
+// A light as the shadow passes see it (48 bytes; `penumbra_reference::shadow_mask::MaskLight`).
+struct ShadowLight {
+    // xyz: unit vector toward the light (directional) or camera-relative position
+    // (point, spot); w: 0 directional, 1 positional.
+    position_or_direction: vec4<f32>,
+    // Positional: source radius, metres. Directional: tan of half the angular diameter.
+    source: f32,
+    // Directional: ray length, metres.
+    max_distance: f32,
+    // Start offset along the ray, metres.
+    bias: f32,
+    // Visibility v becomes clamp((v − ½) · contrast + ½, 0, 1).
+    contrast: f32,
+    // Positional: the light's range, metres (culling).
+    range: f32,
+    max_steps: u32,
+    reserved: vec2<u32>,
+}
+
+struct ShadowRay {
+    dir: vec3<f32>,
+    t_max: f32,
+    tan_half: f32,
+}
+
+fn is_directional(light: ShadowLight) -> bool {
+    return light.position_or_direction.w == 0.0;
+}
+
+// Gershgorin bound of the largest singular value of the matrix with columns c0, c1, c2
+// (exact for rotation × scale).
+fn max_scale(c0: vec3<f32>, c1: vec3<f32>, c2: vec3<f32>) -> f32 {
+    let g01 = abs(dot(c0, c1));
+    let g02 = abs(dot(c0, c2));
+    let g12 = abs(dot(c1, c2));
+    return sqrt(max(max(dot(c0, c0) + g01 + g02, dot(c1, c1) + g01 + g12), dot(c2, c2) + g02 + g12));
+}
+
+// Camera-relative bounding sphere (xyz centre, w radius) of a shape; w < 0: unbounded.
+fn bounding_sphere(o: DistanceFieldObject, camera_tile: vec3<i32>, camera_offset: vec3<f32>) -> vec4<f32> {
+    let b = shape_bounds(o);
+    if !b.bounded {
+        return vec4<f32>(0.0, 0.0, 0.0, -1.0);
+    }
+    let half = (b.max - b.min) * 0.5;
+    let center_tile = transform_rows(o.world_from_shape, (b.min + b.max) * 0.5);
+    let center = camera_relative(o.tile, center_tile, camera_tile, camera_offset);
+    let cx = rows_column(o.world_from_shape, 0u);
+    let cy = rows_column(o.world_from_shape, 1u);
+    let cz = rows_column(o.world_from_shape, 2u);
+    let f = bitcast<vec3<f32>>(o.params);
+    var radius: f32;
+    switch object_kind(o) {
+        case KIND_SPHERE: {
+            radius = f.x * max_scale(cx, cy, cz);
+        }
+        case KIND_CAPSULE: {
+            radius = length(cy) * f.y + f.x * max_scale(cx, cy, cz);
+        }
+        default: {
+            let ax = cx * half.x;
+            let ay = cy * half.y;
+            let az = cz * half.z;
+            radius = max(
+                max(length(ax + ay + az), length(ax + ay - az)),
+                max(length(ax - ay + az), length(ax - ay - az)),
+            );
+        }
+    }
+    return vec4<f32>(center, radius);
+}
+
+// Signed distance from p to the convex hull of balls (a, ra) and (b, rb) (Quílez).
+fn round_cone_distance(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, ra: f32, rb: f32) -> f32 {
+    let ba = b - a;
+    let l2 = dot(ba, ba);
+    let rr = ra - rb;
+    let a2 = l2 - rr * rr;
+    if a2 <= 0.0 {
+        return min(length(p - a) - ra, length(p - b) - rb);
+    }
+    let il2 = 1.0 / l2;
+    let pa = p - a;
+    let y = dot(pa, ba);
+    let z = y - l2;
+    let w = pa * l2 - ba * y;
+    let x2 = dot(w, w);
+    let y2 = y * y * l2;
+    let z2 = z * z * l2;
+    let k = sign(rr) * rr * rr * x2;
+    if sign(z) * a2 * z2 > k {
+        return sqrt(x2 + z2) * il2 - rb;
+    }
+    if sign(y) * a2 * y2 < k {
+        return sqrt(x2 + y2) * il2 - ra;
+    }
+    return (sqrt(x2 * a2 * il2) + y * rr) * il2 - ra;
+}
+
+// Slack added to bounding radii in culling tests (rounding must never drop an object).
+fn cull_slack(radius: f32) -> f32 {
+    return radius * 1e-4 + 1e-4;
+}
+
+fn shadow_ray(p: vec3<f32>, light: ShadowLight) -> ShadowRay {
+    if is_directional(light) {
+        return ShadowRay(light.position_or_direction.xyz, light.max_distance, light.source);
+    }
+    let v = light.position_or_direction.xyz - p;
+    let d = max(length(v), 1e-6);
+    let s = clamp(light.source / max(d, light.source), 0.0, 1.0);
+    let tan_half = s / sqrt(max(1.0 - s * s, 1e-12));
+    return ShadowRay(v / d, max(d - light.source, 0.0), tan_half);
+}
+
+// Whether the object (bounding sphere `sphere`) can reach the cone of `ray` from `p`.
+fn object_in_cone(sphere: vec4<f32>, p: vec3<f32>, ray: ShadowRay) -> bool {
+    if sphere.w < 0.0 {
+        return true;
+    }
+    let end = p + ray.dir * ray.t_max;
+    return round_cone_distance(sphere.xyz, p, end, 0.0, ray.t_max * ray.tan_half)
+        < sphere.w + cull_slack(sphere.w);
+}
+
+// The fraction of the light's cone one object leaves open along the ray from p.
+fn march_object(
+    o: DistanceFieldObject,
+    sphere: vec4<f32>,
+    p: vec3<f32>,
+    ray: ShadowRay,
+    light: ShadowLight,
+    camera_tile: vec3<i32>,
+    camera_offset: vec3<f32>,
+    atlas: texture_3d<f32>,
+) -> f32 {
+    var t = light.bias;
+    var v = 1.0;
+    for (var step = 0u; step < light.max_steps; step += 1u) {
+        if t >= ray.t_max {
+            break;
+        }
+        let d = object_distance(o, p + ray.dir * t, camera_tile, camera_offset, atlas);
+        if d <= 0.0 {
+            v = 0.0;
+            break;
+        }
+        let cone = max(t * ray.tan_half, 1e-6);
+        var floor_v = 0.0;
+        if sphere.w >= 0.0 {
+            let q = sphere.w / cone;
+            floor_v = 1.0 - min(q * q, 1.0);
+        }
+        v = min(v, max(d / cone, floor_v));
+        t += d;
+    }
+    return clamp(v, 0.0, 1.0);
+}
+
+// Contrast and clamping; never NaN.
+fn finish_visibility(v: f32, contrast: f32) -> f32 {
+    let x = clamp((v - 0.5) * contrast + 0.5, 0.0, 1.0);
+    return select(1.0, x, x >= 0.0);
+}
+
+// Whether an object takes part in shadows at all.
+fn casts_shadows(o: DistanceFieldObject) -> bool {
+    return (o.flags & FLAG_LIVE) != 0u && (o.flags & FLAG_CASTS_SHADOWS) != 0u;
+}

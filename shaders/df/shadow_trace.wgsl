@@ -1,0 +1,167 @@
+// The distance-field shadow-mask pass for one light and one view: per 8×8 pixel tile,
+// the light-culled objects are culled again against the round cone (the hull of the
+// tile's bounding ball and the light's end ball) that contains every pixel's shadow
+// cone, 64 at a time into workgroup memory; each pixel then marches the survivors
+// (`penumbra::df::shadow`). Writes visibility (1 lit, 0 shadowed) for every pixel;
+// background pixels (depth 0) get 1.
+#define_import_path penumbra::df::shadow_trace
+
+#import penumbra::df::object::DistanceFieldObject
+#import penumbra::df::shadow::{
+    ShadowLight, bounding_sphere, casts_shadows, cull_slack, finish_visibility, is_directional,
+    march_object, object_in_cone, round_cone_distance, shadow_ray,
+}
+
+struct ShadowTraceView {
+    view_from_clip: mat4x4<f32>,
+    // Columns of the camera's world-from-view rotation (xyz).
+    world_from_view: array<vec4<f32>, 3>,
+    camera_tile: vec4<i32>,
+    // xyz: the camera's position within its tile.
+    camera_offset: vec4<f32>,
+    // x, y: mask size in pixels.
+    size: vec4<u32>,
+}
+
+@group(0) @binding(0) var<storage, read> objects: array<DistanceFieldObject>;
+// The light's culled slots and (first word of) their count.
+@group(0) @binding(1) var<storage, read> light_objects: array<u32>;
+@group(0) @binding(2) var<storage, read> light_object_count: array<u32>;
+@group(0) @binding(3) var atlas: texture_3d<f32>;
+// Reverse-Z depth (the prepass depth, bound as an unfilterable float texture).
+@group(0) @binding(4) var depth_texture: texture_2d<f32>;
+@group(0) @binding(5) var<uniform> view: ShadowTraceView;
+@group(0) @binding(6) var<uniform> light: ShadowLight;
+@group(0) @binding(7) var mask: texture_storage_2d<r32float, write>;
+
+const TILE_PIXELS: u32 = 64u;
+
+var<workgroup> tile_min: array<atomic<u32>, 3>;
+var<workgroup> tile_max: array<atomic<u32>, 3>;
+var<workgroup> tile_slots: array<u32, 64>;
+var<workgroup> tile_spheres: array<vec4<f32>, 64>;
+var<workgroup> tile_count: atomic<u32>;
+var<workgroup> tile_n: u32;
+var<workgroup> total_n: u32;
+
+// Order-preserving map of f32 to u32 (for atomic min / max).
+fn order_key(f: f32) -> u32 {
+    let b = bitcast<u32>(f);
+    return select(b | 0x80000000u, ~b, (b & 0x80000000u) != 0u);
+}
+
+fn from_order_key(k: u32) -> f32 {
+    return bitcast<f32>(select(~k, k & 0x7fffffffu, (k & 0x80000000u) != 0u));
+}
+
+// Camera-relative world position of pixel `xy` at reverse-Z `depth`.
+fn position_from_depth(xy: vec2<u32>, depth: f32) -> vec3<f32> {
+    let uv = (vec2<f32>(xy) + 0.5) / vec2<f32>(view.size.xy);
+    let ndc = vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
+    let v = view.view_from_clip * ndc;
+    let q = v.xyz / v.w;
+    return view.world_from_view[0].xyz * q.x + view.world_from_view[1].xyz * q.y
+        + view.world_from_view[2].xyz * q.z;
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn trace(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    if li == 0u {
+        for (var i = 0u; i < 3u; i += 1u) {
+            atomicStore(&tile_min[i], 0xffffffffu);
+            atomicStore(&tile_max[i], 0u);
+        }
+        total_n = light_object_count[0];
+    }
+    workgroupBarrier();
+
+    let inside = gid.x < view.size.x && gid.y < view.size.y;
+    var depth = 0.0;
+    if inside {
+        depth = textureLoad(depth_texture, vec2<i32>(gid.xy), 0).r;
+    }
+    let surface = inside && depth > 0.0;
+    var p = vec3<f32>(0.0);
+    if surface {
+        p = position_from_depth(gid.xy, depth);
+        for (var i = 0u; i < 3u; i += 1u) {
+            atomicMin(&tile_min[i], order_key(p[i]));
+            atomicMax(&tile_max[i], order_key(p[i]));
+        }
+    }
+    let total = workgroupUniformLoad(&total_n);
+
+    // The tile's round cone: from its bounding ball to the light's end ball.
+    let lo = vec3<f32>(
+        from_order_key(atomicLoad(&tile_min[0])),
+        from_order_key(atomicLoad(&tile_min[1])),
+        from_order_key(atomicLoad(&tile_min[2])),
+    );
+    let hi = vec3<f32>(
+        from_order_key(atomicLoad(&tile_max[0])),
+        from_order_key(atomicLoad(&tile_max[1])),
+        from_order_key(atomicLoad(&tile_max[2])),
+    );
+    let any_surface = atomicLoad(&tile_min[0]) <= atomicLoad(&tile_max[0]);
+    let tile_center = (lo + hi) * 0.5;
+    let tile_radius = length(hi - lo) * 0.5;
+    var cone_end: vec3<f32>;
+    var cone_end_radius: f32;
+    if is_directional(light) {
+        cone_end = tile_center + light.position_or_direction.xyz * light.max_distance;
+        cone_end_radius = tile_radius + light.max_distance * light.source;
+    } else {
+        // Every pixel's cone ends in a ball of radius < source around a point of the
+        // light's sphere: inside the ball of twice the radius.
+        cone_end = light.position_or_direction.xyz;
+        cone_end_radius = 2.0 * light.source;
+    }
+
+    let ray = shadow_ray(p, light);
+    var visibility = 1.0;
+    for (var base = 0u; base < total; base += TILE_PIXELS) {
+        let k = base + li;
+        if any_surface && k < total {
+            let slot = light_objects[k];
+            let o = objects[slot];
+            let sphere = bounding_sphere(o, view.camera_tile.xyz, view.camera_offset.xyz);
+            let keep = casts_shadows(o) && (sphere.w < 0.0
+                || round_cone_distance(sphere.xyz, tile_center, cone_end, tile_radius, cone_end_radius)
+                    < sphere.w + cull_slack(sphere.w));
+            if keep {
+                let n = atomicAdd(&tile_count, 1u);
+                tile_slots[n] = slot;
+                tile_spheres[n] = sphere;
+            }
+        }
+        workgroupBarrier();
+        if li == 0u {
+            tile_n = atomicLoad(&tile_count);
+            atomicStore(&tile_count, 0u);
+        }
+        let n = workgroupUniformLoad(&tile_n);
+        if surface {
+            for (var i = 0u; i < n; i += 1u) {
+                let sphere = tile_spheres[i];
+                if object_in_cone(sphere, p, ray) {
+                    let v = march_object(
+                        objects[tile_slots[i]], sphere, p, ray, light,
+                        view.camera_tile.xyz, view.camera_offset.xyz, atlas,
+                    );
+                    visibility = min(visibility, v);
+                }
+            }
+        }
+        workgroupBarrier();
+    }
+    if inside {
+        var out = 1.0;
+        if surface {
+            out = finish_visibility(visibility, light.contrast);
+        }
+        textureStore(mask, vec2<i32>(gid.xy), vec4<f32>(out, 0.0, 0.0, 1.0));
+    }
+}
