@@ -59,6 +59,7 @@ plugin_group! {
         bevy_penumbra_df::scene:::DistanceFieldScenePlugin,
         bevy_penumbra_df::debug_view:::DistanceFieldDebugPlugin,
         bevy_penumbra_df::lighting:::PenumbraLightingPlugin,
+        bevy_penumbra_df::shadows:::DistanceFieldShadowsPlugin,
     }
 }
 
@@ -81,7 +82,8 @@ pub mod prelude {
     pub use crate::{PenumbraCorePlugin, PenumbraPlugins};
     pub use bevy_penumbra_df::{
         CasterSource, DistanceFieldCaster, DistanceFieldDebugMode, DistanceFieldDebugView,
-        DistanceFieldSceneSettings, DistanceFieldUploadStats, PenumbraLighting, SdfAssetPlugin,
-        SdfBakeFailed, SdfBakeRequest, SdfBakeTask, SdfBaked, SdfVolumeAsset,
+        DistanceFieldSceneSettings, DistanceFieldShadows, DistanceFieldUploadStats,
+        PenumbraLighting, SdfAssetPlugin, SdfBakeFailed, SdfBakeRequest, SdfBakeTask, SdfBaked,
+        SdfVolumeAsset,
     };
 }

@@ -9,6 +9,8 @@
 //!   shaded surfaces).
 //! - [`lighting`]: Penumbra's lighting pass — deferred shading with Penumbra's light loop,
 //!   where lights can take their visibility from Penumbra's shadow masks.
+//! - [`shadows`]: distance-field soft shadows for directional, point and spot lights
+//!   (`DistanceFieldShadows`), through the lighting pass.
 //! - [`shader_library`]: Penumbra's WGSL modules as Bevy shader assets.
 
 pub mod debug_view;
@@ -16,6 +18,7 @@ pub mod lighting;
 pub mod scene;
 pub mod sdf_asset;
 pub mod shader_library;
+pub mod shadows;
 
 pub use debug_view::{DistanceFieldDebugMode, DistanceFieldDebugPlugin, DistanceFieldDebugView};
 pub use lighting::{PenumbraLighting, PenumbraLightingPlugin};
@@ -28,3 +31,4 @@ pub use sdf_asset::{
     SdfBakeWaiting, SdfBaked, SdfVolumeAsset, SdfVolumeLoader, mesh_to_tri_mesh,
 };
 pub use shader_library::{PenumbraShaderLibrary, register_shader_library};
+pub use shadows::{DistanceFieldShadows, DistanceFieldShadowsPlugin};

@@ -26,7 +26,7 @@
 //! Cost: one fullscreen pass per camera, replacing Bevy's; nothing for cameras without
 //! the component.
 
-mod render;
+pub(crate) mod render;
 
 use bevy::core_pipeline::prepass::{DeferredPrepass, DepthPrepass};
 use bevy::pbr::DefaultOpaqueRendererMethod;

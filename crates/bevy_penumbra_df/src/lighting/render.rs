@@ -91,7 +91,7 @@ pub struct PenumbraLightingPipelineId(pub CachedRenderPipelineId);
 
 /// A view's group 2 and the buffers behind it (reused across frames).
 #[derive(Component)]
-struct PenumbraLightingBindGroup {
+pub(crate) struct PenumbraLightingBindGroup {
     uniform: Buffer,
     lights: Buffer,
     light_capacity: u64,
@@ -441,7 +441,7 @@ pub(crate) fn encode_shadowed_lights(lights: &[PenumbraShadowedLight]) -> Vec<u8
 }
 
 /// The lighting pass: Bevy's deferred lighting pass with Penumbra's shader and group 2.
-fn penumbra_lighting(
+pub(crate) fn penumbra_lighting(
     view: ViewQuery<(
         &MeshViewBindGroup,
         &ViewTarget,

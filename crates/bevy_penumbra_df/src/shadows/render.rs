@@ -1,0 +1,514 @@
+//! Render-world side of distance-field shadows: shadow maps off for DF-shadowed lights,
+//! per-view mask textures, and the light-cull and mask passes.
+
+use super::DistanceFieldShadows;
+use crate::lighting::{
+    PenumbraLightingInputs, PenumbraLightingView, PenumbraShadowedLight, ShadowedLightKind,
+};
+use crate::scene::DistanceFieldGpu;
+use crate::shader_library::PenumbraShaderLibrary;
+use bevy::core_pipeline::prepass::ViewPrepassTextures;
+use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
+use bevy::pbr::{
+    ExtractedDirectionalLight, ExtractedPointLight, GlobalClusterableObjectMeta, prepare_lights,
+};
+use bevy::prelude::*;
+use bevy::render::render_resource::binding_types::{
+    storage_buffer_read_only_sized, storage_buffer_sized, texture_2d, texture_3d,
+    texture_storage_2d, uniform_buffer_sized,
+};
+use bevy::render::render_resource::{
+    BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
+    BufferInitDescriptor, BufferUsages, CachedComputePipelineId, ComputePassDescriptor,
+    ComputePipelineDescriptor, Extent3d, PipelineCache, ShaderStages, StorageTextureAccess,
+    Texture, TextureDescriptor, TextureDimension, TextureFormat, TextureSampleType, TextureUsages,
+    TextureView, TextureViewDescriptor, TextureViewDimension,
+};
+use bevy::render::renderer::{RenderContext, RenderDevice, ViewQuery};
+use bevy::render::view::ExtractedView;
+use bevy::render::{Render, RenderStartup, RenderSystems};
+use penumbra_df_core::cull::{CameraOrigin, Frustum, cull_view_words, grid_64};
+use penumbra_df_core::object::{tile_of, tile_relative};
+use penumbra_df_core::shadow::{
+    SHADOW_LIGHT_BYTES, SHADOW_TRACE_VIEW_BYTES, ShadowLight, ShadowLightKind, trace_view_words,
+    words_to_bytes,
+};
+use std::num::NonZeroU64;
+
+/// Bytes of `ShadowCullView` (the frustum cull's `CullView` layout).
+const CULL_VIEW_BYTES: u64 = 6 * 16 + 16 + 16 + 16;
+
+/// One distance-field-shadowed light this frame (render world).
+#[derive(Clone, Debug)]
+struct FrameLight {
+    kind: FrameLightKind,
+    settings: DistanceFieldShadows,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum FrameLightKind {
+    /// Unit vector toward the light.
+    Directional(Vec3),
+    /// World position, source radius, range, clustered light id.
+    Positional {
+        position: Vec3,
+        radius: f32,
+        range: f32,
+        light_id: u32,
+    },
+}
+
+impl FrameLight {
+    /// The light as the passes see it from a camera at `camera`.
+    fn shadow_light(&self, camera: &CameraOrigin) -> Option<ShadowLight> {
+        let s = &self.settings;
+        let (kind, source, range) = match self.kind {
+            FrameLightKind::Directional(d) => (
+                ShadowLightKind::Directional(d),
+                (0.5 * s.angular_diameter.clamp(0.0, 3.0)).tan(),
+                0.0,
+            ),
+            FrameLightKind::Positional {
+                position,
+                radius,
+                range,
+                ..
+            } => {
+                let tile = tile_of(position)?;
+                let relative = camera.relative(tile, tile_relative(position, tile));
+                (
+                    ShadowLightKind::Positional(relative),
+                    radius.max(0.0),
+                    range,
+                )
+            }
+        };
+        Some(ShadowLight {
+            kind,
+            source,
+            max_distance: s.max_distance.max(0.0),
+            bias: s.bias.max(0.0),
+            contrast: s.contrast,
+            range,
+            max_steps: s.max_steps.min(4096),
+        })
+    }
+}
+
+/// This frame's shadowed lights, in mask-layer order.
+#[derive(Resource, Default)]
+struct FrameLights(Vec<FrameLight>);
+
+/// A view's mask texture: one `R32Float` layer per shadowed light.
+#[derive(Component)]
+pub struct DistanceFieldShadowMasks {
+    /// All layers, as the lighting pass reads them.
+    array: TextureView,
+    /// Per layer, a storage view.
+    layers: Vec<TextureView>,
+    size: UVec2,
+}
+
+/// The passes' pipelines.
+#[derive(Resource)]
+struct ShadowPipelines {
+    cull_layout: BindGroupLayoutDescriptor,
+    cull: CachedComputePipelineId,
+    trace_layout: BindGroupLayoutDescriptor,
+    trace: CachedComputePipelineId,
+    /// Bound when the scene has no SDF volume (analytic casters only).
+    empty_atlas: TextureView,
+}
+
+pub(super) fn build(render_app: &mut SubApp) {
+    render_app
+        .init_resource::<FrameLights>()
+        .add_systems(
+            Render,
+            (
+                disable_shadow_maps
+                    .in_set(RenderSystems::CreateViews)
+                    .before(prepare_lights),
+                prepare_distance_field_shadows.in_set(RenderSystems::PrepareResources),
+            ),
+        )
+        .add_systems(
+            Core3d,
+            distance_field_shadows
+                .in_set(Core3dSystems::MainPass)
+                .before(crate::lighting::render::penumbra_lighting),
+        );
+}
+
+pub(super) fn finish(render_app: &mut SubApp) {
+    render_app.add_systems(RenderStartup, init_shadow_pipelines);
+}
+
+fn init_shadow_pipelines(
+    mut commands: Commands,
+    pipeline_cache: Res<PipelineCache>,
+    device: Res<RenderDevice>,
+    library: Option<Res<PenumbraShaderLibrary>>,
+) {
+    let Some(library) = library else {
+        return; // warned by the scene plugin
+    };
+    let cull_layout = BindGroupLayoutDescriptor::new(
+        "penumbra_df_shadow_cull_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                storage_buffer_read_only_sized(false, None),
+                uniform_buffer_sized(false, NonZeroU64::new(CULL_VIEW_BYTES)),
+                uniform_buffer_sized(false, NonZeroU64::new(SHADOW_LIGHT_BYTES as u64)),
+                storage_buffer_sized(false, None),
+                storage_buffer_sized(false, None),
+            ),
+        ),
+    );
+    let trace_layout = BindGroupLayoutDescriptor::new(
+        "penumbra_df_shadow_trace_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                texture_3d(TextureSampleType::Float { filterable: false }),
+                texture_2d(TextureSampleType::Float { filterable: false }),
+                uniform_buffer_sized(false, NonZeroU64::new(SHADOW_TRACE_VIEW_BYTES as u64)),
+                uniform_buffer_sized(false, NonZeroU64::new(SHADOW_LIGHT_BYTES as u64)),
+                texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
+            ),
+        ),
+    );
+    let queue = |label: &'static str,
+                 layout: &BindGroupLayoutDescriptor,
+                 path: &str,
+                 entry: &'static str| {
+        pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
+            label: Some(label.into()),
+            layout: vec![layout.clone()],
+            shader: library.handle(path),
+            entry_point: Some(entry.into()),
+            ..default()
+        })
+    };
+    let cull = queue(
+        "penumbra_df_shadow_cull",
+        &cull_layout,
+        "df/shadow_cull.wgsl",
+        "cull",
+    );
+    let trace = queue(
+        "penumbra_df_shadow_trace",
+        &trace_layout,
+        "df/shadow_trace.wgsl",
+        "trace",
+    );
+    let empty = device.create_texture(&TextureDescriptor {
+        label: Some("penumbra_df_shadow_empty_atlas"),
+        size: Extent3d {
+            width: 1,
+            height: 1,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: TextureDimension::D3,
+        format: TextureFormat::R16Float,
+        usage: TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    });
+    commands.insert_resource(ShadowPipelines {
+        cull_layout,
+        cull,
+        trace_layout,
+        trace,
+        empty_atlas: empty.create_view(&TextureViewDescriptor::default()),
+    });
+}
+
+/// A light with distance-field shadows renders no shadow map (the user's component is
+/// left as it is; only the render world's copy changes).
+fn disable_shadow_maps(
+    mut points: Query<&mut ExtractedPointLight, With<DistanceFieldShadows>>,
+    mut directionals: Query<&mut ExtractedDirectionalLight, With<DistanceFieldShadows>>,
+) {
+    for mut light in &mut points {
+        light.shadow_maps_enabled = false;
+    }
+    for mut light in &mut directionals {
+        light.shadow_maps_enabled = false;
+    }
+}
+
+/// Collects the frame's shadowed lights; gives every Penumbra-lit view a mask texture
+/// and tells its lighting pass which lights read which layer. Without casters or
+/// without shadowed lights, views get nothing (and lights stay unshadowed).
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+fn prepare_distance_field_shadows(
+    mut commands: Commands,
+    device: Res<RenderDevice>,
+    gpu: Option<Res<DistanceFieldGpu>>,
+    clustered: Option<Res<GlobalClusterableObjectMeta>>,
+    mut frame: ResMut<FrameLights>,
+    lights: Query<(
+        Entity,
+        &DistanceFieldShadows,
+        Option<&ExtractedDirectionalLight>,
+        Option<&ExtractedPointLight>,
+    )>,
+    views: Query<
+        (Entity, &ExtractedView, Option<&DistanceFieldShadowMasks>),
+        With<PenumbraLightingView>,
+    >,
+    pipelines: Option<Res<ShadowPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+) {
+    frame.0.clear();
+    let has_objects = gpu.as_ref().is_some_and(|g| g.objects.is_some());
+    let mut sorted: Vec<_> = lights.iter().collect();
+    sorted.sort_by_key(|(entity, ..)| *entity);
+    for (entity, settings, directional, point) in sorted {
+        let kind = if let Some(d) = directional {
+            FrameLightKind::Directional(d.transform.back().as_vec3())
+        } else if let Some(p) = point {
+            let Some(id) = clustered
+                .as_ref()
+                .and_then(|c| c.entity_to_index.get(&entity).copied())
+            else {
+                continue; // not visible this frame
+            };
+            FrameLightKind::Positional {
+                position: p.transform.translation(),
+                radius: p.radius,
+                range: p.range,
+                light_id: id as u32,
+            }
+        } else {
+            continue; // not a light Penumbra shadows
+        };
+        frame.0.push(FrameLight {
+            kind,
+            settings: settings.clone(),
+        });
+    }
+    let ready = pipelines.as_ref().is_some_and(|p| {
+        pipeline_cache.get_compute_pipeline(p.cull).is_some()
+            && pipeline_cache.get_compute_pipeline(p.trace).is_some()
+    });
+    for (entity, view, masks) in &views {
+        if frame.0.is_empty() || !has_objects || !ready {
+            // No mask: the lights are unshadowed (their shadow maps are off).
+            commands
+                .entity(entity)
+                .remove::<(DistanceFieldShadowMasks, PenumbraLightingInputs)>();
+            continue;
+        }
+        let size = view.viewport.zw().max(UVec2::ONE);
+        let layers = frame.0.len();
+        let fresh = match masks {
+            Some(m) if m.size == size && m.layers.len() == layers => None,
+            _ => Some(create_masks(&device, size, layers as u32)),
+        };
+        let Some(array) = fresh.as_ref().or(masks).map(|m| m.array.clone()) else {
+            continue;
+        };
+        let lights = frame
+            .0
+            .iter()
+            .enumerate()
+            .map(|(layer, light)| PenumbraShadowedLight {
+                kind: match light.kind {
+                    FrameLightKind::Directional(direction) => {
+                        ShadowedLightKind::Directional { direction }
+                    }
+                    FrameLightKind::Positional { light_id, .. } => {
+                        ShadowedLightKind::Clustered { light_id }
+                    }
+                },
+                layer: layer as u32,
+            })
+            .collect();
+        let mut view_entity = commands.entity(entity);
+        if let Some(masks) = fresh {
+            view_entity.insert(masks);
+        }
+        view_entity.insert(PenumbraLightingInputs {
+            lights,
+            masks: array,
+        });
+    }
+}
+
+/// The view's shadow passes: per light, cull the object buffer to the light, then
+/// write the light's mask layer.
+fn distance_field_shadows(
+    view: ViewQuery<(
+        &ExtractedView,
+        &DistanceFieldShadowMasks,
+        &ViewPrepassTextures,
+    )>,
+    gpu: Option<Res<DistanceFieldGpu>>,
+    pipelines: Option<Res<ShadowPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    frame: Res<FrameLights>,
+    mut ctx: RenderContext,
+) {
+    let (view, masks, prepass) = view.into_inner();
+    let (Some(gpu), Some(pipelines)) = (gpu, pipelines) else {
+        return;
+    };
+    let (Some(objects), Some(cull), Some(trace), Some(depth)) = (
+        gpu.objects.as_ref(),
+        pipeline_cache.get_compute_pipeline(pipelines.cull),
+        pipeline_cache.get_compute_pipeline(pipelines.trace),
+        prepass.depth_view(),
+    ) else {
+        return;
+    };
+    let Some(camera) = CameraOrigin::at(view.world_from_view.translation()) else {
+        return;
+    };
+    let rotation = Mat3::from(view.world_from_view.affine().matrix3);
+    let clip_from_relative = view.clip_from_view * Mat4::from_mat3(rotation).inverse();
+    let frustum = Frustum::from_clip_from_relative(clip_from_relative);
+    let slots = gpu.slot_count;
+    let (groups, groups_x) = grid_64(slots);
+    let device = ctx.render_device().clone();
+    let buffer = |label: &'static str, bytes: &[u8], usage: BufferUsages| -> Buffer {
+        device.create_buffer_with_data(&BufferInitDescriptor {
+            label: Some(label),
+            contents: bytes,
+            usage,
+        })
+    };
+    let cull_view = buffer(
+        "penumbra_df_shadow_cull_view",
+        &words_to_bytes(&cull_view_words(&frustum, &camera, slots, groups_x)),
+        BufferUsages::UNIFORM,
+    );
+    let trace_view = buffer(
+        "penumbra_df_shadow_trace_view",
+        &words_to_bytes(&trace_view_words(
+            view.clip_from_view.inverse(),
+            rotation,
+            &camera,
+            masks.size,
+        )),
+        BufferUsages::UNIFORM,
+    );
+    let atlas = gpu
+        .atlas
+        .as_ref()
+        .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
+    let cull_layout = pipeline_cache.get_bind_group_layout(&pipelines.cull_layout);
+    let trace_layout = pipeline_cache.get_bind_group_layout(&pipelines.trace_layout);
+    for (light, layer) in frame.0.iter().zip(&masks.layers) {
+        // A light that cannot be placed (non-finite, beyond ±2³¹ tiles) marches nothing:
+        // its mask is all lit.
+        let params = light.shadow_light(&camera).unwrap_or(ShadowLight {
+            kind: ShadowLightKind::Directional(Vec3::Y),
+            source: 0.0,
+            max_distance: 0.0,
+            bias: 0.0,
+            contrast: 1.0,
+            range: 0.0,
+            max_steps: 0,
+        });
+        let light_buffer = buffer(
+            "penumbra_df_shadow_light",
+            &words_to_bytes(&params.to_words()),
+            BufferUsages::UNIFORM,
+        );
+        let list = buffer(
+            "penumbra_df_shadow_objects",
+            &vec![0u8; slots.max(1) as usize * 4],
+            BufferUsages::STORAGE,
+        );
+        let count = buffer(
+            "penumbra_df_shadow_object_count",
+            &[0u8; 4],
+            BufferUsages::STORAGE,
+        );
+        let cull_bind = device.create_bind_group(
+            "penumbra_df_shadow_cull",
+            &cull_layout,
+            &BindGroupEntries::sequential((
+                objects.as_entire_binding(),
+                cull_view.as_entire_binding(),
+                light_buffer.as_entire_binding(),
+                list.as_entire_binding(),
+                count.as_entire_binding(),
+            )),
+        );
+        let trace_bind = device.create_bind_group(
+            "penumbra_df_shadow_trace",
+            &trace_layout,
+            &BindGroupEntries::sequential((
+                objects.as_entire_binding(),
+                list.as_entire_binding(),
+                count.as_entire_binding(),
+                atlas,
+                depth,
+                trace_view.as_entire_binding(),
+                light_buffer.as_entire_binding(),
+                layer,
+            )),
+        );
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor {
+                label: Some("penumbra_df_shadows"),
+                timestamp_writes: None,
+            });
+        pass.set_pipeline(cull);
+        pass.set_bind_group(0, &cull_bind, &[]);
+        pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+        pass.set_pipeline(trace);
+        pass.set_bind_group(0, &trace_bind, &[]);
+        pass.dispatch_workgroups(masks.size.x.div_ceil(8), masks.size.y.div_ceil(8), 1);
+    }
+}
+
+fn array_view(texture: &Texture) -> TextureView {
+    texture.create_view(&TextureViewDescriptor {
+        label: Some("penumbra_df_shadow_masks"),
+        dimension: Some(TextureViewDimension::D2Array),
+        ..default()
+    })
+}
+
+fn create_masks(device: &RenderDevice, size: UVec2, layers: u32) -> DistanceFieldShadowMasks {
+    let texture = device.create_texture(&TextureDescriptor {
+        label: Some("penumbra_df_shadow_masks"),
+        size: Extent3d {
+            width: size.x,
+            height: size.y,
+            depth_or_array_layers: layers,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: TextureDimension::D2,
+        format: TextureFormat::R32Float,
+        usage: TextureUsages::STORAGE_BINDING | TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    });
+    let layers = (0..layers)
+        .map(|layer| {
+            texture.create_view(&TextureViewDescriptor {
+                label: Some("penumbra_df_shadow_mask_layer"),
+                dimension: Some(TextureViewDimension::D2),
+                base_array_layer: layer,
+                array_layer_count: Some(1),
+                ..default()
+            })
+        })
+        .collect();
+    DistanceFieldShadowMasks {
+        array: array_view(&texture),
+        layers,
+        size,
+    }
+}

@@ -1,0 +1,235 @@
+//! End to end on lavapipe: a light with `DistanceFieldShadows`, seen by a
+//! `PenumbraLighting` camera, is dimmed by exactly the visibility the CPU model
+//! (`penumbra_reference::shadow_mask::pixel_visibility`) computes for the plugin's own
+//! object records.
+//!
+//! With no other light, no ambient light and no emissive, a pixel's radiance is linear
+//! in the light's visibility: `v = shadowed / unshadowed` (the same scene rendered with
+//! the light's shadows off). Measured on ground pixels, whose world position is exact
+//! (the ray's hit on the plane), away from the objects' silhouettes.
+
+use bevy::camera::Hdr;
+use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::light::GlobalAmbientLight;
+use bevy::prelude::*;
+use bevy_penumbra_df::{
+    CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldScenePlugin,
+    DistanceFieldShadows, DistanceFieldShadowsPlugin, PenumbraLighting, PenumbraLightingPlugin,
+    SdfAssetPlugin,
+};
+use penumbra_df_core::cull::CameraOrigin;
+use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind};
+use penumbra_reference::camera::PerspectiveCamera;
+use penumbra_reference::df::{Atlas, object_distance};
+use penumbra_reference::shadow_mask::pixel_visibility;
+use penumbra_test::{CaptureFormat, HeadlessRender, gpu_or_skip};
+
+const SIZE: u32 = 96;
+const EYE: Vec3 = Vec3::new(1.0, 3.2, 5.0);
+const TARGET: Vec3 = Vec3::new(0.0, 0.3, -0.5);
+const SUN: Vec3 = Vec3::new(-0.45, 0.6, -0.65);
+const LAMP: Vec3 = Vec3::new(0.8, 2.2, 0.6);
+const SUN_DEGREES: f32 = 5.0;
+const LAMP_RADIUS: f32 = 0.2;
+
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Light {
+    Sun,
+    Lamp,
+}
+
+fn settings() -> DistanceFieldShadows {
+    DistanceFieldShadows {
+        angular_diameter: SUN_DEGREES.to_radians(),
+        max_distance: 30.0,
+        ..default()
+    }
+}
+
+/// The scene lit by one light, with distance-field shadows or with none.
+fn render(light: Light, shadows: bool) -> (Vec<[f32; 4]>, App) {
+    let harness = HeadlessRender::new(SIZE, SIZE)
+        .format(CaptureFormat::LinearF16)
+        .frames(8);
+    let mut app = harness.app();
+    app.add_plugins((
+        SdfAssetPlugin,
+        DistanceFieldScenePlugin,
+        PenumbraLightingPlugin,
+        DistanceFieldShadowsPlugin,
+    ))
+    .insert_resource(GlobalAmbientLight {
+        brightness: 0.0,
+        ..default()
+    });
+    app.add_systems(
+        Startup,
+        move |mut commands: Commands,
+              mut meshes: ResMut<Assets<Mesh>>,
+              mut materials: ResMut<Assets<StandardMaterial>>| {
+            let matte = materials.add(StandardMaterial {
+                base_color: Color::srgb(0.7, 0.7, 0.7),
+                perceptual_roughness: 1.0,
+                ..default()
+            });
+            let caster = |source| DistanceFieldCaster {
+                source,
+                ..default()
+            };
+            commands.spawn((
+                Mesh3d(meshes.add(Plane3d::default().mesh().size(30.0, 30.0))),
+                MeshMaterial3d(matte.clone()),
+                caster(CasterSource::Plane),
+            ));
+            commands.spawn((
+                Mesh3d(meshes.add(Sphere::new(0.5).mesh().uv(48, 24))),
+                MeshMaterial3d(matte.clone()),
+                Transform::from_xyz(-0.6, 0.8, -0.4),
+                caster(CasterSource::Sphere { radius: 0.5 }),
+            ));
+            commands.spawn((
+                Mesh3d(meshes.add(Cuboid::new(0.6, 1.2, 0.6))),
+                MeshMaterial3d(matte),
+                Transform::from_xyz(0.9, 0.6, -0.9).with_rotation(Quat::from_rotation_y(0.5)),
+                caster(CasterSource::Cuboid {
+                    half_size: Vec3::new(0.3, 0.6, 0.3),
+                }),
+            ));
+            let mut light_entity = match light {
+                Light::Sun => commands.spawn((
+                    DirectionalLight {
+                        illuminance: 2000.0,
+                        shadow_maps_enabled: false,
+                        ..default()
+                    },
+                    Transform::from_translation(SUN).looking_at(Vec3::ZERO, Vec3::Y),
+                )),
+                Light::Lamp => commands.spawn((
+                    PointLight {
+                        intensity: 200_000.0,
+                        range: 20.0,
+                        radius: LAMP_RADIUS,
+                        shadow_maps_enabled: false,
+                        ..default()
+                    },
+                    Transform::from_translation(LAMP),
+                )),
+            };
+            if shadows {
+                light_entity.insert(settings());
+            }
+            commands.spawn((
+                Camera3d::default(),
+                PenumbraLighting,
+                Msaa::Off,
+                Hdr,
+                Tonemapping::None,
+                Transform::from_translation(EYE).looking_at(TARGET, Vec3::Y),
+            ));
+        },
+    );
+    let (capture, app) = harness.run_keeping_app(app).expect("renders");
+    (capture.to_linear(), app)
+}
+
+fn check(light: Light, name: &str) {
+    if !gpu_or_skip(name) {
+        return;
+    }
+    let (lit, _) = render(light, false);
+    let (shadowed, app) = render(light, true);
+    let scene = app.world().resource::<DistanceFieldScene>();
+    let records = scene.records().to_vec();
+    assert_eq!(records.iter().filter(|r| r.flags() != 0).count(), 3);
+    let atlas = Atlas::new(UVec3::ONE);
+    let camera = CameraOrigin::at(EYE).expect("finite");
+    let s = settings();
+    let model = ShadowLight {
+        kind: match light {
+            Light::Sun => ShadowLightKind::Directional(SUN.normalize()),
+            Light::Lamp => ShadowLightKind::Positional(LAMP - EYE),
+        },
+        source: match light {
+            Light::Sun => (0.5 * s.angular_diameter).tan(),
+            Light::Lamp => LAMP_RADIUS,
+        },
+        max_distance: s.max_distance,
+        bias: s.bias,
+        contrast: s.contrast,
+        range: 20.0,
+        max_steps: s.max_steps,
+    };
+    let view = PerspectiveCamera::looking_at(EYE, TARGET, std::f32::consts::FRAC_PI_4, SIZE, SIZE);
+    // The first surface along a pixel's ray: `Some(point)` if it is the ground, away
+    // from other objects' silhouettes (all four pixel corners also hit the ground).
+    let ground = |px: f32, py: f32| -> Option<Vec3> {
+        let hit = |x: f32, y: f32| -> Option<Vec3> {
+            let ray = view.ray(x, y);
+            let t_plane = -ray.origin.y / ray.dir.y;
+            if t_plane.is_nan() || t_plane <= 0.0 {
+                return None;
+            }
+            let mut t = 0.0;
+            for _ in 0..200 {
+                let p = ray.origin + ray.dir * t;
+                let d = records
+                    .iter()
+                    .filter(|r| r.flags() != 0 && r.kind() != 4)
+                    .map(|r| object_distance(r, p - EYE, &camera, &atlas))
+                    .fold(f32::INFINITY, f32::min);
+                if d < 2e-3 || t >= t_plane {
+                    break;
+                }
+                t += d;
+            }
+            (t >= t_plane).then(|| ray.origin + ray.dir * t_plane)
+        };
+        let corners = [(-0.6, -0.6), (0.6, -0.6), (-0.6, 0.6), (0.6, 0.6)];
+        corners
+            .iter()
+            .all(|&(dx, dy)| hit(px + dx, py + dy).is_some())
+            .then(|| hit(px, py))?
+    };
+    let (mut diffs, mut shadowed_px, mut penumbra_px) = (Vec::new(), 0, 0);
+    for y in 0..SIZE {
+        for x in 0..SIZE {
+            let i = (y * SIZE + x) as usize;
+            let unshadowed = lit[i][1];
+            if unshadowed < 1e-3 {
+                continue; // unlit ground (a spot's outside, a back face)
+            }
+            let Some(p) = ground(x as f32 + 0.5, y as f32 + 0.5) else {
+                continue;
+            };
+            let gpu = (shadowed[i][1] / unshadowed).clamp(0.0, 1.0);
+            let cpu = pixel_visibility(&records, &atlas, &camera, p - EYE, &model);
+            shadowed_px += usize::from(cpu < 0.5);
+            penumbra_px += usize::from(cpu > 0.05 && cpu < 0.95);
+            diffs.push((gpu - cpu).abs());
+        }
+    }
+    diffs.sort_by(f32::total_cmp);
+    let n = diffs.len();
+    let mean = diffs.iter().sum::<f32>() / n as f32;
+    let p99 = diffs[n * 99 / 100];
+    println!(
+        "{name}: {n} ground pixels ({shadowed_px} shadowed, {penumbra_px} penumbra): \
+         |image visibility − CPU model| mean {mean:.4}, p99 {p99:.4}, max {:.4}",
+        diffs[n - 1]
+    );
+    assert!(
+        n > 2000 && shadowed_px > 200 && penumbra_px > 50,
+        "scene too unshadowed"
+    );
+    assert!(mean < 0.01 && p99 < 0.06, "mean {mean}, p99 {p99}");
+}
+
+#[test]
+fn directional_light_visibility_is_the_cpu_model() {
+    check(Light::Sun, "directional_light_visibility_is_the_cpu_model");
+}
+
+#[test]
+fn point_light_visibility_is_the_cpu_model() {
+    check(Light::Lamp, "point_light_visibility_is_the_cpu_model");
+}
