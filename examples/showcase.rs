@@ -19,186 +19,29 @@ use bevy::{
     camera::{Exposure, ShadowLodOrigin},
     light::GlobalAmbientLight,
     prelude::*,
-    render::view::screenshot::{Screenshot, save_to_disk},
-    window::WindowResolution,
 };
 use penumbra::prelude::*;
-use std::path::PathBuf;
 
-/// Command-line options.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Options {
-    /// Render into an image instead of a window.
-    pub headless: bool,
-    /// Frames to render before the capture (headless) or before exiting (windowed).
-    pub frames: Option<u32>,
-    /// Where to write the PNG.
-    pub out: Option<PathBuf>,
-    /// Image or window size in pixels.
-    pub size: Option<UVec2>,
-}
-
-impl Options {
-    /// Parses `std::env::args()`-style arguments (without the program name).
-    pub fn parse(args: impl IntoIterator<Item = String>) -> Result<Self, String> {
-        let mut o = Options {
-            headless: false,
-            frames: None,
-            out: None,
-            size: None,
-        };
-        let mut args = args.into_iter();
-        while let Some(arg) = args.next() {
-            let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
-            match arg.as_str() {
-                "--headless" => o.headless = true,
-                "--frames" => {
-                    let v = value("--frames")?;
-                    let n: u32 = v
-                        .parse()
-                        .map_err(|_| format!("--frames: bad number {v:?}"))?;
-                    if n == 0 || n > 100_000 {
-                        return Err(format!("--frames must be in 1..=100000, got {n}"));
-                    }
-                    o.frames = Some(n);
-                }
-                "--out" => o.out = Some(PathBuf::from(value("--out")?)),
-                "--size" => {
-                    let v = value("--size")?;
-                    let (w, h) = v
-                        .split_once('x')
-                        .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
-                        .ok_or(format!("--size: expected WxH, got {v:?}"))?;
-                    if !(1..=8192).contains(&w) || !(1..=8192).contains(&h) {
-                        return Err(format!("--size must be within 1..=8192 per axis, got {v}"));
-                    }
-                    o.size = Some(UVec2::new(w, h));
-                }
-                "-h" | "--help" => return Err(USAGE.to_string()),
-                other => return Err(format!("unknown argument {other:?}\n{USAGE}")),
-            }
-        }
-        Ok(o)
-    }
-}
-
-const USAGE: &str = "usage: showcase [--headless] [--frames N] [--out PATH] [--size WxH]";
-
-/// Whether a display server is reachable (an X11 or Wayland socket named in the env).
-fn display_available() -> bool {
-    ["DISPLAY", "WAYLAND_DISPLAY"]
-        .iter()
-        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
-}
+#[path = "common/cli.rs"]
+mod cli;
+pub use cli::Options;
 
 #[allow(
     dead_code,
     reason = "tests/showcase.rs includes this file for its scene"
 )]
 fn main() -> std::process::ExitCode {
-    let options = match Options::parse(std::env::args().skip(1)) {
-        Ok(o) => o,
-        Err(e) => {
-            eprintln!("{e}");
-            return std::process::ExitCode::from(2);
-        }
-    };
-    let headless = options.headless || !display_available();
-    if headless && !options.headless {
-        println!("showcase: no display (DISPLAY/WAYLAND_DISPLAY unset); rendering headless");
-    }
-    let result = if headless {
-        run_headless(&options)
-    } else {
-        run_windowed(&options);
-        Ok(())
-    };
-    match result {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("showcase: {e}");
-            std::process::ExitCode::FAILURE
-        }
-    }
+    cli::main("showcase", add_scene, None)
 }
 
-/// Renders into an image on whatever Vulkan adapter exists and writes a PNG.
-pub fn run_headless(options: &Options) -> Result<(), String> {
-    use penumbra_test::{HeadlessRender, vulkan_adapter};
-    let Some(adapter) = vulkan_adapter() else {
-        return Err(
-            "no Vulkan adapter found. Install Mesa's software Vulkan driver, \
-                    Debian package `mesa-vulkan-drivers` (`cargo xtask showcase` does it)"
-                .into(),
-        );
-    };
-    let size = options.size.unwrap_or(UVec2::splat(256));
-    let frames = options.frames.unwrap_or(30);
-    let out = options
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("showcase.png"));
-    let render = HeadlessRender::new(size.x, size.y).frames(frames);
-    let mut app = render.app();
+/// Penumbra's plugins and the showcase scene.
+fn add_scene(app: &mut App) {
     app.add_plugins((PenumbraPlugins, ShowcaseScenePlugin));
-    let capture = render.run(app).map_err(|e| e.to_string())?;
-    capture
-        .to_rgba8()
-        .save(&out)
-        .map_err(|e| format!("writing {}: {e}", out.display()))?;
-    let steady = &capture.frame_times[capture.frame_times.len().min(1)..];
-    let mean_ms = if steady.is_empty() {
-        f64::NAN
-    } else {
-        steady.iter().map(|d| d.as_secs_f64()).sum::<f64>() * 1e3 / steady.len() as f64
-    };
-    let path = std::fs::canonicalize(&out).unwrap_or(out);
-    println!(
-        "showcase: {frames} frames at {}x{} on {adapter}; mean frame time after the first: {mean_ms:.1} ms",
-        size.x, size.y
-    );
-    println!("showcase: wrote {}", path.display());
-    Ok(())
 }
 
-/// Opens a window; with `--frames N` exits after N frames (saving `--out` if given).
-fn run_windowed(options: &Options) {
-    let size = options.size.unwrap_or(UVec2::new(1280, 720));
-    let mut app = App::new();
-    app.add_plugins((
-        DefaultPlugins.set(WindowPlugin {
-            primary_window: Some(Window {
-                title: "Penumbra showcase".into(),
-                resolution: WindowResolution::new(size.x, size.y),
-                ..default()
-            }),
-            ..default()
-        }),
-        PenumbraPlugins,
-        ShowcaseScenePlugin,
-    ));
-    if let Some(frames) = options.frames {
-        let out = options.out.clone();
-        app.add_systems(
-            Update,
-            move |mut commands: Commands, mut n: Local<u32>, mut exit: MessageWriter<AppExit>| {
-                *n += 1;
-                if *n == frames
-                    && let Some(out) = &out
-                {
-                    println!("showcase: saving {}", out.display());
-                    commands
-                        .spawn(Screenshot::primary_window())
-                        .observe(save_to_disk(out.clone()));
-                }
-                // Leave a few frames for the screenshot to be written.
-                if *n >= frames + 5 {
-                    exit.write(AppExit::Success);
-                }
-            },
-        );
-    }
-    app.run();
+/// Renders the showcase headless into `options.out` (a PNG).
+pub fn run_headless(options: &Options) -> Result<(), String> {
+    cli::run_headless("showcase", options, add_scene, None)
 }
 
 /// Spawns the showcase room.

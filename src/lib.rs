@@ -82,8 +82,8 @@ pub mod prelude {
     pub use crate::{PenumbraCorePlugin, PenumbraPlugins};
     pub use bevy_penumbra_df::{
         CasterSource, DistanceFieldCaster, DistanceFieldDebugMode, DistanceFieldDebugView,
-        DistanceFieldSceneSettings, DistanceFieldShadows, DistanceFieldUploadStats,
-        PenumbraLighting, SdfAssetPlugin, SdfBakeFailed, SdfBakeRequest, SdfBakeTask, SdfBaked,
-        SdfVolumeAsset,
+        DistanceFieldScene, DistanceFieldSceneSettings, DistanceFieldShadows,
+        DistanceFieldUploadStats, PenumbraLighting, SdfAssetPlugin, SdfBakeFailed, SdfBakeRequest,
+        SdfBakeTask, SdfBaked, SdfVolumeAsset,
     };
 }

@@ -140,6 +140,23 @@ fn object_in_cone(sphere: vec4<f32>, p: vec3<f32>, ray: ShadowRay) -> bool {
         < sphere.w + cull_slack(sphere.w);
 }
 
+// The part (x, y) of the ray o + t · dir (o relative to a ball's centre) where the
+// cone of radius t · tan_half meets the ball; y < x: never; cones wider than 45°: all.
+fn cone_interval(o: vec3<f32>, dir: vec3<f32>, radius: f32, tan_half: f32) -> vec2<f32> {
+    let a = 1.0 - tan_half * tan_half;
+    if a <= 1e-6 {
+        return vec2<f32>(-3.4e38, 3.4e38);
+    }
+    let b = 2.0 * (dot(o, dir) - radius * tan_half);
+    let c = dot(o, o) - radius * radius;
+    let disc = b * b - 4.0 * a * c;
+    if disc < 0.0 {
+        return vec2<f32>(1.0, -1.0);
+    }
+    let s = sqrt(disc);
+    return vec2<f32>((-b - s) / (2.0 * a), (-b + s) / (2.0 * a));
+}
+
 // The fraction of the light's cone one object leaves open along the ray from p.
 fn march_object(
     o: DistanceFieldObject,
@@ -152,9 +169,19 @@ fn march_object(
     atlas: texture_3d<f32>,
 ) -> f32 {
     var t = light.bias;
+    var t_end = ray.t_max;
+    if sphere.w >= 0.0 {
+        // March only where the cone meets the object's ball.
+        let span = cone_interval(p - sphere.xyz, ray.dir, sphere.w, ray.tan_half);
+        if span.y < span.x {
+            return 1.0;
+        }
+        t = max(t, span.x);
+        t_end = min(t_end, span.y);
+    }
     var v = 1.0;
     for (var step = 0u; step < light.max_steps; step += 1u) {
-        if t >= ray.t_max {
+        if t >= t_end {
             break;
         }
         let d = object_distance(o, p + ray.dir * t, camera_tile, camera_offset, atlas);

@@ -8,7 +8,9 @@
 //! smallest such fraction along the ray (clamped to [0, 1]), and the smallest over the
 //! objects. Stops when inside (visibility 0: the penumbra never extends into negative
 //! distances — no umbra is invented from them), at the light, or at the step limit.
-//! An object of bounding radius `R` can cover at most `(R / r)²` of the cone's section,
+//! Each object is marched only where the cone meets its bounding ball
+//! ([`cone_interval`]): elsewhere it cannot shadow, and sphere tracing away from it would
+//! only spend steps. An object of bounding radius `R` can cover at most `(R / r)²` of the cone's section,
 //! so its visibility is clamped to at least `1 − (R / r)²`: tiny objects on the cone axis
 //! dim the light instead of blacking it out.
 //!
@@ -150,11 +152,15 @@ pub fn df_visibility(
     let tan_half = light.half_angle(p).tan();
     let mut visibility = 1.0f32;
     for o in occluders {
-        let mut t = settings.bias;
-        let mut v = 1.0f32;
         let size = o.bounding_radius();
+        let Some((t0, t1)) = cone_interval(p - o.center(), dir, size, tan_half) else {
+            continue; // the cone never meets the occluder's ball
+        };
+        let mut t = settings.bias.max(t0);
+        let t_end = t_max.min(t1);
+        let mut v = 1.0f32;
         for _ in 0..settings.max_steps {
-            if t >= t_max {
+            if t >= t_end {
                 break;
             }
             let d = o.distance(p + dir * t);
@@ -173,6 +179,26 @@ pub fn df_visibility(
         }
     }
     visibility
+}
+
+/// The part `(t0, t1)` of the ray `o + t · dir` (`o` relative to a ball's centre) where
+/// the light's cone, of radius `t · tan_half`, meets the ball of `radius`: the only part
+/// where the ball's contents can shadow. `None`: never. For cones wider than 45°, the
+/// whole ray (`(−∞, ∞)`).
+pub fn cone_interval(o: Vec3, dir: Vec3, radius: f32, tan_half: f32) -> Option<(f32, f32)> {
+    let k = tan_half;
+    let a = 1.0 - k * k;
+    if a <= 1e-6 {
+        return Some((f32::NEG_INFINITY, f32::INFINITY));
+    }
+    let b = 2.0 * (o.dot(dir) - radius * k);
+    let c = o.length_squared() - radius * radius;
+    let disc = b * b - 4.0 * a * c;
+    if disc < 0.0 {
+        return None;
+    }
+    let s = disc.sqrt();
+    Some(((-b - s) / (2.0 * a), (-b + s) / (2.0 * a)))
 }
 
 /// Ground truth: the unoccluded fraction of `n²` stratified directions spread uniformly

@@ -15,6 +15,7 @@
 //! (from the tile's bounding ball to the light), which never changes a result.
 
 use crate::df::{Atlas, object_distance};
+use crate::df_shadow::cone_interval;
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::object::{ObjectRecord, ShapeKind, flags};
@@ -137,15 +138,21 @@ pub fn pixel_visibility(
             continue;
         }
         let sphere = bounding_sphere(r, camera);
-        if let Some((center, radius)) = sphere
-            && round_cone_distance(center, p, end, 0.0, end_radius) >= radius + cull_slack(radius)
-        {
-            continue;
+        let (mut t, mut t_end) = (light.bias, t_max);
+        if let Some((center, radius)) = sphere {
+            if round_cone_distance(center, p, end, 0.0, end_radius) >= radius + cull_slack(radius) {
+                continue;
+            }
+            // March only where the cone meets the object's ball.
+            let Some((t0, t1)) = cone_interval(p - center, dir, radius, tan_half) else {
+                continue;
+            };
+            t = t.max(t0);
+            t_end = t_end.min(t1);
         }
-        let mut t = light.bias;
         let mut v = 1.0f32;
         for _ in 0..light.max_steps {
-            if t >= t_max {
+            if t >= t_end {
                 break;
             }
             let d = object_distance(r, p + dir * t, camera, atlas);

@@ -180,6 +180,47 @@ pub fn assert_images_match(
     }
 }
 
+/// Panics unless `img` looks like a rendered scene: a spread of luminance (std-dev over
+/// 20 of 255) and many distinct colours (over 500).
+pub fn assert_not_blank(img: &RgbaImage) {
+    let lum: Vec<f32> = img
+        .pixels()
+        .map(|p| 0.2126 * p[0] as f32 + 0.7152 * p[1] as f32 + 0.0722 * p[2] as f32)
+        .collect();
+    let mean = lum.iter().sum::<f32>() / lum.len() as f32;
+    let std = (lum.iter().map(|l| (l - mean).powi(2)).sum::<f32>() / lum.len() as f32).sqrt();
+    let mut colours: Vec<[u8; 3]> = img.pixels().map(|p| [p[0], p[1], p[2]]).collect();
+    colours.sort_unstable();
+    colours.dedup();
+    assert!(std > 20.0, "luminance std-dev {std:.1}: image looks flat");
+    assert!(
+        colours.len() > 500,
+        "only {} distinct colours",
+        colours.len()
+    );
+}
+
+/// Checks `actual` against the golden image at `reference` ([`assert_images_match`],
+/// both checked by [`assert_not_blank`]). With `PENUMBRA_BLESS=1` in the environment it
+/// writes `actual` as the new reference instead (look at it before committing).
+pub fn check_golden(name: &str, actual: &RgbaImage, reference: &std::path::Path, tol: &Tolerance) {
+    assert_not_blank(actual);
+    if std::env::var("PENUMBRA_BLESS").is_ok_and(|v| v == "1") {
+        if let Some(dir) = reference.parent() {
+            std::fs::create_dir_all(dir).expect("create the reference folder");
+        }
+        actual.save(reference).expect("write the reference");
+        println!("blessed {}", reference.display());
+        return;
+    }
+    let expected = image::open(reference)
+        .unwrap_or_else(|e| panic!("{}: {e} (bless with PENUMBRA_BLESS=1)", reference.display()))
+        .to_rgba8();
+    assert_not_blank(&expected);
+    let cmp = assert_images_match(name, actual, &expected, tol);
+    println!("{name} vs reference: {cmp}");
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -46,6 +46,11 @@ pub enum HarnessError {
         /// Frames waited after requesting the readback.
         frames: u32,
     },
+    /// The warm-up condition did not hold within this many updates.
+    WarmUpTimeout {
+        /// Updates run.
+        frames: u32,
+    },
     /// The readback returned fewer bytes than the image needs.
     ShortReadback {
         /// Bytes expected (with row padding).
@@ -64,6 +69,9 @@ impl std::fmt::Display for HarnessError {
             ),
             HarnessError::ReadbackTimeout { frames } => {
                 write!(f, "GPU readback did not complete within {frames} frames")
+            }
+            HarnessError::WarmUpTimeout { frames } => {
+                write!(f, "the scene was not ready after {frames} warm-up updates")
             }
             HarnessError::ShortReadback { expected, got } => {
                 write!(f, "GPU readback returned {got} bytes, expected {expected}")
@@ -188,6 +196,9 @@ pub struct HeadlessRender {
     /// Render on a separate thread, one frame behind (Bevy's default). Off: the render
     /// world stays a sub-app of the main app, where tests can inspect it.
     pub pipelined: bool,
+    /// Updates run until this holds before the `frames` counted ones (e.g. background
+    /// work such as SDF bakes finished), so captures do not depend on machine speed.
+    pub warm_up: Option<fn(&mut World) -> bool>,
 }
 
 /// One Bevy app at a time per process: lavapipe has 2 cores to share, and a global
@@ -203,7 +214,14 @@ impl HeadlessRender {
             frames: 5,
             format: CaptureFormat::Srgb8,
             pipelined: true,
+            warm_up: None,
         }
+    }
+
+    /// Runs updates until `ready` holds (at most 1,000) before counting frames.
+    pub fn warm_up(mut self, ready: fn(&mut World) -> bool) -> Self {
+        self.warm_up = Some(ready);
+        self
     }
 
     /// Renders on the main thread so that `app.sub_app(RenderApp)` stays reachable.
@@ -292,6 +310,17 @@ impl HeadlessRender {
         let _guard = RENDER_LOCK.lock().unwrap_or_else(|e| e.into_inner());
         app.finish();
         app.cleanup();
+        if let Some(ready) = self.warm_up {
+            const MAX_WARM_UP: u32 = 1_000;
+            let mut n = 0;
+            while !ready(app.world_mut()) {
+                if n == MAX_WARM_UP {
+                    return Err(HarnessError::WarmUpTimeout { frames: n });
+                }
+                app.update();
+                n += 1;
+            }
+        }
         let frame_times = (0..self.frames)
             .map(|_| {
                 let start = std::time::Instant::now();

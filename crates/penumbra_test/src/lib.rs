@@ -33,7 +33,10 @@ pub mod compute;
 pub mod gpu;
 pub mod harness;
 
-pub use compare::{Comparison, Tolerance, assert_images_match, compare_rgba8, output_dir};
+pub use compare::{
+    Comparison, Tolerance, assert_images_match, assert_not_blank, check_golden, compare_rgba8,
+    output_dir,
+};
 pub use compute::GpuCompute;
 pub use gpu::{gpu_or_skip, vulkan_adapter};
 pub use harness::{Capture, CaptureFormat, HarnessError, HeadlessRender};
