@@ -1,6 +1,6 @@
 // Distance-field soft shadows: the per-pixel visibility of one light through the
 // scene's distance-field objects. CPU model: `penumbra_reference::shadow_mask` (same
-// culling, march, clamps and contrast, in the same order).
+// culling, march, clamps and shaping, in the same order).
 //
 // Per object, sphere-trace toward the light; the object leaves `d / r(t)` of the
 // light's cone open (`r(t) = t · tan θ`); the smallest value along the ray wins, and the
@@ -26,8 +26,8 @@ struct ShadowLight {
     max_distance: f32,
     // Start offset along the ray, metres.
     bias: f32,
-    // Visibility v becomes clamp((v − ½) · contrast + ½, 0, 1).
-    contrast: f32,
+    // Visibility v becomes v^shaping (the encoder clamps shaping to [0.05, 20]).
+    shaping: f32,
     // Positional: the light's range, metres (culling).
     range: f32,
     max_steps: u32,
@@ -201,9 +201,9 @@ fn march_object(
     return clamp(v, 0.0, 1.0);
 }
 
-// Contrast and clamping; never NaN.
-fn finish_visibility(v: f32, contrast: f32) -> f32 {
-    let x = clamp((v - 0.5) * contrast + 0.5, 0.0, 1.0);
+// Shaping and clamping; never NaN.
+fn finish_visibility(v: f32, shaping: f32) -> f32 {
+    let x = min(pow(clamp(v, 0.0, 1.0), shaping), 1.0);
     return select(1.0, x, x >= 0.0);
 }
 

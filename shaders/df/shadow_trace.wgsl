@@ -160,7 +160,7 @@ fn trace(
     if inside {
         var out = 1.0;
         if surface {
-            out = finish_visibility(visibility, light.contrast);
+            out = finish_visibility(visibility, light.shaping);
         }
         textureStore(mask, vec2<i32>(gid.xy), vec4<f32>(out, 0.0, 0.0, 1.0));
     }

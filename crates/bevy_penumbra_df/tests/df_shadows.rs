@@ -155,7 +155,7 @@ fn check(light: Light, name: &str) {
         },
         max_distance: s.max_distance,
         bias: s.bias,
-        contrast: s.contrast,
+        shaping: s.shaping,
         range: 20.0,
         max_steps: s.max_steps,
     };

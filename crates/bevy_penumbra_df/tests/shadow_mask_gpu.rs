@@ -432,7 +432,7 @@ fn lights(offset: Vec3, eye: Vec3) -> [(&'static str, ShadowLight); 2] {
         source: (6.0f32.to_radians() * 0.5).tan(),
         max_distance: 30.0,
         bias: 0.02,
-        contrast: 1.0,
+        shaping: 1.0,
         range: 20.0,
         max_steps: 64,
     };

@@ -33,8 +33,8 @@ pub struct ShadowLight {
     pub max_distance: f32,
     /// Start offset along the ray, metres (world-space bias).
     pub bias: f32,
-    /// Penumbra contrast: visibility `v` becomes `clamp((v − ½) · contrast + ½, 0, 1)`.
-    pub contrast: f32,
+    /// Penumbra shaping: visibility `v` becomes `v^shaping` (clamped to `[0.05, 20]`).
+    pub shaping: f32,
     /// Point and spot lights: the range, metres (objects beyond it are culled).
     pub range: f32,
     /// Step limit per object.
@@ -57,7 +57,7 @@ impl ShadowLight {
             f(self.source),
             f(self.max_distance),
             f(self.bias),
-            f(self.contrast),
+            f(self.shaping.clamp(0.05, 20.0)),
             f(self.range),
             self.max_steps,
             0,

@@ -1,7 +1,7 @@
 //! The CPU model of the distance-field shadow-mask pass (`shaders/df/shadow.wgsl`): for
 //! each pixel, the visibility of one light through the scene's distance-field objects —
 //! the march of [`crate::df_shadow`] over the GPU object records, with the same
-//! per-object cone culling, tiny-object clamp and contrast, in the same order.
+//! per-object cone culling, tiny-object clamp and shaping, in the same order.
 //!
 //! Conventions: positions are camera-relative world metres (see
 //! [`penumbra_df_core::cull::CameraOrigin`]); a pixel's position comes from its depth
@@ -128,6 +128,19 @@ pub fn pixel_visibility(
     p: Vec3,
     light: &MaskLight,
 ) -> f32 {
+    pixel_visibility_counted(records, atlas, camera, p, light).0
+}
+
+/// [`pixel_visibility`] and the number of distance evaluations it took (the pass's
+/// work, for run-time-vs-error benches).
+pub fn pixel_visibility_counted(
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    camera: &CameraOrigin,
+    p: Vec3,
+    light: &MaskLight,
+) -> (f32, u32) {
+    let mut evaluations = 0;
     let (dir, t_max, tan_half) = shadow_ray(p, light);
     let end = p + dir * t_max;
     let end_radius = t_max * tan_half;
@@ -156,6 +169,7 @@ pub fn pixel_visibility(
                 break;
             }
             let d = object_distance(r, p + dir * t, camera, atlas);
+            evaluations += 1;
             if d <= 0.0 {
                 v = 0.0;
                 break;
@@ -168,13 +182,16 @@ pub fn pixel_visibility(
         }
         visibility = visibility.min(v.clamp(0.0, 1.0));
     }
-    finish(visibility, light.contrast)
+    (
+        finish(visibility, light.shaping.clamp(0.05, 20.0)),
+        evaluations,
+    )
 }
 
-/// Contrast, clamping, and no NaN: what the pass writes.
-pub fn finish(visibility: f32, contrast: f32) -> f32 {
-    let v = ((visibility - 0.5) * contrast + 0.5).clamp(0.0, 1.0);
-    if v >= 0.0 { v } else { 1.0 }
+/// Shaping (`v^shaping`), clamping, and no NaN: what the pass writes.
+pub fn finish(visibility: f32, shaping: f32) -> f32 {
+    let v = visibility.clamp(0.0, 1.0).powf(shaping);
+    if v >= 0.0 { v.min(1.0) } else { 1.0 }
 }
 
 /// Camera-relative world position of the pixel centre `(x + ½, y + ½)` at reverse-Z
@@ -344,7 +361,7 @@ mod tests {
                 source,
                 max_distance: settings.max_distance,
                 bias: settings.bias,
-                contrast: 1.0,
+                shaping: 1.0,
                 range: 100.0,
                 max_steps: settings.max_steps,
             };

@@ -116,7 +116,7 @@ fn shadow_uniform_layouts_match_the_encoders() {
         ("source", 4),
         ("max_distance", 5),
         ("bias", 6),
-        ("contrast", 7),
+        ("shaping", 7),
         ("range", 8),
         ("max_steps", 9),
         ("reserved", 10),

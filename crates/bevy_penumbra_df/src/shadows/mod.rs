@@ -68,9 +68,14 @@ pub struct DistanceFieldShadows {
     /// World-space bias: the ray starts this far from the surface, metres. Default 0.02.
     /// Too small: self-shadowing acne where SDFs are coarse; too large: detached contacts.
     pub bias: f32,
-    /// Penumbra contrast: visibility `v` becomes `clamp((v − ½) · contrast + ½, 0, 1)`.
-    /// Default 1 (the march as is); above 1 sharpens, below softens. No cost.
-    pub contrast: f32,
+    /// Penumbra shaping: visibility `v` becomes `v^shaping` (clamped to `[0.05, 20]`).
+    /// The march reports too little light in penumbrae (it sees none of the light's
+    /// disc behind an edge, where half of it is visible); an exponent below 1 brightens
+    /// them. Default 0.35: the lowest mean error against ray-traced ground truth over
+    /// the Cornell box and bunny scenes of `cargo bench -p penumbra_reference --bench
+    /// df_shadows` (0.053 vs 0.083 for 1, the march as is).
+    /// No cost.
+    pub shaping: f32,
 }
 
 impl Default for DistanceFieldShadows {
@@ -80,7 +85,7 @@ impl Default for DistanceFieldShadows {
             max_distance: 100.0,
             max_steps: 64,
             bias: 0.02,
-            contrast: 1.0,
+            shaping: 0.35,
         }
     }
 }

@@ -88,7 +88,7 @@ impl FrameLight {
             source,
             max_distance: s.max_distance.max(0.0),
             bias: s.bias.max(0.0),
-            contrast: s.contrast,
+            shaping: s.shaping,
             range,
             max_steps: s.max_steps.min(4096),
         })
@@ -413,7 +413,7 @@ fn distance_field_shadows(
             source: 0.0,
             max_distance: 0.0,
             bias: 0.0,
-            contrast: 1.0,
+            shaping: 1.0,
             range: 0.0,
             max_steps: 0,
         });

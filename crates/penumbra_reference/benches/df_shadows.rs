@@ -1,0 +1,596 @@
+//! Distance-field shadows: run time against error.
+//!
+//! Two scenes, every pixel of a 96×96 view: a Cornell box (2 m) lit by a sphere light
+//! under its ceiling, its two boxes baked to SDFs; and the Stanford bunny (scaled to
+//! ≈ 1 m) on a plane under a 3° sun. Each pixel's visibility comes from the mask pass's
+//! CPU model (`penumbra_reference::shadow_mask`, equal to the GPU pass on lavapipe:
+//! `bevy_penumbra_df/tests/shadow_mask_gpu.rs`) and is compared with Monte Carlo ground
+//! truth traced on the triangles (12 × 12 stratified rays toward the light's disc).
+//! Swept: steps per object and SDF resolution (samples along the longest axis) at the
+//! default shaping, and the shaping exponent at the default steps.
+//!
+//! Error: mean |model − truth| over the pixels either side puts in shadow or penumbra
+//! (`< 0.99`), and over all pixels. Cost: distance evaluations per pixel (the GPU pass's
+//! work, deterministic: the Pareto front is taken on it) and the model's time over the
+//! whole view, one thread, median of 3 (criterion times the defaults).
+//! Writes `target/penumbra_bench/df_shadows.{md,csv}`.
+//!
+//! `cargo bench -p penumbra_reference --bench df_shadows` (needs `../shared/meshes`).
+
+#![allow(missing_docs, reason = "criterion_group! generates undocumented items")]
+
+use criterion::{Criterion, criterion_group};
+use glam::{Affine3A, Quat, UVec3, Vec3};
+use penumbra_df_core::atlas::AtlasRegion;
+use penumbra_df_core::cull::CameraOrigin;
+use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, encode, flags};
+use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind};
+use penumbra_reference::camera::PerspectiveCamera;
+use penumbra_reference::df::Atlas;
+use penumbra_reference::df_shadow::{AreaLight, Occluder, ShadowSettings, monte_carlo_visibility};
+use penumbra_reference::shadow_mask::pixel_visibility_counted;
+use penumbra_sdf::bvh::Bvh;
+use penumbra_sdf::geometry::Aabb;
+use penumbra_sdf::grid::GridPolicy;
+use penumbra_sdf::{BakeSettings, TriMesh, bake, obj, shapes};
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+
+const SIZE: u32 = 96;
+const MC: u32 = 12;
+const STEPS: [u32; 5] = [8, 16, 32, 64, 128];
+const RESOLUTIONS: [u32; 4] = [16, 32, 64, 128];
+/// `DistanceFieldShadows::default()`.
+const DEFAULT_STEPS: u32 = 64;
+const DEFAULT_BIAS: f32 = 0.02;
+const DEFAULT_SHAPING: f32 = 0.35;
+const SHAPINGS: [f32; 6] = [1.0, 0.6, 0.5, 0.4, 0.35, 0.3];
+
+/// A mesh placed in the world: baked for the model, traced for the truth.
+struct Placed {
+    mesh: TriMesh,
+    world_from_local: Affine3A,
+}
+
+/// All triangles in world space, for ray tracing.
+struct Triangles {
+    bvh: Bvh,
+    center: Vec3,
+    radius: f32,
+}
+
+impl Occluder for Triangles {
+    fn distance(&self, _: Vec3) -> f32 {
+        unreachable!("the ground truth casts rays")
+    }
+    fn blocks(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        self.bvh.ray_nearest(origin, dir, 0.0, t_max).is_some()
+    }
+    fn bounding_radius(&self) -> f32 {
+        self.radius
+    }
+    fn center(&self) -> Vec3 {
+        self.center
+    }
+}
+
+struct Scene {
+    name: &'static str,
+    /// Meshes baked to SDFs (the sweep's resolution applies).
+    baked: Vec<Placed>,
+    /// Analytic casters (walls), exact in both the model and the truth.
+    analytic: Vec<(CasterShape, Affine3A)>,
+    light: AreaLight,
+    camera: PerspectiveCamera,
+    /// World points seen by the pixels (`None`: background).
+    points: Vec<Option<Vec3>>,
+    truth: Vec<f32>,
+    /// The plugin's default bake of the first mesh: samples along its longest axis.
+    default_resolution: u32,
+}
+
+fn world_triangles(scene_meshes: &[Placed], analytic: &[(CasterShape, Affine3A)]) -> Triangles {
+    let mut tris = Vec::new();
+    for p in scene_meshes {
+        let (t, _) = p.mesh.validate().expect("valid mesh");
+        tris.extend(
+            t.into_iter()
+                .map(|t| t.map(|v| p.world_from_local.transform_point3(v))),
+        );
+    }
+    for (shape, m) in analytic {
+        if let CasterShape::Cuboid { half_extents } = shape {
+            let (t, _) = shapes::cuboid(*half_extents).validate().expect("box");
+            tris.extend(t.into_iter().map(|t| t.map(|v| m.transform_point3(v))));
+        }
+    }
+    let mut b = Aabb::EMPTY;
+    tris.iter().flatten().for_each(|&p| b.grow(p));
+    Triangles {
+        bvh: Bvh::build(&tris),
+        center: b.center(),
+        radius: b.size().length() * 0.5,
+    }
+}
+
+/// Traces the view on the triangles and computes the ground truth once per scene.
+fn finish_scene(mut scene: Scene) -> Scene {
+    let tris = world_triangles(&scene.baked, &scene.analytic);
+    let settings = ShadowSettings {
+        max_distance: 30.0,
+        max_steps: DEFAULT_STEPS,
+        bias: DEFAULT_BIAS,
+    };
+    scene.points = (0..SIZE * SIZE)
+        .map(|i| {
+            let ray = scene
+                .camera
+                .ray((i % SIZE) as f32 + 0.5, (i / SIZE) as f32 + 0.5);
+            let plane = if ray.dir.y < 0.0 {
+                -ray.origin.y / ray.dir.y
+            } else {
+                f32::INFINITY
+            };
+            let t = tris
+                .bvh
+                .ray_nearest(ray.origin, ray.dir, 0.0, 100.0)
+                .map_or(plane, |(t, _, _)| t.min(plane));
+            t.is_finite().then(|| ray.origin + ray.dir * t)
+        })
+        .collect();
+    let occluders: [&dyn Occluder; 1] = [&tris];
+    scene.truth = scene
+        .points
+        .iter()
+        .map(|p| {
+            p.map_or(1.0, |p| {
+                monte_carlo_visibility(&occluders, p, &scene.light, &settings, MC)
+            })
+        })
+        .collect();
+    scene
+}
+
+fn bunny() -> Option<Scene> {
+    let path =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/meshes/stanford-bunny.obj");
+    let text = std::fs::read_to_string(&path)
+        .map_err(|e| eprintln!("SKIPPED the bunny scene: {}: {e}", path.display()))
+        .ok()?;
+    let mut mesh = obj::parse_obj(&text).ok()?;
+    let mut b = Aabb::EMPTY;
+    mesh.positions.iter().for_each(|&p| b.grow(p));
+    // A 1 m bunny standing on y = 0, centred: the mesh a game would have.
+    let (scale, c) = (1.0 / b.size().max_element(), b.center());
+    for p in &mut mesh.positions {
+        *p = Vec3::new(p.x - c.x, p.y - b.min.y, p.z - c.z) * scale;
+    }
+    let world_from_local = Affine3A::IDENTITY;
+    let mut b = Aabb::EMPTY;
+    mesh.positions.iter().for_each(|&p| b.grow(p));
+    let default_resolution = GridPolicy::default()
+        .resolve(&b)
+        .map(|g| g.dims.max_element() - 4)
+        .unwrap_or(0);
+    Some(finish_scene(Scene {
+        name: "bunny on a plane, 3° sun",
+        baked: vec![Placed {
+            mesh,
+            world_from_local,
+        }],
+        analytic: Vec::new(),
+        light: AreaLight::Directional {
+            to_light: Vec3::new(0.55, 0.7, 0.45).normalize(),
+            angular_diameter: 3f32.to_radians(),
+        },
+        camera: PerspectiveCamera::looking_at(
+            Vec3::new(0.4, 1.4, 2.2),
+            Vec3::new(-0.25, 0.25, -0.2),
+            std::f32::consts::FRAC_PI_4,
+            SIZE,
+            SIZE,
+        ),
+        points: Vec::new(),
+        truth: Vec::new(),
+        default_resolution,
+    }))
+}
+
+fn cornell() -> Scene {
+    let wall = |half: Vec3, at: Vec3| {
+        (
+            CasterShape::Cuboid { half_extents: half },
+            Affine3A::from_translation(at),
+        )
+    };
+    let t = 0.02;
+    let analytic = vec![
+        wall(Vec3::new(1.0 + t, t, 1.0 + t), Vec3::new(0.0, -t, 0.0)),
+        wall(Vec3::new(1.0 + t, t, 1.0 + t), Vec3::new(0.0, 2.0 + t, 0.0)),
+        wall(Vec3::new(1.0 + t, 1.0, t), Vec3::new(0.0, 1.0, -1.0 - t)),
+        wall(Vec3::new(t, 1.0, 1.0 + t), Vec3::new(-1.0 - t, 1.0, 0.0)),
+        wall(Vec3::new(t, 1.0, 1.0 + t), Vec3::new(1.0 + t, 1.0, 0.0)),
+    ];
+    let tall = shapes::cuboid(Vec3::new(0.3, 0.6, 0.3));
+    let short = shapes::cuboid(Vec3::splat(0.3));
+    let mut b = Aabb::EMPTY;
+    tall.positions.iter().for_each(|&p| b.grow(p));
+    let default_resolution = GridPolicy::default()
+        .resolve(&b)
+        .map(|g| g.dims.max_element() - 4)
+        .unwrap_or(0);
+    finish_scene(Scene {
+        name: "Cornell box, sphere light r = 0.2 m",
+        baked: vec![
+            Placed {
+                mesh: tall,
+                world_from_local: Affine3A::from_rotation_translation(
+                    Quat::from_rotation_y(0.3),
+                    Vec3::new(-0.35, 0.6, -0.3),
+                ),
+            },
+            Placed {
+                mesh: short,
+                world_from_local: Affine3A::from_rotation_translation(
+                    Quat::from_rotation_y(-0.3),
+                    Vec3::new(0.4, 0.3, 0.35),
+                ),
+            },
+        ],
+        analytic,
+        light: AreaLight::Sphere {
+            center: Vec3::new(0.0, 1.7, 0.1),
+            radius: 0.2,
+        },
+        camera: PerspectiveCamera::looking_at(
+            Vec3::new(0.0, 1.0, 3.3),
+            Vec3::new(0.0, 0.9, 0.0),
+            0.75,
+            SIZE,
+            SIZE,
+        ),
+        points: Vec::new(),
+        truth: Vec::new(),
+        default_resolution,
+    })
+}
+
+/// The scene's object records and atlas with its meshes baked at `resolution`.
+fn records(scene: &Scene, resolution: u32) -> (Vec<ObjectRecord>, Atlas) {
+    let live = flags::LIVE | flags::CASTS_SHADOWS | flags::VISIBLE;
+    let volumes: Vec<_> = scene
+        .baked
+        .iter()
+        .map(|p| {
+            bake(&p.mesh, &BakeSettings::longest_axis(resolution), None)
+                .expect("bakes")
+                .volume
+        })
+        .collect();
+    // Side by side along x.
+    let size = UVec3::new(
+        volumes.iter().map(|v| v.dims.x).sum(),
+        volumes.iter().map(|v| v.dims.y).max().unwrap_or(1),
+        volumes.iter().map(|v| v.dims.z).max().unwrap_or(1),
+    );
+    let mut atlas = Atlas::new(size.max(UVec3::ONE));
+    let mut records = Vec::new();
+    let mut x = 0;
+    for (p, v) in scene.baked.iter().zip(&volumes) {
+        let origin = UVec3::new(x, 0, 0);
+        let bits: Vec<u16> = v.data.iter().map(|h| h.to_bits()).collect();
+        atlas.write(origin, v.dims, &bits);
+        records.push(
+            encode(&ObjectDesc {
+                world_from_local: p.world_from_local,
+                shape: CasterShape::Volume {
+                    region: AtlasRegion {
+                        origin,
+                        dims: v.dims,
+                    },
+                    local_origin: v.origin,
+                    voxel_size: v.voxel_size,
+                },
+                flags: live,
+            })
+            .expect("encodes"),
+        );
+        x += v.dims.x;
+    }
+    for (shape, m) in &scene.analytic {
+        records.push(
+            encode(&ObjectDesc {
+                world_from_local: *m,
+                shape: *shape,
+                flags: live,
+            })
+            .expect("encodes"),
+        );
+    }
+    (records, atlas)
+}
+
+fn model_light(scene: &Scene, camera: &CameraOrigin, max_steps: u32, shaping: f32) -> ShadowLight {
+    let (kind, source) = match scene.light {
+        AreaLight::Directional {
+            to_light,
+            angular_diameter,
+        } => (
+            ShadowLightKind::Directional(to_light),
+            (0.5 * angular_diameter).tan(),
+        ),
+        AreaLight::Sphere { center, radius } => (
+            ShadowLightKind::Positional(camera.relative([0, 0, 0], center)),
+            radius,
+        ),
+    };
+    ShadowLight {
+        kind,
+        source,
+        max_distance: 30.0,
+        bias: DEFAULT_BIAS,
+        shaping,
+        range: 30.0,
+        max_steps,
+    }
+}
+
+/// The view's mask by the model, and its distance evaluations.
+fn mask(
+    scene: &Scene,
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    max_steps: u32,
+    shaping: f32,
+) -> (Vec<f32>, u64) {
+    let eye = scene.camera.world_from_view.w_axis.truncate();
+    let camera = CameraOrigin::at(eye).expect("finite");
+    let light = model_light(scene, &camera, max_steps, shaping);
+    let mut evaluations = 0u64;
+    let mask = scene
+        .points
+        .iter()
+        .map(|p| {
+            p.map_or(1.0, |p| {
+                let p = camera.relative([0, 0, 0], p);
+                let (v, n) = pixel_visibility_counted(records, atlas, &camera, p, &light);
+                evaluations += n as u64;
+                v
+            })
+        })
+        .collect();
+    (mask, evaluations)
+}
+
+/// (mean error over shadowed-or-penumbra pixels, their count, mean over all pixels).
+fn errors(scene: &Scene, mask: &[f32]) -> (f32, usize, f32) {
+    let (mut affected, mut n_affected, mut all, mut n) = (0.0f32, 0, 0.0f32, 0);
+    for ((p, m), t) in scene.points.iter().zip(mask).zip(&scene.truth) {
+        if p.is_none() {
+            continue;
+        }
+        let e = (m - t).abs();
+        all += e;
+        n += 1;
+        if *m < 0.99 || *t < 0.99 {
+            affected += e;
+            n_affected += 1;
+        }
+    }
+    (
+        affected / n_affected.max(1) as f32,
+        n_affected,
+        all / n.max(1) as f32,
+    )
+}
+
+struct Row {
+    scene: &'static str,
+    resolution: u32,
+    steps: u32,
+    shaping: f32,
+    /// Distance evaluations per pixel (the work; deterministic).
+    evaluations: f64,
+    seconds: f64,
+    error: f32,
+    affected: usize,
+    error_all: f32,
+    pareto: bool,
+    default: bool,
+}
+
+fn sweep(scene: &Scene) -> Vec<Row> {
+    let mut rows = Vec::new();
+    let default_res = scene.default_resolution;
+    let mut resolutions = RESOLUTIONS.to_vec();
+    resolutions.push(default_res);
+    resolutions.sort_unstable();
+    resolutions.dedup();
+    // Steps × resolution at the default shaping; shapings at the default steps.
+    let mut configs = Vec::new();
+    for &resolution in &resolutions {
+        for &steps in &STEPS {
+            configs.push((resolution, steps, DEFAULT_SHAPING));
+        }
+        for &shaping in &SHAPINGS {
+            if shaping != DEFAULT_SHAPING {
+                configs.push((resolution, DEFAULT_STEPS, shaping));
+            }
+        }
+    }
+    for &resolution in &resolutions {
+        let (records, atlas) = records(scene, resolution);
+        for &(_, steps, shaping) in configs.iter().filter(|c| c.0 == resolution) {
+            let mut times = Vec::new();
+            let (mut m, mut evaluations) = (Vec::new(), 0);
+            for _ in 0..3 {
+                let start = Instant::now();
+                (m, evaluations) = mask(scene, &records, &atlas, steps, shaping);
+                times.push(start.elapsed().as_secs_f64());
+            }
+            times.sort_by(f64::total_cmp);
+            let (error, affected, error_all) = errors(scene, &m);
+            rows.push(Row {
+                scene: scene.name,
+                resolution,
+                steps,
+                shaping,
+                evaluations: evaluations as f64 / (SIZE * SIZE) as f64,
+                seconds: times[1],
+                error,
+                affected,
+                error_all,
+                pareto: false,
+                default: resolution == default_res
+                    && steps == DEFAULT_STEPS
+                    && shaping == DEFAULT_SHAPING,
+            });
+        }
+    }
+    let flags: Vec<bool> = rows
+        .iter()
+        .map(|r| {
+            !rows.iter().filter(|o| o.scene == r.scene).any(|o| {
+                o.seconds <= r.seconds
+                    && o.error <= r.error
+                    && (o.seconds < r.seconds || o.error < r.error)
+            })
+        })
+        .collect();
+    for (r, f) in rows.iter_mut().zip(flags) {
+        r.pareto = f;
+    }
+    rows
+}
+
+fn write_tables(rows: &[Row]) {
+    let mut md = String::from(
+        "| scene | SDF samples (longest axis) | steps | shaping | distance evaluations / pixel | time (ms, 96², 1 thread) | mean error, shadowed or penumbra | pixels | mean error, all | Pareto | default |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    let mut csv = String::from(
+        "scene,resolution,steps,shaping,evaluations_per_pixel,seconds,error_affected,affected_pixels,error_all,pareto,default\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {:.2} | {:.1} | {:.4} | {} | {:.4} | {} | {} |",
+            r.scene,
+            r.resolution,
+            r.steps,
+            r.shaping,
+            r.evaluations,
+            r.seconds * 1e3,
+            r.error,
+            r.affected,
+            r.error_all,
+            if r.pareto { "✓" } else { "" },
+            if r.default { "default" } else { "" }
+        );
+        let _ = writeln!(
+            csv,
+            "{},{},{},{:.6},{:.5},{},{:.5},{},{}",
+            r.scene,
+            r.resolution,
+            r.steps,
+            r.seconds,
+            r.error,
+            r.affected,
+            r.error_all,
+            r.pareto,
+            r.default
+        );
+    }
+    println!("{md}");
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/penumbra_bench");
+    if std::fs::create_dir_all(&dir).is_ok() {
+        let _ = std::fs::write(dir.join("df_shadows.md"), &md);
+        let _ = std::fs::write(dir.join("df_shadows.csv"), &csv);
+        println!("wrote {}", dir.join("df_shadows.{md,csv}").display());
+    }
+}
+
+/// Both scenes at their default SDF resolution: per (steps, shaping), the summed work
+/// and the mean of the two errors, with the Pareto front — where the defaults are chosen.
+fn combined(rows: &[Row]) {
+    let defaults: Vec<&Row> = rows.iter().filter(|r| r.default).collect();
+    let at_default_res: Vec<&Row> = rows
+        .iter()
+        .filter(|r| {
+            defaults
+                .iter()
+                .any(|d| d.scene == r.scene && d.resolution == r.resolution)
+        })
+        .collect();
+    let mut configs: Vec<(u32, f32)> = at_default_res
+        .iter()
+        .map(|r| (r.steps, r.shaping))
+        .collect();
+    configs.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    configs.dedup();
+    let scenes = defaults.len();
+    let table: Vec<(u32, f32, f64, f32)> = configs
+        .into_iter()
+        .filter_map(|(steps, shaping)| {
+            let rs: Vec<&&Row> = at_default_res
+                .iter()
+                .filter(|r| r.steps == steps && r.shaping == shaping)
+                .collect();
+            (rs.len() == scenes).then(|| {
+                let work = rs.iter().map(|r| r.evaluations).sum::<f64>();
+                let error = rs.iter().map(|r| r.error).sum::<f32>() / scenes as f32;
+                (steps, shaping, work, error)
+            })
+        })
+        .collect();
+    println!("Both scenes at their default SDF resolution:");
+    println!(
+        "| steps | shaping | distance evaluations / pixel (sum) | mean error (shadowed or penumbra) | Pareto | default |\n|---|---|---|---|---|---|"
+    );
+    for &(steps, shaping, work, error) in &table {
+        let dominated = table
+            .iter()
+            .any(|&(_, _, w, e)| w <= work && e <= error && (w < work || e < error));
+        println!(
+            "| {steps} | {shaping} | {work:.2} | {error:.4} | {} | {} |",
+            if dominated { "" } else { "✓" },
+            if steps == DEFAULT_STEPS && shaping == DEFAULT_SHAPING {
+                "default"
+            } else {
+                ""
+            }
+        );
+    }
+}
+
+fn bench(c: &mut Criterion) {
+    let mut scenes = vec![cornell()];
+    scenes.extend(bunny());
+    let mut rows = Vec::new();
+    for scene in &scenes {
+        println!(
+            "{}: the plugin's default bake has {} samples along the longest axis",
+            scene.name, scene.default_resolution
+        );
+        rows.extend(sweep(scene));
+    }
+    write_tables(&rows);
+    combined(&rows);
+    for scene in &scenes {
+        let (records, atlas) = records(scene, scene.default_resolution.max(2));
+        c.bench_function(&format!("df_shadows/{}/defaults", scene.name), |b| {
+            b.iter(|| mask(scene, &records, &atlas, DEFAULT_STEPS, DEFAULT_SHAPING));
+        });
+    }
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(10);
+    targets = bench
+}
+
+fn main() {
+    benches();
+    Criterion::default().final_summary();
+}
