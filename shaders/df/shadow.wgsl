@@ -4,8 +4,8 @@
 //
 // Per object, sphere-trace toward the light; the object leaves `d / r(t)` of the
 // light's cone open (`r(t) = t · tan θ`); the smallest value along the ray wins, and the
-// smallest over the objects. Penumbra only: stopping inside gives 0, negative distances
-// never widen the umbra. A bounded object of radius R covers at most (R / r)² of the
+// smallest over the objects. Penumbra only: stopping inside gives 0 (or the tiny-object
+// floor), negative distances never widen the umbra. A bounded object of radius R covers at most (R / r)² of the
 // cone's section, so it never darkens below 1 − (R / r)² (tiny objects on the axis).
 #define_import_path penumbra::df::shadow
 
@@ -185,15 +185,16 @@ fn march_object(
             break;
         }
         let d = object_distance(o, p + ray.dir * t, camera_tile, camera_offset, atlas);
-        if d <= 0.0 {
-            v = 0.0;
-            break;
-        }
         let cone = max(t * ray.tan_half, 1e-6);
         var floor_v = 0.0;
         if sphere.w >= 0.0 {
             let q = sphere.w / cone;
             floor_v = 1.0 - min(q * q, 1.0);
+        }
+        if d <= 0.0 {
+            // Inside: a tiny object still covers only (R / r)² of the cone's section.
+            v = min(v, floor_v);
+            break;
         }
         v = min(v, max(d / cone, floor_v));
         t += d;

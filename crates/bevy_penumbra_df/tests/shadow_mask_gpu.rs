@@ -523,3 +523,71 @@ fn save_png(name: &str, mask: &[f32]) {
     });
     let _ = image.save(dir.join(format!("{name}.png")));
 }
+
+/// Bad depth values (NaN, ±∞, negative, beyond 1) and degenerate lights (NaN or zero
+/// direction, infinite position, NaN source, NaN shaping) never put a NaN, an infinity
+/// or a value outside [0, 1] in the mask.
+#[test]
+fn gpu_shadow_mask_is_finite_on_bad_input() {
+    if !gpu_or_skip("gpu_shadow_mask_is_finite_on_bad_input") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let passes = passes(&gpu);
+    let scene = scene(Vec3::ZERO);
+    let mut view = view(&scene, Vec3::ZERO);
+    let bad = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -0.5, 2.0, 1e-30];
+    for (i, d) in view.depth.iter_mut().enumerate() {
+        if i % 7 == 0 {
+            *d = bad[(i / 7) % bad.len()];
+        }
+    }
+    let [(_, sun), (_, lamp)] = lights(Vec3::ZERO, EYE);
+    let cases = [
+        ("as is", sun),
+        (
+            "NaN direction",
+            ShadowLight {
+                kind: ShadowLightKind::Directional(Vec3::NAN),
+                ..sun
+            },
+        ),
+        (
+            "zero direction",
+            ShadowLight {
+                kind: ShadowLightKind::Directional(Vec3::ZERO),
+                ..sun
+            },
+        ),
+        (
+            "infinite position",
+            ShadowLight {
+                kind: ShadowLightKind::Positional(Vec3::INFINITY),
+                ..lamp
+            },
+        ),
+        (
+            "NaN source",
+            ShadowLight {
+                source: f32::NAN,
+                ..lamp
+            },
+        ),
+        (
+            "NaN shaping",
+            ShadowLight {
+                shaping: f32::NAN,
+                ..sun
+            },
+        ),
+    ];
+    for (name, light) in cases {
+        let (mask, _) = gpu_mask(&gpu, &passes, &scene, &view, &light);
+        let bad = mask
+            .iter()
+            .filter(|v| !(v.is_finite() && (0.0..=1.0).contains(*v)))
+            .count();
+        println!("{name}: {bad} bad mask values of {}", mask.len());
+        assert_eq!(bad, 0, "{name}");
+    }
+}

@@ -6,8 +6,8 @@
 //! leaves a fraction `d / r(t)` of the light's cone open, `r(t)` being the cone's radius
 //! at distance `t` (from the light's angular size or radius). The visibility is the
 //! smallest such fraction along the ray (clamped to [0, 1]), and the smallest over the
-//! objects. Stops when inside (visibility 0: the penumbra never extends into negative
-//! distances — no umbra is invented from them), at the light, or at the step limit.
+//! objects. Stops when inside (visibility 0 — or the tiny-object floor below: the
+//! penumbra never extends into negative distances, no umbra is invented from them), at the light, or at the step limit.
 //! Each object is marched only where the cone meets its bounding ball
 //! ([`cone_interval`]): elsewhere it cannot shadow, and sphere tracing away from it would
 //! only spend steps. An object of bounding radius `R` can cover at most `(R / r)²` of the cone's section,
@@ -164,12 +164,14 @@ pub fn df_visibility(
                 break;
             }
             let d = o.distance(p + dir * t);
-            if d <= 0.0 {
-                v = 0.0;
-                break;
-            }
             let r = (t * tan_half).max(1e-6);
             let floor = 1.0 - (size / r).powi(2).min(1.0);
+            if d <= 0.0 {
+                // Inside: the object covers the cone's axis, but a tiny one still only
+                // (R / r)² of its section.
+                v = v.min(floor);
+                break;
+            }
             v = v.min((d / r).max(floor));
             t += d;
         }

@@ -170,13 +170,14 @@ pub fn pixel_visibility_counted(
             }
             let d = object_distance(r, p + dir * t, camera, atlas);
             evaluations += 1;
+            let cone = (t * tan_half).max(1e-6);
+            // A bounded object covers at most (R / r)² of the cone's section, even when
+            // the axis runs through it.
+            let floor = sphere.map_or(0.0, |(_, radius)| 1.0 - (radius / cone).powi(2).min(1.0));
             if d <= 0.0 {
-                v = 0.0;
+                v = v.min(floor);
                 break;
             }
-            let cone = (t * tan_half).max(1e-6);
-            // A bounded object covers at most (R / r)² of the cone's section.
-            let floor = sphere.map_or(0.0, |(_, radius)| 1.0 - (radius / cone).powi(2).min(1.0));
             v = v.min((d / cone).max(floor));
             t += d;
         }
