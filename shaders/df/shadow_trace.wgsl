@@ -19,7 +19,8 @@ struct ShadowTraceView {
     camera_tile: vec4<i32>,
     // xyz: the camera's position within its tile.
     camera_offset: vec4<f32>,
-    // x, y: mask size in pixels.
+    // x, y: mask size in pixels; z: pixels per mask texel along each axis (1 full
+    // resolution, 2 half: texel (i, j) traces full-resolution pixel (2i, 2j)).
     size: vec4<u32>,
 }
 
@@ -54,9 +55,9 @@ fn from_order_key(k: u32) -> f32 {
     return bitcast<f32>(select(~k, k & 0x7fffffffu, (k & 0x80000000u) != 0u));
 }
 
-// Camera-relative world position of pixel `xy` at reverse-Z `depth`.
+// Camera-relative world position of full-resolution pixel `xy` at reverse-Z `depth`.
 fn position_from_depth(xy: vec2<u32>, depth: f32) -> vec3<f32> {
-    let uv = (vec2<f32>(xy) + 0.5) / vec2<f32>(view.size.xy);
+    let uv = (vec2<f32>(xy) + 0.5) / vec2<f32>(textureDimensions(depth_texture));
     let ndc = vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
     let v = view.view_from_clip * ndc;
     let q = v.xyz / v.w;
@@ -79,14 +80,15 @@ fn trace(
     workgroupBarrier();
 
     let inside = gid.x < view.size.x && gid.y < view.size.y;
+    let pixel = gid.xy * max(view.size.z, 1u);
     var depth = 0.0;
     if inside {
-        depth = textureLoad(depth_texture, vec2<i32>(gid.xy), 0).r;
+        depth = textureLoad(depth_texture, vec2<i32>(pixel), 0).r;
     }
     let surface = inside && depth > 0.0;
     var p = vec3<f32>(0.0);
     if surface {
-        p = position_from_depth(gid.xy, depth);
+        p = position_from_depth(pixel, depth);
         for (var i = 0u; i < 3u; i += 1u) {
             atomicMin(&tile_min[i], order_key(p[i]));
             atomicMax(&tile_max[i], order_key(p[i]));

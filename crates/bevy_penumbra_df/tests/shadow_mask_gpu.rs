@@ -213,6 +213,8 @@ struct Passes {
     cull: wgpu::ComputePipeline,
     trace: wgpu::ComputePipeline,
     trace_layout: wgpu::BindGroupLayout,
+    upsample: wgpu::ComputePipeline,
+    upsample_layout: wgpu::BindGroupLayout,
 }
 
 fn passes(gpu: &GpuCompute) -> Passes {
@@ -280,10 +282,37 @@ fn passes(gpu: &GpuCompute) -> Passes {
         "trace",
         &[&trace_layout],
     );
+    let upsample_layout = gpu
+        .device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("shadow_upsample"),
+            entries: &[
+                texture(0, wgpu::TextureViewDimension::D2),
+                texture(1, wgpu::TextureViewDimension::D2),
+                uniform(2),
+                E {
+                    binding: 3,
+                    visibility: ShaderStages::COMPUTE,
+                    ty: B::StorageTexture {
+                        access: wgpu::StorageTextureAccess::WriteOnly,
+                        format: wgpu::TextureFormat::R32Float,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                    },
+                    count: None,
+                },
+            ],
+        });
+    let upsample = gpu.pipeline_with_layouts(
+        &flatten("#import penumbra::df::shadow_upsample\n").unwrap(),
+        "upsample",
+        &[&upsample_layout],
+    );
     Passes {
         cull,
         trace,
         trace_layout,
+        upsample,
+        upsample_layout,
     }
 }
 
@@ -295,6 +324,24 @@ fn gpu_mask(
     view: &View,
     light: &ShadowLight,
 ) -> (Vec<f32>, u32) {
+    let (mask, kept, _) = gpu_mask_at(gpu, passes, scene, view, light, 1);
+    (mask, kept)
+}
+
+/// [`gpu_mask`] at `stride` (1 full, 2 half resolution); also returns the mask texture.
+fn gpu_mask_at(
+    gpu: &GpuCompute,
+    passes: &Passes,
+    scene: &Scene,
+    view: &View,
+    light: &ShadowLight,
+    stride: u32,
+) -> (Vec<f32>, u32, wgpu::Texture) {
+    let mask_size = if stride == 2 {
+        penumbra_df_core::shadow::half_size(UVec2::new(WIDTH, HEIGHT))
+    } else {
+        UVec2::new(WIDTH, HEIGHT)
+    };
     let n = scene.records.len() as u32;
     let record_bytes: Vec<u8> = scene.records.iter().flat_map(|r| r.to_bytes()).collect();
     let objects = gpu.buffer("objects", &record_bytes, BufferUsages::empty());
@@ -354,7 +401,7 @@ fn gpu_mask(
     );
     let mask = gpu.texture(
         "mask",
-        size(WIDTH, HEIGHT, 1),
+        size(mask_size.x, mask_size.y, 1),
         wgpu::TextureDimension::D2,
         wgpu::TextureFormat::R32Float,
         4,
@@ -366,7 +413,8 @@ fn gpu_mask(
             view.view_from_clip,
             view.world_from_view,
             &view.camera,
-            UVec2::new(WIDTH, HEIGHT),
+            mask_size,
+            stride,
         )),
         BufferUsages::UNIFORM,
     );
@@ -416,14 +464,17 @@ fn gpu_mask(
     gpu.dispatch(
         &passes.trace,
         &bind,
-        [WIDTH.div_ceil(8), HEIGHT.div_ceil(8), 1],
+        [mask_size.x.div_ceil(8), mask_size.y.div_ceil(8), 1],
     );
-    let mask = gpu
-        .read_texture_2d(&mask)
+    let values = floats(&gpu.read_texture_2d(&mask));
+    (values, kept, mask)
+}
+
+fn floats(bytes: &[u8]) -> Vec<f32> {
+    bytes
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect();
-    (mask, kept)
+        .collect()
 }
 
 fn lights(offset: Vec3, eye: Vec3) -> [(&'static str, ShadowLight); 2] {
@@ -589,5 +640,136 @@ fn gpu_shadow_mask_is_finite_on_bad_input() {
             .count();
         println!("{name}: {bad} bad mask values of {}", mask.len());
         assert_eq!(bad, 0, "{name}");
+    }
+}
+
+/// Half-resolution tracing: each texel equals the CPU model at its traced pixel, and the
+/// GPU bilateral upsample equals the CPU model's `upsample` of the same texels; the
+/// result stays close to full-resolution tracing.
+#[test]
+fn half_resolution_trace_and_upsample_match_the_cpu_model() {
+    use penumbra_reference::shadow_mask::upsample;
+    if !gpu_or_skip("half_resolution_trace_and_upsample_match_the_cpu_model") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let passes = passes(&gpu);
+    let scene = scene(Vec3::ZERO);
+    let view = view(&scene, Vec3::ZERO);
+    let full = UVec2::new(WIDTH, HEIGHT);
+    let half = penumbra_df_core::shadow::half_size(full);
+    let size = Vec2::new(WIDTH as f32, HEIGHT as f32);
+    let position = |x: u32, y: u32| {
+        let depth = view.depth[(y * WIDTH + x) as usize];
+        (depth > 0.0).then(|| {
+            position_from_depth(
+                view.view_from_clip,
+                view.world_from_view,
+                size,
+                Vec2::new(x as f32, y as f32),
+                depth,
+            )
+        })
+    };
+    let distance: Vec<f32> = (0..WIDTH * HEIGHT)
+        .map(|i| position(i % WIDTH, i / WIDTH).map_or(0.0, |p| p.length()))
+        .collect();
+    for (light_name, light) in lights(Vec3::ZERO, EYE) {
+        let (got_half, _, half_texture) = gpu_mask_at(&gpu, &passes, &scene, &view, &light, 2);
+        let want_half: Vec<f32> = (0..half.x * half.y)
+            .map(|i| {
+                position(2 * (i % half.x), 2 * (i / half.x)).map_or(1.0, |p| {
+                    pixel_visibility(&scene.records, &scene.atlas, &view.camera, p, &light)
+                })
+            })
+            .collect();
+        let (half_mean, half_over, _) = compare(&got_half, &want_half);
+
+        let depth_bytes: Vec<u8> = view.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
+        let extent = |w, h| wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        };
+        let depth = gpu.texture(
+            "depth",
+            extent(WIDTH, HEIGHT),
+            wgpu::TextureDimension::D2,
+            wgpu::TextureFormat::R32Float,
+            4,
+            &depth_bytes,
+        );
+        let out = gpu.texture(
+            "mask",
+            extent(WIDTH, HEIGHT),
+            wgpu::TextureDimension::D2,
+            wgpu::TextureFormat::R32Float,
+            4,
+            &[],
+        );
+        let mut words: Vec<u32> = view
+            .view_from_clip
+            .to_cols_array()
+            .map(f32::to_bits)
+            .to_vec();
+        words.extend([half.x, half.y, full.x, full.y]);
+        let uniform = gpu.buffer(
+            "upsample_view",
+            &words_to_bytes(&words),
+            BufferUsages::UNIFORM,
+        );
+        let views = [
+            half_texture.create_view(&Default::default()),
+            depth.create_view(&Default::default()),
+            out.create_view(&Default::default()),
+        ];
+        let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shadow_upsample"),
+            layout: &passes.upsample_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&views[0]),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&views[1]),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: uniform.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(&views[2]),
+                },
+            ],
+        });
+        gpu.dispatch(
+            &passes.upsample,
+            &bind,
+            [WIDTH.div_ceil(8), HEIGHT.div_ceil(8), 1],
+        );
+        let got = floats(&gpu.read_texture_2d(&out));
+        let want = upsample(&got_half, half, &distance, full);
+        let (up_mean, up_over, up_max) = compare(&got, &want);
+        let full_res = reference_mask(&scene, &view, &light);
+        let (vs_full, vs_full_over, _) = compare(&got, &full_res);
+        println!(
+            "{light_name}: half-resolution texels vs CPU mean {half_mean:.5} ({:.3} % over 0.05); \
+             upsampled vs CPU upsample mean {up_mean:.6}, max {up_max:.5}; vs full-resolution \
+             tracing mean {vs_full:.4} ({:.2} % over 0.05)",
+            half_over * 100.0,
+            vs_full_over * 100.0
+        );
+        assert!(
+            half_mean < 2e-3 && half_over < 0.003,
+            "{light_name}: half {half_mean}"
+        );
+        assert!(
+            up_mean < 1e-4 && up_over == 0.0,
+            "{light_name}: upsample {up_mean}"
+        );
+        assert!(vs_full < 0.03, "{light_name}: half vs full {vs_full}");
     }
 }

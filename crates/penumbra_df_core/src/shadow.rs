@@ -68,12 +68,14 @@ impl ShadowLight {
 
 /// The `ShadowTraceView` uniform: the camera's `view_from_clip` (inverse projection),
 /// its world-from-view rotation (camera-relative positions need no translation), its
-/// tile origin, and the mask size.
+/// tile origin, the mask size and its stride (`1`: full resolution; `2`: half, texel
+/// `(i, j)` traces pixel `(2i, 2j)`).
 pub fn trace_view_words(
     view_from_clip: Mat4,
     world_from_view: Mat3,
     camera: &CameraOrigin,
     size: UVec2,
+    stride: u32,
 ) -> Vec<u32> {
     let mut words = Vec::with_capacity(SHADOW_TRACE_VIEW_BYTES / 4);
     words.extend(view_from_clip.to_cols_array().map(f32::to_bits));
@@ -91,11 +93,17 @@ pub fn trace_view_words(
         0,
     ]);
     words.extend(camera.offset.extend(0.0).to_array().map(f32::to_bits));
-    words.extend([size.x, size.y, 0, 0]);
+    words.extend([size.x, size.y, stride.max(1), 0]);
     words
 }
 
 /// Little-endian bytes of words.
 pub fn words_to_bytes(words: &[u32]) -> Vec<u8> {
     words.iter().flat_map(|w| w.to_le_bytes()).collect()
+}
+
+/// Size of a half-resolution mask for a `full`-size view: one texel per 2×2 pixels
+/// (rounded up).
+pub fn half_size(full: UVec2) -> UVec2 {
+    UVec2::new(full.x.div_ceil(2), full.y.div_ceil(2))
 }

@@ -7,7 +7,8 @@
 //! `bevy_penumbra_df/tests/shadow_mask_gpu.rs`) and is compared with Monte Carlo ground
 //! truth traced on the triangles (12 × 12 stratified rays toward the light's disc).
 //! Swept: steps per object and SDF resolution (samples along the longest axis) at the
-//! default shaping, and the shaping exponent at the default steps.
+//! default shaping, traced at full and at half resolution (bilateral upsample), and the
+//! shaping exponent at the default steps.
 //!
 //! Error: mean |model − truth| over the pixels either side puts in shadow or penumbra
 //! (`< 0.99`), and over all pixels. Cost: distance evaluations per pixel (the GPU pass's
@@ -28,7 +29,7 @@ use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind};
 use penumbra_reference::camera::PerspectiveCamera;
 use penumbra_reference::df::Atlas;
 use penumbra_reference::df_shadow::{AreaLight, Occluder, ShadowSettings, monte_carlo_visibility};
-use penumbra_reference::shadow_mask::pixel_visibility_counted;
+use penumbra_reference::shadow_mask::{pixel_visibility_counted, upsample};
 use penumbra_sdf::bvh::Bvh;
 use penumbra_sdf::geometry::Aabb;
 use penumbra_sdf::grid::GridPolicy;
@@ -363,6 +364,39 @@ fn mask(
     (mask, evaluations)
 }
 
+/// Half resolution: the model at pixels `(2i, 2j)`, then the bilateral upsample.
+fn mask_half(
+    scene: &Scene,
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    max_steps: u32,
+    shaping: f32,
+) -> (Vec<f32>, u64) {
+    let eye = scene.camera.world_from_view.w_axis.truncate();
+    let camera = CameraOrigin::at(eye).expect("finite");
+    let light = model_light(scene, &camera, max_steps, shaping);
+    let half = glam::UVec2::new(SIZE.div_ceil(2), SIZE.div_ceil(2));
+    let mut evaluations = 0u64;
+    let traced: Vec<f32> = (0..half.x * half.y)
+        .map(|i| {
+            let (x, y) = (2 * (i % half.x), 2 * (i / half.x));
+            scene.points[(y * SIZE + x) as usize].map_or(1.0, |p| {
+                let p = camera.relative([0, 0, 0], p);
+                let (v, n) = pixel_visibility_counted(records, atlas, &camera, p, &light);
+                evaluations += n as u64;
+                v
+            })
+        })
+        .collect();
+    let distance: Vec<f32> = scene
+        .points
+        .iter()
+        .map(|p| p.map_or(0.0, |p| (p - eye).length()))
+        .collect();
+    let full = glam::UVec2::splat(SIZE);
+    (upsample(&traced, half, &distance, full), evaluations)
+}
+
 /// (mean error over shadowed-or-penumbra pixels, their count, mean over all pixels).
 fn errors(scene: &Scene, mask: &[f32]) -> (f32, usize, f32) {
     let (mut affected, mut n_affected, mut all, mut n) = (0.0f32, 0, 0.0f32, 0);
@@ -390,6 +424,7 @@ struct Row {
     resolution: u32,
     steps: u32,
     shaping: f32,
+    half: bool,
     /// Distance evaluations per pixel (the work; deterministic).
     evaluations: f64,
     seconds: f64,
@@ -407,26 +442,32 @@ fn sweep(scene: &Scene) -> Vec<Row> {
     resolutions.push(default_res);
     resolutions.sort_unstable();
     resolutions.dedup();
-    // Steps × resolution at the default shaping; shapings at the default steps.
+    // Steps × resolution at the default shaping, full and half resolution; shapings at
+    // the default steps.
     let mut configs = Vec::new();
     for &resolution in &resolutions {
         for &steps in &STEPS {
-            configs.push((resolution, steps, DEFAULT_SHAPING));
+            configs.push((resolution, steps, DEFAULT_SHAPING, false));
+            configs.push((resolution, steps, DEFAULT_SHAPING, true));
         }
         for &shaping in &SHAPINGS {
             if shaping != DEFAULT_SHAPING {
-                configs.push((resolution, DEFAULT_STEPS, shaping));
+                configs.push((resolution, DEFAULT_STEPS, shaping, false));
             }
         }
     }
     for &resolution in &resolutions {
         let (records, atlas) = records(scene, resolution);
-        for &(_, steps, shaping) in configs.iter().filter(|c| c.0 == resolution) {
+        for &(_, steps, shaping, half) in configs.iter().filter(|c| c.0 == resolution) {
             let mut times = Vec::new();
             let (mut m, mut evaluations) = (Vec::new(), 0);
             for _ in 0..3 {
                 let start = Instant::now();
-                (m, evaluations) = mask(scene, &records, &atlas, steps, shaping);
+                (m, evaluations) = if half {
+                    mask_half(scene, &records, &atlas, steps, shaping)
+                } else {
+                    mask(scene, &records, &atlas, steps, shaping)
+                };
                 times.push(start.elapsed().as_secs_f64());
             }
             times.sort_by(f64::total_cmp);
@@ -436,6 +477,7 @@ fn sweep(scene: &Scene) -> Vec<Row> {
                 resolution,
                 steps,
                 shaping,
+                half,
                 evaluations: evaluations as f64 / (SIZE * SIZE) as f64,
                 seconds: times[1],
                 error,
@@ -444,7 +486,8 @@ fn sweep(scene: &Scene) -> Vec<Row> {
                 pareto: false,
                 default: resolution == default_res
                     && steps == DEFAULT_STEPS
-                    && shaping == DEFAULT_SHAPING,
+                    && shaping == DEFAULT_SHAPING
+                    && !half,
             });
         }
     }
@@ -466,19 +509,20 @@ fn sweep(scene: &Scene) -> Vec<Row> {
 
 fn write_tables(rows: &[Row]) {
     let mut md = String::from(
-        "| scene | SDF samples (longest axis) | steps | shaping | distance evaluations / pixel | time (ms, 96², 1 thread) | mean error, shadowed or penumbra | pixels | mean error, all | Pareto | default |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| scene | SDF samples (longest axis) | steps | shaping | resolution | distance evaluations / pixel | time (ms, 96², 1 thread) | mean error, shadowed or penumbra | pixels | mean error, all | Pareto | default |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let mut csv = String::from(
-        "scene,resolution,steps,shaping,evaluations_per_pixel,seconds,error_affected,affected_pixels,error_all,pareto,default\n",
+        "scene,resolution,steps,shaping,half,evaluations_per_pixel,seconds,error_affected,affected_pixels,error_all,pareto,default\n",
     );
     for r in rows {
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {} | {:.2} | {:.1} | {:.4} | {} | {:.4} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {:.2} | {:.1} | {:.4} | {} | {:.4} | {} | {} |",
             r.scene,
             r.resolution,
             r.steps,
             r.shaping,
+            if r.half { "half" } else { "full" },
             r.evaluations,
             r.seconds * 1e3,
             r.error,
@@ -522,43 +566,41 @@ fn combined(rows: &[Row]) {
                 .any(|d| d.scene == r.scene && d.resolution == r.resolution)
         })
         .collect();
-    let mut configs: Vec<(u32, f32)> = at_default_res
+    let mut configs: Vec<(u32, f32, bool)> = at_default_res
         .iter()
-        .map(|r| (r.steps, r.shaping))
+        .map(|r| (r.steps, r.shaping, r.half))
         .collect();
-    configs.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    configs.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
     configs.dedup();
     let scenes = defaults.len();
-    let table: Vec<(u32, f32, f64, f32)> = configs
+    let table: Vec<(u32, f32, bool, f64, f32)> = configs
         .into_iter()
-        .filter_map(|(steps, shaping)| {
+        .filter_map(|(steps, shaping, half)| {
             let rs: Vec<&&Row> = at_default_res
                 .iter()
-                .filter(|r| r.steps == steps && r.shaping == shaping)
+                .filter(|r| r.steps == steps && r.shaping == shaping && r.half == half)
                 .collect();
             (rs.len() == scenes).then(|| {
                 let work = rs.iter().map(|r| r.evaluations).sum::<f64>();
                 let error = rs.iter().map(|r| r.error).sum::<f32>() / scenes as f32;
-                (steps, shaping, work, error)
+                (steps, shaping, half, work, error)
             })
         })
         .collect();
     println!("Both scenes at their default SDF resolution:");
     println!(
-        "| steps | shaping | distance evaluations / pixel (sum) | mean error (shadowed or penumbra) | Pareto | default |\n|---|---|---|---|---|---|"
+        "| steps | shaping | resolution | distance evaluations / pixel (sum) | mean error (shadowed or penumbra) | Pareto | default |\n|---|---|---|---|---|---|---|"
     );
-    for &(steps, shaping, work, error) in &table {
+    for &(steps, shaping, half, work, error) in &table {
         let dominated = table
             .iter()
-            .any(|&(_, _, w, e)| w <= work && e <= error && (w < work || e < error));
+            .any(|&(_, _, _, w, e)| w <= work && e <= error && (w < work || e < error));
+        let default = steps == DEFAULT_STEPS && shaping == DEFAULT_SHAPING && !half;
         println!(
-            "| {steps} | {shaping} | {work:.2} | {error:.4} | {} | {} |",
+            "| {steps} | {shaping} | {} | {work:.2} | {error:.4} | {} | {} |",
+            if half { "half" } else { "full" },
             if dominated { "" } else { "✓" },
-            if steps == DEFAULT_STEPS && shaping == DEFAULT_SHAPING {
-                "default"
-            } else {
-                ""
-            }
+            if default { "default" } else { "" }
         );
     }
 }

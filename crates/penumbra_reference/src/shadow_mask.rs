@@ -195,6 +195,62 @@ pub fn finish(visibility: f32, shaping: f32) -> f32 {
     if v >= 0.0 { v.min(1.0) } else { 1.0 }
 }
 
+/// Relative depth difference at which a half-resolution texel's weight in [`upsample`]
+/// reaches zero.
+pub const UPSAMPLE_DEPTH_TOLERANCE: f32 = 0.1;
+
+/// Bilateral upsampling of a half-resolution mask (`df/shadow_upsample.wgsl`): texel
+/// `(i, j)` of `half` (`half_size`) holds the visibility traced at full-resolution pixel
+/// `(2i, 2j)`; `distance` holds every full-resolution pixel's distance from the camera
+/// (0: background, whose result is 1). Each pixel blends the four texels around it with
+/// bilinear weights scaled by `max(0, 1 − |Δd| / (d · tolerance))`; if none is close in
+/// depth, the closest texel wins.
+pub fn upsample(
+    half: &[f32],
+    half_size: glam::UVec2,
+    distance: &[f32],
+    full_size: glam::UVec2,
+) -> Vec<f32> {
+    let at = |x: u32, y: u32| distance[(y * full_size.x + x) as usize];
+    (0..full_size.y)
+        .flat_map(|y| (0..full_size.x).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let d = at(x, y);
+            if !(d > 0.0) {
+                return 1.0;
+            }
+            let h = Vec2::new(x as f32, y as f32) * 0.5;
+            let (i0, f) = (h.floor(), h - h.floor());
+            let (mut sum, mut weights, mut nearest, mut nearest_error) =
+                (0.0f32, 0.0f32, 1.0f32, f32::MAX);
+            for k in 0..4u32 {
+                let (ox, oy) = (k & 1, k >> 1);
+                let tx = (i0.x as u32 + ox).min(half_size.x - 1);
+                let ty = (i0.y as u32 + oy).min(half_size.y - 1);
+                let v = half[(ty * half_size.x + tx) as usize];
+                let ds = at((2 * tx).min(full_size.x - 1), (2 * ty).min(full_size.y - 1));
+                let error = (ds - d).abs() / d;
+                let wx = if ox == 1 { f.x } else { 1.0 - f.x };
+                let wy = if oy == 1 { f.y } else { 1.0 - f.y };
+                let w = wx * wy * (1.0 - error / UPSAMPLE_DEPTH_TOLERANCE).max(0.0);
+                sum += v * w;
+                weights += w;
+                if error < nearest_error {
+                    nearest_error = error;
+                    nearest = v;
+                }
+            }
+            let out = if weights > 1e-4 {
+                sum / weights
+            } else {
+                nearest
+            };
+            let out = out.clamp(0.0, 1.0);
+            if out >= 0.0 { out } else { 1.0 }
+        })
+        .collect()
+}
+
 /// Camera-relative world position of the pixel centre `(x + ½, y + ½)` at reverse-Z
 /// `depth` (> 0), for a `size` image: NDC from the pixel, through `view_from_clip`, then
 /// rotated by the camera's world-from-view rotation (no translation: camera-relative).

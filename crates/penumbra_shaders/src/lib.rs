@@ -38,6 +38,7 @@ shader_files! {
     "df/shadow.wgsl" => Some("penumbra::df::shadow"),
     "df/shadow_cull.wgsl" => Some("penumbra::df::shadow_cull"),
     "df/shadow_trace.wgsl" => Some("penumbra::df::shadow_trace"),
+    "df/shadow_upsample.wgsl" => Some("penumbra::df::shadow_upsample"),
     "lighting/masks.wgsl" => Some("penumbra::lighting::masks"),
     "lighting/lights.wgsl" => Some("penumbra::lighting::lights"),
     "lighting/pass.wgsl" => None,

@@ -30,11 +30,13 @@ use bevy::render::{Render, RenderStartup, RenderSystems};
 use penumbra_df_core::cull::{CameraOrigin, Frustum, cull_view_words, grid_64};
 use penumbra_df_core::object::{tile_of, tile_relative};
 use penumbra_df_core::shadow::{
-    SHADOW_LIGHT_BYTES, SHADOW_TRACE_VIEW_BYTES, ShadowLight, ShadowLightKind, trace_view_words,
-    words_to_bytes,
+    SHADOW_LIGHT_BYTES, SHADOW_TRACE_VIEW_BYTES, ShadowLight, ShadowLightKind, half_size,
+    trace_view_words, words_to_bytes,
 };
 use std::num::NonZeroU64;
 
+/// Bytes of `ShadowUpsampleView` (`df/shadow_upsample.wgsl`).
+const UPSAMPLE_VIEW_BYTES: u64 = 64 + 16;
 /// Bytes of `ShadowCullView` (the frustum cull's `CullView` layout).
 const CULL_VIEW_BYTES: u64 = 6 * 16 + 16 + 16 + 16;
 
@@ -107,6 +109,9 @@ pub struct DistanceFieldShadowMasks {
     /// Per layer, a storage view.
     layers: Vec<TextureView>,
     size: UVec2,
+    /// Half-resolution lights' traces, upsampled into their layer: (storage view,
+    /// sampled view), at [`half_size`].
+    half: Option<(TextureView, TextureView)>,
 }
 
 /// The passes' pipelines.
@@ -116,6 +121,8 @@ struct ShadowPipelines {
     cull: CachedComputePipelineId,
     trace_layout: BindGroupLayoutDescriptor,
     trace: CachedComputePipelineId,
+    upsample_layout: BindGroupLayoutDescriptor,
+    upsample: CachedComputePipelineId,
     /// Bound when the scene has no SDF volume (analytic casters only).
     empty_atlas: TextureView,
 }
@@ -182,6 +189,18 @@ fn init_shadow_pipelines(
             ),
         ),
     );
+    let upsample_layout = BindGroupLayoutDescriptor::new(
+        "penumbra_df_shadow_upsample_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                texture_2d(TextureSampleType::Float { filterable: false }),
+                texture_2d(TextureSampleType::Float { filterable: false }),
+                uniform_buffer_sized(false, NonZeroU64::new(UPSAMPLE_VIEW_BYTES)),
+                texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
+            ),
+        ),
+    );
     let queue = |label: &'static str,
                  layout: &BindGroupLayoutDescriptor,
                  path: &str,
@@ -206,6 +225,12 @@ fn init_shadow_pipelines(
         "df/shadow_trace.wgsl",
         "trace",
     );
+    let upsample = queue(
+        "penumbra_df_shadow_upsample",
+        &upsample_layout,
+        "df/shadow_upsample.wgsl",
+        "upsample",
+    );
     let empty = device.create_texture(&TextureDescriptor {
         label: Some("penumbra_df_shadow_empty_atlas"),
         size: Extent3d {
@@ -225,6 +250,8 @@ fn init_shadow_pipelines(
         cull,
         trace_layout,
         trace,
+        upsample_layout,
+        upsample,
         empty_atlas: empty.create_view(&TextureViewDescriptor::default()),
     });
 }
@@ -297,6 +324,7 @@ fn prepare_distance_field_shadows(
     let ready = pipelines.as_ref().is_some_and(|p| {
         pipeline_cache.get_compute_pipeline(p.cull).is_some()
             && pipeline_cache.get_compute_pipeline(p.trace).is_some()
+            && pipeline_cache.get_compute_pipeline(p.upsample).is_some()
     });
     for (entity, view, masks) in &views {
         if frame.0.is_empty() || !has_objects || !ready {
@@ -308,9 +336,12 @@ fn prepare_distance_field_shadows(
         }
         let size = view.viewport.zw().max(UVec2::ONE);
         let layers = frame.0.len();
+        let half = frame.0.iter().any(|l| l.settings.half_resolution);
         let fresh = match masks {
-            Some(m) if m.size == size && m.layers.len() == layers => None,
-            _ => Some(create_masks(&device, size, layers as u32)),
+            Some(m) if m.size == size && m.layers.len() == layers && m.half.is_some() == half => {
+                None
+            }
+            _ => Some(create_masks(&device, size, layers as u32, half)),
         };
         let Some(array) = fresh.as_ref().or(masks).map(|m| m.array.clone()) else {
             continue;
@@ -360,10 +391,11 @@ fn distance_field_shadows(
     let (Some(gpu), Some(pipelines)) = (gpu, pipelines) else {
         return;
     };
-    let (Some(objects), Some(cull), Some(trace), Some(depth)) = (
+    let (Some(objects), Some(cull), Some(trace), Some(upsample), Some(depth)) = (
         gpu.objects.as_ref(),
         pipeline_cache.get_compute_pipeline(pipelines.cull),
         pipeline_cache.get_compute_pipeline(pipelines.trace),
+        pipeline_cache.get_compute_pipeline(pipelines.upsample),
         prepass.depth_view(),
     ) else {
         return;
@@ -389,16 +421,31 @@ fn distance_field_shadows(
         &words_to_bytes(&cull_view_words(&frustum, &camera, slots, groups_x)),
         BufferUsages::UNIFORM,
     );
-    let trace_view = buffer(
-        "penumbra_df_shadow_trace_view",
-        &words_to_bytes(&trace_view_words(
-            view.clip_from_view.inverse(),
-            rotation,
-            &camera,
-            masks.size,
-        )),
+    let view_from_clip = view.clip_from_view.inverse();
+    let trace_view = |stride: u32, size: UVec2| {
+        buffer(
+            "penumbra_df_shadow_trace_view",
+            &words_to_bytes(&trace_view_words(
+                view_from_clip,
+                rotation,
+                &camera,
+                size,
+                stride,
+            )),
+            BufferUsages::UNIFORM,
+        )
+    };
+    let full_view = trace_view(1, masks.size);
+    let half_view = trace_view(2, half_size(masks.size));
+    let mut upsample_words: Vec<u32> = view_from_clip.to_cols_array().map(f32::to_bits).to_vec();
+    let h = half_size(masks.size);
+    upsample_words.extend([h.x, h.y, masks.size.x, masks.size.y]);
+    let upsample_view = buffer(
+        "penumbra_df_shadow_upsample_view",
+        &words_to_bytes(&upsample_words),
         BufferUsages::UNIFORM,
     );
+    let upsample_layout = pipeline_cache.get_bind_group_layout(&pipelines.upsample_layout);
     let atlas = gpu
         .atlas
         .as_ref()
@@ -443,6 +490,15 @@ fn distance_field_shadows(
                 count.as_entire_binding(),
             )),
         );
+        // Half resolution: trace into the half texture, then upsample into the layer.
+        let half = masks
+            .half
+            .as_ref()
+            .filter(|_| light.settings.half_resolution);
+        let (trace_target, trace_uniform, trace_size) = match half {
+            Some((storage, _)) => (storage, &half_view, half_size(masks.size)),
+            None => (layer, &full_view, masks.size),
+        };
         let trace_bind = device.create_bind_group(
             "penumbra_df_shadow_trace",
             &trace_layout,
@@ -452,11 +508,23 @@ fn distance_field_shadows(
                 count.as_entire_binding(),
                 atlas,
                 depth,
-                trace_view.as_entire_binding(),
+                trace_uniform.as_entire_binding(),
                 light_buffer.as_entire_binding(),
-                layer,
+                trace_target,
             )),
         );
+        let upsample_bind = half.map(|(_, sampled)| {
+            device.create_bind_group(
+                "penumbra_df_shadow_upsample",
+                &upsample_layout,
+                &BindGroupEntries::sequential((
+                    sampled,
+                    depth,
+                    upsample_view.as_entire_binding(),
+                    layer,
+                )),
+            )
+        });
         let mut pass = ctx
             .command_encoder()
             .begin_compute_pass(&ComputePassDescriptor {
@@ -468,7 +536,12 @@ fn distance_field_shadows(
         pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
         pass.set_pipeline(trace);
         pass.set_bind_group(0, &trace_bind, &[]);
-        pass.dispatch_workgroups(masks.size.x.div_ceil(8), masks.size.y.div_ceil(8), 1);
+        pass.dispatch_workgroups(trace_size.x.div_ceil(8), trace_size.y.div_ceil(8), 1);
+        if let Some(upsample_bind) = &upsample_bind {
+            pass.set_pipeline(upsample);
+            pass.set_bind_group(0, upsample_bind, &[]);
+            pass.dispatch_workgroups(masks.size.x.div_ceil(8), masks.size.y.div_ceil(8), 1);
+        }
     }
 }
 
@@ -480,7 +553,12 @@ fn array_view(texture: &Texture) -> TextureView {
     })
 }
 
-fn create_masks(device: &RenderDevice, size: UVec2, layers: u32) -> DistanceFieldShadowMasks {
+fn create_masks(
+    device: &RenderDevice,
+    size: UVec2,
+    layers: u32,
+    half: bool,
+) -> DistanceFieldShadowMasks {
     let texture = device.create_texture(&TextureDescriptor {
         label: Some("penumbra_df_shadow_masks"),
         size: Extent3d {
@@ -506,9 +584,29 @@ fn create_masks(device: &RenderDevice, size: UVec2, layers: u32) -> DistanceFiel
             })
         })
         .collect();
+    let half = half.then(|| {
+        let h = half_size(size);
+        let texture = device.create_texture(&TextureDescriptor {
+            label: Some("penumbra_df_shadow_half_mask"),
+            size: Extent3d {
+                width: h.x,
+                height: h.y,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: TextureDimension::D2,
+            format: TextureFormat::R32Float,
+            usage: TextureUsages::STORAGE_BINDING | TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&TextureViewDescriptor::default());
+        (view.clone(), view)
+    });
     DistanceFieldShadowMasks {
         array: array_view(&texture),
         layers,
         size,
+        half,
     }
 }
