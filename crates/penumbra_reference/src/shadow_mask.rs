@@ -216,7 +216,7 @@ pub fn upsample(
         .flat_map(|y| (0..full_size.x).map(move |x| (x, y)))
         .map(|(x, y)| {
             let d = at(x, y);
-            if !(d > 0.0) {
+            if d.is_nan() || d <= 0.0 {
                 return 1.0;
             }
             let h = Vec2::new(x as f32, y as f32) * 0.5;
