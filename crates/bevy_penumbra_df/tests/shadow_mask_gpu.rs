@@ -461,14 +461,23 @@ fn gpu_mask_at(
             },
         ],
     });
-    gpu.dispatch(
-        &passes.trace,
-        &bind,
-        [mask_size.x.div_ceil(8), mask_size.y.div_ceil(8), 1],
-    );
+    let groups = [mask_size.x.div_ceil(8), mask_size.y.div_ceil(8), 1];
+    gpu.dispatch(&passes.trace, &bind, groups);
     let values = floats(&gpu.read_texture_2d(&mask));
+    if let Some(times) = TRACE_TIMES.lock().unwrap().as_mut() {
+        for _ in 0..5 {
+            gpu.wait();
+            let start = std::time::Instant::now();
+            gpu.dispatch(&passes.trace, &bind, groups);
+            gpu.wait();
+            times.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+    }
     (values, kept, mask)
 }
+
+/// When set, [`gpu_mask_at`] also times 5 more trace dispatches into it (milliseconds).
+static TRACE_TIMES: std::sync::Mutex<Option<Vec<f64>>> = std::sync::Mutex::new(None);
 
 fn floats(bytes: &[u8]) -> Vec<f32> {
     bytes
@@ -771,5 +780,35 @@ fn half_resolution_trace_and_upsample_match_the_cpu_model() {
             "{light_name}: upsample {up_mean}"
         );
         assert!(vs_full < 0.03, "{light_name}: half vs full {vs_full}");
+    }
+}
+
+/// Run time of the trace pass on this machine's adapter (lavapipe here: a CPU), per
+/// light, at full and half resolution (the upsample not included):
+/// `cargo test -p bevy_penumbra_df --test shadow_mask_gpu -- --ignored --nocapture`.
+#[test]
+#[ignore = "timing, not a check: run by hand"]
+fn mask_pass_timing() {
+    if !gpu_or_skip("mask_pass_timing") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let passes = passes(&gpu);
+    let scene = scene(Vec3::ZERO);
+    let view = view(&scene, Vec3::ZERO);
+    for (light_name, light) in lights(Vec3::ZERO, EYE) {
+        for stride in [1u32, 2] {
+            *TRACE_TIMES.lock().unwrap() = Some(Vec::new());
+            let _ = gpu_mask_at(&gpu, &passes, &scene, &view, &light, stride);
+            let mut times = TRACE_TIMES.lock().unwrap().take().expect("timed");
+            times.sort_by(f64::total_cmp);
+            println!(
+                "{light_name}, {} resolution: trace pass {:.2} ms (median of 5; {WIDTH}×{HEIGHT} \
+                 view, {} objects)",
+                if stride == 1 { "full" } else { "half" },
+                times[2],
+                scene.records.len()
+            );
+        }
     }
 }
