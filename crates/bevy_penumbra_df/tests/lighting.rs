@@ -229,3 +229,44 @@ fn to_png(pixels: &[[f32; 4]]) -> image::RgbaImage {
         image::Rgba([encode(p[0]), encode(p[1]), encode(p[2]), 255])
     })
 }
+
+/// A `PenumbraLighting` camera asking for MSAA is still served: Bevy switches MSAA off on
+/// deferred cameras (with its own warning), and Penumbra's lighting pass runs, Bevy's
+/// deferred pass is skipped.
+#[test]
+fn msaa_cameras_are_served_without_msaa() {
+    use bevy::render::RenderApp;
+    if !gpu_or_skip("msaa_cameras_are_served_without_msaa") {
+        return;
+    }
+    let harness = HeadlessRender::new(64, 64).without_pipelining().frames(3);
+    let mut app = harness.app();
+    app.add_plugins(PenumbraLightingPlugin);
+    app.add_systems(Startup, scene);
+    app.add_systems(Startup, |mut commands: Commands| {
+        commands.spawn((
+            Camera3d::default(),
+            PenumbraLighting,
+            Msaa::Sample4,
+            Transform::from_xyz(1.5, 3.0, 5.5).looking_at(Vec3::ZERO, Vec3::Y),
+        ));
+    });
+    let (_, mut app) = harness.run_keeping_app(app).expect("renders");
+    let msaa: Vec<Msaa> = app
+        .world_mut()
+        .query_filtered::<&Msaa, With<PenumbraLighting>>()
+        .iter(app.world())
+        .copied()
+        .collect();
+    assert_eq!(msaa, [Msaa::Off]);
+    let render_world = app.sub_app_mut(RenderApp).world_mut();
+    let served: Vec<Entity> = render_world
+        .query_filtered::<Entity, (
+            With<bevy_penumbra_df::lighting::PenumbraLightingView>,
+            With<bevy::pbr::deferred::SkipDeferredLighting>,
+            With<bevy::render::view::ExtractedView>,
+        )>()
+        .iter(render_world)
+        .collect();
+    assert_eq!(served.len(), 1, "the camera is served: {served:?}");
+}

@@ -20,8 +20,9 @@
 //! (`DefaultOpaqueRendererMethod::deferred()`), so scenes and `StandardMaterial`s stay as
 //! they are. Limits (as for Bevy's deferred renderer): forward-only and transparent
 //! materials are lit by Bevy's forward path (their lights keep shadow maps); MSAA is not
-//! supported on deferred cameras (a camera with MSAA is not served, with one warning); a
-//! 3D camera without a `DeferredPrepass` does not show deferred materials (warned once).
+//! supported on deferred cameras (Bevy switches it off with a warning; until it has, the
+//! camera is left to Bevy, with one warning of Penumbra's); a 3D camera without a
+//! `DeferredPrepass` does not show deferred materials (warned once).
 //!
 //! Cost: one fullscreen pass per camera, replacing Bevy's; nothing for cameras without
 //! the component.
