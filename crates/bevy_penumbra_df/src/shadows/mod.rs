@@ -102,7 +102,8 @@ impl Plugin for DistanceFieldShadowsPlugin {
     fn build(&self, app: &mut App) {
         crate::shader_library::register_shader_library(app);
         app.register_type::<DistanceFieldShadows>()
-            .add_plugins(ExtractComponentPlugin::<DistanceFieldShadows>::default());
+            .add_plugins(ExtractComponentPlugin::<DistanceFieldShadows>::default())
+            .add_systems(PostUpdate, warn_unseen_shadows);
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app);
         }
@@ -113,4 +114,28 @@ impl Plugin for DistanceFieldShadowsPlugin {
             render::finish(render_app);
         }
     }
+}
+
+/// Lights with distance-field shadows.
+type ShadowedLights = (
+    With<DistanceFieldShadows>,
+    Or<(With<DirectionalLight>, With<PointLight>, With<SpotLight>)>,
+);
+
+/// Distance-field shadows are only seen by `PenumbraLighting` cameras, and the light's
+/// shadow map is off: say so once if a shadowed light has no such camera to serve it.
+fn warn_unseen_shadows(
+    lights: Query<Entity, ShadowedLights>,
+    cameras: Query<&Camera, With<crate::lighting::PenumbraLighting>>,
+    mut warned: Local<bool>,
+) {
+    if *warned || lights.is_empty() || cameras.iter().any(|c| c.is_active) {
+        return;
+    }
+    *warned = true;
+    warn!(
+        "Penumbra: {} light(s) have DistanceFieldShadows but no active camera has \
+         PenumbraLighting: their shadows are not drawn (and their shadow maps are off)",
+        lights.iter().count()
+    );
 }
