@@ -11,6 +11,10 @@
     ShadowLight, bounding_sphere, casts_shadows, cull_slack, finish_visibility, is_directional,
     march_object, object_in_cone, round_cone_distance, shadow_ray,
 }
+#import penumbra::df::shadow_grid::{
+    GRID_SIZE, MAX_CELLS, ShadowGridRead, ShadowGridView, cell_range, from_order_key,
+    grid_frame, grid_light, light_space_disc, order_key, range_cells,
+}
 
 struct ShadowTraceView {
     view_from_clip: mat4x4<f32>,
@@ -34,6 +38,12 @@ struct ShadowTraceView {
 @group(0) @binding(5) var<uniform> view: ShadowTraceView;
 @group(0) @binding(6) var<uniform> light: ShadowLight;
 @group(0) @binding(7) var mask: texture_storage_2d<r32float, write>;
+// Directional lights: the light-space grid of the light's casters
+// (`penumbra::df::shadow_grid`); `grid_view.u.w` is 1 when it is in use.
+@group(0) @binding(8) var<storage, read> grid: ShadowGridRead;
+@group(0) @binding(9) var<storage, read> grid_items: array<u32>;
+@group(0) @binding(10) var<storage, read> grid_large: array<u32>;
+@group(0) @binding(11) var<uniform> grid_view: ShadowGridView;
 
 const TILE_PIXELS: u32 = 64u;
 
@@ -44,16 +54,11 @@ var<workgroup> tile_spheres: array<vec4<f32>, 64>;
 var<workgroup> tile_count: atomic<u32>;
 var<workgroup> tile_n: u32;
 var<workgroup> total_n: u32;
-
-// Order-preserving map of f32 to u32 (for atomic min / max).
-fn order_key(f: f32) -> u32 {
-    let b = bitcast<u32>(f);
-    return select(b | 0x80000000u, ~b, (b & 0x80000000u) != 0u);
-}
-
-fn from_order_key(k: u32) -> f32 {
-    return bitcast<f32>(select(~k, k & 0x7fffffffu, (k & 0x80000000u) != 0u));
-}
+// The tile's candidates: 0 the light's list, 1 the grid (large casters, then the casters
+// of the cells in `tile_cells`).
+var<workgroup> tile_mode: u32;
+var<workgroup> tile_cells: vec4<i32>;
+var<workgroup> tile_large: u32;
 
 // Camera-relative world position of full-resolution pixel `xy` at reverse-Z `depth`.
 fn position_from_depth(xy: vec2<u32>, depth: f32) -> vec3<f32> {
@@ -75,7 +80,6 @@ fn trace(
             atomicStore(&tile_min[i], 0xffffffffu);
             atomicStore(&tile_max[i], 0u);
         }
-        total_n = light_object_count[0];
     }
     workgroupBarrier();
 
@@ -94,7 +98,7 @@ fn trace(
             atomicMax(&tile_max[i], order_key(p[i]));
         }
     }
-    let total = workgroupUniformLoad(&total_n);
+    workgroupBarrier();
 
     // The tile's round cone: from its bounding ball to the light's end ball.
     let lo = vec3<f32>(
@@ -113,24 +117,94 @@ fn trace(
     var cone_end: vec3<f32>;
     var cone_end_radius: f32;
     if is_directional(light) {
-        cone_end = tile_center + light.position_or_direction.xyz * light.max_distance;
-        cone_end_radius = tile_radius + light.max_distance * light.source;
+        // With the grid: no caster lies beyond the grid's height along the light, so
+        // the tile's cone can stop there.
+        var reach = light.max_distance;
+        if grid_view.u.w > 0.5 && grid.height != 0u {
+            let top = from_order_key(grid.height) - dot(tile_center, grid_light(grid_view)) + tile_radius;
+            reach = clamp(top * (1.0 + 1e-4) + 1e-4, 0.0, light.max_distance);
+        }
+        cone_end = tile_center + light.position_or_direction.xyz * reach;
+        cone_end_radius = tile_radius + reach * light.source;
     } else {
         // Every pixel's cone ends in a ball of radius < source around a point of the
         // light's sphere: inside the ball of twice the radius.
         cone_end = light.position_or_direction.xyz;
         cone_end_radius = 2.0 * light.source;
     }
+    if li == 0u {
+        tile_mode = 0u;
+        total_n = light_object_count[0];
+        if !any_surface {
+            total_n = 0u;
+        } else if is_directional(light) && grid_view.u.w > 0.5 {
+            // The cells under the tile's shadow disc (its round cone seen along the
+            // light); too many cells: the light's list is cheaper.
+            var cells = vec4<i32>(1, 1, 0, 0);
+            let glo = vec2<f32>(from_order_key(grid.bounds[0]), from_order_key(grid.bounds[1]));
+            let ghi = vec2<f32>(from_order_key(grid.bounds[2]), from_order_key(grid.bounds[3]));
+            if glo.x <= ghi.x {
+                let center = vec2<f32>(dot(tile_center, grid_view.u.xyz), dot(tile_center, grid_view.v.xyz));
+                cells = cell_range(grid_frame(glo, ghi), center, cone_end_radius + cull_slack(cone_end_radius));
+            }
+            if range_cells(cells) <= MAX_CELLS {
+                tile_mode = 1u;
+                tile_cells = cells;
+                tile_large = grid.large_count;
+                var n = grid.large_count;
+                for (var y = cells.y; y <= cells.w; y += 1) {
+                    for (var x = cells.x; x <= cells.z; x += 1) {
+                        n += grid.counts[u32(y) * GRID_SIZE + u32(x)];
+                    }
+                }
+                total_n = n;
+            }
+        }
+    }
+    let total = workgroupUniformLoad(&total_n);
+    let mode = tile_mode;
+    let cells = tile_cells;
+    let large_n = tile_large;
 
     let ray = shadow_ray(p, light);
     var visibility = 1.0;
     for (var base = 0u; base < total; base += TILE_PIXELS) {
         let k = base + li;
-        if any_surface && k < total {
-            let slot = light_objects[k];
+        if k < total {
+            var slot = 0u;
+            var keep = true;
+            if mode == 0u {
+                slot = light_objects[k];
+            } else if k < large_n {
+                slot = grid_large[k];
+            } else {
+                // The k-th item of the tile's cells, row by row; a caster listed in
+                // several of them is kept in the first only.
+                var j = k - large_n;
+                var cell = vec2<i32>(0);
+                var found = false;
+                for (var y = cells.y; y <= cells.w && !found; y += 1) {
+                    for (var x = cells.x; x <= cells.z && !found; x += 1) {
+                        let c = u32(y) * GRID_SIZE + u32(x);
+                        let n = grid.counts[c];
+                        if j < n {
+                            slot = grid_items[grid.offsets[c] + j];
+                            cell = vec2<i32>(x, y);
+                            found = true;
+                        } else {
+                            j -= n;
+                        }
+                    }
+                }
+                let glo = vec2<f32>(from_order_key(grid.bounds[0]), from_order_key(grid.bounds[1]));
+                let ghi = vec2<f32>(from_order_key(grid.bounds[2]), from_order_key(grid.bounds[3]));
+                let disc = light_space_disc(objects[slot], grid_view);
+                let own = cell_range(grid_frame(glo, ghi), disc.xy, disc.z);
+                keep = found && all(cell == max(cells.xy, own.xy));
+            }
             let o = objects[slot];
             let sphere = bounding_sphere(o, view.camera_tile.xyz, view.camera_offset.xyz);
-            let keep = casts_shadows(o) && (sphere.w < 0.0
+            keep = keep && casts_shadows(o) && (sphere.w < 0.0
                 || round_cone_distance(sphere.xyz, tile_center, cone_end, tile_radius, cone_end_radius)
                     < sphere.w + cull_slack(sphere.w));
             if keep {

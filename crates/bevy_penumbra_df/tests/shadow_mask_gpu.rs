@@ -13,7 +13,10 @@ use glam::{Affine3A, Mat3, Mat4, Quat, UVec2, UVec3, Vec2, Vec3};
 use penumbra_df_core::atlas::AtlasRegion;
 use penumbra_df_core::cull::{CameraOrigin, Frustum, cull_view_words, grid_64};
 use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, encode, flags};
-use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind, trace_view_words, words_to_bytes};
+use penumbra_df_core::shadow::{
+    SHADOW_GRID_BYTES, SHADOW_GRID_MAX_CELLS, ShadowLight, ShadowLightKind, grid_view_words,
+    trace_view_words, words_to_bytes,
+};
 use penumbra_reference::df::{Atlas, object_distance};
 use penumbra_reference::shadow_mask::{pixel_visibility, position_from_depth};
 use penumbra_sdf::{BakeSettings, bake, shapes};
@@ -215,6 +218,8 @@ struct Passes {
     trace_layout: wgpu::BindGroupLayout,
     upsample: wgpu::ComputePipeline,
     upsample_layout: wgpu::BindGroupLayout,
+    /// The light-space grid's passes: reset, bounds, count, scan, fill.
+    grid: [wgpu::ComputePipeline; 5],
 }
 
 fn passes(gpu: &GpuCompute) -> Passes {
@@ -265,6 +270,10 @@ fn passes(gpu: &GpuCompute) -> Passes {
                 texture(4, wgpu::TextureViewDimension::D2),
                 uniform(5),
                 uniform(6),
+                storage(8),
+                storage(9),
+                storage(10),
+                uniform(11),
                 E {
                     binding: 7,
                     visibility: ShaderStages::COMPUTE,
@@ -307,12 +316,22 @@ fn passes(gpu: &GpuCompute) -> Passes {
         "upsample",
         &[&upsample_layout],
     );
+    let grid_source = flatten("#import penumbra::df::shadow_grid_build\n").unwrap();
+    let grid = [
+        "grid_reset",
+        "grid_bounds",
+        "grid_count",
+        "grid_scan",
+        "grid_fill",
+    ]
+    .map(|entry| gpu.pipeline(&grid_source, entry));
     Passes {
         cull,
         trace,
         trace_layout,
         upsample,
         upsample_layout,
+        grid,
     }
 }
 
@@ -370,6 +389,52 @@ fn gpu_mask_at(
     );
     gpu.dispatch(&passes.cull, &bind, groups);
     let kept = u32::from_le_bytes(gpu.read(&count, 4)[..4].try_into().expect("4 bytes"));
+
+    // Directional lights: the light-space grid of the kept casters.
+    let grid = gpu.zeroed("grid", SHADOW_GRID_BYTES as u64, BufferUsages::empty());
+    let items = gpu.zeroed(
+        "grid_items",
+        (n as u64 * SHADOW_GRID_MAX_CELLS as u64 * 4).max(16),
+        BufferUsages::empty(),
+    );
+    let large = gpu.zeroed("grid_large", n as u64 * 4, BufferUsages::empty());
+    let cursors = gpu.zeroed("grid_cursors", 4096, BufferUsages::empty());
+    let directional = match light.kind {
+        ShadowLightKind::Directional(to_light) => Some(to_light),
+        ShadowLightKind::Positional(_) => None,
+    };
+    let use_grid = directional.is_some() && *USE_GRID.lock().unwrap();
+    let grid_view = gpu.buffer(
+        "grid_view",
+        &words_to_bytes(&grid_view_words(
+            &view.camera,
+            directional.unwrap_or(Vec3::Y),
+            use_grid,
+        )),
+        BufferUsages::UNIFORM,
+    );
+    if use_grid {
+        let [reset, bounds, count_pass, scan, fill] = &passes.grid;
+        let groups = [n.div_ceil(64), 1, 1];
+        let all = [
+            (0, &objects),
+            (1, &list),
+            (2, &count),
+            (3, &grid_view),
+            (4, &grid),
+        ];
+        gpu.dispatch(reset, &gpu.bind(reset, &[(4, &grid)]), [1, 1, 1]);
+        gpu.dispatch(bounds, &gpu.bind(bounds, &all), groups);
+        let mut with_large = all.to_vec();
+        with_large.push((6, &large));
+        gpu.dispatch(count_pass, &gpu.bind(count_pass, &with_large), groups);
+        gpu.dispatch(scan, &gpu.bind(scan, &[(4, &grid)]), [1, 1, 1]);
+        let mut with_items = all.to_vec();
+        with_items.extend([(5, &items), (7, &cursors)]);
+        gpu.dispatch(fill, &gpu.bind(fill, &with_items), groups);
+        let words = floats_u32(&gpu.read(&grid, 24));
+        LAST_GRID.lock().unwrap().replace((words[4], words[5]));
+    }
 
     let size = |w, h, d| wgpu::Extent3d {
         width: w,
@@ -459,6 +524,22 @@ fn gpu_mask_at(
                 binding: 7,
                 resource: wgpu::BindingResource::TextureView(&views[2]),
             },
+            wgpu::BindGroupEntry {
+                binding: 8,
+                resource: grid.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 9,
+                resource: items.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 10,
+                resource: large.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 11,
+                resource: grid_view.as_entire_binding(),
+            },
         ],
     });
     let groups = [mask_size.x.div_ceil(8), mask_size.y.div_ceil(8), 1];
@@ -474,6 +555,18 @@ fn gpu_mask_at(
         }
     }
     (values, kept, mask)
+}
+
+/// Whether directional lights use the light-space grid (on by default; the plugin's way).
+static USE_GRID: std::sync::Mutex<bool> = std::sync::Mutex::new(true);
+/// The last grid built: (large casters, listed items).
+static LAST_GRID: std::sync::Mutex<Option<(u32, u32)>> = std::sync::Mutex::new(None);
+
+fn floats_u32(bytes: &[u8]) -> Vec<u32> {
+    bytes
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
 }
 
 /// When set, [`gpu_mask_at`] also times 5 more trace dispatches into it (milliseconds).
@@ -811,4 +904,82 @@ fn mask_pass_timing() {
             );
         }
     }
+}
+
+/// Hundreds of casters under a sun: the light-space grid (cells, the large list, each
+/// caster counted once per tile) gives the CPU model's mask exactly, and the trace pass
+/// with the grid is timed against the light's plain list.
+#[test]
+fn many_casters_through_the_light_space_grid() {
+    if !gpu_or_skip("many_casters_through_the_light_space_grid") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let passes = passes(&gpu);
+    let mut scene = scene(Vec3::ZERO);
+    let live = flags::LIVE | flags::CASTS_SHADOWS | flags::VISIBLE;
+    let mut state = 7u32;
+    let mut rnd = || {
+        state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        (state >> 8) as f32 / (1u32 << 24) as f32
+    };
+    for _ in 0..400 {
+        let at = Vec3::new(-5.0 + 10.0 * rnd(), 0.2 + 2.0 * rnd(), -6.0 + 9.0 * rnd());
+        let radius = 0.03 + 0.12 * rnd();
+        scene.records.push(
+            encode(&ObjectDesc {
+                world_from_local: Affine3A::from_translation(at),
+                shape: CasterShape::Sphere { radius },
+                flags: live,
+            })
+            .expect("encodes"),
+        );
+    }
+    // Large: a long wall behind the scene.
+    scene.records.push(
+        encode(&ObjectDesc {
+            world_from_local: Affine3A::from_translation(Vec3::new(0.0, 1.0, -6.5)),
+            shape: CasterShape::Cuboid {
+                half_extents: Vec3::new(12.0, 1.0, 0.1),
+            },
+            flags: live,
+        })
+        .expect("encodes"),
+    );
+    let view = view(&scene, Vec3::ZERO);
+    let [(_, sun), _] = lights(Vec3::ZERO, EYE);
+    let want = reference_mask(&scene, &view, &sun);
+    let mut times = Vec::new();
+    for grid in [true, false] {
+        *USE_GRID.lock().unwrap() = grid;
+        *TRACE_TIMES.lock().unwrap() = Some(Vec::new());
+        let (got, kept, _) = gpu_mask_at(&gpu, &passes, &scene, &view, &sun, 1);
+        let mut t = TRACE_TIMES.lock().unwrap().take().expect("timed");
+        t.sort_by(f64::total_cmp);
+        times.push(t[2]);
+        let (mean, over, max) = compare(&got, &want);
+        let shadowed = want.iter().filter(|&&v| v < 0.5).count();
+        let grid_stats = LAST_GRID.lock().unwrap().take();
+        println!(
+            "{} casters, {kept} after the light cull, grid {grid} {grid_stats:?} (large, \
+             listed): {shadowed} shadowed pixels; |gpu − cpu| mean {mean:.5}, {:.3} % over \
+             0.05, max {max:.3}; trace pass {:.2} ms",
+            scene.records.len(),
+            over * 100.0,
+            t[2]
+        );
+        assert!(shadowed > 1000, "the crowd casts shadows");
+        assert!(
+            mean < 2e-3 && over < 0.003,
+            "grid {grid}: mean {mean}, over {over}"
+        );
+        if grid {
+            let (large, listed) = grid_stats.expect("the grid was built");
+            assert!(
+                large >= 1 && listed >= 300,
+                "grid: {large} large, {listed} listed"
+            );
+        }
+    }
+    *USE_GRID.lock().unwrap() = true;
 }

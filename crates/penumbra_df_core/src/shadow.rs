@@ -9,6 +9,13 @@ use glam::{Mat3, Mat4, UVec2, Vec3};
 
 /// Bytes of the `ShadowLight` uniform.
 pub const SHADOW_LIGHT_BYTES: usize = 48;
+/// Bytes of the `ShadowGridView` uniform (`shaders/df/shadow_grid.wgsl`).
+pub const SHADOW_GRID_VIEW_BYTES: usize = 64;
+/// Bytes of the `ShadowGrid` storage buffer: bounds, large count, item count, 1,024 cell
+/// counts and 1,025 offsets, rounded to the struct's 8-byte alignment.
+pub const SHADOW_GRID_BYTES: usize = (16 + 16 + 4 * 1024 + 4 * 1025usize).next_multiple_of(8);
+/// Cells a caster may overlap before it is listed once as large.
+pub const SHADOW_GRID_MAX_CELLS: usize = 64;
 /// Bytes of the `ShadowTraceView` uniform.
 pub const SHADOW_TRACE_VIEW_BYTES: usize = 64 + 48 + 16 + 16 + 16;
 
@@ -106,4 +113,29 @@ pub fn words_to_bytes(words: &[u32]) -> Vec<u8> {
 /// (rounded up).
 pub fn half_size(full: UVec2) -> UVec2 {
     UVec2::new(full.x.div_ceil(2), full.y.div_ceil(2))
+}
+
+/// The `ShadowGridView` uniform: the camera's tile origin and light-space axes `u`, `v`
+/// (unit, perpendicular to `to_light` and to each other); `u.w` = 1 when the mask pass
+/// is to use the grid.
+pub fn grid_view_words(camera: &CameraOrigin, to_light: Vec3, enabled: bool) -> Vec<u32> {
+    let l = to_light.try_normalize().unwrap_or(Vec3::Y);
+    let helper = if l.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
+    let u = l.cross(helper).normalize();
+    let v = l.cross(u);
+    let mut words = Vec::with_capacity(SHADOW_GRID_VIEW_BYTES / 4);
+    words.extend([
+        camera.tile[0] as u32,
+        camera.tile[1] as u32,
+        camera.tile[2] as u32,
+        0,
+    ]);
+    words.extend(camera.offset.extend(0.0).to_array().map(f32::to_bits));
+    words.extend(
+        u.extend(if enabled { 1.0 } else { 0.0 })
+            .to_array()
+            .map(f32::to_bits),
+    );
+    words.extend(v.extend(0.0).to_array().map(f32::to_bits));
+    words
 }

@@ -39,6 +39,8 @@ shader_files! {
     "df/shadow_cull.wgsl" => Some("penumbra::df::shadow_cull"),
     "df/shadow_trace.wgsl" => Some("penumbra::df::shadow_trace"),
     "df/shadow_upsample.wgsl" => Some("penumbra::df::shadow_upsample"),
+    "df/shadow_grid.wgsl" => Some("penumbra::df::shadow_grid"),
+    "df/shadow_grid_build.wgsl" => Some("penumbra::df::shadow_grid_build"),
     "lighting/masks.wgsl" => Some("penumbra::lighting::masks"),
     "lighting/lights.wgsl" => Some("penumbra::lighting::lights"),
     "lighting/pass.wgsl" => None,

@@ -148,3 +148,23 @@ fn shadow_uniform_layouts_match_the_encoders() {
     let offsets = |v: &[(String, u32)]| v.iter().map(|(_, o)| *o).collect::<Vec<_>>();
     assert_eq!(offsets(&shadow)[..5], offsets(&frustum)[..5]);
 }
+
+/// The light-space grid's uniform and storage layouts match `penumbra_df_core::shadow`.
+#[test]
+fn shadow_grid_layouts_match() {
+    use penumbra_df_core::shadow::{
+        SHADOW_GRID_BYTES, SHADOW_GRID_MAX_CELLS, SHADOW_GRID_VIEW_BYTES,
+    };
+    let m = parse("#import penumbra::df::shadow_grid\n");
+    let (view, size) = struct_layout(&m, "ShadowGridView");
+    assert_eq!(size as usize, SHADOW_GRID_VIEW_BYTES);
+    let offsets: Vec<u32> = view.iter().map(|(_, o)| *o).collect();
+    assert_eq!(offsets, [0, 16, 32, 48]);
+    for name in ["ShadowGrid", "ShadowGridRead"] {
+        let (members, size) = struct_layout(&m, name);
+        assert_eq!(size as usize, SHADOW_GRID_BYTES, "{name}");
+        let offsets: Vec<u32> = members.iter().map(|(_, o)| *o).collect();
+        assert_eq!(offsets, [0, 16, 20, 24, 28, 32, 32 + 4096], "{name}");
+    }
+    assert_eq!(constant(&m, "MAX_CELLS") as usize, SHADOW_GRID_MAX_CELLS);
+}

@@ -20,17 +20,21 @@
 //!
 //! 1. Light culling (compute): positional lights keep casters within their range,
 //!    directional lights the casters whose sphere, swept back along the light, meets the
-//!    view frustum.
-//! 2. The mask (compute, 8×8 tiles): each tile culls the survivors again against the
-//!    round cone from its pixels to the light, 64 at a time in workgroup memory; each pixel
-//!    marches the tile's list. One `R32Float` layer per light, at the view's size.
+//!    view frustum. Directional lights then bin the survivors into a 32 × 32 light-space
+//!    grid (their spheres projected along the light; casters covering over 64 cells, and
+//!    unbounded ones, in a separate list), and record the casters' height along the light.
+//! 2. The mask (compute, 8×8 tiles): each tile gathers candidates — the light's list, or
+//!    for directional lights the grid cells under the tile's own projected cone (cut at
+//!    the casters' height) — and culls them against the round cone from its pixels to the
+//!    light, 64 at a time in workgroup memory; each pixel marches the tile's list. One
+//!    `R32Float` layer per light, at the view's size.
 //! 3. Penumbra's lighting pass multiplies the light's contribution by the mask.
 //!
 //! 4. Optionally ([`DistanceFieldShadows::half_resolution`]) step 2 traces one pixel in
 //!    four and a bilateral, depth-aware upsample fills the layer.
 //!
-//! Culling of directional lights into a light-space grid is not implemented yet (the
-//! per-tile culling does that work).
+//! Every culling step is conservative: the mask equals the CPU model marching all casters
+//! (`penumbra_reference::shadow_mask`, tested on lavapipe).
 //!
 //! # Limits
 //!

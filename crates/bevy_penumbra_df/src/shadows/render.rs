@@ -30,11 +30,15 @@ use bevy::render::{Render, RenderStartup, RenderSystems};
 use penumbra_df_core::cull::{CameraOrigin, Frustum, cull_view_words, grid_64};
 use penumbra_df_core::object::{tile_of, tile_relative};
 use penumbra_df_core::shadow::{
-    SHADOW_LIGHT_BYTES, SHADOW_TRACE_VIEW_BYTES, ShadowLight, ShadowLightKind, half_size,
+    SHADOW_GRID_BYTES, SHADOW_GRID_MAX_CELLS, SHADOW_GRID_VIEW_BYTES, SHADOW_LIGHT_BYTES,
+    SHADOW_TRACE_VIEW_BYTES, ShadowLight, ShadowLightKind, grid_view_words, half_size,
     trace_view_words, words_to_bytes,
 };
 use std::num::NonZeroU64;
 
+/// The light-space grid's item list is sized for every caster in `MAX_CELLS` cells; above
+/// this many bytes a directional light culls from its plain list instead.
+const MAX_GRID_ITEM_BYTES: u64 = 16 << 20;
 /// Bytes of `ShadowUpsampleView` (`df/shadow_upsample.wgsl`).
 const UPSAMPLE_VIEW_BYTES: u64 = 64 + 16;
 /// Bytes of `ShadowCullView` (the frustum cull's `CullView` layout).
@@ -123,6 +127,9 @@ struct ShadowPipelines {
     trace: CachedComputePipelineId,
     upsample_layout: BindGroupLayoutDescriptor,
     upsample: CachedComputePipelineId,
+    grid_layout: BindGroupLayoutDescriptor,
+    /// The light-space grid's passes: reset, bounds, count, scan, fill.
+    grid: [CachedComputePipelineId; 5],
     /// Bound when the scene has no SDF volume (analytic casters only).
     empty_atlas: TextureView,
 }
@@ -186,6 +193,26 @@ fn init_shadow_pipelines(
                 uniform_buffer_sized(false, NonZeroU64::new(SHADOW_TRACE_VIEW_BYTES as u64)),
                 uniform_buffer_sized(false, NonZeroU64::new(SHADOW_LIGHT_BYTES as u64)),
                 texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
+                storage_buffer_read_only_sized(false, NonZeroU64::new(SHADOW_GRID_BYTES as u64)),
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                uniform_buffer_sized(false, NonZeroU64::new(SHADOW_GRID_VIEW_BYTES as u64)),
+            ),
+        ),
+    );
+    let grid_layout = BindGroupLayoutDescriptor::new(
+        "penumbra_df_shadow_grid_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                uniform_buffer_sized(false, NonZeroU64::new(SHADOW_GRID_VIEW_BYTES as u64)),
+                storage_buffer_sized(false, NonZeroU64::new(SHADOW_GRID_BYTES as u64)),
+                storage_buffer_sized(false, None),
+                storage_buffer_sized(false, None),
+                storage_buffer_sized(false, NonZeroU64::new(4096)),
             ),
         ),
     );
@@ -231,6 +258,21 @@ fn init_shadow_pipelines(
         "df/shadow_upsample.wgsl",
         "upsample",
     );
+    let grid = [
+        "grid_reset",
+        "grid_bounds",
+        "grid_count",
+        "grid_scan",
+        "grid_fill",
+    ]
+    .map(|entry| {
+        queue(
+            "penumbra_df_shadow_grid",
+            &grid_layout,
+            "df/shadow_grid_build.wgsl",
+            entry,
+        )
+    });
     let empty = device.create_texture(&TextureDescriptor {
         label: Some("penumbra_df_shadow_empty_atlas"),
         size: Extent3d {
@@ -252,6 +294,8 @@ fn init_shadow_pipelines(
         trace,
         upsample_layout,
         upsample,
+        grid_layout,
+        grid,
         empty_atlas: empty.create_view(&TextureViewDescriptor::default()),
     });
 }
@@ -325,6 +369,9 @@ fn prepare_distance_field_shadows(
         pipeline_cache.get_compute_pipeline(p.cull).is_some()
             && pipeline_cache.get_compute_pipeline(p.trace).is_some()
             && pipeline_cache.get_compute_pipeline(p.upsample).is_some()
+            && p.grid
+                .iter()
+                .all(|&g| pipeline_cache.get_compute_pipeline(g).is_some())
     });
     for (entity, view, masks) in &views {
         if frame.0.is_empty() || !has_objects || !ready {
@@ -403,6 +450,14 @@ fn distance_field_shadows(
     let Some(camera) = CameraOrigin::at(view.world_from_view.translation()) else {
         return;
     };
+    let grid_pipelines: Option<Vec<_>> = pipelines
+        .grid
+        .iter()
+        .map(|&g| pipeline_cache.get_compute_pipeline(g))
+        .collect();
+    let Some(grid_pipelines) = grid_pipelines else {
+        return;
+    };
     let rotation = Mat3::from(view.world_from_view.affine().matrix3);
     let clip_from_relative = view.clip_from_view * Mat4::from_mat3(rotation).inverse();
     let frustum = Frustum::from_clip_from_relative(clip_from_relative);
@@ -446,6 +501,7 @@ fn distance_field_shadows(
         BufferUsages::UNIFORM,
     );
     let upsample_layout = pipeline_cache.get_bind_group_layout(&pipelines.upsample_layout);
+    let grid_layout = pipeline_cache.get_bind_group_layout(&pipelines.grid_layout);
     let atlas = gpu
         .atlas
         .as_ref()
@@ -473,6 +529,41 @@ fn distance_field_shadows(
             "penumbra_df_shadow_objects",
             &vec![0u8; slots.max(1) as usize * 4],
             BufferUsages::STORAGE,
+        );
+        // Directional lights: the light-space grid of the culled casters (sized for all
+        // of them in MAX_CELLS cells each; for very large scenes the plain list is used).
+        let item_bytes = slots.max(1) as u64 * SHADOW_GRID_MAX_CELLS as u64 * 4;
+        let to_light = match params.kind {
+            ShadowLightKind::Directional(d) if item_bytes <= MAX_GRID_ITEM_BYTES => Some(d),
+            _ => None,
+        };
+        let zeroed = |label: &'static str, size: u64| {
+            buffer(
+                label,
+                &vec![0u8; size.max(16) as usize],
+                BufferUsages::STORAGE,
+            )
+        };
+        let grid = zeroed("penumbra_df_shadow_grid", SHADOW_GRID_BYTES as u64);
+        let grid_size = if to_light.is_some() { item_bytes } else { 16 };
+        let items = zeroed("penumbra_df_shadow_grid_items", grid_size);
+        let large = zeroed(
+            "penumbra_df_shadow_grid_large",
+            if to_light.is_some() {
+                slots as u64 * 4
+            } else {
+                16
+            },
+        );
+        let cursors = zeroed("penumbra_df_shadow_grid_cursors", 4096);
+        let grid_view = buffer(
+            "penumbra_df_shadow_grid_view",
+            &words_to_bytes(&grid_view_words(
+                &camera,
+                to_light.unwrap_or(Vec3::Y),
+                to_light.is_some(),
+            )),
+            BufferUsages::UNIFORM,
         );
         let count = buffer(
             "penumbra_df_shadow_object_count",
@@ -511,8 +602,28 @@ fn distance_field_shadows(
                 trace_uniform.as_entire_binding(),
                 light_buffer.as_entire_binding(),
                 trace_target,
+                grid.as_entire_binding(),
+                items.as_entire_binding(),
+                large.as_entire_binding(),
+                grid_view.as_entire_binding(),
             )),
         );
+        let grid_bind = to_light.is_some().then(|| {
+            device.create_bind_group(
+                "penumbra_df_shadow_grid",
+                &grid_layout,
+                &BindGroupEntries::sequential((
+                    objects.as_entire_binding(),
+                    list.as_entire_binding(),
+                    count.as_entire_binding(),
+                    grid_view.as_entire_binding(),
+                    grid.as_entire_binding(),
+                    items.as_entire_binding(),
+                    large.as_entire_binding(),
+                    cursors.as_entire_binding(),
+                )),
+            )
+        });
         let upsample_bind = half.map(|(_, sampled)| {
             device.create_bind_group(
                 "penumbra_df_shadow_upsample",
@@ -534,6 +645,22 @@ fn distance_field_shadows(
         pass.set_pipeline(cull);
         pass.set_bind_group(0, &cull_bind, &[]);
         pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+        if let Some(grid_bind) = &grid_bind {
+            // Reset, bounds, count, scan, fill: one thread per culled caster (at most
+            // `slots`), the scan in one workgroup.
+            let per_caster = [
+                1,
+                slots.div_ceil(64),
+                slots.div_ceil(64),
+                1,
+                slots.div_ceil(64),
+            ];
+            for (pipeline, x) in grid_pipelines.iter().zip(per_caster) {
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, grid_bind, &[]);
+                pass.dispatch_workgroups(x.max(1), 1, 1);
+            }
+        }
         pass.set_pipeline(trace);
         pass.set_bind_group(0, &trace_bind, &[]);
         pass.dispatch_workgroups(trace_size.x.div_ceil(8), trace_size.y.div_ceil(8), 1);
