@@ -11,9 +11,9 @@ use glam::{Mat3, Mat4, UVec2, Vec3};
 pub const SHADOW_LIGHT_BYTES: usize = 48;
 /// Bytes of the `ShadowGridView` uniform (`shaders/df/shadow_grid.wgsl`).
 pub const SHADOW_GRID_VIEW_BYTES: usize = 64;
-/// Bytes of the `ShadowGrid` storage buffer: bounds, large count, item count, 1,024 cell
-/// counts and 1,025 offsets, rounded to the struct's 8-byte alignment.
-pub const SHADOW_GRID_BYTES: usize = (16 + 16 + 4 * 1024 + 4 * 1025usize).next_multiple_of(8);
+/// Bytes of the `ShadowGrid` storage buffer: bounds, large count, item count, height,
+/// a reserved word, 1,024 cell counts and 1,025 offsets.
+pub const SHADOW_GRID_BYTES: usize = 16 + 16 + 4 * 1024 + 4 * 1025;
 /// Cells a caster may overlap before it is listed once as large.
 pub const SHADOW_GRID_MAX_CELLS: usize = 64;
 /// Bytes of the `ShadowTraceView` uniform.
