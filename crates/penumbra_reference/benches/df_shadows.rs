@@ -6,9 +6,9 @@
 //! CPU model (`penumbra_reference::shadow_mask`, equal to the GPU pass on lavapipe:
 //! `bevy_penumbra_df/tests/shadow_mask_gpu.rs`) and is compared with Monte Carlo ground
 //! truth traced on the triangles (12 × 12 stratified rays toward the light's disc).
-//! Swept: steps per object and SDF resolution (samples along the longest axis) at the
-//! default shaping, traced at full and at half resolution (bilateral upsample), and the
-//! shaping exponent at the default steps.
+//! Swept: steps per object and SDF resolution (samples along the longest axis), traced
+//! at full and at half resolution (bilateral upsample); and, around the defaults, the
+//! shaping exponent and the world-space bias.
 //!
 //! Error: mean |model − truth| over the pixels either side puts in shadow or penumbra
 //! (`< 0.99`), and over all pixels. Cost: distance evaluations per pixel (the GPU pass's
@@ -45,6 +45,7 @@ const RESOLUTIONS: [u32; 4] = [16, 32, 64, 128];
 /// `DistanceFieldShadows::default()`.
 const DEFAULT_STEPS: u32 = 64;
 const DEFAULT_BIAS: f32 = 0.02;
+const BIASES: [f32; 5] = [0.01, 0.02, 0.04, 0.06, 0.08];
 const DEFAULT_SHAPING: f32 = 0.35;
 const SHAPINGS: [f32; 6] = [1.0, 0.6, 0.5, 0.4, 0.35, 0.3];
 
@@ -121,7 +122,8 @@ fn finish_scene(mut scene: Scene) -> Scene {
     let settings = ShadowSettings {
         max_distance: 30.0,
         max_steps: DEFAULT_STEPS,
-        bias: DEFAULT_BIAS,
+        // Truth rays start just off the surface (the model's bias is a setting).
+        bias: 1e-3,
     };
     scene.points = (0..SIZE * SIZE)
         .map(|i| {
@@ -312,7 +314,7 @@ fn records(scene: &Scene, resolution: u32) -> (Vec<ObjectRecord>, Atlas) {
     (records, atlas)
 }
 
-fn model_light(scene: &Scene, camera: &CameraOrigin, max_steps: u32, shaping: f32) -> ShadowLight {
+fn model_light(scene: &Scene, camera: &CameraOrigin, c: Config) -> ShadowLight {
     let (kind, source) = match scene.light {
         AreaLight::Directional {
             to_light,
@@ -330,62 +332,55 @@ fn model_light(scene: &Scene, camera: &CameraOrigin, max_steps: u32, shaping: f3
         kind,
         source,
         max_distance: 30.0,
-        bias: DEFAULT_BIAS,
-        shaping,
+        bias: c.bias,
+        shaping: c.shaping,
         range: 30.0,
-        max_steps,
+        max_steps: c.steps,
     }
 }
 
-/// The view's mask by the model, and its distance evaluations.
-fn mask(
-    scene: &Scene,
-    records: &[ObjectRecord],
-    atlas: &Atlas,
-    max_steps: u32,
+/// One configuration of the sweep.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Config {
+    steps: u32,
     shaping: f32,
-) -> (Vec<f32>, u64) {
-    let eye = scene.camera.world_from_view.w_axis.truncate();
-    let camera = CameraOrigin::at(eye).expect("finite");
-    let light = model_light(scene, &camera, max_steps, shaping);
-    let mut evaluations = 0u64;
-    let mask = scene
-        .points
-        .iter()
-        .map(|p| {
-            p.map_or(1.0, |p| {
-                let p = camera.relative([0, 0, 0], p);
-                let (v, n) = pixel_visibility_counted(records, atlas, &camera, p, &light);
-                evaluations += n as u64;
-                v
-            })
-        })
-        .collect();
-    (mask, evaluations)
+    bias: f32,
+    half: bool,
 }
 
-/// Half resolution: the model at pixels `(2i, 2j)`, then the bilateral upsample.
-fn mask_half(
-    scene: &Scene,
-    records: &[ObjectRecord],
-    atlas: &Atlas,
-    max_steps: u32,
-    shaping: f32,
-) -> (Vec<f32>, u64) {
+impl Config {
+    const DEFAULT: Config = Config {
+        steps: DEFAULT_STEPS,
+        shaping: DEFAULT_SHAPING,
+        bias: DEFAULT_BIAS,
+        half: false,
+    };
+}
+
+/// The view's mask by the model (traced at every pixel, or at pixels `(2i, 2j)` then
+/// upsampled bilaterally), and its distance evaluations.
+fn mask(scene: &Scene, records: &[ObjectRecord], atlas: &Atlas, c: Config) -> (Vec<f32>, u64) {
     let eye = scene.camera.world_from_view.w_axis.truncate();
     let camera = CameraOrigin::at(eye).expect("finite");
-    let light = model_light(scene, &camera, max_steps, shaping);
-    let half = glam::UVec2::new(SIZE.div_ceil(2), SIZE.div_ceil(2));
+    let light = model_light(scene, &camera, c);
     let mut evaluations = 0u64;
+    let mut trace = |p: Option<Vec3>| {
+        p.map_or(1.0, |p| {
+            let p = camera.relative([0, 0, 0], p);
+            let (v, n) = pixel_visibility_counted(records, atlas, &camera, p, &light);
+            evaluations += n as u64;
+            v
+        })
+    };
+    if !c.half {
+        let mask = scene.points.iter().map(|&p| trace(p)).collect();
+        return (mask, evaluations);
+    }
+    let half = glam::UVec2::new(SIZE.div_ceil(2), SIZE.div_ceil(2));
     let traced: Vec<f32> = (0..half.x * half.y)
         .map(|i| {
             let (x, y) = (2 * (i % half.x), 2 * (i / half.x));
-            scene.points[(y * SIZE + x) as usize].map_or(1.0, |p| {
-                let p = camera.relative([0, 0, 0], p);
-                let (v, n) = pixel_visibility_counted(records, atlas, &camera, p, &light);
-                evaluations += n as u64;
-                v
-            })
+            trace(scene.points[(y * SIZE + x) as usize])
         })
         .collect();
     let distance: Vec<f32> = scene
@@ -422,9 +417,7 @@ fn errors(scene: &Scene, mask: &[f32]) -> (f32, usize, f32) {
 struct Row {
     scene: &'static str,
     resolution: u32,
-    steps: u32,
-    shaping: f32,
-    half: bool,
+    config: Config,
     /// Distance evaluations per pixel (the work; deterministic).
     evaluations: f64,
     seconds: f64,
@@ -435,39 +428,53 @@ struct Row {
     default: bool,
 }
 
-fn sweep(scene: &Scene) -> Vec<Row> {
-    let mut rows = Vec::new();
-    let default_res = scene.default_resolution;
-    let mut resolutions = RESOLUTIONS.to_vec();
-    resolutions.push(default_res);
-    resolutions.sort_unstable();
-    resolutions.dedup();
-    // Steps × resolution at the default shaping, full and half resolution; shapings at
-    // the default steps.
-    let mut configs = Vec::new();
-    for &resolution in &resolutions {
-        for &steps in &STEPS {
-            configs.push((resolution, steps, DEFAULT_SHAPING, false));
-            configs.push((resolution, steps, DEFAULT_SHAPING, true));
-        }
-        for &shaping in &SHAPINGS {
-            if shaping != DEFAULT_SHAPING {
-                configs.push((resolution, DEFAULT_STEPS, shaping, false));
-            }
+/// The configurations swept at one SDF resolution: steps (full and half resolution),
+/// shapings and biases, each around the defaults.
+fn configs() -> Vec<Config> {
+    let mut out = Vec::new();
+    for &steps in &STEPS {
+        for half in [false, true] {
+            out.push(Config {
+                steps,
+                half,
+                ..Config::DEFAULT
+            });
         }
     }
+    for &shaping in SHAPINGS.iter().filter(|&&s| s != DEFAULT_SHAPING) {
+        out.push(Config {
+            shaping,
+            ..Config::DEFAULT
+        });
+    }
+    for &bias in BIASES.iter().filter(|&&b| b != DEFAULT_BIAS) {
+        out.push(Config {
+            bias,
+            ..Config::DEFAULT
+        });
+    }
+    out
+}
+
+/// `a` dominates `b`: no more work and no more error, and less of one.
+fn dominates(a: (f64, f32), b: (f64, f32)) -> bool {
+    a.0 <= b.0 && a.1 <= b.1 && (a.0 < b.0 || a.1 < b.1)
+}
+
+fn sweep(scene: &Scene) -> Vec<Row> {
+    let mut rows = Vec::new();
+    let mut resolutions = RESOLUTIONS.to_vec();
+    resolutions.push(scene.default_resolution);
+    resolutions.sort_unstable();
+    resolutions.dedup();
     for &resolution in &resolutions {
         let (records, atlas) = records(scene, resolution);
-        for &(_, steps, shaping, half) in configs.iter().filter(|c| c.0 == resolution) {
+        for config in configs() {
             let mut times = Vec::new();
             let (mut m, mut evaluations) = (Vec::new(), 0);
             for _ in 0..3 {
                 let start = Instant::now();
-                (m, evaluations) = if half {
-                    mask_half(scene, &records, &atlas, steps, shaping)
-                } else {
-                    mask(scene, &records, &atlas, steps, shaping)
-                };
+                (m, evaluations) = mask(scene, &records, &atlas, config);
                 times.push(start.elapsed().as_secs_f64());
             }
             times.sort_by(f64::total_cmp);
@@ -475,30 +482,24 @@ fn sweep(scene: &Scene) -> Vec<Row> {
             rows.push(Row {
                 scene: scene.name,
                 resolution,
-                steps,
-                shaping,
-                half,
+                config,
                 evaluations: evaluations as f64 / (SIZE * SIZE) as f64,
                 seconds: times[1],
                 error,
                 affected,
                 error_all,
                 pareto: false,
-                default: resolution == default_res
-                    && steps == DEFAULT_STEPS
-                    && shaping == DEFAULT_SHAPING
-                    && !half,
+                default: resolution == scene.default_resolution && config == Config::DEFAULT,
             });
         }
     }
     let flags: Vec<bool> = rows
         .iter()
         .map(|r| {
-            !rows.iter().filter(|o| o.scene == r.scene).any(|o| {
-                o.seconds <= r.seconds
-                    && o.error <= r.error
-                    && (o.seconds < r.seconds || o.error < r.error)
-            })
+            !rows
+                .iter()
+                .filter(|o| o.scene == r.scene)
+                .any(|o| dominates((o.evaluations, o.error), (r.evaluations, r.error)))
         })
         .collect();
     for (r, f) in rows.iter_mut().zip(flags) {
@@ -509,20 +510,22 @@ fn sweep(scene: &Scene) -> Vec<Row> {
 
 fn write_tables(rows: &[Row]) {
     let mut md = String::from(
-        "| scene | SDF samples (longest axis) | steps | shaping | resolution | distance evaluations / pixel | time (ms, 96², 1 thread) | mean error, shadowed or penumbra | pixels | mean error, all | Pareto | default |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| scene | SDF samples (longest axis) | steps | shaping | bias (m) | resolution | distance evaluations / pixel | time (ms, 96², 1 thread) | mean error, shadowed or penumbra | pixels | mean error, all | Pareto | default |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let mut csv = String::from(
-        "scene,resolution,steps,shaping,half,evaluations_per_pixel,seconds,error_affected,affected_pixels,error_all,pareto,default\n",
+        "scene,sdf_resolution,steps,shaping,bias,half,evaluations_per_pixel,seconds,error_affected,affected_pixels,error_all,pareto,default\n",
     );
     for r in rows {
+        let c = r.config;
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {} | {} | {:.2} | {:.1} | {:.4} | {} | {:.4} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {:.2} | {:.1} | {:.4} | {} | {:.4} | {} | {} |",
             r.scene,
             r.resolution,
-            r.steps,
-            r.shaping,
-            if r.half { "half" } else { "full" },
+            c.steps,
+            c.shaping,
+            c.bias,
+            if c.half { "half" } else { "full" },
             r.evaluations,
             r.seconds * 1e3,
             r.error,
@@ -533,10 +536,14 @@ fn write_tables(rows: &[Row]) {
         );
         let _ = writeln!(
             csv,
-            "{},{},{},{:.6},{:.5},{},{:.5},{},{}",
+            "{},{},{},{},{},{},{:.3},{:.6},{:.5},{},{:.5},{},{}",
             r.scene,
             r.resolution,
-            r.steps,
+            c.steps,
+            c.shaping,
+            c.bias,
+            c.half,
+            r.evaluations,
             r.seconds,
             r.error,
             r.affected,
@@ -554,53 +561,44 @@ fn write_tables(rows: &[Row]) {
     }
 }
 
-/// Both scenes at their default SDF resolution: per (steps, shaping), the summed work
-/// and the mean of the two errors, with the Pareto front — where the defaults are chosen.
+/// Both scenes at their default SDF resolution: per configuration, the summed work and
+/// the mean of the two errors, with the Pareto front — where the defaults are chosen.
 fn combined(rows: &[Row]) {
-    let defaults: Vec<&Row> = rows.iter().filter(|r| r.default).collect();
-    let at_default_res: Vec<&Row> = rows
+    let at_default: Vec<&Row> = rows
         .iter()
         .filter(|r| {
-            defaults
-                .iter()
-                .any(|d| d.scene == r.scene && d.resolution == r.resolution)
+            rows.iter()
+                .any(|d| d.default && d.scene == r.scene && d.resolution == r.resolution)
         })
         .collect();
-    let mut configs: Vec<(u32, f32, bool)> = at_default_res
-        .iter()
-        .map(|r| (r.steps, r.shaping, r.half))
-        .collect();
-    configs.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
-    configs.dedup();
-    let scenes = defaults.len();
-    let table: Vec<(u32, f32, bool, f64, f32)> = configs
+    let scenes = rows.iter().filter(|r| r.default).count();
+    let table: Vec<(Config, f64, f32)> = configs()
         .into_iter()
-        .filter_map(|(steps, shaping, half)| {
-            let rs: Vec<&&Row> = at_default_res
-                .iter()
-                .filter(|r| r.steps == steps && r.shaping == shaping && r.half == half)
-                .collect();
+        .filter_map(|c| {
+            let rs: Vec<&&Row> = at_default.iter().filter(|r| r.config == c).collect();
             (rs.len() == scenes).then(|| {
                 let work = rs.iter().map(|r| r.evaluations).sum::<f64>();
                 let error = rs.iter().map(|r| r.error).sum::<f32>() / scenes as f32;
-                (steps, shaping, half, work, error)
+                (c, work, error)
             })
         })
         .collect();
     println!("Both scenes at their default SDF resolution:");
     println!(
-        "| steps | shaping | resolution | distance evaluations / pixel (sum) | mean error (shadowed or penumbra) | Pareto | default |\n|---|---|---|---|---|---|---|"
+        "| steps | shaping | bias (m) | resolution | distance evaluations / pixel (sum) | mean error (shadowed or penumbra) | Pareto | default |\n|---|---|---|---|---|---|---|---|"
     );
-    for &(steps, shaping, half, work, error) in &table {
-        let dominated = table
+    for &(c, work, error) in &table {
+        let front = !table
             .iter()
-            .any(|&(_, _, _, w, e)| w <= work && e <= error && (w < work || e < error));
-        let default = steps == DEFAULT_STEPS && shaping == DEFAULT_SHAPING && !half;
+            .any(|&(_, w, e)| dominates((w, e), (work, error)));
         println!(
-            "| {steps} | {shaping} | {} | {work:.2} | {error:.4} | {} | {} |",
-            if half { "half" } else { "full" },
-            if dominated { "" } else { "✓" },
-            if default { "default" } else { "" }
+            "| {} | {} | {} | {} | {work:.2} | {error:.4} | {} | {} |",
+            c.steps,
+            c.shaping,
+            c.bias,
+            if c.half { "half" } else { "full" },
+            if front { "✓" } else { "" },
+            if c == Config::DEFAULT { "default" } else { "" }
         );
     }
 }
@@ -621,7 +619,7 @@ fn bench(c: &mut Criterion) {
     for scene in &scenes {
         let (records, atlas) = records(scene, scene.default_resolution.max(2));
         c.bench_function(&format!("df_shadows/{}/defaults", scene.name), |b| {
-            b.iter(|| mask(scene, &records, &atlas, DEFAULT_STEPS, DEFAULT_SHAPING));
+            b.iter(|| mask(scene, &records, &atlas, Config::DEFAULT));
         });
     }
 }

@@ -72,15 +72,16 @@ pub struct DistanceFieldShadows {
     pub max_distance: f32,
     /// Sphere-tracing steps per caster. Default 64; cost is at most linear in it.
     pub max_steps: u32,
-    /// World-space bias: the ray starts this far from the surface, metres. Default 0.02.
-    /// Too small: self-shadowing acne where SDFs are coarse; too large: detached contacts.
+    /// World-space bias: the ray starts this far from the surface, metres. Default 0.02
+    /// (the bench's best: 0.01 and 0.04 give 25 % and 14 % more error). Too small:
+    /// self-shadowing where SDFs are coarse; too large: detached contacts.
     pub bias: f32,
     /// Penumbra shaping: visibility `v` becomes `v^shaping` (clamped to `[0.05, 20]`).
     /// The march reports too little light in penumbrae (it sees none of the light's
     /// disc behind an edge, where half of it is visible); an exponent below 1 brightens
-    /// them. Default 0.35: the lowest mean error against ray-traced ground truth over
-    /// the Cornell box and bunny scenes of `cargo bench -p penumbra_reference --bench
-    /// df_shadows` (0.053 vs 0.083 for 1, the march as is).
+    /// them. Default 0.35: on the Pareto front of `cargo bench -p penumbra_reference
+    /// --bench df_shadows` (mean error against ray-traced ground truth over the Cornell
+    /// box and bunny scenes' shadowed pixels 0.075, vs 0.104 for 1, the march as is).
     /// No cost.
     pub shaping: f32,
     /// Trace at half resolution (one ray per 2×2 pixels) and upsample bilaterally
