@@ -22,7 +22,7 @@ use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind};
 use penumbra_reference::camera::PerspectiveCamera;
 use penumbra_reference::df::{Atlas, object_distance};
 use penumbra_reference::shadow_mask::pixel_visibility;
-use penumbra_test::{CaptureFormat, HeadlessRender, gpu_or_skip};
+use penumbra_test::{CaptureFormat, HeadlessRender, KeptApp, gpu_or_skip};
 
 const SIZE: u32 = 96;
 const EYE: Vec3 = Vec3::new(1.0, 3.2, 5.0);
@@ -50,7 +50,7 @@ fn settings(light: Light) -> DistanceFieldShadows {
 }
 
 /// The scene lit by one light, with distance-field shadows or with none.
-fn render(light: Light, shadows: bool) -> (Vec<[f32; 4]>, App) {
+fn render(light: Light, shadows: bool) -> (Vec<[f32; 4]>, KeptApp) {
     let harness = HeadlessRender::new(SIZE, SIZE)
         .format(CaptureFormat::LinearF16)
         .frames(8);

@@ -201,9 +201,35 @@ pub struct HeadlessRender {
     pub warm_up: Option<fn(&mut World) -> bool>,
 }
 
-/// One Bevy app at a time per process: lavapipe has 2 cores to share, and a global
-/// logger can only be installed once.
+/// One Bevy app at a time per process — rendering or being torn down (a device dropped
+/// while another renders crashed lavapipe once: `free(): invalid pointer`): lavapipe has
+/// 2 cores to share, and a global logger can only be installed once.
 static RENDER_LOCK: Mutex<()> = Mutex::new(());
+
+/// An app kept after a headless render ([`HeadlessRender::run_keeping_app`]): use it as an
+/// [`App`]; dropping it takes the render lock, so its GPU device is never torn down while
+/// another test's app renders.
+pub struct KeptApp(Option<App>);
+
+impl std::ops::Deref for KeptApp {
+    type Target = App;
+    fn deref(&self) -> &App {
+        self.0.as_ref().expect("present until dropped")
+    }
+}
+
+impl std::ops::DerefMut for KeptApp {
+    fn deref_mut(&mut self) -> &mut App {
+        self.0.as_mut().expect("present until dropped")
+    }
+}
+
+impl Drop for KeptApp {
+    fn drop(&mut self) {
+        let _guard = RENDER_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+        drop(self.0.take());
+    }
+}
 
 impl HeadlessRender {
     /// `width × height`, 5 frames, 8-bit sRGB.
@@ -302,11 +328,14 @@ impl HeadlessRender {
     }
 
     /// [`HeadlessRender::run`], also returning the app so that tests can inspect the
-    /// main world after rendering.
-    pub fn run_keeping_app(&self, mut app: App) -> Result<(Capture, App), HarnessError> {
+    /// main world after rendering (it is torn down under the render lock when dropped).
+    pub fn run_keeping_app(&self, app: App) -> Result<(Capture, KeptApp), HarnessError> {
         if crate::vulkan_adapter().is_none() {
             return Err(HarnessError::NoAdapter);
         }
+        // Declared before the guard: on an early return the guard is released first and
+        // the app's drop takes the lock again.
+        let mut app = KeptApp(Some(app));
         let _guard = RENDER_LOCK.lock().unwrap_or_else(|e| e.into_inner());
         app.finish();
         app.cleanup();

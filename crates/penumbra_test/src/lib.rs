@@ -39,4 +39,4 @@ pub use compare::{
 };
 pub use compute::GpuCompute;
 pub use gpu::{gpu_or_skip, vulkan_adapter};
-pub use harness::{Capture, CaptureFormat, HarnessError, HeadlessRender};
+pub use harness::{Capture, CaptureFormat, HarnessError, HeadlessRender, KeptApp};
