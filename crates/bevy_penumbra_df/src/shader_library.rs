@@ -25,6 +25,56 @@ impl PenumbraShaderLibrary {
     }
 }
 
+impl PenumbraShaderLibrary {
+    /// Queues the compute pipeline running `entry` of library file `path` with one bind
+    /// group `layout`.
+    pub fn queue_compute(
+        &self,
+        pipeline_cache: &bevy::render::render_resource::PipelineCache,
+        label: &'static str,
+        layout: &bevy::render::render_resource::BindGroupLayoutDescriptor,
+        path: &str,
+        entry: &'static str,
+    ) -> bevy::render::render_resource::CachedComputePipelineId {
+        pipeline_cache.queue_compute_pipeline(
+            bevy::render::render_resource::ComputePipelineDescriptor {
+                label: Some(label.into()),
+                layout: vec![layout.clone()],
+                shader: self.handle(path),
+                entry_point: Some(entry.into()),
+                ..default()
+            },
+        )
+    }
+}
+
+/// An empty 3D `R16Float` texture (2×2×2), bound as the atlas where no SDF volume exists
+/// (analytic casters only).
+pub fn empty_atlas(
+    device: &bevy::render::renderer::RenderDevice,
+) -> bevy::render::render_resource::TextureView {
+    use bevy::render::render_resource::{
+        Extent3d, TextureDescriptor, TextureDimension, TextureFormat, TextureUsages,
+        TextureViewDescriptor,
+    };
+    device
+        .create_texture(&TextureDescriptor {
+            label: Some("penumbra_df_empty_atlas"),
+            size: Extent3d {
+                width: 2,
+                height: 2,
+                depth_or_array_layers: 2,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: TextureDimension::D3,
+            format: TextureFormat::R16Float,
+            usage: TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        })
+        .create_view(&TextureViewDescriptor::default())
+}
+
 /// Registers the shader library once (idempotent) and mirrors it into the render world.
 /// Cost: one small asset per module at startup; nothing per frame.
 pub fn register_shader_library(app: &mut App) {

@@ -258,6 +258,16 @@ fn passes(gpu: &GpuCompute) -> Passes {
         },
         count: None,
     };
+    let storage_texture = |binding| E {
+        binding,
+        visibility: ShaderStages::COMPUTE,
+        ty: B::StorageTexture {
+            access: wgpu::StorageTextureAccess::WriteOnly,
+            format: wgpu::TextureFormat::R32Float,
+            view_dimension: wgpu::TextureViewDimension::D2,
+        },
+        count: None,
+    };
     let trace_layout = gpu
         .device
         .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -274,16 +284,7 @@ fn passes(gpu: &GpuCompute) -> Passes {
                 storage(9),
                 storage(10),
                 uniform(11),
-                E {
-                    binding: 7,
-                    visibility: ShaderStages::COMPUTE,
-                    ty: B::StorageTexture {
-                        access: wgpu::StorageTextureAccess::WriteOnly,
-                        format: wgpu::TextureFormat::R32Float,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                    },
-                    count: None,
-                },
+                storage_texture(7),
             ],
         });
     let trace = gpu.pipeline_with_layouts(
@@ -299,16 +300,7 @@ fn passes(gpu: &GpuCompute) -> Passes {
                 texture(0, wgpu::TextureViewDimension::D2),
                 texture(1, wgpu::TextureViewDimension::D2),
                 uniform(2),
-                E {
-                    binding: 3,
-                    visibility: ShaderStages::COMPUTE,
-                    ty: B::StorageTexture {
-                        access: wgpu::StorageTextureAccess::WriteOnly,
-                        format: wgpu::TextureFormat::R32Float,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                    },
-                    count: None,
-                },
+                storage_texture(3),
             ],
         });
     let upsample = gpu.pipeline_with_layouts(

@@ -201,9 +201,11 @@ pub struct HeadlessRender {
     pub warm_up: Option<fn(&mut World) -> bool>,
 }
 
-/// One Bevy app at a time per process — rendering or being torn down (a device dropped
-/// while another renders crashed lavapipe once: `free(): invalid pointer`): lavapipe has
-/// 2 cores to share, and a global logger can only be installed once.
+/// One Bevy app at a time per process — rendering or being torn down: lavapipe has 2
+/// cores to share, and a global logger can only be installed once. Building apps is not
+/// covered: apps built, run and dropped concurrently in one process crashed lavapipe
+/// (SIGSEGV / `free(): invalid pointer`, 1 run in 4 of `tests/df_shadows.rs`), so
+/// `cargo xtask test` runs one test at a time per binary (`RUST_TEST_THREADS=1`).
 static RENDER_LOCK: Mutex<()> = Mutex::new(());
 
 /// An app kept after a headless render ([`HeadlessRender::run_keeping_app`]): use it as an

@@ -17,7 +17,8 @@ const DRIVER_PACKAGE: &str = "mesa-vulkan-drivers";
 
 const USAGE: &str = "usage: cargo xtask <showcase|test> [ARGS...]
   showcase [ARGS]  run examples/showcase.rs (ARGS go to the example: --headless --frames N --out PATH --size WxH)
-  test [ARGS]      run the whole test suite: cargo test --workspace [ARGS]";
+  test [ARGS]      run the whole test suite: cargo test --workspace [ARGS]
+                   (one test at a time per binary: RUST_TEST_THREADS=1 unless set)";
 
 fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
@@ -47,6 +48,13 @@ fn main() -> ExitCode {
     let mut command = Command::new(cargo);
     command.args(&cargo_args);
     let result = if task.as_deref() == Some("test") {
+        // One test at a time per test binary: Bevy apps on lavapipe built, run or torn down
+        // concurrently in one process crashed it (1 run in 4 of `tests/df_shadows.rs`:
+        // SIGSEGV / `free(): invalid pointer`); the harness's lock only covers rendering.
+        // The GPU tests share two cores anyway. Override with RUST_TEST_THREADS.
+        if std::env::var_os("RUST_TEST_THREADS").is_none() {
+            command.env("RUST_TEST_THREADS", "1");
+        }
         run_tests(command)
     } else {
         command.status().map_err(|e| e.to_string())

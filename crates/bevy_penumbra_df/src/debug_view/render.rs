@@ -11,10 +11,9 @@ use bevy::render::render_resource::binding_types::{
 };
 use bevy::render::render_resource::{
     BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, BufferInitDescriptor,
-    BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites, Extent3d, FragmentState,
-    Operations, PipelineCache, RenderPassColorAttachment, RenderPassDescriptor,
-    RenderPipelineDescriptor, ShaderStages, TextureDescriptor, TextureDimension, TextureFormat,
-    TextureSampleType, TextureUsages, TextureView, TextureViewDescriptor,
+    BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites, FragmentState, Operations,
+    PipelineCache, RenderPassColorAttachment, RenderPassDescriptor, RenderPipelineDescriptor,
+    ShaderStages, TextureFormat, TextureSampleType, TextureView,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, ViewQuery};
 use bevy::render::view::{ExtractedView, ViewTarget};
@@ -75,25 +74,11 @@ fn init_debug_view_pipelines(
             ),
         ),
     );
-    let empty = device.create_texture(&TextureDescriptor {
-        label: Some("penumbra_df_empty_atlas"),
-        size: Extent3d {
-            width: 2,
-            height: 2,
-            depth_or_array_layers: 2,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: TextureDimension::D3,
-        format: TextureFormat::R16Float,
-        usage: TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    });
     commands.insert_resource(DebugViewPipelines {
         layout,
         shader: library.handle("df/debug_view.wgsl"),
         by_format: HashMap::default(),
-        empty_atlas: empty.create_view(&TextureViewDescriptor::default()),
+        empty_atlas: crate::shader_library::empty_atlas(&device),
     });
 }
 

@@ -10,10 +10,10 @@ use bevy::render::render_resource::binding_types::{
 };
 use bevy::render::render_resource::{
     BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer, BufferDescriptor,
-    BufferInitDescriptor, BufferUsages, CachedComputePipelineId, ComputePassDescriptor,
-    ComputePipelineDescriptor, Extent3d, Origin3d, PipelineCache, ShaderStages,
-    TexelCopyBufferLayout, TexelCopyTextureInfo, Texture, TextureAspect, TextureDescriptor,
-    TextureDimension, TextureFormat, TextureUsages, TextureView, TextureViewDescriptor,
+    BufferInitDescriptor, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d,
+    Origin3d, PipelineCache, ShaderStages, TexelCopyBufferLayout, TexelCopyTextureInfo, Texture,
+    TextureAspect, TextureDescriptor, TextureDimension, TextureFormat, TextureUsages, TextureView,
+    TextureViewDescriptor,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
@@ -127,13 +127,7 @@ fn init_distance_field_pipelines(
                  layout: &BindGroupLayoutDescriptor,
                  path: &str,
                  entry: &'static str| {
-        pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
-            label: Some(label.into()),
-            layout: vec![layout.clone()],
-            shader: library.handle(path),
-            entry_point: Some(entry.into()),
-            ..default()
-        })
+        library.queue_compute(&pipeline_cache, label, layout, path, entry)
     };
     let apply = queue(
         "penumbra_df_apply_deltas",

@@ -19,10 +19,10 @@ use bevy::render::render_resource::binding_types::{
 };
 use bevy::render::render_resource::{
     BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
-    BufferInitDescriptor, BufferUsages, CachedComputePipelineId, ComputePassDescriptor,
-    ComputePipelineDescriptor, Extent3d, PipelineCache, ShaderStages, StorageTextureAccess,
-    Texture, TextureDescriptor, TextureDimension, TextureFormat, TextureSampleType, TextureUsages,
-    TextureView, TextureViewDescriptor, TextureViewDimension,
+    BufferInitDescriptor, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d,
+    PipelineCache, ShaderStages, StorageTextureAccess, Texture, TextureDescriptor,
+    TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
+    TextureViewDescriptor, TextureViewDimension,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, ViewQuery};
 use bevy::render::view::ExtractedView;
@@ -232,13 +232,7 @@ fn init_shadow_pipelines(
                  layout: &BindGroupLayoutDescriptor,
                  path: &str,
                  entry: &'static str| {
-        pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
-            label: Some(label.into()),
-            layout: vec![layout.clone()],
-            shader: library.handle(path),
-            entry_point: Some(entry.into()),
-            ..default()
-        })
+        library.queue_compute(&pipeline_cache, label, layout, path, entry)
     };
     let cull = queue(
         "penumbra_df_shadow_cull",
@@ -273,20 +267,6 @@ fn init_shadow_pipelines(
             entry,
         )
     });
-    let empty = device.create_texture(&TextureDescriptor {
-        label: Some("penumbra_df_shadow_empty_atlas"),
-        size: Extent3d {
-            width: 1,
-            height: 1,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: TextureDimension::D3,
-        format: TextureFormat::R16Float,
-        usage: TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    });
     commands.insert_resource(ShadowPipelines {
         cull_layout,
         cull,
@@ -296,7 +276,7 @@ fn init_shadow_pipelines(
         upsample,
         grid_layout,
         grid,
-        empty_atlas: empty.create_view(&TextureViewDescriptor::default()),
+        empty_atlas: crate::shader_library::empty_atlas(&device),
     });
 }
 
