@@ -28,9 +28,10 @@ use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, encode, fl
 use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind};
 use penumbra_reference::camera::PerspectiveCamera;
 use penumbra_reference::df::Atlas;
-use penumbra_reference::df_shadow::{AreaLight, Occluder, ShadowSettings, monte_carlo_visibility};
+use penumbra_reference::df_shadow::{
+    AreaLight, Occluder, ShadowSettings, TriangleOccluder, monte_carlo_visibility,
+};
 use penumbra_reference::shadow_mask::{pixel_visibility_counted, upsample};
-use penumbra_sdf::bvh::Bvh;
 use penumbra_sdf::geometry::Aabb;
 use penumbra_sdf::grid::GridPolicy;
 use penumbra_sdf::{BakeSettings, TriMesh, bake, obj, shapes};
@@ -55,28 +56,6 @@ struct Placed {
     world_from_local: Affine3A,
 }
 
-/// All triangles in world space, for ray tracing.
-struct Triangles {
-    bvh: Bvh,
-    center: Vec3,
-    radius: f32,
-}
-
-impl Occluder for Triangles {
-    fn distance(&self, _: Vec3) -> f32 {
-        unreachable!("the ground truth casts rays")
-    }
-    fn blocks(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
-        self.bvh.ray_nearest(origin, dir, 0.0, t_max).is_some()
-    }
-    fn bounding_radius(&self) -> f32 {
-        self.radius
-    }
-    fn center(&self) -> Vec3 {
-        self.center
-    }
-}
-
 struct Scene {
     name: &'static str,
     /// Meshes baked to SDFs (the sweep's resolution applies).
@@ -92,7 +71,10 @@ struct Scene {
     default_resolution: u32,
 }
 
-fn world_triangles(scene_meshes: &[Placed], analytic: &[(CasterShape, Affine3A)]) -> Triangles {
+fn world_triangles(
+    scene_meshes: &[Placed],
+    analytic: &[(CasterShape, Affine3A)],
+) -> TriangleOccluder {
     let mut tris = Vec::new();
     for p in scene_meshes {
         let (t, _) = p.mesh.validate().expect("valid mesh");
@@ -107,13 +89,7 @@ fn world_triangles(scene_meshes: &[Placed], analytic: &[(CasterShape, Affine3A)]
             tris.extend(t.into_iter().map(|t| t.map(|v| m.transform_point3(v))));
         }
     }
-    let mut b = Aabb::EMPTY;
-    tris.iter().flatten().for_each(|&p| b.grow(p));
-    Triangles {
-        bvh: Bvh::build(&tris),
-        center: b.center(),
-        radius: b.size().length() * 0.5,
-    }
+    TriangleOccluder::new(&tris)
 }
 
 /// Traces the view on the triangles and computes the ground truth once per scene.
@@ -136,9 +112,8 @@ fn finish_scene(mut scene: Scene) -> Scene {
                 f32::INFINITY
             };
             let t = tris
-                .bvh
-                .ray_nearest(ray.origin, ray.dir, 0.0, 100.0)
-                .map_or(plane, |(t, _, _)| t.min(plane));
+                .first_hit(ray.origin, ray.dir, 100.0)
+                .map_or(plane, |t| t.min(plane));
             t.is_finite().then(|| ray.origin + ray.dir * t)
         })
         .collect();

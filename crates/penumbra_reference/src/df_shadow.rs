@@ -112,6 +112,50 @@ impl Occluder for SphereOccluder {
     }
 }
 
+/// Triangles (world space) on a BVH: ray-traced ground truth for real meshes.
+pub struct TriangleOccluder {
+    bvh: penumbra_sdf::bvh::Bvh,
+    center: Vec3,
+    radius: f32,
+}
+
+impl TriangleOccluder {
+    /// Builds the BVH over `triangles` (corner positions, world space).
+    pub fn new(triangles: &[[Vec3; 3]]) -> TriangleOccluder {
+        let (lo, hi) = triangles.iter().flatten().fold(
+            (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+            |(l, h), &p| (l.min(p), h.max(p)),
+        );
+        TriangleOccluder {
+            bvh: penumbra_sdf::bvh::Bvh::build(triangles),
+            center: (lo + hi) * 0.5,
+            radius: (hi - lo).length() * 0.5,
+        }
+    }
+
+    /// Distance along the ray `origin + t · dir` to the first triangle hit before `t_max`.
+    pub fn first_hit(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<f32> {
+        self.bvh
+            .ray_nearest(origin, dir, 0.0, t_max)
+            .map(|(t, _, _)| t)
+    }
+}
+
+impl Occluder for TriangleOccluder {
+    fn distance(&self, _: Vec3) -> f32 {
+        unreachable!("triangles are ground truth: they cast rays, they are not marched")
+    }
+    fn blocks(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        self.bvh.ray_nearest(origin, dir, 0.0, t_max).is_some()
+    }
+    fn bounding_radius(&self) -> f32 {
+        self.radius
+    }
+    fn center(&self) -> Vec3 {
+        self.center
+    }
+}
+
 impl AreaLight {
     /// Direction from `p` toward the light's centre, and the ray length.
     pub fn ray(&self, p: Vec3, settings: &ShadowSettings) -> (Vec3, f32) {

@@ -5,9 +5,8 @@
 
 use glam::Vec3;
 use penumbra_reference::df_shadow::{
-    AreaLight, Occluder, ShadowSettings, df_visibility, monte_carlo_visibility,
+    AreaLight, Occluder, ShadowSettings, TriangleOccluder, df_visibility, monte_carlo_visibility,
 };
-use penumbra_sdf::bvh::Bvh;
 use penumbra_sdf::{BakeSettings, SdfVolume, bake, obj};
 use std::path::PathBuf;
 
@@ -18,34 +17,12 @@ struct SdfOccluder {
     radius: f32,
 }
 
-/// The bunny's triangles, for the ground truth.
-struct MeshOccluder {
-    bvh: Bvh,
-    center: Vec3,
-    radius: f32,
-}
-
 impl Occluder for SdfOccluder {
     fn distance(&self, p: Vec3) -> f32 {
         self.volume.sample(p)
     }
     fn blocks(&self, _: Vec3, _: Vec3, _: f32) -> bool {
         unreachable!("the march does not cast rays")
-    }
-    fn bounding_radius(&self) -> f32 {
-        self.radius
-    }
-    fn center(&self) -> Vec3 {
-        self.center
-    }
-}
-
-impl Occluder for MeshOccluder {
-    fn distance(&self, _: Vec3) -> f32 {
-        unreachable!("the ground truth casts rays")
-    }
-    fn blocks(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
-        self.bvh.ray_nearest(origin, dir, 0.0, t_max).is_some()
     }
     fn bounding_radius(&self) -> f32 {
         self.radius
@@ -90,11 +67,7 @@ fn bunny_shadow_march_against_ray_traced_ground_truth() {
         center,
         radius,
     };
-    let truth = MeshOccluder {
-        bvh: Bvh::build(&tris),
-        center,
-        radius,
-    };
+    let truth = TriangleOccluder::new(&tris);
     let light = AreaLight::Directional {
         to_light: Vec3::new(0.6, 0.75, 0.3).normalize(),
         angular_diameter: 3f32.to_radians(),
