@@ -591,6 +591,32 @@ fn bench(c: &mut Criterion) {
     }
     write_tables(&rows);
     combined(&rows);
+    // Where the defaults' error lies: on the floor (y = 0) or on the other surfaces (the
+    // casters themselves, the walls).
+    for scene in &scenes {
+        let (records, atlas) = records(scene, scene.default_resolution);
+        let (m, _) = mask(scene, &records, &atlas, Config::DEFAULT);
+        let mut sums = [(0.0f32, 0usize); 2];
+        for ((p, v), t) in scene.points.iter().zip(&m).zip(&scene.truth) {
+            if let Some(p) = p
+                && (*v < 0.99 || *t < 0.99)
+            {
+                let s = &mut sums[usize::from(p.y >= 1e-3)];
+                s.0 += (v - t).abs();
+                s.1 += 1;
+            }
+        }
+        let mean = |(sum, n): (f32, usize)| sum / n.max(1) as f32;
+        println!(
+            "{}, defaults, shadowed or penumbra pixels: floor {:.4} over {}, other surfaces \
+             {:.4} over {}",
+            scene.name,
+            mean(sums[0]),
+            sums[0].1,
+            mean(sums[1]),
+            sums[1].1
+        );
+    }
     for scene in &scenes {
         let (records, atlas) = records(scene, scene.default_resolution.max(2));
         c.bench_function(&format!("df_shadows/{}/defaults", scene.name), |b| {

@@ -644,7 +644,16 @@ fn distance_field_shadows(
         pass.set_pipeline(trace);
         pass.set_bind_group(0, &trace_bind, &[]);
         pass.dispatch_workgroups(trace_size.x.div_ceil(8), trace_size.y.div_ceil(8), 1);
+        drop(pass);
         if let Some(upsample_bind) = &upsample_bind {
+            // Its own pass: the half texture, written as storage above, is read as a
+            // sampled texture here.
+            let mut pass = ctx
+                .command_encoder()
+                .begin_compute_pass(&ComputePassDescriptor {
+                    label: Some("penumbra_df_shadows_upsample"),
+                    timestamp_writes: None,
+                });
             pass.set_pipeline(upsample);
             pass.set_bind_group(0, upsample_bind, &[]);
             pass.dispatch_workgroups(masks.size.x.div_ceil(8), masks.size.y.div_ceil(8), 1);
@@ -707,8 +716,11 @@ fn create_masks(
             usage: TextureUsages::STORAGE_BINDING | TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
-        let view = texture.create_view(&TextureViewDescriptor::default());
-        (view.clone(), view)
+        // Separate views for writing (storage) and reading (sampled).
+        (
+            texture.create_view(&TextureViewDescriptor::default()),
+            texture.create_view(&TextureViewDescriptor::default()),
+        )
     });
     DistanceFieldShadowMasks {
         array: array_view(&texture),
