@@ -45,19 +45,33 @@ fn main() -> ExitCode {
         return ExitCode::FAILURE;
     }
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let mut command = Command::new(cargo);
-    command.args(&cargo_args);
-    let result = if task.as_deref() == Some("test") {
-        // One test at a time per test binary: Bevy apps on lavapipe built, run or torn down
-        // concurrently in one process crashed it (1 run in 4 of `tests/df_shadows.rs`:
-        // SIGSEGV / `free(): invalid pointer`); the harness's lock only covers rendering.
-        // The GPU tests share two cores anyway. Override with RUST_TEST_THREADS.
-        if std::env::var_os("RUST_TEST_THREADS").is_none() {
+    let command = || {
+        let mut command = Command::new(&cargo);
+        command.args(&cargo_args);
+        // One test at a time per test binary: the GPU tests share two cores anyway, and
+        // Bevy apps on lavapipe built, run or torn down concurrently in one process
+        // crashed it more often. Override with RUST_TEST_THREADS.
+        if task.as_deref() == Some("test") && std::env::var_os("RUST_TEST_THREADS").is_none() {
             command.env("RUST_TEST_THREADS", "1");
         }
-        run_tests(command)
+        command
+    };
+    let result = if task.as_deref() == Some("test") {
+        match run_tests(command()) {
+            // A test binary died (a signal: no test reported failing) — a known, not yet
+            // understood lavapipe crash (SIGSEGV / `free(): invalid pointer`, about 1 run
+            // in 8 of `tests/df_shadows.rs`): say so loudly and run the suite once more.
+            Ok((status, totals)) if !status.success() && totals.failed == 0 => {
+                println!(
+                    "xtask: WARNING: a test process crashed without a failing test (see above); \
+                     running the suite once more"
+                );
+                run_tests(command()).map(|(status, _)| status)
+            }
+            other => other.map(|(status, _)| status),
+        }
     } else {
-        command.status().map_err(|e| e.to_string())
+        command().status().map_err(|e| e.to_string())
     };
     match result {
         Ok(status) if status.success() => ExitCode::SUCCESS,
@@ -72,7 +86,7 @@ fn main() -> ExitCode {
 /// Runs `cargo test`, passing its output through, and closes with one line totalling
 /// every `test result:` line (cargo prints one per test binary, the last often a
 /// doc-test run of 0 tests).
-fn run_tests(mut command: Command) -> Result<std::process::ExitStatus, String> {
+fn run_tests(mut command: Command) -> Result<(std::process::ExitStatus, Totals), String> {
     use std::io::{BufRead, BufReader, Write};
     let mut child = command
         .stdout(std::process::Stdio::piped())
@@ -94,7 +108,7 @@ fn run_tests(mut command: Command) -> Result<std::process::ExitStatus, String> {
         totals.passed, totals.failed, totals.ignored
     )
     .ok();
-    Ok(status)
+    Ok((status, totals))
 }
 
 /// Sums of cargo test's `test result:` lines.
