@@ -18,7 +18,7 @@ use bevy::render::render_resource::binding_types::{
     texture_storage_2d, uniform_buffer_sized,
 };
 use bevy::render::render_resource::{
-    BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
+    BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer, BufferDescriptor,
     BufferInitDescriptor, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d,
     PipelineCache, ShaderStages, StorageTextureAccess, Texture, TextureDescriptor,
     TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
@@ -451,6 +451,16 @@ fn distance_field_shadows(
             usage,
         })
     };
+    // Zero-filled storage buffers: wgpu zero-initialises new buffers on the GPU, so
+    // nothing is built or uploaded on the CPU (the grid's item list can be megabytes).
+    let zeroed = |label: &'static str, size: u64| -> Buffer {
+        device.create_buffer(&BufferDescriptor {
+            label: Some(label),
+            size: size.max(16).next_multiple_of(4),
+            usage: BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        })
+    };
     let cull_view = buffer(
         "penumbra_df_shadow_cull_view",
         &words_to_bytes(&cull_view_words(&frustum, &camera, slots, groups_x)),
@@ -505,24 +515,13 @@ fn distance_field_shadows(
             &words_to_bytes(&params.to_words()),
             BufferUsages::UNIFORM,
         );
-        let list = buffer(
-            "penumbra_df_shadow_objects",
-            &vec![0u8; slots.max(1) as usize * 4],
-            BufferUsages::STORAGE,
-        );
+        let list = zeroed("penumbra_df_shadow_objects", slots as u64 * 4);
         // Directional lights: the light-space grid of the culled casters (sized for all
         // of them in MAX_CELLS cells each; for very large scenes the plain list is used).
         let item_bytes = slots.max(1) as u64 * SHADOW_GRID_MAX_CELLS as u64 * 4;
         let to_light = match params.kind {
             ShadowLightKind::Directional(d) if item_bytes <= MAX_GRID_ITEM_BYTES => Some(d),
             _ => None,
-        };
-        let zeroed = |label: &'static str, size: u64| {
-            buffer(
-                label,
-                &vec![0u8; size.max(16) as usize],
-                BufferUsages::STORAGE,
-            )
         };
         let grid = zeroed("penumbra_df_shadow_grid", SHADOW_GRID_BYTES as u64);
         let grid_size = if to_light.is_some() { item_bytes } else { 16 };
@@ -545,11 +544,7 @@ fn distance_field_shadows(
             )),
             BufferUsages::UNIFORM,
         );
-        let count = buffer(
-            "penumbra_df_shadow_object_count",
-            &[0u8; 4],
-            BufferUsages::STORAGE,
-        );
+        let count = zeroed("penumbra_df_shadow_object_count", 4);
         let cull_bind = device.create_bind_group(
             "penumbra_df_shadow_cull",
             &cull_layout,
@@ -669,14 +664,10 @@ fn array_view(texture: &Texture) -> TextureView {
     })
 }
 
-fn create_masks(
-    device: &RenderDevice,
-    size: UVec2,
-    layers: u32,
-    half: bool,
-) -> DistanceFieldShadowMasks {
-    let texture = device.create_texture(&TextureDescriptor {
-        label: Some("penumbra_df_shadow_masks"),
+/// An `R32Float` mask texture (written as storage, read as a texture).
+fn mask_texture(device: &RenderDevice, label: &'static str, size: UVec2, layers: u32) -> Texture {
+    device.create_texture(&TextureDescriptor {
+        label: Some(label),
         size: Extent3d {
             width: size.x,
             height: size.y,
@@ -688,7 +679,16 @@ fn create_masks(
         format: TextureFormat::R32Float,
         usage: TextureUsages::STORAGE_BINDING | TextureUsages::TEXTURE_BINDING,
         view_formats: &[],
-    });
+    })
+}
+
+fn create_masks(
+    device: &RenderDevice,
+    size: UVec2,
+    layers: u32,
+    half: bool,
+) -> DistanceFieldShadowMasks {
+    let texture = mask_texture(device, "penumbra_df_shadow_masks", size, layers);
     let layers = (0..layers)
         .map(|layer| {
             texture.create_view(&TextureViewDescriptor {
@@ -701,21 +701,7 @@ fn create_masks(
         })
         .collect();
     let half = half.then(|| {
-        let h = half_size(size);
-        let texture = device.create_texture(&TextureDescriptor {
-            label: Some("penumbra_df_shadow_half_mask"),
-            size: Extent3d {
-                width: h.x,
-                height: h.y,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: TextureDimension::D2,
-            format: TextureFormat::R32Float,
-            usage: TextureUsages::STORAGE_BINDING | TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
+        let texture = mask_texture(device, "penumbra_df_shadow_half_mask", half_size(size), 1);
         // Separate views for writing (storage) and reading (sampled).
         (
             texture.create_view(&TextureViewDescriptor::default()),
