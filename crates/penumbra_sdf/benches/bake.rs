@@ -134,10 +134,13 @@ fn libigl_bake(mesh_path: &std::path::Path, v: &SdfVolume) -> Option<(Duration, 
     Some((Duration::from_secs_f64(seconds), values))
 }
 
-/// The median time of `runs` runs (the host's run-to-run noise is about ±10 %: a
-/// median is steadier than a best), and the last result.
+/// The median time of `runs` runs after one untimed warm-up run (as the libigl script
+/// does: the first run in a process pays for page faults and thread start-up), and the
+/// last result. The host's run-to-run noise is about ±10 %: a median is steadier than a
+/// best.
 fn time<T>(f: impl FnMut() -> T, runs: u32) -> (Duration, T) {
     let mut f = f;
+    std::hint::black_box(f());
     let mut times = Vec::with_capacity(runs as usize);
     let mut out = None;
     for _ in 0..runs {
@@ -164,7 +167,7 @@ fn comparison(c: &mut Criterion) {
     let igl = libigl_bake(&bunny_path(), v)
         .map(|(t, values)| (t, errors(&tris, v, |c| values[v.index(c.x, c.y, c.z)])));
     println!(
-        "\nbunny {} triangles, {nx}x{ny}x{nz} samples (median of runs: 9 / 5 / 5, bake only, {} threads)",
+        "\nbunny {} triangles, {nx}x{ny}x{nz} samples (median of runs after a warm-up run: 9 / 5 / 5, bake only, {} threads)",
         mesh.triangles.len(),
         rayon::current_num_threads()
     );

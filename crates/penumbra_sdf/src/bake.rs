@@ -202,9 +202,10 @@ pub fn bake(
     };
 
     let t_setup = t_start.elapsed();
-    // Pass 1: exact unsigned distances. Each sample searches from the closest triangles
-    // of its neighbours in the row and in the previous row, bounded by their distance
-    // plus one voxel (the distance function is 1-Lipschitz).
+    // Pass 1: exact unsigned distances, four samples of a row per BVH traversal. Each
+    // sample searches from the closest triangles of the sample before its group and of
+    // its neighbour in the previous row, bounded by their distance plus its distance to
+    // them (the distance function is 1-Lipschitz).
     let mut distance = vec![0.0f32; slice * dims.z as usize];
     distance
         .par_chunks_mut(slice)
@@ -213,20 +214,31 @@ pub fn bake(
             let mut above = vec![(f32::INFINITY, u32::MAX); dims.x as usize];
             for j in 0..dims.y {
                 let mut left = (f32::INFINITY, u32::MAX);
-                for i in 0..dims.x {
-                    let p = position(i, j, k as u32);
-                    let up = above[i as usize];
-                    let bound = left.0.min(up.0) + h;
-                    let hints = [left.1, up.1];
-                    let hints = &hints[..hints.iter().position(|&t| t == u32::MAX).unwrap_or(2)];
-                    let hit = bvh
-                        .closest(p, bound * bound * (1.0 + 1e-5) + 1e-30, hints)
-                        .or_else(|| bvh.closest(p, f32::INFINITY, &[]))
-                        .expect("a validated mesh has triangles");
-                    let d = hit.distance_squared.sqrt();
-                    left = (d, hit.triangle);
-                    above[i as usize] = left;
-                    out[(i + dims.x * j) as usize] = d;
+                for i0 in (0..dims.x).step_by(4) {
+                    // Past the row's end the last sample repeats (and is not stored).
+                    let column = |q: u32| (i0 + q).min(dims.x - 1);
+                    let p = std::array::from_fn(|q| position(column(q as u32), j, k as u32));
+                    let bound = std::array::from_fn(|q| {
+                        let up = above[column(q as u32) as usize];
+                        let b = (left.0 + (q + 1) as f32 * h).min(up.0 + h);
+                        b * b * (1.0 + 1e-5) + 1e-30
+                    });
+                    let hints =
+                        std::array::from_fn(|q| [left.1, above[column(q as u32) as usize].1]);
+                    let hits = bvh.closest4(p, bound, hints);
+                    for (q, hit) in hits.into_iter().enumerate() {
+                        let i = i0 + q as u32;
+                        if i >= dims.x {
+                            break;
+                        }
+                        let hit = hit
+                            .or_else(|| bvh.closest(p[q], f32::INFINITY, &[]))
+                            .expect("a validated mesh has triangles");
+                        let d = hit.distance_squared.sqrt();
+                        left = (d, hit.triangle);
+                        above[i as usize] = left;
+                        out[(i + dims.x * j) as usize] = d;
+                    }
                 }
             }
             report_slice();

@@ -93,7 +93,8 @@ impl Bvh {
             .collect();
         let mut nodes = Vec::with_capacity(2 * tris.len() / LEAF_SIZE + 1);
         if !items.is_empty() {
-            build_recursive(&mut items, 0, max_depth, &mut nodes, 0);
+            let bounds = Bounds::of(&items);
+            build_recursive(&mut items, bounds, 0, max_depth, &mut nodes, 0);
         }
         let order: Vec<u32> = items.iter().map(|t| t.index).collect();
         let tris: Vec<[Vec3A; 3]> = order
@@ -203,6 +204,26 @@ impl Bvh {
             })
     }
 
+    /// [`closest`](Self::closest) for four nearby points in one traversal (see
+    /// `WideTree::closest4`): the same distances as four single queries. `hints[q]`:
+    /// up to two input-index triangles for point `q` (`u32::MAX`: none).
+    pub(crate) fn closest4(
+        &self,
+        p: [Vec3; 4],
+        max_distance_squared: [f32; 4],
+        hints: [[u32; 2]; 4],
+    ) -> [Option<ClosestHit>; 4] {
+        let hints = hints.map(|h| h.map(|t| self.tree_index_of(t).unwrap_or(usize::MAX)));
+        self.wide
+            .closest4(p.map(Vec3A::from), max_distance_squared, hints, &self.order)
+            .map(|hit| {
+                hit.map(|(distance_squared, i)| ClosestHit {
+                    distance_squared,
+                    triangle: self.order[i],
+                })
+            })
+    }
+
     fn tree_index_of(&self, input_index: u32) -> Option<usize> {
         self.inverse.get(input_index as usize).map(|&i| i as usize)
     }
@@ -293,30 +314,77 @@ fn hit_box(node: &Node, origin: Vec3A, inv_dir: Vec3A, t_min: f32, t_max: f32) -
 /// Subtrees with more triangles than this build their halves in parallel.
 const PARALLEL_BUILD: usize = 4096;
 
-/// `depth_left`: levels still allowed below this node (0: make a leaf). Appends the
-/// subtree in depth-first order (node indices relative to `nodes`' length on entry plus
-/// `base`) and returns its root's index. Large subtrees build their right half on
-/// another thread into a separate vector that is appended afterwards, so the result is
-/// the same for any thread count.
+/// Nodes with more triangles than this bin them in parallel chunks of this size.
+const PARALLEL_BIN: usize = 16384;
+
+/// The bounds of a set of build triangles and of their centroids.
+#[derive(Clone, Copy, Debug)]
+struct Bounds {
+    tris: Aabb,
+    centroids: Aabb,
+}
+
+impl Bounds {
+    const EMPTY: Bounds = Bounds {
+        tris: Aabb::EMPTY,
+        centroids: Aabb::EMPTY,
+    };
+
+    fn of(items: &[BuildTri]) -> Bounds {
+        let one = |items: &[BuildTri]| {
+            items.iter().fold(Bounds::EMPTY, |b, t| Bounds {
+                tris: b.tris.union(&t.bounds),
+                centroids: b.centroids.union(&Aabb {
+                    min: t.centroid,
+                    max: t.centroid,
+                }),
+            })
+        };
+        if items.len() > PARALLEL_BIN {
+            use rayon::prelude::*;
+            // Exact min/max: the same result in any grouping.
+            items
+                .par_chunks(PARALLEL_BIN)
+                .map(one)
+                .reduce(|| Bounds::EMPTY, |a, b| a.union(&b))
+        } else {
+            one(items)
+        }
+    }
+
+    fn union(&self, o: &Bounds) -> Bounds {
+        Bounds {
+            tris: self.tris.union(&o.tris),
+            centroids: self.centroids.union(&o.centroids),
+        }
+    }
+}
+
+/// `depth_left`: levels still allowed below this node (0: make a leaf). `bounds`: the
+/// items' bounds (passed down from the parent's binning, so each node reads its items
+/// only twice: to bin them and to partition them). Appends the subtree in depth-first
+/// order (node indices relative to `nodes`' length on entry plus `base`) and returns its
+/// root's index. Large subtrees build their right half on another thread into a separate
+/// vector that is appended afterwards, so the result is the same for any thread count.
 fn build_recursive(
     items: &mut [BuildTri],
+    bounds: Bounds,
     offset: usize,
     depth_left: usize,
     nodes: &mut Vec<Node>,
     base: usize,
 ) -> usize {
     let index = base + nodes.len();
-    let bounds = items.iter().fold(Aabb::EMPTY, |b, t| b.union(&t.bounds));
     nodes.push(Node {
-        min: bounds.min.into(),
-        max: bounds.max.into(),
+        min: bounds.tris.min.into(),
+        max: bounds.tris.max.into(),
         start_or_right: offset as u32,
         count: items.len() as u32,
     });
     if items.len() <= LEAF_SIZE || depth_left == 0 {
         return index;
     }
-    let Some(split) = sah_split(items) else {
+    let Some((split, left_bounds, right_bounds)) = sah_split(items, &bounds.centroids) else {
         return index; // no useful split (all centroids equal, or SAH prefers a leaf)
     };
     let parallel = items.len() > PARALLEL_BUILD;
@@ -326,8 +394,11 @@ fn build_recursive(
         // The right subtree's indices start after the left subtree, unknown until it is
         // built: build it relative to 0 and shift it on appending.
         rayon::join(
-            || build_recursive(left, offset, depth_left - 1, nodes, base),
-            || build_recursive(right, offset + split, depth_left - 1, &mut right_nodes, 0),
+            || build_recursive(left, left_bounds, offset, depth_left - 1, nodes, base),
+            || {
+                let r = offset + split;
+                build_recursive(right, right_bounds, r, depth_left - 1, &mut right_nodes, 0)
+            },
         );
         let shift = (base + nodes.len()) as u32;
         for n in &mut right_nodes {
@@ -338,8 +409,9 @@ fn build_recursive(
         nodes.append(&mut right_nodes);
         shift as usize
     } else {
-        build_recursive(left, offset, depth_left - 1, nodes, base);
-        build_recursive(right, offset + split, depth_left - 1, nodes, base)
+        build_recursive(left, left_bounds, offset, depth_left - 1, nodes, base);
+        let r = offset + split;
+        build_recursive(right, right_bounds, r, depth_left - 1, nodes, base)
     };
     let local = index - base;
     nodes[local].start_or_right = right_index as u32;
@@ -347,12 +419,25 @@ fn build_recursive(
     index
 }
 
-/// Partitions `items` by the best binned-SAH plane and returns the split position, or
-/// `None` when a leaf is cheaper or no plane separates the centroids.
-fn sah_split(items: &mut [BuildTri]) -> Option<usize> {
-    let mut cb = Aabb::EMPTY;
-    items.iter().for_each(|t| cb.grow(t.centroid));
-    let extent = cb.size();
+/// Binned-SAH bins: each bin's triangle and centroid bounds and count.
+#[derive(Clone, Copy)]
+struct Bins {
+    bounds: [Bounds; BINS],
+    counts: [usize; BINS],
+}
+
+impl Bins {
+    const EMPTY: Bins = Bins {
+        bounds: [Bounds::EMPTY; BINS],
+        counts: [0; BINS],
+    };
+}
+
+/// Partitions `items` (whose centroids lie in `centroids`) by the best binned-SAH plane
+/// and returns the split position and the two sides' bounds, or `None` when a leaf is
+/// cheaper or no plane separates the centroids.
+fn sah_split(items: &mut [BuildTri], centroids: &Aabb) -> Option<(usize, Bounds, Bounds)> {
+    let extent = centroids.size();
     let axis = if extent.x >= extent.y && extent.x >= extent.z {
         0
     } else if extent.y >= extent.z {
@@ -360,41 +445,76 @@ fn sah_split(items: &mut [BuildTri]) -> Option<usize> {
     } else {
         2
     };
-    let (lo, span) = (cb.min[axis], extent[axis]);
+    let (lo, span) = (centroids.min[axis], extent[axis]);
     if span <= 0.0 || !span.is_finite() {
         // All centroids coincide: split in the middle if the node is too big for a leaf.
-        return (items.len() > 4 * LEAF_SIZE).then_some(items.len() / 2);
+        if items.len() <= 4 * LEAF_SIZE {
+            return None;
+        }
+        let half = items.len() / 2;
+        let (left, right) = items.split_at(half);
+        return Some((half, Bounds::of(left), Bounds::of(right)));
     }
-    let bin_of = |c: Vec3| (((c[axis] - lo) / span * BINS as f32) as usize).min(BINS - 1);
-    let mut bin_bounds = [Aabb::EMPTY; BINS];
-    let mut bin_counts = [0usize; BINS];
-    for t in items.iter() {
-        let b = bin_of(t.centroid);
-        bin_bounds[b] = bin_bounds[b].union(&t.bounds);
-        bin_counts[b] += 1;
-    }
+    // A multiply and an i32 conversion (not a divide and a saturating usize one): this
+    // closure runs twice per triangle per tree level.
+    let scale = BINS as f32 / span;
+    let bin_of = |c: Vec3| {
+        let x = match axis {
+            0 => c.x,
+            1 => c.y,
+            _ => c.z,
+        };
+        (((x - lo) * scale) as i32).clamp(0, BINS as i32 - 1) as usize
+    };
+    let fill = |items: &[BuildTri]| {
+        let mut bins = Bins::EMPTY;
+        for t in items {
+            let b = bin_of(t.centroid);
+            let bin = &mut bins.bounds[b];
+            bin.tris = bin.tris.union(&t.bounds);
+            bin.centroids.grow(t.centroid);
+            bins.counts[b] += 1;
+        }
+        bins
+    };
+    let bins = if items.len() > PARALLEL_BIN {
+        use rayon::prelude::*;
+        // Exact min/max and integer counts: the same bins in any grouping.
+        items.par_chunks(PARALLEL_BIN).map(fill).reduce(
+            || Bins::EMPTY,
+            |mut a, b| {
+                for i in 0..BINS {
+                    a.bounds[i] = a.bounds[i].union(&b.bounds[i]);
+                    a.counts[i] += b.counts[i];
+                }
+                a
+            },
+        )
+    } else {
+        fill(items)
+    };
     // Sweep: cost of splitting after bin i.
-    let mut left_area = [0.0f32; BINS];
+    let mut left = [Bounds::EMPTY; BINS];
     let mut left_count = [0usize; BINS];
-    let (mut acc_b, mut acc_n) = (Aabb::EMPTY, 0);
+    let (mut acc_b, mut acc_n) = (Bounds::EMPTY, 0);
     for i in 0..BINS {
-        acc_b = acc_b.union(&bin_bounds[i]);
-        acc_n += bin_counts[i];
-        left_area[i] = acc_b.half_area();
+        acc_b = acc_b.union(&bins.bounds[i]);
+        acc_n += bins.counts[i];
+        left[i] = acc_b;
         left_count[i] = acc_n;
     }
-    let (mut best_cost, mut best_bin) = (f32::INFINITY, None);
-    let (mut acc_b, mut acc_n) = (Aabb::EMPTY, 0);
+    let mut best: Option<(f32, usize, Bounds)> = None;
+    let (mut acc_b, mut acc_n) = (Bounds::EMPTY, 0);
     for i in (1..BINS).rev() {
-        acc_b = acc_b.union(&bin_bounds[i]);
-        acc_n += bin_counts[i];
-        let cost = left_area[i - 1] * left_count[i - 1] as f32 + acc_b.half_area() * acc_n as f32;
-        if left_count[i - 1] > 0 && acc_n > 0 && cost < best_cost {
-            best_cost = cost;
-            best_bin = Some(i);
+        acc_b = acc_b.union(&bins.bounds[i]);
+        acc_n += bins.counts[i];
+        let cost = left[i - 1].tris.half_area() * left_count[i - 1] as f32
+            + acc_b.tris.half_area() * acc_n as f32;
+        if left_count[i - 1] > 0 && acc_n > 0 && best.is_none_or(|(c, _, _)| cost < c) {
+            best = Some((cost, i, acc_b));
         }
     }
-    let split_bin = best_bin?;
+    let (_, split_bin, right_bounds) = best?;
     // In-place partition (deterministic: a fixed sequence of swaps).
     let mut split = 0;
     for i in 0..items.len() {
@@ -403,7 +523,7 @@ fn sah_split(items: &mut [BuildTri]) -> Option<usize> {
             split += 1;
         }
     }
-    (split > 0 && split < items.len()).then_some(split)
+    (split > 0 && split < items.len()).then_some((split, left[split_bin - 1], right_bounds))
 }
 
 #[cfg(test)]
@@ -472,6 +592,55 @@ mod tests {
     /// The SIMD closest-point query (4-wide tree, box and cylinder bounds, triangle
     /// packets) equals f64 brute force near and far from surfaces of every kind, with
     /// and without (possibly misleading) hints.
+    /// Four queries in one traversal give exactly the four single queries' distances:
+    /// clustered points (as the baker sends), scattered ones, one far from the rest,
+    /// bounds that are tight, loose or too small (no hit), and hints.
+    #[test]
+    fn closest4_equals_four_single_queries() {
+        let tris = crate::shapes::torus(1.0, 0.3, 40, 16).validate().unwrap().0;
+        let bvh = Bvh::build(&tris);
+        let mut s = 7u64;
+        let mut next = move || {
+            s = s
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (s >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut checked = 0;
+        for k in 0..3000 {
+            let spread = [0.01, 0.3, 3.0][k % 3];
+            let base = Vec3::new(next(), next(), next()) * 3.0 - 1.5;
+            let p: [Vec3; 4] = std::array::from_fn(|q| {
+                let offset = Vec3::new(next(), next(), next()) - 0.5;
+                base + offset * spread * if q == 3 && k % 5 == 0 { 10.0 } else { 1.0 }
+            });
+            let single = p.map(|p| bvh.closest(p, f32::INFINITY, &[]).unwrap());
+            let bound: [f32; 4] = std::array::from_fn(|q| {
+                let d2 = single[q].distance_squared;
+                [f32::INFINITY, d2 * 1.01 + 1e-9, d2 * 0.5][(k + q) % 3]
+            });
+            let mut hint = || (next() * tris.len() as f32) as u32 % tris.len() as u32;
+            let hints: [[u32; 2]; 4] = std::array::from_fn(|q| match (k + q) % 4 {
+                0 => [u32::MAX; 2],
+                1 => [single[q].triangle, u32::MAX],
+                _ => [hint(), single[(q + 1) % 4].triangle],
+            });
+            let four = bvh.closest4(p, bound, hints);
+            for q in 0..4 {
+                let want = (single[q].distance_squared <= bound[q]).then_some(single[q]);
+                match (four[q], want) {
+                    (Some(got), Some(want)) => {
+                        assert_eq!(got.distance_squared, want.distance_squared, "{k} {q}");
+                        checked += 1;
+                    }
+                    (None, None) => {}
+                    (got, want) => panic!("{k} {q}: {got:?} vs {want:?}"),
+                }
+            }
+        }
+        assert!(checked > 6000, "{checked}");
+    }
+
     #[test]
     fn closest_matches_brute_force_near_and_far() {
         let mut cases: Vec<(&str, Vec<[Vec3; 3]>)> = [

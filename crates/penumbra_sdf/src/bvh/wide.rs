@@ -338,6 +338,113 @@ impl WideTree {
 }
 
 impl WideTree {
+    /// [`closest`](Self::closest) for four queries at once, sharing one traversal: a
+    /// node or packet is fetched once and measured for each query that still needs it.
+    /// Nearby queries (consecutive samples of a row) visit nearly the same nodes, so
+    /// this pays the traversal's branches and memory latency once for four. Each
+    /// query's distance is computed with exactly the instructions of a single query,
+    /// so results equal [`closest`](Self::closest)'s. `hints[q]`: query `q`'s hinted
+    /// tree-order triangles (`usize::MAX`: none).
+    pub(crate) fn closest4(
+        &self,
+        p: [Vec3A; 4],
+        best_d2: [f32; 4],
+        hints: [[usize; 2]; 4],
+        order: &[u32],
+    ) -> [Option<(f32, usize)>; 4] {
+        if self.nodes.is_empty() {
+            return [None; 4];
+        }
+        let px = p.map(|p| [Vec4::splat(p.x), Vec4::splat(p.y), Vec4::splat(p.z)]);
+        let mut best_d2 = Vec4::from_array(best_d2);
+        let mut best: [Option<usize>; 4] = [None; 4];
+        let visit =
+            |packet: &Packet, q: usize, best_d2: &mut Vec4, best: &mut [Option<usize>; 4]| {
+                let d2 = packet.distance_squared(&px[q]);
+                let mut lanes = d2.cmple(Vec4::splat(best_d2[q])).bitmask();
+                let d2 = d2.to_array();
+                while lanes != 0 {
+                    let lane = lanes.trailing_zeros() as usize;
+                    lanes &= lanes - 1;
+                    let (d, t) = (d2[lane], packet.tri[lane] as usize);
+                    let b = &mut best[q];
+                    if d < best_d2[q] || (d == best_d2[q] && b.is_some_and(|b| order[t] < order[b]))
+                    {
+                        best_d2[q] = d;
+                        *b = Some(t);
+                    }
+                }
+            };
+        for (q, hints) in hints.iter().enumerate() {
+            let mut seen = u32::MAX;
+            for &h in hints {
+                if let Some(&packet) = self.packet_of.get(h)
+                    && packet != seen
+                {
+                    seen = packet;
+                    visit(&self.packets[packet as usize], q, &mut best_d2, &mut best);
+                }
+            }
+        }
+        let mut stack = [(0u32, Vec4::ZERO); STACK];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let (reference, lb) = stack[top];
+            let active = lb.cmplt(best_d2).bitmask();
+            if active == 0 {
+                continue;
+            }
+            let node = &self.nodes[reference as usize];
+            // Rows: queries; columns after the transpose: children.
+            // Queries this node cannot help skip their bounds (+∞ prunes every child).
+            let bounds = |q: usize| {
+                if active & (1 << q) != 0 {
+                    node.lower_bounds(&px[q])
+                } else {
+                    Vec4::INFINITY
+                }
+            };
+            let by_child =
+                glam::Mat4::from_cols(bounds(0), bounds(1), bounds(2), bounds(3)).transpose();
+            let mut useful = 0u32;
+            for child in 0..4 {
+                if by_child.col(child).cmplt(best_d2).any() {
+                    useful |= 1 << child;
+                }
+            }
+            let mut lanes = useful & node.leaf_lanes;
+            while lanes != 0 {
+                let lane = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                let first = (node.child[lane] & !LEAF) as usize;
+                let count = node.packets[lane] as usize;
+                let lb = by_child.col(lane);
+                for packet in &self.packets[first..first + count] {
+                    let mut queries = lb.cmplt(best_d2).bitmask();
+                    while queries != 0 {
+                        let q = queries.trailing_zeros() as usize;
+                        queries &= queries - 1;
+                        visit(packet, q, &mut best_d2, &mut best);
+                    }
+                }
+            }
+            let mut lanes = useful & !node.leaf_lanes;
+            while lanes != 0 {
+                let lane = 31 - lanes.leading_zeros() as usize;
+                lanes &= !(1 << lane);
+                if top < STACK {
+                    stack[top] = (node.child[lane], by_child.col(lane));
+                    top += 1;
+                }
+            }
+        }
+        let d2 = best_d2.to_array();
+        std::array::from_fn(|q| best[q].map(|b| (d2[q], b)))
+    }
+}
+
+impl WideTree {
     /// The fast winding number at `q` (Barill et al. 2018): a child's dipole stands in
     /// for its triangles beyond `β` times its radius, exact solid angles nearer; four
     /// children or four triangles per SIMD evaluation.
