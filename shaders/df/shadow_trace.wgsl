@@ -75,11 +75,15 @@ fn trace(
     @builtin(global_invocation_id) gid: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
+    // Every workgroup variable is written before it is read: Bevy's compute pipelines do
+    // not zero-initialize workgroup memory (`zero_initialize_workgroup_memory: false`),
+    // and a garbage `tile_count` indexed `tile_slots` out of bounds (a lavapipe crash).
     if li == 0u {
         for (var i = 0u; i < 3u; i += 1u) {
             atomicStore(&tile_min[i], 0xffffffffu);
             atomicStore(&tile_max[i], 0u);
         }
+        atomicStore(&tile_count, 0u);
     }
     workgroupBarrier();
 

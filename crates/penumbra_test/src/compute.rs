@@ -55,7 +55,7 @@ impl GpuCompute {
                 layout: None,
                 module: &module,
                 entry_point: Some(entry),
-                compilation_options: Default::default(),
+                compilation_options: bevy_like_compilation(),
                 cache: None,
             })
     }
@@ -87,7 +87,7 @@ impl GpuCompute {
                 layout: Some(&layout),
                 module: &module,
                 entry_point: Some(entry),
-                compilation_options: Default::default(),
+                compilation_options: bevy_like_compilation(),
                 cache: None,
             })
     }
@@ -269,5 +269,17 @@ impl GpuCompute {
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
             .expect("device poll");
+    }
+}
+
+/// Compilation options as Bevy's `PipelineCache` uses them: workgroup memory is **not**
+/// zero-initialized (`ComputePipelineDescriptor::zero_initialize_workgroup_memory`
+/// defaults to `false` there), so contract tests see the same uninitialized workgroup
+/// memory as the plugin's passes. (A shader that relied on WGSL's zero-initialization
+/// passed here under wgpu's default and crashed lavapipe inside Bevy.)
+fn bevy_like_compilation() -> wgpu::PipelineCompilationOptions<'static> {
+    wgpu::PipelineCompilationOptions {
+        zero_initialize_workgroup_memory: false,
+        ..Default::default()
     }
 }
