@@ -31,7 +31,10 @@ struct ShadowLight {
     // Positional: the light's range, metres (culling).
     range: f32,
     max_steps: u32,
-    reserved: vec2<u32>,
+    // Directional: pixels farther than this from the camera, metres, are not traced
+    // (visibility 1); the light cull drops casters that could shadow only those.
+    max_view_distance: f32,
+    reserved: u32,
 }
 
 struct ShadowRay {

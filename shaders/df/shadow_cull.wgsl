@@ -39,6 +39,12 @@ fn may_shadow_view(o: DistanceFieldObject) -> bool {
     }
     let back = -light.position_or_direction.xyz * light.max_distance;
     let radius = s.w + light.max_distance * light.source + cull_slack(s.w);
+    // A pixel p it shadows lies within `radius` of the sphere swept along `back`, and
+    // |p| ≤ max_view_distance: the sweep must come that close to the camera.
+    let h = clamp(-dot(s.xyz, back) / max(dot(back, back), 1e-30), 0.0, 1.0);
+    if length(s.xyz + back * h) > light.max_view_distance + radius {
+        return false;
+    }
     for (var i = 0u; i < 6u; i += 1u) {
         let plane = view.planes[i];
         let near = max(dot(plane.xyz, s.xyz), dot(plane.xyz, s.xyz + back)) + plane.w;

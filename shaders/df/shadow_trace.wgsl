@@ -93,10 +93,15 @@ fn trace(
     if inside {
         depth = textureLoad(depth_texture, vec2<i32>(pixel), 0).r;
     }
-    let surface = inside && depth > 0.0;
+    var surface = inside && depth > 0.0;
     var p = vec3<f32>(0.0);
     if surface {
         p = position_from_depth(pixel, depth);
+        // Beyond a directional light's max view distance: not traced (lit).
+        surface = !is_directional(light)
+            || dot(p, p) <= light.max_view_distance * light.max_view_distance;
+    }
+    if surface {
         for (var i = 0u; i < 3u; i += 1u) {
             atomicMin(&tile_min[i], order_key(p[i]));
             atomicMax(&tile_max[i], order_key(p[i]));

@@ -46,6 +46,11 @@ pub struct ShadowLight {
     pub range: f32,
     /// Step limit per object.
     pub max_steps: u32,
+    /// Directional lights: pixels farther than this from the camera, metres, are not
+    /// traced (visibility 1), and casters that could shadow only such pixels are culled.
+    /// Unused for point and spot lights (their range bounds them). Encoded as
+    /// `max(0)`: NaN traces nothing.
+    pub max_view_distance: f32,
 }
 
 impl ShadowLight {
@@ -67,7 +72,7 @@ impl ShadowLight {
             f(self.shaping.clamp(0.05, 20.0)),
             f(self.range),
             self.max_steps,
-            0,
+            f(self.max_view_distance.max(0.0)),
             0,
         ]
     }

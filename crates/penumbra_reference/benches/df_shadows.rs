@@ -311,6 +311,7 @@ fn model_light(scene: &Scene, camera: &CameraOrigin, c: Config) -> ShadowLight {
         shaping: c.shaping,
         range: 30.0,
         max_steps: c.steps,
+        max_view_distance: f32::INFINITY,
     }
 }
 

@@ -141,6 +141,14 @@ pub fn pixel_visibility_counted(
     light: &MaskLight,
 ) -> (f32, u32) {
     let mut evaluations = 0;
+    if matches!(light.kind, MaskLightKind::Directional(_)) {
+        // The encoder's `max(0)`: NaN traces nothing.
+        let reach = light.max_view_distance.max(0.0);
+        let near = p.length_squared() <= reach * reach; // false for NaN
+        if !near {
+            return (1.0, 0);
+        }
+    }
     let (dir, t_max, tan_half) = shadow_ray(p, light);
     let end = p + dir * t_max;
     let end_radius = t_max * tan_half;
@@ -421,6 +429,7 @@ mod tests {
                 shaping: 1.0,
                 range: 100.0,
                 max_steps: settings.max_steps,
+                max_view_distance: f32::INFINITY,
             };
             let mut worst = 0.0f32;
             let mut shadowed = 0;

@@ -119,7 +119,8 @@ fn shadow_uniform_layouts_match_the_encoders() {
         ("shaping", 7),
         ("range", 8),
         ("max_steps", 9),
-        ("reserved", 10),
+        ("max_view_distance", 10),
+        ("reserved", 11),
     ];
     let want: Vec<(&str, u32)> = want.iter().map(|&(n, w)| (n, w * 4)).collect();
     assert_eq!(got, want);

@@ -20,7 +20,8 @@
 //!
 //! 1. Light culling (compute): positional lights keep casters within their range,
 //!    directional lights the casters whose sphere, swept back along the light, meets the
-//!    view frustum. Directional lights then bin the survivors into a 32 × 32 light-space
+//!    view frustum within [`DistanceFieldShadows::max_view_distance`] of the camera
+//!    (farther pixels are not traced). Directional lights then bin the survivors into a 32 × 32 light-space
 //!    grid (their spheres projected along the light; casters covering over 64 cells, and
 //!    unbounded ones, in a separate list), and record the casters' height along the light.
 //! 2. The mask (compute, 8×8 tiles): each tile gathers candidates — the light's list, or
@@ -41,6 +42,8 @@
 //! - Only cameras with `PenumbraLighting` see distance-field shadows (other cameras and
 //!   forward materials see the light unshadowed: its shadow map is switched off).
 //! - Shadows come from `DistanceFieldCaster`s only: meshes without one cast none.
+//! - Directional lights shadow only within `max_view_distance` of the camera; beyond it
+//!   there is no fallback to shadow maps (Unreal hands over to cascades there).
 //! - Accuracy: the cone heuristic, not ray-traced area lights — see
 //!   `penumbra_reference::df_shadow` for its measured error against Monte Carlo truth.
 //!
@@ -70,6 +73,12 @@ pub struct DistanceFieldShadows {
     /// Directional lights: the shadow ray's length, metres (casters farther along the
     /// ray cast nothing). Default 100. Longer rays keep more casters per tile.
     pub max_distance: f32,
+    /// Directional lights: the farthest shadowed pixel from the camera, metres. Pixels
+    /// beyond are not traced and get no shadow from this light (its shadow map stays
+    /// off), and the light cull drops casters that could shadow only them. Default 150,
+    /// the reach of Bevy's default shadow cascades. The smaller, the fewer casters kept.
+    /// Point and spot lights ignore it (their range bounds them).
+    pub max_view_distance: f32,
     /// Sphere-tracing steps per caster. Default 64; cost is at most linear in it.
     pub max_steps: u32,
     /// World-space bias: the ray starts this far from the surface, metres. Default 0.02
@@ -95,6 +104,7 @@ impl Default for DistanceFieldShadows {
         Self {
             angular_diameter: 0.0093,
             max_distance: 100.0,
+            max_view_distance: 150.0,
             max_steps: 64,
             bias: 0.02,
             shaping: 0.35,

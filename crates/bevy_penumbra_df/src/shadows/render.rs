@@ -97,6 +97,7 @@ impl FrameLight {
             shaping: s.shaping,
             range,
             max_steps: s.max_steps.min(4096),
+            max_view_distance: s.max_view_distance,
         })
     }
 }
@@ -509,6 +510,7 @@ fn distance_field_shadows(
             shaping: 1.0,
             range: 0.0,
             max_steps: 0,
+            max_view_distance: 0.0,
         });
         let light_buffer = buffer(
             "penumbra_df_shadow_light",
