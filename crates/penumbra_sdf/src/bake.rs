@@ -382,11 +382,12 @@ fn keep_thin_features(
                     let (u, v) = (a as f32 / n as f32, b as f32 / n as f32);
                     let s = t[0] + (t[1] - t[0]) * u + (t[2] - t[0]) * v;
                     let g = (s - origin) / h;
-                    let base = g.floor();
-                    if base.min_element() < 0.0 {
+                    // Truncation is the floor here (non-negative; and no libm `floorf`
+                    // call where the target lacks SSE4.1's `roundps`).
+                    if !(g.min_element() >= 0.0) {
                         continue;
                     }
-                    let (i, j, k) = (base.x as u32, base.y as u32, base.z as u32);
+                    let (i, j, k) = (g.x as u32, g.y as u32, g.z as u32);
                     // Leave the border alone: it is outside by construction.
                     if i < border || j < border || k < border {
                         continue;
