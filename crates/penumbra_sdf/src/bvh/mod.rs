@@ -592,6 +592,17 @@ mod tests {
     /// The SIMD closest-point query (4-wide tree, box and cylinder bounds, triangle
     /// packets) equals f64 brute force near and far from surfaces of every kind, with
     /// and without (possibly misleading) hints.
+    /// A deterministic uniform generator on [0, 1) (LCG, top 24 bits).
+    fn uniform(seed: u64) -> impl FnMut() -> f32 {
+        let mut s = seed;
+        move || {
+            s = s
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (s >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
     /// Four queries in one traversal give exactly the four single queries' distances:
     /// clustered points (as the baker sends), scattered ones, one far from the rest,
     /// bounds that are tight, loose or too small (no hit), and hints.
@@ -599,13 +610,7 @@ mod tests {
     fn closest4_equals_four_single_queries() {
         let tris = crate::shapes::torus(1.0, 0.3, 40, 16).validate().unwrap().0;
         let bvh = Bvh::build(&tris);
-        let mut s = 7u64;
-        let mut next = move || {
-            s = s
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (s >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = uniform(7);
         let mut checked = 0;
         for k in 0..3000 {
             let spread = [0.01, 0.3, 3.0][k % 3];
@@ -654,13 +659,7 @@ mod tests {
         .map(|(name, m)| (name, m.validate().unwrap().0))
         .collect();
         cases.push(("slivers", slivers()));
-        let mut s = 99u64;
-        let mut next = move || {
-            s = s
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (s >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = uniform(99);
         for (name, tris) in cases {
             let bvh = Bvh::build(&tris);
             for k in 0..2000 {
