@@ -384,7 +384,8 @@ fn keep_thin_features(
                     let g = (s - origin) / h;
                     // Truncation is the floor here (non-negative; and no libm `floorf`
                     // call where the target lacks SSE4.1's `roundps`).
-                    if !(g.min_element() >= 0.0) {
+                    let in_grid = g.min_element() >= 0.0; // false for NaN
+                    if !in_grid {
                         continue;
                     }
                     let (i, j, k) = (g.x as u32, g.y as u32, g.z as u32);
