@@ -271,19 +271,7 @@ impl WideTree {
         let px = [Vec4::splat(p.x), Vec4::splat(p.y), Vec4::splat(p.z)];
         let mut best: Option<usize> = None;
         let visit_packet = |packet: &Packet, best_d2: &mut f32, best: &mut Option<usize>| {
-            let d2 = packet.distance_squared(&px);
-            let mut lanes = d2.cmple(Vec4::splat(*best_d2)).bitmask();
-            // Plain arrays: indexing a `Vec4` by a runtime lane compiles to a jump table.
-            let d2 = d2.to_array();
-            while lanes != 0 {
-                let lane = lanes.trailing_zeros() as usize;
-                lanes &= lanes - 1;
-                let (d, t) = (d2[lane], packet.tri[lane] as usize);
-                if d < *best_d2 || (d == *best_d2 && best.is_some_and(|b| order[t] < order[b])) {
-                    *best_d2 = d;
-                    *best = Some(t);
-                }
-            }
+            packet.measure(&px, best_d2, best, order);
         };
         // Neighbouring samples often share their closest triangle's packet: visit each
         // hinted packet once.
@@ -356,25 +344,13 @@ impl WideTree {
             return [None; 4];
         }
         let px = p.map(|p| [Vec4::splat(p.x), Vec4::splat(p.y), Vec4::splat(p.z)]);
-        let mut best_d2 = Vec4::from_array(best_d2);
+        // Per query, as plain arrays (a `Vec4` indexed by a runtime lane compiles to a
+        // jump table); a `Vec4` of the bounds only where all four are compared at once.
+        let mut best_d2 = best_d2;
         let mut best: [Option<usize>; 4] = [None; 4];
-        let visit =
-            |packet: &Packet, q: usize, best_d2: &mut Vec4, best: &mut [Option<usize>; 4]| {
-                let d2 = packet.distance_squared(&px[q]);
-                let mut lanes = d2.cmple(Vec4::splat(best_d2[q])).bitmask();
-                let d2 = d2.to_array();
-                while lanes != 0 {
-                    let lane = lanes.trailing_zeros() as usize;
-                    lanes &= lanes - 1;
-                    let (d, t) = (d2[lane], packet.tri[lane] as usize);
-                    let b = &mut best[q];
-                    if d < best_d2[q] || (d == best_d2[q] && b.is_some_and(|b| order[t] < order[b]))
-                    {
-                        best_d2[q] = d;
-                        *b = Some(t);
-                    }
-                }
-            };
+        let mut visit = |packet: &Packet, q: usize, best_d2: &mut [f32; 4]| {
+            packet.measure(&px[q], &mut best_d2[q], &mut best[q], order);
+        };
         for (q, hints) in hints.iter().enumerate() {
             let mut seen = u32::MAX;
             for &h in hints {
@@ -382,7 +358,7 @@ impl WideTree {
                     && packet != seen
                 {
                     seen = packet;
-                    visit(&self.packets[packet as usize], q, &mut best_d2, &mut best);
+                    visit(&self.packets[packet as usize], q, &mut best_d2);
                 }
             }
         }
@@ -391,12 +367,11 @@ impl WideTree {
         while top > 0 {
             top -= 1;
             let (reference, lb) = stack[top];
-            let active = lb.cmplt(best_d2).bitmask();
+            let active = lb.cmplt(Vec4::from_array(best_d2)).bitmask();
             if active == 0 {
                 continue;
             }
             let node = &self.nodes[reference as usize];
-            // Rows: queries; columns after the transpose: children.
             // Queries this node cannot help skip their bounds (+∞ prunes every child).
             let bounds = |q: usize| {
                 if active & (1 << q) != 0 {
@@ -405,11 +380,13 @@ impl WideTree {
                     Vec4::INFINITY
                 }
             };
+            // Columns: queries; after the transpose, children.
             let by_child =
                 glam::Mat4::from_cols(bounds(0), bounds(1), bounds(2), bounds(3)).transpose();
+            let bound = Vec4::from_array(best_d2);
             let mut useful = 0u32;
             for child in 0..4 {
-                if by_child.col(child).cmplt(best_d2).any() {
+                if by_child.col(child).cmplt(bound).any() {
                     useful |= 1 << child;
                 }
             }
@@ -421,11 +398,11 @@ impl WideTree {
                 let count = node.packets[lane] as usize;
                 let lb = by_child.col(lane);
                 for packet in &self.packets[first..first + count] {
-                    let mut queries = lb.cmplt(best_d2).bitmask();
+                    let mut queries = lb.cmplt(Vec4::from_array(best_d2)).bitmask();
                     while queries != 0 {
                         let q = queries.trailing_zeros() as usize;
                         queries &= queries - 1;
-                        visit(packet, q, &mut best_d2, &mut best);
+                        visit(packet, q, &mut best_d2);
                     }
                 }
             }
@@ -439,8 +416,7 @@ impl WideTree {
                 }
             }
         }
-        let d2 = best_d2.to_array();
-        std::array::from_fn(|q| best[q].map(|b| (d2[q], b)))
+        std::array::from_fn(|q| best[q].map(|b| (best_d2[q], b)))
     }
 }
 
@@ -523,6 +499,27 @@ impl Node4 {
 }
 
 impl Packet {
+    /// Measures this packet from `p` against the best so far (`best_d2`, tree-order
+    /// `best`): a lane within `best_d2` replaces it, ties going to the lowest input index
+    /// (`order`). Shared by the single and the four-query traversal, so both break ties
+    /// alike.
+    #[inline]
+    fn measure(&self, p: &[Vec4; 3], best_d2: &mut f32, best: &mut Option<usize>, order: &[u32]) {
+        let d2 = self.distance_squared(p);
+        let mut lanes = d2.cmple(Vec4::splat(*best_d2)).bitmask();
+        // Plain arrays: indexing a `Vec4` by a runtime lane compiles to a jump table.
+        let d2 = d2.to_array();
+        while lanes != 0 {
+            let lane = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            let (d, t) = (d2[lane], self.tri[lane] as usize);
+            if d < *best_d2 || (d == *best_d2 && best.is_some_and(|b| order[t] < order[b])) {
+                *best_d2 = d;
+                *best = Some(t);
+            }
+        }
+    }
+
     /// Each real lane's signed solid angle over 4π seen from `q` (Van Oosterom &
     /// Strackee), padding lanes 0.
     #[inline]
