@@ -39,8 +39,8 @@ fn may_shadow_view(o: DistanceFieldObject) -> bool {
     }
     let back = -light.position_or_direction.xyz * light.max_distance;
     let radius = s.w + light.max_distance * light.source + cull_slack(s.w);
-    // A pixel p it shadows lies within `radius` of the sphere swept along `back`, and
-    // |p| ≤ max_view_distance: the sweep must come that close to the camera.
+    // A pixel p it shadows lies within `radius` of the segment from the centre along `back`,
+    // and |p| ≤ max_view_distance: that segment must come that close to the camera.
     let h = clamp(-dot(s.xyz, back) / max(dot(back, back), 1e-30), 0.0, 1.0);
     if length(s.xyz + back * h) > light.max_view_distance + radius {
         return false;
