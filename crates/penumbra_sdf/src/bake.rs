@@ -184,7 +184,8 @@ pub fn bake(
     tris.iter().flatten().for_each(|&p| bounds.grow(p));
     let grid = settings.grid.resolve(&bounds)?;
     let center = bounds.center();
-    let local: Vec<[Vec3; 3]> = tris.iter().map(|t| t.map(|p| p - center)).collect();
+    let mut local = tris;
+    local.iter_mut().for_each(|t| *t = t.map(|p| p - center));
     let bvh = Bvh::build(&local);
 
     let dims = grid.dims;

@@ -109,8 +109,11 @@ impl WideTree {
         if bvh.nodes.is_empty() {
             return tree;
         }
-        let mut leaves = Vec::new();
-        let mut kids_of = Vec::new();
+        // Upper bounds (a 4-wide node has at least two children; a leaf at least one
+        // triangle), reserved so the vectors never grow by copying.
+        let mut leaves = Vec::with_capacity(bvh.nodes.len());
+        let mut kids_of = Vec::with_capacity(bvh.nodes.len() / 2 + 1);
+        tree.nodes.reserve(bvh.nodes.len() / 2 + 1);
         tree.collapse(bvh, 0, &mut leaves, &mut kids_of);
         // Packets: leaf after leaf, in the order `collapse` numbered them, each leaf
         // filling its own slice.
@@ -351,13 +354,15 @@ impl WideTree {
         let mut visit = |packet: &Packet, q: usize, best_d2: &mut [f32; 4]| {
             packet.measure(&px[q], &mut best_d2[q], &mut best[q], order);
         };
+        // The hinted packets, measured now and skipped by the traversal (measuring a
+        // packet again cannot change a query's result).
+        let mut seen = [[u32::MAX; 2]; 4];
         for (q, hints) in hints.iter().enumerate() {
-            let mut seen = u32::MAX;
-            for &h in hints {
+            for (n, &h) in hints.iter().enumerate() {
                 if let Some(&packet) = self.packet_of.get(h)
-                    && packet != seen
+                    && !seen[q].contains(&packet)
                 {
-                    seen = packet;
+                    seen[q][n] = packet;
                     visit(&self.packets[packet as usize], q, &mut best_d2);
                 }
             }
@@ -397,12 +402,14 @@ impl WideTree {
                 let first = (node.child[lane] & !LEAF) as usize;
                 let count = node.packets[lane] as usize;
                 let lb = by_child.col(lane);
-                for packet in &self.packets[first..first + count] {
+                for (index, packet) in (first as u32..).zip(&self.packets[first..first + count]) {
                     let mut queries = lb.cmplt(Vec4::from_array(best_d2)).bitmask();
                     while queries != 0 {
                         let q = queries.trailing_zeros() as usize;
                         queries &= queries - 1;
-                        visit(packet, q, &mut best_d2);
+                        if !seen[q].contains(&index) {
+                            visit(packet, q, &mut best_d2);
+                        }
                     }
                 }
             }
