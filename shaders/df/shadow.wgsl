@@ -205,6 +205,37 @@ fn march_object(
     return clamp(v, 0.0, 1.0);
 }
 
+// The unit normal in a word of Bevy's deferred G-buffer (its fourth channel): 12-bit
+// octahedral coordinates (`unpack_24bit_normal`, `octahedral_decode`; flags ignored).
+// CPU model: `shadow_mask::unpack_gbuffer_normal`.
+fn gbuffer_normal(word: u32) -> vec3<f32> {
+    let e = vec2<f32>(f32(word & 0xfffu), f32((word >> 12u) & 0xfffu)) / 4095.0;
+    let f = e * 2.0 - 1.0;
+    var n = vec3<f32>(f.x, f.y, 1.0 - abs(f.x) - abs(f.y));
+    let t = clamp(-n.z, 0.0, 1.0);
+    n = vec3<f32>(n.xy + select(vec2<f32>(t), vec2<f32>(-t), n.xy >= vec2<f32>(0.0)), n.z);
+    return normalize(n);
+}
+
+// The fraction of the light's disc above the receiver's tangent plane (unit normal `n`;
+// zero: unknown, 1): the disc of angular radius θ (tan θ = `tan_half`) centred
+// `n · dir / sin θ` radii above the plane. 1 when n · dir ≥ sin θ, 0 when ≤ −sin θ: the
+// surface's own shadow, exact for a plane (back faces are dark without a march). CPU
+// model: `shadow_mask::horizon`.
+fn horizon_visibility(n: vec3<f32>, dir: vec3<f32>, tan_half: f32) -> f32 {
+    if all(n == vec3<f32>(0.0)) {
+        return 1.0;
+    }
+    let sin_half = tan_half / sqrt(1.0 + tan_half * tan_half);
+    let r = dot(n, dir) / max(sin_half, 1e-6);
+    if !(r >= -1e30 && r <= 1e30) {
+        return 1.0;
+    }
+    let x = clamp(r, -1.0, 1.0);
+    let h = 0.5 + (x * sqrt(max(1.0 - x * x, 0.0)) + asin(x)) / 3.14159265358979;
+    return select(1.0, clamp(h, 0.0, 1.0), h >= 0.0);
+}
+
 // Shaping and clamping; never NaN.
 fn finish_visibility(v: f32, shaping: f32) -> f32 {
     let x = min(pow(clamp(v, 0.0, 1.0), shaping), 1.0);

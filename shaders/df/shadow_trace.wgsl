@@ -8,8 +8,9 @@
 
 #import penumbra::df::object::DistanceFieldObject
 #import penumbra::df::shadow::{
-    ShadowLight, bounding_sphere, casts_shadows, cull_slack, finish_visibility, is_directional,
-    march_object, object_in_cone, round_cone_distance, shadow_ray,
+    ShadowLight, bounding_sphere, casts_shadows, cull_slack, finish_visibility, gbuffer_normal,
+    horizon_visibility, is_directional, march_object, object_in_cone, round_cone_distance,
+    shadow_ray,
 }
 #import penumbra::df::shadow_grid::{
     GRID_SIZE, MAX_CELLS, ShadowGridRead, ShadowGridView, cell_range, from_order_key,
@@ -24,7 +25,8 @@ struct ShadowTraceView {
     // xyz: the camera's position within its tile.
     camera_offset: vec4<f32>,
     // x, y: mask size in pixels; z: pixels per mask texel along each axis (1 full
-    // resolution, 2 half: texel (i, j) traces full-resolution pixel (2i, 2j)).
+    // resolution, 2 half: texel (i, j) traces full-resolution pixel (2i, 2j)); w: 1 when
+    // `gbuffer` holds the view's normals (the surface's own shadow), 0 when not.
     size: vec4<u32>,
 }
 
@@ -44,6 +46,8 @@ struct ShadowTraceView {
 @group(0) @binding(9) var<storage, read> grid_items: array<u32>;
 @group(0) @binding(10) var<storage, read> grid_large: array<u32>;
 @group(0) @binding(11) var<uniform> grid_view: ShadowGridView;
+// Bevy's deferred G-buffer (Rgba32Uint; the normal in `.a`), read when `view.size.w` is 1.
+@group(0) @binding(12) var gbuffer: texture_2d<u32>;
 
 const TILE_PIXELS: u32 = 64u;
 
@@ -101,7 +105,16 @@ fn trace(
         surface = !is_directional(light)
             || dot(p, p) <= light.max_view_distance * light.max_view_distance;
     }
-    if surface {
+    let ray = shadow_ray(p, light);
+    // The surface's own shadow, from its G-buffer normal; where it hides the whole light,
+    // no march (and the pixel does not widen its tile's cone).
+    var horizon = 1.0;
+    if surface && view.size.w == 1u {
+        let n = gbuffer_normal(textureLoad(gbuffer, vec2<i32>(pixel), 0).a);
+        horizon = horizon_visibility(n, ray.dir, ray.tan_half);
+    }
+    let march = surface && horizon > 0.0;
+    if march {
         for (var i = 0u; i < 3u; i += 1u) {
             atomicMin(&tile_min[i], order_key(p[i]));
             atomicMax(&tile_max[i], order_key(p[i]));
@@ -175,7 +188,6 @@ fn trace(
     let cells = tile_cells;
     let large_n = tile_large;
 
-    let ray = shadow_ray(p, light);
     var visibility = 1.0;
     for (var base = 0u; base < total; base += TILE_PIXELS) {
         let k = base + li;
@@ -228,7 +240,7 @@ fn trace(
             atomicStore(&tile_count, 0u);
         }
         let n = workgroupUniformLoad(&tile_n);
-        if surface {
+        if march {
             for (var i = 0u; i < n; i += 1u) {
                 let sphere = tile_spheres[i];
                 if object_in_cone(sphere, p, ray) {
@@ -245,7 +257,7 @@ fn trace(
     if inside {
         var out = 1.0;
         if surface {
-            out = finish_visibility(visibility, light.shaping);
+            out = min(finish_visibility(visibility, light.shaping), horizon);
         }
         textureStore(mask, vec2<i32>(gid.xy), vec4<f32>(out, 0.0, 0.0, 1.0));
     }

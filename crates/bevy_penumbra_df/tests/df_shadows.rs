@@ -206,7 +206,7 @@ fn check(light: Light, name: &str) {
                 continue;
             };
             let gpu = (shadowed[i][1] / unshadowed).clamp(0.0, 1.0);
-            let cpu = pixel_visibility(&records, &atlas, &camera, p - EYE, &model);
+            let cpu = pixel_visibility(&records, &atlas, &camera, p - EYE, Vec3::Y, &model);
             shadowed_px += usize::from(cpu < 0.5);
             penumbra_px += usize::from(cpu > 0.05 && cpu < 0.95);
             diffs.push((gpu - cpu).abs());

@@ -18,7 +18,9 @@ use penumbra_df_core::shadow::{
     trace_view_words, words_to_bytes,
 };
 use penumbra_reference::df::{Atlas, object_distance};
-use penumbra_reference::shadow_mask::{pixel_visibility, position_from_depth};
+use penumbra_reference::shadow_mask::{
+    pack_gbuffer_normal, pixel_visibility, position_from_depth, unpack_gbuffer_normal,
+};
 use penumbra_sdf::{BakeSettings, bake, shapes};
 use penumbra_shaders::flatten;
 use penumbra_test::wgpu::{self, BufferUsages};
@@ -140,6 +142,16 @@ struct View {
     frustum: Frustum,
     /// Reverse-Z depth per pixel, rows from the top; 0 where the ray escapes.
     depth: Vec<f32>,
+    /// G-buffer normal words (Bevy's encoding) per pixel: the scene's distance gradient
+    /// at the hit, facing the camera.
+    normals: Vec<u32>,
+}
+
+impl View {
+    /// The normal the pass reads at pixel `i`.
+    fn normal(&self, i: usize) -> Vec3 {
+        unpack_gbuffer_normal(self.normals[i])
+    }
 }
 
 /// A camera 4 m from the scene, and the depth buffer sphere-traced through it.
@@ -154,6 +166,14 @@ fn view(scene: &Scene, offset: Vec3) -> View {
     let relative_view = Mat4::from_mat3(world_from_view.transpose());
     let frustum = Frustum::from_clip_from_relative(clip_from_view * relative_view);
     let mut depth = vec![0.0f32; (WIDTH * HEIGHT) as usize];
+    let mut normals = vec![0u32; (WIDTH * HEIGHT) as usize];
+    let distance = |p: Vec3| {
+        scene
+            .records
+            .iter()
+            .map(|r| object_distance(r, p, &camera, &scene.atlas))
+            .fold(f32::INFINITY, f32::min)
+    };
     for y in 0..HEIGHT {
         for x in 0..WIDTH {
             // The pixel's ray: the far point of its NDC through the camera.
@@ -164,15 +184,20 @@ fn view(scene: &Scene, offset: Vec3) -> View {
             let mut t = 0.1;
             for _ in 0..256 {
                 let p = dir * t;
-                let d = scene
-                    .records
-                    .iter()
-                    .map(|r| object_distance(r, p, &camera, &scene.atlas))
-                    .fold(f32::INFINITY, f32::min);
+                let d = distance(p);
                 if d < 1e-4 {
                     let view_p = world_from_view.transpose() * p;
                     let clip = clip_from_view * view_p.extend(1.0);
                     depth[(y * WIDTH + x) as usize] = clip.z / clip.w;
+                    let e = 1e-3;
+                    let g = Vec3::new(
+                        distance(p + Vec3::X * e) - distance(p - Vec3::X * e),
+                        distance(p + Vec3::Y * e) - distance(p - Vec3::Y * e),
+                        distance(p + Vec3::Z * e) - distance(p - Vec3::Z * e),
+                    )
+                    .normalize_or(-dir);
+                    let n = if g.dot(dir) > 0.0 { -g } else { g };
+                    normals[(y * WIDTH + x) as usize] = pack_gbuffer_normal(n);
                     break;
                 }
                 t += d;
@@ -188,6 +213,7 @@ fn view(scene: &Scene, offset: Vec3) -> View {
         world_from_view,
         frustum,
         depth,
+        normals,
     }
 }
 
@@ -207,7 +233,8 @@ fn reference_mask(scene: &Scene, view: &View, light: &ShadowLight) -> Vec<f32> {
                 pixel,
                 depth,
             );
-            pixel_visibility(&scene.records, &scene.atlas, &view.camera, p, light)
+            let n = view.normal(i as usize);
+            pixel_visibility(&scene.records, &scene.atlas, &view.camera, p, n, light)
         })
         .collect()
 }
@@ -285,6 +312,16 @@ fn passes(gpu: &GpuCompute) -> Passes {
                 storage(10),
                 uniform(11),
                 storage_texture(7),
+                E {
+                    binding: 12,
+                    visibility: ShaderStages::COMPUTE,
+                    ty: B::Texture {
+                        sample_type: wgpu::TextureSampleType::Uint,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
             ],
         });
     let trace = gpu.pipeline_with_layouts(
@@ -464,6 +501,21 @@ fn gpu_mask_at(
         4,
         &[],
     );
+    // Bevy's G-buffer layout: the normal word in the fourth channel.
+    let gbuffer_bytes: Vec<u8> = view
+        .normals
+        .iter()
+        .flat_map(|&n| [0u32, 0, 0, n])
+        .flat_map(u32::to_le_bytes)
+        .collect();
+    let gbuffer = gpu.texture(
+        "gbuffer",
+        size(WIDTH, HEIGHT, 1),
+        wgpu::TextureDimension::D2,
+        wgpu::TextureFormat::Rgba32Uint,
+        16,
+        &gbuffer_bytes,
+    );
     let trace_view = gpu.buffer(
         "trace_view",
         &words_to_bytes(&trace_view_words(
@@ -472,6 +524,7 @@ fn gpu_mask_at(
             &view.camera,
             mask_size,
             stride,
+            true,
         )),
         BufferUsages::UNIFORM,
     );
@@ -479,6 +532,7 @@ fn gpu_mask_at(
         atlas.create_view(&Default::default()),
         depth.create_view(&Default::default()),
         mask.create_view(&Default::default()),
+        gbuffer.create_view(&Default::default()),
     ];
     let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("shadow_trace"),
@@ -531,6 +585,10 @@ fn gpu_mask_at(
             wgpu::BindGroupEntry {
                 binding: 11,
                 resource: grid_view.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 12,
+                resource: wgpu::BindingResource::TextureView(&views[3]),
             },
         ],
     });
@@ -800,8 +858,10 @@ fn half_resolution_trace_and_upsample_match_the_cpu_model() {
         let (got_half, _, half_texture) = gpu_mask_at(&gpu, &passes, &scene, &view, &light, 2);
         let want_half: Vec<f32> = (0..half.x * half.y)
             .map(|i| {
-                position(2 * (i % half.x), 2 * (i / half.x)).map_or(1.0, |p| {
-                    pixel_visibility(&scene.records, &scene.atlas, &view.camera, p, &light)
+                let (x, y) = (2 * (i % half.x), 2 * (i / half.x));
+                position(x, y).map_or(1.0, |p| {
+                    let n = view.normal((y * WIDTH + x) as usize);
+                    pixel_visibility(&scene.records, &scene.atlas, &view.camera, p, n, &light)
                 })
             })
             .collect();

@@ -81,13 +81,15 @@ impl ShadowLight {
 /// The `ShadowTraceView` uniform: the camera's `view_from_clip` (inverse projection),
 /// its world-from-view rotation (camera-relative positions need no translation), its
 /// tile origin, the mask size and its stride (`1`: full resolution; `2`: half, texel
-/// `(i, j)` traces pixel `(2i, 2j)`).
+/// `(i, j)` traces pixel `(2i, 2j)`), and whether the pass's G-buffer binding holds the
+/// view's normals (then it adds the surface's own shadow).
 pub fn trace_view_words(
     view_from_clip: Mat4,
     world_from_view: Mat3,
     camera: &CameraOrigin,
     size: UVec2,
     stride: u32,
+    normals: bool,
 ) -> Vec<u32> {
     let mut words = Vec::with_capacity(SHADOW_TRACE_VIEW_BYTES / 4);
     words.extend(view_from_clip.to_cols_array().map(f32::to_bits));
@@ -105,7 +107,7 @@ pub fn trace_view_words(
         0,
     ]);
     words.extend(camera.offset.extend(0.0).to_array().map(f32::to_bits));
-    words.extend([size.x, size.y, stride.max(1), 0]);
+    words.extend([size.x, size.y, stride.max(1), u32::from(normals)]);
     words
 }
 

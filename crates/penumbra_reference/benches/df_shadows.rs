@@ -31,7 +31,9 @@ use penumbra_reference::df::Atlas;
 use penumbra_reference::df_shadow::{
     AreaLight, Occluder, ShadowSettings, TriangleOccluder, monte_carlo_visibility,
 };
-use penumbra_reference::shadow_mask::{pixel_visibility_counted, upsample};
+use penumbra_reference::shadow_mask::{
+    pack_gbuffer_normal, pixel_visibility_counted, unpack_gbuffer_normal, upsample,
+};
 use penumbra_sdf::geometry::Aabb;
 use penumbra_sdf::grid::GridPolicy;
 use penumbra_sdf::{BakeSettings, TriMesh, bake, obj, shapes};
@@ -45,7 +47,7 @@ const STEPS: [u32; 5] = [8, 16, 32, 64, 128];
 const RESOLUTIONS: [u32; 4] = [16, 32, 64, 128];
 /// `DistanceFieldShadows::default()`.
 const DEFAULT_STEPS: u32 = 64;
-const DEFAULT_BIAS: f32 = 0.02;
+const DEFAULT_BIAS: f32 = 0.04;
 const BIASES: [f32; 5] = [0.01, 0.02, 0.04, 0.06, 0.08];
 const DEFAULT_SHAPING: f32 = 0.35;
 const SHAPINGS: [f32; 6] = [1.0, 0.6, 0.5, 0.4, 0.35, 0.3];
@@ -66,6 +68,9 @@ struct Scene {
     camera: PerspectiveCamera,
     /// World points seen by the pixels (`None`: background).
     points: Vec<Option<Vec3>>,
+    /// Their surfaces' unit normals, facing the camera (the hit triangle's; zero for
+    /// the background), as the G-buffer stores them.
+    normals: Vec<Vec3>,
     truth: Vec<f32>,
     /// The plugin's default bake of the first mesh: samples along its longest axis.
     default_resolution: u32,
@@ -74,7 +79,7 @@ struct Scene {
 fn world_triangles(
     scene_meshes: &[Placed],
     analytic: &[(CasterShape, Affine3A)],
-) -> TriangleOccluder {
+) -> Vec<[Vec3; 3]> {
     let mut tris = Vec::new();
     for p in scene_meshes {
         let (t, _) = p.mesh.validate().expect("valid mesh");
@@ -89,12 +94,14 @@ fn world_triangles(
             tris.extend(t.into_iter().map(|t| t.map(|v| m.transform_point3(v))));
         }
     }
-    TriangleOccluder::new(&tris)
+    tris
 }
 
 /// Traces the view on the triangles and computes the ground truth once per scene.
 fn finish_scene(mut scene: Scene) -> Scene {
-    let tris = world_triangles(&scene.baked, &scene.analytic);
+    let triangles = world_triangles(&scene.baked, &scene.analytic);
+    let tris = TriangleOccluder::new(&triangles);
+    let bvh = penumbra_sdf::bvh::Bvh::build(&triangles);
     let settings = ShadowSettings {
         max_distance: 30.0,
         max_steps: DEFAULT_STEPS,
@@ -115,6 +122,26 @@ fn finish_scene(mut scene: Scene) -> Scene {
                 .first_hit(ray.origin, ray.dir, 100.0)
                 .map_or(plane, |t| t.min(plane));
             t.is_finite().then(|| ray.origin + ray.dir * t)
+        })
+        .collect();
+    scene.normals = (0..SIZE * SIZE)
+        .map(|i| {
+            let ray = scene
+                .camera
+                .ray((i % SIZE) as f32 + 0.5, (i / SIZE) as f32 + 0.5);
+            let Some(p) = scene.points[i as usize] else {
+                return Vec3::ZERO;
+            };
+            let n = match bvh.ray_nearest(ray.origin, ray.dir, 0.0, 100.0) {
+                Some((t, _, k)) if (ray.origin + ray.dir * t - p).length() < 1e-4 => {
+                    let [a, b, c] = triangles[k as usize];
+                    (b - a).cross(c - a).normalize_or_zero()
+                }
+                _ => Vec3::Y, // the ground plane
+            };
+            let n = if n.dot(ray.dir) > 0.0 { -n } else { n };
+            // Through the G-buffer's encoding, as the pass reads it.
+            unpack_gbuffer_normal(pack_gbuffer_normal(n))
         })
         .collect();
     let occluders: [&dyn Occluder; 1] = [&tris];
@@ -170,6 +197,7 @@ fn bunny() -> Option<Scene> {
             SIZE,
         ),
         points: Vec::new(),
+        normals: Vec::new(),
         truth: Vec::new(),
         default_resolution,
     }))
@@ -229,6 +257,7 @@ fn cornell() -> Scene {
             SIZE,
         ),
         points: Vec::new(),
+        normals: Vec::new(),
         truth: Vec::new(),
         default_resolution,
     })
@@ -322,6 +351,20 @@ struct Config {
     shaping: f32,
     bias: f32,
     half: bool,
+    /// The surface's own shadow from the G-buffer normal (`shadow_mask::horizon`).
+    horizon: bool,
+}
+
+impl Config {
+    /// The resolution column: `full` or `half`, and whether the own-shadow term is off.
+    fn label(&self) -> String {
+        let resolution = if self.half { "half" } else { "full" };
+        if self.horizon {
+            resolution.to_string()
+        } else {
+            format!("{resolution}, no own shadow")
+        }
+    }
 }
 
 impl Config {
@@ -330,6 +373,7 @@ impl Config {
         shaping: DEFAULT_SHAPING,
         bias: DEFAULT_BIAS,
         half: false,
+        horizon: true,
     };
 }
 
@@ -340,23 +384,28 @@ fn mask(scene: &Scene, records: &[ObjectRecord], atlas: &Atlas, c: Config) -> (V
     let camera = CameraOrigin::at(eye).expect("finite");
     let light = model_light(scene, &camera, c);
     let mut evaluations = 0u64;
-    let mut trace = |p: Option<Vec3>| {
-        p.map_or(1.0, |p| {
+    let mut trace = |i: usize| {
+        scene.points[i].map_or(1.0, |p| {
             let p = camera.relative([0, 0, 0], p);
-            let (v, n) = pixel_visibility_counted(records, atlas, &camera, p, &light);
+            let normal = if c.horizon {
+                scene.normals[i]
+            } else {
+                Vec3::ZERO
+            };
+            let (v, n) = pixel_visibility_counted(records, atlas, &camera, p, normal, &light);
             evaluations += n as u64;
             v
         })
     };
     if !c.half {
-        let mask = scene.points.iter().map(|&p| trace(p)).collect();
+        let mask = (0..scene.points.len()).map(&mut trace).collect();
         return (mask, evaluations);
     }
     let half = glam::UVec2::new(SIZE.div_ceil(2), SIZE.div_ceil(2));
     let traced: Vec<f32> = (0..half.x * half.y)
         .map(|i| {
             let (x, y) = (2 * (i % half.x), 2 * (i / half.x));
-            trace(scene.points[(y * SIZE + x) as usize])
+            trace((y * SIZE + x) as usize)
         })
         .collect();
     let distance: Vec<f32> = scene
@@ -429,6 +478,13 @@ fn configs() -> Vec<Config> {
             ..Config::DEFAULT
         });
     }
+    for half in [false, true] {
+        out.push(Config {
+            half,
+            horizon: false,
+            ..Config::DEFAULT
+        });
+    }
     out
 }
 
@@ -489,7 +545,7 @@ fn write_tables(rows: &[Row]) {
         "| scene | SDF samples (longest axis) | steps | shaping | bias (m) | resolution | distance evaluations / pixel | time (ms, 96², 1 thread) | mean error, shadowed or penumbra | pixels | mean error, all | Pareto | default |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let mut csv = String::from(
-        "scene,sdf_resolution,steps,shaping,bias,half,evaluations_per_pixel,seconds,error_affected,affected_pixels,error_all,pareto,default\n",
+        "scene,sdf_resolution,steps,shaping,bias,half,own_shadow,evaluations_per_pixel,seconds,error_affected,affected_pixels,error_all,pareto,default\n",
     );
     for r in rows {
         let c = r.config;
@@ -501,7 +557,7 @@ fn write_tables(rows: &[Row]) {
             c.steps,
             c.shaping,
             c.bias,
-            if c.half { "half" } else { "full" },
+            c.label(),
             r.evaluations,
             r.seconds * 1e3,
             r.error,
@@ -512,13 +568,14 @@ fn write_tables(rows: &[Row]) {
         );
         let _ = writeln!(
             csv,
-            "{},{},{},{},{},{},{:.3},{:.6},{:.5},{},{:.5},{},{}",
+            "{},{},{},{},{},{},{},{:.3},{:.6},{:.5},{},{:.5},{},{}",
             r.scene,
             r.resolution,
             c.steps,
             c.shaping,
             c.bias,
             c.half,
+            c.horizon,
             r.evaluations,
             r.seconds,
             r.error,
@@ -572,7 +629,7 @@ fn combined(rows: &[Row]) {
             c.steps,
             c.shaping,
             c.bias,
-            if c.half { "half" } else { "full" },
+            c.label(),
             if front { "✓" } else { "" },
             if c == Config::DEFAULT { "default" } else { "" }
         );

@@ -119,16 +119,19 @@ pub fn shadow_ray(p: Vec3, light: &MaskLight) -> (Vec3, f32, f32) {
 }
 
 /// The visibility of `light` from camera-relative `p` (1 lit, 0 shadowed): the GPU mask
-/// pass's per-pixel result. `records` are the object buffer's slots (free slots are
+/// pass's per-pixel result. `normal`: the surface's unit normal there (the pass reads it
+/// from the deferred G-buffer, [`unpack_gbuffer_normal`]), or zero when unknown; it adds
+/// the surface's own shadow ([`horizon`]). `records` are the object buffer's slots (free slots are
 /// skipped).
 pub fn pixel_visibility(
     records: &[ObjectRecord],
     atlas: &Atlas,
     camera: &CameraOrigin,
     p: Vec3,
+    normal: Vec3,
     light: &MaskLight,
 ) -> f32 {
-    pixel_visibility_counted(records, atlas, camera, p, light).0
+    pixel_visibility_counted(records, atlas, camera, p, normal, light).0
 }
 
 /// [`pixel_visibility`] and the number of distance evaluations it took (the pass's
@@ -138,6 +141,7 @@ pub fn pixel_visibility_counted(
     atlas: &Atlas,
     camera: &CameraOrigin,
     p: Vec3,
+    normal: Vec3,
     light: &MaskLight,
 ) -> (f32, u32) {
     let mut evaluations = 0;
@@ -150,6 +154,11 @@ pub fn pixel_visibility_counted(
         }
     }
     let (dir, t_max, tan_half) = shadow_ray(p, light);
+    // The surface's own shadow; where it hides the whole light, no march.
+    let own = horizon(normal, dir, tan_half);
+    if own <= 0.0 {
+        return (0.0, 0);
+    }
     let end = p + dir * t_max;
     let end_radius = t_max * tan_half;
     let mut visibility = 1.0f32;
@@ -192,9 +201,61 @@ pub fn pixel_visibility_counted(
         visibility = visibility.min(v.clamp(0.0, 1.0));
     }
     (
-        finish(visibility, light.shaping.clamp(0.05, 20.0)),
+        finish(visibility, light.shaping.clamp(0.05, 20.0)).min(own),
         evaluations,
     )
+}
+
+/// The fraction of the light's disc above the receiver's tangent plane (unit `normal`;
+/// zero: unknown, 1): the disc of angular radius θ (`tan θ = tan_half`) seen from a
+/// plane it is centred `normal · dir / sin θ` radii above. 1 when `normal · dir ≥ sin θ`,
+/// 0 when `≤ −sin θ` (back faces), the disc's area above the chord between: the
+/// surface's own shadow, exact for a plane. Never NaN.
+pub fn horizon(normal: Vec3, dir: Vec3, tan_half: f32) -> f32 {
+    if normal == Vec3::ZERO {
+        return 1.0;
+    }
+    let sin_half = tan_half / (1.0 + tan_half * tan_half).sqrt();
+    let r = normal.dot(dir) / sin_half.max(1e-6);
+    let finite = (-1e30..=1e30).contains(&r); // false for NaN
+    if !finite {
+        return 1.0;
+    }
+    let x = r.clamp(-1.0, 1.0);
+    let h = 0.5 + (x * (1.0 - x * x).max(0.0).sqrt() + x.asin()) / std::f32::consts::PI;
+    if h >= 0.0 { h.clamp(0.0, 1.0) } else { 1.0 }
+}
+
+/// The normal word of Bevy's deferred G-buffer (its fourth channel) for unit `n`:
+/// `pack_24bit_normal_and_flags(octahedral_encode(n), 0)` — octahedral coordinates at
+/// 12 bits each (about 0.05° apart), flags in the top byte. For tests that stand in for
+/// Bevy's prepass.
+pub fn pack_gbuffer_normal(n: Vec3) -> u32 {
+    let n = n / (n.x.abs() + n.y.abs() + n.z.abs());
+    let sign = |v: f32| if v > 0.0 { 1.0 } else { -1.0 };
+    let wrap = Vec2::new((1.0 - n.y.abs()) * sign(n.x), (1.0 - n.x.abs()) * sign(n.y));
+    let xy = if n.z >= 0.0 {
+        Vec2::new(n.x, n.y)
+    } else {
+        wrap
+    };
+    let e = xy * 0.5 + Vec2::splat(0.5);
+    // `u32(saturate(x) * 4095 + 0.5)`; NaN saturates to 0 on the GPU.
+    let unorm = |x: f32| (x.clamp(0.0, 1.0) * 4095.0 + 0.5) as u32 & 0xfff;
+    unorm(e.x) | (unorm(e.y) << 12)
+}
+
+/// The unit normal in a G-buffer normal word (Bevy's `unpack_24bit_normal` and
+/// `octahedral_decode`; flags ignored): what the mask pass reads.
+pub fn unpack_gbuffer_normal(word: u32) -> Vec3 {
+    let e = Vec2::new((word & 0xfff) as f32, ((word >> 12) & 0xfff) as f32) / 4095.0;
+    let f = e * 2.0 - Vec2::ONE;
+    let mut n = Vec3::new(f.x, f.y, 1.0 - f.x.abs() - f.y.abs());
+    let t = (-n.z).clamp(0.0, 1.0);
+    let w = |v: f32| if v >= 0.0 { -t } else { t };
+    n.x += w(n.x);
+    n.y += w(n.y);
+    n.normalize()
 }
 
 /// Shaping (`v^shaping`), clamping, and no NaN: what the pass writes.
@@ -278,6 +339,69 @@ pub fn position_from_depth(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The horizon term against counting: directions spread uniformly over the light's
+    /// cone (16k per case), the fraction above the tangent plane; from back faces to
+    /// fully lit, for a 3° sun and a 40° light.
+    #[test]
+    fn horizon_is_the_fraction_of_the_light_above_the_plane() {
+        let n = Vec3::Y;
+        let mut worst = 0.0f32;
+        for half_degrees in [1.5f32, 20.0] {
+            let half = half_degrees.to_radians();
+            for k in -20..=20 {
+                // Elevation of the light's centre, from −2θ to 2θ.
+                let elevation = half * k as f32 / 10.0;
+                let dir = Vec3::new(elevation.cos(), elevation.sin(), 0.0);
+                let (u, v) = (dir.cross(Vec3::Z).normalize(), Vec3::Z);
+                let (mut above, mut total) = (0u32, 0u32);
+                for i in 0..128 {
+                    for j in 0..128 {
+                        // Uniform on the cone's cap: cos uniform in [cos θ, 1].
+                        let c = 1.0 - (1.0 - half.cos()) * (i as f32 + 0.5) / 128.0;
+                        let sn = (1.0 - c * c).max(0.0).sqrt();
+                        let phi = std::f32::consts::TAU * (j as f32 + 0.5) / 128.0;
+                        let w = dir * c + (u * phi.cos() + v * phi.sin()) * sn;
+                        above += u32::from(w.dot(n) > 0.0);
+                        total += 1;
+                    }
+                }
+                let want = above as f32 / total as f32;
+                let got = horizon(n, dir, half.tan());
+                worst = worst.max((got - want).abs());
+            }
+        }
+        // The disc-area formula is exact for small cones; a 40° cone's cap is curved.
+        assert!(worst < 0.02, "worst {worst}");
+        assert_eq!(horizon(Vec3::ZERO, Vec3::Y, 0.1), 1.0);
+        assert_eq!(horizon(Vec3::Y, Vec3::NAN, 0.1), 1.0);
+        assert_eq!(horizon(Vec3::Y, -Vec3::Y, 0.1), 0.0);
+        assert_eq!(horizon(Vec3::Y, Vec3::Y, 0.0), 1.0);
+    }
+
+    /// The G-buffer normal round trip (Bevy's encoding) loses under 0.1°, in every
+    /// octant and on the axes.
+    #[test]
+    fn gbuffer_normals_round_trip() {
+        let mut worst = 0.0f32;
+        for i in 0..40 {
+            for j in 0..80 {
+                let (theta, phi) = (std::f32::consts::PI * i as f32 / 39.0, 0.0785 * j as f32);
+                let n = Vec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.sin() * phi.sin(),
+                    theta.cos(),
+                );
+                let back = unpack_gbuffer_normal(pack_gbuffer_normal(n));
+                worst = worst.max(back.dot(n).clamp(-1.0, 1.0).acos().to_degrees());
+            }
+        }
+        assert!(worst < 0.1, "worst {worst}°");
+        for axis in [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z] {
+            let back = unpack_gbuffer_normal(pack_gbuffer_normal(axis));
+            assert!(back.dot(axis) > 0.99999, "{axis} -> {back}");
+        }
+    }
 
     /// Brute force: the distance from `p` to the hull of two balls is the minimum over
     /// the interpolated balls (the hull is their union).
@@ -437,7 +561,8 @@ mod tests {
                 for j in 0..40 {
                     let p = Vec3::new(-2.0 + 0.1 * i as f32, 0.0, -2.0 + 0.1 * j as f32);
                     let want = df_visibility(&occluders, p, &area, &settings);
-                    let got = pixel_visibility(&records, &atlas, &camera, p - eye, &light);
+                    let got =
+                        pixel_visibility(&records, &atlas, &camera, p - eye, Vec3::ZERO, &light);
                     worst = worst.max((got - want).abs());
                     shadowed += usize::from(want < 0.99);
                 }

@@ -147,7 +147,7 @@ fn run(case: &Case, offset: Vec3) -> (f32, usize, f32, Vec<f32>) {
     let (mut sum, mut n, mut sum_all) = (0.0f32, 0, 0.0f32);
     let mut values = Vec::new();
     for &p in &case.points {
-        let model = pixel_visibility(&records, &atlas, &camera, p - eye, &light);
+        let model = pixel_visibility(&records, &atlas, &camera, p - eye, Vec3::ZERO, &light);
         let truth = monte_carlo_visibility(&occluders, p, &area, &settings, 16);
         values.push(model);
         assert!(
@@ -337,13 +337,23 @@ fn bad_inputs_never_give_nan() {
         Vec3::NEG_INFINITY,
         Vec3::new(1e30, 0.0, 0.0),
     ];
+    // No normal, a good one, and broken ones (a G-buffer never holds these).
+    let normals = [
+        Vec3::ZERO,
+        Vec3::Y,
+        Vec3::NAN,
+        Vec3::INFINITY,
+        Vec3::splat(1e30),
+    ];
     for light in &lights {
         for &p in &points {
-            let v = pixel_visibility(&records, &atlas, &camera, p, light);
-            assert!(
-                v.is_finite() && (0.0..=1.0).contains(&v),
-                "{light:?} at {p}: {v}"
-            );
+            for &n in &normals {
+                let v = pixel_visibility(&records, &atlas, &camera, p, n, light);
+                assert!(
+                    v.is_finite() && (0.0..=1.0).contains(&v),
+                    "{light:?} at {p}, normal {n}: {v}"
+                );
+            }
         }
     }
 }

@@ -16,13 +16,20 @@
 //! `R` darkens at most `(R / r)²` of the cone (tiny casters on the cone's axis dim the
 //! light rather than black it out).
 //!
+//! A surface's own shadow is not left to the march, which starts a bias away from the
+//! surface and sees a coarse field there: the pixel's G-buffer normal gives the fraction
+//! of the light's disc above its tangent plane (0 on back faces, a smooth ramp across the
+//! terminator, exact for a plane), and the mask is the smaller of the two. Pixels whose
+//! plane hides the whole light are not marched. On the shadow bench this halves the
+//! bunny's error (0.111 → 0.059 mean over its shadowed pixels, same settings).
+//!
 //! # Passes (per camera, per light)
 //!
 //! 1. Light culling (compute): positional lights keep casters within their range,
 //!    directional lights the casters whose sphere, swept back along the light, meets the
 //!    view frustum within [`DistanceFieldShadows::max_view_distance`] of the camera
-//!    (farther pixels are not traced). Directional lights then bin the survivors into a 32 × 32 light-space
-//!    grid (their spheres projected along the light; casters covering over 64 cells, and
+//!    (farther pixels are not traced). Directional lights then bin the survivors into a
+//!    32 × 32 light-space grid (their spheres projected along the light; casters covering over 64 cells, and
 //!    unbounded ones, in a separate list), and record the casters' height along the light.
 //! 2. The mask (compute, 8×8 tiles): each tile gathers candidates — the light's list, or
 //!    for directional lights the grid cells under the tile's own projected cone (cut at
@@ -81,9 +88,11 @@ pub struct DistanceFieldShadows {
     pub max_view_distance: f32,
     /// Sphere-tracing steps per caster. Default 64; cost is at most linear in it.
     pub max_steps: u32,
-    /// World-space bias: the ray starts this far from the surface, metres. Default 0.02
-    /// (the bench's best: 0.01 and 0.04 give 25 % and 14 % more error). Too small:
-    /// self-shadowing where SDFs are coarse; too large: detached contacts.
+    /// World-space bias: the ray starts this far from the surface, metres. Default 0.04
+    /// (on the bench's Pareto front: 0.02 costs 9 % more distance evaluations for 8 %
+    /// more error, 0.06 saves 6 % for 12 % more). Too small: self-shadowing where SDFs
+    /// are coarse; too large: detached contacts. The surface's own shadow (back faces,
+    /// the terminator) comes from the G-buffer normal instead, whatever the bias.
     pub bias: f32,
     /// Penumbra shaping: visibility `v` becomes `v^shaping` (clamped to `[0.05, 20]`).
     /// The march reports too little light in penumbrae (it sees none of the light's
@@ -106,7 +115,7 @@ impl Default for DistanceFieldShadows {
             max_distance: 100.0,
             max_view_distance: 150.0,
             max_steps: 64,
-            bias: 0.02,
+            bias: 0.04,
             shaping: 0.35,
             half_resolution: false,
         }

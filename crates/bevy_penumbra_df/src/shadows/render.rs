@@ -133,6 +133,8 @@ struct ShadowPipelines {
     grid: [CachedComputePipelineId; 5],
     /// Bound when the scene has no SDF volume (analytic casters only).
     empty_atlas: TextureView,
+    /// Bound when the view has no deferred G-buffer (no normals: no own-shadow term).
+    empty_gbuffer: TextureView,
 }
 
 pub(super) fn build(render_app: &mut SubApp) {
@@ -198,6 +200,7 @@ fn init_shadow_pipelines(
                 storage_buffer_read_only_sized(false, None),
                 storage_buffer_read_only_sized(false, None),
                 uniform_buffer_sized(false, NonZeroU64::new(SHADOW_GRID_VIEW_BYTES as u64)),
+                texture_2d(TextureSampleType::Uint),
             ),
         ),
     );
@@ -278,6 +281,18 @@ fn init_shadow_pipelines(
         grid_layout,
         grid,
         empty_atlas: crate::shader_library::empty_atlas(&device),
+        empty_gbuffer: device
+            .create_texture(&TextureDescriptor {
+                label: Some("penumbra_df_empty_gbuffer"),
+                size: Extent3d::default(),
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: TextureDimension::D2,
+                format: TextureFormat::Rgba32Uint,
+                usage: TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            })
+            .create_view(&TextureViewDescriptor::default()),
     });
 }
 
@@ -431,6 +446,9 @@ fn distance_field_shadows(
     let Some(camera) = CameraOrigin::at(view.world_from_view.translation()) else {
         return;
     };
+    // The G-buffer's normals give the surface's own shadow (back faces and the
+    // terminator); `PenumbraLighting` cameras always have it.
+    let gbuffer = prepass.deferred_view();
     let grid_pipelines: Option<Vec<_>> = pipelines
         .grid
         .iter()
@@ -477,6 +495,7 @@ fn distance_field_shadows(
                 &camera,
                 size,
                 stride,
+                gbuffer.is_some(),
             )),
             BufferUsages::UNIFORM,
         )
@@ -583,6 +602,7 @@ fn distance_field_shadows(
                 items.as_entire_binding(),
                 large.as_entire_binding(),
                 grid_view.as_entire_binding(),
+                gbuffer.unwrap_or(&pipelines.empty_gbuffer),
             )),
         );
         let grid_bind = to_light.is_some().then(|| {
