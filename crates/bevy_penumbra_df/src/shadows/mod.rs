@@ -89,7 +89,7 @@ pub struct DistanceFieldShadows {
     /// Sphere-tracing steps per caster. Default 64; cost is at most linear in it.
     pub max_steps: u32,
     /// World-space bias: the ray starts this far from the surface, metres. Default 0.04
-    /// (on the bench's Pareto front: 0.02 costs 9 % more distance evaluations for 8 %
+    /// (the bench's choice: 0.02 costs 9 % more distance evaluations for 8 %
     /// more error, 0.06 saves 6 % for 12 % more). Too small: self-shadowing where SDFs
     /// are coarse; too large: detached contacts. The surface's own shadow (back faces,
     /// the terminator) comes from the G-buffer normal instead, whatever the bias.
