@@ -121,8 +121,8 @@ pub fn shadow_ray(p: Vec3, light: &MaskLight) -> (Vec3, f32, f32) {
 /// The visibility of `light` from camera-relative `p` (1 lit, 0 shadowed): the GPU mask
 /// pass's per-pixel result. `normal`: the surface's unit normal there (the pass reads it
 /// from the deferred G-buffer, [`unpack_gbuffer_normal`]), or zero when unknown; it adds
-/// the surface's own shadow ([`horizon`]). `records` are the object buffer's slots (free slots are
-/// skipped).
+/// the surface's own shadow ([`horizon`]). `records` are the object buffer's slots (free
+/// slots are skipped).
 pub fn pixel_visibility(
     records: &[ObjectRecord],
     atlas: &Atlas,

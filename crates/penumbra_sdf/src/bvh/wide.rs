@@ -277,7 +277,8 @@ impl WideTree {
             packet.measure(&px, best_d2, best, order);
         };
         // Neighbouring samples often share their closest triangle's packet: visit each
-        // hinted packet once.
+        // hinted packet once, now, and skip it in the traversal (measuring a packet again
+        // cannot change the result).
         let mut seen = [u32::MAX; 4];
         for (n, h) in hints.into_iter().take(4).enumerate() {
             if let Some(&q) = self.packet_of.get(h)
@@ -309,8 +310,11 @@ impl WideTree {
                 if lb[lane] < best_d2 {
                     let first = (node.child[lane] & !LEAF) as usize;
                     let count = node.packets[lane] as usize;
-                    for packet in &self.packets[first..first + count] {
-                        visit_packet(packet, &mut best_d2, &mut best);
+                    for (index, packet) in (first as u32..).zip(&self.packets[first..first + count])
+                    {
+                        if !seen.contains(&index) {
+                            visit_packet(packet, &mut best_d2, &mut best);
+                        }
                     }
                 }
             }
