@@ -345,6 +345,18 @@ fn keep_thin_features(
     origin: Vec3,
     border: u32,
 ) -> usize {
+    keep_thin_features_with(volume, tris, origin, border, true)
+}
+
+/// [`keep_thin_features`], with the triangle prefilter (`skip_settled`: skip triangles
+/// whose box holds only settled cells) switchable so tests can check it changes nothing.
+fn keep_thin_features_with(
+    volume: &mut SdfVolume,
+    tris: &[[Vec3; 3]],
+    origin: Vec3,
+    border: u32,
+    skip_settled: bool,
+) -> usize {
     let h = volume.voxel_size;
     let dims = volume.dims;
     // Lattice spacing ≤ h/2 along every edge. A pathological mesh (a dense soup of
@@ -371,12 +383,56 @@ fn keep_thin_features(
         1.0
     };
     let field = &*volume;
+    // Cells (by corner 0) the guard can leave alone: outside the guarded range (the
+    // border, the last sample of an axis) or with a sample ≤ 0 already. Most triangles
+    // lie only in such cells, and skip their lattice.
+    let slice = (dims.x * dims.y) as usize;
+    let mut settled = vec![true; field.data.len()];
+    settled
+        .par_chunks_mut(slice)
+        .enumerate()
+        .for_each(|(k, out)| {
+            let k = k as u32;
+            if k < border || k + 1 + border >= dims.z {
+                return;
+            }
+            for j in border..dims.y.saturating_sub(1 + border) {
+                for i in border..dims.x.saturating_sub(1 + border) {
+                    out[(i + dims.x * j) as usize] = (0..8u32).any(|c| {
+                        let (di, dj, dk) = (c & 1, (c >> 1) & 1, c >> 2);
+                        non_positive(field.data[field.index(i + di, j + dj, k + dk)])
+                    });
+                }
+            }
+        });
+    let settled = &settled;
     // Phase 1: candidates `(cell corner 0, nearest sample)`, in triangle order.
     let candidates: Vec<(usize, usize)> = tris
         .par_iter()
         .flat_map_iter(|t| {
-            let n = ((lattice(t) as f64 * scale).ceil() as u32).clamp(1, 2048);
             let mut out = Vec::new();
+            // The cells of the triangle's box, widened by 10⁻³ voxel for the lattice
+            // points' rounding (10⁻⁷ of the grid's extent, at most 256 voxels), clamped
+            // to the grid (NaN-free: the triangles are validated).
+            let cell_of = |p: Vec3| {
+                let g = ((p - origin) / h).max(Vec3::ZERO);
+                [g.x as u32, g.y as u32, g.z as u32]
+            };
+            let pad = Vec3::splat(1e-3 * h);
+            let lo = cell_of(t[0].min(t[1]).min(t[2]) - pad);
+            let hi = cell_of(t[0].max(t[1]).max(t[2]) + pad);
+            let (hi_x, hi_y, hi_z) = (
+                hi[0].min(dims.x - 1),
+                hi[1].min(dims.y - 1),
+                hi[2].min(dims.z - 1),
+            );
+            let all_settled = (lo[2]..=hi_z).all(|k| {
+                (lo[1]..=hi_y).all(|j| (lo[0]..=hi_x).all(|i| settled[field.index(i, j, k)]))
+            });
+            if skip_settled && all_settled {
+                return out;
+            }
+            let n = ((lattice(t) as f64 * scale).ceil() as u32).clamp(1, 2048);
             let mut last_cell = usize::MAX;
             for a in 0..=n {
                 for b in 0..=(n - a) {
@@ -657,4 +713,51 @@ fn fibonacci_directions(n: usize) -> Vec<Vec3> {
             Vec3::new(r * phi.cos(), r * phi.sin(), z)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shapes;
+
+    /// The thin-feature guard's triangle prefilter (skip triangles whose box holds only
+    /// settled cells) flips exactly the samples the full lattice walk flips.
+    #[test]
+    fn thin_feature_prefilter_changes_nothing() {
+        let mut plate = shapes::thin_plate(1.0, 1.0, 0.004);
+        // Between sample layers, tilted: the guard has work to do.
+        let tilt = glam::Quat::from_rotation_x(0.3) * glam::Quat::from_rotation_z(0.2);
+        plate
+            .positions
+            .iter_mut()
+            .for_each(|p| *p = tilt * *p + Vec3::splat(0.013));
+        let cases = [
+            ("plate", plate),
+            ("torus", shapes::torus(1.0, 0.05, 64, 16)),
+            ("soup", shapes::intersecting_soup()),
+            ("sphere", shapes::sphere(1.0, 32, 16)),
+        ];
+        let mut guarded = 0;
+        for (name, mesh) in cases {
+            let settings = BakeSettings {
+                keep_thin_features: false,
+                ..BakeSettings::longest_axis(24)
+            };
+            let unguarded = bake(&mesh, &settings, None).unwrap();
+            let (tris, _) = mesh.validate().unwrap();
+            let border = unguarded.grid.border;
+            let run = |skip: bool| {
+                let mut v = unguarded.volume.clone();
+                let origin = v.origin;
+                let n = keep_thin_features_with(&mut v, &tris, origin, border, skip);
+                (n, v.data.iter().map(|h| h.to_bits()).collect::<Vec<_>>())
+            };
+            let (with, without) = (run(true), run(false));
+            assert_eq!(with.0, without.0, "{name}: samples flipped");
+            let first = with.1.iter().zip(&without.1).position(|(a, b)| a != b);
+            assert_eq!(first, None, "{name}: first differing sample");
+            guarded += with.0;
+        }
+        assert!(guarded > 0, "no case exercised the guard");
+    }
 }

@@ -78,8 +78,11 @@ impl Bvh {
     }
 
     fn build_with_max_depth(tris: &[[Vec3; 3]], max_depth: usize) -> Bvh {
+        use rayon::prelude::*;
+        // Collected in parallel straight into place: megabytes, where fresh pages cost
+        // a fault each.
         let mut items: Vec<BuildTri> = tris
-            .iter()
+            .par_iter()
             .enumerate()
             .map(|(i, t)| {
                 let mut b = Aabb::EMPTY;
@@ -101,7 +104,7 @@ impl Bvh {
         }
         let order: Vec<u32> = items.iter().map(|t| t.index).collect();
         let tris: Vec<[Vec3A; 3]> = order
-            .iter()
+            .par_iter()
             .map(|&i| tris[i as usize].map(Vec3A::from))
             .collect();
         let mut inverse = vec![0u32; order.len()];
