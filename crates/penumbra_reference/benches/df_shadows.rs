@@ -5,7 +5,8 @@
 //! ≈ 1 m) on a plane under a 3° sun. Each pixel's visibility comes from the mask pass's
 //! CPU model (`penumbra_reference::shadow_mask`, equal to the GPU pass on lavapipe:
 //! `bevy_penumbra_df/tests/shadow_mask_gpu.rs`) and is compared with Monte Carlo ground
-//! truth traced on the triangles (12 × 12 stratified rays toward the light's disc).
+//! truth traced on the triangles (12 × 12 stratified rays toward the light's disc; those
+//! below the surface's tangent plane count as blocked).
 //! Swept: steps per object and SDF resolution (samples along the longest axis), traced
 //! at full and at half resolution (bilateral upsample); and, around the defaults, the
 //! shaping exponent and the world-space bias.
@@ -126,7 +127,9 @@ fn finish_scene(mut scene: Scene) -> Scene {
             t.is_finite().then(|| ray.origin + ray.dir * t)
         })
         .collect();
-    scene.normals = (0..SIZE * SIZE)
+    // The surfaces' geometric normals (facing the camera); the model reads them through
+    // the G-buffer's encoding, the truth keeps light below their tangent planes out.
+    let geometric: Vec<Vec3> = (0..SIZE * SIZE)
         .map(|i| {
             let ray = scene
                 .camera
@@ -141,18 +144,21 @@ fn finish_scene(mut scene: Scene) -> Scene {
                 }
                 _ => Vec3::Y, // the ground plane
             };
-            let n = if n.dot(ray.dir) > 0.0 { -n } else { n };
-            // Through the G-buffer's encoding, as the pass reads it.
-            unpack_gbuffer_normal(pack_gbuffer_normal(n))
+            if n.dot(ray.dir) > 0.0 { -n } else { n }
         })
+        .collect();
+    scene.normals = geometric
+        .iter()
+        .map(|&n| unpack_gbuffer_normal(pack_gbuffer_normal(n)))
         .collect();
     let occluders: [&dyn Occluder; 1] = [&tris];
     scene.truth = scene
         .points
         .iter()
-        .map(|p| {
+        .zip(&geometric)
+        .map(|(p, &n)| {
             p.map_or(1.0, |p| {
-                monte_carlo_visibility(&occluders, p, &scene.light, &settings, MC)
+                monte_carlo_visibility(&occluders, p, n, &scene.light, &settings, MC)
             })
         })
         .collect();

@@ -15,7 +15,8 @@
 //! dim the light instead of blacking it out.
 //!
 //! **Ground truth** ([`monte_carlo_visibility`]): the fraction of rays toward uniformly
-//! distributed points of the light's solid angle that no occluder intersects.
+//! distributed points of the light's solid angle that no occluder intersects and that
+//! leave the receiving surface on its front side.
 //!
 //! The march is a heuristic: exact for a point light (r = 0: hard shadows); for area
 //! lights its mean error across a sphere's penumbra is a few percent, with the largest
@@ -248,10 +249,16 @@ pub fn cone_interval(o: Vec3, dir: Vec3, radius: f32, tan_half: f32) -> Option<(
 }
 
 /// Ground truth: the unoccluded fraction of `n²` stratified directions spread uniformly
-/// over the light's cone as seen from `p`.
+/// over the light's cone as seen from `p`. `normal`: the receiving surface's geometric
+/// (unit) normal at `p`, or zero when `p` is on no surface. Directions below its tangent
+/// plane count as blocked — the opaque surface itself is in the way, and shading gives
+/// them no light — which tracing alone can miss: a ray started just off a faceted
+/// surface near its silhouette can leave through the neighbouring facet within the
+/// start offset.
 pub fn monte_carlo_visibility(
     occluders: &[&dyn Occluder],
     p: Vec3,
+    normal: Vec3,
     light: &AreaLight,
     settings: &ShadowSettings,
     n: u32,
@@ -269,6 +276,9 @@ pub fn monte_carlo_visibility(
             let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
             let phi = std::f32::consts::TAU * b;
             let dir = axis * cos_t + (u * phi.cos() + v * phi.sin()) * sin_t;
+            if normal != Vec3::ZERO && dir.dot(normal) <= 0.0 {
+                continue;
+            }
             let origin = p + dir * settings.bias;
             if !occluders.iter().any(|o| o.blocks(origin, dir, t_max)) {
                 open += 1;
@@ -320,7 +330,8 @@ mod tests {
                 let x = -1.2 + 2.4 * k as f32 / 60.0;
                 let p = Vec3::new(x, 0.0, 0.0);
                 let march = df_visibility(&occluders, p, &light, &settings);
-                let truth = monte_carlo_visibility(&occluders, p, &light, &settings, 48);
+                let truth =
+                    monte_carlo_visibility(&occluders, p, Vec3::ZERO, &light, &settings, 48);
                 sum += (march - truth).abs();
                 worst = worst.max((march - truth).abs());
                 n += 1;
@@ -398,5 +409,32 @@ mod tests {
             df_visibility(&occluders, Vec3::new(0.0, 0.9, 0.0), &sun(0.1), &settings),
             0.0
         );
+    }
+
+    /// With no occluder, the truth on a surface is the part of the light's cone above
+    /// its tangent plane: all of it facing the light, none facing away, and across the
+    /// terminator the fraction `shadow_mask::horizon` computes for the disc.
+    #[test]
+    fn truth_counts_only_light_above_the_surface() {
+        let settings = ShadowSettings {
+            max_distance: 10.0,
+            max_steps: 64,
+            bias: 1e-3,
+        };
+        let light = sun(0.2);
+        let none: [&dyn Occluder; 0] = [];
+        let truth = |n: Vec3| monte_carlo_visibility(&none, Vec3::ZERO, n, &light, &settings, 64);
+        assert_eq!(truth(Vec3::ZERO), 1.0);
+        assert_eq!(truth(Vec3::Y), 1.0);
+        assert_eq!(truth(-Vec3::Y), 0.0);
+        let tan_half = (0.1f32).tan();
+        for tilt in [0.02f32, 0.05, 0.08] {
+            // The light's axis is `tilt` radians above the tangent plane.
+            let n = Vec3::new(-tilt.cos(), tilt.sin(), 0.0);
+            let want = crate::shadow_mask::horizon(n, Vec3::Y, tan_half);
+            let got = truth(n);
+            assert!((got - want).abs() < 0.03, "tilt {tilt}: {got} vs {want}");
+            assert!(got > 0.0 && got < 1.0, "tilt {tilt}: {got}");
+        }
     }
 }

@@ -92,7 +92,7 @@ fn bunny_shadow_march_against_ray_traced_ground_truth() {
                 continue; // under the bunny's feet
             }
             let march = df_visibility(&[&sdf], p, &light, &settings);
-            let want = monte_carlo_visibility(&[&truth], p, &light, &settings, 16);
+            let want = monte_carlo_visibility(&[&truth], p, Vec3::ZERO, &light, &settings, 16);
             sum += (march - want).abs();
             worst = worst.max((march - want).abs());
             shadowed += usize::from(want < 0.99);

@@ -148,7 +148,7 @@ fn run(case: &Case, offset: Vec3) -> (f32, usize, f32, Vec<f32>) {
     let mut values = Vec::new();
     for &p in &case.points {
         let model = pixel_visibility(&records, &atlas, &camera, p - eye, Vec3::ZERO, &light);
-        let truth = monte_carlo_visibility(&occluders, p, &area, &settings, 16);
+        let truth = monte_carlo_visibility(&occluders, p, Vec3::ZERO, &area, &settings, 16);
         values.push(model);
         assert!(
             model.is_finite() && (0.0..=1.0).contains(&model),

@@ -99,8 +99,8 @@ pub struct DistanceFieldShadows {
     /// disc behind an edge, where half of it is visible); an exponent below 1 brightens
     /// them. Default 0.325: the lowest error of `cargo bench -p penumbra_reference
     /// --bench df_shadows`'s sweep in steps of 0.025 (mean error against ray-traced
-    /// ground truth over the Cornell box's and the bunny scene's shadowed pixels 0.0420;
-    /// 0.0423 at 0.3 and 0.35, 0.0720 at 1, the march as is). No cost.
+    /// ground truth over the Cornell box's and the bunny scene's shadowed pixels 0.0393;
+    /// 0.0396 at 0.3 and 0.35, 0.0693 at 1, the march as is). No cost.
     pub shaping: f32,
     /// Trace at half resolution (one ray per 2×2 pixels) and upsample bilaterally
     /// (depth-aware). Default false. About a quarter of the tracing cost; see the bench
