@@ -31,11 +31,14 @@ const SUN: Vec3 = Vec3::new(-0.45, 0.6, -0.65);
 const LAMP: Vec3 = Vec3::new(0.8, 2.2, 0.6);
 const SUN_DEGREES: f32 = 5.0;
 const LAMP_RADIUS: f32 = 0.2;
+const SPOT_TARGET: Vec3 = Vec3::new(-0.6, 0.0, -1.2);
 
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 enum Light {
     Sun,
     Lamp,
+    /// A spot light at the lamp's place, aimed past the casters.
+    Spot,
     /// The sun, traced at half resolution.
     HalfResolutionSun,
 }
@@ -107,6 +110,18 @@ fn render(light: Light, shadows: bool) -> (Vec<[f32; 4]>, KeptApp) {
                     },
                     Transform::from_translation(SUN).looking_at(Vec3::ZERO, Vec3::Y),
                 )),
+                Light::Spot => commands.spawn((
+                    SpotLight {
+                        intensity: 200_000.0,
+                        range: 20.0,
+                        radius: LAMP_RADIUS,
+                        shadow_maps_enabled: false,
+                        inner_angle: 0.8,
+                        outer_angle: 1.1,
+                        ..default()
+                    },
+                    Transform::from_translation(LAMP).looking_at(SPOT_TARGET, Vec3::Y),
+                )),
                 Light::Lamp => commands.spawn((
                     PointLight {
                         intensity: 200_000.0,
@@ -150,11 +165,11 @@ fn check(light: Light, name: &str) {
     let model = ShadowLight {
         kind: match light {
             Light::Sun | Light::HalfResolutionSun => ShadowLightKind::Directional(SUN.normalize()),
-            Light::Lamp => ShadowLightKind::Positional(LAMP - EYE),
+            Light::Lamp | Light::Spot => ShadowLightKind::Positional(LAMP - EYE),
         },
         source: match light {
             Light::Sun | Light::HalfResolutionSun => (0.5 * s.angular_diameter).tan(),
-            Light::Lamp => LAMP_RADIUS,
+            Light::Lamp | Light::Spot => LAMP_RADIUS,
         },
         max_distance: s.max_distance,
         bias: s.bias,
@@ -250,4 +265,9 @@ fn directional_light_visibility_is_the_cpu_model() {
 #[test]
 fn point_light_visibility_is_the_cpu_model() {
     check(Light::Lamp, "point_light_visibility_is_the_cpu_model");
+}
+
+#[test]
+fn spot_light_visibility_is_the_cpu_model() {
+    check(Light::Spot, "spot_light_visibility_is_the_cpu_model");
 }
