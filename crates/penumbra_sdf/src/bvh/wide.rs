@@ -73,8 +73,6 @@ struct Packet {
     bc_offset: Vec4,
     /// `|e|²` of the edges ab, bc, ca.
     len2: [Vec4; 3],
-    /// `e0·m_bc` (finite): turns `(p − a)·m_bc` into `(p − b)·m_bc`.
-    bc_perp: Vec4,
     /// Some lane is degenerate (no unit normal): measured with 3D segment distances.
     degenerate: bool,
     /// Tree-order triangle index of each lane.
@@ -578,7 +576,6 @@ impl Packet {
         inv_len2: [Vec4::ZERO; 3],
         bc_offset: Vec4::ZERO,
         len2: [Vec4::ZERO; 3],
-        bc_perp: Vec4::ZERO,
         degenerate: false,
         tri: [0; 4],
         real: Vec4::ZERO,
@@ -619,7 +616,8 @@ impl Packet {
         // moves the foot of the perpendicular, a second-order change.)
         let along = t - s + self.bc_offset;
         let within = along.cmpge(Vec4::ZERO) & along.cmple(self.len2[1]);
-        let across = p_bc - self.bc_perp;
+        // `bc_threshold` is `e0·m_bc`, finite here: `(p − a)·m_bc` becomes `(p − b)·m_bc`.
+        let across = p_bc - self.bc_threshold;
         let bc = Vec4::select(within, across * across * self.inv_len2[1], Vec4::INFINITY);
         Vec4::select(inside, plane, plane + ab.min(ca).min(bc))
     }
@@ -694,7 +692,6 @@ fn leaf_packet(bvh: &Bvh, first: usize, end: usize) -> Packet {
         p.len2[0][lane] = e0.length_squared();
         p.len2[1][lane] = e2.length_squared();
         p.len2[2][lane] = e1.length_squared();
-        p.bc_perp[lane] = e0.dot(m[1]);
         p.degenerate |= n == Vec3A::ZERO;
         p.tri[lane] = i as u32;
         p.real[lane] = if first + lane < end { 1.0 } else { 0.0 };
