@@ -42,7 +42,13 @@ struct Errors {
     sign_checked: usize,
 }
 
-fn errors(tris: &[[Vec3; 3]], v: &SdfVolume, value: impl Fn(UVec3) -> f32) -> Errors {
+/// `tris` are relative to `origin` (the mesh's `TriMesh::origin`).
+fn errors(
+    tris: &[[Vec3; 3]],
+    origin: glam::DVec3,
+    v: &SdfVolume,
+    value: impl Fn(UVec3) -> f32,
+) -> Errors {
     let mut s = 12345u64;
     let mut next = |m: u32| {
         s = s
@@ -55,7 +61,7 @@ fn errors(tris: &[[Vec3; 3]], v: &SdfVolume, value: impl Fn(UVec3) -> f32) -> Er
     let (mut sign_errors, mut sign_checked) = (0, 0);
     for _ in 0..3000 {
         let c = UVec3::new(next(v.dims.x), next(v.dims.y), next(v.dims.z));
-        let p = v.position(c.x, c.y, c.z);
+        let p = v.position(c.x, c.y, c.z) - origin;
         let got = value(c) as f64;
         let d = exact::distance(p, tris);
         e.push((got.abs() - d).abs() / h);
@@ -79,7 +85,7 @@ fn mesh_to_sdf_bake(mesh: &TriMesh, v: &SdfVolume) -> Vec<f32> {
     let vertices: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
     let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
     let grid = mesh_to_sdf::Grid::new(
-        v.origin.to_array(),
+        (v.origin - mesh.origin).as_vec3().to_array(),
         [v.voxel_size; 3],
         [v.dims.x as usize, v.dims.y as usize, v.dims.z as usize],
     );
@@ -101,7 +107,7 @@ fn libigl_bake(mesh_path: &std::path::Path, v: &SdfVolume) -> Option<(Duration, 
     let result = std::process::Command::new("python3")
         .arg(&script)
         .arg(mesh_path)
-        .args([o.x, o.y, o.z, v.voxel_size].map(|x| format!("{x:.9e}")))
+        .args([o.x, o.y, o.z, v.voxel_size as f64].map(|x| format!("{x:.17e}")))
         .args([v.dims.x, v.dims.y, v.dims.z].map(|n| n.to_string()))
         .arg(&out)
         .output()
@@ -160,12 +166,16 @@ fn comparison(c: &mut Criterion) {
     let v = &ours.volume;
     let (t_theirs, theirs) = time(|| mesh_to_sdf_bake(&mesh, v), 5);
     let (nx, ny, nz) = (v.dims.x, v.dims.y, v.dims.z);
-    let e_ours = errors(&tris, v, |c| v.get(c.x, c.y, c.z));
-    let e_theirs = errors(&tris, v, |c| {
+    let e_ours = errors(&tris, mesh.origin, v, |c| v.get(c.x, c.y, c.z));
+    let e_theirs = errors(&tris, mesh.origin, v, |c| {
         theirs[(c.z + c.y * nz + c.x * ny * nz) as usize]
     });
-    let igl = libigl_bake(&bunny_path(), v)
-        .map(|(t, values)| (t, errors(&tris, v, |c| values[v.index(c.x, c.y, c.z)])));
+    let igl = libigl_bake(&bunny_path(), v).map(|(t, values)| {
+        (
+            t,
+            errors(&tris, mesh.origin, v, |c| values[v.index(c.x, c.y, c.z)]),
+        )
+    });
     println!(
         "\nbunny {} triangles, {nx}x{ny}x{nz} samples (median of runs after a warm-up run: 9 / 5 / 5, bake only, {} threads)",
         mesh.triangles.len(),

@@ -127,7 +127,7 @@ pub struct Bake {
     pub volume: SdfVolume,
     /// Mesh statistics (triangles kept, degenerate dropped).
     pub mesh: MeshReport,
-    /// The grid used.
+    /// The grid used (its `origin` relative to the mesh's `TriMesh::origin`).
     pub grid: GridSpec,
     /// Samples made negative by the thin-feature guard (see [`bake`]).
     pub thin_feature_samples: usize,
@@ -179,7 +179,7 @@ pub fn bake(
     let t_start = std::time::Instant::now();
     let (tris, report) = mesh.validate()?;
     // Work relative to the bounds' centre: keeps f32 precision for meshes far from
-    // their origin.
+    // their origin (`mesh.origin`, f64, carries the rest).
     let mut bounds = crate::geometry::Aabb::EMPTY;
     tris.iter().flatten().for_each(|&p| bounds.grow(p));
     let grid = settings.grid.resolve(&bounds)?;
@@ -271,7 +271,7 @@ pub fn bake(
                 let inside = match settings.sign {
                     _ if on_border => false,
                     SignMethod::TwoSided { shell_voxels } => {
-                        out[index] = f16::from_f32(d - shell_voxels * h);
+                        out[index] = SdfVolume::quantize(d / h - shell_voxels);
                         continue;
                     }
                     SignMethod::WindingNumber => {
@@ -298,7 +298,8 @@ pub fn bake(
                         hits > 0 && back as f32 > threshold * hits as f32
                     }
                 };
-                out[index] = f16::from_f32(if inside { -d } else { d });
+                let voxels = d / h;
+                out[index] = SdfVolume::quantize(if inside { -voxels } else { voxels });
             }
         }
         report_slice();
@@ -306,7 +307,7 @@ pub fn bake(
     let t_sign = t_start.elapsed();
     let mut volume = SdfVolume {
         dims,
-        origin: grid.origin,
+        origin: mesh.origin + grid.origin.as_dvec3(),
         voxel_size: h,
         data,
     };
@@ -748,7 +749,7 @@ mod tests {
             let border = unguarded.grid.border;
             let run = |skip: bool| {
                 let mut v = unguarded.volume.clone();
-                let origin = v.origin;
+                let origin = v.origin.as_vec3();
                 let n = keep_thin_features_with(&mut v, &tris, origin, border, skip);
                 (n, v.data.iter().map(|h| h.to_bits()).collect::<Vec<_>>())
             };

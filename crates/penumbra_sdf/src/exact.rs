@@ -3,6 +3,24 @@
 
 use glam::{DVec3, Vec3};
 
+/// A triangle corner: f32 corners are promoted exactly.
+pub trait Corner: Copy {
+    /// The corner in f64.
+    fn to_f64(self) -> DVec3;
+}
+
+impl Corner for Vec3 {
+    fn to_f64(self) -> DVec3 {
+        self.as_dvec3()
+    }
+}
+
+impl Corner for DVec3 {
+    fn to_f64(self) -> DVec3 {
+        self
+    }
+}
+
 fn closest_point_f64(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
     // Ericson §5.1.5 in f64.
     let (ab, ac, ap) = (b - a, c - a, p - a);
@@ -37,11 +55,10 @@ fn closest_point_f64(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
 }
 
 /// Exact unsigned distance from `p` to the nearest of `tris` (f64, brute force).
-pub fn distance(p: Vec3, tris: &[[Vec3; 3]]) -> f64 {
-    let p = p.as_dvec3();
+pub fn distance<T: Corner>(p: DVec3, tris: &[[T; 3]]) -> f64 {
     tris.iter()
         .map(|t| {
-            let [a, b, c] = t.map(|v| v.as_dvec3());
+            let [a, b, c] = t.map(Corner::to_f64);
             (closest_point_f64(p, a, b, c) - p).length_squared()
         })
         .fold(f64::INFINITY, f64::min)
@@ -49,11 +66,10 @@ pub fn distance(p: Vec3, tris: &[[Vec3; 3]]) -> f64 {
 }
 
 /// Exact generalized winding number at `p` (f64 solid angles, brute force).
-pub fn winding_number(p: Vec3, tris: &[[Vec3; 3]]) -> f64 {
-    let p = p.as_dvec3();
+pub fn winding_number<T: Corner>(p: DVec3, tris: &[[T; 3]]) -> f64 {
     tris.iter()
         .map(|t| {
-            let [a, b, c] = t.map(|v| v.as_dvec3() - p);
+            let [a, b, c] = t.map(|v| v.to_f64() - p);
             let (la, lb, lc) = (a.length(), b.length(), c.length());
             let det = a.dot(b.cross(c));
             let div = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;

@@ -1,31 +1,34 @@
 //! The `.psdf` file format, and `.npy` export.
 //!
-//! # `.psdf`, version 1 (all integers and floats little-endian)
+//! # `.psdf`, version 2 (all integers and floats little-endian)
 //!
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 4 | magic `PSDF` |
-//! | 4 | 4 | version: u32 = 1 |
+//! | 4 | 4 | version: u32 = 2 |
 //! | 8 | 12 | dims: 3 × u32 (each ≥ 2) |
-//! | 20 | 12 | origin: 3 × f32 |
-//! | 32 | 4 | voxel size: f32 (> 0) |
-//! | 36 | 4 | CRC-32 (IEEE) of bytes 0..36 followed by the samples |
-//! | 40 | 2·n | n = dims.x·dims.y·dims.z samples, IEEE binary16, x fastest |
+//! | 20 | 24 | origin: 3 × f64 (position of sample (0, 0, 0), mesh units) |
+//! | 44 | 4 | voxel size: f32 (> 0, mesh units) |
+//! | 48 | 4 | CRC-32 (IEEE) of bytes 0..48 followed by the samples |
+//! | 52 | 2·n | n = dims.x·dims.y·dims.z signed distances **in voxels**, IEEE binary16, x fastest |
 //!
-//! Nothing follows the samples. The reader rejects other magics and versions, truncated
-//! or oversized files, bad dims or voxel sizes, and checksum mismatches, with a clear
+//! Nothing follows the samples. Version 1 (origin as 3 × f32 at 20, voxel size at 32,
+//! CRC at 36, samples in mesh units from 40) is still read, its samples converted to
+//! voxels. The reader rejects other magics and versions, truncated or oversized files,
+//! bad dims or voxel sizes, checksum mismatches and NaN or infinite samples with a clear
 //! [`FormatError`] (never a panic).
 
 use crate::grid::MAX_SAMPLES;
 use crate::volume::SdfVolume;
-use glam::{UVec3, Vec3};
+use glam::{DVec3, UVec3};
 use half::f16;
 
 /// File magic.
 pub const MAGIC: [u8; 4] = *b"PSDF";
-/// The version this code writes and reads.
-pub const VERSION: u32 = 1;
-const HEADER: usize = 40;
+/// The version this code writes (it also reads version 1).
+pub const VERSION: u32 = 2;
+const HEADER: usize = 52;
+const HEADER_V1: usize = 40;
 
 /// Why a `.psdf` file was rejected.
 #[derive(Clone, Debug, PartialEq)]
@@ -52,6 +55,11 @@ pub enum FormatError {
         /// Computed.
         computed: u32,
     },
+    /// A sample is NaN or infinite (GPU interpolation would spread it).
+    NonFiniteSample {
+        /// Its index (x fastest).
+        index: usize,
+    },
 }
 
 impl std::fmt::Display for FormatError {
@@ -61,7 +69,7 @@ impl std::fmt::Display for FormatError {
             FormatError::UnsupportedVersion(v) => {
                 write!(
                     f,
-                    "SDF file version {v} is not supported (this build reads version {VERSION})"
+                    "SDF file version {v} is not supported (this build reads versions 1 and {VERSION})"
                 )
             }
             FormatError::Truncated { expected, got } => {
@@ -75,6 +83,9 @@ impl std::fmt::Display for FormatError {
                 f,
                 "SDF file corrupt: checksum {computed:#010x} does not match stored {stored:#010x}"
             ),
+            FormatError::NonFiniteSample { index } => {
+                write!(f, "SDF file holds a NaN or infinite sample (index {index})")
+            }
         }
     }
 }
@@ -102,7 +113,7 @@ pub fn crc32(mut crc: u32, bytes: &[u8]) -> u32 {
     !crc
 }
 
-/// Serializes a volume as `.psdf` bytes.
+/// Serializes a volume as `.psdf` bytes (version 2).
 pub fn to_bytes(v: &SdfVolume) -> Vec<u8> {
     let mut out = Vec::with_capacity(HEADER + 2 * v.data.len());
     out.extend_from_slice(&MAGIC);
@@ -118,12 +129,12 @@ pub fn to_bytes(v: &SdfVolume) -> Vec<u8> {
     for s in &v.data {
         out.extend_from_slice(&s.to_le_bytes());
     }
-    let crc = crc32(crc32(0, &out[..36]), &out[HEADER..]);
-    out[36..40].copy_from_slice(&crc.to_le_bytes());
+    let crc = crc32(crc32(0, &out[..HEADER - 4]), &out[HEADER..]);
+    out[HEADER - 4..HEADER].copy_from_slice(&crc.to_le_bytes());
     out
 }
 
-/// Parses `.psdf` bytes.
+/// Parses `.psdf` bytes (version 2, or 1).
 pub fn from_bytes(bytes: &[u8]) -> Result<SdfVolume, FormatError> {
     if bytes.len() < 8 {
         return Err(if bytes.len() >= 4 && bytes[..4] != MAGIC {
@@ -140,19 +151,26 @@ pub fn from_bytes(bytes: &[u8]) -> Result<SdfVolume, FormatError> {
     }
     let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
     let version = u32_at(4);
-    if version != VERSION {
-        return Err(FormatError::UnsupportedVersion(version));
-    }
-    if bytes.len() < HEADER {
+    let header = match version {
+        1 => HEADER_V1,
+        VERSION => HEADER,
+        _ => return Err(FormatError::UnsupportedVersion(version)),
+    };
+    if bytes.len() < header {
         return Err(FormatError::Truncated {
-            expected: HEADER,
+            expected: header,
             got: bytes.len(),
         });
     }
     let f32_at = |o: usize| f32::from_bits(u32_at(o));
+    let f64_at = |o: usize| f64::from_le_bytes(bytes[o..o + 8].try_into().expect("8 bytes"));
     let dims = UVec3::new(u32_at(8), u32_at(12), u32_at(16));
-    let origin = Vec3::new(f32_at(20), f32_at(24), f32_at(28));
-    let voxel_size = f32_at(32);
+    let (origin, voxel_size) = if version == 1 {
+        let o = [f32_at(20), f32_at(24), f32_at(28)].map(f64::from);
+        (DVec3::from_array(o), f32_at(32))
+    } else {
+        (DVec3::new(f64_at(20), f64_at(28), f64_at(36)), f32_at(44))
+    };
     let n = dims.x as u128 * dims.y as u128 * dims.z as u128;
     if dims.min_element() < 2 || n > MAX_SAMPLES as u128 {
         return Err(FormatError::BadHeader(format!("dims {dims}")));
@@ -163,7 +181,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<SdfVolume, FormatError> {
     if !(voxel_size.is_finite() && voxel_size > 0.0) {
         return Err(FormatError::BadHeader(format!("voxel size {voxel_size}")));
     }
-    let expected = HEADER + 2 * n as usize;
+    let expected = header + 2 * n as usize;
     if bytes.len() < expected {
         return Err(FormatError::Truncated {
             expected,
@@ -173,15 +191,24 @@ pub fn from_bytes(bytes: &[u8]) -> Result<SdfVolume, FormatError> {
     if bytes.len() > expected {
         return Err(FormatError::TrailingBytes(bytes.len() - expected));
     }
-    let stored = u32_at(36);
-    let computed = crc32(crc32(0, &bytes[..36]), &bytes[HEADER..]);
+    let stored = u32_at(header - 4);
+    let computed = crc32(crc32(0, &bytes[..header - 4]), &bytes[header..]);
     if stored != computed {
         return Err(FormatError::ChecksumMismatch { stored, computed });
     }
-    let data = bytes[HEADER..]
-        .chunks_exact(2)
-        .map(|c| f16::from_le_bytes([c[0], c[1]]))
-        .collect();
+    let mut data = Vec::with_capacity(n as usize);
+    for (index, c) in bytes[header..].chunks_exact(2).enumerate() {
+        let s = f16::from_le_bytes([c[0], c[1]]);
+        if !s.is_finite() {
+            return Err(FormatError::NonFiniteSample { index });
+        }
+        // Version 1 stored mesh units.
+        data.push(if version == 1 {
+            SdfVolume::quantize(s.to_f32() / voxel_size)
+        } else {
+            s
+        });
+    }
     Ok(SdfVolume {
         dims,
         origin,
@@ -191,7 +218,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<SdfVolume, FormatError> {
 }
 
 /// The volume as a `NumPy` `.npy` file: float32, shape `(nz, ny, nx)`, C order, so
-/// `a[k, j, i]` is the distance at `origin + voxel_size · (i, j, k)`.
+/// `a[k, j, i]` is the distance (mesh units) at `origin + voxel_size · (i, j, k)`.
 pub fn to_npy(v: &SdfVolume) -> Vec<u8> {
     let mut header = format!(
         "{{'descr': '<f4', 'fortran_order': False, 'shape': ({}, {}, {}), }}",
@@ -207,12 +234,13 @@ pub fn to_npy(v: &SdfVolume) -> Vec<u8> {
     out.extend_from_slice(&(header.len() as u16).to_le_bytes());
     out.extend_from_slice(header.as_bytes());
     for s in &v.data {
-        out.extend_from_slice(&s.to_f32().to_le_bytes());
+        out.extend_from_slice(&(s.to_f32() * v.voxel_size).to_le_bytes());
     }
     out
 }
 
-/// The `.npy` sidecar JSON: `origin`, `voxel_size`, `dims` (`[nx, ny, nz]`).
+/// The `.npy` sidecar JSON: `origin` (f64, shortest round-trip digits), `voxel_size`,
+/// `dims` (`[nx, ny, nz]`).
 pub fn npy_sidecar_json(v: &SdfVolume) -> String {
     format!(
         "{{\"origin\": [{}, {}, {}], \"voxel_size\": {}, \"dims\": [{}, {}, {}]}}\n",
@@ -227,7 +255,7 @@ mod tests {
     fn volume() -> SdfVolume {
         SdfVolume {
             dims: UVec3::new(3, 2, 2),
-            origin: Vec3::new(-1.0, 0.5, 2.0),
+            origin: DVec3::new(-1.0, 0.5, 2.0),
             voxel_size: 0.25,
             data: (0..12)
                 .map(|i| f16::from_f32(i as f32 * 0.5 - 3.0))
@@ -253,16 +281,22 @@ mod tests {
         flipped[HEADER + 3] ^= 0x10;
         let mut header_flipped = good.clone();
         header_flipped[21] ^= 0x01; // origin.x
-        let mut v2 = good.clone();
-        v2[4] = 2;
+        let mut v3 = good.clone();
+        v3[4] = 3;
         let mut zero_dims = good.clone();
         zero_dims[8..12].copy_from_slice(&0u32.to_le_bytes());
         let mut huge_dims = good.clone();
         huge_dims[8..20].copy_from_slice(&[0xff; 12]);
         let mut neg_voxel = good.clone();
-        neg_voxel[32..36].copy_from_slice(&(-1.0f32).to_le_bytes());
+        neg_voxel[44..48].copy_from_slice(&(-1.0f32).to_le_bytes());
         let mut nan_origin = good.clone();
-        nan_origin[20..24].copy_from_slice(&f32::NAN.to_le_bytes());
+        nan_origin[20..28].copy_from_slice(&f64::NAN.to_le_bytes());
+        // A NaN and an infinite sample, with a valid checksum: still rejected.
+        let with_sample = |bits: u16| {
+            let mut v = volume();
+            v.data[5] = f16::from_bits(bits);
+            to_bytes(&v)
+        };
         let mut trailing = good.clone();
         trailing.push(0);
         type Check = fn(&FormatError) -> bool;
@@ -288,7 +322,13 @@ mod tests {
             ("header bit flip", header_flipped, |e| {
                 matches!(e, FormatError::ChecksumMismatch { .. })
             }),
-            ("version", v2, |e| *e == FormatError::UnsupportedVersion(2)),
+            ("version", v3, |e| *e == FormatError::UnsupportedVersion(3)),
+            ("nan sample", with_sample(0x7e00), |e| {
+                *e == FormatError::NonFiniteSample { index: 5 }
+            }),
+            ("inf sample", with_sample(0xfc00), |e| {
+                *e == FormatError::NonFiniteSample { index: 5 }
+            }),
             ("zero dims", zero_dims, |e| {
                 matches!(e, FormatError::BadHeader(_))
             }),
@@ -309,6 +349,29 @@ mod tests {
         }
     }
 
+    /// Version 1 files (f32 origin, samples in mesh units) still load, converted.
+    #[test]
+    fn version_1_files_are_read_and_converted_to_voxels() {
+        let v = volume();
+        let mut old = Vec::new();
+        old.extend_from_slice(&MAGIC);
+        old.extend_from_slice(&1u32.to_le_bytes());
+        for d in v.dims.to_array() {
+            old.extend_from_slice(&d.to_le_bytes());
+        }
+        for o in v.origin.to_array() {
+            old.extend_from_slice(&(o as f32).to_le_bytes());
+        }
+        old.extend_from_slice(&v.voxel_size.to_le_bytes());
+        old.extend_from_slice(&[0; 4]);
+        for i in 0..v.len() {
+            old.extend_from_slice(&f16::from_f32(v.data[i].to_f32() * v.voxel_size).to_le_bytes());
+        }
+        let crc = crc32(crc32(0, &old[..36]), &old[40..]);
+        old[36..40].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(from_bytes(&old).unwrap(), v);
+    }
+
     #[test]
     fn npy_header_is_aligned_and_shaped_z_y_x() {
         let v = volume();
@@ -320,10 +383,11 @@ mod tests {
         assert!(header.contains("'shape': (2, 2, 3)"), "{header}");
         assert!(header.ends_with('\n'));
         assert_eq!(npy.len(), 10 + header_len + 4 * 12);
-        // a[1, 0, 2] = sample (i=2, j=0, k=1).
+        // a[1, 0, 2] = sample (i=2, j=0, k=1), in mesh units.
         let at = 10 + header_len + 4 * (2 + 3 * 2);
         let value = f32::from_le_bytes(npy[at..at + 4].try_into().unwrap());
         assert_eq!(value, v.get(2, 0, 1));
+        assert_eq!(value, v.get_voxels(2, 0, 1) * 0.25);
         assert!(npy_sidecar_json(&v).contains("\"dims\": [3, 2, 2]"));
     }
 }

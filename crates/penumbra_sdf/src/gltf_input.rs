@@ -6,9 +6,13 @@
 //! primitives are read; strips and fans are triangulated; points and lines are skipped.
 //! Skinned meshes are read in their bind pose (the node transforms, not the skin), and
 //! morph targets are ignored — both reported in [`GltfReport`].
+//!
+//! Node transforms are composed in f64 and the mesh centred on its bounds before
+//! conversion to f32 ([`TriMesh::from_f64`]). A node graph that is not a forest (a
+//! cycle, or a node with two parents, both invalid glTF) is an error, never a hang.
 
 use crate::mesh::{Topology, TriMesh, triangles_from};
-use glam::{Mat4, Vec3};
+use glam::{DMat4, DVec3, Vec3};
 use gltf::mesh::Mode;
 use std::path::Path;
 
@@ -101,7 +105,7 @@ fn load_gltf_unguarded(
         }
         buffers.push(data);
     }
-    let mut out = TriMesh::default();
+    let mut out = Triangles::default();
     let mut report = GltfReport {
         mesh_names: gltf
             .document
@@ -122,7 +126,7 @@ fn load_gltf_unguarded(
                         report.mesh_names
                     ))
                 })?;
-            append_mesh(&mesh, Mat4::IDENTITY, &buffers, &mut out, &mut report)?;
+            append_mesh(&mesh, DMat4::IDENTITY, &buffers, &mut out, &mut report)?;
         }
         GltfSelection::Scene => {
             let scene = gltf
@@ -130,10 +134,21 @@ fn load_gltf_unguarded(
                 .default_scene()
                 .or_else(|| gltf.document.scenes().next())
                 .ok_or_else(|| GltfError::NotFound("the file has no scene".into()))?;
-            let mut stack: Vec<(gltf::Node, Mat4)> =
-                scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+            let mut stack: Vec<(gltf::Node, DMat4)> =
+                scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
+            // Each node is reached once in a forest; a second visit means a cycle (which
+            // would never end) or a shared child.
+            let mut visited = vec![false; gltf.document.nodes().count()];
             while let Some((node, parent)) = stack.pop() {
-                let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+                if std::mem::replace(&mut visited[node.index()], true) {
+                    return Err(GltfError::Parse(format!(
+                        "node {} is reached twice from the scene's roots (a cycle or a node \
+                         with two parents): the node hierarchy must be a forest",
+                        node.index()
+                    )));
+                }
+                let local = node.transform().matrix().map(|c| c.map(f64::from));
+                let world = parent * DMat4::from_cols_array_2d(&local);
                 if let Some(mesh) = node.mesh() {
                     report.skinned_instances += usize::from(node.skin().is_some());
                     append_mesh(&mesh, world, &buffers, &mut out, &mut report)?;
@@ -142,7 +157,14 @@ fn load_gltf_unguarded(
             }
         }
     }
-    Ok((out, report))
+    Ok((TriMesh::from_f64(&out.positions, out.triangles), report))
+}
+
+/// Triangles gathered in f64, before centring.
+#[derive(Default)]
+struct Triangles {
+    positions: Vec<DVec3>,
+    triangles: Vec<[u32; 3]>,
 }
 
 fn load_uri(uri: &str, base_dir: Option<&Path>) -> Result<Vec<u8>, GltfError> {
@@ -192,9 +214,9 @@ fn percent_decode(s: &str) -> String {
 
 fn append_mesh(
     mesh: &gltf::Mesh,
-    transform: Mat4,
+    transform: DMat4,
     buffers: &[Vec<u8>],
-    out: &mut TriMesh,
+    out: &mut Triangles,
     report: &mut GltfReport,
 ) -> Result<(), GltfError> {
     // A mirroring transform flips the winding: swap two corners to keep outside out.
@@ -213,7 +235,7 @@ fn append_mesh(
         };
         let base = out.positions.len() as u32;
         out.positions
-            .extend(positions.map(|p| transform.transform_point3(Vec3::from_array(p))));
+            .extend(positions.map(|p| transform.transform_point3(Vec3::from_array(p).as_dvec3())));
         let count = out.positions.len() as u32 - base;
         let indices: Vec<u32> = match reader.read_indices() {
             Some(i) => i.into_u32().collect(),

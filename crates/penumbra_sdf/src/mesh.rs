@@ -1,16 +1,22 @@
 //! Triangle meshes as baking input, and their validation.
 
 use crate::geometry::Aabb;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 /// An indexed triangle mesh in its own (local) units. Triangles are counter-clockwise
 /// seen from outside (glTF's and Bevy's convention), so `(b − a) × (c − a)` points out.
+///
+/// Vertex `i` lies at `origin + positions[i]`: readers of files with far-out coordinates
+/// (survey, CAD) parse in f64 and centre the mesh on its bounds before converting to
+/// f32, so a mesh 10⁶ m from the file's origin is as precise as one at it.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriMesh {
-    /// Vertex positions.
+    /// Vertex positions, relative to `origin`.
     pub positions: Vec<Vec3>,
     /// Vertex indices, three per triangle.
     pub triangles: Vec<[u32; 3]>,
+    /// Where the positions are measured from (zero for meshes built in f32).
+    pub origin: DVec3,
 }
 
 /// Why a mesh cannot be baked.
@@ -126,10 +132,33 @@ impl TriMesh {
                 .chunks_exact(3)
                 .map(|t| [t[0], t[1], t[2]])
                 .collect(),
+            origin: DVec3::ZERO,
         })
     }
 
-    /// Bounds of the vertices used by triangles.
+    /// A mesh from f64 positions: centred on their bounds (of the finite ones) in f64,
+    /// then converted, so far-out coordinates keep their precision (see the type's
+    /// docs). Non-finite positions stay non-finite (and are reported by
+    /// [`TriMesh::validate`] if a triangle uses them).
+    pub fn from_f64(positions: &[DVec3], triangles: Vec<[u32; 3]>) -> TriMesh {
+        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        for p in positions.iter().filter(|p| p.is_finite()) {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        let origin = if lo.x <= hi.x {
+            (lo + hi) * 0.5
+        } else {
+            DVec3::ZERO
+        };
+        TriMesh {
+            positions: positions.iter().map(|p| (*p - origin).as_vec3()).collect(),
+            triangles,
+            origin,
+        }
+    }
+
+    /// Bounds of the vertices used by triangles, relative to `origin`.
     pub fn bounds(&self) -> Aabb {
         let mut b = Aabb::EMPTY;
         for t in &self.triangles {
@@ -194,6 +223,7 @@ mod tests {
                 TriMesh {
                     positions: quad.clone(),
                     triangles: vec![[0, 1, 7]],
+                    ..Default::default()
                 },
                 MeshError::IndexOutOfRange {
                     triangle: 0,
@@ -205,6 +235,7 @@ mod tests {
                 TriMesh {
                     positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(f32::NAN, 0.0, 0.0)],
                     triangles: vec![[0, 1, 2]],
+                    ..Default::default()
                 },
                 MeshError::NonFinitePosition { vertex: 2 },
             ),
@@ -212,6 +243,7 @@ mod tests {
                 TriMesh {
                     positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(0.0, f32::INFINITY, 0.0)],
                     triangles: vec![[0, 1, 2]],
+                    ..Default::default()
                 },
                 MeshError::NonFinitePosition { vertex: 2 },
             ),
@@ -219,6 +251,7 @@ mod tests {
                 TriMesh {
                     positions: quad.clone(),
                     triangles: vec![[0, 0, 1], [1, 1, 1]],
+                    ..Default::default()
                 },
                 MeshError::AllTrianglesDegenerate,
             ),
@@ -253,6 +286,7 @@ mod tests {
         let mesh = TriMesh {
             positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::X * 2.0],
             triangles: vec![[0, 1, 2], [0, 1, 3], [2, 2, 2]],
+            ..Default::default()
         };
         let (tris, report) = mesh.validate().unwrap();
         assert_eq!(tris.len(), 1);

@@ -1,8 +1,11 @@
 //! A small, strict Wavefront OBJ reader: `v` and `f` records (polygons fan-triangulated;
 //! `v/vt/vn` forms and negative, relative indices accepted); everything else is ignored.
+//! Coordinates are parsed in f64 and the mesh centred on its bounds before conversion
+//! ([`TriMesh::from_f64`]): survey and CAD exports 10⁶ m from their origin keep their
+//! precision.
 
 use crate::mesh::TriMesh;
-use glam::Vec3;
+use glam::DVec3;
 
 /// A malformed OBJ file.
 #[derive(Clone, Debug, PartialEq)]
@@ -48,11 +51,12 @@ pub fn parse_obj(text: &str) -> Result<TriMesh, ObjError> {
         .par_windows(2)
         .map(|w| Chunk::parse(&text[w[0]..w[1]]))
         .collect();
-    let mut mesh = TriMesh::default();
+    let mut positions: Vec<DVec3> = Vec::new();
+    let mut triangles: Vec<[u32; 3]> = Vec::new();
     let mut first_line = 1;
     for chunk in chunks {
-        let base = mesh.positions.len() as i64;
-        mesh.positions.extend_from_slice(&chunk.positions);
+        let base = positions.len() as i64;
+        positions.extend_from_slice(&chunk.positions);
         let mut resolved = Vec::with_capacity(8);
         for face in &chunk.faces {
             let count = base + face.vertices_before as i64;
@@ -68,8 +72,7 @@ pub fn parse_obj(text: &str) -> Result<TriMesh, ObjError> {
                 resolved.push(r as u32);
             }
             for k in 1..resolved.len() - 1 {
-                mesh.triangles
-                    .push([resolved[0], resolved[k], resolved[k + 1]]);
+                triangles.push([resolved[0], resolved[k], resolved[k + 1]]);
             }
         }
         if let Some(mut e) = chunk.error {
@@ -78,13 +81,13 @@ pub fn parse_obj(text: &str) -> Result<TriMesh, ObjError> {
         }
         first_line += chunk.lines;
     }
-    Ok(mesh)
+    Ok(TriMesh::from_f64(&positions, triangles))
 }
 
 /// One chunk of lines, parsed without knowing the vertices before it.
 #[derive(Default)]
 struct Chunk {
-    positions: Vec<Vec3>,
+    positions: Vec<DVec3>,
     /// Raw (1-based or negative) indices of all faces.
     indices: Vec<i64>,
     faces: Vec<Face>,
@@ -121,7 +124,7 @@ impl Chunk {
         let mut words = line.split_ascii_whitespace();
         match words.next() {
             Some("v") => {
-                let mut c = [0.0f32; 3];
+                let mut c = [0.0f64; 3];
                 for (k, slot) in c.iter_mut().enumerate() {
                     let w = words
                         .next()
@@ -130,7 +133,7 @@ impl Chunk {
                         .parse()
                         .map_err(|_| format!("bad vertex coordinate {w:?}"))?;
                 }
-                self.positions.push(Vec3::from_array(c));
+                self.positions.push(DVec3::from_array(c));
             }
             Some("f") => {
                 let first = self.indices.len();
@@ -186,14 +189,13 @@ mod tests {
         assert!(text.len() > 3 * CHUNK_BYTES);
         let m = parse_obj(&text).unwrap();
         assert_eq!(m.positions.len(), n);
-        assert_eq!(
-            m.positions[n - 1],
-            Vec3::new(
-                (n - 1) as f32,
-                ((n - 1) % 7) as f32 + 0.5,
-                -((n - 1) as f32) * 1e-3
-            )
+        let last = m.origin + m.positions[n - 1].as_dvec3();
+        let want = DVec3::new(
+            (n - 1) as f64,
+            ((n - 1) % 7) as f64 + 0.5,
+            -((n - 1) as f64) * 1e-3,
         );
+        assert!((last - want).length() < 1e-3, "{last} vs {want}");
         assert_eq!(m.triangles.len(), n - 2);
         assert!(
             m.triangles
@@ -221,6 +223,22 @@ mod tests {
             (101, true),
             "{e}"
         );
+    }
+
+    /// Far-out coordinates are parsed in f64 and centred: the mesh keeps its shape to
+    /// f32 precision of its own size, not of its distance from the origin.
+    #[test]
+    fn far_coordinates_keep_their_precision() {
+        let text = "v 1000000.001 -2000000 3e6\nv 1000000.002 -2000000 3e6\n\
+                    v 1000000.001 -1999999.999 3e6\nf 1 2 3\n";
+        let m = parse_obj(text).unwrap();
+        let centre = DVec3::new(1000000.0015, -1999999.9995, 3e6);
+        assert!((m.origin - centre).length() < 1e-8, "{}", m.origin);
+        let edge = m.positions[1] - m.positions[0];
+        // In f32 the three vertices would collapse onto one (spacing 0.0625 at 10⁶).
+        assert!((edge.x - 1e-3).abs() < 1e-9 && edge.y == 0.0, "{edge}");
+        let edge = m.positions[2] - m.positions[0];
+        assert!((edge.y - 1e-3).abs() < 1e-9 && edge.x == 0.0, "{edge}");
     }
 
     #[test]

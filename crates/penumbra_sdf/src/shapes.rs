@@ -35,6 +35,7 @@ fn parametric(
     TriMesh {
         positions,
         triangles,
+        ..Default::default()
     }
 }
 
@@ -93,6 +94,7 @@ pub fn cuboid(half: Vec3) -> TriMesh {
     TriMesh {
         positions,
         triangles,
+        ..Default::default()
     }
 }
 
@@ -177,24 +179,24 @@ mod tests {
             ),
         ] {
             let t = tris(&m);
-            let w_in = exact::winding_number(inside, &t);
-            let w_out = exact::winding_number(Vec3::new(3.0, 2.0, 1.0), &t);
+            let w_in = exact::winding_number(inside.as_dvec3(), &t);
+            let w_out = exact::winding_number(glam::DVec3::new(3.0, 2.0, 1.0), &t);
             assert!((w_in - 1.0).abs() < 1e-6, "{name}: inside {w_in}");
             assert!(w_out.abs() < 1e-6, "{name}: outside {w_out}");
         }
         // The torus hole is outside.
-        let w_hole = exact::winding_number(Vec3::ZERO, &tris(&torus(1.0, 0.3, 32, 16)));
+        let w_hole = exact::winding_number(glam::DVec3::ZERO, &tris(&torus(1.0, 0.3, 32, 16)));
         assert!(w_hole.abs() < 1e-6);
     }
 
     #[test]
     fn bowl_is_open_and_soup_overlaps() {
         let bowl = tris(&open_bowl(1.0, 32, 8));
-        let w = exact::winding_number(Vec3::new(0.0, -0.5, 0.0), &bowl);
+        let w = exact::winding_number(glam::DVec3::new(0.0, -0.5, 0.0), &bowl);
         assert!(w > 0.5 && w < 0.99, "inside the bowl, below the rim: {w}");
         let soup = tris(&intersecting_soup());
         // Inside two shells at once: winding number 2.
-        let w2 = exact::winding_number(Vec3::new(0.3, 0.1, 0.0), &soup);
+        let w2 = exact::winding_number(glam::DVec3::new(0.3, 0.1, 0.0), &soup);
         assert!((w2 - 2.0).abs() < 1e-6, "{w2}");
     }
 

@@ -37,7 +37,8 @@ fn accuracy(
     let mut errors = Vec::with_capacity(cells.len());
     let mut acc = Accuracy::default();
     for c in cells {
-        let p = volume.position(c.x, c.y, c.z);
+        // Validated triangles are relative to the mesh's origin.
+        let p = volume.position(c.x, c.y, c.z) - mesh.origin;
         let v = volume.get(c.x, c.y, c.z) as f64;
         let d = exact::distance(p, &tris);
         errors.push((v.abs() - d).abs() / h);
@@ -184,6 +185,7 @@ fn thin_features_keep_a_negative_sample() {
             .map(|(x, z)| tilt * Vec3::new(x, 0.0, z))
             .to_vec(),
         triangles: vec![[0, 2, 1], [0, 3, 2]],
+        ..Default::default()
     };
     let mut plate = shapes::thin_plate(1.0, 1.0, 0.004);
     for p in &mut plate.positions {
@@ -201,7 +203,9 @@ fn thin_features_keep_a_negative_sample() {
         for t in &tris {
             for (u, w) in [(0.2, 0.3), (0.5, 0.25), (0.1, 0.8)] {
                 let s = t[0] + (t[1] - t[0]) * u + (t[2] - t[0]) * w;
-                let g = ((s - v.origin) / v.voxel_size).floor().as_uvec3();
+                let g = ((s.as_dvec3() - v.origin) / v.voxel_size as f64)
+                    .floor()
+                    .as_uvec3();
                 let inside = (0..8u32)
                     .any(|c| v.get(g.x + (c & 1), g.y + ((c >> 1) & 1), g.z + (c >> 2)) <= 0.0);
                 assert!(inside, "{name}: no negative sample around {s}");
@@ -242,7 +246,7 @@ fn hierarchical_signs_match_direct_winding_numbers_everywhere() {
             for j in 0..v.dims.y {
                 for i in 0..v.dims.x {
                     let d = v.get(i, j, k);
-                    let w = bvh.winding_number(v.position(i, j, k));
+                    let w = bvh.winding_number((v.position(i, j, k) - mesh.origin).as_vec3());
                     if d != 0.0 && (w - 0.5).abs() > 0.3 {
                         checked += 1;
                         wrong += usize::from((d < 0.0) != (w > 0.5));

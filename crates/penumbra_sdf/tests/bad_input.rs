@@ -25,6 +25,7 @@ fn bad_meshes_and_settings_are_errors() {
             TriMesh {
                 positions: vec![Vec3::ZERO, Vec3::X, Vec3::NAN],
                 triangles: vec![[0, 1, 2]],
+                ..Default::default()
             },
             settings(16),
             |e| matches!(e, BakeError::Mesh(MeshError::NonFinitePosition { .. })),
@@ -34,6 +35,7 @@ fn bad_meshes_and_settings_are_errors() {
             TriMesh {
                 positions: tri.clone(),
                 triangles: vec![[0, 1, 3]],
+                ..Default::default()
             },
             settings(16),
             |e| matches!(e, BakeError::Mesh(MeshError::IndexOutOfRange { .. })),
@@ -43,6 +45,7 @@ fn bad_meshes_and_settings_are_errors() {
             TriMesh {
                 positions: tri.clone(),
                 triangles: vec![[0, 0, 1]],
+                ..Default::default()
             },
             settings(16),
             |e| *e == BakeError::Mesh(MeshError::AllTrianglesDegenerate),
@@ -91,6 +94,7 @@ fn flat_and_partly_degenerate_meshes_bake() {
     let mesh = TriMesh {
         positions: vec![Vec3::ZERO, Vec3::X, Vec3::Z, Vec3::X * 2.0],
         triangles: vec![[0, 2, 1], [0, 1, 3]],
+        ..Default::default()
     };
     let baked = bake(&mesh, &settings(16), None).unwrap();
     assert_eq!(baked.mesh.degenerate_dropped, 1);
@@ -167,7 +171,17 @@ fn bad_gltf_files_are_errors() {
     let (m, report) = load_gltf(good.as_bytes(), None, &GltfSelection::Scene).unwrap();
     assert_eq!((m.triangles.len(), report.primitives), (1, 1));
     let (m, _) = load_gltf(good.as_bytes(), None, &GltfSelection::Mesh("tri".into())).unwrap();
-    assert_eq!(m.positions[1], Vec3::X);
+    assert_eq!(m.origin + m.positions[1].as_dvec3(), glam::DVec3::X);
+    // Node graphs that are not forests: a cycle (which never ended before) and a node
+    // with two parents.
+    let with_nodes = |nodes: &str| good.replace(r#""nodes":[{"mesh":0}]"#, nodes);
+    let cycle = with_nodes(r#""nodes":[{"children":[1]},{"mesh":0,"children":[0]}]"#);
+    let shared = with_nodes(r#""nodes":[{"children":[2]},{"children":[2]},{"mesh":0}]"#).replace(
+        r#""scenes":[{"nodes":[0]}]"#,
+        r#""scenes":[{"nodes":[0,1]}]"#,
+    );
+    assert_ne!(cycle, good);
+    assert_ne!(shared, good);
     // Bad ones.
     let cases: Vec<(&str, String)> = vec![
         ("garbage", "not json at all".into()),
@@ -179,6 +193,8 @@ fn bad_gltf_files_are_errors() {
         ),
         ("missing file", tetra_json("nope.bin", 36)),
         ("remote", tetra_json("https://example.invalid/x.bin", 36)),
+        ("cycle", cycle),
+        ("two parents", shared),
     ];
     for (name, text) in cases {
         let r = load_gltf(

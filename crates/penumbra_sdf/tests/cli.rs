@@ -43,7 +43,7 @@ fn bakes_obj_to_psdf_and_npy_with_sidecar() {
     assert_eq!(v.dims.to_array(), [20, 20, 20]);
     // A sample near the centre: inside, at its exact distance to the nearest face.
     let p = v.position(9, 9, 9);
-    let expected = -(1.0 - p.abs().max_element());
+    let expected = -(1.0 - p.abs().max_element()) as f32;
     assert!(
         (v.get(9, 9, 9) - expected).abs() < 1e-3,
         "{} vs {expected}",
@@ -63,6 +63,8 @@ fn bad_arguments_and_files_fail_clearly() {
     std::fs::write(&broken, "v 0 0 0\nf 1 2 3\n").unwrap();
     let empty = dir.join("empty.obj");
     std::fs::write(&empty, "# nothing\n").unwrap();
+    let cube = dir.join("cube.obj");
+    std::fs::write(&cube, CUBE_OBJ).unwrap();
     let cases: Vec<(Vec<String>, i32, &str)> = vec![
         (vec![], 2, "usage"),
         (
@@ -103,14 +105,15 @@ fn bad_arguments_and_files_fail_clearly() {
             1,
             "unknown mesh format",
         ),
+        // A real mesh, so that the grid's size guard (not the empty-mesh check) answers.
         (
             vec![
-                empty.display().to_string(),
+                cube.display().to_string(),
                 "--resolution".into(),
                 "100000".into(),
             ],
             1,
-            "no triangles",
+            "exceeds the limit",
         ),
     ];
     for (args, code, needle) in cases {

@@ -567,11 +567,11 @@ mod tests {
                 .unwrap()
                 .distance_squared
                 .sqrt();
-            let want = exact::distance(p, &tris);
+            let want = exact::distance(p.as_dvec3(), &tris);
             assert!((got as f64 - want).abs() <= 1e-5, "{p}: {got} vs {want}");
             let w = capped.winding_number(p) as f64;
             assert!(
-                (w - exact::winding_number(p, &tris)).abs() < 0.05,
+                (w - exact::winding_number(p.as_dvec3(), &tris)).abs() < 0.05,
                 "{p}: {w}"
             );
         }
@@ -680,7 +680,7 @@ mod tests {
                     .unwrap()
                     .distance_squared
                     .sqrt() as f64;
-                let want = exact::distance(p, &tris);
+                let want = exact::distance(p.as_dvec3(), &tris);
                 assert!(
                     (got - want).abs() <= 2e-6 * (1.0 + want) + 1e-6 * want.max(1e-3),
                     "{name} {p}: {got} vs {want}"

@@ -837,7 +837,7 @@ mod tests {
                 let r = 0.05 + 2.5 * ((k * 37) % 100) as f32 / 100.0;
                 let p = glam::Vec3::new(a.cos() * r, (a * 1.7).sin() * r * 0.8, a.sin() * r);
                 let w = bvh.winding_number(p) as f64;
-                worst = worst.max((w - crate::exact::winding_number(p, &tris)).abs());
+                worst = worst.max((w - crate::exact::winding_number(p.as_dvec3(), &tris)).abs());
             }
             assert!(worst < 0.1, "{name}: {worst}");
         }
