@@ -32,8 +32,22 @@ fn sample_volume(atlas: texture_3d<f32>, origin: vec3<u32>, dims: vec3<u32>, c: 
     return y0 + (y1 - y0) * f.z;
 }
 
-// Conservative world distance (metres) from camera-relative point `p` to `o`.
-// Outside an SDF volume's box: the clamped sample plus the distance to the box.
+// The distance (voxels) at grid coordinates `q` of a volume: trilinear inside its box;
+// outside, ±√(e² + s²) with `e` the distance to the box and `s` the sample at the box's
+// nearest point — a lower bound of the true distance, since every surface point lies in
+// the (convex) box: |q − x|² ≥ e² + |c − x|². (s + e, Unreal's, is an upper bound and
+// lets a step jump past a surface lying obliquely inside the box.) CPU reference:
+// `penumbra_sdf::volume::outside_bound_voxels`.
+fn volume_distance(atlas: texture_3d<f32>, origin: vec3<u32>, dims: vec3<u32>, q: vec3<f32>) -> f32 {
+    let c = clamp(q, vec3<f32>(0.0), vec3<f32>(dims - vec3<u32>(1u)));
+    let s = sample_volume(atlas, origin, dims, c);
+    let e2 = dot(q - c, q - c);
+    let r = sqrt(e2 + s * s);
+    return select(select(r, -r, s < 0.0), s, e2 == 0.0);
+}
+
+// Conservative world distance (metres) from camera-relative point `p` to `o`. Volumes'
+// texels hold distances in voxels (`f.z` local units each).
 fn object_distance(
     o: DistanceFieldObject,
     p: vec3<f32>,
@@ -48,9 +62,7 @@ fn object_distance(
     switch object_kind(o) {
         case KIND_VOLUME: {
             let dims = unpack_10_10_12(o.params.y) + vec3<u32>(1u);
-            let c = clamp(q, vec3<f32>(0.0), vec3<f32>(dims - vec3<u32>(1u)));
-            let outside = length(q - c);
-            d = sample_volume(atlas, unpack_10_10_12(o.params.x), dims, c) + outside * f.z;
+            d = volume_distance(atlas, unpack_10_10_12(o.params.x), dims, q) * f.z;
         }
         case KIND_SPHERE: {
             d = length(q) - f.x;

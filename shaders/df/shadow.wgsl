@@ -10,12 +10,13 @@
 #define_import_path penumbra::df::shadow
 
 #import penumbra::df::object::{
-    DistanceFieldObject, FLAG_CASTS_SHADOWS, FLAG_LIVE, KIND_CAPSULE, KIND_SPHERE,
+    DistanceFieldObject, FLAG_CASTS_SHADOWS, FLAG_CAST_HIDDEN_SHADOW, FLAG_LIVE, FLAG_VISIBLE,
+    KIND_CAPSULE, KIND_SPHERE,
     camera_relative, object_kind, rows_column, shape_bounds, transform_rows,
 }
 #import penumbra::df::distance::object_distance
 
-// A light as the shadow passes see it (48 bytes; `penumbra_reference::shadow_mask::MaskLight`).
+// A light as the shadow passes see it (64 bytes; `penumbra_reference::shadow_mask::MaskLight`).
 struct ShadowLight {
     // xyz: unit vector toward the light (directional) or camera-relative position
     // (point, spot); w: 0 directional, 1 positional.
@@ -35,6 +36,9 @@ struct ShadowLight {
     // (visibility 1); the light cull drops casters that could shadow only those.
     max_view_distance: f32,
     reserved: u32,
+    // Spot lights: xyz the unit direction the spot points, w the cosine of its outer
+    // angle (w < −1: no cone).
+    spot: vec4<f32>,
 }
 
 struct ShadowRay {
@@ -236,13 +240,35 @@ fn horizon_visibility(n: vec3<f32>, dir: vec3<f32>, tan_half: f32) -> f32 {
     return select(1.0, clamp(h, 0.0, 1.0), h >= 0.0);
 }
 
+// Whether a point or spot light reaches camera-relative `p` at all: within its range
+// and, for a spot, inside its outer cone (elsewhere Bevy's attenuation is exactly 0: the
+// pixel is not traced). A 1e-4 slack keeps rounding from skipping a lit pixel; NaN
+// traces. CPU model: `shadow_mask::light_reaches`.
+fn light_reaches(light: ShadowLight, p: vec3<f32>) -> bool {
+    if is_directional(light) {
+        return true;
+    }
+    let v = p - light.position_or_direction.xyz;
+    let d2 = dot(v, v);
+    let reach = light.range * (1.0 + 1e-4);
+    if d2 > reach * reach {
+        return false;
+    }
+    if light.spot.w >= -1.0 {
+        return !(dot(v, light.spot.xyz) < (light.spot.w - 1e-4) * sqrt(d2));
+    }
+    return true;
+}
+
 // Shaping and clamping; never NaN.
 fn finish_visibility(v: f32, shaping: f32) -> f32 {
     let x = min(pow(clamp(v, 0.0, 1.0), shaping), 1.0);
     return select(1.0, x, x >= 0.0);
 }
 
-// Whether an object takes part in shadows at all.
+// Whether an object takes part in shadows at all: live, casting, and visible (Bevy hides
+// a hidden mesh's shadow) or a hidden-shadow proxy. CPU model: `flags::casts_shadows`.
 fn casts_shadows(o: DistanceFieldObject) -> bool {
-    return (o.flags & FLAG_LIVE) != 0u && (o.flags & FLAG_CASTS_SHADOWS) != 0u;
+    return (o.flags & FLAG_LIVE) != 0u && (o.flags & FLAG_CASTS_SHADOWS) != 0u
+        && (o.flags & (FLAG_VISIBLE | FLAG_CAST_HIDDEN_SHADOW)) != 0u;
 }

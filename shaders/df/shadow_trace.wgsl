@@ -9,8 +9,8 @@
 #import penumbra::df::object::DistanceFieldObject
 #import penumbra::df::shadow::{
     ShadowLight, bounding_sphere, casts_shadows, cull_slack, finish_visibility, gbuffer_normal,
-    horizon_visibility, is_directional, march_object, object_in_cone, round_cone_distance,
-    shadow_ray,
+    horizon_visibility, is_directional, light_reaches, march_object, object_in_cone,
+    round_cone_distance, shadow_ray,
 }
 #import penumbra::df::shadow_grid::{
     GRID_SIZE, MAX_CELLS, ShadowGridRead, ShadowGridView, cell_range, from_order_key,
@@ -101,9 +101,12 @@ fn trace(
     var p = vec3<f32>(0.0);
     if surface {
         p = position_from_depth(pixel, depth);
-        // Beyond a directional light's max view distance: not traced (lit).
-        surface = !is_directional(light)
-            || dot(p, p) <= light.max_view_distance * light.max_view_distance;
+        // Beyond a directional light's max view distance, or beyond a point or spot
+        // light's range or cone: not traced (lit). A tile with no traced pixel gathers
+        // no caster at all.
+        surface = (!is_directional(light)
+            || dot(p, p) <= light.max_view_distance * light.max_view_distance)
+            && light_reaches(light, p);
     }
     let ray = shadow_ray(p, light);
     // The surface's own shadow, from its G-buffer normal; where it hides the whole light,

@@ -177,6 +177,7 @@ fn check(light: Light, name: &str) {
         range: 20.0,
         max_steps: s.max_steps,
         max_view_distance: s.max_view_distance,
+        spot: None,
     };
     let view = PerspectiveCamera::looking_at(EYE, TARGET, std::f32::consts::FRAC_PI_4, SIZE, SIZE);
     // The first surface along a pixel's ray: `Some(point)` if it is the ground, away

@@ -48,25 +48,24 @@ fn stats(app: &App) -> DistanceFieldUploadStats {
 
 /// A synthetic SDF of `n³` samples (a sphere), 1 cm voxels.
 fn volume(n: u32) -> SdfVolumeAsset {
-    let c = (n - 1) as f32 * 0.5;
-    let data = (0..n * n * n)
-        .map(|i| {
-            let p = Vec3::new((i % n) as f32, ((i / n) % n) as f32, (i / (n * n)) as f32);
-            half_bits((p - Vec3::splat(c)).length() * 0.01 - c * 0.008)
-        })
-        .collect();
-    SdfVolumeAsset {
-        volume: SdfVolume {
-            dims: UVec3::splat(n),
-            origin: Vec3::splat(-c * 0.01),
-            voxel_size: 0.01,
-            data,
-        },
-    }
+    volume_of(UVec3::splat(n))
 }
 
-fn half_bits(x: f32) -> penumbra_sdf::volume::f16 {
-    penumbra_sdf::volume::f16::from_f32(x)
+/// A synthetic SDF of `dims` samples (an ellipsoid-ish blob), 1 cm voxels.
+fn volume_of(dims: UVec3) -> SdfVolumeAsset {
+    let c = (dims - UVec3::ONE).as_vec3() * 0.5;
+    let r = c.min_element() * 0.8;
+    let distances = (0..dims.element_product()).map(|i| {
+        let p = Vec3::new(
+            (i % dims.x) as f32,
+            ((i / dims.x) % dims.y) as f32,
+            (i / (dims.x * dims.y)) as f32,
+        );
+        ((p - c).length() - r) * 0.01
+    });
+    SdfVolumeAsset {
+        volume: SdfVolume::from_distances(dims, -c.as_dvec3() * 0.01, 0.01, distances),
+    }
 }
 
 #[test]
@@ -117,6 +116,7 @@ fn over_budget_volumes_fall_back_then_skip() {
     // The smallest atlas: 32×32×8 texels.
     let mut app = app(DistanceFieldSceneSettings {
         atlas_budget_bytes: 32 * 32 * 8 * 2,
+        ..default()
     });
     let (small, big, huge) = {
         let mut sdfs = app.world_mut().resource_mut::<Assets<SdfVolumeAsset>>();
@@ -167,6 +167,94 @@ fn over_budget_volumes_fall_back_then_skip() {
             .slot(d)
             .is_some()
     );
+}
+
+/// A caster whose SDF fits nowhere is placed once atlas space is freed (before, it was
+/// skipped for good).
+#[test]
+fn unplaceable_volumes_are_retried_when_space_frees() {
+    let mut app = app(DistanceFieldSceneSettings {
+        atlas_budget_bytes: 32 * 32 * 8 * 2,
+        ..default()
+    });
+    // Each fills the whole 32×32×8 atlas; the second fits nowhere, even at a quarter.
+    let (first, second) = {
+        let mut sdfs = app.world_mut().resource_mut::<Assets<SdfVolumeAsset>>();
+        let dims = UVec3::new(32, 32, 8);
+        (sdfs.add(volume_of(dims)), sdfs.add(volume_of(dims)))
+    };
+    let spawn = |app: &mut App, h: &Handle<SdfVolumeAsset>| {
+        app.world_mut()
+            .spawn(DistanceFieldCaster {
+                source: CasterSource::Sdf(h.clone()),
+                ..default()
+            })
+            .id()
+    };
+    let a = spawn(&mut app, &first);
+    let b = spawn(&mut app, &second);
+    app.update();
+    let slot = |app: &App, e: Entity| app.world().resource::<DistanceFieldScene>().slot(e);
+    // Casters are placed in entity order: one of them got the atlas.
+    let (a, b) = if slot(&app, a).is_some() {
+        (a, b)
+    } else {
+        (b, a)
+    };
+    assert!(slot(&app, a).is_some() && slot(&app, b).is_none());
+    assert_eq!(stats(&app).atlas_skipped, 1);
+    app.world_mut().despawn(a);
+    app.update();
+    app.update();
+    assert!(slot(&app, b).is_some(), "placed once the atlas had room");
+    let s = stats(&app);
+    assert_eq!(
+        (s.objects, s.atlas_volumes, s.atlas_skipped),
+        (1, 1, 0),
+        "{s:?}"
+    );
+}
+
+/// The object buffer's cap (here 10; the device's storage-binding limit in practice):
+/// casters beyond it are skipped and counted, the first ones in entity order keep their
+/// slots, and waiting ones join, in entity order, as slots free up.
+#[test]
+fn casters_beyond_the_cap_wait_for_a_slot() {
+    let mut app = app(DistanceFieldSceneSettings {
+        max_casters: 10,
+        ..default()
+    });
+    let ids: Vec<Entity> = (0..15)
+        .map(|i| {
+            app.world_mut()
+                .spawn((
+                    DistanceFieldCaster {
+                        source: CasterSource::Sphere { radius: 0.2 },
+                        ..default()
+                    },
+                    Transform::from_xyz(i as f32, 0.0, 0.0),
+                ))
+                .id()
+        })
+        .collect();
+    app.update();
+    // Entity order (`Entity: Ord`), not necessarily spawn order.
+    let mut ids = ids;
+    ids.sort_unstable();
+    let present = |app: &App| -> Vec<bool> {
+        let scene = app.world().resource::<DistanceFieldScene>();
+        ids.iter().map(|&e| scene.slot(e).is_some()).collect()
+    };
+    let want: Vec<bool> = (0..15).map(|i| i < 10).collect();
+    assert_eq!(present(&app), want);
+    assert_eq!((stats(&app).objects, stats(&app).over_cap), (10, 5));
+    for &e in &ids[..3] {
+        app.world_mut().despawn(e);
+    }
+    app.update();
+    let want: Vec<bool> = (0..15).map(|i| (3..13).contains(&i)).collect();
+    assert_eq!(present(&app), want);
+    assert_eq!((stats(&app).objects, stats(&app).over_cap), (10, 2));
 }
 
 #[test]

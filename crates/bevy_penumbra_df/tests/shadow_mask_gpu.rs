@@ -94,7 +94,7 @@ fn scene(offset: Vec3) -> Scene {
                     origin: UVec3::ZERO,
                     dims,
                 },
-                local_origin: torus.origin,
+                local_origin: torus.origin.as_vec3(),
                 voxel_size: torus.voxel_size,
             },
             flags: live,
@@ -639,6 +639,7 @@ fn lights(offset: Vec3, eye: Vec3) -> [(&'static str, ShadowLight); 3] {
         range: 20.0,
         max_steps: 64,
         max_view_distance: f32::INFINITY,
+        spot: None,
     };
     [
         ("sun 6°", base),
@@ -656,6 +657,7 @@ fn lights(offset: Vec3, eye: Vec3) -> [(&'static str, ShadowLight); 3] {
             "sun 6°, max view distance 4.3 m",
             ShadowLight {
                 max_view_distance: 4.3,
+                spot: None,
                 ..base
             },
         ),

@@ -10,7 +10,10 @@
 //!
 //! Limits: no defragmentation (a long-running scene with heavy churn of differently
 //! sized assets can fragment; a full atlas is reported, never silently overwritten), and
-//! a volume larger than the atlas along any axis cannot be placed.
+//! a volume larger than the atlas along any axis cannot be placed. The atlas is at most
+//! [`MAX_ATLAS_SIZE`] (1024 × 1024 × 4096 voxels, 8 GiB): object records address it
+//! with 10/10/12-bit coordinates ([`crate::object::pack_10_10_12`]), so a larger budget
+//! or device limit is capped there.
 
 use glam::UVec3;
 
@@ -19,6 +22,9 @@ pub const BLOCK: u32 = 8;
 
 /// Bytes per atlas voxel (`R16Float`).
 pub const BYTES_PER_VOXEL: u64 = 2;
+
+/// The largest atlas object records can address (10/10/12-bit voxel coordinates).
+pub const MAX_ATLAS_SIZE: UVec3 = UVec3::new(1024, 1024, 4096);
 
 /// A placed volume.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -102,10 +108,10 @@ impl AtlasAllocator {
     /// The smallest budget [`AtlasAllocator::for_budget`] accepts: one 32×32×8 slab.
     pub const MIN_BUDGET: u64 = 32 * 32 * 8 * BYTES_PER_VOXEL;
 
-    /// An empty atlas of `size` voxels, each axis rounded down to a multiple of
-    /// [`BLOCK`] (at least one block).
+    /// An empty atlas of `size` voxels, each axis capped at [`MAX_ATLAS_SIZE`] and
+    /// rounded down to a multiple of [`BLOCK`] (at least one block).
     pub fn new(size: UVec3) -> AtlasAllocator {
-        let blocks = (size / BLOCK).max(UVec3::ONE);
+        let blocks = (size.min(MAX_ATLAS_SIZE) / BLOCK).max(UVec3::ONE);
         AtlasAllocator {
             size: blocks * BLOCK,
             blocks,
@@ -115,24 +121,27 @@ impl AtlasAllocator {
     }
 
     /// The largest atlas within `budget_bytes`, no side longer than `max_dimension`
-    /// (the device's 3D texture limit): x and y of 256 voxels (fewer for tiny budgets,
-    /// 512 once z would pass `max_dimension`), z as deep as the budget allows.
+    /// (the device's 3D texture limit) nor [`MAX_ATLAS_SIZE`]: x and y of 256 voxels
+    /// (fewer for tiny budgets, doubled while z would pass its limit), z as deep as the
+    /// budget allows. A budget beyond the limits gets the largest atlas they allow.
     pub fn for_budget(budget_bytes: u64, max_dimension: u32) -> Result<Self, AtlasError> {
         if budget_bytes < Self::MIN_BUDGET {
             return Err(AtlasError::BudgetTooSmall { budget_bytes });
         }
         let max_dimension = (max_dimension / BLOCK * BLOCK).max(BLOCK);
+        let max_side = max_dimension.min(MAX_ATLAS_SIZE.x);
+        let max_depth = max_dimension.min(MAX_ATLAS_SIZE.z) as u64;
         let voxels = budget_bytes / BYTES_PER_VOXEL;
-        let mut side = 256.min(max_dimension);
+        let mut side = 256.min(max_side);
         while side > 32 && (side as u64 * side as u64 * BLOCK as u64) > voxels {
             side /= 2;
         }
         let depth_for =
             |side: u32| voxels / (side as u64 * side as u64) / BLOCK as u64 * BLOCK as u64;
-        if depth_for(side) > max_dimension as u64 && side * 2 <= max_dimension {
+        while depth_for(side) > max_depth && side * 2 <= max_side {
             side *= 2;
         }
-        let depth = depth_for(side).clamp(BLOCK as u64, max_dimension as u64) as u32;
+        let depth = depth_for(side).clamp(BLOCK as u64, max_depth) as u32;
         Ok(Self::new(UVec3::new(side, side, depth)))
     }
 
@@ -291,6 +300,46 @@ mod tests {
             AtlasAllocator::for_budget(100, 2048),
             Err(AtlasError::BudgetTooSmall { .. })
         ));
+    }
+
+    /// Budgets above 512 MiB on devices with large 3D textures (16384 on many GPUs):
+    /// the atlas stays addressable by the records' 10/10/12-bit coordinates, so a
+    /// region in its last block encodes and round-trips. Before the cap a 1 GiB budget
+    /// gave a 256 × 256 × 8192 atlas whose upper half wrapped to z − 4096 in release
+    /// builds.
+    #[test]
+    fn large_budgets_stay_addressable() {
+        use crate::object::{CasterShape, ObjectDesc, encode, flags, unpack_10_10_12};
+        for budget in [600u64 << 20, 1 << 30, 4 << 30, 64 << 30] {
+            for max in [2048, 8192, 16384] {
+                let a = AtlasAllocator::for_budget(budget, max).unwrap();
+                let size = a.size();
+                assert!(size.cmple(MAX_ATLAS_SIZE).all(), "{budget} {max}: {size}");
+                assert!(size.max_element() <= max, "{budget} {max}: {size}");
+                assert!(a.bytes() <= budget, "{budget} {max}: {size}");
+                // At least half the budget, or the largest atlas the limits allow.
+                let largest = MAX_ATLAS_SIZE.min(UVec3::splat(max)).as_u64vec3();
+                let cap = largest.element_product() * BYTES_PER_VOXEL;
+                assert!(a.bytes() * 2 >= budget.min(cap), "{budget} {max}: {size}");
+                let region = AtlasRegion {
+                    origin: size - UVec3::splat(BLOCK),
+                    dims: UVec3::splat(BLOCK),
+                };
+                let record = encode(&ObjectDesc {
+                    world_from_local: glam::Affine3A::IDENTITY,
+                    shape: CasterShape::Volume {
+                        region,
+                        local_origin: glam::Vec3::ZERO,
+                        voxel_size: 0.01,
+                    },
+                    flags: flags::VISIBLE,
+                })
+                .unwrap();
+                let [origin, dims, _] = record.params();
+                assert_eq!(unpack_10_10_12(origin), region.origin, "{budget} {max}");
+                assert_eq!(unpack_10_10_12(dims) + UVec3::ONE, region.dims);
+            }
+        }
     }
 
     #[test]

@@ -38,14 +38,27 @@ pub mod flags {
     pub const CASTS_SHADOWS: u32 = 1 << 0;
     /// The caster occludes distance-field ambient occlusion.
     pub const CASTS_OCCLUSION: u32 = 1 << 1;
-    /// Two-sided (foliage): its distances are a shell; it never fully occludes.
+    /// Two-sided (foliage): baked as a shell around every surface (`SignMethod::
+    /// TWO_SIDED`), so thin and open surfaces are solid about a voxel thick. Passes
+    /// treat it as any other caster (it occludes fully); informational.
     pub const TWO_SIDED: u32 = 1 << 2;
-    /// Visible (`Visibility` resolved to visible); invisible records are culled.
+    /// Visible (`Visibility` resolved to visible). Invisible records are culled from
+    /// views and cast no shadow (as Bevy hides a hidden mesh's shadow), unless
+    /// [`CAST_HIDDEN_SHADOW`] is set.
     pub const VISIBLE: u32 = 1 << 3;
     /// Unbounded (planes): never frustum-culled.
     pub const UNBOUNDED: u32 = 1 << 4;
     /// The slot holds a live object (cleared in freed slots).
     pub const LIVE: u32 = 1 << 5;
+    /// Casts its shadow while invisible (a shadow proxy; Unreal's "Cast Hidden Shadow").
+    pub const CAST_HIDDEN_SHADOW: u32 = 1 << 6;
+
+    /// Whether a record with flags `f` shadows distance-field-shadowed lights: live,
+    /// [`CASTS_SHADOWS`], and visible or [`CAST_HIDDEN_SHADOW`]
+    /// (`casts_shadows` in `shaders/df/shadow.wgsl`).
+    pub const fn casts_shadows(f: u32) -> bool {
+        f & LIVE != 0 && f & CASTS_SHADOWS != 0 && f & (VISIBLE | CAST_HIDDEN_SHADOW) != 0
+    }
     /// Shift of the shape kind ([`super::ShapeKind`]).
     pub const KIND_SHIFT: u32 = 8;
     /// Mask of the shape kind after shifting.
@@ -157,6 +170,9 @@ pub enum ObjectError {
     BadShape,
     /// The position is beyond ±2³¹ tiles.
     TooFar,
+    /// An atlas region beyond the records' 10/10/12-bit coordinates (see
+    /// [`crate::atlas::MAX_ATLAS_SIZE`]).
+    AtlasRegionOutOfRange,
 }
 
 impl std::fmt::Display for ObjectError {
@@ -166,6 +182,9 @@ impl std::fmt::Display for ObjectError {
             ObjectError::SingularTransform => "transform is singular (zero scale)",
             ObjectError::BadShape => "shape parameters are negative or not finite",
             ObjectError::TooFar => "position is too far from the origin",
+            ObjectError::AtlasRegionOutOfRange => {
+                "atlas region is beyond the records' 10/10/12-bit coordinates"
+            }
         })
     }
 }
@@ -283,10 +302,9 @@ impl ObjectRecord {
     }
 }
 
-/// Packs three values into 10/10/12 bits (x lowest).
-pub fn pack_10_10_12(v: UVec3) -> u32 {
-    debug_assert!(v.x < 1024 && v.y < 1024 && v.z < 4096, "{v}");
-    (v.x & 0x3ff) | ((v.y & 0x3ff) << 10) | ((v.z & 0xfff) << 20)
+/// Packs three values into 10/10/12 bits (x lowest); `None` when one does not fit.
+pub fn pack_10_10_12(v: UVec3) -> Option<u32> {
+    (v.x < 1024 && v.y < 1024 && v.z < 4096).then_some(v.x | (v.y << 10) | (v.z << 20))
 }
 
 /// Inverse of [`pack_10_10_12`].
@@ -369,8 +387,9 @@ pub fn encode(desc: &ObjectDesc) -> Result<ObjectRecord, ObjectError> {
                     local_origin,
                 ),
                 [
-                    pack_10_10_12(region.origin),
-                    pack_10_10_12(region.dims - UVec3::ONE),
+                    pack_10_10_12(region.origin).ok_or(ObjectError::AtlasRegionOutOfRange)?,
+                    pack_10_10_12(region.dims.saturating_sub(UVec3::ONE))
+                        .ok_or(ObjectError::AtlasRegionOutOfRange)?,
                     voxel_size.to_bits(),
                 ],
                 scale,
@@ -534,6 +553,15 @@ mod tests {
         };
         let mut far = ok;
         far.world_from_local.translation.x = 1e38;
+        let mut unaddressable = ok;
+        unaddressable.shape = CasterShape::Volume {
+            region: AtlasRegion {
+                origin: UVec3::new(0, 0, 4096),
+                dims: UVec3::splat(8),
+            },
+            local_origin: Vec3::ZERO,
+            voxel_size: 0.1,
+        };
         for (name, desc, want) in [
             ("nan", nan, ObjectError::NonFiniteTransform),
             ("singular", singular, ObjectError::SingularTransform),
@@ -542,6 +570,7 @@ mod tests {
             ("box", inf_box, ObjectError::BadShape),
             ("voxel", bad_voxel, ObjectError::BadShape),
             ("far", far, ObjectError::TooFar),
+            ("atlas z", unaddressable, ObjectError::AtlasRegionOutOfRange),
         ] {
             assert_eq!(encode(&desc), Err(want), "{name}");
         }
@@ -554,7 +583,14 @@ mod tests {
             UVec3::new(1023, 1023, 4095),
             UVec3::new(8, 512, 2040),
         ] {
-            assert_eq!(unpack_10_10_12(pack_10_10_12(v)), v);
+            assert_eq!(pack_10_10_12(v).map(unpack_10_10_12), Some(v));
+        }
+        for v in [
+            UVec3::new(1024, 0, 0),
+            UVec3::new(0, 1024, 0),
+            UVec3::new(0, 0, 4096),
+        ] {
+            assert_eq!(pack_10_10_12(v), None, "{v}");
         }
     }
 }

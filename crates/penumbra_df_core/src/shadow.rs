@@ -8,7 +8,7 @@ use crate::cull::CameraOrigin;
 use glam::{Mat3, Mat4, UVec2, Vec3};
 
 /// Bytes of the `ShadowLight` uniform.
-pub const SHADOW_LIGHT_BYTES: usize = 48;
+pub const SHADOW_LIGHT_BYTES: usize = 64;
 /// Bytes of the `ShadowGridView` uniform (`shaders/df/shadow_grid.wgsl`).
 pub const SHADOW_GRID_VIEW_BYTES: usize = 64;
 /// Bytes of the `ShadowGrid` storage buffer: bounds, large count, item count, height,
@@ -51,16 +51,22 @@ pub struct ShadowLight {
     /// Unused for point and spot lights (their range bounds them). Encoded as
     /// `max(0)`: NaN traces nothing.
     pub max_view_distance: f32,
+    /// Spot lights: the unit direction the spot points (world axes) and the cosine of
+    /// its outer angle. Pixels outside the cone (and, for point and spot lights, beyond
+    /// `range`) receive none of the light and are not traced. `None`: no cone.
+    pub spot: Option<(Vec3, f32)>,
 }
 
 impl ShadowLight {
-    /// The uniform's 12 words.
+    /// The uniform's 16 words.
     pub fn to_words(&self) -> [u32; SHADOW_LIGHT_BYTES / 4] {
         let (v, w) = match self.kind {
             ShadowLightKind::Directional(d) => (d, 0.0),
             ShadowLightKind::Positional(p) => (p, 1.0),
         };
         let f = f32::to_bits;
+        // No cone: a cosine below −1 keeps every direction.
+        let (spot, cos_outer) = self.spot.unwrap_or((Vec3::ZERO, -2.0));
         [
             f(v.x),
             f(v.y),
@@ -74,6 +80,10 @@ impl ShadowLight {
             self.max_steps,
             f(self.max_view_distance.max(0.0)),
             0,
+            f(spot.x),
+            f(spot.y),
+            f(spot.z),
+            f(cos_outer),
         ]
     }
 }

@@ -172,6 +172,7 @@ fn bunny() -> Option<Scene> {
         .map_err(|e| eprintln!("SKIPPED the bunny scene: {}: {e}", path.display()))
         .ok()?;
     let mut mesh = obj::parse_obj(&text).ok()?;
+    mesh.origin = glam::DVec3::ZERO; // the file's centred frame (positions are re-placed below)
     let mut b = Aabb::EMPTY;
     mesh.positions.iter().for_each(|&p| b.grow(p));
     // A 1 m bunny standing on y = 0, centred: the mesh a game would have.
@@ -304,7 +305,7 @@ fn records(scene: &Scene, resolution: u32) -> (Vec<ObjectRecord>, Atlas) {
                         origin,
                         dims: v.dims,
                     },
-                    local_origin: v.origin,
+                    local_origin: v.origin.as_vec3(),
                     voxel_size: v.voxel_size,
                 },
                 flags: live,
@@ -349,6 +350,7 @@ fn model_light(scene: &Scene, camera: &CameraOrigin, c: Config) -> ShadowLight {
         range: 30.0,
         max_steps: c.steps,
         max_view_distance: f32::INFINITY,
+        spot: None,
     }
 }
 

@@ -153,6 +153,9 @@ pub fn pixel_visibility_counted(
             return (1.0, 0);
         }
     }
+    if !light_reaches(light, p) {
+        return (1.0, 0);
+    }
     let (dir, t_max, tan_half) = shadow_ray(p, light);
     // The surface's own shadow; where it hides the whole light, no march.
     let own = horizon(normal, dir, tan_half);
@@ -163,8 +166,7 @@ pub fn pixel_visibility_counted(
     let end_radius = t_max * tan_half;
     let mut visibility = 1.0f32;
     for r in records {
-        let f = r.flags();
-        if f & flags::LIVE == 0 || f & flags::CASTS_SHADOWS == 0 {
+        if !flags::casts_shadows(r.flags()) {
             continue;
         }
         let sphere = bounding_sphere(r, camera);
@@ -204,6 +206,31 @@ pub fn pixel_visibility_counted(
         finish(visibility, light.shaping.clamp(0.05, 20.0)).min(own),
         evaluations,
     )
+}
+
+/// Whether a point or spot light reaches camera-relative `p` at all: within its range
+/// and, for a spot, inside its outer cone — elsewhere Bevy's attenuation is exactly 0,
+/// so the pass does not trace (visibility 1, like pixels beyond a directional light's
+/// `max_view_distance`). A slack of 10⁻⁴ (relative range, cosine) keeps rounding from
+/// skipping a lit pixel; NaN traces. Directional lights reach everywhere.
+pub fn light_reaches(light: &MaskLight, p: Vec3) -> bool {
+    let MaskLightKind::Positional(at) = light.kind else {
+        return true;
+    };
+    let v = p - at;
+    let d2 = v.length_squared();
+    let reach = light.range * (1.0 + 1e-4);
+    if d2 > reach * reach {
+        return false;
+    }
+    match light.spot {
+        Some((dir, cos_outer)) if cos_outer >= -1.0 => {
+            // NaN is not outside.
+            let outside = v.dot(dir) < (cos_outer - 1e-4) * d2.sqrt();
+            !outside
+        }
+        _ => true,
+    }
 }
 
 /// The fraction of the light's disc above the receiver's tangent plane (unit `normal`;
@@ -512,7 +539,7 @@ mod tests {
                 encode(&ObjectDesc {
                     world_from_local: glam::Affine3A::from_translation(b.center),
                     shape: CasterShape::Sphere { radius: b.radius },
-                    flags: flags::LIVE | flags::CASTS_SHADOWS,
+                    flags: flags::LIVE | flags::CASTS_SHADOWS | flags::VISIBLE,
                 })
                 .expect("encodes")
             })
@@ -554,6 +581,7 @@ mod tests {
                 range: 100.0,
                 max_steps: settings.max_steps,
                 max_view_distance: f32::INFINITY,
+                spot: None,
             };
             let mut worst = 0.0f32;
             let mut shadowed = 0;

@@ -19,7 +19,7 @@ struct SdfOccluder {
 
 impl Occluder for SdfOccluder {
     fn distance(&self, p: Vec3) -> f32 {
-        self.volume.sample(p)
+        self.volume.sample(p.as_dvec3())
     }
     fn blocks(&self, _: Vec3, _: Vec3, _: f32) -> bool {
         unreachable!("the march does not cast rays")
@@ -45,6 +45,7 @@ fn bunny_shadow_march_against_ray_traced_ground_truth() {
         return;
     };
     let mut mesh = obj::parse_obj(&text).unwrap();
+    mesh.origin = glam::DVec3::ZERO; // work in the file's centred frame
     // Stand the bunny on y = 0.
     let min_y = mesh
         .positions
@@ -88,7 +89,7 @@ fn bunny_shadow_march_against_ray_traced_ground_truth() {
                 0.0005,
                 lo.z - extent.z + 3.0 * extent.z * k as f32 / 23.0,
             );
-            if sdf.volume.sample(p) < 0.002 {
+            if sdf.volume.sample(p.as_dvec3()) < 0.002 {
                 continue; // under the bunny's feet
             }
             let march = df_visibility(&[&sdf], p, &light, &settings);

@@ -138,6 +138,7 @@ fn run(case: &Case, offset: Vec3) -> (f32, usize, f32, Vec<f32>) {
         range: 0.0,
         max_steps: settings.max_steps,
         max_view_distance: f32::INFINITY,
+        spot: None,
     };
     // Points are given camera-relative, as the GPU pass reconstructs them (f32 world
     // positions 10⁵ m out would be quantized to 8 mm before the model sees them).
@@ -285,6 +286,7 @@ fn bad_inputs_never_give_nan() {
         range: 10.0,
         max_steps: 64,
         max_view_distance: f32::INFINITY,
+        spot: None,
     };
     let lights = [
         base,

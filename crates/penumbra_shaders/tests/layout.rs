@@ -73,6 +73,7 @@ fn shared_constants_match() {
         ("FLAG_VISIBLE", flags::VISIBLE as f64),
         ("FLAG_UNBOUNDED", flags::UNBOUNDED as f64),
         ("FLAG_LIVE", flags::LIVE as f64),
+        ("FLAG_CAST_HIDDEN_SHADOW", flags::CAST_HIDDEN_SHADOW as f64),
         ("KIND_SHIFT", flags::KIND_SHIFT as f64),
         ("KIND_MASK", flags::KIND_MASK as f64),
         ("KIND_VOLUME", ShapeKind::Volume as u32 as f64),
@@ -121,6 +122,7 @@ fn shadow_uniform_layouts_match_the_encoders() {
         ("max_steps", 9),
         ("max_view_distance", 10),
         ("reserved", 11),
+        ("spot", 12),
     ];
     let want: Vec<(&str, u32)> = want.iter().map(|&(n, w)| (n, w * 4)).collect();
     assert_eq!(got, want);

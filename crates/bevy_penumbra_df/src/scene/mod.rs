@@ -35,15 +35,15 @@
 
 mod render;
 
-use crate::sdf_asset::{SdfBakeRequest, SdfBaked, SdfVolumeAsset};
+use crate::sdf_asset::{SdfBakeFailed, SdfBakeRequest, SdfBaked, SdfVolumeAsset};
 use bevy::ecs::entity::EntityHashMap;
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use penumbra_df_core::atlas::{AtlasAllocator, AtlasError, AtlasRegion};
-use penumbra_df_core::object::{CasterShape, ObjectDesc, encode, flags};
+use penumbra_df_core::object::{CasterShape, ObjectDesc, RECORD_BYTES, encode, flags};
 use penumbra_df_core::table::{Deltas, ObjectTable};
-use penumbra_sdf::{BakeSettings, GridPolicy, Resolution, SdfVolume, SignMethod};
+use penumbra_sdf::{BakeSettings, GridPolicy, Resolution, SignMethod};
 
 pub use render::{CulledObjects, DistanceFieldGpu, DistanceFieldPipelines, cull_objects};
 
@@ -95,11 +95,19 @@ pub struct DistanceFieldCaster {
     /// Multiplier of the default bake density (32 samples per mesh unit) for mesh
     /// casters. Default 1. Atlas memory and bake time grow with its cube.
     pub resolution_scale: f32,
-    /// Foliage: the surface is a shell, never solid (bakes with the two-sided sign).
-    /// Default `false`.
+    /// Foliage and other open or single-sided surfaces (leaf cards, cloth): bake a shell
+    /// around every surface, about a voxel thick (`SignMethod::TWO_SIDED`), instead of
+    /// deciding inside from outside. The shell occludes like any solid. Default `false`.
+    /// No run-time cost.
     pub two_sided: bool,
-    /// Shadows distance-field-shadowed lights. Default `true`.
+    /// Shadows distance-field-shadowed lights (while visible, see
+    /// [`DistanceFieldCaster::cast_hidden_shadow`]). Default `true`.
     pub casts_shadows: bool,
+    /// Casts its shadow even while hidden (`Visibility::Hidden`): a shadow proxy, e.g. a
+    /// simplified stand-in for a detailed mesh, or a shadow for an object the camera does
+    /// not draw (Unreal's "Cast Hidden Shadow"). Default `false`: like Bevy's meshes, a
+    /// hidden caster casts no shadow.
+    pub cast_hidden_shadow: bool,
     /// Occludes distance-field ambient occlusion. Default `true`.
     pub casts_occlusion: bool,
 }
@@ -111,6 +119,7 @@ impl Default for DistanceFieldCaster {
             resolution_scale: 1.0,
             two_sided: false,
             casts_shadows: true,
+            cast_hidden_shadow: false,
             casts_occlusion: true,
         }
     }
@@ -121,14 +130,22 @@ impl Default for DistanceFieldCaster {
 #[reflect(Resource, Clone, Default)]
 pub struct DistanceFieldSceneSettings {
     /// Memory for the SDF atlas, bytes. Default 64 MiB (a 256×256×512 `R16Float`
-    /// texture: about 260 volumes of 50³). Capped by the device's 3D texture size.
+    /// texture: about 260 volumes of 50³). Capped by the device's 3D texture size and
+    /// by the records' atlas coordinates (1024 × 1024 × 4096 voxels).
     pub atlas_budget_bytes: u64,
+    /// Most casters in the object buffer. Default 2²⁰ (1,048,576: 128 MiB of records).
+    /// Also capped by the device's `max_storage_buffer_binding_size` (128 MiB on many
+    /// devices) and `max_buffer_size`, 128 bytes per caster. Casters beyond the cap are
+    /// skipped — those that arrive when it is full, in entity order; casters already in
+    /// the buffer are never evicted — with one warning, and join as slots free up.
+    pub max_casters: u32,
 }
 
 impl Default for DistanceFieldSceneSettings {
     fn default() -> Self {
         Self {
             atlas_budget_bytes: 64 << 20,
+            max_casters: 1 << 20,
         }
     }
 }
@@ -157,8 +174,12 @@ pub struct DistanceFieldUploadStats {
     pub atlas_volumes: usize,
     /// SDFs placed at reduced resolution because the atlas was full (since startup).
     pub atlas_downsampled: usize,
-    /// SDFs whose casters are skipped: they fit nowhere, even at quarter resolution.
+    /// SDFs whose casters are skipped: they fit nowhere, even at quarter resolution
+    /// (tried again when atlas space is freed).
     pub atlas_skipped: usize,
+    /// Casters skipped because the object buffer is at its cap
+    /// ([`DistanceFieldSceneSettings::max_casters`] or the device's limit).
+    pub over_cap: usize,
 }
 
 /// One SDF placed in the atlas.
@@ -183,8 +204,21 @@ pub struct DistanceFieldScene {
     table: ObjectTable,
     atlas: Option<AtlasAllocator>,
     volumes: HashMap<AssetId<SdfVolumeAsset>, PlacedVolume>,
-    /// Volumes that could not be placed (warned once).
+    /// Volumes that could not be placed (warned once), until atlas space is freed.
     unplaceable: HashSet<AssetId<SdfVolumeAsset>>,
+    /// Casters skipped because their volume could not be placed: retried when atlas
+    /// space is freed.
+    unplaced_casters: HashSet<Entity>,
+    /// Atlas space was freed since the last retry.
+    atlas_freed: bool,
+    /// The atlas could not be created (budget below the minimum): not retried.
+    atlas_failed: bool,
+    /// Casters skipped because the object buffer is full: retried as slots free up.
+    over_cap: HashSet<Entity>,
+    /// The cap has been reported once.
+    warned_cap: bool,
+    /// The device's cap on records (storage-binding and buffer size / 128 bytes).
+    device_max_objects: u32,
     /// Which volume each caster uses.
     caster_volume: EntityHashMap<AssetId<SdfVolumeAsset>>,
     /// Casters waiting for their SDF (not yet loaded, baked or placed).
@@ -282,13 +316,17 @@ impl Plugin for DistanceFieldScenePlugin {
     }
 
     fn finish(&self, app: &mut App) {
-        let max_3d = app
+        let limits = app
             .world()
             .get_resource::<bevy::render::renderer::RenderDevice>()
-            .map(|d| d.limits().max_texture_dimension_3d);
-        app.world_mut()
-            .resource_mut::<DistanceFieldScene>()
-            .max_texture_3d = max_3d.unwrap_or(2048);
+            .map(|d| d.limits());
+        let mut scene = app.world_mut().resource_mut::<DistanceFieldScene>();
+        scene.max_texture_3d = limits.as_ref().map_or(2048, |l| l.max_texture_dimension_3d);
+        // Without a device (no renderer) nothing is uploaded; keep the documented cap.
+        scene.device_max_objects = limits.as_ref().map_or(1 << 20, |l| {
+            let bytes = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
+            (bytes / RECORD_BYTES as u64).min(u64::from(u32::MAX)) as u32
+        });
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::finish(render_app);
         }
@@ -342,13 +380,12 @@ fn request_caster_bakes(
         if request.is_some_and(|r| r.mesh == mesh.0 && r.settings == settings) {
             continue;
         }
-        commands
-            .entity(entity)
-            .remove::<SdfBaked>()
-            .insert(SdfBakeRequest {
-                mesh: mesh.0.clone(),
-                settings,
-            });
+        // A changed request drops the old outcome (see `sdf_asset`): the caster leaves
+        // the scene until its new SDF arrives.
+        commands.entity(entity).insert(SdfBakeRequest {
+            mesh: mesh.0.clone(),
+            settings,
+        });
     }
 }
 
@@ -365,7 +402,17 @@ fn release_volume(scene: &mut DistanceFieldScene, entity: Entity) {
         scene.volumes.remove(&id);
         if let Some(atlas) = scene.atlas.as_mut() {
             atlas.free(&region);
+            scene.atlas_freed = true;
         }
+    }
+}
+
+/// Takes a caster out of the object buffer; casters waiting for a slot may take it.
+fn remove_record(scene: &mut DistanceFieldScene, entity: Entity) {
+    if scene.table.remove(entity.to_bits()) && !scene.over_cap.is_empty() {
+        // Retried next frame (their turn comes in entity order).
+        let waiting: Vec<Entity> = scene.over_cap.drain().collect();
+        scene.waiting.extend(waiting);
     }
 }
 
@@ -378,32 +425,12 @@ fn remove_distance_field_casters(
         if casters.contains(entity) {
             continue; // removed and re-added this frame: updated below
         }
-        scene.table.remove(entity.to_bits());
+        remove_record(&mut scene, entity);
         scene.waiting.remove(&entity);
         scene.warned_casters.remove(&entity);
+        scene.unplaced_casters.remove(&entity);
+        scene.over_cap.remove(&entity);
         release_volume(&mut scene, entity);
-    }
-}
-
-/// Halves a volume's resolution: every other sample, `⌈(n − 1) / 2⌉ + 1` per axis so the
-/// box stays covered (an even `n − 1` ends on the last sample exactly; an odd one
-/// repeats it, half a new voxel past the old box).
-fn downsample(volume: &SdfVolume) -> SdfVolume {
-    let dims = volume.dims / 2 + UVec3::ONE; // = ⌈(n − 1) / 2⌉ + 1
-    let mut data = Vec::with_capacity((dims.x * dims.y * dims.z) as usize);
-    for k in 0..dims.z {
-        for j in 0..dims.y {
-            for i in 0..dims.x {
-                let p = (UVec3::new(i, j, k) * 2).min(volume.dims - UVec3::ONE);
-                data.push(volume.data[volume.index(p.x, p.y, p.z)]);
-            }
-        }
-    }
-    SdfVolume {
-        dims,
-        origin: volume.origin,
-        voxel_size: volume.voxel_size * 2.0,
-        data,
     }
 }
 
@@ -418,7 +445,7 @@ fn place_volume(
         placed.users += 1;
         return Some(placed.clone());
     }
-    if scene.unplaceable.contains(&id) {
+    if scene.unplaceable.contains(&id) || scene.atlas_failed {
         return None;
     }
     if scene.atlas.is_none() {
@@ -426,7 +453,7 @@ fn place_volume(
             Ok(a) => scene.atlas = Some(a),
             Err(e) => {
                 warn!("Penumbra: distance-field atlas: {e}; SDF casters are skipped");
-                scene.unplaceable.insert(id);
+                scene.atlas_failed = true;
                 return None;
             }
         }
@@ -448,7 +475,7 @@ fn place_volume(
                     );
                     scene.warned_full = true;
                 }
-                volume = std::borrow::Cow::Owned(downsample(&volume));
+                volume = std::borrow::Cow::Owned(volume.downsampled());
                 halvings += 1;
             }
             Err(e) => {
@@ -470,7 +497,7 @@ fn place_volume(
     });
     let placed = PlacedVolume {
         region,
-        local_origin: volume.origin,
+        local_origin: volume.origin.as_vec3(),
         voxel_size: volume.voxel_size,
         users: 1,
     };
@@ -478,7 +505,100 @@ fn place_volume(
     Some(placed)
 }
 
-/// Re-encodes changed casters (and those whose SDF just arrived).
+/// The shape a caster's record gets now, placing its SDF in the atlas if needed (and
+/// letting go of a volume it no longer uses); `None`: not in the scene this frame
+/// (waiting for its SDF, or its SDF fits nowhere).
+fn caster_shape(
+    scene: &mut DistanceFieldScene,
+    settings: &DistanceFieldSceneSettings,
+    sdfs: &Assets<SdfVolumeAsset>,
+    entity: Entity,
+    caster: &DistanceFieldCaster,
+    baked: Option<&SdfBaked>,
+    bake_failed: bool,
+) -> Option<CasterShape> {
+    let volume_handle = match &caster.source {
+        CasterSource::Mesh => baked.map(|b| b.0.id()),
+        CasterSource::Sdf(handle) => Some(handle.id()),
+        _ => None,
+    };
+    // The volume this caster used before, released after placing the new one so an
+    // unchanged volume is not freed and re-uploaded.
+    let previous = scene.caster_volume.get(&entity).copied();
+    if volume_handle.is_none() && previous.is_some() {
+        release_volume(scene, entity);
+    }
+    let volume_shape = |placed: &PlacedVolume| CasterShape::Volume {
+        region: placed.region,
+        local_origin: placed.local_origin,
+        voxel_size: placed.voxel_size,
+    };
+    match (&caster.source, volume_handle) {
+        (CasterSource::Sphere { radius }, _) => Some(CasterShape::Sphere { radius: *radius }),
+        (CasterSource::Cuboid { half_size }, _) => Some(CasterShape::Cuboid {
+            half_extents: *half_size,
+        }),
+        (
+            CasterSource::Capsule {
+                radius,
+                half_length,
+            },
+            _,
+        ) => Some(CasterShape::Capsule {
+            radius: *radius,
+            half_length: *half_length,
+        }),
+        (CasterSource::Plane, _) => Some(CasterShape::Plane),
+        (_, Some(id)) if previous == Some(id) => Some(volume_shape(&scene.volumes[&id])),
+        (_, Some(id)) => {
+            let Some(asset) = sdfs.get(id) else {
+                scene.waiting.insert(entity); // not loaded yet
+                return None;
+            };
+            let placed = place_volume(scene, settings, id, asset);
+            // Whether or not the new volume found room, the old one is let go.
+            release_volume(scene, entity);
+            match placed {
+                Some(placed) => {
+                    scene.caster_volume.insert(entity, id);
+                    Some(volume_shape(&placed))
+                }
+                None => {
+                    scene.unplaced_casters.insert(entity);
+                    None
+                }
+            }
+        }
+        (_, None) => {
+            // Bake pending (a failed bake is retried when its request changes, which
+            // brings the caster back through `SdfBaked`).
+            if !bake_failed {
+                scene.waiting.insert(entity);
+            }
+            None
+        }
+    }
+}
+
+/// The record flags of a caster.
+fn caster_flags(caster: &DistanceFieldCaster, visible: bool) -> u32 {
+    let mut f = 0;
+    for (on, bit) in [
+        (visible, flags::VISIBLE),
+        (caster.casts_shadows, flags::CASTS_SHADOWS),
+        (caster.casts_occlusion, flags::CASTS_OCCLUSION),
+        (caster.two_sided, flags::TWO_SIDED),
+        (caster.cast_hidden_shadow, flags::CAST_HIDDEN_SHADOW),
+    ] {
+        if on {
+            f |= bit;
+        }
+    }
+    f
+}
+
+/// Re-encodes changed casters (and those whose SDF just arrived, changed or failed;
+/// those waiting for atlas space or a slot when space or a slot was freed).
 #[allow(clippy::type_complexity)]
 fn update_distance_field_casters(
     mut scene: ResMut<DistanceFieldScene>,
@@ -493,112 +613,46 @@ fn update_distance_field_casters(
                 Changed<DistanceFieldCaster>,
                 Changed<InheritedVisibility>,
                 Changed<SdfBaked>,
+                Added<SdfBakeFailed>,
             )>,
         ),
     >,
+    mut unbaked: RemovedComponents<SdfBaked>,
     casters: Query<(
         &DistanceFieldCaster,
         &GlobalTransform,
         Option<&InheritedVisibility>,
         Option<&SdfBaked>,
+        Has<SdfBakeFailed>,
     )>,
 ) {
     let scene = &mut *scene;
     let mut todo: Vec<Entity> = changed.iter().collect();
+    todo.extend(unbaked.read());
     todo.extend(scene.waiting.drain());
+    if std::mem::take(&mut scene.atlas_freed) && !scene.unplaced_casters.is_empty() {
+        scene.unplaceable.clear();
+        todo.extend(scene.unplaced_casters.drain());
+    }
     todo.sort_unstable();
     todo.dedup();
+    let cap = settings.max_casters.min(scene.device_max_objects) as usize;
     for entity in todo {
-        let Ok((caster, transform, visibility, baked)) = casters.get(entity) else {
+        let Ok((caster, transform, visibility, baked, bake_failed)) = casters.get(entity) else {
             continue;
         };
-        let volume_handle = match &caster.source {
-            CasterSource::Mesh => baked.map(|b| b.0.id()),
-            CasterSource::Sdf(handle) => Some(handle.id()),
-            _ => None,
-        };
-        // The volume this caster used before, released after placing the new one so an
-        // unchanged volume is not freed and re-uploaded.
-        let previous = scene.caster_volume.get(&entity).copied();
-        let shape = match (&caster.source, volume_handle) {
-            (CasterSource::Sphere { radius }, _) => Some(CasterShape::Sphere { radius: *radius }),
-            (CasterSource::Cuboid { half_size }, _) => Some(CasterShape::Cuboid {
-                half_extents: *half_size,
-            }),
-            (
-                CasterSource::Capsule {
-                    radius,
-                    half_length,
-                },
-                _,
-            ) => Some(CasterShape::Capsule {
-                radius: *radius,
-                half_length: *half_length,
-            }),
-            (CasterSource::Plane, _) => Some(CasterShape::Plane),
-            (_, Some(id)) if previous == Some(id) => {
-                let placed = &scene.volumes[&id];
-                Some(CasterShape::Volume {
-                    region: placed.region,
-                    local_origin: placed.local_origin,
-                    voxel_size: placed.voxel_size,
-                })
-            }
-            (_, Some(id)) => match sdfs.get(id) {
-                Some(asset) => {
-                    let placed = place_volume(scene, &settings, id, asset);
-                    // Whether or not the new volume found room, the old one is let go.
-                    release_volume(scene, entity);
-                    placed.map(|placed| {
-                        scene.caster_volume.insert(entity, id);
-                        CasterShape::Volume {
-                            region: placed.region,
-                            local_origin: placed.local_origin,
-                            voxel_size: placed.voxel_size,
-                        }
-                    })
-                }
-                None => {
-                    scene.waiting.insert(entity); // not loaded yet
-                    None
-                }
-            },
-            (_, None) => {
-                if caster.source == CasterSource::Mesh {
-                    scene.waiting.insert(entity); // bake pending
-                }
-                None
-            }
-        };
-        if volume_handle.is_none() && previous.is_some() {
-            release_volume(scene, entity);
-        }
-        let Some(shape) = shape else {
-            scene.table.remove(entity.to_bits());
+        let Some(shape) = caster_shape(scene, &settings, &sdfs, entity, caster, baked, bake_failed)
+        else {
+            remove_record(scene, entity);
             continue;
         };
-        let mut f = 0;
-        if visibility.is_none_or(|v| v.get()) {
-            f |= flags::VISIBLE;
-        }
-        if caster.casts_shadows {
-            f |= flags::CASTS_SHADOWS;
-        }
-        if caster.casts_occlusion {
-            f |= flags::CASTS_OCCLUSION;
-        }
-        if caster.two_sided {
-            f |= flags::TWO_SIDED;
-        }
         let desc = ObjectDesc {
             world_from_local: transform.affine(),
             shape,
-            flags: f,
+            flags: caster_flags(caster, visibility.is_none_or(|v| v.get())),
         };
-        match encode(&desc) {
-            Ok(record) => {
-                scene.table.upsert(entity.to_bits(), record);
-            }
+        let record = match encode(&desc) {
+            Ok(record) => record,
             Err(e) => {
                 if scene.warned_casters.insert(entity) {
                     warn!(
@@ -606,9 +660,25 @@ fn update_distance_field_casters(
                          stays so (reported once)"
                     );
                 }
-                scene.table.remove(entity.to_bits());
+                remove_record(scene, entity);
+                continue;
             }
+        };
+        if scene.table.slot(entity.to_bits()).is_none() && scene.table.len() >= cap {
+            if !scene.warned_cap {
+                scene.warned_cap = true;
+                warn!(
+                    "Penumbra: the distance-field object buffer is full ({cap} casters: \
+                     DistanceFieldSceneSettings::max_casters or the device's storage-buffer \
+                     limit); further casters are skipped until slots free up (counted in \
+                     DistanceFieldUploadStats::over_cap). Reported once."
+                );
+            }
+            scene.over_cap.insert(entity);
+            continue;
         }
+        scene.over_cap.remove(&entity);
+        scene.table.upsert(entity.to_bits(), record);
     }
 }
 
@@ -632,6 +702,7 @@ fn finish_frame(
     stats.atlas_volumes = scene.volumes.len();
     stats.atlas_downsampled = scene.downsampled;
     stats.atlas_skipped = scene.unplaceable.len();
+    stats.over_cap = scene.over_cap.len();
     *frame = DistanceFieldFrame {
         deltas,
         uploads,

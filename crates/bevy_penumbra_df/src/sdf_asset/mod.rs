@@ -10,6 +10,11 @@
 //!   [`SdfBakeTask::progress`] goes from 0 to 1. When done the entity gets
 //!   [`SdfBaked`] (the asset handle) or, on bad input, [`SdfBakeFailed`] with the reason.
 //!   Requests identical to a bake already running wait for it ([`SdfBakeWaiting`]).
+//! - Bakes belong to the cache, not to the entity that started them: despawning it does
+//!   not strand the requests waiting on the same bake, and the result is cached anyway.
+//!   Changing an entity's request (or modifying its mesh asset) starts over: the
+//!   outcome of the old request — baked, failed or in flight — is dropped, so a caster
+//!   never gets a stale SDF and a failed one retries with its new mesh.
 //! - Caching ([`SdfBakeCache`]): bakes are keyed by mesh content (positions, indices) and
 //!   settings. The same key is never baked twice in a run (instances share one asset),
 //!   and with a cache directory (the default: `$XDG_CACHE_HOME/penumbra/sdf`, else
@@ -114,12 +119,11 @@ pub struct SdfBakeRequest {
     pub settings: BakeSettings,
 }
 
-/// A bake in flight.
+/// The entity's request is being baked (the bake itself runs in [`SdfBakeCache`]).
 #[derive(Component, Debug)]
 pub struct SdfBakeTask {
     progress: Arc<AtomicU32>,
     key: u64,
-    task: Task<Result<(SdfVolume, bool), String>>,
 }
 
 impl SdfBakeTask {
@@ -148,9 +152,13 @@ pub struct SdfBakeCache {
     /// Directory of cached `.psdf` files, or `None` to bake every run (memory only).
     pub directory: Option<PathBuf>,
     memory: HashMap<u64, Handle<SdfVolumeAsset>>,
-    /// Keys being baked now (so same-frame duplicates do not start a second bake).
-    in_flight: HashSet<u64>,
+    /// Bakes running now, by key (so duplicates wait instead of baking again). Kept
+    /// here, not on an entity: a despawned requester does not cancel a shared bake.
+    in_flight: HashMap<u64, Task<BakeResult>>,
 }
+
+/// A finished bake: the volume and whether it came from the disk cache, or the reason.
+type BakeResult = Result<(SdfVolume, bool), String>;
 
 impl Default for SdfBakeCache {
     fn default() -> Self {
@@ -167,7 +175,7 @@ impl SdfBakeCache {
         Self {
             directory,
             memory: HashMap::default(),
-            in_flight: HashSet::default(),
+            in_flight: HashMap::default(),
         }
     }
 
@@ -224,6 +232,7 @@ pub fn mesh_to_tri_mesh(mesh: &Mesh) -> Result<TriMesh, String> {
     Ok(TriMesh {
         positions,
         triangles,
+        ..Default::default()
     })
 }
 
@@ -254,23 +263,58 @@ fn bake_key(mesh: &TriMesh, settings: &BakeSettings) -> u64 {
     fnv1a(h, &format::VERSION.to_le_bytes())
 }
 
-/// Requests not yet started, finished or failed.
+/// Requests not yet started, waiting, finished or failed.
 type PendingRequest = (
     Without<SdfBakeTask>,
+    Without<SdfBakeWaiting>,
     Without<SdfBaked>,
     Without<SdfBakeFailed>,
 );
 
+/// Every state a request can be in once handled.
+type BakeState = (SdfBakeTask, SdfBakeWaiting, SdfBaked, SdfBakeFailed);
+
+/// Starts (or answers from the caches) the requests that are new, changed, or whose
+/// mesh asset was modified; others keep their state. Each request is converted and
+/// hashed once per change, not per frame.
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
 fn start_sdf_bakes(
     mut commands: Commands,
-    requests: Query<(Entity, &SdfBakeRequest), PendingRequest>,
+    pending: Query<(Entity, &SdfBakeRequest), PendingRequest>,
+    changed: Query<(Entity, &SdfBakeRequest), Changed<SdfBakeRequest>>,
+    all: Query<(Entity, &SdfBakeRequest)>,
+    mut mesh_events: MessageReader<AssetEvent<Mesh>>,
     meshes: Res<Assets<Mesh>>,
     mut cache: ResMut<SdfBakeCache>,
     mut stats: ResMut<SdfBakeStats>,
 ) {
-    for (entity, request) in &requests {
+    // Requests to (re)start: changed ones and those of modified meshes drop their old
+    // outcome first.
+    let modified: HashSet<AssetId<Mesh>> = mesh_events
+        .read()
+        .filter_map(|e| match e {
+            AssetEvent::Modified { id } => Some(*id),
+            _ => None,
+        })
+        .collect();
+    let mut restart: Vec<Entity> = changed.iter().map(|(e, _)| e).collect();
+    if !modified.is_empty() {
+        restart.extend(
+            all.iter()
+                .filter(|(_, r)| modified.contains(&r.mesh.id()))
+                .map(|(e, _)| e),
+        );
+    }
+    for &entity in &restart {
+        commands.entity(entity).remove::<BakeState>();
+    }
+    let mut todo: Vec<(Entity, &SdfBakeRequest)> = pending.iter().collect();
+    todo.extend(restart.iter().filter_map(|&e| all.get(e).ok()));
+    todo.sort_unstable_by_key(|(e, _)| *e);
+    todo.dedup_by_key(|(e, _)| *e);
+    for (entity, request) in todo {
         let Some(mesh) = meshes.get(&request.mesh) else {
-            continue; // not loaded yet
+            continue; // not loaded yet: pending, tried again next frame
         };
         let tri_mesh = match mesh_to_tri_mesh(mesh) {
             Ok(m) => m,
@@ -287,67 +331,87 @@ fn start_sdf_bakes(
             commands.entity(entity).insert(SdfBaked(handle.clone()));
             continue;
         }
-        if !cache.in_flight.insert(key) {
+        if cache.in_flight.contains_key(&key) {
             // The same bake is running: wait for it (converted and hashed only once).
             commands.entity(entity).insert(SdfBakeWaiting(key));
             continue;
         }
         let progress = Arc::new(AtomicU32::new(0.0f32.to_bits()));
-        let path = cache.path(key);
-        let settings = request.settings;
-        let task_progress = progress.clone();
-        let task = AsyncComputeTaskPool::get().spawn(async move {
-            if let Some(volume) = path
-                .as_ref()
-                .and_then(|p| std::fs::read(p).ok())
-                .and_then(|bytes| format::from_bytes(&bytes).ok())
-            {
-                task_progress.store(1.0f32.to_bits(), Ordering::Relaxed);
-                return Ok((volume, true));
-            }
-            let report = |f: f32| task_progress.store(f.min(1.0).to_bits(), Ordering::Relaxed);
-            let baked = penumbra_sdf::bake(&tri_mesh, &settings, Some(&report))
-                .map_err(|e| e.to_string())?;
-            task_progress.store(1.0f32.to_bits(), Ordering::Relaxed);
-            if let Some(path) = path {
-                let write = path
-                    .parent()
-                    .map_or(Ok(()), std::fs::create_dir_all)
-                    .and_then(|()| std::fs::write(&path, format::to_bytes(&baked.volume)));
-                if let Err(e) = write {
-                    warn!("SDF cache: could not write {}: {e}", path.display());
-                }
-            }
-            Ok((baked.volume, false))
-        });
-        commands.entity(entity).insert(SdfBakeTask {
-            progress,
-            key,
-            task,
-        });
+        let task = spawn_bake(
+            tri_mesh,
+            request.settings,
+            cache.path(key),
+            progress.clone(),
+        );
+        cache.in_flight.insert(key, task);
+        commands
+            .entity(entity)
+            .insert(SdfBakeTask { progress, key });
     }
 }
 
+/// A bake (or a disk-cache read) on the async pool; `progress` goes from 0 to 1.
+fn spawn_bake(
+    tri_mesh: TriMesh,
+    settings: BakeSettings,
+    path: Option<PathBuf>,
+    progress: Arc<AtomicU32>,
+) -> Task<BakeResult> {
+    AsyncComputeTaskPool::get().spawn(async move {
+        if let Some(volume) = path
+            .as_ref()
+            .and_then(|p| std::fs::read(p).ok())
+            .and_then(|bytes| format::from_bytes(&bytes).ok())
+        {
+            progress.store(1.0f32.to_bits(), Ordering::Relaxed);
+            return Ok((volume, true));
+        }
+        let report = |f: f32| progress.store(f.min(1.0).to_bits(), Ordering::Relaxed);
+        let baked =
+            penumbra_sdf::bake(&tri_mesh, &settings, Some(&report)).map_err(|e| e.to_string())?;
+        progress.store(1.0f32.to_bits(), Ordering::Relaxed);
+        if let Some(path) = path {
+            let write = path
+                .parent()
+                .map_or(Ok(()), std::fs::create_dir_all)
+                .and_then(|()| std::fs::write(&path, format::to_bytes(&baked.volume)));
+            if let Err(e) = write {
+                warn!("SDF cache: could not write {}: {e}", path.display());
+            }
+        }
+        Ok((baked.volume, false))
+    })
+}
+
+/// Hands finished bakes to every entity still waiting for them (the one that started
+/// it, if it still exists and still wants it, and the identical requests).
 fn finish_sdf_bakes(
     mut commands: Commands,
-    mut tasks: Query<(Entity, &mut SdfBakeTask)>,
+    tasks: Query<(Entity, &SdfBakeTask)>,
     waiting: Query<(Entity, &SdfBakeWaiting)>,
     mut assets: ResMut<Assets<SdfVolumeAsset>>,
     mut cache: ResMut<SdfBakeCache>,
     mut stats: ResMut<SdfBakeStats>,
 ) {
-    for (entity, mut task) in &mut tasks {
-        let Some(result) = check_ready(&mut task.task) else {
-            continue;
-        };
-        cache.in_flight.remove(&task.key);
-        let waiters: Vec<Entity> = waiting
+    let mut finished = Vec::new();
+    for (&key, task) in cache.in_flight.iter_mut() {
+        if let Some(result) = check_ready(task) {
+            finished.push((key, result));
+        }
+    }
+    finished.sort_unstable_by_key(|(key, _)| *key);
+    for (key, result) in finished {
+        cache.in_flight.remove(&key);
+        let starters: Vec<Entity> = tasks
             .iter()
-            .filter(|(_, w)| w.0 == task.key)
+            .filter(|(_, t)| t.key == key)
             .map(|(e, _)| e)
             .collect();
-        let mut e = commands.entity(entity);
-        e.remove::<SdfBakeTask>();
+        let waiters: Vec<Entity> = waiting
+            .iter()
+            .filter(|(_, w)| w.0 == key)
+            .map(|(e, _)| e)
+            .collect();
         match result {
             Ok((volume, from_disk)) => {
                 if from_disk {
@@ -355,25 +419,24 @@ fn finish_sdf_bakes(
                 } else {
                     stats.baked += 1;
                 }
+                stats.memory_hits += waiters.len() as u32;
                 let handle = assets.add(SdfVolumeAsset { volume });
-                cache.memory.insert(task.key, handle.clone());
-                e.insert(SdfBaked(handle.clone()));
-                for w in waiters {
-                    stats.memory_hits += 1;
+                cache.memory.insert(key, handle.clone());
+                for e in starters.into_iter().chain(waiters) {
                     commands
-                        .entity(w)
-                        .remove::<SdfBakeWaiting>()
+                        .entity(e)
+                        .remove::<(SdfBakeTask, SdfBakeWaiting)>()
                         .insert(SdfBaked(handle.clone()));
                 }
             }
             Err(why) => {
-                warn!("SDF bake for {entity}: {why}");
-                stats.failed += 1 + waiters.len() as u32;
-                e.insert(SdfBakeFailed(why.clone()));
-                for w in waiters {
+                let requests = starters.len() + waiters.len();
+                warn!("SDF bake failed for {requests} request(s): {why}");
+                stats.failed += requests as u32;
+                for e in starters.into_iter().chain(waiters) {
                     commands
-                        .entity(w)
-                        .remove::<SdfBakeWaiting>()
+                        .entity(e)
+                        .remove::<(SdfBakeTask, SdfBakeWaiting)>()
                         .insert(SdfBakeFailed(why.clone()));
                 }
             }

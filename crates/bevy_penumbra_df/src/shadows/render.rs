@@ -55,12 +55,14 @@ struct FrameLight {
 enum FrameLightKind {
     /// Unit vector toward the light.
     Directional(Vec3),
-    /// World position, source radius, range, clustered light id.
+    /// World position, source radius, range, clustered light id; for spot lights the
+    /// direction the spot points and the cosine of its outer angle.
     Positional {
         position: Vec3,
         radius: f32,
         range: f32,
         light_id: u32,
+        spot: Option<(Vec3, f32)>,
     },
 }
 
@@ -68,16 +70,18 @@ impl FrameLight {
     /// The light as the passes see it from a camera at `camera`.
     fn shadow_light(&self, camera: &CameraOrigin) -> Option<ShadowLight> {
         let s = &self.settings;
-        let (kind, source, range) = match self.kind {
+        let (kind, source, range, spot) = match self.kind {
             FrameLightKind::Directional(d) => (
                 ShadowLightKind::Directional(d),
                 (0.5 * s.angular_diameter.clamp(0.0, 3.0)).tan(),
                 0.0,
+                None,
             ),
             FrameLightKind::Positional {
                 position,
                 radius,
                 range,
+                spot,
                 ..
             } => {
                 let tile = tile_of(position)?;
@@ -86,6 +90,7 @@ impl FrameLight {
                     ShadowLightKind::Positional(relative),
                     radius.max(0.0),
                     range,
+                    spot,
                 )
             }
         };
@@ -98,6 +103,7 @@ impl FrameLight {
             range,
             max_steps: s.max_steps.min(4096),
             max_view_distance: s.max_view_distance,
+            spot,
         })
     }
 }
@@ -352,6 +358,10 @@ fn prepare_distance_field_shadows(
                 radius: p.radius,
                 range: p.range,
                 light_id: id as u32,
+                // Bevy's spot lights point along their forward axis.
+                spot: p
+                    .spot_light_angles
+                    .map(|(_, outer)| (p.transform.forward().as_vec3(), outer.cos())),
             }
         } else {
             continue; // not a light Penumbra shadows
@@ -530,6 +540,7 @@ fn distance_field_shadows(
             range: 0.0,
             max_steps: 0,
             max_view_distance: 0.0,
+            spot: None,
         });
         let light_buffer = buffer(
             "penumbra_df_shadow_light",

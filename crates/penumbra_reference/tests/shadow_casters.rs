@@ -1,0 +1,188 @@
+//! Which casters shadow which pixels, in the mask pass's model (the GPU pass equals it:
+//! `bevy_penumbra_df/tests/shadow_mask_gpu.rs`):
+//!
+//! - hidden casters cast no shadow (Bevy hides a hidden mesh's shadow), unless they are
+//!   hidden-shadow proxies;
+//! - two-sided casters (foliage) are shells that occlude like any caster: the flag
+//!   changes nothing, and a single-sided leaf card baked two-sided has a full umbra;
+//! - point and spot lights trace only the pixels they reach (range, outer cone), and
+//!   there the result is a full march's.
+
+use glam::{Affine3A, Quat, UVec3, Vec3};
+use penumbra_df_core::atlas::AtlasRegion;
+use penumbra_df_core::cull::CameraOrigin;
+use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, encode, flags};
+use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind};
+use penumbra_reference::df::Atlas;
+use penumbra_reference::shadow_mask::{pixel_visibility, pixel_visibility_counted};
+use penumbra_sdf::{BakeSettings, SignMethod, TriMesh, bake};
+
+const CASTING: u32 = flags::LIVE | flags::CASTS_SHADOWS;
+
+fn sphere(at: Vec3, radius: f32, f: u32) -> ObjectRecord {
+    encode(&ObjectDesc {
+        world_from_local: Affine3A::from_translation(at),
+        shape: CasterShape::Sphere { radius },
+        flags: f,
+    })
+    .expect("encodes")
+}
+
+fn sun(to_light: Vec3) -> ShadowLight {
+    ShadowLight {
+        kind: ShadowLightKind::Directional(to_light.normalize()),
+        source: 0.01,
+        max_distance: 50.0,
+        bias: 0.02,
+        shaping: 1.0,
+        range: 0.0,
+        max_steps: 64,
+        max_view_distance: f32::INFINITY,
+        spot: None,
+    }
+}
+
+#[test]
+fn hidden_casters_cast_no_shadow_unless_they_are_proxies() {
+    let camera = CameraOrigin::at(Vec3::ZERO).unwrap();
+    let atlas = Atlas::new(UVec3::ONE);
+    let light = sun(Vec3::Y);
+    let under = Vec3::ZERO; // the ground point right under the ball
+    let at = Vec3::new(0.0, 1.0, 0.0);
+    let visibility = |f: u32| {
+        let records = [sphere(at, 0.3, f)];
+        pixel_visibility(&records, &atlas, &camera, under, Vec3::Y, &light)
+    };
+    let visible = visibility(CASTING | flags::VISIBLE);
+    let hidden = visibility(CASTING);
+    let proxy = visibility(CASTING | flags::CAST_HIDDEN_SHADOW);
+    let not_casting = visibility(flags::LIVE | flags::VISIBLE);
+    println!("visible {visible}, hidden {hidden}, proxy {proxy}, not casting {not_casting}");
+    assert!(visible < 0.05, "a visible caster shadows: {visible}");
+    assert_eq!(hidden, 1.0, "a hidden caster casts no shadow");
+    assert_eq!(
+        proxy, visible,
+        "a hidden-shadow proxy shadows as if visible"
+    );
+    assert_eq!(not_casting, 1.0);
+}
+
+/// A single-sided 0.6 m leaf card baked two-sided: a shell, solid about a voxel thick,
+/// that fully occludes the sun under its middle; the record's two-sided flag changes
+/// no pixel (it only records how the field was baked).
+#[test]
+fn two_sided_casters_occlude_like_any_caster() {
+    let card = TriMesh {
+        positions: vec![
+            Vec3::new(-0.3, 0.0, -0.3),
+            Vec3::new(0.3, 0.0, -0.3),
+            Vec3::new(0.3, 0.0, 0.3),
+            Vec3::new(-0.3, 0.0, 0.3),
+        ],
+        triangles: vec![[0, 2, 1], [0, 3, 2]],
+        ..Default::default()
+    };
+    let settings = BakeSettings {
+        sign: SignMethod::TWO_SIDED,
+        ..BakeSettings::longest_axis(24)
+    };
+    let v = bake(&card, &settings, None).unwrap().volume;
+    let mut atlas = Atlas::new(v.dims);
+    let bits: Vec<u16> = v.data.iter().map(|h| h.to_bits()).collect();
+    atlas.write(UVec3::ZERO, v.dims, &bits);
+    let record = |f: u32| {
+        encode(&ObjectDesc {
+            world_from_local: Affine3A::from_rotation_translation(
+                Quat::from_rotation_x(0.2),
+                Vec3::new(0.0, 1.0, 0.0),
+            ),
+            shape: CasterShape::Volume {
+                region: AtlasRegion {
+                    origin: UVec3::ZERO,
+                    dims: v.dims,
+                },
+                local_origin: v.origin.as_vec3(),
+                voxel_size: v.voxel_size,
+            },
+            flags: f,
+        })
+        .unwrap()
+    };
+    let plain = [record(CASTING | flags::VISIBLE)];
+    let two_sided = [record(CASTING | flags::VISIBLE | flags::TWO_SIDED)];
+    let camera = CameraOrigin::at(Vec3::new(0.0, 2.0, 3.0)).unwrap();
+    let light = sun(Vec3::Y);
+    let mut umbra = 0;
+    for i in 0..21 {
+        for k in 0..21 {
+            let world = Vec3::new(-0.5 + 0.05 * i as f32, 0.0, -0.5 + 0.05 * k as f32);
+            let p = world - Vec3::new(0.0, 2.0, 3.0);
+            let a = pixel_visibility(&plain, &atlas, &camera, p, Vec3::Y, &light);
+            let b = pixel_visibility(&two_sided, &atlas, &camera, p, Vec3::Y, &light);
+            assert_eq!(a, b, "{world}: the flag changed the mask");
+            if world.x.abs() < 0.2 && world.z.abs() < 0.2 {
+                assert!(a < 0.02, "{world}: under the card's middle, {a}");
+                umbra += 1;
+            }
+        }
+    }
+    assert!(umbra > 50, "{umbra}");
+}
+
+/// Point and spot lights: pixels the light does not reach (beyond its range, outside
+/// a spot's cone) are not traced; the others get a full march's visibility, with a
+/// ball between the light and the floor so a skipped lit pixel would show.
+#[test]
+fn point_and_spot_lights_trace_exactly_the_pixels_they_reach() {
+    let eye = Vec3::new(0.0, 4.0, 6.0);
+    let camera = CameraOrigin::at(eye).unwrap();
+    let atlas = Atlas::new(UVec3::ONE);
+    let lamp = Vec3::new(0.5, 2.0, -0.5);
+    let records = [sphere(
+        Vec3::new(0.8, 1.0, -0.3),
+        0.3,
+        CASTING | flags::VISIBLE,
+    )];
+    let down = Vec3::new(0.3, -1.0, 0.2).normalize();
+    let cos_outer = 35f32.to_radians().cos();
+    for spot in [None, Some((down, cos_outer))] {
+        let light = ShadowLight {
+            kind: ShadowLightKind::Positional(lamp - eye),
+            source: 0.05,
+            range: 3.0,
+            ..sun(Vec3::Y)
+        };
+        let light = ShadowLight { spot, ..light };
+        let full = ShadowLight {
+            range: f32::INFINITY,
+            spot: None,
+            ..light
+        };
+        let (mut traced, mut skipped, mut shadowed) = (0, 0, 0);
+        for i in 0..61 {
+            for k in 0..61 {
+                let world = Vec3::new(-4.0 + 0.15 * i as f32, 0.0, -4.5 + 0.15 * k as f32);
+                let p = world - eye;
+                let v = world - lamp;
+                let reaches = v.length() < 3.0 * (1.0 - 1e-3)
+                    && spot.is_none_or(|(d, c)| v.normalize().dot(d) > c + 1e-3);
+                let outside = v.length() > 3.0 * (1.0 + 1e-3)
+                    || spot.is_some_and(|(d, c)| v.normalize().dot(d) < c - 1e-3);
+                let (got, work) =
+                    pixel_visibility_counted(&records, &atlas, &camera, p, Vec3::Y, &light);
+                if reaches {
+                    let (want, _) =
+                        pixel_visibility_counted(&records, &atlas, &camera, p, Vec3::Y, &full);
+                    assert_eq!(got, want, "{world} {spot:?}");
+                    traced += 1;
+                    shadowed += usize::from(want < 0.5);
+                } else if outside {
+                    assert_eq!((got, work), (1.0, 0), "{world} {spot:?}: traced");
+                    skipped += 1;
+                }
+            }
+        }
+        println!("{spot:?}: {traced} traced ({shadowed} shadowed), {skipped} skipped");
+        assert!(traced > 100 && shadowed > 10 && skipped > 100, "{spot:?}");
+    }
+}
