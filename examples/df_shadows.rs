@@ -9,7 +9,8 @@
 //! ```
 //!
 //! Flags as for every example (`examples/common/cli.rs`): `--headless`, `--frames N`,
-//! `--out PATH`, `--size WxH`. The animation advances per frame (not per second), so a
+//! `--out PATH`, `--size WxH`; `--lights N` (1..=8) keeps the sun (1) and the lamp (2)
+//! and adds small lamps around the scene (`--lights 4`: the figures in CHANGELOG.md). The animation advances per frame (not per second), so a
 //! headless capture is the same on every machine; its 256×256 screenshot after 40 frames
 //! is checked against `assets/reference/df_shadows.png` by `tests/df_shadows_example.rs`.
 //!
@@ -30,7 +31,7 @@ fn main() -> std::process::ExitCode {
 }
 
 /// Penumbra's plugins and this example's scene.
-fn add_scene(app: &mut App) {
+pub fn add_scene(app: &mut App) {
     app.add_plugins(PenumbraPlugins)
         .insert_resource(ClearColor(Color::srgb(0.5, 0.65, 0.85)))
         .insert_resource(GlobalAmbientLight {
@@ -49,7 +50,7 @@ pub fn run_headless(options: &Options) -> Result<(), String> {
 
 /// Whether every caster is in the distance-field scene (the torus's SDF baked and
 /// placed). The animation waits for it, and headless captures count frames from it.
-fn casters_ready(world: &mut World) -> bool {
+pub fn casters_ready(world: &mut World) -> bool {
     let casters: Vec<Entity> = world
         .query_filtered::<Entity, With<DistanceFieldCaster>>()
         .iter(world)
@@ -75,7 +76,9 @@ fn spawn_scene(
     mut commands: Commands,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
+    options: Option<Res<Options>>,
 ) {
+    let lights = options.and_then(|o| o.lights).unwrap_or(2);
     let mut material = |color: Color, roughness: f32| {
         materials.add(StandardMaterial {
             base_color: color,
@@ -146,18 +149,35 @@ fn spawn_scene(
         },
         Animated::Sun,
     ));
-    commands.spawn((
-        PointLight {
-            color: Color::srgb(1.0, 0.75, 0.5),
-            intensity: 150_000.0,
-            range: 12.0,
-            radius: 0.15,
-            ..default()
-        },
-        Transform::from_xyz(0.0, 2.2, 1.5),
-        DistanceFieldShadows::default(),
-        Animated::Lamp,
-    ));
+    if lights >= 2 {
+        commands.spawn((
+            PointLight {
+                color: Color::srgb(1.0, 0.75, 0.5),
+                intensity: 150_000.0,
+                range: 12.0,
+                radius: 0.15,
+                ..default()
+            },
+            Transform::from_xyz(0.0, 2.2, 1.5),
+            DistanceFieldShadows::default(),
+            Animated::Lamp,
+        ));
+    }
+    // `--lights N`: small lamps on a circle around the scene.
+    for i in 2..lights {
+        let a = i as f32 * 1.9;
+        commands.spawn((
+            PointLight {
+                color: Color::srgb(0.6, 0.8, 1.0),
+                intensity: 40_000.0,
+                range: 5.0,
+                radius: 0.05,
+                ..default()
+            },
+            Transform::from_xyz(2.6 * a.cos(), 1.4, 2.6 * a.sin()),
+            DistanceFieldShadows::default(),
+        ));
+    }
     commands.spawn((
         Camera3d::default(),
         PenumbraLighting,

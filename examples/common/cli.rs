@@ -8,7 +8,11 @@
 //! Flags: `--headless` (render into an image, no window; the default when neither
 //! `DISPLAY` nor `WAYLAND_DISPLAY` is set), `--frames N` (frames before the capture;
 //! in a window, exit after N frames), `--out PATH` (PNG to write; headless default
-//! `NAME.png`), `--size WxH` (default 256x256 headless, 1280x720 windowed).
+//! `NAME.png`), `--size WxH` (default 256x256 headless, 1280x720 windowed), `--lights N`
+//! (examples with distance-field-shadowed lights: how many, 1..=8; see each example).
+//!
+//! Headless runs print the mean frame time and what Penumbra allocated on the GPU per
+//! frame (`PenumbraGpuAllocations`; pooled resources: 0 once the scene is steady).
 
 use bevy::{
     prelude::*,
@@ -17,8 +21,8 @@ use bevy::{
 };
 use std::path::PathBuf;
 
-/// Command-line options.
-#[derive(Clone, Debug, PartialEq)]
+/// Command-line options (also a resource of the example's app).
+#[derive(Resource, Clone, Debug, PartialEq)]
 pub struct Options {
     /// Render into an image instead of a window.
     pub headless: bool,
@@ -28,9 +32,12 @@ pub struct Options {
     pub out: Option<PathBuf>,
     /// Image or window size in pixels.
     pub size: Option<UVec2>,
+    /// Distance-field-shadowed lights, for examples that have them.
+    pub lights: Option<u32>,
 }
 
-const USAGE: &str = "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH]";
+const USAGE: &str =
+    "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N]";
 
 impl Options {
     /// Parses `std::env::args()`-style arguments (without the program name).
@@ -40,6 +47,7 @@ impl Options {
             frames: None,
             out: None,
             size: None,
+            lights: None,
         };
         let mut args = args.into_iter();
         while let Some(arg) = args.next() {
@@ -67,6 +75,13 @@ impl Options {
                         return Err(format!("--size must be within 1..=8192 per axis, got {v}"));
                     }
                     o.size = Some(UVec2::new(w, h));
+                }
+                "--lights" => {
+                    let v = value("--lights")?;
+                    match v.parse::<u32>() {
+                        Ok(n @ 1..=8) => o.lights = Some(n),
+                        _ => return Err(format!("--lights must be in 1..=8, got {v:?}")),
+                    }
                 }
                 "-h" | "--help" => return Err(USAGE.to_string()),
                 other => return Err(format!("unknown argument {other:?}\n{USAGE}")),
@@ -143,8 +158,11 @@ pub fn run_headless(
     let mut render = HeadlessRender::new(size.x, size.y).frames(frames);
     render.warm_up = ready;
     let mut app = render.app();
+    app.insert_resource(options.clone())
+        .init_resource::<AllocationLog>()
+        .add_systems(Last, log_allocations);
     scene(&mut app);
-    let capture = render.run(app).map_err(|e| e.to_string())?;
+    let (capture, app) = render.run_keeping_app(app).map_err(|e| e.to_string())?;
     capture
         .to_rgba8()
         .save(&out)
@@ -160,8 +178,37 @@ pub fn run_headless(
         "{name}: {frames} frames at {}x{} on {adapter}; mean frame time after the first: {mean_ms:.1} ms",
         size.x, size.y
     );
+    // Per-frame GPU allocations over the counted frames (and the readback's), the first
+    // two left out (the render world runs a frame behind).
+    let log = &app.world().resource::<AllocationLog>().0;
+    let steady = log.len().saturating_sub(frames as usize).max(2);
+    if let (Some(first), Some(last)) = (log.get(steady), log.last()) {
+        let n = (log.len() - 1 - steady).max(1) as f64;
+        let d = *last - *first;
+        println!(
+            "{name}: Penumbra GPU allocations per frame over the last {n} frames: {:.2} \
+             buffers ({:.0} bytes), {:.2} bind groups, {:.2} textures",
+            d.buffers as f64 / n,
+            d.buffer_bytes as f64 / n,
+            d.bind_groups as f64 / n,
+            d.textures as f64 / n
+        );
+    }
     println!("{name}: wrote {}", path.display());
     Ok(())
+}
+
+/// `PenumbraGpuAllocations` after each frame.
+#[derive(Resource, Default)]
+struct AllocationLog(Vec<penumbra::df::GpuAllocationCounts>);
+
+fn log_allocations(
+    allocations: Option<Res<penumbra::df::PenumbraGpuAllocations>>,
+    mut log: ResMut<AllocationLog>,
+) {
+    if let Some(a) = allocations {
+        log.0.push(a.counts());
+    }
 }
 
 /// Opens a window; with `--frames N` exits after N frames (saving `--out` if given).
@@ -176,6 +223,7 @@ fn run_windowed(name: &str, options: &Options, scene: fn(&mut App)) {
         }),
         ..default()
     }));
+    app.insert_resource(options.clone());
     scene(&mut app);
     if let Some(frames) = options.frames {
         let out = options.out.clone();

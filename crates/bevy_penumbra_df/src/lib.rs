@@ -12,8 +12,11 @@
 //! - [`shadows`]: distance-field soft shadows for directional, point and spot lights
 //!   (`DistanceFieldShadows`), through the lighting pass.
 //! - [`shader_library`]: Penumbra's WGSL modules as Bevy shader assets.
+//! - [`gpu_allocations`]: counts of the GPU resources Penumbra creates (pooled: a steady
+//!   frame creates none).
 
 pub mod debug_view;
+pub mod gpu_allocations;
 pub mod lighting;
 pub mod scene;
 pub mod sdf_asset;
@@ -21,6 +24,7 @@ pub mod shader_library;
 pub mod shadows;
 
 pub use debug_view::{DistanceFieldDebugMode, DistanceFieldDebugPlugin, DistanceFieldDebugView};
+pub use gpu_allocations::{GpuAllocationCounts, PenumbraGpuAllocations};
 pub use lighting::{PenumbraLighting, PenumbraLightingPlugin};
 pub use scene::{
     CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldScenePlugin,

@@ -75,9 +75,11 @@ pub fn empty_atlas(
         .create_view(&TextureViewDescriptor::default())
 }
 
-/// Registers the shader library once (idempotent) and mirrors it into the render world.
-/// Cost: one small asset per module at startup; nothing per frame.
+/// Registers the shader library once (idempotent) and mirrors it into the render world,
+/// with the GPU allocation counters (`gpu_allocations`). Cost: one small asset per
+/// module at startup; nothing per frame.
 pub fn register_shader_library(app: &mut App) {
+    crate::gpu_allocations::register_gpu_allocations(app);
     if !app.world().contains_resource::<PenumbraShaderLibrary>() {
         let Some(mut shaders) = app.world_mut().get_resource_mut::<Assets<Shader>>() else {
             warn!(

@@ -8,7 +8,9 @@ use penumbra_df_core::cull::{self, CameraOrigin, Frustum, cull_view_words, grid_
 use penumbra_df_core::object::{
     CasterShape, ObjectDesc, ObjectRecord, RECORD_BYTES, encode, flags,
 };
-use penumbra_df_core::table::{Deltas, ObjectTable};
+use penumbra_df_core::table::{
+    DELTA_PARAMS_STRIDE, DeltaWrite, Deltas, ObjectTable, writes_per_chunk,
+};
 use penumbra_shaders::flatten;
 use penumbra_test::wgpu::{self, BufferUsages};
 use penumbra_test::{GpuCompute, gpu_or_skip};
@@ -107,16 +109,26 @@ struct GpuObjects {
     capacity: u32,
     apply: wgpu::ComputePipeline,
     uploaded_bytes: usize,
+    /// Dispatches of the delta pass so far.
+    chunks: usize,
+    binding_limit: u64,
 }
 
+/// A storage-binding limit small enough that frames with more than 64 writes are
+/// uploaded in several chunks (the smallest chunk: 64 writes).
+const SIMULATED_BINDING_LIMIT: u64 = 64 * DeltaWrite::BYTES as u64;
+
 impl GpuObjects {
-    fn new(gpu: &GpuCompute) -> GpuObjects {
+    /// Objects uploaded in chunks bound within `binding_limit` bytes.
+    fn new(gpu: &GpuCompute, binding_limit: u64) -> GpuObjects {
         let wgsl = flatten("#import penumbra::df::apply_deltas\n").unwrap();
         GpuObjects {
             buffer: gpu.zeroed("objects", 64 * RECORD_BYTES as u64, BufferUsages::empty()),
             capacity: 64,
             apply: gpu.pipeline(&wgsl, "apply_deltas"),
             uploaded_bytes: 0,
+            chunks: 0,
+            binding_limit,
         }
     }
 
@@ -140,30 +152,47 @@ impl GpuObjects {
             self.buffer = grown;
             self.capacity = capacity;
         }
-        if let Some((bind, groups)) = self.prepare(gpu, deltas) {
-            gpu.dispatch(&self.apply, &bind, groups);
-        }
-    }
-
-    /// Uploads the writes and binds them: `None` for a static frame (nothing uploaded,
-    /// no pass).
-    fn prepare(
-        &mut self,
-        gpu: &GpuCompute,
-        deltas: &Deltas,
-    ) -> Option<(wgpu::BindGroup, [u32; 3])> {
         if deltas.writes.is_empty() {
-            return None;
+            return; // a static frame: nothing uploaded, no pass
         }
-        let upload = deltas.upload();
+        // As the plugin does: one dispatch per chunk, each binding its range of the
+        // writes and its params. A small simulated binding limit (the plugin's is the
+        // device's, 128 MiB on lavapipe) makes frames of many writes take several.
+        let upload = deltas.upload(writes_per_chunk(self.binding_limit));
         self.uploaded_bytes += upload.writes.len();
+        self.chunks += upload.chunks.len();
         let writes = gpu.buffer("writes", &upload.writes, BufferUsages::empty());
         let params = gpu.buffer("params", &upload.params, BufferUsages::UNIFORM);
-        let bind = gpu.bind(
-            &self.apply,
-            &[(0, &self.buffer), (1, &writes), (2, &params)],
-        );
-        Some((bind, upload.groups))
+        for (k, chunk) in upload.chunks.iter().enumerate() {
+            let bytes = chunk.count as u64 * DeltaWrite::BYTES as u64;
+            let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("apply_deltas"),
+                layout: &self.apply.get_bind_group_layout(0),
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: self.buffer.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &writes,
+                            offset: chunk.first as u64 * DeltaWrite::BYTES as u64,
+                            size: std::num::NonZeroU64::new(bytes),
+                        }),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &params,
+                            offset: k as u64 * DELTA_PARAMS_STRIDE,
+                            size: std::num::NonZeroU64::new(16),
+                        }),
+                    },
+                ],
+            });
+            gpu.dispatch(&self.apply, &bind, chunk.groups);
+        }
     }
 
     fn read(&self, gpu: &GpuCompute, slots: u32) -> Vec<ObjectRecord> {
@@ -245,7 +274,7 @@ fn gpu_object_buffer_follows_churn_and_culls_like_the_cpu() {
     let gpu = GpuCompute::new().expect("adapter present");
     let mut rng = Rng(42);
     let mut table = ObjectTable::new();
-    let mut gpu_objects = GpuObjects::new(&gpu);
+    let mut gpu_objects = GpuObjects::new(&gpu, SIMULATED_BINDING_LIMIT);
     let mut live: Vec<(u64, ObjectDesc)> = Vec::new();
     let mut next_key = 0u64;
     let (mut ops, mut static_frames, mut checks) = (0, 0, 0);
@@ -313,11 +342,20 @@ fn gpu_object_buffer_follows_churn_and_culls_like_the_cpu() {
     }
     assert!(ops >= 10_000, "{ops} operations");
     assert!(static_frames >= 25 && checks >= 12);
+    // Frames of more than 64 writes were split (checked equal to the mirror above).
+    let frames_with_writes = 320 - static_frames;
+    assert!(
+        gpu_objects.chunks > frames_with_writes,
+        "{} dispatches over {frames_with_writes} frames: nothing was split",
+        gpu_objects.chunks
+    );
     println!(
-        "churn: {ops} operations, {} live objects in {} slots, {} bytes uploaded in total",
+        "churn: {ops} operations, {} live objects in {} slots, {} bytes uploaded in total \
+         in {} chunks",
         table.len(),
         table.slot_count(),
-        gpu_objects.uploaded_bytes
+        gpu_objects.uploaded_bytes,
+        gpu_objects.chunks
     );
 
     let slots = table.slot_count();
@@ -385,42 +423,17 @@ fn million_objects_apply_and_cull() {
         "encode + mirror of {n} records: {:.3} s (CPU)",
         t.elapsed().as_secs_f64()
     );
-    let mut objects = GpuObjects::new(&gpu);
+    // One frame of a million writes, split below the device's real binding limit.
+    let limit = gpu.device.limits().max_storage_buffer_binding_size;
+    let mut objects = GpuObjects::new(&gpu, limit);
     let t = std::time::Instant::now();
-    for chunk in deltas.writes.chunks(400_000) {
-        objects.apply(
-            &gpu,
-            &Deltas {
-                writes: chunk.to_vec(),
-                slot_count: deltas.slot_count,
-            },
-        );
-    }
+    objects.apply(&gpu, &deltas);
     gpu.read(&objects.buffer, 16); // waits for everything queued
-    let with_upload = t.elapsed().as_secs_f64();
-    // The pass alone: re-apply the same writes from buffers already on the GPU.
-    let uploaded = objects.uploaded_bytes;
-    let prepared: Vec<(wgpu::BindGroup, [u32; 3])> = deltas
-        .writes
-        .chunks(400_000)
-        .filter_map(|chunk| {
-            let d = Deltas {
-                writes: chunk.to_vec(),
-                slot_count: deltas.slot_count,
-            };
-            objects.prepare(&gpu, &d)
-        })
-        .collect();
-    objects.uploaded_bytes = uploaded; // a re-upload of the same writes, for timing only
-    gpu.read(&objects.buffer, 16);
-    let t = std::time::Instant::now();
-    for (bind, groups) in &prepared {
-        gpu.dispatch(&objects.apply, bind, *groups);
-    }
-    gpu.read(&objects.buffer, 16);
     println!(
-        "apply {n} writes ({} MB): delta pass {:.3} s on the GPU; {with_upload:.3} s with CPU conversion and upload",
+        "apply {n} writes ({} MB, {} dispatches under the {limit}-byte binding limit): \
+         {:.3} s with CPU conversion and upload",
         objects.uploaded_bytes / 1_000_000,
+        objects.chunks,
         t.elapsed().as_secs_f64()
     );
     let back = objects.read(&gpu, table.slot_count());

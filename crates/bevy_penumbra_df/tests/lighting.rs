@@ -270,3 +270,56 @@ fn msaa_cameras_are_served_without_msaa() {
         .collect();
     assert_eq!(served.len(), 1, "the camera is served: {served:?}");
 }
+
+/// Only cameras with `PenumbraLighting` are served by Penumbra's lighting pass: Bevy's
+/// component extraction queries every render-synced entity unless filtered, and before
+/// the filter the lights and any other camera got the marker (and
+/// `SkipDeferredLighting`, which turns Bevy's deferred lighting off).
+#[test]
+fn only_penumbra_cameras_get_the_lighting_marker() {
+    if !gpu_or_skip("only_penumbra_cameras_get_the_lighting_marker") {
+        return;
+    }
+    use bevy::render::RenderApp;
+    use bevy::render::sync_world::MainEntity;
+    use bevy_penumbra_df::lighting::PenumbraLightingView;
+    let render = HeadlessRender::new(32, 32).frames(2).without_pipelining();
+    let mut app = render.app();
+    app.add_plugins(PenumbraLightingPlugin)
+        .insert_resource(DefaultOpaqueRendererMethod::deferred())
+        .add_systems(Startup, scene);
+    let penumbra = app
+        .world_mut()
+        .spawn((
+            Camera3d::default(),
+            PenumbraLighting,
+            Msaa::Off,
+            Transform::from_xyz(0.0, 2.0, 6.0).looking_at(Vec3::ZERO, Vec3::Y),
+        ))
+        .id();
+    // A second, plain deferred camera.
+    app.world_mut().spawn((
+        Camera3d::default(),
+        Camera {
+            order: 1,
+            ..default()
+        },
+        DeferredPrepass,
+        DepthPrepass,
+        Msaa::Off,
+        Transform::from_xyz(4.0, 2.0, 0.0).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    let (_, mut app) = render.run_keeping_app(app).unwrap();
+    let world = app.sub_app_mut(RenderApp).world_mut();
+    let marked: Vec<Entity> = world
+        .query_filtered::<&MainEntity, With<PenumbraLightingView>>()
+        .iter(world)
+        .map(|m| m.id())
+        .collect();
+    let skipping = world
+        .query_filtered::<(), With<bevy::pbr::deferred::SkipDeferredLighting>>()
+        .iter(world)
+        .count();
+    assert_eq!(marked, vec![penumbra], "marked render entities");
+    assert_eq!(skipping, 1, "entities skipping Bevy's deferred lighting");
+}

@@ -53,14 +53,30 @@ impl Deltas {
         self.writes.len() * DeltaWrite::BYTES
     }
 
-    /// Everything the delta pass needs: the writes buffer's bytes, its `DeltaParams`
-    /// uniform (`shaders/df/apply_deltas.wgsl`) and the workgroups to dispatch.
-    pub fn upload(&self) -> DeltaUpload {
-        let count = self.writes.len() as u32;
-        let (groups, groups_x) = crate::cull::grid_64(count);
-        let mut params = [0u8; 16];
-        params[..4].copy_from_slice(&count.to_le_bytes());
-        params[4..8].copy_from_slice(&groups_x.to_le_bytes());
+    /// Everything the delta pass needs, split into dispatches that each bind at most
+    /// `writes_per_chunk` writes (see [`writes_per_chunk`]): the writes buffer's bytes,
+    /// one `DeltaParams` uniform per chunk ([`DELTA_PARAMS_STRIDE`] bytes apart) and
+    /// each chunk's range and workgroups.
+    pub fn upload(&self, writes_per_chunk: u32) -> DeltaUpload {
+        let per_chunk = writes_per_chunk.max(64) / 64 * 64;
+        let total = self.writes.len() as u32;
+        let mut chunks = Vec::new();
+        let mut params = Vec::new();
+        let mut first = 0;
+        while first < total {
+            let count = (total - first).min(per_chunk);
+            let (groups, groups_x) = crate::cull::grid_64(count);
+            let mut p = [0u8; DELTA_PARAMS_STRIDE as usize];
+            p[..4].copy_from_slice(&count.to_le_bytes());
+            p[4..8].copy_from_slice(&groups_x.to_le_bytes());
+            params.extend_from_slice(&p);
+            chunks.push(DeltaChunk {
+                first,
+                count,
+                groups,
+            });
+            first += count;
+        }
         DeltaUpload {
             writes: self
                 .to_words()
@@ -68,7 +84,7 @@ impl Deltas {
                 .flat_map(|w| w.to_le_bytes())
                 .collect(),
             params,
-            groups,
+            chunks,
         }
     }
 
@@ -83,13 +99,39 @@ impl Deltas {
     }
 }
 
+/// Bytes between two chunks' `DeltaParams` in the params buffer (wgpu's largest
+/// required uniform-offset alignment).
+pub const DELTA_PARAMS_STRIDE: u64 = 256;
+
+/// The most writes one dispatch of the delta pass binds when a storage binding may hold
+/// `max_binding_bytes` (the device's `max_storage_buffer_binding_size`): a multiple of
+/// 64, so every chunk starts on a 256-byte boundary (64 writes are 33 × 256 bytes).
+pub fn writes_per_chunk(max_binding_bytes: u64) -> u32 {
+    let n = max_binding_bytes / DeltaWrite::BYTES as u64 / 64 * 64;
+    n.clamp(64, u64::from(u32::MAX) / 64 * 64) as u32
+}
+
 /// A frame's delta upload ([`Deltas::upload`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct DeltaUpload {
-    /// The writes, little-endian words.
+    /// All writes, little-endian words, back to back.
     pub writes: Vec<u8>,
-    /// The `DeltaParams` uniform: write count, dispatch row width, padding.
-    pub params: [u8; 16],
+    /// One `DeltaParams` uniform (write count, dispatch row width, padding) per chunk,
+    /// [`DELTA_PARAMS_STRIDE`] bytes apart.
+    pub params: Vec<u8>,
+    /// The dispatches, in order.
+    pub chunks: Vec<DeltaChunk>,
+}
+
+/// One dispatch of the delta pass: it binds writes `first..first + count` (byte offset
+/// `first × DeltaWrite::BYTES`, 256-byte aligned) and params `index ×
+/// DELTA_PARAMS_STRIDE`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DeltaChunk {
+    /// Index of its first write.
+    pub first: u32,
+    /// Writes in it.
+    pub count: u32,
     /// Workgroups of 64 to dispatch.
     pub groups: [u32; 3],
 }
@@ -285,6 +327,52 @@ mod tests {
             "{}",
             table.slot_count()
         );
+    }
+
+    /// Large uploads are split: every write in exactly one chunk, in order, each chunk
+    /// within the binding limit and 256-byte aligned; applying the chunks one by one
+    /// (as the GPU does) gives the same buffer.
+    #[test]
+    fn uploads_split_into_aligned_chunks_within_the_binding_limit() {
+        let mut table = ObjectTable::new();
+        for k in 0..1000 {
+            table.upsert(k, record(k as u32));
+        }
+        let deltas = table.take_deltas();
+        for max_binding in [64 * 132, 100_000, 132 * 1000, 1 << 27] {
+            let per_chunk = writes_per_chunk(max_binding);
+            assert_eq!(per_chunk % 64, 0);
+            let upload = deltas.upload(per_chunk);
+            assert_eq!(upload.writes.len(), deltas.bytes());
+            assert_eq!(
+                upload.params.len() as u64,
+                upload.chunks.len() as u64 * DELTA_PARAMS_STRIDE
+            );
+            let mut next = 0;
+            let mut gpu = vec![ObjectRecord::EMPTY; deltas.slot_count as usize];
+            for (i, c) in upload.chunks.iter().enumerate() {
+                assert_eq!(c.first, next, "{max_binding}");
+                let offset = c.first as u64 * DeltaWrite::BYTES as u64;
+                let bytes = c.count as u64 * DeltaWrite::BYTES as u64;
+                assert_eq!(offset % 256, 0, "{max_binding}: chunk {i}");
+                assert!(bytes <= max_binding.max(64 * 132), "{max_binding}: {bytes}");
+                let p = &upload.params[i * 256..i * 256 + 8];
+                assert_eq!(u32::from_le_bytes(p[..4].try_into().unwrap()), c.count);
+                // The chunk's writes, as the pass reads them from its binding.
+                let words: Vec<u32> = upload.writes[offset as usize..(offset + bytes) as usize]
+                    .chunks_exact(4)
+                    .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
+                    .collect();
+                for w in words.chunks_exact(DeltaWrite::WORDS) {
+                    gpu[w[0] as usize] = ObjectRecord(w[1..].try_into().unwrap());
+                }
+                next += c.count;
+            }
+            assert_eq!(next, 1000);
+            assert_eq!(gpu.as_slice(), table.records(), "{max_binding}");
+        }
+        assert_eq!(writes_per_chunk(1 << 27), 1_016_768);
+        assert!(Deltas::default().upload(64).chunks.is_empty());
     }
 
     #[test]

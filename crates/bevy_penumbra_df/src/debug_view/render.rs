@@ -1,21 +1,24 @@
 //! Render-world side of the debug view.
 
 use super::{DistanceFieldDebugMode, DistanceFieldDebugView};
-use crate::scene::{DistanceFieldGpu, DistanceFieldPipelines, cull_objects};
+use crate::gpu_allocations::PenumbraGpuAllocations;
+use crate::scene::{CulledObjects, DistanceFieldGpu, DistanceFieldPipelines};
 use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::{Core3dSystems, FullscreenShader, schedule::Core3d};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
+use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::binding_types::{
     storage_buffer_read_only_sized, texture_3d, uniform_buffer_sized,
 };
 use bevy::render::render_resource::{
-    BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, BufferInitDescriptor,
-    BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites, FragmentState, Operations,
-    PipelineCache, RenderPassColorAttachment, RenderPassDescriptor, RenderPipelineDescriptor,
-    ShaderStages, TextureFormat, TextureSampleType, TextureView,
+    BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
+    BufferDescriptor, BufferId, BufferUsages, CachedRenderPipelineId, ColorTargetState,
+    ColorWrites, FragmentState, Operations, PipelineCache, RenderPassColorAttachment,
+    RenderPassDescriptor, RenderPipelineDescriptor, ShaderStages, TextureFormat, TextureSampleType,
+    TextureView, TextureViewId,
 };
-use bevy::render::renderer::{RenderContext, RenderDevice, ViewQuery};
+use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::view::{ExtractedView, ViewTarget};
 use bevy::render::{Render, RenderStartup, RenderSystems};
 use penumbra_df_core::cull::CameraOrigin;
@@ -33,11 +36,25 @@ struct DebugViewPipelines {
     empty_atlas: TextureView,
 }
 
+/// A debug view's uniform and bind group (render world), reused across frames.
+#[derive(Component)]
+struct DebugViewResources {
+    uniform: Buffer,
+    /// The bind group and the object buffer, culled list and atlas it binds.
+    bind_group: Option<(BindGroup, [BufferId; 2], TextureViewId)>,
+}
+
 pub(super) fn build(render_app: &mut SubApp) {
     render_app
         .add_systems(
             Render,
-            prepare_debug_view_pipelines.in_set(RenderSystems::Prepare),
+            (
+                prepare_debug_view_pipelines.in_set(RenderSystems::Prepare),
+                prepare_debug_view_resources
+                    .in_set(RenderSystems::PrepareResources)
+                    .after(crate::scene::DistanceFieldRenderSystems::PrepareGpu),
+                prepare_debug_view_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+            ),
         )
         .add_systems(
             Core3d,
@@ -116,54 +133,93 @@ fn prepare_debug_view_pipelines(
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn distance_field_debug_view(
-    view: ViewQuery<(&ViewTarget, &ExtractedView, &DistanceFieldDebugView)>,
+/// A debug view's inputs and pooled resources.
+type DebugViewQuery<'a> = (
+    Entity,
+    &'a ExtractedView,
+    &'a DistanceFieldDebugView,
+    Option<&'a mut CulledObjects>,
+    Option<&'a mut DebugViewResources>,
+);
+
+/// Per debug view: its culling (`CulledObjects`), its uniform and its bind group.
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+fn prepare_debug_view_resources(
+    mut commands: Commands,
+    mut views: Query<DebugViewQuery>,
     gpu: Res<DistanceFieldGpu>,
     scene_pipelines: Option<Res<DistanceFieldPipelines>>,
     pipelines: Option<Res<DebugViewPipelines>>,
     pipeline_cache: Res<PipelineCache>,
+    allocations: Res<PenumbraGpuAllocations>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
     mut warned_ortho: Local<bool>,
-    mut ctx: RenderContext,
 ) {
-    let (target, extracted, settings) = view.into_inner();
-    let (Some(scene_pipelines), Some(pipelines)) = (scene_pipelines, pipelines) else {
-        return;
-    };
-    let Some(pipeline) = pipelines
-        .by_format
-        .get(&target.main_texture_format())
-        .and_then(|id| pipeline_cache.get_render_pipeline(*id))
+    let (Some(scene_pipelines), true, true) =
+        (scene_pipelines, pipelines.is_some(), gpu.objects.is_some())
     else {
-        return;
-    };
-    if extracted.clip_from_view.w_axis.w == 1.0 {
-        if !*warned_ortho {
-            warn!("Penumbra: DistanceFieldDebugView supports perspective cameras only");
-            *warned_ortho = true;
-        }
-        return;
-    }
-    let world_from_view = extracted.world_from_view.affine();
-    let camera = Vec3::from(world_from_view.translation);
-    let view_from_relative = Mat4::from_mat3a(world_from_view.matrix3).inverse();
-    let clip_from_relative = extracted.clip_from_view * view_from_relative;
-    let Some(objects) = gpu.objects.as_ref() else {
         return; // no caster has ever existed: nothing to trace
     };
-    let Some(culled) = cull_objects(
-        &mut ctx,
-        &gpu,
-        &scene_pipelines,
-        &pipeline_cache,
-        clip_from_relative,
-        camera,
-    ) else {
-        return;
-    };
-    let Some(origin) = CameraOrigin::at(camera) else {
-        return;
-    };
+    for (entity, extracted, settings, culled, resources) in &mut views {
+        if extracted.clip_from_view.w_axis.w == 1.0 {
+            if !*warned_ortho {
+                warn!("Penumbra: DistanceFieldDebugView supports perspective cameras only");
+                *warned_ortho = true;
+            }
+            continue;
+        }
+        let world_from_view = extracted.world_from_view.affine();
+        let camera = Vec3::from(world_from_view.translation);
+        let view_from_relative = Mat4::from_mat3a(world_from_view.matrix3).inverse();
+        let clip_from_relative = extracted.clip_from_view * view_from_relative;
+        let Some(origin) = CameraOrigin::at(camera) else {
+            continue;
+        };
+        let mut entity_commands = commands.entity(entity);
+        CulledObjects::prepare(
+            culled,
+            &mut entity_commands,
+            &gpu,
+            &scene_pipelines,
+            &pipeline_cache,
+            &allocations,
+            &device,
+            &queue,
+            clip_from_relative,
+            camera,
+        );
+        let mut fresh = None;
+        let resources = match resources {
+            Some(r) => r.into_inner(),
+            None => fresh.insert(DebugViewResources {
+                uniform: allocations.buffer(
+                    &device,
+                    &BufferDescriptor {
+                        label: Some("penumbra_df_debug_view"),
+                        size: DEBUG_VIEW_BYTES,
+                        usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    },
+                ),
+                bind_group: None,
+            }),
+        };
+        let words = debug_view_words(clip_from_relative, &origin, settings);
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        queue.write_buffer(&resources.uniform, 0, &bytes);
+        if let Some(fresh) = fresh {
+            entity_commands.insert(fresh);
+        }
+    }
+}
+
+/// The `DebugView` uniform of `df/debug_view.wgsl`.
+fn debug_view_words(
+    clip_from_relative: Mat4,
+    origin: &CameraOrigin,
+    settings: &DistanceFieldDebugView,
+) -> Vec<u32> {
     let mut words: Vec<u32> = clip_from_relative
         .inverse()
         .to_cols_array()
@@ -186,45 +242,90 @@ fn distance_field_debug_view(
         settings.max_distance.max(0.0).to_bits(),
         0,
     ]);
-    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-    let device = ctx.render_device().clone();
-    let uniform = device.create_buffer_with_data(&BufferInitDescriptor {
-        label: Some("penumbra_df_debug_view"),
-        contents: &bytes,
-        usage: BufferUsages::UNIFORM,
-    });
+    words
+}
+
+/// Makes a debug view's bind group when its resources changed.
+fn prepare_debug_view_bind_groups(
+    mut views: Query<(&CulledObjects, &mut DebugViewResources)>,
+    gpu: Res<DistanceFieldGpu>,
+    pipelines: Option<Res<DebugViewPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    allocations: Res<PenumbraGpuAllocations>,
+    device: Res<RenderDevice>,
+) {
+    let (Some(pipelines), Some(objects)) = (pipelines, gpu.objects.as_ref()) else {
+        return;
+    };
     let atlas = gpu
         .atlas
         .as_ref()
         .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
-    let bind_group = device.create_bind_group(
-        "penumbra_df_debug_view",
-        &pipeline_cache.get_bind_group_layout(&pipelines.layout),
-        &BindGroupEntries::sequential((
-            objects.as_entire_binding(),
-            culled.list.as_entire_binding(),
-            culled.count.as_entire_binding(),
-            atlas,
-            uniform.as_entire_binding(),
-        )),
-    );
-    let post_process = target.post_process_write();
-    let mut pass = ctx
-        .command_encoder()
-        .begin_render_pass(&RenderPassDescriptor {
-            label: Some("penumbra_df_debug_view"),
-            color_attachments: &[Some(RenderPassColorAttachment {
-                view: post_process.destination,
-                depth_slice: None,
-                resolve_target: None,
-                ops: Operations::default(),
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
-    pass.set_pipeline(pipeline);
-    pass.set_bind_group(0, &bind_group, &[]);
-    pass.draw(0..3, 0..1);
+    for (culled, mut resources) in &mut views {
+        let key = ([objects.id(), culled.list.id()], atlas.id());
+        if resources.bind_group.as_ref().map(|(_, b, a)| (*b, *a)) == Some(key) {
+            continue;
+        }
+        let bind_group = allocations.bind_group(
+            &device,
+            "penumbra_df_debug_view",
+            &pipeline_cache.get_bind_group_layout(&pipelines.layout),
+            &BindGroupEntries::sequential((
+                objects.as_entire_binding(),
+                culled.list.as_entire_binding(),
+                culled.count.as_entire_binding(),
+                atlas,
+                resources.uniform.as_entire_binding(),
+            )),
+        );
+        resources.bind_group = Some((bind_group, key.0, key.1));
+    }
+}
+
+/// Culls the scene for the view, then ray-marches it over the view's image.
+fn distance_field_debug_view(
+    view: ViewQuery<(&ViewTarget, &CulledObjects, &DebugViewResources)>,
+    scene_pipelines: Option<Res<DistanceFieldPipelines>>,
+    pipelines: Option<Res<DebugViewPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    let (target, culled, resources) = view.into_inner();
+    let (Some(scene_pipelines), Some(pipelines), Some((bind_group, ..))) =
+        (scene_pipelines, pipelines, &resources.bind_group)
+    else {
+        return;
+    };
+    let Some(pipeline) = pipelines
+        .by_format
+        .get(&target.main_texture_format())
+        .and_then(|id| pipeline_cache.get_render_pipeline(*id))
+    else {
+        return;
+    };
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_df_debug_view");
+    if culled.dispatch(&mut ctx, &scene_pipelines, &pipeline_cache) {
+        let post_process = target.post_process_write();
+        let mut pass = ctx
+            .command_encoder()
+            .begin_render_pass(&RenderPassDescriptor {
+                label: Some("penumbra_df_debug_view"),
+                color_attachments: &[Some(RenderPassColorAttachment {
+                    view: post_process.destination,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: Operations::default(),
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, bind_group, &[]);
+        pass.draw(0..3, 0..1);
+    }
+    time_span.end(ctx.command_encoder());
 }

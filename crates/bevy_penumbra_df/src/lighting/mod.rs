@@ -70,7 +70,10 @@ impl ExtractComponent for PenumbraLighting {
         Option<&'static PbrDeferredLightingDepthId>,
         Option<&'static Msaa>,
     );
-    type QueryFilter = ();
+    // Bevy's extraction queries `QueryData` with this filter only: without it, every
+    // render-synced entity (lights, other cameras) got the marker and
+    // `SkipDeferredLighting`.
+    type QueryFilter = With<PenumbraLighting>;
     type Out = (PenumbraLightingView, SkipDeferredLighting);
 
     fn extract_component(

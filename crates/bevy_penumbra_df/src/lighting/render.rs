@@ -1,6 +1,7 @@
 //! Render-world side of Penumbra's lighting pass.
 
 use super::PenumbraLightingView;
+use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::core_3d::main_opaque_pass_3d;
 use bevy::core_pipeline::deferred::{
@@ -22,7 +23,7 @@ use bevy::render::render_resource::{
     RenderPassDepthStencilAttachment, RenderPassDescriptor, RenderPipelineDescriptor, ShaderStages,
     SpecializedRenderPipeline, SpecializedRenderPipelines, StoreOp, TextureDescriptor,
     TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
-    TextureViewDescriptor, TextureViewDimension, VertexState,
+    TextureViewDescriptor, TextureViewDimension, TextureViewId, VertexState,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::view::{ExtractedView, ViewTarget};
@@ -89,13 +90,14 @@ pub struct PenumbraLightingPipeline {
 #[derive(Component)]
 pub struct PenumbraLightingPipelineId(pub CachedRenderPipelineId);
 
-/// A view's group 2 and the buffers behind it (reused across frames).
+/// A view's group 2 and the buffers behind it (reused across frames; the bind group is
+/// made again only when the masks it binds change).
 #[derive(Component)]
 pub(crate) struct PenumbraLightingBindGroup {
     uniform: Buffer,
     lights: Buffer,
     light_capacity: u64,
-    bind_group: Option<BindGroup>,
+    bind_group: Option<(BindGroup, TextureViewId)>,
 }
 
 pub(super) fn build(render_app: &mut SubApp) {
@@ -356,6 +358,7 @@ fn prepare_penumbra_lighting_pipelines(
 
 fn prepare_penumbra_lighting_bind_groups(
     mut commands: Commands,
+    allocations: Res<PenumbraGpuAllocations>,
     device: Res<RenderDevice>,
     queue: Res<RenderQueue>,
     pipeline_cache: Res<PipelineCache>,
@@ -379,18 +382,24 @@ fn prepare_penumbra_lighting_bind_groups(
             _ => {
                 let capacity = needed.next_power_of_two();
                 fresh = Some(PenumbraLightingBindGroup {
-                    uniform: device.create_buffer(&BufferDescriptor {
-                        label: Some("penumbra_lighting_uniform"),
-                        size: UNIFORM_BYTES,
-                        usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
-                        mapped_at_creation: false,
-                    }),
-                    lights: device.create_buffer(&BufferDescriptor {
-                        label: Some("penumbra_lighting_shadowed_lights"),
-                        size: capacity * SHADOWED_LIGHT_BYTES,
-                        usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
-                        mapped_at_creation: false,
-                    }),
+                    uniform: allocations.buffer(
+                        &device,
+                        &BufferDescriptor {
+                            label: Some("penumbra_lighting_uniform"),
+                            size: UNIFORM_BYTES,
+                            usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                            mapped_at_creation: false,
+                        },
+                    ),
+                    lights: allocations.buffer(
+                        &device,
+                        &BufferDescriptor {
+                            label: Some("penumbra_lighting_shadowed_lights"),
+                            size: capacity * SHADOWED_LIGHT_BYTES,
+                            usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
+                            mapped_at_creation: false,
+                        },
+                    ),
                     light_capacity: capacity,
                     bind_group: None,
                 });
@@ -403,15 +412,19 @@ fn prepare_penumbra_lighting_bind_groups(
             queue.write_buffer(&group.lights, 0, &encode_shadowed_lights(lights));
         }
         let masks = inputs.map_or(&pipeline.no_masks, |i| &i.masks);
-        group.bind_group = Some(device.create_bind_group(
-            "penumbra_lighting_bind_group",
-            &pipeline_cache.get_bind_group_layout(&pipeline.layout),
-            &BindGroupEntries::sequential((
-                group.uniform.as_entire_binding(),
-                group.lights.as_entire_binding(),
-                masks,
-            )),
-        ));
+        if group.bind_group.as_ref().map(|(_, id)| *id) != Some(masks.id()) {
+            let bind_group = allocations.bind_group(
+                &device,
+                "penumbra_lighting_bind_group",
+                &pipeline_cache.get_bind_group_layout(&pipeline.layout),
+                &BindGroupEntries::sequential((
+                    group.uniform.as_entire_binding(),
+                    group.lights.as_entire_binding(),
+                    masks,
+                )),
+            );
+            group.bind_group = Some((bind_group, masks.id()));
+        }
         if let Some(fresh) = fresh {
             commands.entity(entity).insert(fresh);
         }
@@ -456,7 +469,7 @@ pub(crate) fn penumbra_lighting(
     let Some(pipeline) = pipeline_cache.get_render_pipeline(pipeline_id.0) else {
         return; // compiling
     };
-    let Some(bind_group) = &group.bind_group else {
+    let Some((bind_group, _)) = &group.bind_group else {
         return;
     };
     let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {

@@ -33,6 +33,7 @@
 //! defragmented; casters are capped by the 128 MiB storage-binding limit of some devices
 //! at one million.
 
+mod cull;
 mod render;
 
 use crate::sdf_asset::{SdfBakeFailed, SdfBakeRequest, SdfBaked, SdfVolumeAsset};
@@ -45,7 +46,8 @@ use penumbra_df_core::object::{CasterShape, ObjectDesc, RECORD_BYTES, encode, fl
 use penumbra_df_core::table::{Deltas, ObjectTable};
 use penumbra_sdf::{BakeSettings, GridPolicy, Resolution, SignMethod};
 
-pub use render::{CulledObjects, DistanceFieldGpu, DistanceFieldPipelines, cull_objects};
+pub use cull::CulledObjects;
+pub use render::{DistanceFieldGpu, DistanceFieldPipelines, DistanceFieldRenderSystems};
 
 /// Adds distance-field casters, the atlas and the object buffer. Part of
 /// `PenumbraPlugins`; needs [`crate::SdfAssetPlugin`] for mesh casters.

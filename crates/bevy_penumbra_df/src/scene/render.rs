@@ -1,25 +1,31 @@
-//! Render-world side of the distance-field scene: the object buffer, the atlas texture,
-//! the delta pass and per-view GPU culling.
+//! Render-world side of the distance-field scene: the object buffer, the atlas texture
+//! and the delta pass. Everything is pooled: the object buffer grows by doubling, the
+//! delta pass's writes and params buffers grow with the largest frame seen, and their
+//! bind groups are made again only when a buffer changes. Per-view culling is in
+//! `cull`.
 
 use super::{AtlasUpload, DistanceFieldFrame};
+use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
+use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::binding_types::{
     storage_buffer_read_only_sized, storage_buffer_sized, uniform_buffer_sized,
 };
 use bevy::render::render_resource::{
-    BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer, BufferDescriptor,
-    BufferInitDescriptor, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d,
-    Origin3d, PipelineCache, ShaderStages, TexelCopyBufferLayout, TexelCopyTextureInfo, Texture,
-    TextureAspect, TextureDescriptor, TextureDimension, TextureFormat, TextureUsages, TextureView,
-    TextureViewDescriptor,
+    BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
+    BufferBinding, BufferDescriptor, BufferId, BufferUsages, CachedComputePipelineId,
+    ComputePassDescriptor, Extent3d, Origin3d, PipelineCache, ShaderStages, TexelCopyBufferLayout,
+    TexelCopyTextureInfo, Texture, TextureAspect, TextureDescriptor, TextureDimension,
+    TextureFormat, TextureUsages, TextureView, TextureViewDescriptor,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
-use penumbra_df_core::cull::{CameraOrigin, Frustum, cull_view_words, grid_64};
 use penumbra_df_core::object::{ObjectRecord, RECORD_BYTES};
-use penumbra_df_core::table::{DeltaWrite, Deltas};
+use penumbra_df_core::table::{
+    DELTA_PARAMS_STRIDE, DeltaChunk, DeltaWrite, Deltas, writes_per_chunk,
+};
 use std::collections::BTreeMap;
 use std::num::NonZeroU64;
 
@@ -37,8 +43,24 @@ pub struct DistanceFieldGpu {
     pub atlas: Option<(Texture, TextureView, UVec3)>,
     /// Writes not yet applied (kept while the delta pipeline compiles).
     pending: BTreeMap<u32, ObjectRecord>,
-    /// This frame's writes buffer, its params uniform and its dispatch size.
-    frame_writes: Option<(Buffer, Buffer, [u32; 3])>,
+    /// The delta pass's pooled buffers and bind groups.
+    deltas: Option<DeltaBuffers>,
+    /// This frame's dispatches of the delta pass.
+    frame_chunks: Vec<DeltaChunk>,
+    /// Most writes one dispatch binds (from the device's storage-binding limit).
+    writes_per_chunk: u32,
+}
+
+/// The delta pass's buffers: the frame's writes (all chunks back to back) and one
+/// `DeltaParams` per chunk, with a bind group per chunk.
+struct DeltaBuffers {
+    writes: Buffer,
+    params: Buffer,
+    /// Writes `writes` holds.
+    capacity: u32,
+    /// Per chunk, and the object buffer they bind.
+    bind_groups: Vec<BindGroup>,
+    objects: Option<BufferId>,
 }
 
 /// The scene's compute pipelines.
@@ -48,23 +70,36 @@ pub struct DistanceFieldPipelines {
     apply: CachedComputePipelineId,
     /// Layout of the culling pass (objects, view, culled, count).
     pub cull_layout: BindGroupLayoutDescriptor,
-    cull: CachedComputePipelineId,
+    pub(crate) cull: CachedComputePipelineId,
     /// Layout of the indirect-arguments pass (count, indirect).
     pub indirect_layout: BindGroupLayoutDescriptor,
-    indirect: CachedComputePipelineId,
+    pub(crate) indirect: CachedComputePipelineId,
 }
 
 #[derive(Resource, Default)]
 struct ExtractedDistanceFieldFrame(DistanceFieldFrame);
+
+/// Render-world system sets of the distance-field scene.
+#[derive(SystemSet, Clone, Debug, PartialEq, Eq, Hash)]
+pub enum DistanceFieldRenderSystems {
+    /// The object buffer and atlas are grown and the frame's uploads queued
+    /// (`RenderSystems::PrepareResources`): passes sizing buffers by
+    /// `DistanceFieldGpu::slot_count` prepare after it.
+    PrepareGpu,
+}
 
 pub(super) fn build(render_app: &mut SubApp) {
     render_app
         .init_resource::<DistanceFieldGpu>()
         .init_resource::<ExtractedDistanceFieldFrame>()
         .add_systems(ExtractSchedule, extract_distance_field_frame)
+        .configure_sets(
+            Render,
+            DistanceFieldRenderSystems::PrepareGpu.in_set(RenderSystems::PrepareResources),
+        )
         .add_systems(
             Render,
-            prepare_distance_field_gpu.in_set(RenderSystems::PrepareResources),
+            prepare_distance_field_gpu.in_set(DistanceFieldRenderSystems::PrepareGpu),
         )
         .add_systems(
             RenderGraph,
@@ -79,8 +114,12 @@ pub(super) fn finish(render_app: &mut SubApp) {
 fn init_distance_field_pipelines(
     mut commands: Commands,
     pipeline_cache: Res<PipelineCache>,
+    device: Res<RenderDevice>,
     library: Option<Res<PenumbraShaderLibrary>>,
+    mut gpu: ResMut<DistanceFieldGpu>,
 ) {
+    // Delta uploads bind at most this many writes per dispatch.
+    gpu.writes_per_chunk = writes_per_chunk(device.limits().max_storage_buffer_binding_size);
     let Some(library) = library else {
         warn!(
             "Penumbra: shader library missing (add PenumbraPlugins); distance-field passes are off"
@@ -106,7 +145,7 @@ fn init_distance_field_pipelines(
                 (0, storage_buffer_read_only_sized(false, None)),
                 (
                     1,
-                    uniform_buffer_sized(false, NonZeroU64::new(CULL_VIEW_BYTES)),
+                    uniform_buffer_sized(false, NonZeroU64::new(super::cull::CULL_VIEW_BYTES)),
                 ),
                 (2, storage_buffer_sized(false, None)),
                 (3, storage_buffer_sized(false, None)),
@@ -160,7 +199,11 @@ fn extract_distance_field_frame(
     extracted.0 = DistanceFieldFrame::clone(&frame);
 }
 
+/// Grows the object buffer, creates the atlas on first use, writes the frame's atlas
+/// uploads, and uploads the frame's record writes into the pooled delta buffers (kept
+/// pending while the delta pipeline compiles).
 fn prepare_distance_field_gpu(
+    allocations: Res<PenumbraGpuAllocations>,
     frame: Res<ExtractedDistanceFieldFrame>,
     mut gpu: ResMut<DistanceFieldGpu>,
     pipelines: Option<Res<DistanceFieldPipelines>>,
@@ -170,28 +213,31 @@ fn prepare_distance_field_gpu(
 ) {
     let frame = &frame.0;
     let gpu = &mut *gpu;
-    gpu.frame_writes = None;
+    gpu.frame_chunks.clear();
     if frame.deltas.slot_count == 0 && gpu.objects.is_none() {
         return; // no caster has ever existed
     }
-    grow_object_buffer(gpu, &frame.deltas, &device, &queue);
+    grow_object_buffer(gpu, &frame.deltas, &allocations, &device, &queue);
     if let Some(size) = frame.atlas_size
         && gpu.atlas.is_none()
     {
-        let texture = device.create_texture(&TextureDescriptor {
-            label: Some("penumbra_df_atlas"),
-            size: Extent3d {
-                width: size.x,
-                height: size.y,
-                depth_or_array_layers: size.z,
+        let texture = allocations.texture(
+            &device,
+            &TextureDescriptor {
+                label: Some("penumbra_df_atlas"),
+                size: Extent3d {
+                    width: size.x,
+                    height: size.y,
+                    depth_or_array_layers: size.z,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: TextureDimension::D3,
+                format: TextureFormat::R16Float,
+                usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
+                view_formats: &[],
             },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: TextureDimension::D3,
-            format: TextureFormat::R16Float,
-            usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
+        );
         let view = texture.create_view(&TextureViewDescriptor::default());
         gpu.atlas = Some((texture, view, size));
     }
@@ -205,10 +251,10 @@ fn prepare_distance_field_gpu(
     }
     let ready = pipelines
         .as_ref()
-        .is_some_and(|p| pipeline_cache.get_compute_pipeline(p.apply).is_some());
-    if gpu.pending.is_empty() || !ready {
+        .filter(|p| pipeline_cache.get_compute_pipeline(p.apply).is_some());
+    let (Some(pipelines), false) = (ready, gpu.pending.is_empty()) else {
         return;
-    }
+    };
     let deltas = Deltas {
         writes: std::mem::take(&mut gpu.pending)
             .into_iter()
@@ -216,19 +262,107 @@ fn prepare_distance_field_gpu(
             .collect(),
         slot_count: gpu.slot_count,
     };
-    let upload = deltas.upload();
-    let writes = device.create_buffer_with_data(&BufferInitDescriptor {
-        label: Some("penumbra_df_object_writes"),
-        contents: &upload.writes,
-        usage: BufferUsages::STORAGE,
-    });
-    let params = device.create_buffer_with_data(&BufferInitDescriptor {
-        label: Some("penumbra_df_object_writes_params"),
-        contents: &upload.params,
-        usage: BufferUsages::UNIFORM,
-    });
-    let groups = upload.groups;
-    gpu.frame_writes = Some((writes, params, groups));
+    let upload = deltas.upload(gpu.writes_per_chunk.max(64));
+    let objects = gpu.objects.as_ref().expect("grown above");
+    let buffers = fit_delta_buffers(
+        &mut gpu.deltas,
+        deltas.writes.len() as u32,
+        gpu.writes_per_chunk.max(64),
+        &allocations,
+        &device,
+    );
+    if buffers.objects != Some(objects.id()) || buffers.bind_groups.is_empty() {
+        buffers.bind_groups = delta_bind_groups(
+            buffers,
+            objects,
+            gpu.writes_per_chunk.max(64),
+            &allocations,
+            &device,
+            &pipeline_cache.get_bind_group_layout(&pipelines.apply_layout),
+        );
+        buffers.objects = Some(objects.id());
+    }
+    queue.write_buffer(&buffers.writes, 0, &upload.writes);
+    queue.write_buffer(&buffers.params, 0, &upload.params);
+    gpu.frame_chunks = upload.chunks;
+}
+
+/// The delta buffers, grown to hold `writes` writes (never shrunk).
+fn fit_delta_buffers<'a>(
+    pool: &'a mut Option<DeltaBuffers>,
+    writes: u32,
+    per_chunk: u32,
+    allocations: &PenumbraGpuAllocations,
+    device: &RenderDevice,
+) -> &'a mut DeltaBuffers {
+    if pool.as_ref().is_some_and(|b| b.capacity >= writes) {
+        return pool.as_mut().expect("checked");
+    }
+    let capacity = writes.max(64).next_power_of_two();
+    let chunks = capacity.div_ceil(per_chunk) as u64;
+    let buffer = |label: &'static str, size: u64, usage: BufferUsages| {
+        allocations.buffer(
+            device,
+            &BufferDescriptor {
+                label: Some(label),
+                size,
+                usage: usage | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            },
+        )
+    };
+    pool.insert(DeltaBuffers {
+        writes: buffer(
+            "penumbra_df_object_writes",
+            capacity as u64 * DeltaWrite::BYTES as u64,
+            BufferUsages::STORAGE,
+        ),
+        params: buffer(
+            "penumbra_df_object_writes_params",
+            chunks * DELTA_PARAMS_STRIDE,
+            BufferUsages::UNIFORM,
+        ),
+        capacity,
+        bind_groups: Vec::new(),
+        objects: None,
+    })
+}
+
+/// One bind group per chunk the buffers can hold: writes `k × per_chunk..` and params
+/// `k × DELTA_PARAMS_STRIDE`.
+fn delta_bind_groups(
+    buffers: &DeltaBuffers,
+    objects: &Buffer,
+    per_chunk: u32,
+    allocations: &PenumbraGpuAllocations,
+    device: &RenderDevice,
+    layout: &bevy::render::render_resource::BindGroupLayout,
+) -> Vec<BindGroup> {
+    let chunk_bytes = per_chunk as u64 * DeltaWrite::BYTES as u64;
+    let total = buffers.writes.size();
+    (0..total.div_ceil(chunk_bytes))
+        .map(|k| {
+            let offset = k * chunk_bytes;
+            allocations.bind_group(
+                device,
+                "penumbra_df_apply_deltas",
+                layout,
+                &BindGroupEntries::sequential((
+                    objects.as_entire_binding(),
+                    BufferBinding {
+                        buffer: &buffers.writes,
+                        offset,
+                        size: NonZeroU64::new(chunk_bytes.min(total - offset)),
+                    },
+                    BufferBinding {
+                        buffer: &buffers.params,
+                        offset: k * DELTA_PARAMS_STRIDE,
+                        size: NonZeroU64::new(16),
+                    },
+                )),
+            )
+        })
+        .collect()
 }
 
 /// Grows the object buffer to hold `deltas.slot_count` slots (doubling; old contents
@@ -236,6 +370,7 @@ fn prepare_distance_field_gpu(
 fn grow_object_buffer(
     gpu: &mut DistanceFieldGpu,
     deltas: &Deltas,
+    allocations: &PenumbraGpuAllocations,
     device: &RenderDevice,
     queue: &RenderQueue,
 ) {
@@ -244,12 +379,15 @@ fn grow_object_buffer(
         return;
     }
     let capacity = gpu.slot_count.max(64).next_power_of_two();
-    let buffer = device.create_buffer(&BufferDescriptor {
-        label: Some("penumbra_df_objects"),
-        size: capacity as u64 * RECORD_BYTES as u64,
-        usage: BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
+    let buffer = allocations.buffer(
+        device,
+        &BufferDescriptor {
+            label: Some("penumbra_df_objects"),
+            size: capacity as u64 * RECORD_BYTES as u64,
+            usage: BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        },
+    );
     if let Some(old) = &gpu.objects {
         let mut encoder = device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(
@@ -293,29 +431,24 @@ fn write_atlas(queue: &RenderQueue, texture: &Texture, upload: &AtlasUpload) {
     );
 }
 
+/// The delta pass: one dispatch per chunk of this frame's writes.
 fn apply_distance_field_deltas(
     mut ctx: RenderContext,
     gpu: Res<DistanceFieldGpu>,
     pipelines: Option<Res<DistanceFieldPipelines>>,
     pipeline_cache: Res<PipelineCache>,
 ) {
-    let (Some((writes, params, groups)), Some(objects), Some(pipelines)) =
-        (&gpu.frame_writes, &gpu.objects, pipelines)
+    let (Some(buffers), Some(pipelines), false) =
+        (&gpu.deltas, pipelines, gpu.frame_chunks.is_empty())
     else {
         return;
     };
     let Some(pipeline) = pipeline_cache.get_compute_pipeline(pipelines.apply) else {
         return; // checked in prepare; kept for safety
     };
-    let bind_group = ctx.render_device().create_bind_group(
-        "penumbra_df_apply_deltas",
-        &pipeline_cache.get_bind_group_layout(&pipelines.apply_layout),
-        &BindGroupEntries::sequential((
-            objects.as_entire_binding(),
-            writes.as_entire_binding(),
-            params.as_entire_binding(),
-        )),
-    );
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_df_apply_deltas");
     let mut pass = ctx
         .command_encoder()
         .begin_compute_pass(&ComputePassDescriptor {
@@ -323,98 +456,10 @@ fn apply_distance_field_deltas(
             timestamp_writes: None,
         });
     pass.set_pipeline(pipeline);
-    pass.set_bind_group(0, &bind_group, &[]);
-    pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
-}
-
-/// Size of the culling pass's view uniform (`CullView` in `df/cull.wgsl`).
-const CULL_VIEW_BYTES: u64 = 144;
-
-/// One view's culling output: the compact list of surviving slots, its count and
-/// indirect dispatch arguments.
-pub struct CulledObjects {
-    /// `array<u32>` of slots.
-    pub list: Buffer,
-    /// The count (`u32`).
-    pub count: Buffer,
-    /// `[x, y, z]` workgroups of 64 for passes walking the list.
-    pub indirect: Buffer,
-}
-
-/// Culls the object buffer for a camera (camera-relative `clip_from_relative`, world
-/// position `camera`) and records the passes in `ctx`. `None` while pipelines compile
-/// or without objects.
-pub fn cull_objects(
-    ctx: &mut RenderContext,
-    gpu: &DistanceFieldGpu,
-    pipelines: &DistanceFieldPipelines,
-    pipeline_cache: &PipelineCache,
-    clip_from_relative: Mat4,
-    camera: Vec3,
-) -> Option<CulledObjects> {
-    let objects = gpu.objects.as_ref()?;
-    let cull = pipeline_cache.get_compute_pipeline(pipelines.cull)?;
-    let indirect_pipeline = pipeline_cache.get_compute_pipeline(pipelines.indirect)?;
-    let origin = CameraOrigin::at(camera)?;
-    let frustum = Frustum::from_clip_from_relative(clip_from_relative);
-    let slots = gpu.slot_count;
-    let (groups, groups_x) = grid_64(slots);
-    let view = cull_view_words(&frustum, &origin, slots, groups_x);
-    let view: Vec<u8> = view.iter().flat_map(|w| w.to_le_bytes()).collect();
-    let device = ctx.render_device().clone();
-    let view = device.create_buffer_with_data(&BufferInitDescriptor {
-        label: Some("penumbra_df_cull_view"),
-        contents: &view,
-        usage: BufferUsages::UNIFORM,
-    });
-    let zeroed = |label: &'static str, size: u64, usage: BufferUsages| {
-        device.create_buffer_with_data(&BufferInitDescriptor {
-            label: Some(label),
-            contents: &vec![0u8; size as usize],
-            usage: BufferUsages::STORAGE | usage,
-        })
-    };
-    let list = zeroed(
-        "penumbra_df_culled",
-        slots.max(1) as u64 * 4,
-        BufferUsages::empty(),
-    );
-    let count = zeroed("penumbra_df_culled_count", 4, BufferUsages::COPY_SRC);
-    let indirect = zeroed("penumbra_df_culled_indirect", 12, BufferUsages::INDIRECT);
-    let cull_bind = device.create_bind_group(
-        "penumbra_df_cull",
-        &pipeline_cache.get_bind_group_layout(&pipelines.cull_layout),
-        &BindGroupEntries::with_indices((
-            (0, objects.as_entire_binding()),
-            (1, view.as_entire_binding()),
-            (2, list.as_entire_binding()),
-            (3, count.as_entire_binding()),
-        )),
-    );
-    let indirect_bind = device.create_bind_group(
-        "penumbra_df_indirect",
-        &pipeline_cache.get_bind_group_layout(&pipelines.indirect_layout),
-        &BindGroupEntries::with_indices((
-            (3, count.as_entire_binding()),
-            (4, indirect.as_entire_binding()),
-        )),
-    );
-    let mut pass = ctx
-        .command_encoder()
-        .begin_compute_pass(&ComputePassDescriptor {
-            label: Some("penumbra_df_cull"),
-            timestamp_writes: None,
-        });
-    pass.set_pipeline(cull);
-    pass.set_bind_group(0, &cull_bind, &[]);
-    pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
-    pass.set_pipeline(indirect_pipeline);
-    pass.set_bind_group(0, &indirect_bind, &[]);
-    pass.dispatch_workgroups(1, 1, 1);
+    for (chunk, bind_group) in gpu.frame_chunks.iter().zip(&buffers.bind_groups) {
+        pass.set_bind_group(0, bind_group, &[]);
+        pass.dispatch_workgroups(chunk.groups[0], chunk.groups[1], chunk.groups[2]);
+    }
     drop(pass);
-    Some(CulledObjects {
-        list,
-        count,
-        indirect,
-    })
+    time_span.end(ctx.command_encoder());
 }

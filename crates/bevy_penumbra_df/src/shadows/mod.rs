@@ -59,6 +59,7 @@
 //! tile × `max_steps`); 4 bytes per pixel per light of mask memory.
 
 mod render;
+mod resources;
 
 use bevy::prelude::*;
 use bevy::render::RenderApp;

@@ -1,7 +1,13 @@
 //! Render-world side of distance-field shadows: shadow maps off for DF-shadowed lights,
-//! per-view mask textures, and the light-cull and mask passes.
+//! per-view mask textures and pooled buffers (`resources`), and the light-cull, grid and
+//! mask passes.
 
 use super::DistanceFieldShadows;
+use super::resources::{
+    CULL_VIEW_BYTES, DistanceFieldShadowResources, ShadowViewParams, UPSAMPLE_VIEW_BYTES,
+    ViewTextures,
+};
+use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::lighting::{
     PenumbraLightingInputs, PenumbraLightingView, PenumbraShadowedLight, ShadowedLightKind,
 };
@@ -13,42 +19,33 @@ use bevy::pbr::{
     ExtractedDirectionalLight, ExtractedPointLight, GlobalClusterableObjectMeta, prepare_lights,
 };
 use bevy::prelude::*;
+use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::binding_types::{
     storage_buffer_read_only_sized, storage_buffer_sized, texture_2d, texture_3d,
     texture_storage_2d, uniform_buffer_sized,
 };
 use bevy::render::render_resource::{
-    BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer, BufferDescriptor,
-    BufferInitDescriptor, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d,
-    PipelineCache, ShaderStages, StorageTextureAccess, Texture, TextureDescriptor,
-    TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
-    TextureViewDescriptor, TextureViewDimension,
+    BindGroupLayoutDescriptor, BindGroupLayoutEntries, CachedComputePipelineId,
+    ComputePassDescriptor, Extent3d, PipelineCache, ShaderStages, StorageTextureAccess, Texture,
+    TextureDescriptor, TextureDimension, TextureFormat, TextureSampleType, TextureUsages,
+    TextureView, TextureViewDescriptor, TextureViewDimension,
 };
-use bevy::render::renderer::{RenderContext, RenderDevice, ViewQuery};
+use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::view::ExtractedView;
 use bevy::render::{Render, RenderStartup, RenderSystems};
-use penumbra_df_core::cull::{CameraOrigin, Frustum, cull_view_words, grid_64};
+use penumbra_df_core::cull::{CameraOrigin, Frustum, grid_64};
 use penumbra_df_core::object::{tile_of, tile_relative};
 use penumbra_df_core::shadow::{
-    SHADOW_GRID_BYTES, SHADOW_GRID_MAX_CELLS, SHADOW_GRID_VIEW_BYTES, SHADOW_LIGHT_BYTES,
-    SHADOW_TRACE_VIEW_BYTES, ShadowLight, ShadowLightKind, grid_view_words, half_size,
-    trace_view_words, words_to_bytes,
+    SHADOW_GRID_BYTES, SHADOW_GRID_VIEW_BYTES, SHADOW_LIGHT_BYTES, SHADOW_TRACE_VIEW_BYTES,
+    ShadowLight, ShadowLightKind, half_size,
 };
 use std::num::NonZeroU64;
 
-/// The light-space grid's item list is sized for every caster in `MAX_CELLS` cells; above
-/// this many bytes a directional light culls from its plain list instead.
-const MAX_GRID_ITEM_BYTES: u64 = 16 << 20;
-/// Bytes of `ShadowUpsampleView` (`df/shadow_upsample.wgsl`).
-const UPSAMPLE_VIEW_BYTES: u64 = 64 + 16;
-/// Bytes of `ShadowCullView` (the frustum cull's `CullView` layout).
-const CULL_VIEW_BYTES: u64 = 6 * 16 + 16 + 16 + 16;
-
 /// One distance-field-shadowed light this frame (render world).
 #[derive(Clone, Debug)]
-struct FrameLight {
+pub(super) struct FrameLight {
     kind: FrameLightKind,
-    settings: DistanceFieldShadows,
+    pub(super) settings: DistanceFieldShadows,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -67,8 +64,13 @@ enum FrameLightKind {
 }
 
 impl FrameLight {
+    /// Whether it is a directional light.
+    pub(super) fn is_directional(&self) -> bool {
+        matches!(self.kind, FrameLightKind::Directional(_))
+    }
+
     /// The light as the passes see it from a camera at `camera`.
-    fn shadow_light(&self, camera: &CameraOrigin) -> Option<ShadowLight> {
+    pub(super) fn shadow_light(&self, camera: &CameraOrigin) -> Option<ShadowLight> {
         let s = &self.settings;
         let (kind, source, range, spot) = match self.kind {
             FrameLightKind::Directional(d) => (
@@ -118,7 +120,7 @@ pub struct DistanceFieldShadowMasks {
     /// All layers, as the lighting pass reads them.
     array: TextureView,
     /// Per layer, a storage view.
-    layers: Vec<TextureView>,
+    pub(super) layers: Vec<TextureView>,
     size: UVec2,
     /// Half-resolution lights' traces, upsampled into their layer: (storage view,
     /// sampled view), at [`half_size`].
@@ -127,14 +129,14 @@ pub struct DistanceFieldShadowMasks {
 
 /// The passes' pipelines.
 #[derive(Resource)]
-struct ShadowPipelines {
-    cull_layout: BindGroupLayoutDescriptor,
+pub(super) struct ShadowPipelines {
+    pub(super) cull_layout: BindGroupLayoutDescriptor,
     cull: CachedComputePipelineId,
-    trace_layout: BindGroupLayoutDescriptor,
+    pub(super) trace_layout: BindGroupLayoutDescriptor,
     trace: CachedComputePipelineId,
-    upsample_layout: BindGroupLayoutDescriptor,
+    pub(super) upsample_layout: BindGroupLayoutDescriptor,
     upsample: CachedComputePipelineId,
-    grid_layout: BindGroupLayoutDescriptor,
+    pub(super) grid_layout: BindGroupLayoutDescriptor,
     /// The light-space grid's passes: reset, bounds, count, scan, fill.
     grid: [CachedComputePipelineId; 5],
     /// Bound when the scene has no SDF volume (analytic casters only).
@@ -152,7 +154,10 @@ pub(super) fn build(render_app: &mut SubApp) {
                 disable_shadow_maps
                     .in_set(RenderSystems::CreateViews)
                     .before(prepare_lights),
-                prepare_distance_field_shadows.in_set(RenderSystems::PrepareResources),
+                prepare_distance_field_shadows
+                    .in_set(RenderSystems::PrepareResources)
+                    .after(crate::scene::DistanceFieldRenderSystems::PrepareGpu),
+                prepare_distance_field_shadow_bind_groups.in_set(RenderSystems::PrepareBindGroups),
             ),
         )
         .add_systems(
@@ -316,13 +321,23 @@ fn disable_shadow_maps(
     }
 }
 
+/// A Penumbra-lit view's masks and pooled shadow resources, if it has them yet.
+type ShadowViewQuery<'a> = (
+    Entity,
+    &'a ExtractedView,
+    Option<&'a DistanceFieldShadowMasks>,
+    Option<&'a mut DistanceFieldShadowResources>,
+);
+
 /// Collects the frame's shadowed lights; gives every Penumbra-lit view a mask texture
-/// and tells its lighting pass which lights read which layer. Without casters or
-/// without shadowed lights, views get nothing (and lights stay unshadowed).
+/// and its pooled buffers, and tells its lighting pass which lights read which layer.
+/// Without casters or without shadowed lights, views get nothing (and lights stay
+/// unshadowed).
 #[allow(clippy::too_many_arguments, reason = "a Bevy system")]
 fn prepare_distance_field_shadows(
     mut commands: Commands,
     device: Res<RenderDevice>,
+    allocations: Res<PenumbraGpuAllocations>,
     gpu: Option<Res<DistanceFieldGpu>>,
     clustered: Option<Res<GlobalClusterableObjectMeta>>,
     mut frame: ResMut<FrameLights>,
@@ -332,15 +347,15 @@ fn prepare_distance_field_shadows(
         Option<&ExtractedDirectionalLight>,
         Option<&ExtractedPointLight>,
     )>,
-    views: Query<
-        (Entity, &ExtractedView, Option<&DistanceFieldShadowMasks>),
-        With<PenumbraLightingView>,
-    >,
+    mut views: Query<ShadowViewQuery, With<PenumbraLightingView>>,
     pipelines: Option<Res<ShadowPipelines>>,
     pipeline_cache: Res<PipelineCache>,
 ) {
     frame.0.clear();
-    let has_objects = gpu.as_ref().is_some_and(|g| g.objects.is_some());
+    let slots = gpu
+        .as_ref()
+        .filter(|g| g.objects.is_some())
+        .map(|g| g.slot_count);
     let mut sorted: Vec<_> = lights.iter().collect();
     sorted.sort_by_key(|(entity, ..)| *entity);
     for (entity, settings, directional, point) in sorted {
@@ -379,14 +394,15 @@ fn prepare_distance_field_shadows(
                 .iter()
                 .all(|&g| pipeline_cache.get_compute_pipeline(g).is_some())
     });
-    for (entity, view, masks) in &views {
-        if frame.0.is_empty() || !has_objects || !ready {
-            // No mask: the lights are unshadowed (their shadow maps are off).
+    for (entity, view, masks, resources) in &mut views {
+        let (Some(slots), true, false) = (slots, ready, frame.0.is_empty()) else {
+            // No mask: the lights are unshadowed (their shadow maps are off). Pooled
+            // buffers are kept for when they come back.
             commands
                 .entity(entity)
                 .remove::<(DistanceFieldShadowMasks, PenumbraLightingInputs)>();
             continue;
-        }
+        };
         let size = view.viewport.zw().max(UVec2::ONE);
         let layers = frame.0.len();
         let half = frame.0.iter().any(|l| l.settings.half_resolution);
@@ -394,11 +410,26 @@ fn prepare_distance_field_shadows(
             Some(m) if m.size == size && m.layers.len() == layers && m.half.is_some() == half => {
                 None
             }
-            _ => Some(create_masks(&device, size, layers as u32, half)),
+            _ => Some(create_masks(
+                &allocations,
+                &device,
+                size,
+                layers as u32,
+                half,
+            )),
         };
         let Some(array) = fresh.as_ref().or(masks).map(|m| m.array.clone()) else {
             continue;
         };
+        let mut view_entity = commands.entity(entity);
+        match resources {
+            Some(mut r) => r.fit(&allocations, &device, &frame.0, slots),
+            None => {
+                let mut r = DistanceFieldShadowResources::new(&allocations, &device);
+                r.fit(&allocations, &device, &frame.0, slots);
+                view_entity.insert(r);
+            }
+        }
         let lights = frame
             .0
             .iter()
@@ -415,7 +446,6 @@ fn prepare_distance_field_shadows(
                 layer: layer as u32,
             })
             .collect();
-        let mut view_entity = commands.entity(entity);
         if let Some(masks) = fresh {
             view_entity.insert(masks);
         }
@@ -426,39 +456,97 @@ fn prepare_distance_field_shadows(
     }
 }
 
-/// The view's shadow passes: per light, cull the object buffer to the light, then
-/// write the light's mask layer.
-fn distance_field_shadows(
-    view: ViewQuery<(
-        &ExtractedView,
-        &DistanceFieldShadowMasks,
-        &ViewPrepassTextures,
-    )>,
+/// Writes each shadowed view's uniforms for this frame and (re)makes the bind groups
+/// whose resources changed.
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+fn prepare_distance_field_shadow_bind_groups(
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    allocations: Res<PenumbraGpuAllocations>,
     gpu: Option<Res<DistanceFieldGpu>>,
     pipelines: Option<Res<ShadowPipelines>>,
     pipeline_cache: Res<PipelineCache>,
     frame: Res<FrameLights>,
-    mut ctx: RenderContext,
+    mut views: Query<(
+        &ExtractedView,
+        &DistanceFieldShadowMasks,
+        &ViewPrepassTextures,
+        &mut DistanceFieldShadowResources,
+    )>,
 ) {
-    let (view, masks, prepass) = view.into_inner();
     let (Some(gpu), Some(pipelines)) = (gpu, pipelines) else {
         return;
     };
-    let (Some(objects), Some(cull), Some(trace), Some(upsample), Some(depth)) = (
-        gpu.objects.as_ref(),
+    let Some(objects) = gpu.objects.as_ref() else {
+        return;
+    };
+    let atlas = gpu
+        .atlas
+        .as_ref()
+        .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
+    for (view, masks, prepass, mut resources) in &mut views {
+        let (Some(depth), Some(camera)) = (
+            prepass.depth_view(),
+            CameraOrigin::at(view.world_from_view.translation()),
+        ) else {
+            continue;
+        };
+        // The G-buffer's normals give the surface's own shadow (back faces and the
+        // terminator); `PenumbraLighting` cameras always have it.
+        let gbuffer = prepass.deferred_view();
+        let rotation = Mat3::from(view.world_from_view.affine().matrix3);
+        let clip_from_relative = view.clip_from_view * Mat4::from_mat3(rotation).inverse();
+        let params = ShadowViewParams {
+            camera,
+            frustum: Frustum::from_clip_from_relative(clip_from_relative),
+            view_from_clip: view.clip_from_view.inverse(),
+            world_from_view: rotation,
+            size: masks.size,
+            slots: gpu.slot_count,
+            normals: gbuffer.is_some(),
+        };
+        let textures = ViewTextures {
+            objects,
+            atlas,
+            depth,
+            gbuffer: gbuffer.unwrap_or(&pipelines.empty_gbuffer),
+            layers: &masks.layers,
+            half: masks.half.as_ref(),
+        };
+        resources.update(
+            &allocations,
+            &device,
+            &queue,
+            &pipelines,
+            &pipeline_cache,
+            &params,
+            &frame.0,
+            &textures,
+        );
+    }
+}
+
+/// The view's shadow passes: per light, clear its counters, cull the object buffer to
+/// the light, build the light-space grid (directional lights), write the light's mask
+/// layer (and upsample it from half resolution). Dispatches only.
+fn distance_field_shadows(
+    view: ViewQuery<(&DistanceFieldShadowMasks, &DistanceFieldShadowResources)>,
+    gpu: Option<Res<DistanceFieldGpu>>,
+    pipelines: Option<Res<ShadowPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    let (masks, resources) = view.into_inner();
+    let (Some(gpu), Some(pipelines)) = (gpu, pipelines) else {
+        return;
+    };
+    let (Some(cull), Some(trace), Some(upsample)) = (
         pipeline_cache.get_compute_pipeline(pipelines.cull),
         pipeline_cache.get_compute_pipeline(pipelines.trace),
         pipeline_cache.get_compute_pipeline(pipelines.upsample),
-        prepass.depth_view(),
     ) else {
         return;
     };
-    let Some(camera) = CameraOrigin::at(view.world_from_view.translation()) else {
-        return;
-    };
-    // The G-buffer's normals give the surface's own shadow (back faces and the
-    // terminator); `PenumbraLighting` cameras always have it.
-    let gbuffer = prepass.deferred_view();
     let grid_pipelines: Option<Vec<_>> = pipelines
         .grid
         .iter()
@@ -467,213 +555,51 @@ fn distance_field_shadows(
     let Some(grid_pipelines) = grid_pipelines else {
         return;
     };
-    let rotation = Mat3::from(view.world_from_view.affine().matrix3);
-    let clip_from_relative = view.clip_from_view * Mat4::from_mat3(rotation).inverse();
-    let frustum = Frustum::from_clip_from_relative(clip_from_relative);
     let slots = gpu.slot_count;
-    let (groups, groups_x) = grid_64(slots);
-    let device = ctx.render_device().clone();
-    let buffer = |label: &'static str, bytes: &[u8], usage: BufferUsages| -> Buffer {
-        device.create_buffer_with_data(&BufferInitDescriptor {
-            label: Some(label),
-            contents: bytes,
-            usage,
-        })
-    };
-    // Zero-filled storage buffers: wgpu zero-initialises new buffers on the GPU, so
-    // nothing is built or uploaded on the CPU (the grid's item list can be megabytes).
-    let zeroed = |label: &'static str, size: u64| -> Buffer {
-        device.create_buffer(&BufferDescriptor {
-            label: Some(label),
-            size: size.max(16).next_multiple_of(4),
-            usage: BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        })
-    };
-    let cull_view = buffer(
-        "penumbra_df_shadow_cull_view",
-        &words_to_bytes(&cull_view_words(&frustum, &camera, slots, groups_x)),
-        BufferUsages::UNIFORM,
-    );
-    let view_from_clip = view.clip_from_view.inverse();
-    let trace_view = |stride: u32, size: UVec2| {
-        buffer(
-            "penumbra_df_shadow_trace_view",
-            &words_to_bytes(&trace_view_words(
-                view_from_clip,
-                rotation,
-                &camera,
-                size,
-                stride,
-                gbuffer.is_some(),
-            )),
-            BufferUsages::UNIFORM,
-        )
-    };
-    let full_view = trace_view(1, masks.size);
-    let half_view = trace_view(2, half_size(masks.size));
-    let mut upsample_words: Vec<u32> = view_from_clip.to_cols_array().map(f32::to_bits).to_vec();
-    let h = half_size(masks.size);
-    upsample_words.extend([h.x, h.y, masks.size.x, masks.size.y]);
-    let upsample_view = buffer(
-        "penumbra_df_shadow_upsample_view",
-        &words_to_bytes(&upsample_words),
-        BufferUsages::UNIFORM,
-    );
-    let upsample_layout = pipeline_cache.get_bind_group_layout(&pipelines.upsample_layout);
-    let grid_layout = pipeline_cache.get_bind_group_layout(&pipelines.grid_layout);
-    let atlas = gpu
-        .atlas
-        .as_ref()
-        .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
-    let cull_layout = pipeline_cache.get_bind_group_layout(&pipelines.cull_layout);
-    let trace_layout = pipeline_cache.get_bind_group_layout(&pipelines.trace_layout);
-    for (light, layer) in frame.0.iter().zip(&masks.layers) {
-        // A light that cannot be placed (non-finite, beyond ±2³¹ tiles) marches nothing:
-        // its mask is all lit.
-        let params = light.shadow_light(&camera).unwrap_or(ShadowLight {
-            kind: ShadowLightKind::Directional(Vec3::Y),
-            source: 0.0,
-            max_distance: 0.0,
-            bias: 0.0,
-            shaping: 1.0,
-            range: 0.0,
-            max_steps: 0,
-            max_view_distance: 0.0,
-            spot: None,
-        });
-        let light_buffer = buffer(
-            "penumbra_df_shadow_light",
-            &words_to_bytes(&params.to_words()),
-            BufferUsages::UNIFORM,
-        );
-        let list = zeroed("penumbra_df_shadow_objects", slots as u64 * 4);
-        // Directional lights: the light-space grid of the culled casters (sized for all
-        // of them in MAX_CELLS cells each; for very large scenes the plain list is used).
-        let item_bytes = slots.max(1) as u64 * SHADOW_GRID_MAX_CELLS as u64 * 4;
-        let to_light = match params.kind {
-            ShadowLightKind::Directional(d) if item_bytes <= MAX_GRID_ITEM_BYTES => Some(d),
-            _ => None,
+    let (groups, _) = grid_64(slots);
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_df_shadows");
+    for r in &resources.lights {
+        let Some(bind) = &r.bind_groups else {
+            continue;
         };
-        let grid = zeroed("penumbra_df_shadow_grid", SHADOW_GRID_BYTES as u64);
-        let grid_size = if to_light.is_some() { item_bytes } else { 16 };
-        let items = zeroed("penumbra_df_shadow_grid_items", grid_size);
-        let large = zeroed(
-            "penumbra_df_shadow_grid_large",
-            if to_light.is_some() {
-                slots as u64 * 4
-            } else {
-                16
-            },
-        );
-        let cursors = zeroed("penumbra_df_shadow_grid_cursors", 4096);
-        let grid_view = buffer(
-            "penumbra_df_shadow_grid_view",
-            &words_to_bytes(&grid_view_words(
-                &camera,
-                to_light.unwrap_or(Vec3::Y),
-                to_light.is_some(),
-            )),
-            BufferUsages::UNIFORM,
-        );
-        let count = zeroed("penumbra_df_shadow_object_count", 4);
-        let cull_bind = device.create_bind_group(
-            "penumbra_df_shadow_cull",
-            &cull_layout,
-            &BindGroupEntries::sequential((
-                objects.as_entire_binding(),
-                cull_view.as_entire_binding(),
-                light_buffer.as_entire_binding(),
-                list.as_entire_binding(),
-                count.as_entire_binding(),
-            )),
-        );
-        // Half resolution: trace into the half texture, then upsample into the layer.
-        let half = masks
-            .half
-            .as_ref()
-            .filter(|_| light.settings.half_resolution);
-        let (trace_target, trace_uniform, trace_size) = match half {
-            Some((storage, _)) => (storage, &half_view, half_size(masks.size)),
-            None => (layer, &full_view, masks.size),
-        };
-        let trace_bind = device.create_bind_group(
-            "penumbra_df_shadow_trace",
-            &trace_layout,
-            &BindGroupEntries::sequential((
-                objects.as_entire_binding(),
-                list.as_entire_binding(),
-                count.as_entire_binding(),
-                atlas,
-                depth,
-                trace_uniform.as_entire_binding(),
-                light_buffer.as_entire_binding(),
-                trace_target,
-                grid.as_entire_binding(),
-                items.as_entire_binding(),
-                large.as_entire_binding(),
-                grid_view.as_entire_binding(),
-                gbuffer.unwrap_or(&pipelines.empty_gbuffer),
-            )),
-        );
-        let grid_bind = to_light.is_some().then(|| {
-            device.create_bind_group(
-                "penumbra_df_shadow_grid",
-                &grid_layout,
-                &BindGroupEntries::sequential((
-                    objects.as_entire_binding(),
-                    list.as_entire_binding(),
-                    count.as_entire_binding(),
-                    grid_view.as_entire_binding(),
-                    grid.as_entire_binding(),
-                    items.as_entire_binding(),
-                    large.as_entire_binding(),
-                    cursors.as_entire_binding(),
-                )),
-            )
+        let encoder = ctx.command_encoder();
+        encoder.clear_buffer(&r.count, 0, None);
+        if r.use_grid {
+            encoder.clear_buffer(&r.grid, 0, None);
+            encoder.clear_buffer(&r.cursors, 0, None);
+        }
+        let mut pass = encoder.begin_compute_pass(&ComputePassDescriptor {
+            label: Some("penumbra_df_shadows"),
+            timestamp_writes: None,
         });
-        let upsample_bind = half.map(|(_, sampled)| {
-            device.create_bind_group(
-                "penumbra_df_shadow_upsample",
-                &upsample_layout,
-                &BindGroupEntries::sequential((
-                    sampled,
-                    depth,
-                    upsample_view.as_entire_binding(),
-                    layer,
-                )),
-            )
-        });
-        let mut pass = ctx
-            .command_encoder()
-            .begin_compute_pass(&ComputePassDescriptor {
-                label: Some("penumbra_df_shadows"),
-                timestamp_writes: None,
-            });
         pass.set_pipeline(cull);
-        pass.set_bind_group(0, &cull_bind, &[]);
+        pass.set_bind_group(0, &bind.cull, &[]);
         pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
-        if let Some(grid_bind) = &grid_bind {
+        if let (true, Some(grid)) = (r.use_grid, &bind.grid) {
             // Reset, bounds, count, scan, fill: one thread per culled caster (at most
             // `slots`), the scan in one workgroup.
-            let per_caster = [
-                1,
-                slots.div_ceil(64),
-                slots.div_ceil(64),
-                1,
-                slots.div_ceil(64),
-            ];
-            for (pipeline, x) in grid_pipelines.iter().zip(per_caster) {
+            let per_caster = slots.div_ceil(64).max(1);
+            for (pipeline, x) in grid_pipelines
+                .iter()
+                .zip([1, per_caster, per_caster, 1, per_caster])
+            {
                 pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, grid_bind, &[]);
-                pass.dispatch_workgroups(x.max(1), 1, 1);
+                pass.set_bind_group(0, grid, &[]);
+                pass.dispatch_workgroups(x, 1, 1);
             }
         }
+        let trace_size = if r.half {
+            half_size(masks.size)
+        } else {
+            masks.size
+        };
         pass.set_pipeline(trace);
-        pass.set_bind_group(0, &trace_bind, &[]);
+        pass.set_bind_group(0, &bind.trace, &[]);
         pass.dispatch_workgroups(trace_size.x.div_ceil(8), trace_size.y.div_ceil(8), 1);
         drop(pass);
-        if let Some(upsample_bind) = &upsample_bind {
+        if let Some(upsample_bind) = bind.upsample.as_ref().filter(|_| r.half) {
             // Its own pass: the half texture, written as storage above, is read as a
             // sampled texture here.
             let mut pass = ctx
@@ -687,6 +613,7 @@ fn distance_field_shadows(
             pass.dispatch_workgroups(masks.size.x.div_ceil(8), masks.size.y.div_ceil(8), 1);
         }
     }
+    time_span.end(ctx.command_encoder());
 }
 
 fn array_view(texture: &Texture) -> TextureView {
@@ -698,30 +625,46 @@ fn array_view(texture: &Texture) -> TextureView {
 }
 
 /// An `R32Float` mask texture (written as storage, read as a texture).
-fn mask_texture(device: &RenderDevice, label: &'static str, size: UVec2, layers: u32) -> Texture {
-    device.create_texture(&TextureDescriptor {
-        label: Some(label),
-        size: Extent3d {
-            width: size.x,
-            height: size.y,
-            depth_or_array_layers: layers,
+fn mask_texture(
+    allocations: &PenumbraGpuAllocations,
+    device: &RenderDevice,
+    label: &'static str,
+    size: UVec2,
+    layers: u32,
+) -> Texture {
+    allocations.texture(
+        device,
+        &TextureDescriptor {
+            label: Some(label),
+            size: Extent3d {
+                width: size.x,
+                height: size.y,
+                depth_or_array_layers: layers,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: TextureDimension::D2,
+            format: TextureFormat::R32Float,
+            usage: TextureUsages::STORAGE_BINDING | TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
         },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: TextureDimension::D2,
-        format: TextureFormat::R32Float,
-        usage: TextureUsages::STORAGE_BINDING | TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    })
+    )
 }
 
 fn create_masks(
+    allocations: &PenumbraGpuAllocations,
     device: &RenderDevice,
     size: UVec2,
     layers: u32,
     half: bool,
 ) -> DistanceFieldShadowMasks {
-    let texture = mask_texture(device, "penumbra_df_shadow_masks", size, layers);
+    let texture = mask_texture(
+        allocations,
+        device,
+        "penumbra_df_shadow_masks",
+        size,
+        layers,
+    );
     let layers = (0..layers)
         .map(|layer| {
             texture.create_view(&TextureViewDescriptor {
@@ -734,7 +677,13 @@ fn create_masks(
         })
         .collect();
     let half = half.then(|| {
-        let texture = mask_texture(device, "penumbra_df_shadow_half_mask", half_size(size), 1);
+        let texture = mask_texture(
+            allocations,
+            device,
+            "penumbra_df_shadow_half_mask",
+            half_size(size),
+            1,
+        );
         // Separate views for writing (storage) and reading (sampled).
         (
             texture.create_view(&TextureViewDescriptor::default()),
