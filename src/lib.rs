@@ -1,8 +1,9 @@
 //! # Penumbra
 //!
-//! Bevy plugins for Unreal-4-style distance-field lighting (mesh signed distance fields,
-//! an SDF atlas and GPU object buffer, ray-marched soft shadows, distance-field ambient
-//! occlusion, a global SDF) and the Samaritan demo's cinematic effects.
+//! Bevy plugins for Unreal-4-style distance-field lighting: mesh signed distance fields,
+//! an SDF atlas and GPU object buffer, ray-marched soft shadows. Distance-field ambient
+//! occlusion, a global SDF and the Samaritan demo's cinematic effects are planned (see
+//! the README), not written yet.
 //!
 //! Add [`PenumbraPlugins`] after Bevy's `DefaultPlugins`, then tag entities, lights and
 //! cameras with Penumbra's components. A scene pays only for what it uses: features whose
@@ -11,7 +12,8 @@
 //! So far: the plugin group, the shader library every feature's WGSL imports
 //! (`#import penumbra::…`), signed distance fields as assets (`.psdf` loading, runtime
 //! baking of meshes with a disk cache), the distance-field scene (casters, SDF atlas,
-//! GPU object buffer kept in sync by deltas, GPU culling) and its debug view. See
+//! GPU object buffer kept in sync by deltas, GPU culling) and its debug view, Penumbra's
+//! lighting pass and distance-field soft shadows (`DistanceFieldShadows`). See
 //! `ARCHITECTURE.md`.
 //!
 //! ```no_run

@@ -43,6 +43,16 @@ enum Light {
     HalfResolutionSun,
 }
 
+/// How the sphere takes part.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Sphere {
+    Visible,
+    /// `Visibility::Hidden`: no shadow (as Bevy hides a hidden mesh's shadow).
+    Hidden,
+    /// Hidden, with `cast_hidden_shadow`: a shadow proxy.
+    HiddenProxy,
+}
+
 fn settings(light: Light) -> DistanceFieldShadows {
     DistanceFieldShadows {
         angular_diameter: SUN_DEGREES.to_radians(),
@@ -53,7 +63,7 @@ fn settings(light: Light) -> DistanceFieldShadows {
 }
 
 /// The scene lit by one light, with distance-field shadows or with none.
-fn render(light: Light, shadows: bool) -> (Vec<[f32; 4]>, KeptApp) {
+fn render(light: Light, shadows: bool, sphere: Sphere) -> (Vec<[f32; 4]>, KeptApp) {
     let harness = HeadlessRender::new(SIZE, SIZE)
         .format(CaptureFormat::LinearF16)
         .frames(8);
@@ -88,10 +98,18 @@ fn render(light: Light, shadows: bool) -> (Vec<[f32; 4]>, KeptApp) {
                 caster(CasterSource::Plane),
             ));
             commands.spawn((
-                Mesh3d(meshes.add(Sphere::new(0.5).mesh().uv(48, 24))),
+                Mesh3d(meshes.add(bevy::math::primitives::Sphere::new(0.5).mesh().uv(48, 24))),
                 MeshMaterial3d(matte.clone()),
                 Transform::from_xyz(-0.6, 0.8, -0.4),
-                caster(CasterSource::Sphere { radius: 0.5 }),
+                DistanceFieldCaster {
+                    cast_hidden_shadow: sphere == Sphere::HiddenProxy,
+                    ..caster(CasterSource::Sphere { radius: 0.5 })
+                },
+                if sphere == Sphere::Visible {
+                    Visibility::Inherited
+                } else {
+                    Visibility::Hidden
+                },
             ));
             commands.spawn((
                 Mesh3d(meshes.add(Cuboid::new(0.6, 1.2, 0.6))),
@@ -154,8 +172,14 @@ fn check(light: Light, name: &str) {
     if !gpu_or_skip(name) {
         return;
     }
-    let (lit, _) = render(light, false);
-    let (shadowed, app) = render(light, true);
+    check_with(light, name, Sphere::Visible);
+}
+
+/// Compares the image's visibility with the CPU model on the plugin's own records;
+/// returns the number of ground pixels in shadow (visibility < ½) in the image.
+fn check_with(light: Light, name: &str, sphere: Sphere) -> usize {
+    let (lit, _) = render(light, false, sphere);
+    let (shadowed, app) = render(light, true, sphere);
     let scene = app.world().resource::<DistanceFieldScene>();
     let records = scene.records().to_vec();
     assert_eq!(records.iter().filter(|r| r.flags() != 0).count(), 3);
@@ -177,7 +201,8 @@ fn check(light: Light, name: &str) {
         range: 20.0,
         max_steps: s.max_steps,
         max_view_distance: s.max_view_distance,
-        spot: None,
+        // The spot light's cone, as the plugin passes it (outside it, no trace).
+        spot: (light == Light::Spot).then(|| ((SPOT_TARGET - LAMP).normalize(), 1.1f32.cos())),
     };
     let view = PerspectiveCamera::looking_at(EYE, TARGET, std::f32::consts::FRAC_PI_4, SIZE, SIZE);
     // The first surface along a pixel's ray: `Some(point)` if it is the ground, away
@@ -210,7 +235,7 @@ fn check(light: Light, name: &str) {
             .all(|&(dx, dy)| hit(px + dx, py + dy).is_some())
             .then(|| hit(px, py))?
     };
-    let (mut diffs, mut shadowed_px, mut penumbra_px) = (Vec::new(), 0, 0);
+    let (mut diffs, mut shadowed_px, mut penumbra_px, mut gpu_shadowed) = (Vec::new(), 0, 0, 0);
     for y in 0..SIZE {
         for x in 0..SIZE {
             let i = (y * SIZE + x) as usize;
@@ -224,6 +249,7 @@ fn check(light: Light, name: &str) {
             let gpu = (shadowed[i][1] / unshadowed).clamp(0.0, 1.0);
             let cpu = pixel_visibility(&records, &atlas, &camera, p - EYE, Vec3::Y, &model);
             shadowed_px += usize::from(cpu < 0.5);
+            gpu_shadowed += usize::from(gpu < 0.5);
             penumbra_px += usize::from(cpu > 0.05 && cpu < 0.95);
             diffs.push((gpu - cpu).abs());
         }
@@ -248,6 +274,23 @@ fn check(light: Light, name: &str) {
         (0.01, 0.06)
     };
     assert!(mean < max_mean && p99 < max_p99, "mean {mean}, p99 {p99}");
+    gpu_shadowed
+}
+
+/// A hidden caster casts no shadow; a hidden one with `cast_hidden_shadow` casts the
+/// same shadow as a visible one (image = CPU model in each case).
+#[test]
+fn hidden_casters_cast_no_shadow_unless_they_are_proxies() {
+    let name = "hidden_casters_cast_no_shadow_unless_they_are_proxies";
+    if !gpu_or_skip(name) {
+        return;
+    }
+    let visible = check_with(Light::Sun, name, Sphere::Visible);
+    let hidden = check_with(Light::Sun, name, Sphere::Hidden);
+    let proxy = check_with(Light::Sun, name, Sphere::HiddenProxy);
+    println!("shadowed ground pixels: visible {visible}, hidden {hidden}, proxy {proxy}");
+    assert!(hidden + 100 < visible, "the hidden sphere still shadows");
+    assert_eq!(proxy, visible, "the proxy's shadow differs");
 }
 
 #[test]

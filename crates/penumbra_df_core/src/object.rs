@@ -36,7 +36,8 @@ pub const RECORD_BYTES: usize = RECORD_WORDS * 4;
 pub mod flags {
     /// The caster shadows lights that use distance-field shadows.
     pub const CASTS_SHADOWS: u32 = 1 << 0;
-    /// The caster occludes distance-field ambient occlusion.
+    /// The caster will occlude distance-field ambient occlusion (planned; no pass reads
+    /// it yet).
     pub const CASTS_OCCLUSION: u32 = 1 << 1;
     /// Two-sided (foliage): baked as a shell around every surface (`SignMethod::
     /// TWO_SIDED`), so thin and open surfaces are solid about a voxel thick. Passes

@@ -238,9 +238,9 @@ mod tests {
         assert!(f16_to_f32(0x7c00).is_infinite());
     }
 
-    /// Analytic shapes under rotation and non-uniform scale: the distance is a lower
-    /// bound of the true distance (sampled brute force on the transformed surface),
-    /// exact for uniform scale, and precise 10⁵ m from the origin.
+    /// Two hand-computed cases: a uniformly scaled sphere (exact, also 10⁵ m out) and a
+    /// squashed box (between the conservative and the true distance). Brute force all
+    /// around the shapes: `analytic_distances_match_brute_force_off_axis`.
     #[test]
     fn analytic_distances_are_exact_or_conservative() {
         let atlas = Atlas::new(UVec3::ONE * 2);
@@ -276,6 +276,167 @@ mod tests {
             let d = object_distance(&cube, q_rel, &camera, &atlas);
             assert!((0.75 * 0.5 - 1e-4..=0.75 + 1e-4).contains(&d), "{far}: {d}");
         }
+    }
+
+    /// Dense points on a shape's surface (local frame), `spacing` apart at most, and
+    /// whether a local point is inside: an independent ground truth for the distance
+    /// formulas (brute force over the samples, in f64).
+    fn surface(shape: &CasterShape) -> (Vec<Vec3>, f32) {
+        let fib = |n: usize| {
+            (0..n).map(move |i| {
+                let z = 1.0 - (2.0 * i as f32 + 1.0) / n as f32;
+                let phi = i as f32 * std::f32::consts::PI * (3.0 - 5f32.sqrt());
+                let r = (1.0 - z * z).sqrt();
+                Vec3::new(r * phi.cos(), z, r * phi.sin())
+            })
+        };
+        match *shape {
+            CasterShape::Sphere { radius } => {
+                let n = 40_000;
+                let spacing = radius * (4.0 * std::f32::consts::PI / n as f32).sqrt();
+                (fib(n).map(|d| d * radius).collect(), spacing)
+            }
+            CasterShape::Cuboid { half_extents: h } => {
+                let step = 0.01;
+                let mut points = Vec::new();
+                for axis in 0..3 {
+                    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+                    let (nu, nv) = ((2.0 * h[u] / step) as i32, (2.0 * h[v] / step) as i32);
+                    for side in [-1.0, 1.0] {
+                        for i in 0..=nu {
+                            for j in 0..=nv {
+                                let mut p = Vec3::ZERO;
+                                p[axis] = side * h[axis];
+                                p[u] = -h[u] + 2.0 * h[u] * i as f32 / nu as f32;
+                                p[v] = -h[v] + 2.0 * h[v] * j as f32 / nv as f32;
+                                points.push(p);
+                            }
+                        }
+                    }
+                }
+                (points, step * std::f32::consts::SQRT_2)
+            }
+            CasterShape::Capsule {
+                radius,
+                half_length,
+            } => {
+                let mut points: Vec<Vec3> = fib(20_000)
+                    .map(|d| d * radius + Vec3::Y * half_length * d.y.signum())
+                    .collect();
+                let (rings, around) = (200, 300);
+                for i in 0..=rings {
+                    let y = -half_length + 2.0 * half_length * i as f32 / rings as f32;
+                    for k in 0..around {
+                        let a = std::f32::consts::TAU * k as f32 / around as f32;
+                        points.push(Vec3::new(radius * a.cos(), y, radius * a.sin()));
+                    }
+                }
+                let spacing = (2.0 * half_length / rings as f32)
+                    .max(std::f32::consts::TAU * radius / around as f32)
+                    * std::f32::consts::SQRT_2;
+                (points, spacing.max(radius * 0.03))
+            }
+            _ => unreachable!("bounded shapes only"),
+        }
+    }
+
+    fn inside(shape: &CasterShape, q: Vec3) -> bool {
+        match *shape {
+            CasterShape::Sphere { radius } => q.length() < radius,
+            CasterShape::Cuboid { half_extents } => q.abs().cmplt(half_extents).all(),
+            CasterShape::Capsule {
+                radius,
+                half_length,
+            } => (q - Vec3::Y * q.y.clamp(-half_length, half_length)).length() < radius,
+            _ => unreachable!(),
+        }
+    }
+
+    /// Spheres, boxes and capsules, rotated, under uniform and non-uniform scale, near
+    /// the origin and 10⁵ m out, at points all around them (off every axis, inside and
+    /// out): against brute force over dense surface samples, the distance never exceeds
+    /// the truth (outside), has the right sign (inside), equals it under uniform scale,
+    /// and under non-uniform scale is at least the truth × `σ_min / σ_max`.
+    #[test]
+    fn analytic_distances_match_brute_force_off_axis() {
+        let atlas = Atlas::new(UVec3::ONE * 2);
+        let shapes = [
+            CasterShape::Sphere { radius: 0.6 },
+            CasterShape::Cuboid {
+                half_extents: Vec3::new(0.5, 0.25, 0.35),
+            },
+            CasterShape::Capsule {
+                radius: 0.3,
+                half_length: 0.5,
+            },
+        ];
+        let rotation = Quat::from_euler(glam::EulerRot::YXZ, 0.7, -0.4, 0.3);
+        let mut s = 99u64;
+        let mut rand = move || {
+            s = s
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (s >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+        };
+        let mut checked = 0;
+        for shape in &shapes {
+            let (samples, spacing) = surface(shape);
+            for (name, scale, at) in [
+                ("uniform", Vec3::splat(1.7), Vec3::new(0.3, 1.0, -2.0)),
+                (
+                    "non-uniform",
+                    Vec3::new(0.5, 2.0, 1.2),
+                    Vec3::new(-1.0, 0.5, 0.0),
+                ),
+                ("far", Vec3::splat(1.3), Vec3::new(1e5, 2.0, -1e5)),
+            ] {
+                let m = Affine3A::from_scale_rotation_translation(scale, rotation, at);
+                let rec = record(*shape, m);
+                let world: Vec<glam::DVec3> = samples
+                    .iter()
+                    .map(|&q| m.transform_vector3(q).as_dvec3())
+                    .collect();
+                let (lo, hi) = (scale.min_element(), scale.max_element());
+                let camera = CameraOrigin::at(at + Vec3::new(0.4, -0.3, 0.2)).unwrap();
+                for _ in 0..150 {
+                    // Around the shape: 0 to 1.5 m from its centre, any direction.
+                    let local = Vec3::new(rand(), rand(), rand()) * 1.5;
+                    let rel = m.transform_vector3(local); // from the shape's centre
+                    let p_camera =
+                        (rel.as_dvec3() + at.as_dvec3() - camera_world(&camera)).as_vec3();
+                    let got = object_distance(&rec, p_camera, &camera, &atlas) as f64;
+                    let truth = world
+                        .iter()
+                        .map(|w| (*w - rel.as_dvec3()).length())
+                        .fold(f64::INFINITY, f64::min);
+                    let err = (spacing * hi) as f64;
+                    if inside(shape, local) {
+                        assert!(got < 1e-4, "{name} {shape:?} inside {local}: {got}");
+                        continue;
+                    }
+                    checked += 1;
+                    assert!(
+                        got <= truth + 1e-4,
+                        "{name} {shape:?} {local}: {got} > {truth}"
+                    );
+                    let floor = truth * (lo / hi) as f64 - err;
+                    assert!(got >= floor, "{name} {shape:?} {local}: {got} < {floor}");
+                    if name != "non-uniform" {
+                        assert!(
+                            (got - truth).abs() <= err,
+                            "{name} {shape:?}: {got} vs {truth}"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(checked > 800, "{checked}");
+    }
+
+    /// The camera's world position, f64 (tile × size + offset).
+    fn camera_world(camera: &CameraOrigin) -> glam::DVec3 {
+        let t = camera.tile.map(f64::from);
+        glam::DVec3::from_array(t) * TILE_SIZE as f64 + camera.offset.as_dvec3()
     }
 
     #[test]

@@ -325,22 +325,40 @@ mod tests {
                 },
             ),
         ] {
-            let (mut sum, mut worst, mut n) = (0.0f32, 0.0f32, 0);
+            let (mut sum, mut worst, mut n, mut umbra, mut lit) = (0.0f32, 0.0f32, 0, 0, 0);
             for k in 0..=60 {
                 let x = -1.2 + 2.4 * k as f32 / 60.0;
                 let p = Vec3::new(x, 0.0, 0.0);
                 let march = df_visibility(&occluders, p, &light, &settings);
                 let truth =
                     monte_carlo_visibility(&occluders, p, Vec3::ZERO, &light, &settings, 48);
+                // Umbra and full light are exact (a brighter or darker march than the
+                // truth's, which lowers the mean error, still fails here).
+                if truth < 0.01 {
+                    assert!(march < 0.02, "{name}, x = {x}: umbra {march}");
+                    umbra += 1;
+                }
+                if truth > 0.99 {
+                    assert!(march > 0.98, "{name}, x = {x}: lit {march}");
+                    lit += 1;
+                }
                 sum += (march - truth).abs();
                 worst = worst.max((march - truth).abs());
                 n += 1;
             }
             let mean = sum / n as f32;
-            println!("{name}: mean |march − truth| {mean:.4}, max {worst:.4}");
-            // Measured: 0.037 (sun), 0.085 (sphere light, 0.5 m source 3 m above the
-            // occluder): the gap #5's shaping control and bench are for.
-            assert!(mean < 0.1, "{name}: mean {mean}");
+            println!(
+                "{name}: mean |march − truth| {mean:.4}, max {worst:.4}; {umbra} umbra, {lit} lit"
+            );
+            assert!(
+                umbra >= 5 && lit >= 5,
+                "{name}: {umbra} umbra, {lit} lit points"
+            );
+            // Measured: 0.0370 (sun), 0.0837 (sphere light, 0.5 m source 3 m above the
+            // occluder): the gap #5's shaping control and bench are for. Bounds a
+            // quarter above: a cone twice as wide gives 0.0735 (sun).
+            let bound = if name == "sun 10°" { 0.046 } else { 0.105 };
+            assert!(mean < bound, "{name}: mean {mean}");
             // The penumbra-only heuristic is darkest at the geometric shadow edge, where
             // half the light is really visible: its largest error is about ½ there.
             assert!(worst < 0.6, "{name}: max {worst}");

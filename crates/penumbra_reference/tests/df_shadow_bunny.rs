@@ -8,7 +8,6 @@ use penumbra_reference::df_shadow::{
     AreaLight, Occluder, ShadowSettings, TriangleOccluder, df_visibility, monte_carlo_visibility,
 };
 use penumbra_sdf::{BakeSettings, SdfVolume, bake, obj};
-use std::path::PathBuf;
 
 /// The bunny's SDF, for the march.
 struct SdfOccluder {
@@ -34,16 +33,14 @@ impl Occluder for SdfOccluder {
 
 #[test]
 fn bunny_shadow_march_against_ray_traced_ground_truth() {
-    let path =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/meshes/stanford-bunny.obj");
-    let Ok(text) = std::fs::read_to_string(&path) else {
-        assert!(
-            std::env::var("CI").is_err(),
-            "CI must have ../shared/meshes"
-        );
-        eprintln!("SKIPPED: {} not found", path.display());
+    let Some(dir) = penumbra_testkit::shared_dir(
+        "bunny_shadow_march_against_ray_traced_ground_truth",
+        env!("CARGO_MANIFEST_DIR"),
+        "meshes",
+    ) else {
         return;
     };
+    let text = std::fs::read_to_string(dir.join("stanford-bunny.obj")).expect("the bunny");
     let mut mesh = obj::parse_obj(&text).unwrap();
     mesh.origin = glam::DVec3::ZERO; // work in the file's centred frame
     // Stand the bunny on y = 0.

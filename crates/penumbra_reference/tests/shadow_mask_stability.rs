@@ -62,8 +62,9 @@ struct Case {
     points: Vec<Vec3>,
     /// Bound on the mean |model − truth| over points either side shadows.
     max_mean: f32,
-    /// The model never goes darker than this (tiny objects dim, not black out).
-    darkest_at_least: Option<f32>,
+    /// The model's darkest value lies in this range (tiny objects dim, not black out,
+    /// but they do dim).
+    darkest: Option<(f32, f32)>,
 }
 
 /// Ground points on a grid of `n × n` over `[lo, hi]` (x, z) at y = 0.
@@ -187,8 +188,9 @@ fn cases() -> Vec<Case> {
             to_sun: Vec3::new(0.5, 0.8, 0.3),
             sun_degrees: 4.0,
             points: grid((-3.0, -3.0), (3.0, 3.0), 40, Vec3::ZERO),
-            max_mean: 0.08,
-            darkest_at_least: None,
+            // Measured 0.0587.
+            max_mean: 0.075,
+            darkest: None,
         },
         Case {
             name: "1 cm sphere 1 m up (tiny-object clamp)",
@@ -198,9 +200,10 @@ fn cases() -> Vec<Case> {
             sun_degrees: 3.0,
             points: grid((-0.1, -0.1), (0.1, 0.1), 21, Vec3::ZERO),
             // Truth ≥ 0.85 here (the sphere covers ≤ 15 % of the sun's disc); the
-            // shaping brightens the clamp's 0.85 a little.
-            max_mean: 0.1,
-            darkest_at_least: Some(0.8),
+            // shaping brightens the clamp's 0.85 to 0.945. Measured mean 0.043: a model
+            // ignoring the sphere (1 everywhere) fails the darkest bound.
+            max_mean: 0.06,
+            darkest: Some((0.9, 0.97)),
         },
         Case {
             name: "400 m wall",
@@ -212,8 +215,9 @@ fn cases() -> Vec<Case> {
             to_sun: Vec3::new(0.1, 0.5, -1.0),
             sun_degrees: 1.0,
             points: grid((-50.0, -60.0), (50.0, 20.0), 30, Vec3::ZERO),
-            max_mean: 0.05,
-            darkest_at_least: None,
+            // Measured 0.0013.
+            max_mean: 0.01,
+            darkest: None,
         },
         Case {
             name: "sun 2° above the horizon",
@@ -225,8 +229,9 @@ fn cases() -> Vec<Case> {
             to_sun: Vec3::new(-1.0, 2f32.to_radians().tan(), -0.2),
             sun_degrees: 1.0,
             points: grid((-1.0, -2.0), (20.0, 3.0), 40, Vec3::ZERO),
-            max_mean: 0.1,
-            darkest_at_least: None,
+            // Measured 0.0242.
+            max_mean: 0.035,
+            darkest: None,
         },
     ]
 }
@@ -262,8 +267,12 @@ fn stress_cases_track_ground_truth_near_and_far_from_the_origin() {
             "{}: 10⁵ m out differs by {far_mean} (max {far_diff})",
             case.name
         );
-        if let Some(floor) = case.darkest_at_least {
-            assert!(darkest >= floor, "{}: darkest {darkest}", case.name);
+        if let Some((lo, hi)) = case.darkest {
+            assert!(
+                (lo..=hi).contains(&darkest),
+                "{}: darkest {darkest}",
+                case.name
+            );
         }
     }
 }

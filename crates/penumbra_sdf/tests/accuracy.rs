@@ -101,18 +101,10 @@ fn procedural_meshes_are_exact_everywhere() {
     }
 }
 
-/// `../shared/meshes` beside the checkout, or `None` (with a message) when absent.
-pub fn shared_meshes() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/meshes");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "SKIPPED: {} not found (tests on real meshes need ../shared)",
-            dir.display()
-        );
-        None
-    }
+/// `../shared/meshes` beside the checkout, or `None` after reporting `test` as skipped
+/// (a failure under CI).
+pub fn shared_meshes(test: &str) -> Option<PathBuf> {
+    penumbra_testkit::shared_dir(test, env!("CARGO_MANIFEST_DIR"), "meshes")
 }
 
 /// Deterministic pseudo-random sample cells.
@@ -131,11 +123,7 @@ fn random_cells(dims: UVec3, n: usize, seed: u64) -> Vec<UVec3> {
 
 #[test]
 fn shared_meshes_are_exact_on_random_samples() {
-    let Some(dir) = shared_meshes() else {
-        assert!(
-            std::env::var("CI").is_err(),
-            "CI must have ../shared/meshes"
-        );
+    let Some(dir) = shared_meshes("shared_meshes_are_exact_on_random_samples") else {
         return;
     };
     for (file, closed) in [
@@ -223,11 +211,8 @@ fn thin_features_keep_a_negative_sample() {
 /// legitimately flips samples next to thin surfaces, is off here.
 #[test]
 fn hierarchical_signs_match_direct_winding_numbers_everywhere() {
-    let Some(dir) = shared_meshes() else {
-        assert!(
-            std::env::var("CI").is_err(),
-            "CI must have ../shared/meshes"
-        );
+    let Some(dir) = shared_meshes("hierarchical_signs_match_direct_winding_numbers_everywhere")
+    else {
         return;
     };
     for file in ["spot.obj", "teapot.obj", "stanford-bunny.obj"] {

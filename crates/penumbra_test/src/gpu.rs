@@ -25,21 +25,20 @@ pub fn vulkan_adapter() -> Option<&'static str> {
         .as_deref()
 }
 
-/// Whether the environment says this is CI (`CI=true` or `CI=1`).
-pub fn is_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true" || v == "1")
-}
+pub use penumbra_testkit::is_ci;
 
 /// Call at the top of every GPU test: returns `true` when a Vulkan adapter exists.
-/// Without one it prints why and returns `false` (the test should return early), except
-/// under `CI=true`, where a missing adapter is a failure, never a skip.
+/// Without one it reports the test as skipped ([`penumbra_testkit::skip`]: counted as
+/// skipped by `cargo xtask test`) and returns `false` (the test should return early),
+/// except under CI, where a missing adapter is a failure, never a skip.
 pub fn gpu_or_skip(test: &str) -> bool {
     if vulkan_adapter().is_some() {
         return true;
     }
-    let why = "no Vulkan adapter: install Mesa's software Vulkan driver, Debian package \
-               `mesa-vulkan-drivers` (or run `cargo xtask test`, which installs it)";
-    assert!(!is_ci(), "{test}: {why}; CI=true, so this is a failure");
-    eprintln!("SKIPPED {test}: {why}");
+    penumbra_testkit::skip(
+        test,
+        "no Vulkan adapter: install Mesa's software Vulkan driver, Debian package \
+         `mesa-vulkan-drivers` (or run `cargo xtask test`, which installs it)",
+    );
     false
 }

@@ -2,7 +2,9 @@
 //!
 //! - `cargo xtask showcase [ARGS]`: the main job — render the showcase scene (in a
 //!   window when a display exists, else headless to a PNG whose path it prints).
-//! - `cargo xtask test [ARGS]`: the whole test suite (`cargo test --workspace`).
+//! - `cargo xtask test [ARGS]`: the whole test suite (`cargo test --workspace`), closing
+//!   with a total in which tests that could not run here (no GPU adapter, no
+//!   `../shared`: `penumbra_testkit::skip`) count as skipped, not passed.
 //!
 //! Both first make sure a Vulkan driver is installed (Penumbra renders through Vulkan;
 //! on machines without a GPU that is Mesa's lavapipe, Debian package
@@ -57,7 +59,14 @@ fn main() -> ExitCode {
         command
     };
     let result = if task.as_deref() == Some("test") {
-        match run_tests(command()) {
+        // Tests that cannot run here (no GPU adapter, no ../shared) record themselves
+        // in this file: they count as skipped, not passed.
+        let skip_log =
+            std::env::temp_dir().join(format!("penumbra_skips_{}.log", std::process::id()));
+        let _ = std::fs::remove_file(&skip_log);
+        let mut test_command = command();
+        test_command.env(penumbra_testkit::SKIP_LOG_ENV, &skip_log);
+        match run_tests(test_command, &skip_log) {
             // A test binary died (a signal: no test reported failing). Not retried: the
             // one such crash seen so far was a real bug (a shader reading uninitialized
             // workgroup memory), found only once it was looked at.
@@ -85,8 +94,12 @@ fn main() -> ExitCode {
 
 /// Runs `cargo test`, passing its output through, and closes with one line totalling
 /// every `test result:` line (cargo prints one per test binary, the last often a
-/// doc-test run of 0 tests).
-fn run_tests(mut command: Command) -> Result<(std::process::ExitStatus, Totals), String> {
+/// doc-test run of 0 tests); tests that recorded a skip in `skip_log` count as skipped,
+/// not passed, and are listed.
+fn run_tests(
+    mut command: Command,
+    skip_log: &Path,
+) -> Result<(std::process::ExitStatus, Totals), String> {
     use std::io::{BufRead, BufReader, Write};
     let mut child = command
         .stdout(std::process::Stdio::piped())
@@ -102,24 +115,52 @@ fn run_tests(mut command: Command) -> Result<(std::process::ExitStatus, Totals),
         out.flush().ok();
     }
     let status = child.wait().map_err(|e| e.to_string())?;
-    writeln!(
-        out,
-        "total: {} passed, {} failed, {} skipped",
-        totals.passed, totals.failed, totals.ignored
-    )
-    .ok();
+    let skipped: Vec<String> = std::fs::read_to_string(skip_log)
+        .unwrap_or_default()
+        .lines()
+        .map(|l| l.replace('\t', ": "))
+        .collect();
+    let _ = std::fs::remove_file(skip_log);
+    totals.skip_at_run_time(skipped.len() as u64);
+    for line in &skipped {
+        writeln!(out, "skipped at run time: {line}").ok();
+    }
+    writeln!(out, "{}", totals.summary()).ok();
     Ok((status, totals))
 }
 
-/// Sums of cargo test's `test result:` lines.
+/// Sums of cargo test's `test result:` lines, and the tests that skipped at run time.
 #[derive(Debug, Default, PartialEq)]
 struct Totals {
     passed: u64,
     failed: u64,
     ignored: u64,
+    /// Tests that returned early because they could not run here (cargo counts them as
+    /// passed).
+    skipped_at_run_time: u64,
 }
 
 impl Totals {
+    /// Moves `n` tests that reported a skip from passed to skipped.
+    fn skip_at_run_time(&mut self, n: u64) {
+        let n = n.min(self.passed);
+        self.passed -= n;
+        self.skipped_at_run_time += n;
+    }
+
+    /// The closing line: `total: P passed, F failed, S skipped (I #[ignore]d, R at run
+    /// time)`.
+    fn summary(&self) -> String {
+        format!(
+            "total: {} passed, {} failed, {} skipped ({} #[ignore]d, {} at run time)",
+            self.passed,
+            self.failed,
+            self.ignored + self.skipped_at_run_time,
+            self.ignored,
+            self.skipped_at_run_time
+        )
+    }
+
     /// Adds a line like `test result: ok. 8 passed; 0 failed; 1 ignored; 0 measured; …`.
     fn add_line(&mut self, line: &str) {
         let Some(rest) = line.trim().strip_prefix("test result: ") else {
@@ -254,8 +295,15 @@ mod tests {
             Totals {
                 passed: 9,
                 failed: 2,
-                ignored: 1
+                ignored: 1,
+                skipped_at_run_time: 0
             }
+        );
+        // Two of the passed ones had recorded a skip.
+        t.skip_at_run_time(2);
+        assert_eq!(
+            t.summary(),
+            "total: 7 passed, 2 failed, 3 skipped (1 #[ignore]d, 2 at run time)"
         );
     }
 }

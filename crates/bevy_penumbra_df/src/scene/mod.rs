@@ -110,7 +110,8 @@ pub struct DistanceFieldCaster {
     /// not draw (Unreal's "Cast Hidden Shadow"). Default `false`: like Bevy's meshes, a
     /// hidden caster casts no shadow.
     pub cast_hidden_shadow: bool,
-    /// Occludes distance-field ambient occlusion. Default `true`.
+    /// Occludes distance-field ambient occlusion (planned: recorded in the caster's
+    /// record, read by no pass yet). Default `true`.
     pub casts_occlusion: bool,
 }
 

@@ -1,0 +1,99 @@
+//! Test support shared by every Penumbra crate's tests, with no dependency (it builds
+//! in a second, so the Bevy-free crates keep their fast tests):
+//!
+//! - [`is_ci`]: the one rule for reading `CI`.
+//! - [`skip`]: a test that cannot run here (no GPU adapter, no `../shared`) says so; under
+//!   CI that is a failure, never a skip. `cargo xtask test` counts skips as skipped, not
+//!   passed: it sets [`SKIP_LOG_ENV`] to a file each skip appends a line to.
+//! - [`shared_dir`]: `../shared/<sub>` beside the checkout, or a reported skip.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+/// The environment variable naming the file skipped tests append to (one line each:
+/// `test<TAB>reason`); `cargo xtask test` sets it and reads the file afterwards.
+pub const SKIP_LOG_ENV: &str = "PENUMBRA_SKIP_LOG";
+
+/// Whether this run is CI: `CI` is set to anything but empty, `0` or `false` (any case).
+/// The one rule every test and tool uses.
+pub fn is_ci() -> bool {
+    ci_value(std::env::var("CI").ok().as_deref())
+}
+
+/// [`is_ci`] for a given value of `CI`.
+pub fn ci_value(value: Option<&str>) -> bool {
+    value.is_some_and(|v| {
+        let v = v.trim();
+        !(v.is_empty() || v == "0" || v.eq_ignore_ascii_case("false"))
+    })
+}
+
+/// Reports that `test` cannot run here because of `reason`, and returns (the test should
+/// return early). Under CI, panics instead: CI must run every test.
+pub fn skip(test: &str, reason: &str) {
+    assert!(
+        !is_ci(),
+        "{test}: {reason}; CI is set, so this is a failure"
+    );
+    // Written to the process's stderr directly, so the message shows even when the
+    // test harness captures output.
+    let _ = writeln!(std::io::stderr(), "SKIPPED {test}: {reason}");
+    if let Some(path) = std::env::var_os(SKIP_LOG_ENV) {
+        let line = format!("{test}\t{}\n", reason.replace(['\n', '\t'], " "));
+        let appended = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&path)
+            .and_then(|mut f| f.write_all(line.as_bytes()));
+        if let Err(e) = appended {
+            let _ = writeln!(std::io::stderr(), "could not record the skip: {e}");
+        }
+    }
+}
+
+/// `../shared/<sub>` beside the repository checkout (the workspace root is found from
+/// `manifest_dir`, a crate's `CARGO_MANIFEST_DIR`), or `None` after reporting `test` as
+/// skipped (a failure under CI).
+pub fn shared_dir(test: &str, manifest_dir: &str, sub: &str) -> Option<PathBuf> {
+    let mut root = PathBuf::from(manifest_dir);
+    while !root.join("Cargo.lock").exists() {
+        if !root.pop() {
+            break;
+        }
+    }
+    let dir = root.join("..").join("shared").join(sub);
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    skip(
+        test,
+        &format!(
+            "{} not found (real meshes and scenes live in ../shared)",
+            dir.display()
+        ),
+    );
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_rule_for_ci_values() {
+        for (value, want) in [
+            (None, false),
+            (Some(""), false),
+            (Some("0"), false),
+            (Some("false"), false),
+            (Some("FALSE"), false),
+            (Some(" false "), false),
+            (Some("true"), true),
+            (Some("1"), true),
+            (Some("yes"), true),
+            (Some("github-actions"), true),
+        ] {
+            assert_eq!(ci_value(value), want, "{value:?}");
+        }
+    }
+}
