@@ -32,22 +32,37 @@ fn sample_volume(atlas: texture_3d<f32>, origin: vec3<u32>, dims: vec3<u32>, c: 
     return y0 + (y1 - y0) * f.z;
 }
 
-// The distance (voxels) at grid coordinates `q` of a volume: trilinear inside its box;
-// outside, ±√(e² + s²) with `e` the distance to the box and `s` the sample at the box's
-// nearest point — a lower bound of the true distance, since every surface point lies in
-// the (convex) box: |q − x|² ≥ e² + |c − x|². (s + e, Unreal's, is an upper bound and
-// lets a step jump past a surface lying obliquely inside the box.) CPU reference:
-// `penumbra_sdf::volume::outside_bound_voxels`.
-fn volume_distance(atlas: texture_3d<f32>, origin: vec3<u32>, dims: vec3<u32>, q: vec3<f32>) -> f32 {
-    let c = clamp(q, vec3<f32>(0.0), vec3<f32>(dims - vec3<u32>(1u)));
+// The distance (voxels) at grid coordinates `q` of a volume whose surface lies at least
+// `margin` voxels inside its box: trilinear inside the box; outside, ±√(e² + s²) with `e`
+// the distance to the box shrunk by the margin and `s` the sample at its nearest point —
+// a lower bound of the true distance, since every surface point lies in that (convex)
+// box: |q − x|² ≥ e² + |c − x|². (The clamped sample plus the distance to the box,
+// Unreal's, is an upper bound and lets a step jump past a surface lying obliquely inside
+// the border.) CPU reference: `penumbra_sdf::volume::volume_distance_voxels`.
+fn volume_distance(
+    atlas: texture_3d<f32>,
+    origin: vec3<u32>,
+    dims: vec3<u32>,
+    margin: f32,
+    q: vec3<f32>,
+) -> f32 {
+    let hi = vec3<f32>(dims - vec3<u32>(1u));
+    if all(q >= vec3<f32>(0.0)) && all(q <= hi) {
+        return sample_volume(atlas, origin, dims, q);
+    }
+    // NaN margins fall back to 0; the shrunk box stays non-empty.
+    var m = clamp(margin, 0.0, 0.5 * min(hi.x, min(hi.y, hi.z)));
+    m = select(0.0, m, m >= 0.0);
+    let c = clamp(q, vec3<f32>(m), hi - vec3<f32>(m));
     let s = sample_volume(atlas, origin, dims, c);
-    let e2 = dot(q - c, q - c);
-    let r = sqrt(e2 + s * s);
-    return select(select(r, -r, s < 0.0), s, e2 == 0.0);
+    let e = q - c;
+    let r = sqrt(dot(e, e) + s * s);
+    return select(r, -r, s < 0.0);
 }
 
 // Conservative world distance (metres) from camera-relative point `p` to `o`. Volumes'
-// texels hold distances in voxels (`f.z` local units each).
+// texels hold distances in voxels (`conservative_scale` is per voxel for them; `f.z` is
+// their margin).
 fn object_distance(
     o: DistanceFieldObject,
     p: vec3<f32>,
@@ -62,7 +77,7 @@ fn object_distance(
     switch object_kind(o) {
         case KIND_VOLUME: {
             let dims = unpack_10_10_12(o.params.y) + vec3<u32>(1u);
-            d = volume_distance(atlas, unpack_10_10_12(o.params.x), dims, q) * f.z;
+            d = volume_distance(atlas, unpack_10_10_12(o.params.x), dims, f.z, q);
         }
         case KIND_SPHERE: {
             d = length(q) - f.x;

@@ -57,6 +57,7 @@ fn random_desc(rng: &mut Rng, center: Vec3, spread: f32) -> ObjectDesc {
                 rng.range(-1.0, 0.0),
             ),
             voxel_size: rng.range(0.01, 0.05),
+            margin: rng.range(0.0, 2.0),
         },
         1 => CasterShape::Sphere {
             radius: rng.range(0.1, 2.0),

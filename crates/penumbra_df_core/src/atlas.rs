@@ -331,6 +331,7 @@ mod tests {
                         region,
                         local_origin: glam::Vec3::ZERO,
                         voxel_size: 0.01,
+                        margin: 0.0,
                     },
                     flags: flags::VISIBLE,
                 })

@@ -10,14 +10,14 @@
 //! | 24–26 | `tile: vec3<i32>` | world position = `tile × TILE_SIZE` + the above |
 //! | 27 | `flags: u32` | [`flags`] bits; shape kind in bits 8–11 |
 //! | 28–30 | `params: vec3<u32>` | per kind, see [`CasterShape`] |
-//! | 31 | `conservative_scale: f32` | world metres per shape unit, the smallest singular value of the linear part: a distance read in shape space times this never overestimates the world distance, however non-uniform the scale |
+//! | 31 | `conservative_scale: f32` | world metres per shape-space distance unit: the smallest singular value of the linear part (times the voxel size for volumes), so a distance read in shape space times this never overestimates the world distance, however non-uniform the scale |
 //!
 //! *Shape space* is the shape's own frame: for an SDF volume, its **voxel** coordinates
 //! (sample `(i, j, k)` at `(i, j, k)`), so that an atlas lookup is
 //! `atlas_origin + p + ½`; for analytic shapes, the mesh-like local frame the shape is
-//! centred in. Distances read in shape space are in *local units* (the mesh's units for
-//! volumes, whose voxels are `voxel_size` local units: `shape_from_world` folds that in,
-//! `conservative_scale` is per local unit).
+//! centred in. Distances read in shape space are in *local units* for analytic shapes and
+//! in *voxels* for volumes (whose texels hold voxels; `shape_from_world` folds the voxel
+//! size in, and so does `conservative_scale`).
 
 use crate::atlas::AtlasRegion;
 use glam::{Affine3A, DMat3, Mat3, UVec3, Vec3, Vec3A};
@@ -86,7 +86,7 @@ pub enum ShapeKind {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum CasterShape {
     /// A baked SDF volume placed in the atlas. `params` = packed atlas origin (voxels,
-    /// 10/10/12 bits), packed `dims − 1` (10/10/12 bits), `voxel_size` (f32 bits).
+    /// 10/10/12 bits), packed `dims − 1` (10/10/12 bits), `margin` (f32 bits).
     Volume {
         /// Where it is in the atlas.
         region: AtlasRegion,
@@ -94,6 +94,9 @@ pub enum CasterShape {
         local_origin: Vec3,
         /// Sample spacing in local units.
         voxel_size: f32,
+        /// Voxels between the box's faces and the surface (`SdfVolume::margin`): the
+        /// distance outside the box is a lower bound measured to the box shrunk by it.
+        margin: f32,
     },
     /// A sphere of `radius` around the local origin. `params.x` = radius (f32 bits).
     Sphere {
@@ -377,8 +380,13 @@ pub fn encode(desc: &ObjectDesc) -> Result<ObjectRecord, ObjectError> {
             region,
             local_origin,
             voxel_size,
+            margin,
         } => {
-            if !(voxel_size.is_finite() && voxel_size > 0.0 && local_origin.is_finite()) {
+            let valid = voxel_size.is_finite()
+                && voxel_size > 0.0
+                && local_origin.is_finite()
+                && positive(margin);
+            if !valid {
                 return Err(ObjectError::BadShape);
             }
             (
@@ -391,9 +399,10 @@ pub fn encode(desc: &ObjectDesc) -> Result<ObjectRecord, ObjectError> {
                     pack_10_10_12(region.origin).ok_or(ObjectError::AtlasRegionOutOfRange)?,
                     pack_10_10_12(region.dims.saturating_sub(UVec3::ONE))
                         .ok_or(ObjectError::AtlasRegionOutOfRange)?,
-                    voxel_size.to_bits(),
+                    margin.to_bits(),
                 ],
-                scale,
+                // Shape-space distances are voxels.
+                scale * voxel_size,
             )
         }
         CasterShape::Sphere { radius } if positive(radius) => {
@@ -551,6 +560,7 @@ mod tests {
             },
             local_origin: Vec3::ZERO,
             voxel_size: 0.0,
+            margin: 0.0,
         };
         let mut far = ok;
         far.world_from_local.translation.x = 1e38;
@@ -562,6 +572,7 @@ mod tests {
             },
             local_origin: Vec3::ZERO,
             voxel_size: 0.1,
+            margin: 0.0,
         };
         for (name, desc, want) in [
             ("nan", nan, ObjectError::NonFiniteTransform),

@@ -307,6 +307,7 @@ fn records(scene: &Scene, resolution: u32) -> (Vec<ObjectRecord>, Atlas) {
                     },
                     local_origin: v.origin.as_vec3(),
                     voxel_size: v.voxel_size,
+                    margin: v.margin,
                 },
                 flags: live,
             })

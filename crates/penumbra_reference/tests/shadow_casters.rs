@@ -103,6 +103,7 @@ fn two_sided_casters_occlude_like_any_caster() {
                 },
                 local_origin: v.origin.as_vec3(),
                 voxel_size: v.voxel_size,
+                margin: v.margin,
             },
             flags: f,
         })

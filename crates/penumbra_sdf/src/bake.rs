@@ -310,6 +310,9 @@ pub fn bake(
         origin: mesh.origin + grid.origin.as_dvec3(),
         voxel_size: h,
         data,
+        // The mesh's bounds are `border` voxels inside the sample box (less f32
+        // rounding of the grid's placement).
+        margin: (grid.border as f32 - 0.01).max(0.0),
     };
     drop(distance);
     let thin_feature_samples = if settings.keep_thin_features {

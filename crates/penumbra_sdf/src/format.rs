@@ -9,12 +9,13 @@
 //! | 8 | 12 | dims: 3 × u32 (each ≥ 2) |
 //! | 20 | 24 | origin: 3 × f64 (position of sample (0, 0, 0), mesh units) |
 //! | 44 | 4 | voxel size: f32 (> 0, mesh units) |
-//! | 48 | 4 | CRC-32 (IEEE) of bytes 0..48 followed by the samples |
-//! | 52 | 2·n | n = dims.x·dims.y·dims.z signed distances **in voxels**, IEEE binary16, x fastest |
+//! | 48 | 4 | margin: f32 (≥ 0, voxels: the surface lies at least this far inside the box) |
+//! | 52 | 4 | CRC-32 (IEEE) of bytes 0..52 followed by the samples |
+//! | 56 | 2·n | n = dims.x·dims.y·dims.z signed distances **in voxels**, IEEE binary16, x fastest |
 //!
 //! Nothing follows the samples. Version 1 (origin as 3 × f32 at 20, voxel size at 32,
 //! CRC at 36, samples in mesh units from 40) is still read, its samples converted to
-//! voxels. The reader rejects other magics and versions, truncated or oversized files,
+//! voxels and its margin measured from them ([`SdfVolume::measured_margin`]). The reader rejects other magics and versions, truncated or oversized files,
 //! bad dims or voxel sizes, checksum mismatches and NaN or infinite samples with a clear
 //! [`FormatError`] (never a panic).
 
@@ -27,7 +28,7 @@ use half::f16;
 pub const MAGIC: [u8; 4] = *b"PSDF";
 /// The version this code writes (it also reads version 1).
 pub const VERSION: u32 = 2;
-const HEADER: usize = 52;
+const HEADER: usize = 56;
 const HEADER_V1: usize = 40;
 
 /// Why a `.psdf` file was rejected.
@@ -125,6 +126,7 @@ pub fn to_bytes(v: &SdfVolume) -> Vec<u8> {
         out.extend_from_slice(&o.to_le_bytes());
     }
     out.extend_from_slice(&v.voxel_size.to_le_bytes());
+    out.extend_from_slice(&v.margin.to_le_bytes());
     out.extend_from_slice(&[0; 4]); // checksum, filled below
     for s in &v.data {
         out.extend_from_slice(&s.to_le_bytes());
@@ -181,6 +183,10 @@ pub fn from_bytes(bytes: &[u8]) -> Result<SdfVolume, FormatError> {
     if !(voxel_size.is_finite() && voxel_size > 0.0) {
         return Err(FormatError::BadHeader(format!("voxel size {voxel_size}")));
     }
+    let margin = if version == 1 { 0.0 } else { f32_at(48) };
+    if !(margin.is_finite() && margin >= 0.0) {
+        return Err(FormatError::BadHeader(format!("margin {margin}")));
+    }
     let expected = header + 2 * n as usize;
     if bytes.len() < expected {
         return Err(FormatError::Truncated {
@@ -209,12 +215,17 @@ pub fn from_bytes(bytes: &[u8]) -> Result<SdfVolume, FormatError> {
             s
         });
     }
-    Ok(SdfVolume {
+    let mut volume = SdfVolume {
         dims,
         origin,
         voxel_size,
         data,
-    })
+        margin,
+    };
+    if version == 1 {
+        volume.margin = volume.measured_margin();
+    }
+    Ok(volume)
 }
 
 /// The volume as a `NumPy` `.npy` file: float32, shape `(nz, ny, nx)`, C order, so
@@ -260,6 +271,7 @@ mod tests {
             data: (0..12)
                 .map(|i| f16::from_f32(i as f32 * 0.5 - 3.0))
                 .collect(),
+            margin: 0.0,
         }
     }
 
@@ -289,6 +301,8 @@ mod tests {
         huge_dims[8..20].copy_from_slice(&[0xff; 12]);
         let mut neg_voxel = good.clone();
         neg_voxel[44..48].copy_from_slice(&(-1.0f32).to_le_bytes());
+        let mut nan_margin = good.clone();
+        nan_margin[48..52].copy_from_slice(&f32::NAN.to_le_bytes());
         let mut nan_origin = good.clone();
         nan_origin[20..28].copy_from_slice(&f64::NAN.to_le_bytes());
         // A NaN and an infinite sample, with a valid checksum: still rejected.
@@ -336,6 +350,9 @@ mod tests {
                 matches!(e, FormatError::BadHeader(_))
             }),
             ("voxel", neg_voxel, |e| {
+                matches!(e, FormatError::BadHeader(_))
+            }),
+            ("margin", nan_margin, |e| {
                 matches!(e, FormatError::BadHeader(_))
             }),
             ("origin", nan_origin, |e| {

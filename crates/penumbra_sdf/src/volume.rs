@@ -14,12 +14,15 @@
 //! The origin is f64: a mesh 10⁶ m from its frame's origin (survey or CAD coordinates)
 //! keeps its samples where they belong (f32 would round them by up to 3 cm there).
 //!
-//! Queries outside the grid's box return `√(e² + s²)` (sign of `s`), `e` the distance
-//! to the box and `s` the sample at the nearest point of the box: a **lower bound** of
-//! the true distance whenever `|s|` is one there. Every surface point lies in the box,
-//! which is convex, so `|q − x|² ≥ e² + |c − x|²` for the box point `c` nearest to `q`
-//! and every surface point `x`. (Adding `e` to `s` instead, as Unreal does, is an upper
-//! bound: a sphere-tracing step can jump past a surface that lies obliquely inside.)
+//! Queries outside the grid's box return `√(e² + s²)` (sign of `s`): a **lower bound** of
+//! the true distance. Every surface point lies inside the box shrunk by the volume's
+//! [`SdfVolume::margin`] (a bake's border: the surface is at least that far inside), a
+//! convex set, so for its point `c` nearest to the query `q` and every surface point
+//! `x`, `|q − x|² ≥ |q − c|² + |c − x|²`: with `e = |q − c|` and `s` the sample at `c`,
+//! the distance is at least `√(e² + s²)`. Facing a flat side of the surface the bound is
+//! exact; far away it approaches the truth. (Adding the distance to the box to the
+//! clamped sample instead, as Unreal does, is an upper bound: a sphere-tracing step can
+//! jump past a surface that lies obliquely inside the border.)
 
 use glam::{DVec3, UVec3, Vec3};
 pub use half::f16;
@@ -39,6 +42,11 @@ pub struct SdfVolume {
     /// `dims.x · dims.y · dims.z` signed distances **in voxels**, x fastest (see
     /// [`SdfVolume::quantize`]).
     pub data: Vec<f16>,
+    /// Voxels between the box's faces and the surface: every surface point lies at
+    /// least this far inside the box. A bake's border (2 by default); for volumes of
+    /// unknown origin, [`SdfVolume::measured_margin`]. Tightens the bound outside the
+    /// box (module docs); must not exceed the truth.
+    pub margin: f32,
 }
 
 impl SdfVolume {
@@ -65,12 +73,36 @@ impl SdfVolume {
             .into_iter()
             .map(|d| Self::quantize(d / voxel_size))
             .collect();
-        SdfVolume {
+        let mut volume = SdfVolume {
             dims,
             origin,
             voxel_size,
             data,
+            margin: 0.0,
+        };
+        volume.margin = volume.measured_margin();
+        volume
+    }
+
+    /// A margin the samples prove (see [`SdfVolume::margin`]): the smallest distance of
+    /// the box's boundary samples, less the 1-Lipschitz slack between a point of a face
+    /// and its nearest sample (√2 / 2 voxel), never negative. Assumes the surface lies
+    /// in the box, as for any baked volume.
+    pub fn measured_margin(&self) -> f32 {
+        let d = self.dims;
+        let mut least = f32::INFINITY;
+        for k in 0..d.z {
+            for j in 0..d.y {
+                for i in 0..d.x {
+                    let boundary =
+                        i == 0 || j == 0 || k == 0 || i + 1 == d.x || j + 1 == d.y || k + 1 == d.z;
+                    if boundary {
+                        least = least.min(self.get_voxels(i, j, k).abs());
+                    }
+                }
+            }
         }
+        (least - std::f32::consts::FRAC_1_SQRT_2).max(0.0)
     }
 
     /// Number of samples.
@@ -119,7 +151,8 @@ impl SdfVolume {
     /// lower bound `√(e² + s²)` of the module docs.
     pub fn sample(&self, p: DVec3) -> f32 {
         let g = ((p - self.origin) / self.voxel_size as f64).as_vec3();
-        outside_bound_voxels(g, self.dims, |c| self.trilinear_voxels(c)) * self.voxel_size
+        volume_distance_voxels(g, self.dims, self.margin, |c| self.trilinear_voxels(c))
+            * self.voxel_size
     }
 
     /// Trilinear interpolation at grid coordinates `g` (inside `[0, dims − 1]`), voxels.
@@ -172,23 +205,35 @@ impl SdfVolume {
             origin: self.origin,
             voxel_size: self.voxel_size * 2.0,
             data,
+            // The box keeps its near faces and may grow by half a new voxel at the far
+            // ones: the old margin, in new voxels, still holds.
+            margin: 0.5 * self.margin,
         }
     }
 }
 
 /// The distance at grid coordinates `g` of a `dims` grid whose trilinear interpolation
-/// is `inside` (both in voxels): `inside(g)` in the box, else `±√(e² + s²)` with `e`
-/// the distance to the box and `s = inside(c)` at the nearest box point `c` (the lower
-/// bound of the module docs). The GPU's `object_distance` and the CPU reference model
+/// is `inside` (both in voxels), with the surface at least `margin` voxels inside the
+/// box: `inside(g)` in the box; outside, `±√(e² + s²)` with `e` the distance to the box
+/// shrunk by the margin and `s = inside(c)` at its point `c` nearest to `g` (the lower
+/// bound of the module docs). The GPU's `volume_distance` and the CPU reference model
 /// compute the same.
-pub fn outside_bound_voxels(g: Vec3, dims: UVec3, inside: impl Fn(Vec3) -> f32) -> f32 {
-    let c = g.clamp(Vec3::ZERO, (dims - UVec3::ONE).as_vec3());
-    let s = inside(c);
-    let e2 = (g - c).length_squared();
-    if e2 == 0.0 {
-        return s;
+pub fn volume_distance_voxels(
+    g: Vec3,
+    dims: UVec3,
+    margin: f32,
+    inside: impl Fn(Vec3) -> f32,
+) -> f32 {
+    let hi = (dims - UVec3::ONE).as_vec3();
+    if g.cmpge(Vec3::ZERO).all() && g.cmple(hi).all() {
+        return inside(g);
     }
-    let r = (e2 + s * s).sqrt();
+    // NaN margins fall back to 0 (`clamp` keeps the shrunk box non-empty).
+    let m = margin.clamp(0.0, 0.5 * hi.min_element());
+    let m = if m >= 0.0 { m } else { 0.0 };
+    let c = g.clamp(Vec3::splat(m), hi - m);
+    let s = inside(c);
+    let r = ((g - c).length_squared() + s * s).sqrt();
     if s < 0.0 { -r } else { r }
 }
 

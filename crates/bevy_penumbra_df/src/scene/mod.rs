@@ -11,7 +11,8 @@
 //! - Every SDF in use is placed once in a 3D `R16Float` **atlas** under a memory budget
 //!   ([`DistanceFieldSceneSettings::atlas_budget_bytes`]); freed space is reused. When a
 //!   volume does not fit, one warning is logged and the volume is halved in resolution
-//!   (up to twice); if it still does not fit its casters are skipped.
+//!   (up to twice); if it still does not fit its casters are skipped until atlas space
+//!   is freed (then tried again; a volume placed at reduced resolution stays so).
 //! - Every caster instance is one 128-byte record in the GPU **object buffer**
 //!   (`penumbra_df_core::object`). The CPU keeps a mirror; change detection on
 //!   `GlobalTransform`, `InheritedVisibility`, the caster and its SDF turns a frame's
@@ -30,8 +31,10 @@
 //! transform's smallest singular value (conservative).
 //!
 //! Limits: skinned and morphing meshes use their bind-pose SDF; the atlas is never
-//! defragmented; casters are capped by the 128 MiB storage-binding limit of some devices
-//! at one million.
+//! defragmented and holds at most 1024 × 1024 × 4096 voxels (the records' coordinates);
+//! casters are capped ([`DistanceFieldSceneSettings::max_casters`], and the device's
+//! storage-binding limit: 2²⁰ at 128 MiB), the ones beyond it skipped with one warning
+//! until slots free up.
 
 mod cull;
 mod render;
@@ -191,6 +194,8 @@ struct PlacedVolume {
     region: AtlasRegion,
     local_origin: Vec3,
     voxel_size: f32,
+    /// `SdfVolume::margin`, voxels.
+    margin: f32,
     users: u32,
 }
 
@@ -501,6 +506,7 @@ fn place_volume(
     let placed = PlacedVolume {
         region,
         local_origin: volume.origin.as_vec3(),
+        margin: volume.margin,
         voxel_size: volume.voxel_size,
         users: 1,
     };
@@ -535,6 +541,7 @@ fn caster_shape(
         region: placed.region,
         local_origin: placed.local_origin,
         voxel_size: placed.voxel_size,
+        margin: placed.margin,
     };
     match (&caster.source, volume_handle) {
         (CasterSource::Sphere { radius }, _) => Some(CasterShape::Sphere { radius: *radius }),

@@ -219,7 +219,7 @@ fn capacity_for(slots: u32) -> u32 {
 }
 
 impl DistanceFieldShadowResources {
-    /// A view's resources for `lights` over `slots` object slots.
+    /// A view's uniforms; its lights' buffers come with [`Self::fit`].
     pub(super) fn new(
         allocations: &PenumbraGpuAllocations,
         device: &RenderDevice,

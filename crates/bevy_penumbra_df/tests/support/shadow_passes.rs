@@ -93,6 +93,7 @@ pub fn scene(offset: Vec3) -> Scene {
                 },
                 local_origin: torus.origin.as_vec3(),
                 voxel_size: torus.voxel_size,
+                margin: torus.margin,
             },
             flags: live,
         },
