@@ -9,7 +9,7 @@
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::render_resource::{
-    BindGroup, BindGroupEntry, BindGroupLayout, Buffer, BufferDescriptor, Texture,
+    BindGroup, BindGroupEntry, BindGroupLayout, Buffer, BufferDescriptor, BufferUsages, Texture,
     TextureDescriptor,
 };
 use bevy::render::renderer::RenderDevice;
@@ -75,6 +75,25 @@ impl PenumbraGpuAllocations {
     pub(crate) fn buffer(&self, device: &RenderDevice, desc: &BufferDescriptor) -> Buffer {
         self.count_buffer(desc.size);
         device.create_buffer(desc)
+    }
+
+    /// Creates (and counts) an unmapped buffer of `size` bytes.
+    pub(crate) fn sized_buffer(
+        &self,
+        device: &RenderDevice,
+        label: &'static str,
+        size: u64,
+        usage: BufferUsages,
+    ) -> Buffer {
+        self.buffer(
+            device,
+            &BufferDescriptor {
+                label: Some(label),
+                size,
+                usage,
+                mapped_at_creation: false,
+            },
+        )
     }
 
     /// Creates (and counts) a texture.

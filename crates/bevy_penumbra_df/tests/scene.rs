@@ -31,6 +31,23 @@ fn app(settings: DistanceFieldSceneSettings) -> App {
     app
 }
 
+/// `n` analytic sphere casters of `radius`, 1 m apart along x.
+fn spheres_in_a_row(app: &mut App, n: usize, radius: f32) -> Vec<Entity> {
+    (0..n)
+        .map(|i| {
+            app.world_mut()
+                .spawn((
+                    DistanceFieldCaster {
+                        source: CasterSource::Sphere { radius },
+                        ..default()
+                    },
+                    Transform::from_xyz(i as f32, 0.0, 0.0),
+                ))
+                .id()
+        })
+        .collect()
+}
+
 fn update_until(app: &mut App, mut done: impl FnMut(&App) -> bool) {
     for _ in 0..3000 {
         app.update();
@@ -224,19 +241,7 @@ fn casters_beyond_the_cap_wait_for_a_slot() {
         max_casters: 10,
         ..default()
     });
-    let ids: Vec<Entity> = (0..15)
-        .map(|i| {
-            app.world_mut()
-                .spawn((
-                    DistanceFieldCaster {
-                        source: CasterSource::Sphere { radius: 0.2 },
-                        ..default()
-                    },
-                    Transform::from_xyz(i as f32, 0.0, 0.0),
-                ))
-                .id()
-        })
-        .collect();
+    let ids: Vec<Entity> = spheres_in_a_row(&mut app, 15, 0.2);
     app.update();
     // Entity order (`Entity: Ord`), not necessarily spawn order.
     let mut ids = ids;
@@ -332,19 +337,7 @@ fn uploads_follow_changes_only() {
         DistanceFieldUploadStats::default(),
         "no casters: nothing"
     );
-    let ids: Vec<Entity> = (0..200)
-        .map(|i| {
-            app.world_mut()
-                .spawn((
-                    DistanceFieldCaster {
-                        source: CasterSource::Sphere { radius: 0.5 },
-                        ..default()
-                    },
-                    Transform::from_xyz(i as f32, 0.0, 0.0),
-                ))
-                .id()
-        })
-        .collect();
+    let ids: Vec<Entity> = spheres_in_a_row(&mut app, 200, 0.5);
     app.update();
     let stats = app.world().resource::<DistanceFieldUploadStats>().clone();
     assert_eq!((stats.frame_records, stats.objects), (200, 200));

@@ -13,10 +13,10 @@ use bevy::render::render_resource::binding_types::{
 };
 use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
-    BufferDescriptor, BufferId, BufferUsages, CachedRenderPipelineId, ColorTargetState,
-    ColorWrites, FragmentState, Operations, PipelineCache, RenderPassColorAttachment,
-    RenderPassDescriptor, RenderPipelineDescriptor, ShaderStages, TextureFormat, TextureSampleType,
-    TextureView, TextureViewId,
+    BufferId, BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites, FragmentState,
+    Operations, PipelineCache, RenderPassColorAttachment, RenderPassDescriptor,
+    RenderPipelineDescriptor, ShaderStages, TextureFormat, TextureSampleType, TextureView,
+    TextureViewId,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::view::{ExtractedView, ViewTarget};
@@ -193,14 +193,11 @@ fn prepare_debug_view_resources(
         let resources = match resources {
             Some(r) => r.into_inner(),
             None => fresh.insert(DebugViewResources {
-                uniform: allocations.buffer(
+                uniform: allocations.sized_buffer(
                     &device,
-                    &BufferDescriptor {
-                        label: Some("penumbra_df_debug_view"),
-                        size: DEBUG_VIEW_BYTES,
-                        usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
-                        mapped_at_creation: false,
-                    },
+                    "penumbra_df_debug_view",
+                    DEBUG_VIEW_BYTES,
+                    BufferUsages::UNIFORM | BufferUsages::COPY_DST,
                 ),
                 bind_group: None,
             }),

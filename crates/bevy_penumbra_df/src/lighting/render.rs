@@ -18,8 +18,8 @@ use bevy::render::render_resource::binding_types::{
 };
 use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
-    BufferDescriptor, BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites,
-    CompareFunction, DepthStencilState, Extent3d, FragmentState, LoadOp, Operations, PipelineCache,
+    BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites, CompareFunction,
+    DepthStencilState, Extent3d, FragmentState, LoadOp, Operations, PipelineCache,
     RenderPassDepthStencilAttachment, RenderPassDescriptor, RenderPipelineDescriptor, ShaderStages,
     SpecializedRenderPipeline, SpecializedRenderPipelines, StoreOp, TextureDescriptor,
     TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
@@ -382,23 +382,17 @@ fn prepare_penumbra_lighting_bind_groups(
             _ => {
                 let capacity = needed.next_power_of_two();
                 fresh = Some(PenumbraLightingBindGroup {
-                    uniform: allocations.buffer(
+                    uniform: allocations.sized_buffer(
                         &device,
-                        &BufferDescriptor {
-                            label: Some("penumbra_lighting_uniform"),
-                            size: UNIFORM_BYTES,
-                            usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
-                            mapped_at_creation: false,
-                        },
+                        "penumbra_lighting_uniform",
+                        UNIFORM_BYTES,
+                        BufferUsages::UNIFORM | BufferUsages::COPY_DST,
                     ),
-                    lights: allocations.buffer(
+                    lights: allocations.sized_buffer(
                         &device,
-                        &BufferDescriptor {
-                            label: Some("penumbra_lighting_shadowed_lights"),
-                            size: capacity * SHADOWED_LIGHT_BYTES,
-                            usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
-                            mapped_at_creation: false,
-                        },
+                        "penumbra_lighting_shadowed_lights",
+                        capacity * SHADOWED_LIGHT_BYTES,
+                        BufferUsages::STORAGE | BufferUsages::COPY_DST,
                     ),
                     light_capacity: capacity,
                     bind_group: None,

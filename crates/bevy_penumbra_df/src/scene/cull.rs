@@ -11,8 +11,8 @@ use super::render::{DistanceFieldGpu, DistanceFieldPipelines};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use bevy::prelude::*;
 use bevy::render::render_resource::{
-    BindGroup, BindGroupEntries, Buffer, BufferDescriptor, BufferId, BufferUsages,
-    ComputePassDescriptor, PipelineCache,
+    BindGroup, BindGroupEntries, Buffer, BufferId, BufferUsages, ComputePassDescriptor,
+    PipelineCache,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue};
 use penumbra_df_core::cull::{CameraOrigin, Frustum, cull_view_words, grid_64};
@@ -41,17 +41,7 @@ pub struct CulledObjects {
 impl CulledObjects {
     fn new(allocations: &PenumbraGpuAllocations, device: &RenderDevice, slots: u32) -> Self {
         let capacity = slots.max(64).next_power_of_two();
-        let buffer = |label: &'static str, size: u64, usage: BufferUsages| {
-            allocations.buffer(
-                device,
-                &BufferDescriptor {
-                    label: Some(label),
-                    size,
-                    usage,
-                    mapped_at_creation: false,
-                },
-            )
-        };
+        let buffer = |label, size, usage| allocations.sized_buffer(device, label, size, usage);
         let counter = BufferUsages::STORAGE | BufferUsages::COPY_DST | BufferUsages::COPY_SRC;
         CulledObjects {
             list: buffer(

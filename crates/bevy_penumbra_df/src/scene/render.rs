@@ -300,16 +300,8 @@ fn fit_delta_buffers<'a>(
     }
     let capacity = writes.max(64).next_power_of_two();
     let chunks = capacity.div_ceil(per_chunk) as u64;
-    let buffer = |label: &'static str, size: u64, usage: BufferUsages| {
-        allocations.buffer(
-            device,
-            &BufferDescriptor {
-                label: Some(label),
-                size,
-                usage: usage | BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            },
-        )
+    let buffer = |label, size, usage: BufferUsages| {
+        allocations.sized_buffer(device, label, size, usage | BufferUsages::COPY_DST)
     };
     pool.insert(DeltaBuffers {
         writes: buffer(

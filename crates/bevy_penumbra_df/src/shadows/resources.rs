@@ -7,8 +7,8 @@ use super::render::{FrameLight, ShadowPipelines};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use bevy::prelude::*;
 use bevy::render::render_resource::{
-    BindGroup, BindGroupEntries, Buffer, BufferDescriptor, BufferId, BufferUsages, PipelineCache,
-    TextureView, TextureViewId,
+    BindGroup, BindGroupEntries, Buffer, BufferId, BufferUsages, PipelineCache, TextureView,
+    TextureViewId,
 };
 use bevy::render::renderer::{RenderDevice, RenderQueue};
 use penumbra_df_core::cull::{CameraOrigin, Frustum, cull_view_words, grid_64};
@@ -101,15 +101,8 @@ fn storage(
     size: u64,
     usage: BufferUsages,
 ) -> Buffer {
-    allocations.buffer(
-        device,
-        &BufferDescriptor {
-            label: Some(label),
-            size: size.max(16).next_multiple_of(4),
-            usage: BufferUsages::STORAGE | usage,
-            mapped_at_creation: false,
-        },
-    )
+    let size = size.max(16).next_multiple_of(4);
+    allocations.sized_buffer(device, label, size, BufferUsages::STORAGE | usage)
 }
 
 fn uniform(
@@ -118,15 +111,8 @@ fn uniform(
     label: &'static str,
     size: u64,
 ) -> Buffer {
-    allocations.buffer(
-        device,
-        &BufferDescriptor {
-            label: Some(label),
-            size,
-            usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        },
-    )
+    let usage = BufferUsages::UNIFORM | BufferUsages::COPY_DST;
+    allocations.sized_buffer(device, label, size, usage)
 }
 
 impl LightResources {
