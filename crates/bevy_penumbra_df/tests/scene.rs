@@ -31,6 +31,16 @@ fn app(settings: DistanceFieldSceneSettings) -> App {
     app
 }
 
+/// A caster of the SDF asset `h`.
+fn sdf_caster(app: &mut App, h: &Handle<SdfVolumeAsset>) -> Entity {
+    app.world_mut()
+        .spawn(DistanceFieldCaster {
+            source: CasterSource::Sdf(h.clone()),
+            ..default()
+        })
+        .id()
+}
+
 /// `n` analytic sphere casters of `radius`, 1 m apart along x.
 fn spheres_in_a_row(app: &mut App, n: usize, radius: f32) -> Vec<Entity> {
     (0..n)
@@ -143,14 +153,7 @@ fn over_budget_volumes_fall_back_then_skip() {
             sdfs.add(volume(64)),
         )
     };
-    let spawn = |app: &mut App, h: &Handle<SdfVolumeAsset>| {
-        app.world_mut()
-            .spawn(DistanceFieldCaster {
-                source: CasterSource::Sdf(h.clone()),
-                ..default()
-            })
-            .id()
-    };
+    let spawn = sdf_caster;
     let a = spawn(&mut app, &small);
     let b = spawn(&mut app, &big); // 16³ → 9³ (still > 8 deep) → 5³
     let c = spawn(&mut app, &huge); // 64³ → 33³ → 17³: never fits, skipped
@@ -200,14 +203,7 @@ fn unplaceable_volumes_are_retried_when_space_frees() {
         let dims = UVec3::new(32, 32, 8);
         (sdfs.add(volume_of(dims)), sdfs.add(volume_of(dims)))
     };
-    let spawn = |app: &mut App, h: &Handle<SdfVolumeAsset>| {
-        app.world_mut()
-            .spawn(DistanceFieldCaster {
-                source: CasterSource::Sdf(h.clone()),
-                ..default()
-            })
-            .id()
-    };
+    let spawn = sdf_caster;
     let a = spawn(&mut app, &first);
     let b = spawn(&mut app, &second);
     app.update();
