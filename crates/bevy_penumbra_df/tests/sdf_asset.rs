@@ -342,8 +342,9 @@ fn changed_requests_drop_stale_and_failed_outcomes() {
     update_until(&mut app, |app| app.world().get::<SdfBaked>(g).is_some());
 }
 
-/// `SdfBakeTask::progress` moves from 0 to 1 during a bake: seen at several values in
-/// between, never decreasing, and at 1 when the task is done.
+/// `SdfBakeTask::progress` moves from 0 towards 1 during a bake: seen at several values
+/// in between, never decreasing, never outside [0, 1]. (The task stores 1 as it ends, but
+/// the component is gone by the frame that would show it.)
 #[test]
 fn bake_progress_rises_to_one() {
     let dir = temp_dir("progress");

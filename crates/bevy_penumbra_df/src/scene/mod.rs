@@ -418,7 +418,8 @@ fn release_volume(scene: &mut DistanceFieldScene, entity: Entity) {
 /// Takes a caster out of the object buffer; casters waiting for a slot may take it.
 fn remove_record(scene: &mut DistanceFieldScene, entity: Entity) {
     if scene.table.remove(entity.to_bits()) && !scene.over_cap.is_empty() {
-        // Retried next frame (their turn comes in entity order).
+        // Retried at the casters' next update (this frame's, when a caster was removed
+        // before it), in entity order.
         let waiting: Vec<Entity> = scene.over_cap.drain().collect();
         scene.waiting.extend(waiting);
     }
