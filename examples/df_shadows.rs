@@ -18,7 +18,7 @@
 //! (its SDF is baked in the background on first use, then cached), the others are
 //! analytic shapes. The ground receives shadows without being a caster.
 
-use bevy::{light::GlobalAmbientLight, prelude::*};
+use bevy::{light::GlobalAmbientLight, pbr::DefaultOpaqueRendererMethod, prelude::*};
 use penumbra::prelude::*;
 
 #[path = "common/cli.rs"]
@@ -33,6 +33,8 @@ fn main() -> std::process::ExitCode {
 /// Penumbra's plugins and this example's scene.
 pub fn add_scene(app: &mut App) {
     app.add_plugins(PenumbraPlugins)
+        // Penumbra's lighting pass shades deferred materials (Bevy's switch, app-wide).
+        .insert_resource(DefaultOpaqueRendererMethod::deferred())
         .insert_resource(ClearColor(Color::srgb(0.5, 0.65, 0.85)))
         .insert_resource(GlobalAmbientLight {
             color: Color::srgb(0.6, 0.7, 1.0),

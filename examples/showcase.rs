@@ -18,6 +18,7 @@
 use bevy::{
     camera::{Exposure, ShadowLodOrigin},
     light::GlobalAmbientLight,
+    pbr::DefaultOpaqueRendererMethod,
     prelude::*,
 };
 use penumbra::prelude::*;
@@ -36,7 +37,9 @@ fn main() -> std::process::ExitCode {
 
 /// Penumbra's plugins and the showcase scene.
 fn add_scene(app: &mut App) {
-    app.add_plugins((PenumbraPlugins, ShowcaseScenePlugin));
+    // Penumbra's lighting pass shades deferred materials (Bevy's switch, app-wide).
+    app.add_plugins((PenumbraPlugins, ShowcaseScenePlugin))
+        .insert_resource(DefaultOpaqueRendererMethod::deferred());
 }
 
 /// Renders the showcase headless into `options.out` (a PNG).

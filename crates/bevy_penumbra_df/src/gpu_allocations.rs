@@ -18,8 +18,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Counts of the GPU resources Penumbra has created since startup (present in the main
 /// and the render world; both share the counters).
-#[derive(Resource, Clone, Debug, Default)]
-pub struct PenumbraGpuAllocations(Arc<Counters>);
+#[derive(Resource, Reflect, Clone, Debug, Default)]
+#[reflect(Resource, Clone)]
+pub struct PenumbraGpuAllocations(#[reflect(ignore)] Arc<Counters>);
 
 #[derive(Debug, Default)]
 struct Counters {
@@ -30,7 +31,8 @@ struct Counters {
 }
 
 /// A snapshot of [`PenumbraGpuAllocations`]; subtract two for a frame's.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Clone, Default)]
 pub struct GpuAllocationCounts {
     /// Buffers created.
     pub buffers: u64,
@@ -119,7 +121,8 @@ impl PenumbraGpuAllocations {
 /// every Penumbra plugin calls it).
 pub fn register_gpu_allocations(app: &mut App) {
     if !app.world().contains_resource::<PenumbraGpuAllocations>() {
-        app.init_resource::<PenumbraGpuAllocations>();
+        app.init_resource::<PenumbraGpuAllocations>()
+            .register_type::<PenumbraGpuAllocations>();
     }
     let shared = app.world().resource::<PenumbraGpuAllocations>().clone();
     if let Some(render_app) = app.get_sub_app_mut(RenderApp) {

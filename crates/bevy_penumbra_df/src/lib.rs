@@ -36,3 +36,19 @@ pub use sdf_asset::{
 };
 pub use shader_library::{PenumbraShaderLibrary, register_shader_library};
 pub use shadows::{DistanceFieldShadows, DistanceFieldShadowsPlugin};
+
+/// Panics, naming the missing plugin, when `P` has not been added before `plugin`: as
+/// Bevy's own plugins do, prerequisites are checked in `build`, not discovered later as
+/// a missing resource. `PenumbraPlugins` adds Penumbra's plugins in order, after
+/// `DefaultPlugins`.
+pub(crate) fn require_plugin<P: bevy::app::Plugin>(
+    app: &bevy::app::App,
+    plugin: &str,
+    needed: &str,
+) {
+    assert!(
+        app.is_plugin_added::<P>(),
+        "Penumbra: {plugin} needs {needed}, which has not been added. Add it first, or add \
+         `PenumbraPlugins` (all of Penumbra, in order) after `DefaultPlugins`"
+    );
+}

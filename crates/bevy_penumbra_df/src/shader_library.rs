@@ -6,7 +6,8 @@ use bevy::render::RenderApp;
 /// Strong handles keeping Penumbra's shader library (`penumbra_shaders::SHADERS`)
 /// loaded, so `#import penumbra::…` resolves in every Penumbra pipeline. Present in the
 /// main and the render world.
-#[derive(Resource, Debug, Default, Clone)]
+#[derive(Resource, Reflect, Debug, Default, Clone)]
+#[reflect(Resource, Clone, Default)]
 pub struct PenumbraShaderLibrary {
     /// One handle per `penumbra_shaders::SHADERS` entry, in the same order.
     pub handles: Vec<Handle<Shader>>,
@@ -91,7 +92,8 @@ pub fn register_shader_library(app: &mut App) {
             .iter()
             .map(|s| shaders.add(Shader::from_wgsl(s.source, format!("penumbra/{}", s.path))))
             .collect();
-        app.insert_resource(PenumbraShaderLibrary { handles });
+        app.insert_resource(PenumbraShaderLibrary { handles })
+            .register_type::<PenumbraShaderLibrary>();
     }
     let library = app.world().resource::<PenumbraShaderLibrary>().clone();
     if let Some(render_app) = app.get_sub_app_mut(RenderApp) {

@@ -71,9 +71,10 @@ fn render(light: Light, shadows: bool, sphere: Sphere) -> (Vec<[f32; 4]>, KeptAp
     app.add_plugins((
         SdfAssetPlugin,
         DistanceFieldScenePlugin,
-        PenumbraLightingPlugin,
+        PenumbraLightingPlugin::default(),
         DistanceFieldShadowsPlugin,
     ))
+    .insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred())
     .insert_resource(GlobalAmbientLight {
         brightness: 0.0,
         ..default()

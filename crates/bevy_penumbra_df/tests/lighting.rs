@@ -118,7 +118,8 @@ fn render(lighting: Lighting, extras: bool) -> Vec<[f32; 4]> {
             app.insert_resource(DefaultOpaqueRendererMethod::deferred());
         }
         Lighting::Penumbra => {
-            app.add_plugins(PenumbraLightingPlugin);
+            app.add_plugins(PenumbraLightingPlugin::default())
+                .insert_resource(DefaultOpaqueRendererMethod::deferred());
         }
     }
     // One spawn order (entity ids order Bevy's lights) for both renders.
@@ -244,7 +245,8 @@ fn msaa_cameras_are_served_without_msaa() {
     }
     let harness = HeadlessRender::new(64, 64).without_pipelining().frames(3);
     let mut app = harness.app();
-    app.add_plugins(PenumbraLightingPlugin);
+    app.add_plugins(PenumbraLightingPlugin::default())
+        .insert_resource(DefaultOpaqueRendererMethod::deferred());
     app.add_systems(Startup, scene);
     app.add_systems(Startup, |mut commands: Commands| {
         commands.spawn((
@@ -288,7 +290,7 @@ fn only_penumbra_cameras_get_the_lighting_marker() {
     use bevy_penumbra_df::lighting::PenumbraLightingView;
     let render = HeadlessRender::new(32, 32).frames(2).without_pipelining();
     let mut app = render.app();
-    app.add_plugins(PenumbraLightingPlugin)
+    app.add_plugins(PenumbraLightingPlugin::default())
         .insert_resource(DefaultOpaqueRendererMethod::deferred())
         .add_systems(Startup, scene);
     let penumbra = app

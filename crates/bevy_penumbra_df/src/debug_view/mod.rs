@@ -61,6 +61,11 @@ impl Default for DistanceFieldDebugView {
 
 impl Plugin for DistanceFieldDebugPlugin {
     fn build(&self, app: &mut App) {
+        crate::require_plugin::<crate::DistanceFieldScenePlugin>(
+            app,
+            "DistanceFieldDebugPlugin",
+            "DistanceFieldScenePlugin",
+        );
         app.register_type::<DistanceFieldDebugView>()
             .add_plugins(ExtractComponentPlugin::<DistanceFieldDebugView>::default());
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {

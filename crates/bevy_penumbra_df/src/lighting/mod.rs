@@ -16,13 +16,35 @@
 //! environment maps (SSR-aware), ambient light, emissive, fog and tonemapping. With no
 //! mask in use the image equals Bevy's deferred rendering (tested).
 //!
-//! The plugin makes deferred the default opaque render method
-//! (`DefaultOpaqueRendererMethod::deferred()`), so scenes and `StandardMaterial`s stay as
-//! they are. Limits (as for Bevy's deferred renderer): forward-only and transparent
-//! materials are lit by Bevy's forward path (their lights keep shadow maps); MSAA is not
-//! supported on deferred cameras (Bevy switches it off with a warning; until it has, the
-//! camera is left to Bevy, with one warning of Penumbra's); a 3D camera without a
-//! `DeferredPrepass` does not show deferred materials (warned once).
+//! # What reaches the pass: materials rendered deferred, chosen by the app
+//!
+//! Penumbra changes nothing global: every material keeps the render method the app gave
+//! it, and a camera without a Penumbra component renders exactly as it would without the
+//! plugins (tested bit for bit, forward and deferred cameras). Bevy decides per
+//! *material*, not per camera, whether an opaque material is drawn to the G-buffer
+//! (deferred) or shaded in the forward pass, so the app makes that choice, as Bevy's own
+//! deferred renderer asks it to — one line:
+//!
+//! ```no_run
+//! # use bevy::prelude::*;
+//! # use bevy::pbr::DefaultOpaqueRendererMethod;
+//! App::new().insert_resource(DefaultOpaqueRendererMethod::deferred());
+//! ```
+//!
+//! or per material (`StandardMaterial::opaque_render_method`). Materials left forward,
+//! and alpha-blended or transmissive ones, are drawn by Bevy's forward pass on the
+//! Penumbra camera too, lit by Bevy with shadow maps (the `shadows` module keeps a
+//! distance-field-shadowed light's shadow map while such a material is in view).
+//!
+//! A `PenumbraLighting` camera in an app whose default opaque render method is forward
+//! would shade nothing through Penumbra: that fails at startup, naming the fix
+//! ([`PenumbraLightingPlugin::require_deferred_default`] turns the check off for apps that
+//! choose per material). Bevy's rules for deferred materials still apply to other
+//! cameras: with deferred the default, a 3D camera needs a `DeferredPrepass` to draw
+//! them (warned once per camera).
+//!
+//! Limits: MSAA is not supported on deferred cameras; `PenumbraLighting` requires
+//! `Msaa::Off`, and a camera given MSAA explicitly is left to Bevy (warned once).
 //!
 //! Cost: one fullscreen pass per camera, replacing Bevy's; nothing for cameras without
 //! the component.
@@ -37,24 +59,44 @@ use bevy::render::RenderApp;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::sync_component::SyncComponent;
 
-pub use render::{PenumbraLightingInputs, PenumbraShadowedLight, ShadowedLightKind};
+pub(crate) use render::{PenumbraLightingInputs, PenumbraShadowedLight, ShadowedLightKind};
 
-/// Adds [`PenumbraLighting`] and makes deferred the default opaque render method. Part
-/// of `PenumbraPlugins`.
-#[derive(Default)]
-pub struct PenumbraLightingPlugin;
+/// Adds [`PenumbraLighting`]. Part of `PenumbraPlugins`. Changes no global setting.
+#[derive(Clone, Debug)]
+pub struct PenumbraLightingPlugin {
+    /// Panic (naming the fix) when a [`PenumbraLighting`] camera appears while Bevy's
+    /// `DefaultOpaqueRendererMethod` is forward: Penumbra's pass would then shade only the
+    /// materials set to deferred one by one, most likely none. Default true; set false
+    /// when the app chooses the deferred method per material. No cost.
+    pub require_deferred_default: bool,
+}
+
+impl Default for PenumbraLightingPlugin {
+    fn default() -> Self {
+        Self {
+            require_deferred_default: true,
+        }
+    }
+}
+
+/// The plugin's settings, as a resource for its systems.
+#[derive(Resource, Clone, Debug)]
+struct LightingPluginSettings {
+    require_deferred_default: bool,
+}
 
 /// Renders a camera's deferred opaque materials through Penumbra's lighting pass
 /// (module docs). Needed by every Penumbra lighting feature (distance-field shadows,
 /// later occlusion); on its own it reproduces Bevy's deferred lighting.
 #[derive(Component, Reflect, Clone, Debug, Default)]
 #[reflect(Component, Clone, Default)]
-#[require(Camera3d, DeferredPrepass, DepthPrepass)]
+#[require(Camera3d, DeferredPrepass, DepthPrepass, Msaa::Off)]
 pub struct PenumbraLighting;
 
 /// Render-world marker of a camera served by Penumbra's lighting pass, with the
 /// G-buffer's material pass id.
-#[derive(Component, Clone, Copy, Debug)]
+#[derive(Component, Reflect, Clone, Copy, Debug)]
+#[reflect(Component, Clone)]
 pub struct PenumbraLightingView {
     /// Bevy's deferred lighting pass id (`PbrDeferredLightingDepthId`).
     pub depth_id: u32,
@@ -103,11 +145,19 @@ fn warn_once_per_camera(entity: Entity) {
 
 impl Plugin for PenumbraLightingPlugin {
     fn build(&self, app: &mut App) {
+        crate::require_plugin::<bevy::pbr::PbrPlugin>(
+            app,
+            "PenumbraLightingPlugin",
+            "PbrPlugin (in DefaultPlugins)",
+        );
         crate::shader_library::register_shader_library(app);
         app.register_type::<PenumbraLighting>()
-            .insert_resource(DefaultOpaqueRendererMethod::deferred())
+            .register_type::<PenumbraLightingView>()
+            .insert_resource(LightingPluginSettings {
+                require_deferred_default: self.require_deferred_default,
+            })
             .add_plugins(ExtractComponentPlugin::<PenumbraLighting>::default())
-            .add_systems(PostUpdate, warn_forward_cameras);
+            .add_systems(PostUpdate, (check_render_method, warn_forward_cameras));
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app);
         }
@@ -134,26 +184,53 @@ fn is_deferred(method: &DefaultOpaqueRendererMethod) -> bool {
     }
 }
 
+/// The fix named when a `PenumbraLighting` camera has no deferred materials to shade.
+const DEFERRED_FIX: &str = "add `.insert_resource(DefaultOpaqueRendererMethod::deferred())` \
+    to the app (Bevy's deferred renderer needs the same), or, if the app sets \
+    `opaque_render_method` per material, add the plugins with \
+    `PenumbraPlugins.set(PenumbraLightingPlugin { require_deferred_default: false })`";
+
+/// A `PenumbraLighting` camera while opaque materials render forward by default:
+/// Penumbra's pass would shade nothing. Fails loudly, once, when the camera appears.
+fn check_render_method(
+    cameras: Query<Entity, Added<PenumbraLighting>>,
+    method: Res<DefaultOpaqueRendererMethod>,
+    settings: Res<LightingPluginSettings>,
+) {
+    if !settings.require_deferred_default || is_deferred(&method) {
+        return;
+    }
+    if let Some(camera) = cameras.iter().next() {
+        panic!(
+            "Penumbra: camera {camera} has `PenumbraLighting`, but opaque materials render \
+             forward (Bevy's default), so Penumbra's lighting pass (and its distance-field \
+             shadows) would shade nothing. Fix: {DEFERRED_FIX}"
+        );
+    }
+}
+
 /// 3D cameras without a deferred G-buffer.
 type ForwardCameras = (With<Camera3d>, Without<DeferredPrepass>);
 
-/// With deferred the default render method, a 3D camera without a deferred prepass
-/// does not show opaque `StandardMaterial`s: say so once per camera.
+/// With deferred the app's default render method, a 3D camera without a deferred
+/// prepass does not show opaque `StandardMaterial`s (Bevy's rule): say so once per
+/// camera, since Penumbra's docs asked for the setting.
 fn warn_forward_cameras(
     cameras: Query<(Entity, &Camera), ForwardCameras>,
+    penumbra_cameras: Query<(), With<PenumbraLighting>>,
     method: Res<DefaultOpaqueRendererMethod>,
     mut warned: Local<Vec<Entity>>,
 ) {
-    if !is_deferred(&method) {
+    if penumbra_cameras.is_empty() || !is_deferred(&method) {
         return;
     }
     for (entity, camera) in &cameras {
         if camera.is_active && !warned.contains(&entity) {
             warned.push(entity);
             warn!(
-                "Penumbra: 3D camera {entity} has no DeferredPrepass, but Penumbra made deferred \
-                 the default opaque render method: add `PenumbraLighting` (or `DeferredPrepass`) \
-                 to it, or set `DefaultOpaqueRendererMethod::forward()` after adding the plugins"
+                "3D camera {entity} has no DeferredPrepass while deferred is the default opaque \
+                 render method: Bevy does not draw deferred materials on it. Add \
+                 `PenumbraLighting` (or `DeferredPrepass`) to it"
             );
         }
     }

@@ -206,37 +206,55 @@ pub(crate) struct AtlasUpload {
     pub(crate) data: Vec<u16>,
 }
 
-/// The main-world state: the CPU mirror of the GPU scene.
-#[derive(Resource, Default)]
+/// The main-world state: the CPU mirror of the GPU scene. Reflected as an opaque
+/// resource (its state is read through the methods below).
+#[derive(Resource, Reflect, Default)]
+#[reflect(Resource)]
 pub struct DistanceFieldScene {
+    #[reflect(ignore)]
     table: ObjectTable,
+    #[reflect(ignore)]
     atlas: Option<AtlasAllocator>,
+    #[reflect(ignore)]
     volumes: HashMap<AssetId<SdfVolumeAsset>, PlacedVolume>,
     /// Volumes that could not be placed (warned once), until atlas space is freed.
+    #[reflect(ignore)]
     unplaceable: HashSet<AssetId<SdfVolumeAsset>>,
     /// Casters skipped because their volume could not be placed: retried when atlas
     /// space is freed.
+    #[reflect(ignore)]
     unplaced_casters: HashSet<Entity>,
     /// Atlas space was freed since the last retry.
+    #[reflect(ignore)]
     atlas_freed: bool,
     /// The atlas could not be created (budget below the minimum): not retried.
+    #[reflect(ignore)]
     atlas_failed: bool,
     /// Casters skipped because the object buffer is full: retried as slots free up.
+    #[reflect(ignore)]
     over_cap: HashSet<Entity>,
     /// The cap has been reported once.
+    #[reflect(ignore)]
     warned_cap: bool,
     /// The device's cap on records (storage-binding and buffer size / 128 bytes).
+    #[reflect(ignore)]
     device_max_objects: u32,
     /// Which volume each caster uses.
+    #[reflect(ignore)]
     caster_volume: EntityHashMap<AssetId<SdfVolumeAsset>>,
     /// Casters waiting for their SDF (not yet loaded, baked or placed).
+    #[reflect(ignore)]
     waiting: HashSet<Entity>,
+    #[reflect(ignore)]
     uploads: Vec<AtlasUpload>,
     max_texture_3d: u32,
     /// The atlas has been reported full once (later overflows are only counted).
+    #[reflect(ignore)]
     warned_full: bool,
     /// Casters whose transform or shape was reported unusable (once each).
+    #[reflect(ignore)]
     warned_casters: HashSet<Entity>,
+    #[reflect(ignore)]
     downsampled: usize,
 }
 
@@ -288,7 +306,13 @@ pub enum DistanceFieldSystems {
 impl Plugin for DistanceFieldScenePlugin {
     fn build(&self, app: &mut App) {
         crate::shader_library::register_shader_library(app);
+        crate::require_plugin::<crate::SdfAssetPlugin>(
+            app,
+            "DistanceFieldScenePlugin",
+            "SdfAssetPlugin",
+        );
         app.register_type::<DistanceFieldCaster>()
+            .register_type::<DistanceFieldScene>()
             .register_type::<DistanceFieldSceneSettings>()
             .register_type::<DistanceFieldUploadStats>()
             .init_resource::<DistanceFieldSceneSettings>()

@@ -45,7 +45,20 @@ pub struct SdfAssetPlugin;
 
 impl Plugin for SdfAssetPlugin {
     fn build(&self, app: &mut App) {
+        crate::require_plugin::<AssetPlugin>(
+            app,
+            "SdfAssetPlugin",
+            "AssetPlugin (in DefaultPlugins)",
+        );
         app.init_asset::<SdfVolumeAsset>()
+            .register_asset_reflect::<SdfVolumeAsset>()
+            .register_type::<SdfBakeRequest>()
+            .register_type::<SdfBakeTask>()
+            .register_type::<SdfBaked>()
+            .register_type::<SdfBakeWaiting>()
+            .register_type::<SdfBakeFailed>()
+            .register_type::<SdfBakeCache>()
+            .register_type::<SdfBakeStats>()
             .init_asset_loader::<SdfVolumeLoader>()
             .init_resource::<SdfBakeCache>()
             .init_resource::<SdfBakeStats>()
@@ -55,7 +68,8 @@ impl Plugin for SdfAssetPlugin {
 
 /// A signed distance field asset (see [`penumbra_sdf::SdfVolume`] for its layout and
 /// conventions: mesh-local units, negative inside).
-#[derive(Asset, TypePath, Clone, Debug, PartialEq)]
+#[derive(Asset, Reflect, Clone, Debug, PartialEq)]
+#[reflect(opaque, Clone, Debug, PartialEq)]
 pub struct SdfVolumeAsset {
     /// The distance field.
     pub volume: SdfVolume,
@@ -111,17 +125,22 @@ impl AssetLoader for SdfVolumeLoader {
 }
 
 /// Asks for the mesh's distance field to be baked (or fetched from the cache).
-#[derive(Component, Clone, Debug)]
+#[derive(Component, Reflect, Clone, Debug)]
+#[reflect(Component, Clone)]
 pub struct SdfBakeRequest {
     /// The mesh to bake (waits until it is loaded).
     pub mesh: Handle<Mesh>,
-    /// Bake settings (grid policy, sign method).
+    /// Bake settings (grid policy, sign method). Not reflected: a type of the Bevy-free
+    /// `penumbra_sdf` crate (reflection sees the default).
+    #[reflect(ignore, clone)]
     pub settings: BakeSettings,
 }
 
 /// The entity's request is being baked (the bake itself runs in [`SdfBakeCache`]).
-#[derive(Component, Debug)]
+#[derive(Component, Reflect, Debug)]
+#[reflect(Component)]
 pub struct SdfBakeTask {
+    #[reflect(ignore)]
     progress: Arc<AtomicU32>,
     key: u64,
 }
@@ -134,26 +153,31 @@ impl SdfBakeTask {
 }
 
 /// The finished distance field of an entity's [`SdfBakeRequest`].
-#[derive(Component, Clone, Debug)]
+#[derive(Component, Reflect, Clone, Debug)]
+#[reflect(Component, Clone)]
 pub struct SdfBaked(pub Handle<SdfVolumeAsset>);
 
 /// Waiting for an identical bake (same mesh content and settings) already running for
 /// another entity; answered from memory when it lands.
-#[derive(Component, Clone, Copy, Debug)]
+#[derive(Component, Reflect, Clone, Copy, Debug)]
+#[reflect(Component, Clone)]
 pub struct SdfBakeWaiting(u64);
 
 /// The bake could not be done; the reason, also logged once as a warning.
-#[derive(Component, Clone, Debug)]
+#[derive(Component, Reflect, Clone, Debug)]
+#[reflect(Component, Clone)]
 pub struct SdfBakeFailed(pub String);
 
 /// Where and what has been baked.
-#[derive(Resource, Debug)]
+#[derive(Resource, Reflect, Debug)]
+#[reflect(Resource)]
 pub struct SdfBakeCache {
     /// Directory of cached `.psdf` files, or `None` to bake every run (memory only).
     pub directory: Option<PathBuf>,
     memory: HashMap<u64, Handle<SdfVolumeAsset>>,
     /// Bakes running now, by key (so duplicates wait instead of baking again). Kept
     /// here, not on an entity: a despawned requester does not cancel a shared bake.
+    #[reflect(ignore)]
     in_flight: HashMap<u64, Task<BakeResult>>,
 }
 
@@ -187,7 +211,8 @@ impl SdfBakeCache {
 }
 
 /// Counts of what the bake systems did.
-#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Resource, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Resource, Clone, Default)]
 pub struct SdfBakeStats {
     /// Bakes actually computed.
     pub baked: u32,

@@ -56,8 +56,11 @@
 //!
 //! # Limits
 //!
-//! - Only cameras with `PenumbraLighting` see distance-field shadows (other cameras and
-//!   forward materials see the light unshadowed: its shadow map is switched off).
+//! - Only deferred materials on cameras with `PenumbraLighting` see distance-field
+//!   shadows. Everything else Bevy lights — other cameras, forward, alpha-blended and
+//!   transmissive materials, volumetric fog — keeps the light's shadow map, which is
+//!   rendered only while such a consumer exists (`consumers.rs`): with none, the light
+//!   costs no shadow map at all.
 //! - Shadows come from `DistanceFieldCaster`s only: meshes without one cast none.
 //! - Directional lights shadow only within `max_view_distance` of the camera; beyond it
 //!   there is no fallback to shadow maps (Unreal hands over to cascades there).
@@ -68,8 +71,11 @@
 //! over the object buffer and one pass over the view's pixels (march cost ∝ casters per
 //! tile × `max_steps`); 4 bytes per pixel per light of mask memory.
 
+mod consumers;
 mod render;
 mod resources;
+
+pub use consumers::ShadowMapConsumers;
 
 use bevy::prelude::*;
 use bevy::render::RenderApp;
@@ -79,8 +85,9 @@ use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 #[derive(Default)]
 pub struct DistanceFieldShadowsPlugin;
 
-/// Put next to a `DirectionalLight`, `PointLight` or `SpotLight`: the light's shadows
-/// come from the distance-field scene (and its shadow map is not rendered).
+/// Put next to a `DirectionalLight`, `PointLight` or `SpotLight`: on `PenumbraLighting`
+/// cameras the light's shadows come from the distance-field scene; its shadow map is
+/// rendered only for what else needs it (module docs, Limits).
 #[derive(Component, Reflect, Clone, Debug, PartialEq, ExtractComponent)]
 #[reflect(Component, Clone, Default)]
 pub struct DistanceFieldShadows {
@@ -136,10 +143,20 @@ impl Default for DistanceFieldShadows {
 
 impl Plugin for DistanceFieldShadowsPlugin {
     fn build(&self, app: &mut App) {
+        crate::require_plugin::<crate::DistanceFieldScenePlugin>(
+            app,
+            "DistanceFieldShadowsPlugin",
+            "DistanceFieldScenePlugin",
+        );
+        crate::require_plugin::<crate::PenumbraLightingPlugin>(
+            app,
+            "DistanceFieldShadowsPlugin",
+            "PenumbraLightingPlugin",
+        );
         crate::shader_library::register_shader_library(app);
         app.register_type::<DistanceFieldShadows>()
-            .add_plugins(ExtractComponentPlugin::<DistanceFieldShadows>::default())
-            .add_systems(PostUpdate, warn_unseen_shadows);
+            .register_type::<ShadowMapConsumers>()
+            .add_plugins(ExtractComponentPlugin::<DistanceFieldShadows>::default());
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app);
         }
@@ -150,28 +167,4 @@ impl Plugin for DistanceFieldShadowsPlugin {
             render::finish(render_app);
         }
     }
-}
-
-/// Lights with distance-field shadows.
-type ShadowedLights = (
-    With<DistanceFieldShadows>,
-    Or<(With<DirectionalLight>, With<PointLight>, With<SpotLight>)>,
-);
-
-/// Distance-field shadows are only seen by `PenumbraLighting` cameras, and the light's
-/// shadow map is off: say so once if a shadowed light has no such camera to serve it.
-fn warn_unseen_shadows(
-    lights: Query<Entity, ShadowedLights>,
-    cameras: Query<&Camera, With<crate::lighting::PenumbraLighting>>,
-    mut warned: Local<bool>,
-) {
-    if *warned || lights.is_empty() || cameras.iter().any(|c| c.is_active) {
-        return;
-    }
-    *warned = true;
-    warn!(
-        "Penumbra: {} light(s) have DistanceFieldShadows but no active camera has \
-         PenumbraLighting: their shadows are not drawn (and their shadow maps are off)",
-        lights.iter().count()
-    );
 }

@@ -1,5 +1,4 @@
-//! Render-world side of distance-field shadows: shadow maps off for DF-shadowed lights,
-//! per-view mask textures and pooled buffers (`resources`), and the light-cull, grid and
+//! Render-world side of distance-field shadows: per-view mask textures and pooled buffers (`resources`), and the light-cull, grid and
 //! mask passes.
 
 use super::DistanceFieldShadows;
@@ -148,10 +147,11 @@ pub(super) struct ShadowPipelines {
 pub(super) fn build(render_app: &mut SubApp) {
     render_app
         .init_resource::<FrameLights>()
+        .init_resource::<super::consumers::ShadowMapConsumers>()
         .add_systems(
             Render,
             (
-                disable_shadow_maps
+                super::consumers::skip_unread_shadow_maps
                     .in_set(RenderSystems::CreateViews)
                     .before(prepare_lights),
                 prepare_distance_field_shadows
@@ -305,20 +305,6 @@ fn init_shadow_pipelines(
             })
             .create_view(&TextureViewDescriptor::default()),
     });
-}
-
-/// A light with distance-field shadows renders no shadow map (the user's component is
-/// left as it is; only the render world's copy changes).
-fn disable_shadow_maps(
-    mut points: Query<&mut ExtractedPointLight, With<DistanceFieldShadows>>,
-    mut directionals: Query<&mut ExtractedDirectionalLight, With<DistanceFieldShadows>>,
-) {
-    for mut light in &mut points {
-        light.shadow_maps_enabled = false;
-    }
-    for mut light in &mut directionals {
-        light.shadow_maps_enabled = false;
-    }
 }
 
 /// A Penumbra-lit view's masks and pooled shadow resources, if it has them yet.
