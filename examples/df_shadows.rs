@@ -80,7 +80,8 @@ fn spawn_scene(
     mut materials: ResMut<Assets<StandardMaterial>>,
     options: Option<Res<Options>>,
 ) {
-    let lights = options.and_then(|o| o.lights).unwrap_or(2);
+    let lights = options.as_ref().and_then(|o| o.lights).unwrap_or(2);
+    let glass = options.is_some_and(|o| o.glass);
     let mut material = |color: Color, roughness: f32| {
         materials.add(StandardMaterial {
             base_color: color,
@@ -98,6 +99,21 @@ fn spawn_scene(
         Mesh3d(meshes.add(Plane3d::default().mesh().size(16.0, 16.0))),
         MeshMaterial3d(ground),
     ));
+    if glass {
+        // Alpha-blended: lit by Bevy's forward pass with the lights' shadow maps, which
+        // Penumbra therefore keeps rendering (see `--glass` in examples/common/cli.rs).
+        let glass = materials.add(StandardMaterial {
+            base_color: Color::srgba(0.6, 0.8, 0.9, 0.35),
+            alpha_mode: AlphaMode::Blend,
+            perceptual_roughness: 0.1,
+            ..default()
+        });
+        commands.spawn((
+            Mesh3d(meshes.add(Cuboid::new(1.2, 0.9, 0.05))),
+            MeshMaterial3d(glass),
+            Transform::from_xyz(-0.4, 0.45, 1.3),
+        ));
+    }
     // A tall pillar: its shadow hardens toward its foot.
     commands.spawn((
         Mesh3d(meshes.add(Capsule3d::new(0.15, 2.7))),
@@ -140,8 +156,11 @@ fn spawn_scene(
         Animated::Orbiting,
     ));
     commands.spawn((
+        // Shadow maps stay enabled for whatever Penumbra does not shade (`--glass`); with
+        // nothing of the kind in view, Penumbra skips them.
         DirectionalLight {
             illuminance: 6_000.0,
+            shadow_maps_enabled: true,
             ..default()
         },
         Transform::default(),
@@ -158,6 +177,7 @@ fn spawn_scene(
                 intensity: 150_000.0,
                 range: 12.0,
                 radius: 0.15,
+                shadow_maps_enabled: true,
                 ..default()
             },
             Transform::from_xyz(0.0, 2.2, 1.5),

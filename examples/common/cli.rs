@@ -9,10 +9,13 @@
 //! `DISPLAY` nor `WAYLAND_DISPLAY` is set), `--frames N` (frames before the capture;
 //! in a window, exit after N frames), `--out PATH` (PNG to write; headless default
 //! `NAME.png`), `--size WxH` (default 256x256 headless, 1280x720 windowed), `--lights N`
-//! (examples with distance-field-shadowed lights: how many, 1..=8; see each example).
+//! (examples with distance-field-shadowed lights: how many, 1..=8; see each example),
+//! `--glass` (`df_shadows`: add an alpha-blended pane, which Bevy lights in its forward
+//! pass, so the distance-field-shadowed lights keep their shadow maps for it).
 //!
-//! Headless runs print the mean frame time and what Penumbra allocated on the GPU per
-//! frame (`PenumbraGpuAllocations`; pooled resources: 0 once the scene is steady).
+//! Headless runs print the mean frame time, what Penumbra allocated on the GPU per
+//! frame (`PenumbraGpuAllocations`; pooled resources: 0 once the scene is steady) and
+//! how many shadow-map passes Bevy rendered per frame (cascades, cube faces, spots).
 
 use bevy::{
     prelude::*,
@@ -34,10 +37,12 @@ pub struct Options {
     pub size: Option<UVec2>,
     /// Distance-field-shadowed lights, for examples that have them.
     pub lights: Option<u32>,
+    /// Add an alpha-blended pane (a consumer of the lights' shadow maps).
+    pub glass: bool,
 }
 
 const USAGE: &str =
-    "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N]";
+    "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N] [--glass]";
 
 impl Options {
     /// Parses `std::env::args()`-style arguments (without the program name).
@@ -48,12 +53,14 @@ impl Options {
             out: None,
             size: None,
             lights: None,
+            glass: false,
         };
         let mut args = args.into_iter();
         while let Some(arg) = args.next() {
             let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
             match arg.as_str() {
                 "--headless" => o.headless = true,
+                "--glass" => o.glass = true,
                 "--frames" => {
                     let v = value("--frames")?;
                     let n: u32 = v
@@ -161,6 +168,15 @@ pub fn run_headless(
     app.insert_resource(options.clone())
         .init_resource::<AllocationLog>()
         .add_systems(Last, log_allocations);
+    let shadow_passes = ShadowPassCount::default();
+    if let Some(render_app) = app.get_sub_app_mut(bevy::render::RenderApp) {
+        render_app
+            .insert_resource(shadow_passes.clone())
+            .add_systems(
+                bevy::render::Render,
+                count_shadow_passes.in_set(bevy::render::RenderSystems::Queue),
+            );
+    }
     scene(&mut app);
     let (capture, app) = render.run_keeping_app(app).map_err(|e| e.to_string())?;
     capture
@@ -194,8 +210,31 @@ pub fn run_headless(
             d.textures as f64 / n
         );
     }
+    let (passes, counted) = shadow_passes.totals();
+    println!(
+        "{name}: Bevy shadow-map passes per frame: {:.2}",
+        passes as f64 / counted.max(1) as f64
+    );
     println!("{name}: wrote {}", path.display());
     Ok(())
+}
+
+/// Shadow-map passes (Bevy's `ShadowView`s) summed over frames, and frames counted:
+/// shared by the render world, which counts, and the report.
+#[derive(Resource, Clone, Default)]
+struct ShadowPassCount(std::sync::Arc<[std::sync::atomic::AtomicU64; 2]>);
+
+impl ShadowPassCount {
+    fn totals(&self) -> (u64, u64) {
+        use std::sync::atomic::Ordering::Relaxed;
+        (self.0[0].load(Relaxed), self.0[1].load(Relaxed))
+    }
+}
+
+fn count_shadow_passes(views: Query<(), With<bevy::pbr::ShadowView>>, count: Res<ShadowPassCount>) {
+    use std::sync::atomic::Ordering::Relaxed;
+    count.0[0].fetch_add(views.iter().count() as u64, Relaxed);
+    count.0[1].fetch_add(1, Relaxed);
 }
 
 /// `PenumbraGpuAllocations` after each frame.
