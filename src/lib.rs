@@ -59,8 +59,10 @@ plugin_group! {
         :PenumbraCorePlugin,
         bevy_penumbra_df::sdf_asset:::SdfAssetPlugin,
         bevy_penumbra_df::scene:::DistanceFieldScenePlugin,
+        #[cfg(feature = "debug_view")]
         bevy_penumbra_df::debug_view:::DistanceFieldDebugPlugin,
         bevy_penumbra_df::lighting:::PenumbraLightingPlugin,
+        #[cfg(feature = "shadows")]
         bevy_penumbra_df::shadows:::DistanceFieldShadowsPlugin,
     }
 }
@@ -82,10 +84,15 @@ impl Plugin for PenumbraCorePlugin {
 /// Common imports: `use penumbra::prelude::*;`.
 pub mod prelude {
     pub use crate::{PenumbraCorePlugin, PenumbraPlugins};
+    #[cfg(feature = "shadows")]
+    pub use bevy_penumbra_df::DistanceFieldShadows;
     pub use bevy_penumbra_df::{
-        CasterSource, DistanceFieldCaster, DistanceFieldDebugMode, DistanceFieldDebugView,
-        DistanceFieldScene, DistanceFieldSceneSettings, DistanceFieldShadows,
-        DistanceFieldUploadStats, PenumbraLighting, SdfAssetPlugin, SdfBakeFailed, SdfBakeRequest,
-        SdfBakeTask, SdfBaked, SdfVolumeAsset,
+        CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldSceneSettings,
+        DistanceFieldUploadStats, PenumbraLighting, PenumbraLightingPlugin, SdfAssetPlugin,
+        SdfBakeFailed, SdfBaked, SdfVolumeAsset,
     };
+    #[cfg(feature = "debug_view")]
+    pub use bevy_penumbra_df::{DistanceFieldDebugMode, DistanceFieldDebugView};
+    #[cfg(feature = "bake")]
+    pub use bevy_penumbra_df::{SdfBakeRequest, SdfBakeTask};
 }

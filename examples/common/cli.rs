@@ -13,6 +13,9 @@
 //! `--glass` (`df_shadows`: add an alpha-blended pane, which Bevy lights in its forward
 //! pass, so the distance-field-shadowed lights keep their shadow maps for it).
 //!
+//! Windowed runs take keyboard toggles (`controls.rs`: `Space` distance-field shadows,
+//! `H` half resolution, `D` debug view), shown in the window title.
+//!
 //! Headless runs print the mean frame time, what Penumbra allocated on the GPU per
 //! frame (`PenumbraGpuAllocations`; pooled resources: 0 once the scene is steady) and
 //! how many shadow-map passes Bevy rendered per frame (cascades, cube faces, spots).
@@ -23,6 +26,9 @@ use bevy::{
     window::WindowResolution,
 };
 use std::path::PathBuf;
+
+#[path = "controls.rs"]
+mod controls;
 
 /// Command-line options (also a resource of the example's app).
 #[derive(Resource, Clone, Debug, PartialEq)]
@@ -264,6 +270,7 @@ fn run_windowed(name: &str, options: &Options, scene: fn(&mut App)) {
     }));
     app.insert_resource(options.clone());
     scene(&mut app);
+    controls::add_controls(&mut app, name);
     if let Some(frames) = options.frames {
         let out = options.out.clone();
         let name = name.to_string();

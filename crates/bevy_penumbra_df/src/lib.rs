@@ -14,15 +14,29 @@
 //! - [`shader_library`]: Penumbra's WGSL modules as Bevy shader assets.
 //! - [`gpu_allocations`]: counts of the GPU resources Penumbra creates (pooled: a steady
 //!   frame creates none).
+//!
+//! # Cargo features
+//!
+//! All on by default; a game that ships pre-baked `.psdf` files and no debug view can
+//! turn off what it does not use:
+//!
+//! - `bake`: runtime baking of `Mesh`es (rayon, the BVH baker, OBJ/glTF readers of
+//!   `penumbra_sdf`), the bake cache. Without it `.psdf` assets and analytic casters
+//!   still work; mesh casters need an SDF given to them.
+//! - `shadows`: distance-field soft shadows (`DistanceFieldShadows`).
+//! - `debug_view`: the distance-field debug view (`DistanceFieldDebugView`).
 
+#[cfg(feature = "debug_view")]
 pub mod debug_view;
 pub mod gpu_allocations;
 pub mod lighting;
 pub mod scene;
 pub mod sdf_asset;
 pub mod shader_library;
+#[cfg(feature = "shadows")]
 pub mod shadows;
 
+#[cfg(feature = "debug_view")]
 pub use debug_view::{DistanceFieldDebugMode, DistanceFieldDebugPlugin, DistanceFieldDebugView};
 pub use gpu_allocations::{GpuAllocationCounts, PenumbraGpuAllocations};
 pub use lighting::{PenumbraLighting, PenumbraLightingPlugin};
@@ -30,11 +44,13 @@ pub use scene::{
     CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldScenePlugin,
     DistanceFieldSceneSettings, DistanceFieldUploadStats,
 };
+pub use sdf_asset::{SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset, SdfVolumeLoader};
+#[cfg(feature = "bake")]
 pub use sdf_asset::{
-    SdfAssetPlugin, SdfBakeCache, SdfBakeFailed, SdfBakeRequest, SdfBakeStats, SdfBakeTask,
-    SdfBakeWaiting, SdfBaked, SdfVolumeAsset, SdfVolumeLoader, mesh_to_tri_mesh,
+    SdfBakeCache, SdfBakeRequest, SdfBakeStats, SdfBakeTask, SdfBakeWaiting, mesh_to_tri_mesh,
 };
 pub use shader_library::{PenumbraShaderLibrary, register_shader_library};
+#[cfg(feature = "shadows")]
 pub use shadows::{DistanceFieldShadows, DistanceFieldShadowsPlugin};
 
 /// Panics, naming the missing plugin, when `P` has not been added before `plugin`: as

@@ -16,29 +16,35 @@
 //! Conventions: distances are in the mesh's own units, negative inside; triangles are
 //! counter-clockwise seen from outside (glTF, Bevy). See `volume` for the sample layout.
 
+#[cfg(feature = "bake")]
 pub mod bake;
+#[cfg(feature = "bake")]
 pub mod bvh;
 pub mod exact;
 pub mod format;
 pub mod geometry;
+#[cfg(feature = "bake")]
 pub mod gltf_input;
 pub mod grid;
 pub mod mesh;
+#[cfg(feature = "bake")]
 pub mod obj;
 pub mod shapes;
 pub mod volume;
 
-/// Version of the baking algorithm: bumped whenever [`bake`] can produce different
+/// Version of the baking algorithm: bumped whenever [`bake()`] can produce different
 /// output for the same input and settings, so caches keyed on it (as
 /// `bevy_penumbra_df`'s is) never serve a stale bake.
 pub const BAKER_VERSION: u32 = 3;
 
+#[cfg(feature = "bake")]
 pub use bake::{Bake, BakeError, BakeSettings, BakeTimings, SignMethod, bake};
 pub use grid::{GridPolicy, GridSpec, Resolution};
 pub use mesh::{MeshError, TriMesh};
 pub use volume::SdfVolume;
 
 /// Why a mesh file could not be loaded.
+#[cfg(feature = "bake")]
 #[derive(Debug)]
 pub enum LoadError {
     /// Reading the file failed.
@@ -53,6 +59,7 @@ pub enum LoadError {
     NamedMeshUnsupported,
 }
 
+#[cfg(feature = "bake")]
 impl std::fmt::Display for LoadError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
@@ -72,11 +79,13 @@ impl std::fmt::Display for LoadError {
     }
 }
 
+#[cfg(feature = "bake")]
 impl std::error::Error for LoadError {}
 
 /// Loads a mesh file by extension: `.obj` (whole file), `.gltf` / `.glb` (the default
 /// scene with node transforms, or the mesh named `mesh`). Returns the mesh and notes
 /// worth showing a user (skipped primitives, skinned meshes read in bind pose).
+#[cfg(feature = "bake")]
 pub fn load_mesh_file(
     path: &std::path::Path,
     mesh: Option<&str>,

@@ -1,5 +1,6 @@
-//! Penumbra's WGSL shader sources, embedded at compile time from the workspace's
-//! top-level `shaders/` folder, with the `naga_oil` import path each one declares.
+//! Penumbra's WGSL shader sources, embedded at compile time from this crate's `shaders/`
+//! folder (the workspace's top-level `shaders/` links to it), with the `naga_oil` import
+//! path each one declares.
 //!
 //! The Bevy side (`penumbra::PenumbraCorePlugin`) registers every module here as a
 //! `Shader` asset so that `#import penumbra::…` resolves in any Penumbra pipeline. This
@@ -23,7 +24,7 @@ macro_rules! shader_files {
         pub const SHADERS: &[ShaderFile] = &[$(ShaderFile {
             path: $path,
             import_path: $import,
-            source: include_str!(concat!("../../../shaders/", $path)),
+            source: include_str!(concat!("../shaders/", $path)),
         }),*];
     };
 }
@@ -57,9 +58,9 @@ impl ShaderFile {
     }
 }
 
-/// Absolute path of the workspace's `shaders/` folder at build time (for tests and tools).
+/// Absolute path of this crate's `shaders/` folder at build time (for tests and tools).
 pub fn shaders_dir() -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shaders")
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders")
 }
 
 /// The `#define_import_path` declared in a WGSL source, if any.

@@ -59,6 +59,13 @@ use bevy::render::RenderApp;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::sync_component::SyncComponent;
 
+#[cfg_attr(
+    not(feature = "shadows"),
+    allow(
+        unused_imports,
+        reason = "only distance-field shadows make masks so far"
+    )
+)]
 pub(crate) use render::{PenumbraLightingInputs, PenumbraShadowedLight, ShadowedLightKind};
 
 /// Adds [`PenumbraLighting`]. Part of `PenumbraPlugins`. Changes no global setting.

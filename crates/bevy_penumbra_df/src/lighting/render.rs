@@ -41,6 +41,10 @@ const SHADOWED_LIGHT_BYTES: u64 = 32;
 
 /// Which light a mask belongs to.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(
+    not(feature = "shadows"),
+    allow(dead_code, reason = "only distance-field shadows make masks so far")
+)]
 pub enum ShadowedLightKind {
     /// A directional light, identified by its unit direction toward the light (Bevy
     /// exposes no index for directional lights: the shader matches directions).

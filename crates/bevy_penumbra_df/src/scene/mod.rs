@@ -36,10 +36,11 @@
 //! storage-binding limit: 2²⁰ at 128 MiB), the ones beyond it skipped with one warning
 //! until slots free up.
 
+mod bake_requests;
 mod cull;
 mod render;
 
-use crate::sdf_asset::{SdfBakeFailed, SdfBakeRequest, SdfBaked, SdfVolumeAsset};
+use crate::sdf_asset::{SdfBakeFailed, SdfBaked, SdfVolumeAsset};
 use bevy::ecs::entity::EntityHashMap;
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
@@ -47,7 +48,6 @@ use bevy::render::RenderApp;
 use penumbra_df_core::atlas::{AtlasAllocator, AtlasError, AtlasRegion};
 use penumbra_df_core::object::{CasterShape, ObjectDesc, RECORD_BYTES, encode, flags};
 use penumbra_df_core::table::{Deltas, ObjectTable};
-use penumbra_sdf::{BakeSettings, GridPolicy, Resolution, SignMethod};
 
 pub use cull::CulledObjects;
 pub use render::{DistanceFieldGpu, DistanceFieldPipelines, DistanceFieldRenderSystems};
@@ -332,7 +332,7 @@ impl Plugin for DistanceFieldScenePlugin {
             .add_systems(
                 PostUpdate,
                 (
-                    request_caster_bakes.in_set(DistanceFieldSystems::RequestBakes),
+                    bake_requests::request_caster_bakes.in_set(DistanceFieldSystems::RequestBakes),
                     (
                         remove_distance_field_casters,
                         update_distance_field_casters,
@@ -362,62 +362,6 @@ impl Plugin for DistanceFieldScenePlugin {
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::finish(render_app);
         }
-    }
-}
-
-/// Bake settings of a mesh caster.
-fn bake_settings(caster: &DistanceFieldCaster) -> BakeSettings {
-    let scale = if caster.resolution_scale.is_finite() && caster.resolution_scale > 0.0 {
-        caster.resolution_scale.clamp(1.0 / 16.0, 8.0)
-    } else {
-        1.0
-    };
-    BakeSettings {
-        grid: GridPolicy {
-            resolution: Resolution::PerUnit {
-                density: 32.0 * scale,
-                min: 8,
-                max: 256,
-            },
-            ..GridPolicy::default()
-        },
-        sign: if caster.two_sided {
-            SignMethod::TWO_SIDED
-        } else {
-            SignMethod::WindingNumber
-        },
-        ..BakeSettings::default()
-    }
-}
-
-/// Mesh casters get a bake request (answered from the cache when possible).
-#[allow(clippy::type_complexity)]
-fn request_caster_bakes(
-    mut commands: Commands,
-    casters: Query<
-        (
-            Entity,
-            &DistanceFieldCaster,
-            &Mesh3d,
-            Option<&SdfBakeRequest>,
-        ),
-        Or<(Changed<DistanceFieldCaster>, Changed<Mesh3d>)>,
-    >,
-) {
-    for (entity, caster, mesh, request) in &casters {
-        if caster.source != CasterSource::Mesh {
-            continue;
-        }
-        let settings = bake_settings(caster);
-        if request.is_some_and(|r| r.mesh == mesh.0 && r.settings == settings) {
-            continue;
-        }
-        // A changed request drops the old outcome (see `sdf_asset`): the caster leaves
-        // the scene until its new SDF arrives.
-        commands.entity(entity).insert(SdfBakeRequest {
-            mesh: mesh.0.clone(),
-            settings,
-        });
     }
 }
 

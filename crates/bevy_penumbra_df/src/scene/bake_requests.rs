@@ -1,0 +1,100 @@
+//! Mesh casters' SDFs: a bake request per mesh caster (feature `bake`), or, without
+//! baking compiled in, a clear failure on each mesh caster that has no SDF.
+
+use super::{CasterSource, DistanceFieldCaster};
+#[cfg(not(feature = "bake"))]
+use crate::sdf_asset::{SdfBakeFailed, SdfBaked};
+use bevy::prelude::*;
+#[cfg(feature = "bake")]
+use {
+    crate::sdf_asset::SdfBakeRequest,
+    penumbra_sdf::{BakeSettings, GridPolicy, Resolution, SignMethod},
+};
+
+/// Bake settings of a mesh caster.
+#[cfg(feature = "bake")]
+fn bake_settings(caster: &DistanceFieldCaster) -> BakeSettings {
+    let scale = if caster.resolution_scale.is_finite() && caster.resolution_scale > 0.0 {
+        caster.resolution_scale.clamp(1.0 / 16.0, 8.0)
+    } else {
+        1.0
+    };
+    BakeSettings {
+        grid: GridPolicy {
+            resolution: Resolution::PerUnit {
+                density: 32.0 * scale,
+                min: 8,
+                max: 256,
+            },
+            ..GridPolicy::default()
+        },
+        sign: if caster.two_sided {
+            SignMethod::TWO_SIDED
+        } else {
+            SignMethod::WindingNumber
+        },
+        ..BakeSettings::default()
+    }
+}
+
+/// Mesh casters get a bake request (answered from the cache when possible).
+#[cfg(feature = "bake")]
+#[allow(clippy::type_complexity)]
+pub(super) fn request_caster_bakes(
+    mut commands: Commands,
+    casters: Query<
+        (
+            Entity,
+            &DistanceFieldCaster,
+            &Mesh3d,
+            Option<&SdfBakeRequest>,
+        ),
+        Or<(Changed<DistanceFieldCaster>, Changed<Mesh3d>)>,
+    >,
+) {
+    for (entity, caster, mesh, request) in &casters {
+        if caster.source != CasterSource::Mesh {
+            continue;
+        }
+        let settings = bake_settings(caster);
+        if request.is_some_and(|r| r.mesh == mesh.0 && r.settings == settings) {
+            continue;
+        }
+        // A changed request drops the old outcome (see `sdf_asset`): the caster leaves
+        // the scene until its new SDF arrives.
+        commands.entity(entity).insert(SdfBakeRequest {
+            mesh: mesh.0.clone(),
+            settings,
+        });
+    }
+}
+
+/// Without the `bake` feature a mesh caster needs its SDF from elsewhere (an `SdfBaked`
+/// the app inserts, or `CasterSource::Sdf`): those without one fail clearly (one warning
+/// in all) instead of waiting forever.
+#[cfg(not(feature = "bake"))]
+#[allow(clippy::type_complexity)]
+pub(super) fn request_caster_bakes(
+    mut commands: Commands,
+    casters: Query<
+        (Entity, &DistanceFieldCaster),
+        (
+            Or<(Changed<DistanceFieldCaster>, Added<Mesh3d>)>,
+            Without<SdfBaked>,
+            Without<SdfBakeFailed>,
+        ),
+    >,
+    mut warned: Local<bool>,
+) {
+    const REASON: &str = "bevy_penumbra_df was built without its `bake` feature: mesh \
+        casters need an SDF from a `.psdf` file (`CasterSource::Sdf`) or an `SdfBaked`";
+    for (entity, caster) in &casters {
+        if caster.source != CasterSource::Mesh {
+            continue;
+        }
+        if !std::mem::replace(&mut *warned, true) {
+            warn!("Penumbra: caster {entity} skipped: {REASON}");
+        }
+        commands.entity(entity).insert(SdfBakeFailed(REASON.into()));
+    }
+}

@@ -1,0 +1,110 @@
+//! Keyboard toggles shared by the examples, shown in the window title (on-screen, with
+//! no UI dependency) and printed once at start:
+//!
+//! - `Space`: distance-field shadows on/off. Off, the lights fall back to Bevy's shadow
+//!   maps (the examples' lights keep `shadow_maps_enabled`): compare the two.
+//! - `H`: half-resolution shadow tracing on/off.
+//! - `D`: the distance-field debug view: off → step-count heat map → shaded → off.
+//!
+//! Windowed runs only: headless captures are not affected.
+
+use bevy::prelude::*;
+use penumbra::prelude::*;
+
+/// The toggles as text, printed at start.
+pub const HELP: &str = "keys: [Space] distance-field shadows on/off (off: Bevy's shadow maps) · \
+    [H] half-resolution shadows · [D] debug view (off / step count / shaded)";
+
+/// Adds the toggles to a windowed example app.
+pub fn add_controls(app: &mut App, name: &str) {
+    println!("{name}: {HELP}");
+    app.insert_resource(Controls {
+        name: name.to_string(),
+        ..default()
+    })
+    .add_systems(Update, (toggle, show_in_title).chain());
+}
+
+/// What the toggles have set.
+#[derive(Resource, Clone, Debug, Default)]
+struct Controls {
+    name: String,
+    shadows_off: bool,
+    half_resolution: bool,
+    debug: Option<DistanceFieldDebugMode>,
+}
+
+/// A light's distance-field shadows while they are toggled off.
+#[derive(Component, Clone)]
+struct StashedShadows(DistanceFieldShadows);
+
+fn toggle(
+    mut commands: Commands,
+    keys: Res<ButtonInput<KeyCode>>,
+    mut controls: ResMut<Controls>,
+    mut lit: Query<(Entity, &mut DistanceFieldShadows)>,
+    stashed: Query<(Entity, &StashedShadows)>,
+    cameras: Query<Entity, With<Camera3d>>,
+) {
+    if keys.just_pressed(KeyCode::Space) {
+        controls.shadows_off = !controls.shadows_off;
+        if controls.shadows_off {
+            for (entity, shadows) in &lit {
+                commands
+                    .entity(entity)
+                    .insert(StashedShadows(shadows.clone()))
+                    .remove::<DistanceFieldShadows>();
+            }
+        } else {
+            for (entity, StashedShadows(shadows)) in &stashed {
+                commands
+                    .entity(entity)
+                    .insert(shadows.clone())
+                    .remove::<StashedShadows>();
+            }
+        }
+    }
+    if keys.just_pressed(KeyCode::KeyH) {
+        controls.half_resolution = !controls.half_resolution;
+        for (_, mut shadows) in &mut lit {
+            shadows.half_resolution = controls.half_resolution;
+        }
+    }
+    if keys.just_pressed(KeyCode::KeyD) {
+        controls.debug = match controls.debug {
+            None => Some(DistanceFieldDebugMode::StepCount),
+            Some(DistanceFieldDebugMode::StepCount) => Some(DistanceFieldDebugMode::Shaded),
+            Some(_) => None,
+        };
+        for camera in &cameras {
+            match controls.debug {
+                Some(mode) => commands
+                    .entity(camera)
+                    .insert(DistanceFieldDebugView { mode, ..default() }),
+                None => commands.entity(camera).remove::<DistanceFieldDebugView>(),
+            };
+        }
+    }
+}
+
+fn show_in_title(controls: Res<Controls>, mut windows: Query<&mut Window>) {
+    if !controls.is_changed() {
+        return;
+    }
+    let on_off = |on: bool| if on { "on" } else { "off" };
+    let debug = match controls.debug {
+        None => "off",
+        Some(DistanceFieldDebugMode::StepCount) => "step count",
+        Some(_) => "shaded",
+    };
+    let title = format!(
+        "Penumbra {} — [Space] DF shadows: {} · [H] half-res: {} · [D] debug view: {}",
+        controls.name,
+        on_off(!controls.shadows_off),
+        on_off(controls.half_resolution),
+        debug
+    );
+    for mut window in &mut windows {
+        window.title = title.clone();
+    }
+}
