@@ -99,8 +99,9 @@ pub struct DistanceFieldShadows {
     /// ray cast nothing). Default 100. Longer rays keep more casters per tile.
     pub max_distance: f32,
     /// Directional lights: the farthest shadowed pixel from the camera, metres. Pixels
-    /// beyond are not traced and get no shadow from this light (its shadow map stays
-    /// off), and the light cull drops casters that could shadow only them. Default 150,
+    /// beyond are not traced and get no shadow from this light (Penumbra cameras do not
+    /// fall back to its shadow map there), and the light cull drops casters that could
+    /// shadow only them. Default 150,
     /// the reach of Bevy's default shadow cascades. The smaller, the fewer casters kept.
     /// Point and spot lights ignore it (their range bounds them).
     pub max_view_distance: f32,
