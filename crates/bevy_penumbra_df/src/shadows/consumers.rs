@@ -47,6 +47,8 @@ pub(super) fn skip_unread_shadow_maps(
     mut directionals: Query<&mut ExtractedDirectionalLight, With<DistanceFieldShadows>>,
 ) {
     if points.is_empty() && directionals.is_empty() {
+        // No DF-shadowed light: nothing to decide (and no stale answer left behind).
+        consumers.forward_lit = false;
         return;
     }
     let forward_lit = views.iter().any(|(penumbra, visible)| {
