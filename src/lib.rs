@@ -64,6 +64,7 @@ plugin_group! {
         bevy_penumbra_df::lighting:::PenumbraLightingPlugin,
         #[cfg(feature = "shadows")]
         bevy_penumbra_df::shadows:::DistanceFieldShadowsPlugin,
+        bevy_penumbra_df::buffer_dump:::PenumbraBufferDumpPlugin,
     }
 }
 
@@ -87,9 +88,9 @@ pub mod prelude {
     #[cfg(feature = "shadows")]
     pub use bevy_penumbra_df::DistanceFieldShadows;
     pub use bevy_penumbra_df::{
-        CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldSceneSettings,
-        DistanceFieldUploadStats, PenumbraLighting, PenumbraLightingPlugin, SdfAssetPlugin,
-        SdfBakeFailed, SdfBaked, SdfVolumeAsset,
+        CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldSceneCasters,
+        DistanceFieldSceneSettings, DistanceFieldUploadStats, PenumbraLighting,
+        PenumbraLightingPlugin, SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset,
     };
     #[cfg(feature = "debug_view")]
     pub use bevy_penumbra_df::{DistanceFieldDebugMode, DistanceFieldDebugView};

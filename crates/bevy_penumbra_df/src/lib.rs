@@ -11,6 +11,9 @@
 //!   where lights can take their visibility from Penumbra's shadow masks.
 //! - [`shadows`]: distance-field soft shadows for directional, point and spot lights
 //!   (`DistanceFieldShadows`), through the lighting pass.
+//! - [`buffer_dump`]: the buffers Penumbra's passes read (depth, normals, shadow masks),
+//!   read back to the CPU for checking against ground truth.
+//! - [`diagnostics`]: Penumbra's figures and pass times in Bevy's `DiagnosticsStore`.
 //! - [`shader_library`]: Penumbra's WGSL modules as Bevy shader assets.
 //! - [`gpu_allocations`]: counts of the GPU resources Penumbra creates (pooled: a steady
 //!   frame creates none).
@@ -26,8 +29,10 @@
 //! - `shadows`: distance-field soft shadows (`DistanceFieldShadows`).
 //! - `debug_view`: the distance-field debug view (`DistanceFieldDebugView`).
 
+pub mod buffer_dump;
 #[cfg(feature = "debug_view")]
 pub mod debug_view;
+pub mod diagnostics;
 pub mod gpu_allocations;
 pub mod lighting;
 pub mod scene;
@@ -36,13 +41,18 @@ pub mod shader_library;
 #[cfg(feature = "shadows")]
 pub mod shadows;
 
+pub use buffer_dump::{
+    DumpedBuffer, PenumbraBufferDump, PenumbraBufferDumpPlugin, PenumbraBuffers,
+};
 #[cfg(feature = "debug_view")]
 pub use debug_view::{DistanceFieldDebugMode, DistanceFieldDebugPlugin, DistanceFieldDebugView};
+pub use diagnostics::PenumbraDiagnosticsPlugin;
 pub use gpu_allocations::{GpuAllocationCounts, PenumbraGpuAllocations};
 pub use lighting::{PenumbraLighting, PenumbraLightingPlugin};
 pub use scene::{
-    CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldScenePlugin,
-    DistanceFieldSceneSettings, DistanceFieldUploadStats,
+    CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldSceneCaster,
+    DistanceFieldSceneCasters, DistanceFieldScenePlugin, DistanceFieldSceneSettings,
+    DistanceFieldUploadStats, SceneCasterCounts, SceneTwoSided, SkinnedCasters,
 };
 pub use sdf_asset::{SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset, SdfVolumeLoader};
 #[cfg(feature = "bake")]

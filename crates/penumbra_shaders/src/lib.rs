@@ -45,6 +45,7 @@ shader_files! {
     "lighting/masks.wgsl" => Some("penumbra::lighting::masks"),
     "lighting/lights.wgsl" => Some("penumbra::lighting::lights"),
     "lighting/pass.wgsl" => None,
+    "lighting/buffer_dump.wgsl" => Some("penumbra::lighting::buffer_dump"),
 }
 
 impl ShaderFile {

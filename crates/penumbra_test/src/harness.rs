@@ -199,6 +199,8 @@ pub struct HeadlessRender {
     /// Updates run until this holds before the `frames` counted ones (e.g. background
     /// work such as SDF bakes finished), so captures do not depend on machine speed.
     pub warm_up: Option<fn(&mut World) -> bool>,
+    /// The asset folder (`AssetPlugin::file_path`); `None`: Bevy's default, `assets`.
+    pub asset_root: Option<std::path::PathBuf>,
 }
 
 /// One Bevy app at a time per process — rendering or being torn down: lavapipe has 2
@@ -243,6 +245,7 @@ impl HeadlessRender {
             format: CaptureFormat::Srgb8,
             pipelined: true,
             warm_up: None,
+            asset_root: None,
         }
     }
 
@@ -299,6 +302,13 @@ impl HeadlessRender {
                          bevy_render::gpu_readback=error"
                     .into(),
                 level: bevy::log::Level::WARN,
+                ..default()
+            })
+            .set(AssetPlugin {
+                file_path: self.asset_root.as_ref().map_or_else(
+                    || AssetPlugin::default().file_path,
+                    |p| p.to_string_lossy().into_owned(),
+                ),
                 ..default()
             })
             .disable::<WinitPlugin>();

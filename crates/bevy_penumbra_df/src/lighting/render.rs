@@ -13,6 +13,7 @@ use bevy::pbr::{
     TONEMAPPING_LUT_SAMPLER_BINDING_INDEX, TONEMAPPING_LUT_TEXTURE_BINDING_INDEX, ViewKeyCache,
 };
 use bevy::prelude::*;
+use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::binding_types::{
     storage_buffer_read_only_sized, texture_2d_array, uniform_buffer_sized,
 };
@@ -68,6 +69,8 @@ pub struct PenumbraShadowedLight {
     /// Layer of [`PenumbraLightingInputs::masks`] holding its visibility (1 lit, 0
     /// shadowed), one texel per view pixel.
     pub layer: u32,
+    /// The light's main-world entity (names the layer in buffer dumps).
+    pub light: bevy::render::sync_world::MainEntity,
 }
 
 /// A view's shadow masks, inserted on the render-world view by the features that make
@@ -470,6 +473,8 @@ pub(crate) fn penumbra_lighting(
     let Some((bind_group, _)) = &group.bind_group else {
         return;
     };
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
     let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
         label: Some("penumbra_lighting"),
         color_attachments: &[Some(target.get_color_attachment())],
@@ -493,5 +498,7 @@ pub(crate) fn penumbra_lighting(
     );
     pass.set_bind_group(1, &mesh_view_bind_group.binding_array, &[]);
     pass.set_bind_group(2, bind_group, &[]);
+    let pass_span = diagnostics.pass_span(&mut pass, "penumbra_lighting");
     pass.draw(0..3, 0..1);
+    pass_span.end(&mut pass);
 }

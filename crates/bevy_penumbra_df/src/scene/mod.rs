@@ -39,6 +39,7 @@
 mod bake_requests;
 mod cull;
 mod render;
+mod scene_casters;
 
 use crate::sdf_asset::{SdfBakeFailed, SdfBaked, SdfVolumeAsset};
 use bevy::ecs::entity::EntityHashMap;
@@ -51,6 +52,10 @@ use penumbra_df_core::table::{Deltas, ObjectTable};
 
 pub use cull::CulledObjects;
 pub use render::{DistanceFieldGpu, DistanceFieldPipelines, DistanceFieldRenderSystems};
+pub use scene_casters::{
+    DistanceFieldSceneCaster, DistanceFieldSceneCasters, SceneCasterCounts, SceneTwoSided,
+    SkinnedCasters,
+};
 
 /// Adds distance-field casters, the atlas and the object buffer. Part of
 /// `PenumbraPlugins`; needs [`crate::SdfAssetPlugin`] for mesh casters.
@@ -297,6 +302,8 @@ pub(crate) struct DistanceFieldFrame {
 /// propagation and visibility.
 #[derive(SystemSet, Clone, Debug, PartialEq, Eq, Hash)]
 pub enum DistanceFieldSystems {
+    /// Casters for the meshes under [`DistanceFieldSceneCasters`] roots.
+    TagSceneCasters,
     /// Bake requests for mesh casters.
     RequestBakes,
     /// Atlas placement and object records.
@@ -315,6 +322,9 @@ impl Plugin for DistanceFieldScenePlugin {
             .register_type::<DistanceFieldScene>()
             .register_type::<DistanceFieldSceneSettings>()
             .register_type::<DistanceFieldUploadStats>()
+            .register_type::<DistanceFieldSceneCasters>()
+            .register_type::<DistanceFieldSceneCaster>()
+            .register_type::<SceneCasterCounts>()
             .init_resource::<DistanceFieldSceneSettings>()
             .init_resource::<DistanceFieldUploadStats>()
             .init_resource::<DistanceFieldScene>()
@@ -322,6 +332,7 @@ impl Plugin for DistanceFieldScenePlugin {
             .configure_sets(
                 PostUpdate,
                 (
+                    DistanceFieldSystems::TagSceneCasters,
                     DistanceFieldSystems::RequestBakes,
                     DistanceFieldSystems::UpdateObjects,
                 )
@@ -332,6 +343,12 @@ impl Plugin for DistanceFieldScenePlugin {
             .add_systems(
                 PostUpdate,
                 (
+                    (
+                        scene_casters::untag_removed_roots,
+                        scene_casters::tag_scene_casters,
+                    )
+                        .chain()
+                        .in_set(DistanceFieldSystems::TagSceneCasters),
                     bake_requests::request_caster_bakes.in_set(DistanceFieldSystems::RequestBakes),
                     (
                         remove_distance_field_casters,

@@ -30,6 +30,7 @@ use bevy::render::render_resource::{
     TextureView, TextureViewDescriptor, TextureViewDimension,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
+use bevy::render::sync_world::MainEntity;
 use bevy::render::view::ExtractedView;
 use bevy::render::{Render, RenderStartup, RenderSystems};
 use penumbra_df_core::cull::{CameraOrigin, Frustum, grid_64};
@@ -44,6 +45,8 @@ use std::num::NonZeroU64;
 #[derive(Clone, Debug)]
 pub(super) struct FrameLight {
     kind: FrameLightKind,
+    /// The light's main-world entity.
+    light: MainEntity,
     pub(super) settings: DistanceFieldShadows,
 }
 
@@ -319,7 +322,11 @@ type ShadowViewQuery<'a> = (
 /// and its pooled buffers, and tells its lighting pass which lights read which layer.
 /// Without casters or without shadowed lights, views get nothing (and lights stay
 /// unshadowed).
-#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+#[allow(
+    clippy::too_many_arguments,
+    clippy::type_complexity,
+    reason = "a Bevy system"
+)]
 fn prepare_distance_field_shadows(
     mut commands: Commands,
     device: Res<RenderDevice>,
@@ -329,6 +336,7 @@ fn prepare_distance_field_shadows(
     mut frame: ResMut<FrameLights>,
     lights: Query<(
         Entity,
+        &MainEntity,
         &DistanceFieldShadows,
         Option<&ExtractedDirectionalLight>,
         Option<&ExtractedPointLight>,
@@ -344,7 +352,7 @@ fn prepare_distance_field_shadows(
         .map(|g| g.slot_count);
     let mut sorted: Vec<_> = lights.iter().collect();
     sorted.sort_by_key(|(entity, ..)| *entity);
-    for (entity, settings, directional, point) in sorted {
+    for (entity, &light, settings, directional, point) in sorted {
         let kind = if let Some(d) = directional {
             FrameLightKind::Directional(d.transform.back().as_vec3())
         } else if let Some(p) = point {
@@ -369,6 +377,7 @@ fn prepare_distance_field_shadows(
         };
         frame.0.push(FrameLight {
             kind,
+            light,
             settings: settings.clone(),
         });
     }
@@ -430,6 +439,7 @@ fn prepare_distance_field_shadows(
                     }
                 },
                 layer: layer as u32,
+                light: light.light,
             })
             .collect();
         if let Some(masks) = fresh {

@@ -1,0 +1,354 @@
+//! Render-world side of buffer dumps: a pooled output/staging buffer pair per dumping
+//! view, the dump pass, and the asynchronous read-back.
+
+use super::{PenumbraBufferDump, RawDump};
+use crate::gpu_allocations::PenumbraGpuAllocations;
+use crate::lighting::PenumbraLightingView;
+use crate::lighting::render::PenumbraLightingInputs;
+use crate::shader_library::PenumbraShaderLibrary;
+use bevy::core_pipeline::prepass::ViewPrepassTextures;
+use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
+use bevy::prelude::*;
+use bevy::render::diagnostic::RecordDiagnostics;
+use bevy::render::render_resource::binding_types::{
+    storage_buffer_sized, texture_2d, texture_2d_array, uniform_buffer,
+};
+use bevy::render::render_resource::{
+    BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
+    BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d, MapMode, PipelineCache,
+    ShaderStages, ShaderType, TextureDescriptor, TextureDimension, TextureFormat,
+    TextureSampleType, TextureUsages, TextureView, TextureViewDescriptor, TextureViewDimension,
+    UniformBuffer,
+};
+use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
+use bevy::render::sync_world::MainEntity;
+use bevy::render::view::ExtractedView;
+use bevy::render::{Render, RenderStartup, RenderSystems};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::Sender;
+
+/// `DumpView` of `buffer_dump.wgsl`.
+#[derive(ShaderType, Clone, Copy, Default)]
+struct DumpView {
+    view_from_clip: Mat4,
+    /// Width, height, mask layers, 1 when the G-buffer is bound.
+    size: UVec4,
+}
+
+/// The render world's end of the read-back channel.
+#[derive(Resource)]
+struct DumpSender(Sender<RawDump>);
+
+/// The dump pipeline and what it binds when a view lacks an input.
+#[derive(Resource)]
+struct BufferDumpPipeline {
+    layout: BindGroupLayoutDescriptor,
+    pipeline: CachedComputePipelineId,
+    /// One white mask layer, for views without masks.
+    no_masks: TextureView,
+    /// An empty G-buffer, for views without one (normals read as 0).
+    no_gbuffer: TextureView,
+}
+
+/// A dumping view's pooled buffers and this frame's bind group.
+#[derive(Component)]
+struct ViewBufferDump {
+    /// Pixels and mask layers the buffers are sized for.
+    size: UVec2,
+    layers: u32,
+    /// The pass's output (storage) and its copy for mapping.
+    output: Buffer,
+    staging: Buffer,
+    uniform: UniformBuffer<DumpView>,
+    bind_group: Option<BindGroup>,
+    /// The main-world lights of the mask layers, this frame.
+    lights: Vec<Entity>,
+    /// Copied this frame, to be mapped in `Cleanup`.
+    copied: Arc<AtomicBool>,
+    /// The staging buffer is being mapped or read: no new copy into it.
+    busy: Arc<AtomicBool>,
+}
+
+pub(super) fn build(render_app: &mut SubApp, sender: Sender<RawDump>) {
+    render_app
+        .insert_resource(DumpSender(sender))
+        .add_systems(
+            Render,
+            (
+                (prepare_buffer_dumps, prepare_buffer_dump_bind_groups)
+                    .chain()
+                    .in_set(RenderSystems::PrepareBindGroups),
+                map_buffer_dumps.in_set(RenderSystems::Cleanup),
+            ),
+        )
+        .add_systems(
+            Core3d,
+            penumbra_buffer_dump.in_set(Core3dSystems::PostProcess),
+        );
+}
+
+pub(super) fn finish(render_app: &mut SubApp) {
+    render_app.add_systems(RenderStartup, init_buffer_dump_pipeline);
+}
+
+fn init_buffer_dump_pipeline(
+    mut commands: Commands,
+    pipeline_cache: Res<PipelineCache>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    library: Option<Res<PenumbraShaderLibrary>>,
+) {
+    let Some(library) = library else {
+        return;
+    };
+    let layout = BindGroupLayoutDescriptor::new(
+        "penumbra_buffer_dump_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                texture_2d(TextureSampleType::Float { filterable: false }),
+                texture_2d(TextureSampleType::Uint),
+                texture_2d_array(TextureSampleType::Float { filterable: false }),
+                uniform_buffer::<DumpView>(false),
+                storage_buffer_sized(false, None),
+            ),
+        ),
+    );
+    let pipeline = library.queue_compute(
+        &pipeline_cache,
+        "penumbra_buffer_dump",
+        &layout,
+        "lighting/buffer_dump.wgsl",
+        "dump",
+    );
+    let texture = |label: &'static str, format: TextureFormat| {
+        device.create_texture(&TextureDescriptor {
+            label: Some(label),
+            size: Extent3d::default(),
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: TextureDimension::D2,
+            format,
+            usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
+            view_formats: &[],
+        })
+    };
+    let masks = texture("penumbra_buffer_dump_no_masks", TextureFormat::R32Float);
+    queue.write_texture(
+        masks.as_image_copy(),
+        &1.0f32.to_le_bytes(),
+        bevy::render::render_resource::TexelCopyBufferLayout::default(),
+        Extent3d::default(),
+    );
+    commands.insert_resource(BufferDumpPipeline {
+        layout,
+        pipeline,
+        no_masks: masks.create_view(&TextureViewDescriptor {
+            dimension: Some(TextureViewDimension::D2Array),
+            ..default()
+        }),
+        no_gbuffer: texture("penumbra_buffer_dump_no_gbuffer", TextureFormat::Rgba32Uint)
+            .create_view(&TextureViewDescriptor::default()),
+    });
+}
+
+/// Sizes each dumping view's buffer pair (kept while its size and light count are).
+#[allow(clippy::type_complexity, reason = "a Bevy system")]
+fn prepare_buffer_dumps(
+    mut commands: Commands,
+    device: Res<RenderDevice>,
+    allocations: Res<PenumbraGpuAllocations>,
+    views: Query<
+        (
+            Entity,
+            &ExtractedView,
+            Option<&PenumbraLightingInputs>,
+            Option<&ViewBufferDump>,
+        ),
+        (With<PenumbraBufferDump>, With<PenumbraLightingView>),
+    >,
+    mut warned: Local<bool>,
+) {
+    for (entity, view, inputs, dump) in &views {
+        let size = view.viewport.zw().max(UVec2::ONE);
+        let layers = inputs.map_or(0, |i| i.lights.len() as u32);
+        if dump.is_some_and(|d| d.size == size && d.layers == layers) {
+            continue;
+        }
+        let bytes = u64::from(size.x) * u64::from(size.y) * u64::from(4 + layers) * 4;
+        let limits = device.limits();
+        if bytes
+            > limits
+                .max_storage_buffer_binding_size
+                .min(limits.max_buffer_size)
+        {
+            if !std::mem::replace(&mut *warned, true) {
+                warn!(
+                    "Penumbra: buffer dump of {}×{} pixels, {layers} lights ({bytes} bytes) \
+                     exceeds the device's storage-buffer limit: not dumped",
+                    size.x, size.y
+                );
+            }
+            commands.entity(entity).remove::<ViewBufferDump>();
+            continue;
+        }
+        let output = allocations.sized_buffer(
+            &device,
+            "penumbra_buffer_dump",
+            bytes,
+            BufferUsages::STORAGE | BufferUsages::COPY_SRC,
+        );
+        let staging = allocations.sized_buffer(
+            &device,
+            "penumbra_buffer_dump_staging",
+            bytes,
+            BufferUsages::MAP_READ | BufferUsages::COPY_DST,
+        );
+        commands.entity(entity).insert(ViewBufferDump {
+            size,
+            layers,
+            output,
+            staging,
+            uniform: UniformBuffer::default(),
+            bind_group: None,
+            lights: Vec::new(),
+            copied: Arc::default(),
+            busy: Arc::default(),
+        });
+    }
+}
+
+/// Writes each dumping view's uniform and binds its inputs for this frame.
+#[allow(clippy::type_complexity, reason = "a Bevy system")]
+fn prepare_buffer_dump_bind_groups(
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    allocations: Res<PenumbraGpuAllocations>,
+    pipeline: Option<Res<BufferDumpPipeline>>,
+    pipeline_cache: Res<PipelineCache>,
+    mut views: Query<(
+        &ExtractedView,
+        &ViewPrepassTextures,
+        Option<&PenumbraLightingInputs>,
+        &mut ViewBufferDump,
+        Has<PenumbraBufferDump>,
+    )>,
+) {
+    let Some(pipeline) = pipeline else {
+        return;
+    };
+    for (view, prepass, inputs, mut dump, asked) in &mut views {
+        dump.bind_group = None;
+        // No longer asked for: the buffers are kept (pooled), the pass does not run.
+        let (true, Some(depth)) = (asked, prepass.depth_view()) else {
+            continue;
+        };
+        let gbuffer = prepass.deferred_view();
+        let masks = inputs.filter(|i| i.lights.len() as u32 == dump.layers);
+        let uniform = DumpView {
+            view_from_clip: view.clip_from_view.inverse(),
+            size: UVec4::new(
+                dump.size.x,
+                dump.size.y,
+                masks.map_or(0, |_| dump.layers),
+                u32::from(gbuffer.is_some()),
+            ),
+        };
+        let dump = &mut *dump;
+        dump.uniform.set(uniform);
+        dump.uniform.write_buffer(&device, &queue);
+        dump.lights = masks.map_or_else(Vec::new, |m| {
+            m.lights.iter().map(|l| l.light.id()).collect()
+        });
+        let Some(uniform) = dump.uniform.binding() else {
+            continue;
+        };
+        let bind_group = allocations.bind_group(
+            &device,
+            "penumbra_buffer_dump",
+            &pipeline_cache.get_bind_group_layout(&pipeline.layout),
+            &BindGroupEntries::sequential((
+                depth,
+                gbuffer.unwrap_or(&pipeline.no_gbuffer),
+                masks.map_or(&pipeline.no_masks, |m| &m.masks),
+                uniform,
+                dump.output.as_entire_binding(),
+            )),
+        );
+        dump.bind_group = Some(bind_group);
+    }
+}
+
+/// The dump pass: copies the view's buffers into the output and the output into the
+/// staging buffer (unless that is still being read). Dispatches only.
+fn penumbra_buffer_dump(
+    view: ViewQuery<&ViewBufferDump>,
+    pipeline: Option<Res<BufferDumpPipeline>>,
+    pipeline_cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    let dump = view.into_inner();
+    let (Some(pipeline), Some(bind_group)) = (pipeline, dump.bind_group.as_ref()) else {
+        return;
+    };
+    let Some(compute) = pipeline_cache.get_compute_pipeline(pipeline.pipeline) else {
+        return;
+    };
+    if dump.busy.load(Ordering::Acquire) {
+        return;
+    }
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_buffer_dump");
+    let encoder = ctx.command_encoder();
+    {
+        let mut pass = encoder.begin_compute_pass(&ComputePassDescriptor {
+            label: Some("penumbra_buffer_dump"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(compute);
+        pass.set_bind_group(0, bind_group, &[]);
+        pass.dispatch_workgroups(dump.size.x.div_ceil(8), dump.size.y.div_ceil(8), 1);
+    }
+    encoder.copy_buffer_to_buffer(&dump.output, 0, &dump.staging, 0, dump.output.size());
+    time_span.end(ctx.command_encoder());
+    dump.copied.store(true, Ordering::Release);
+}
+
+/// After the frame is submitted: maps the staging buffers copied this frame; the
+/// callback sends the values to the main world.
+fn map_buffer_dumps(views: Query<(&MainEntity, &ViewBufferDump)>, sender: Res<DumpSender>) {
+    for (camera, dump) in &views {
+        if !dump.copied.swap(false, Ordering::AcqRel) {
+            continue;
+        }
+        dump.busy.store(true, Ordering::Release);
+        let staging = dump.staging.clone();
+        let busy = dump.busy.clone();
+        let sender = sender.0.clone();
+        let (camera, size, lights) = (camera.id(), dump.size, dump.lights.clone());
+        dump.staging
+            .slice(..)
+            .map_async(MapMode::Read, move |result| {
+                if result.is_ok() {
+                    let data = {
+                        let bytes = staging.slice(..).get_mapped_range();
+                        bytes
+                            .chunks_exact(4)
+                            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                            .collect()
+                    };
+                    staging.unmap();
+                    // The main world may be gone (app exit): nothing to do then.
+                    let _ = sender.send(RawDump {
+                        camera,
+                        size,
+                        lights,
+                        data,
+                    });
+                }
+                busy.store(false, Ordering::Release);
+            });
+    }
+}

@@ -1,0 +1,216 @@
+//! `DistanceFieldSceneCasters` on real glTF files (`../shared/scenes`): the caster count
+//! and the skip rule per scene, shared bakes across instances of a scene, the skinned Fox
+//! skipped or cast from its bind pose, re-tagging when the settings change, untagging
+//! when the component is removed. Main world only (no GPU): Bevy's renderer is built
+//! with no backend.
+
+use bevy::prelude::*;
+use bevy::render::RenderPlugin;
+use bevy::render::settings::{RenderCreation, WgpuSettings};
+use bevy::world_serialization::WorldAssetRoot;
+use bevy_penumbra_df::{
+    DistanceFieldCaster, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
+    DistanceFieldScenePlugin, DistanceFieldUploadStats, SceneCasterCounts, SdfAssetPlugin,
+    SdfBakeCache, SdfBakeStats, SdfBaked, SkinnedCasters,
+};
+use std::path::PathBuf;
+
+fn scenes_dir() -> Option<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes");
+    if dir.is_dir() {
+        Some(dir.canonicalize().expect("scenes dir"))
+    } else {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "../shared/scenes is missing under CI"
+        );
+        eprintln!("skipped: ../shared/scenes is absent");
+        None
+    }
+}
+
+fn app(dir: &std::path::Path) -> App {
+    let mut app = App::new();
+    app.add_plugins(
+        DefaultPlugins
+            .set(AssetPlugin {
+                file_path: dir.to_string_lossy().into_owned(),
+                ..default()
+            })
+            .set(RenderPlugin {
+                render_creation: RenderCreation::from(WgpuSettings {
+                    backends: None,
+                    ..default()
+                }),
+                ..default()
+            })
+            .disable::<bevy::winit::WinitPlugin>(),
+    )
+    .insert_resource(SdfBakeCache::with_directory(None))
+    .add_plugins((SdfAssetPlugin, DistanceFieldScenePlugin));
+    app.finish();
+    app.cleanup();
+    app
+}
+
+/// Coarse bakes: the tests are about tagging, not accuracy.
+fn coarse() -> DistanceFieldSceneCasters {
+    DistanceFieldSceneCasters {
+        caster: DistanceFieldCaster {
+            resolution_scale: 0.125,
+            ..default()
+        },
+        ..default()
+    }
+}
+
+fn spawn(app: &mut App, file: &str, settings: DistanceFieldSceneCasters) -> Entity {
+    let scene = app
+        .world()
+        .resource::<AssetServer>()
+        .load(GltfAssetLabel::Scene(0).from_asset(file.to_string()));
+    app.world_mut()
+        .spawn((WorldAssetRoot(scene), settings))
+        .id()
+}
+
+/// Runs until every tagged caster has its SDF (or 20 s pass).
+fn settle(app: &mut App) {
+    let start = std::time::Instant::now();
+    let mut quiet = 0;
+    while start.elapsed().as_secs() < 20 {
+        app.update();
+        let world = app.world_mut();
+        let meshes = world
+            .query_filtered::<(), With<Mesh3d>>()
+            .iter(world)
+            .count();
+        let waiting = world
+            .query_filtered::<(), (With<DistanceFieldCaster>, Without<SdfBaked>)>()
+            .iter(world)
+            .count();
+        quiet = if meshes > 0 && waiting == 0 {
+            quiet + 1
+        } else {
+            0
+        };
+        if quiet > 5 {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    panic!("the scene did not settle in 20 s");
+}
+
+fn counts(app: &App, root: Entity) -> SceneCasterCounts {
+    *app.world()
+        .get::<SceneCasterCounts>(root)
+        .expect("SceneCasterCounts on the root")
+}
+
+fn casters(app: &mut App) -> Vec<(Entity, DistanceFieldCaster)> {
+    let world = app.world_mut();
+    world
+        .query::<(Entity, &DistanceFieldCaster)>()
+        .iter(world)
+        .map(|(e, c)| (e, c.clone()))
+        .collect()
+}
+
+#[test]
+fn cornell_box_twice_tags_every_primitive_and_shares_the_bakes() {
+    let Some(dir) = scenes_dir() else { return };
+    let mut app = app(&dir);
+    let a = spawn(&mut app, "CornellBox.glb", coarse());
+    let b = spawn(&mut app, "CornellBox.glb", coarse());
+    settle(&mut app);
+    // 4 nodes, 6 primitives (the room is 3): every mesh entity under the root is a
+    // caster. All materials are double-sided in the file: the light panel and the room's
+    // walls are open (two-sided shells), the two blocks closed (solid).
+    let ca = counts(&app, a);
+    assert_eq!(ca, counts(&app, b));
+    let meshes = {
+        let world = app.world_mut();
+        world
+            .query_filtered::<(), With<Mesh3d>>()
+            .iter(world)
+            .count() as u32
+    };
+    assert_eq!(
+        ca.casters * 2,
+        meshes,
+        "every mesh entity is a caster: {ca:?}"
+    );
+    assert_eq!((ca.casters, ca.two_sided), (6, 4), "{ca:?}");
+    let all = casters(&mut app);
+    assert!(all.iter().all(|(_, c)| c.resolution_scale == 0.125));
+    // Shared bakes: the second instance bakes nothing; one atlas volume per distinct
+    // mesh primitive.
+    let bakes = *app.world().resource::<SdfBakeStats>();
+    let stats = app.world().resource::<DistanceFieldUploadStats>().clone();
+    assert_eq!(bakes.failed, 0, "{bakes:?}");
+    assert_eq!(
+        bakes.baked + bakes.memory_hits,
+        2 * ca.casters,
+        "one request per caster: {bakes:?}"
+    );
+    assert!(bakes.baked <= ca.casters, "{bakes:?}");
+    assert_eq!(stats.atlas_volumes as u32, bakes.baked, "{stats:?}");
+    assert_eq!(stats.objects as u32, 2 * ca.casters, "{stats:?}");
+}
+
+#[test]
+fn fox_is_skipped_or_cast_from_its_bind_pose() {
+    let Some(dir) = scenes_dir() else { return };
+    let mut app = app(&dir);
+    let root = spawn(&mut app, "Fox.glb", coarse());
+    settle(&mut app);
+    let c = counts(&app, root);
+    assert_eq!((c.casters, c.skinned), (0, 1), "{c:?}");
+    assert!(casters(&mut app).is_empty());
+    // Changing the settings re-tags: the bind pose becomes a caster.
+    app.world_mut()
+        .get_mut::<DistanceFieldSceneCasters>(root)
+        .unwrap()
+        .skinned = SkinnedCasters::BindPose;
+    settle(&mut app);
+    let c = counts(&app, root);
+    assert_eq!((c.casters, c.skinned), (1, 0), "{c:?}");
+    let all = casters(&mut app);
+    assert_eq!(all.len(), 1);
+    assert_eq!(
+        app.world().get::<DistanceFieldSceneCaster>(all[0].0),
+        Some(&DistanceFieldSceneCaster(root))
+    );
+    // Removing the component removes the casters it made.
+    app.world_mut()
+        .entity_mut(root)
+        .remove::<DistanceFieldSceneCasters>();
+    app.update();
+    app.update();
+    assert!(casters(&mut app).is_empty());
+    assert!(app.world().get::<SceneCasterCounts>(root).is_none());
+}
+
+#[test]
+fn palm_tree_open_sheets_are_two_sided_and_small_meshes_are_skipped() {
+    let Some(dir) = scenes_dir() else { return };
+    let mut app = app(&dir);
+    let root = spawn(&mut app, "PalmTree/PalmTree.gltf", coarse());
+    settle(&mut app);
+    let c = counts(&app, root);
+    // 10 meshes, one primitive each: trunk, 7 leaves, landscape, water. Every material
+    // is double-sided (none alpha-masked); the leaves are closed (modelled with
+    // thickness), two meshes are open sheets.
+    assert_eq!((c.casters, c.two_sided), (10, 2), "{c:?}");
+    // A size threshold above the leaves (≈ 1.7 m) but below the trunk and the
+    // landscape skips the leaves.
+    app.world_mut()
+        .get_mut::<DistanceFieldSceneCasters>(root)
+        .unwrap()
+        .min_size = 2.5;
+    settle(&mut app);
+    let c = counts(&app, root);
+    assert_eq!((c.casters, c.small), (3, 7), "{c:?}");
+    assert_eq!(casters(&mut app).len(), 3);
+}

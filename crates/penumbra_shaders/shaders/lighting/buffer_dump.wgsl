@@ -1,0 +1,63 @@
+// The buffer dump (`bevy_penumbra_df::buffer_dump`): one thread per view pixel copies what
+// Penumbra's passes read into one f32 buffer, plane after plane, row 0 at the top:
+//   [0, n)          distance from the camera to the surface along the pixel's ray, metres
+//                   (-1: background, turned into NaN on the CPU)
+//   [n, 4n)         world-space unit normal, xyz interleaved (0: background or no G-buffer)
+//   [4n + l n, …)   mask layer l (the visibility the lighting pass reads, 1 lit)
+// with n = width × height.
+#define_import_path penumbra::lighting::buffer_dump
+
+#import penumbra::df::shadow::gbuffer_normal
+
+struct DumpView {
+    view_from_clip: mat4x4<f32>,
+    // x, y: size in pixels; z: mask layers; w: 1 when `gbuffer` holds the view's normals.
+    size: vec4<u32>,
+}
+
+// Reverse-Z depth (the prepass depth).
+@group(0) @binding(0) var depth_texture: texture_2d<f32>;
+// Bevy's deferred G-buffer (Rgba32Uint; the octahedral normal in `.a`).
+@group(0) @binding(1) var gbuffer: texture_2d<u32>;
+@group(0) @binding(2) var masks: texture_2d_array<f32>;
+@group(0) @binding(3) var<uniform> view: DumpView;
+@group(0) @binding(4) var<storage, read_write> out: array<f32>;
+
+// View-space position of pixel `xy`'s centre at reverse-Z `depth`.
+fn view_position(xy: vec2<u32>, depth: f32) -> vec3<f32> {
+    let uv = (vec2<f32>(xy) + 0.5) / vec2<f32>(view.size.xy);
+    let ndc = vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
+    let v = view.view_from_clip * ndc;
+    return v.xyz / v.w;
+}
+
+// The surface's world-space normal, or 0 when the view has no G-buffer.
+fn surface_normal(xy: vec2<u32>) -> vec3<f32> {
+    if view.size.w == 0u {
+        return vec3<f32>(0.0);
+    }
+    return gbuffer_normal(textureLoad(gbuffer, vec2<i32>(xy), 0).a);
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn dump(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= view.size.x || gid.y >= view.size.y {
+        return;
+    }
+    let n = view.size.x * view.size.y;
+    let i = gid.y * view.size.x + gid.x;
+    let depth = textureLoad(depth_texture, vec2<i32>(gid.xy), 0).r;
+    var distance = -1.0;
+    var normal = vec3<f32>(0.0);
+    if depth > 0.0 {
+        distance = length(view_position(gid.xy, depth));
+        normal = surface_normal(gid.xy);
+    }
+    out[i] = distance;
+    for (var k = 0u; k < 3u; k += 1u) {
+        out[n + 3u * i + k] = normal[k];
+    }
+    for (var l = 0u; l < view.size.z; l += 1u) {
+        out[(4u + l) * n + i] = textureLoad(masks, vec2<i32>(gid.xy), i32(l), 0).r;
+    }
+}

@@ -1,0 +1,705 @@
+//! Penumbra's scene viewer: any glTF 2.0 scene with distance-field lighting on.
+//!
+//! ```text
+//! cargo run --release --example viewer -- SCENE.glb|.gltf       # a window, an egui panel
+//! cargo run --release --example viewer                          # the showcase room
+//! cargo run --release --example viewer -- SCENE.glb --headless --size 512x512 \
+//!     --frames 10 --out shot.png --eye 0,2,6 --target 0,1,0 --fov 45 \
+//!     --sun=-0.4,-1,-0.3 --angle 0.533 --point 1,3,0 --radius 0.1 --dump dump/
+//! ```
+//!
+//! The scene's meshes become distance-field casters (`DistanceFieldSceneCasters` on its
+//! root: skinned meshes skipped, double-sided and alpha-masked materials two-sided); the
+//! camera is framed on the scene's bounds (or `--eye/--target/--fov`); a sun (`--sun`,
+//! `--angle`), `--point` lights and the scene's own `KHR_lights_punctual` lights (unless
+//! `--no-scene-lights`) get `DistanceFieldShadows`. The shadow settings given in metres
+//! (ray length, view distance, bias) are scaled with the scene's size when it is larger
+//! than 10 m, so scenes in centimetres or millimetres work as they are.
+//!
+//! Windowed: drag with the left button to orbit, the right to pan, scroll to zoom, `F`
+//! for a fly camera (WASD, Q/E, right button to look); the panel edits every Penumbra
+//! setting live, switches Penumbra off (plain Bevy, shadow maps) and shows Penumbra's
+//! diagnostics and GPU pass times.
+//!
+//! Headless (`--headless`, or no display): renders `--frames` frames after every caster
+//! is baked, writes `--out`, prints the mean frame time and Penumbra's pass times, and
+//! with `--dump DIR` the view's buffers (`penumbra::df::buffer_dump`: `depth`, `normal`,
+//! `visibility_<light>`) as float32 `.npy` arrays with `DIR/meta.json`, for
+//! `../shared/tools/shadow_truth.py`. Bad flags exit with status 2 naming the flag; a
+//! scene that cannot be loaded exits with status 1 and one error.
+
+use bevy::camera::primitives::Aabb;
+use bevy::camera::{Exposure, ShadowLodOrigin};
+use bevy::diagnostic::DiagnosticsStore;
+use bevy::light::GlobalAmbientLight;
+use bevy::pbr::DefaultOpaqueRendererMethod;
+use bevy::prelude::*;
+use bevy::render::diagnostic::RenderDiagnosticsPlugin;
+use bevy::world_serialization::WorldAssetRoot;
+use penumbra::df::{
+    DistanceFieldSceneCasters, PenumbraBufferDump, PenumbraBuffers, SceneCasterCounts,
+    SdfBakeFailed, SdfBaked, SdfVolumeAsset,
+};
+use penumbra::prelude::*;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[path = "viewer/camera.rs"]
+pub mod camera;
+#[path = "viewer/cli.rs"]
+pub mod cli;
+#[path = "viewer/dump.rs"]
+pub mod dump;
+#[path = "viewer/input.rs"]
+pub mod input;
+#[path = "viewer/panel.rs"]
+pub mod panel;
+#[allow(dead_code, reason = "only the showcase's scene is used")]
+#[path = "showcase.rs"]
+mod showcase;
+
+use cli::Args;
+
+fn main() -> ExitCode {
+    let args = match Args::parse_from_args(std::env::args_os()) {
+        Ok(a) => a,
+        Err(e) => {
+            let _ = e.print();
+            return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
+        }
+    };
+    if let Some(scene) = &args.scene
+        && let Err(e) = input::check_scene(scene)
+    {
+        eprintln!("viewer: {e}");
+        return ExitCode::from(1);
+    }
+    let display = ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()));
+    let result = if args.headless || !display {
+        run_headless(&args)
+    } else {
+        run_windowed(&args)
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("viewer: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// The command line, as a resource.
+#[derive(Resource, Clone)]
+pub struct ViewerArgs(pub Args);
+
+/// The scene's root entity.
+#[derive(Component)]
+pub struct ViewerScene;
+
+/// The viewer's camera.
+#[derive(Component)]
+pub struct ViewerCamera;
+
+/// Where the viewer stands: the framing, once the scene is in.
+#[derive(Resource, Clone, Copy, Debug)]
+pub struct Framing {
+    /// The scene's bounding box centre.
+    pub center: Vec3,
+    /// Half its diagonal.
+    pub radius: f32,
+    /// The camera's position.
+    pub eye: Vec3,
+    /// The point it looks at.
+    pub target: Vec3,
+    /// Vertical field of view, degrees.
+    pub fov_deg: f32,
+}
+
+impl Framing {
+    /// Metre-based settings are scaled by this (1 up to a 10 m scene).
+    pub fn scale(&self) -> f32 {
+        (self.radius / 10.0).max(1.0)
+    }
+}
+
+/// A fatal error found while running (e.g. the scene failed to load).
+#[derive(Resource, Default)]
+pub struct ViewerError(pub Option<String>);
+
+/// The app: Penumbra, the scene, lights and camera (headless and windowed alike).
+fn add_viewer(app: &mut App, args: &Args) {
+    app.add_plugins((
+        PenumbraPlugins,
+        penumbra::df::PenumbraDiagnosticsPlugin,
+        RenderDiagnosticsPlugin,
+    ))
+    // Penumbra's lighting pass shades deferred materials (Bevy's switch, app-wide).
+    .insert_resource(DefaultOpaqueRendererMethod::deferred())
+    .insert_resource(ViewerArgs(args.clone()))
+    // Room for scenes of many large meshes (a 256³ volume is 32 MiB) without the
+    // atlas halving their resolution.
+    .insert_resource(DistanceFieldSceneSettings {
+        atlas_budget_bytes: 256 << 20,
+        ..default()
+    })
+    .init_resource::<ViewerError>()
+    .add_systems(Startup, (spawn_scene, spawn_camera))
+    .add_systems(
+        Update,
+        (
+            watch_load,
+            frame_scene.run_if(not(resource_exists::<Framing>)),
+            shadow_scene_lights.run_if(resource_exists::<Framing>),
+            fit_shadow_bias.run_if(resource_exists::<Framing>),
+        )
+            .chain(),
+    );
+    if args.scene.is_none() {
+        app.add_plugins(showcase::ShowcaseScenePlugin)
+            .add_systems(PostStartup, adopt_showcase);
+    } else {
+        app.insert_resource(ClearColor(Color::srgb(0.55, 0.7, 0.9)))
+            .insert_resource(GlobalAmbientLight {
+                color: Color::srgb(0.7, 0.8, 1.0),
+                brightness: 120.0,
+                ..default()
+            });
+    }
+}
+
+/// The asset root and file name of the scene.
+fn scene_location(args: &Args) -> Option<(PathBuf, String)> {
+    let path = args.scene.as_ref()?;
+    let path = std::fs::canonicalize(path).unwrap_or_else(|_| path.clone());
+    let dir = path.parent()?.to_path_buf();
+    let file = path.file_name()?.to_string_lossy().into_owned();
+    Some((dir, file))
+}
+
+fn spawn_scene(mut commands: Commands, args: Res<ViewerArgs>, assets: Res<AssetServer>) {
+    let mut root = commands.spawn((
+        ViewerScene,
+        Name::new("scene"),
+        DistanceFieldSceneCasters::default(),
+        Transform::default(),
+        Visibility::default(),
+    ));
+    if let Some((_, file)) = scene_location(&args.0) {
+        root.insert(WorldAssetRoot(
+            assets.load(GltfAssetLabel::Scene(0).from_asset(file)),
+        ));
+    }
+}
+
+/// The showcase room: its meshes and lights go under the scene root, its camera is
+/// replaced.
+#[allow(clippy::type_complexity, reason = "a Bevy system")]
+fn adopt_showcase(
+    mut commands: Commands,
+    root: Single<Entity, With<ViewerScene>>,
+    meshes: Query<
+        Entity,
+        (
+            Or<(
+                With<Mesh3d>,
+                With<DirectionalLight>,
+                With<PointLight>,
+                With<SpotLight>,
+            )>,
+            Without<ChildOf>,
+        ),
+    >,
+    cameras: Query<Entity, (With<Camera3d>, Without<ViewerCamera>)>,
+) {
+    for mesh in &meshes {
+        commands.entity(mesh).insert(ChildOf(*root));
+    }
+    for camera in &cameras {
+        commands.entity(camera).despawn();
+    }
+}
+
+/// A scene that fails to load is fatal (headless: exit 1; windowed: exit).
+fn watch_load(
+    root: Single<&WorldAssetRoot, With<ViewerScene>>,
+    assets: Res<AssetServer>,
+    mut error: ResMut<ViewerError>,
+    mut exit: MessageWriter<AppExit>,
+) {
+    if error.0.is_some() {
+        return;
+    }
+    if let Some(bevy::asset::LoadState::Failed(e)) = assets.get_load_state(root.0.id()) {
+        error.0 = Some(format!("the scene failed to load: {e}"));
+        exit.write(AppExit::error());
+    }
+}
+
+/// The scene root: its glTF scene (none for the showcase) and what was tagged.
+type RootQuery = (
+    Entity,
+    Option<&'static WorldAssetRoot>,
+    Option<&'static SceneCasterCounts>,
+);
+
+/// Once the scene is spawned: its bounds, the camera, the sun and the `--point` lights.
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+fn frame_scene(
+    mut commands: Commands,
+    args: Res<ViewerArgs>,
+    root: Single<RootQuery, With<ViewerScene>>,
+    children: Query<&Children>,
+    meshes: Query<(&GlobalTransform, &Aabb), With<Mesh3d>>,
+    assets: Res<AssetServer>,
+    camera: Single<
+        (
+            Entity,
+            &mut Transform,
+            &mut Projection,
+            &mut camera::CameraRig,
+        ),
+        With<ViewerCamera>,
+    >,
+    mut waited: Local<u32>,
+) {
+    let (root, handle, counts) = *root;
+    let loaded = handle.is_none_or(|h| assets.is_loaded_with_dependencies(h.0.id()));
+    let boxes: Vec<(Vec3, Vec3)> = children
+        .iter_descendants(root)
+        .filter_map(|e| meshes.get(e).ok())
+        .map(|(transform, aabb)| world_box(transform, aabb))
+        .collect();
+    if !loaded || (boxes.is_empty() && *waited < 30) || counts.is_none() && *waited < 30 {
+        if loaded {
+            *waited += 1;
+        }
+        return;
+    }
+    let (lo, hi) = if boxes.is_empty() {
+        warn!("viewer: the scene has no meshes: rendering an empty frame");
+        (Vec3::splat(-1.0), Vec3::splat(1.0))
+    } else {
+        boxes
+            .iter()
+            .fold((Vec3::MAX, Vec3::MIN), |(lo, hi), (a, b)| {
+                (lo.min(*a), hi.max(*b))
+            })
+    };
+    let args = &args.0;
+    let center = (lo + hi) * 0.5;
+    let radius = ((hi - lo).length() * 0.5).max(1e-3);
+    let fov_deg = args.fov;
+    let distance = radius / (fov_deg.to_radians() * 0.5).sin() * 1.05;
+    let target = args.target.unwrap_or(center);
+    let eye = args
+        .eye
+        .unwrap_or(target + Vec3::new(0.0, 0.35, 1.0).normalize() * distance);
+    let framing = Framing {
+        center,
+        radius,
+        eye,
+        target,
+        fov_deg,
+    };
+    commands.insert_resource(framing);
+    let (camera, mut transform, mut projection, mut rig) = camera.into_inner();
+    *transform = Transform::from_translation(framing.eye).looking_at(framing.target, Vec3::Y);
+    *projection = Projection::Perspective(PerspectiveProjection {
+        fov: framing.fov_deg.to_radians(),
+        near: (framing.radius * 1e-3).min(0.1),
+        ..default()
+    });
+    *rig = camera::CameraRig::new(framing.eye, framing.target);
+    if !args.plain {
+        commands.entity(camera).insert(PenumbraLighting);
+    }
+    spawn_lights(&mut commands, args, &framing);
+}
+
+/// The world-space box of a local box.
+fn world_box(transform: &GlobalTransform, aabb: &Aabb) -> (Vec3, Vec3) {
+    let affine = transform.affine();
+    let center = affine.transform_point3(Vec3::from(aabb.center));
+    let half = Mat3::from(affine.matrix3).abs() * Vec3::from(aabb.half_extents);
+    (center - half, center + half)
+}
+
+/// The camera, from the start (a camera spawned later is not retargeted in time by the
+/// headless harness); framed, and given Penumbra, once the scene is in.
+fn spawn_camera(mut commands: Commands) {
+    commands.spawn((
+        ViewerCamera,
+        Camera3d::default(),
+        Projection::default(),
+        Msaa::Off,
+        Exposure::default(),
+        ShadowLodOrigin,
+        Transform::default(),
+        camera::CameraRig::new(Vec3::Z, Vec3::ZERO),
+    ));
+}
+
+/// The distance-field shadow settings for this scene's size.
+pub fn shadow_settings(framing: &Framing, angle_deg: f32) -> DistanceFieldShadows {
+    let d = DistanceFieldShadows::default();
+    let s = framing.scale();
+    DistanceFieldShadows {
+        angular_diameter: angle_deg.to_radians(),
+        max_distance: d.max_distance * s,
+        max_view_distance: (d.max_view_distance * s)
+            .max(framing.eye.distance(framing.center) + 2.0 * framing.radius),
+        bias: d.bias * s,
+        ..d
+    }
+}
+
+fn spawn_lights(commands: &mut Commands, args: &Args, framing: &Framing) {
+    let sun = args.sun.unwrap_or(Vec3::new(-0.4, -1.0, -0.3)).normalize();
+    let up = if sun.cross(Vec3::Y).length() < 1e-3 {
+        Vec3::Z
+    } else {
+        Vec3::Y
+    };
+    let mut light = commands.spawn((
+        Name::new("sun"),
+        DirectionalLight {
+            illuminance: 8_000.0,
+            shadow_maps_enabled: true,
+            ..default()
+        },
+        Transform::default().looking_to(sun, up),
+    ));
+    if !args.plain {
+        light.insert(shadow_settings(framing, args.angle));
+    }
+    for (i, &position) in args.points.iter().enumerate() {
+        // About 2,000 lux at the scene's centre.
+        let d2 = position.distance_squared(framing.center).max(1e-4);
+        let mut light = commands.spawn((
+            Name::new(format!("point{i}")),
+            PointLight {
+                intensity: 2_000.0 * 4.0 * std::f32::consts::PI * d2,
+                radius: args.radius(i),
+                range: 4.0 * framing.radius + position.distance(framing.center),
+                shadow_maps_enabled: true,
+                ..default()
+            },
+            Transform::from_translation(position),
+        ));
+        if !args.plain {
+            light.insert(shadow_settings(framing, 0.0));
+        }
+    }
+}
+
+/// The scene's own lights: distance-field shadows (and shadow maps, for plain Bevy), or
+/// removed with `--no-scene-lights`.
+#[allow(clippy::type_complexity)]
+fn shadow_scene_lights(
+    mut commands: Commands,
+    args: Res<ViewerArgs>,
+    framing: Res<Framing>,
+    root: Single<Entity, With<ViewerScene>>,
+    parents: Query<&ChildOf>,
+    mut lights: Query<
+        (
+            Entity,
+            Option<&mut DirectionalLight>,
+            Option<&mut PointLight>,
+            Option<&mut SpotLight>,
+        ),
+        Or<(Added<DirectionalLight>, Added<PointLight>, Added<SpotLight>)>,
+    >,
+) {
+    for (entity, directional, point, spot) in &mut lights {
+        if !parents.iter_ancestors(entity).any(|a| a == *root) {
+            continue;
+        }
+        if args.0.no_scene_lights {
+            commands
+                .entity(entity)
+                .remove::<(DirectionalLight, PointLight, SpotLight)>();
+            continue;
+        }
+        let angle = if let Some(mut l) = directional {
+            l.shadow_maps_enabled = true;
+            args.0.angle
+        } else {
+            if let Some(mut l) = point {
+                l.shadow_maps_enabled = true;
+            }
+            if let Some(mut l) = spot {
+                l.shadow_maps_enabled = true;
+            }
+            0.0
+        };
+        if !args.0.plain {
+            commands
+                .entity(entity)
+                .insert(shadow_settings(&framing, angle));
+        }
+    }
+}
+
+/// Once every caster is baked: the shadow rays' bias is at least two voxels of the
+/// coarsest two-sided caster, so that a surface does not shadow itself from inside its
+/// own shell (a shell is about a voxel thick; scenes in odd units or with large open
+/// meshes have coarse voxels). Solid casters need no such margin.
+#[allow(clippy::type_complexity)]
+fn fit_shadow_bias(
+    casters: Query<(&DistanceFieldCaster, Option<&SdfBaked>, &GlobalTransform)>,
+    volumes: Res<Assets<SdfVolumeAsset>>,
+    mut lights: Query<&mut DistanceFieldShadows>,
+    mut fitted: Local<Option<f32>>,
+) {
+    if casters.iter().any(|(_, baked, _)| baked.is_none()) {
+        return;
+    }
+    let voxel = casters
+        .iter()
+        .filter(|(c, ..)| c.two_sided)
+        .filter_map(|(_, baked, transform)| {
+            let volume = &volumes.get(&baked?.0)?.volume;
+            let scale = transform
+                .affine()
+                .matrix3
+                .abs()
+                .to_cols_array()
+                .into_iter()
+                .fold(0.0f32, f32::max);
+            Some(volume.voxel_size * scale)
+        })
+        .fold(0.0f32, f32::max);
+    if *fitted == Some(voxel) && !lights.iter().any(|l| l.bias < 2.0 * voxel) {
+        return;
+    }
+    *fitted = Some(voxel);
+    for mut light in &mut lights {
+        if light.bias < 2.0 * voxel {
+            light.bias = 2.0 * voxel;
+        }
+    }
+}
+
+/// Whether the scene is framed and every caster has its SDF (or failed for good).
+fn scene_ready(world: &mut World) -> bool {
+    if !world.contains_resource::<Framing>() {
+        return false;
+    }
+    let pending = world
+        .query_filtered::<(), (
+            With<DistanceFieldCaster>,
+            Without<SdfBaked>,
+            Without<SdfBakeFailed>,
+        )>()
+        .iter(world)
+        .count();
+    pending == 0 || world.resource::<ViewerError>().0.is_some()
+}
+
+/// Renders headless (see the module docs); the error says why not.
+pub fn run_headless(args: &Args) -> Result<(), String> {
+    use penumbra_test::{HeadlessRender, vulkan_adapter};
+    let Some(adapter) = vulkan_adapter() else {
+        return Err(
+            "no Vulkan adapter found. Install Mesa's software Vulkan driver, Debian \
+                    package `mesa-vulkan-drivers`"
+                .into(),
+        );
+    };
+    let size = args.size.unwrap_or(UVec2::splat(512));
+    let frames = args.frames.unwrap_or(10);
+    let out = args.out.clone().unwrap_or_else(|| "viewer.png".into());
+    let mut render = HeadlessRender::new(size.x, size.y).frames(frames);
+    render.warm_up = Some(scene_ready);
+    render.asset_root = scene_location(args).map(|(dir, _)| dir);
+    let mut app = render.app();
+    add_viewer(&mut app, args);
+    let bake_start = std::time::Instant::now();
+    let (capture, mut app) = render.run_keeping_app(app).map_err(|e| e.to_string())?;
+    if let Some(e) = app.world_mut().resource_mut::<ViewerError>().0.take() {
+        return Err(e);
+    }
+    capture
+        .to_rgba8()
+        .save(&out)
+        .map_err(|e| format!("writing {}: {e}", out.display()))?;
+    report(
+        &mut app,
+        args,
+        &capture.frame_times,
+        bake_start.elapsed(),
+        adapter,
+        size,
+    );
+    if let Some(dir) = &args.dump {
+        let bytes = dump_buffers(&mut app, args, dir)?;
+        println!("viewer: dump: {bytes} bytes in {}", dir.display());
+    }
+    println!("viewer: wrote {}", out.display());
+    Ok(())
+}
+
+/// What a headless run prints: frame time, casters, bakes, Penumbra's pass times.
+fn report(
+    app: &mut App,
+    args: &Args,
+    frame_times: &[std::time::Duration],
+    total: std::time::Duration,
+    adapter: &str,
+    size: UVec2,
+) {
+    let steady = &frame_times[frame_times.len().min(1)..];
+    let mean =
+        steady.iter().map(|d| d.as_secs_f64()).sum::<f64>() * 1e3 / steady.len().max(1) as f64;
+    let scene = args
+        .scene
+        .as_ref()
+        .map_or("showcase room".into(), |p| p.display().to_string());
+    println!(
+        "viewer: {scene}: {} frames at {}x{} on {adapter}, Penumbra {}: mean frame time after \
+         the first {mean:.1} ms (startup, bakes and frames {:.1} s)",
+        frame_times.len(),
+        size.x,
+        size.y,
+        if args.plain { "off" } else { "on" },
+        total.as_secs_f64()
+    );
+    let world = app.world_mut();
+    let counts = world
+        .query::<&SceneCasterCounts>()
+        .iter(world)
+        .next()
+        .copied()
+        .unwrap_or_default();
+    println!("viewer: casters {counts:?}");
+    if let Some(stats) = world.get_resource::<penumbra::df::SdfBakeStats>() {
+        println!("viewer: bakes {stats:?}");
+    }
+    if let Some(store) = world.get_resource::<DiagnosticsStore>() {
+        for d in store.iter() {
+            let path = d.path().as_str();
+            // Pass times: the mean over the frames; counts: this frame's.
+            let value = if path.starts_with("render/") {
+                d.average()
+            } else {
+                d.value()
+            };
+            if path.contains("penumbra")
+                && let Some(v) = value
+            {
+                println!("viewer: diagnostic {path} = {v:.3}{}", d.suffix);
+            }
+        }
+    }
+}
+
+/// Asks the camera for its buffers, waits for them, writes them to `dir`.
+fn dump_buffers(app: &mut App, args: &Args, dir: &std::path::Path) -> Result<u64, String> {
+    let camera = {
+        let world = app.world_mut();
+        world
+            .query_filtered::<Entity, With<ViewerCamera>>()
+            .single(world)
+            .map_err(|e| format!("no camera to dump: {e}"))?
+    };
+    app.world_mut()
+        .entity_mut(camera)
+        .insert(PenumbraBufferDump);
+    let mut buffers = None;
+    for _ in 0..60 {
+        app.update();
+        if let Some(b) = app.world_mut().entity_mut(camera).take::<PenumbraBuffers>() {
+            buffers = Some(b);
+            break;
+        }
+    }
+    let buffers = buffers.ok_or("the buffer dump did not arrive in 60 frames (is Penumbra on?)")?;
+    let framing = *app.world().resource::<Framing>();
+    let world = app.world_mut();
+    let lights = dump::light_summaries(world);
+    let counts = world
+        .query::<&SceneCasterCounts>()
+        .iter(world)
+        .next()
+        .copied()
+        .unwrap_or_default();
+    let (baked, failed) = {
+        let mut q = world
+            .query_filtered::<(Has<SdfBaked>, Has<SdfBakeFailed>), With<DistanceFieldCaster>>();
+        q.iter(world).fold((0, 0), |(b, f), (ok, bad)| {
+            (b + u32::from(ok), f + u32::from(bad))
+        })
+    };
+    let meta = dump::DumpMeta {
+        scene: args
+            .scene
+            .as_ref()
+            .map_or("showcase".into(), |p| p.display().to_string()),
+        eye: framing.eye,
+        target: framing.target,
+        fov_deg: framing.fov_deg,
+        lights,
+        settings: serde_json::json!({
+            "casters": {
+                "casters": counts.casters,
+                "two_sided": counts.two_sided,
+                "skipped_skinned": counts.skinned,
+                "skipped_small": counts.small,
+                "skipped_blended": counts.blended,
+                "skipped_other": counts.unsupported,
+            },
+            "baked": baked,
+            "failed_bakes": failed,
+            "metre_settings_scale": framing.scale(),
+            "penumbra": !args.plain,
+        }),
+    };
+    dump::write_dump(dir, &buffers, &meta)
+}
+
+fn run_windowed(args: &Args) -> Result<(), String> {
+    let size = args.size.unwrap_or(UVec2::new(1280, 720));
+    let mut app = App::new();
+    let mut assets = AssetPlugin::default();
+    if let Some((dir, _)) = scene_location(args) {
+        assets.file_path = dir.to_string_lossy().into_owned();
+    }
+    app.add_plugins(
+        DefaultPlugins
+            .set(WindowPlugin {
+                primary_window: Some(Window {
+                    title: "Penumbra viewer".into(),
+                    resolution: bevy::window::WindowResolution::new(size.x, size.y),
+                    ..default()
+                }),
+                ..default()
+            })
+            .set(assets),
+    );
+    add_viewer(&mut app, args);
+    camera::add_camera_controls(&mut app);
+    panel::add_panel(&mut app);
+    if let Some(frames) = args.frames {
+        app.add_systems(
+            Update,
+            move |mut n: Local<u32>, mut exit: MessageWriter<AppExit>| {
+                *n += 1;
+                if *n >= frames {
+                    exit.write(AppExit::Success);
+                }
+            },
+        );
+    }
+    let exit = app.run();
+    if let Some(e) = app.world_mut().resource_mut::<ViewerError>().0.take() {
+        return Err(e);
+    }
+    match exit {
+        AppExit::Success => Ok(()),
+        AppExit::Error(code) => Err(format!("exited with {code}")),
+    }
+}

@@ -1,0 +1,186 @@
+//! The viewer's command line (`clap`), validated before Bevy starts: every flag takes
+//! `--flag value` or `--flag=value`; vectors are `X,Y,Z` and may start with a minus sign.
+
+use bevy::math::{UVec2, Vec3};
+use clap::Parser;
+use std::path::PathBuf;
+
+/// Any glTF 2.0 scene with Penumbra on: distance-field casters for its meshes, a sun and
+/// its own punctual lights with distance-field shadows, an egui panel (windowed), or a
+/// headless render with buffer dumps for checking against ray-traced truth.
+#[derive(Parser, Clone, Debug, PartialEq)]
+#[command(name = "viewer", about, long_about = None)]
+pub struct Args {
+    /// A `.glb` or `.gltf` file. None: Penumbra's showcase room.
+    pub scene: Option<PathBuf>,
+    /// Render into an image (no window). The default when no display is reachable.
+    #[arg(long)]
+    pub headless: bool,
+    /// Image or window size, `WxH` pixels. Default 512x512 headless, 1280x720 windowed.
+    #[arg(long, value_parser = parse_size)]
+    pub size: Option<UVec2>,
+    /// Frames rendered before the capture (headless; windowed: exit after N frames).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub frames: Option<u32>,
+    /// The PNG to write (headless default: viewer.png).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Camera position, metres (scene units). Default: framed on the scene's bounds.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<Vec3>,
+    /// The point the camera looks at (+Y up). Default: the bounds' centre.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub target: Option<Vec3>,
+    /// Vertical field of view, degrees, in (0, 180). Pinhole camera.
+    #[arg(long, default_value_t = 45.0, value_parser = parse_fov, allow_hyphen_values = true)]
+    pub fov: f32,
+    /// The direction the sun's light travels (the `DirectionalLight`'s forward).
+    /// Default -0.4,-1,-0.3.
+    #[arg(long, value_parser = parse_direction, allow_hyphen_values = true)]
+    pub sun: Option<Vec3>,
+    /// The sun's angular diameter, degrees, in [0, 90). Default 0.533 (the sun's).
+    #[arg(long, default_value_t = 0.533, value_parser = parse_angle, allow_hyphen_values = true)]
+    pub angle: f32,
+    /// A point light at X,Y,Z (repeatable).
+    #[arg(long = "point", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub points: Vec<Vec3>,
+    /// The radius of the point light given in the same position (repeatable; default 0).
+    #[arg(long = "radius", value_parser = parse_radius, allow_hyphen_values = true)]
+    pub radii: Vec<f32>,
+    /// Leave out the scene's own punctual lights (`KHR_lights_punctual`).
+    #[arg(long)]
+    pub no_scene_lights: bool,
+    /// After the last frame, write the view's Penumbra buffers to DIR as `.npy` files and
+    /// `meta.json` (headless only).
+    #[arg(long)]
+    pub dump: Option<PathBuf>,
+    /// Plain Bevy: no Penumbra on the camera or the lights (shadow maps), to compare.
+    #[arg(long)]
+    pub plain: bool,
+}
+
+impl Args {
+    /// Parses and checks `args` (the program name first, as `std::env::args()`).
+    pub fn parse_from_args<I, T>(args: I) -> Result<Args, clap::Error>
+    where
+        I: IntoIterator<Item = T>,
+        T: Into<std::ffi::OsString> + Clone,
+    {
+        let args = Args::try_parse_from(args)?;
+        args.check()?;
+        Ok(args)
+    }
+
+    /// Checks across flags.
+    fn check(&self) -> Result<(), clap::Error> {
+        use clap::error::ErrorKind;
+        let err = |msg: String| Err(clap::Error::raw(ErrorKind::ValueValidation, msg + "\n"));
+        if self.radii.len() > self.points.len() {
+            return err(format!(
+                "--radius given {} times for {} --point",
+                self.radii.len(),
+                self.points.len()
+            ));
+        }
+        if let (Some(eye), Some(target)) = (self.eye, self.target)
+            && eye.distance(target) < 1e-6
+        {
+            return err("--eye and --target are the same point".into());
+        }
+        if let (Some(eye), Some(target)) = (self.eye, self.target) {
+            let forward = (target - eye).normalize();
+            if forward.cross(Vec3::Y).length() < 1e-6 {
+                return err(
+                    "--eye to --target is vertical: the camera's up (+Y) is undefined".into(),
+                );
+            }
+        }
+        if self.dump.is_some() && !self.headless {
+            return err("--dump needs --headless".into());
+        }
+        Ok(())
+    }
+
+    /// The radius of point light `i`.
+    pub fn radius(&self, i: usize) -> f32 {
+        self.radii.get(i).copied().unwrap_or(0.0)
+    }
+}
+
+fn finite(v: f32, what: &str) -> Result<f32, String> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("{what} must be finite, got {v}"))
+    }
+}
+
+fn parse_number(s: &str) -> Result<f32, String> {
+    let v: f32 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("not a number: {s:?}"))?;
+    finite(v, "a number")
+}
+
+/// `X,Y,Z`, finite.
+pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("expected X,Y,Z, got {s:?}"));
+    }
+    let v: Result<Vec<f32>, String> = parts.iter().map(|p| parse_number(p)).collect();
+    let v = v?;
+    Ok(Vec3::new(v[0], v[1], v[2]))
+}
+
+/// A non-zero direction (not normalised here).
+fn parse_direction(s: &str) -> Result<Vec3, String> {
+    let v = parse_vec3(s)?;
+    if v.length() < 1e-6 {
+        return Err(format!("zero-length direction {s:?}"));
+    }
+    Ok(v)
+}
+
+/// `WxH`, each in 1..=8192.
+fn parse_size(s: &str) -> Result<UVec2, String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or(format!("expected WxH, got {s:?}"))?;
+    let dim = |d: &str| -> Result<u32, String> {
+        let v: i64 = d
+            .trim()
+            .parse()
+            .map_err(|_| format!("not a whole number: {d:?} in {s:?}"))?;
+        if !(1..=8192).contains(&v) {
+            return Err(format!("{v} is not in 1..=8192 (in {s:?})"));
+        }
+        Ok(v as u32)
+    };
+    Ok(UVec2::new(dim(w)?, dim(h)?))
+}
+
+fn parse_fov(s: &str) -> Result<f32, String> {
+    let v = parse_number(s)?;
+    if v <= 0.0 || v >= 180.0 {
+        return Err(format!("must be in (0, 180) degrees, got {v}"));
+    }
+    Ok(v)
+}
+
+fn parse_angle(s: &str) -> Result<f32, String> {
+    let v = parse_number(s)?;
+    if !(0.0..90.0).contains(&v) {
+        return Err(format!("must be in [0, 90) degrees, got {v}"));
+    }
+    Ok(v)
+}
+
+fn parse_radius(s: &str) -> Result<f32, String> {
+    let v = parse_number(s)?;
+    if v < 0.0 {
+        return Err(format!("must be ≥ 0, got {v}"));
+    }
+    Ok(v)
+}

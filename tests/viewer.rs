@@ -1,0 +1,335 @@
+//! The scene viewer (`examples/viewer.rs`):
+//!
+//! - its command line and its scene checks reject bad input with the flag or the problem
+//!   named (table tests, no GPU);
+//! - headless on every scene in `../shared/scenes` and the showcase room: no NaN or Inf
+//!   in the dumped buffers, an image that is not blank, the casters baked, each
+//!   visibility mask within [0, 1] and shadowed somewhere where casters stand between a
+//!   light and receivers; the dump's files and `meta.json` are as documented;
+//! - the Cornell box's image matches `assets/reference/viewer_cornell.png`.
+//!
+//! To accept a deliberate change of the golden image:
+//! `PENUMBRA_BLESS=1 cargo test --test viewer`, then look at it before committing.
+
+#[path = "../examples/viewer.rs"]
+#[allow(dead_code, reason = "the example's main is not used here")]
+mod viewer;
+
+use penumbra_test::{Tolerance, assert_not_blank, check_golden, gpu_or_skip, image, output_dir};
+use std::path::{Path, PathBuf};
+use viewer::cli::Args;
+
+fn args(list: &[&str]) -> Result<Args, String> {
+    Args::parse_from_args(std::iter::once("viewer").chain(list.iter().copied()))
+        .map_err(|e| e.to_string())
+}
+
+#[test]
+fn flags_take_both_forms_and_negative_vectors() {
+    let a = args(&[
+        "scene.glb",
+        "--headless",
+        "--sun=-1,-0.6,-0.5",
+        "--eye",
+        "-3,2,-1",
+        "--target=0,0,0",
+        "--fov",
+        "30",
+        "--point",
+        "1,-2,3",
+        "--radius=0.25",
+        "--point=4,5,6",
+        "--size",
+        "64x32",
+    ])
+    .unwrap();
+    assert_eq!(a.sun, Some(bevy::math::Vec3::new(-1.0, -0.6, -0.5)));
+    assert_eq!(a.eye, Some(bevy::math::Vec3::new(-3.0, 2.0, -1.0)));
+    assert_eq!(a.points.len(), 2);
+    assert_eq!((a.radius(0), a.radius(1)), (0.25, 0.0));
+    assert_eq!(a.size, Some(bevy::math::UVec2::new(64, 32)));
+    assert_eq!(a.fov, 30.0);
+}
+
+#[test]
+fn absurd_flags_are_rejected_with_the_flag_named() {
+    let cases: &[(&[&str], &str)] = &[
+        (&["--size", "-64x64"], "--size"),
+        (&["--size", "0x64"], "--size"),
+        (&["--size", "64"], "--size"),
+        (&["--size", "100000x64"], "--size"),
+        (&["--fov", "0"], "--fov"),
+        (&["--fov", "180"], "--fov"),
+        (&["--fov", "-10"], "--fov"),
+        (&["--fov", "nan"], "--fov"),
+        (&["--eye", "nan,0,0"], "--eye"),
+        (&["--eye", "1,2"], "--eye"),
+        (&["--target", "inf,0,0"], "--target"),
+        (&["--sun", "0,0,0"], "--sun"),
+        (&["--sun=NaN,1,0"], "--sun"),
+        (&["--angle", "-1"], "--angle"),
+        (&["--angle", "90"], "--angle"),
+        (&["--point", "1,1,1", "--radius", "-0.5"], "--radius"),
+        (&["--radius", "0.5"], "--radius"),
+        (&["--frames", "0"], "--frames"),
+        (&["--eye", "1,1,1", "--target", "1,1,1"], "--eye"),
+        (&["--eye", "0,5,0", "--target", "0,0,0"], "--eye"),
+        (&["--dump", "out"], "--dump"),
+        (&["--bogus"], "--bogus"),
+    ];
+    for (list, flag) in cases {
+        let err = args(list).expect_err(&format!("{list:?} was accepted"));
+        assert!(
+            err.contains(flag),
+            "{list:?}: the error does not name {flag}: {err}"
+        );
+    }
+}
+
+/// A scratch file under the test output directory.
+fn scratch(name: &str, bytes: &[u8]) -> PathBuf {
+    let dir = output_dir().join("viewer_inputs");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+#[test]
+fn bad_scene_files_get_one_clear_error() {
+    let minimal = |extra: &str| {
+        format!(r#"{{"asset":{{"version":"2.0"}}{extra},"scenes":[{{"nodes":[]}}],"scene":0}}"#)
+    };
+    let cases: Vec<(PathBuf, &str)> = vec![
+        (output_dir().join("no/such/scene.glb"), "cannot read"),
+        (scratch("text.glb", b"hello, not a glTF"), "not a valid glTF 2.0"),
+        (scratch("scene.obj", b"v 0 0 0"), "not a .glb or .gltf"),
+        (
+            scratch(
+                "draco.gltf",
+                minimal(r#","extensionsUsed":["KHR_draco_mesh_compression"],"extensionsRequired":["KHR_draco_mesh_compression"]"#)
+                    .as_bytes(),
+            ),
+            "KHR_draco_mesh_compression",
+        ),
+        (
+            scratch(
+                "meshopt.gltf",
+                minimal(r#","extensionsUsed":["EXT_meshopt_compression"],"extensionsRequired":["EXT_meshopt_compression"]"#)
+                    .as_bytes(),
+            ),
+            "EXT_meshopt_compression",
+        ),
+        (
+            scratch(
+                "missing_bin.gltf",
+                minimal(r#","buffers":[{"uri":"nowhere.bin","byteLength":64}]"#).as_bytes(),
+            ),
+            "nowhere.bin",
+        ),
+        (
+            scratch(
+                "short_bin.gltf",
+                minimal(r#","buffers":[{"uri":"short.bin","byteLength":64}]"#).as_bytes(),
+            ),
+            "truncated",
+        ),
+    ];
+    scratch("short.bin", &[0; 16]);
+    for (path, expected) in &cases {
+        let err = viewer::input::check_scene(path).expect_err(&format!("{path:?} accepted"));
+        assert!(err.contains(expected), "{path:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "one line: {err}");
+    }
+    // A truncated binary glTF (a real file cut in half).
+    if let Some(dir) = scenes_dir() {
+        let bytes = std::fs::read(dir.join("CornellBox.glb")).unwrap();
+        let cut = scratch("cut.glb", &bytes[..bytes.len() / 2]);
+        let err = viewer::input::check_scene(&cut).expect_err("a cut file was accepted");
+        assert!(err.contains("cut.glb"), "{err}");
+        viewer::input::check_scene(&dir.join("CornellBox.glb")).unwrap();
+        viewer::input::check_scene(&dir.join("PalmTree/PalmTree.gltf")).unwrap();
+    }
+}
+
+fn scenes_dir() -> Option<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "../shared/scenes is missing under CI"
+    );
+    eprintln!("skipped: ../shared/scenes is absent");
+    None
+}
+
+/// Reads a float32 `.npy` written by the viewer: (shape, values).
+fn read_npy(path: &Path) -> (Vec<usize>, Vec<f32>) {
+    let bytes = std::fs::read(path).unwrap();
+    assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00", "{path:?}");
+    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    assert_eq!((10 + len) % 64, 0, "header alignment");
+    let header = std::str::from_utf8(&bytes[10..10 + len]).unwrap();
+    assert!(header.contains("'descr': '<f4'") && header.contains("'fortran_order': False"));
+    let shape: Vec<usize> = header
+        .split_once("'shape': (")
+        .unwrap()
+        .1
+        .split_once(')')
+        .unwrap()
+        .0
+        .split(',')
+        .filter_map(|s| s.trim().parse().ok())
+        .collect();
+    let data: Vec<f32> = bytes[10 + len..]
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
+    assert_eq!(shape.iter().product::<usize>(), data.len(), "{path:?}");
+    (shape, data)
+}
+
+/// What one headless run produced.
+struct Run {
+    image: image::RgbaImage,
+    meta: serde_json::Value,
+    dir: PathBuf,
+}
+
+fn run(name: &str, extra: &[&str]) -> Run {
+    let out_dir = output_dir().join("viewer").join(name);
+    let _ = std::fs::remove_dir_all(&out_dir);
+    std::fs::create_dir_all(&out_dir).unwrap();
+    let png = out_dir.join("frame.png");
+    let dump = out_dir.join("dump");
+    let (png_s, dump_s) = (png.display().to_string(), dump.display().to_string());
+    let mut list = vec!["--headless", "--size", "128x128", "--frames", "3"];
+    list.extend_from_slice(extra);
+    list.extend_from_slice(&["--out", &png_s, "--dump", &dump_s]);
+    let a = args(&list).unwrap();
+    viewer::run_headless(&a).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dump.join("meta.json")).unwrap()).unwrap();
+    Run {
+        image: image::open(&png).unwrap().to_rgba8(),
+        meta,
+        dir: dump,
+    }
+}
+
+/// The checks every scene passes; returns the fraction of shadowed (< 0.5) surface
+/// pixels per light.
+fn check_run(name: &str, r: &Run, casters: u64) -> Vec<(String, f64)> {
+    assert_not_blank(&r.image);
+    let c = &r.meta["settings"]["casters"];
+    assert_eq!(c["casters"].as_u64(), Some(casters), "{name}: {c}");
+    assert_eq!(
+        r.meta["settings"]["baked"].as_u64(),
+        Some(casters),
+        "{name}: not all baked"
+    );
+    let (shape, depth) = read_npy(&r.dir.join("depth.npy"));
+    assert_eq!(shape, [128, 128], "{name}");
+    assert!(
+        depth
+            .iter()
+            .all(|d| d.is_nan() || (d.is_finite() && *d > 0.0)),
+        "{name}: depth"
+    );
+    let surface: Vec<bool> = depth.iter().map(|d| d.is_finite()).collect();
+    assert!(surface.iter().any(|&s| s), "{name}: no surface in view");
+    let (shape, normal) = read_npy(&r.dir.join("normal.npy"));
+    assert_eq!(shape, [128, 128, 3], "{name}");
+    for (i, n) in normal.chunks_exact(3).enumerate() {
+        if surface[i] {
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            assert!((len - 1.0).abs() < 1e-2, "{name}: normal {n:?} at {i}");
+        } else {
+            assert!(
+                n.iter().all(|v| v.is_nan()),
+                "{name}: background normal {n:?}"
+            );
+        }
+    }
+    let mut shadowed = Vec::new();
+    for light in r.meta["lights"].as_array().unwrap() {
+        let Some(buffer) = light["buffer"].as_str() else {
+            continue;
+        };
+        let (shape, vis) = read_npy(&r.dir.join(format!("{buffer}.npy")));
+        assert_eq!(shape, [128, 128], "{name}: {buffer}");
+        assert!(
+            vis.iter().all(|v| (0.0..=1.0).contains(v)),
+            "{name}: {buffer} outside [0, 1]"
+        );
+        let on_surface = vis.iter().zip(&surface).filter(|(_, s)| **s);
+        let n = surface.iter().filter(|s| **s).count() as f64;
+        let dark = on_surface.filter(|(v, _)| **v < 0.5).count() as f64 / n;
+        shadowed.push((buffer.to_string(), dark));
+    }
+    shadowed
+}
+
+#[test]
+fn viewer_renders_every_shared_scene_and_dumps_its_buffers() {
+    if !gpu_or_skip("viewer_renders_every_shared_scene_and_dumps_its_buffers") {
+        return;
+    }
+    let Some(dir) = scenes_dir() else { return };
+    let scene = |f: &str| dir.join(f).display().to_string();
+    // The Cornell box: a point light under the ceiling; the blocks shadow the floor.
+    let cornell = scene("CornellBox.glb");
+    let r = run(
+        "cornell",
+        &[
+            &cornell,
+            "--eye=-278,273,800",
+            "--target=-278,273,-280",
+            "--fov",
+            "40",
+            "--point=-278,500,-280",
+            "--radius",
+            "20",
+            "--no-scene-lights",
+        ],
+    );
+    let s = check_run("cornell", &r, 6);
+    let reference =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/reference/viewer_cornell.png");
+    check_golden("viewer_cornell", &r.image, &reference, &TOLERANCE);
+    assert_eq!(s.len(), 2, "{s:?}");
+    for (buffer, dark) in &s {
+        assert!(
+            *dark > 0.05 && *dark < 0.95,
+            "cornell: {buffer} shadowed {dark}"
+        );
+    }
+    // The circuit board: its own sun and ours; the spheres and cubes shadow the board.
+    let r = run("depth_of_field", &[&scene("DepthOfFieldExample.glb")]);
+    let s = check_run("depth_of_field", &r, 16);
+    assert_eq!(s.len(), 2, "{s:?}");
+    assert!(s.iter().all(|(_, d)| *d > 0.01), "{s:?}");
+    // The palm tree on its island: two-sided leaves shadow the ground.
+    let r = run(
+        "palm_tree",
+        &[&scene("PalmTree/PalmTree.gltf"), "--sun=-0.3,-1,-0.2"],
+    );
+    let s = check_run("palm_tree", &r, 10);
+    assert!(s[0].1 > 0.005, "{s:?}");
+    // The fox is skinned: no caster, nothing breaks.
+    let r = run("fox", &[&scene("Fox.glb")]);
+    check_run("fox", &r, 0);
+    assert_eq!(
+        r.meta["settings"]["casters"]["skipped_skinned"].as_u64(),
+        Some(1)
+    );
+}
+
+const TOLERANCE: Tolerance = Tolerance {
+    per_pixel: 4,
+    max_differing_fraction: 0.005,
+    max_mean: 0.5,
+    max_p99: 4.0,
+};
