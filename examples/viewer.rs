@@ -620,7 +620,15 @@ fn dump_buffers(app: &mut App, args: &Args, dir: &std::path::Path) -> Result<u64
     let buffers = buffers.ok_or("the buffer dump did not arrive in 60 frames (is Penumbra on?)")?;
     let framing = *app.world().resource::<Framing>();
     let world = app.world_mut();
-    let lights = dump::light_summaries(world);
+    let mut lights = dump::light_summaries(world);
+    // Without casters no mask is traced (nothing shadows): no buffer for the light.
+    for light in &mut lights {
+        if let Some(name) = light["buffer"].as_str()
+            && buffers.get(name).is_none()
+        {
+            light["buffer"] = serde_json::Value::Null;
+        }
+    }
     let counts = world
         .query::<&SceneCasterCounts>()
         .iter(world)

@@ -17,10 +17,10 @@ pub struct Args {
     #[arg(long)]
     pub headless: bool,
     /// Image or window size, `WxH` pixels. Default 512x512 headless, 1280x720 windowed.
-    #[arg(long, value_parser = parse_size)]
+    #[arg(long, value_parser = parse_size, allow_hyphen_values = true)]
     pub size: Option<UVec2>,
     /// Frames rendered before the capture (headless; windowed: exit after N frames).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000), allow_hyphen_values = true)]
     pub frames: Option<u32>,
     /// The PNG to write (headless default: viewer.png).
     #[arg(long)]
