@@ -183,10 +183,13 @@ fn spawn_scene(mut commands: Commands, args: Res<ViewerArgs>, assets: Res<AssetS
     let mut root = commands.spawn((
         ViewerScene,
         Name::new("scene"),
-        DistanceFieldSceneCasters::default(),
         Transform::default(),
         Visibility::default(),
     ));
+    // Plain Bevy: no casters, no bakes, no atlas (the panel can add them later).
+    if !args.0.plain {
+        root.insert(DistanceFieldSceneCasters::default());
+    }
     if let Some((_, file)) = scene_location(&args.0) {
         root.insert(WorldAssetRoot(
             assets.load(GltfAssetLabel::Scene(0).from_asset(file)),
@@ -272,7 +275,8 @@ fn frame_scene(
         .filter_map(|e| meshes.get(e).ok())
         .map(|(transform, aabb)| world_box(transform, aabb))
         .collect();
-    if !loaded || (boxes.is_empty() && *waited < 30) || counts.is_none() && *waited < 30 {
+    let tagged = counts.is_some() || args.0.plain;
+    if !loaded || (boxes.is_empty() || !tagged) && *waited < 30 {
         if loaded {
             *waited += 1;
         }
@@ -334,6 +338,10 @@ fn spawn_camera(mut commands: Commands) {
         ViewerCamera,
         Camera3d::default(),
         Projection::default(),
+        // Bevy's deferred renderer (the app's default method) needs its prepasses; the
+        // lighting pass is Bevy's own until the camera gets `PenumbraLighting`.
+        bevy::core_pipeline::prepass::DepthPrepass,
+        bevy::core_pipeline::prepass::DeferredPrepass,
         Msaa::Off,
         Exposure::default(),
         ShadowLodOrigin,

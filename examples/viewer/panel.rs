@@ -49,6 +49,7 @@ fn panel(
         Or<(With<DirectionalLight>, With<PointLight>, With<SpotLight>)>,
     >,
     mut scene: Query<(&mut DistanceFieldSceneCasters, Option<&SceneCasterCounts>)>,
+    root: Single<Entity, With<super::ViewerScene>>,
     diagnostics: Res<DiagnosticsStore>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
@@ -86,6 +87,11 @@ fn panel(
                 }
                 ui.separator();
                 ui.heading("Casters");
+                if scene.is_empty() && ui.button("Make the scene's meshes casters").clicked() {
+                    commands
+                        .entity(*root)
+                        .insert(DistanceFieldSceneCasters::default());
+                }
                 for (mut casters, counts) in &mut scene {
                     casters_ui(ui, &mut casters, counts);
                 }
