@@ -363,3 +363,58 @@ const TOLERANCE: Tolerance = Tolerance {
     max_mean: 0.5,
     max_p99: 4.0,
 };
+
+/// The example's binary, built by `cargo test` next to the test binaries.
+fn viewer_binary() -> Option<PathBuf> {
+    let exe = std::env::current_exe().ok()?;
+    let bin = exe.parent()?.parent()?.join("examples").join("viewer");
+    if bin.is_file() {
+        return Some(bin);
+    }
+    assert!(std::env::var_os("CI").is_none(), "{bin:?} was not built");
+    eprintln!("skipped: {bin:?} not built (cargo test --example viewer builds it)");
+    None
+}
+
+#[test]
+fn the_binary_exits_1_on_bad_files_and_2_on_bad_flags() {
+    let Some(bin) = viewer_binary() else { return };
+    let missing = output_dir().join("no/such/scene.glb");
+    let cases: &[(&[&str], i32, &str)] = &[
+        (&[missing.to_str().unwrap(), "--headless"], 1, "cannot read"),
+        (&["scene.glb", "--fov", "0"], 2, "--fov"),
+        (&["scene.glb", "--sun=0,0,0"], 2, "--sun"),
+    ];
+    for (list, code, expected) in cases {
+        let out = std::process::Command::new(&bin)
+            .args(*list)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(*code), "{list:?}: {stderr}");
+        assert!(stderr.contains(expected), "{list:?}: {stderr}");
+    }
+}
+
+#[test]
+fn a_scene_without_meshes_renders_an_empty_frame() {
+    if !gpu_or_skip("a_scene_without_meshes_renders_an_empty_frame") {
+        return;
+    }
+    let empty = scratch(
+        "empty.gltf",
+        br#"{"asset":{"version":"2.0"},"scenes":[{"nodes":[0]}],"nodes":[{"name":"nothing"}],"scene":0}"#,
+    );
+    let r = run("empty", &[empty.to_str().unwrap()]);
+    let (_, depth) = read_npy(&r.dir.join("depth.npy"));
+    assert!(
+        depth.iter().all(|d| d.is_nan()),
+        "an empty scene has no surface"
+    );
+    let sky = r.image.get_pixel(0, 0);
+    assert!(
+        r.image.pixels().all(|p| p == sky),
+        "an empty frame is the clear colour"
+    );
+    assert_eq!(r.meta["settings"]["casters"]["casters"].as_u64(), Some(0));
+}
