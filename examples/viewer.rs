@@ -125,6 +125,11 @@ impl Framing {
     }
 }
 
+/// When the app started, and how long until every caster had its SDF (bakes, or reads
+/// of the disk cache, included).
+#[derive(Resource)]
+pub struct BakeClock(std::time::Instant, Option<std::time::Duration>);
+
 /// A fatal error found while running (e.g. the scene failed to load).
 #[derive(Resource, Default)]
 pub struct ViewerError(pub Option<String>);
@@ -462,9 +467,13 @@ fn fit_shadow_bias(
     volumes: Res<Assets<SdfVolumeAsset>>,
     mut lights: Query<&mut DistanceFieldShadows>,
     mut fitted: Local<Option<f32>>,
+    mut clock: ResMut<BakeClock>,
 ) {
     if casters.iter().any(|(_, baked, _)| baked.is_none()) {
         return;
+    }
+    if clock.1.is_none() {
+        clock.1 = Some(clock.0.elapsed());
     }
     let voxel = casters
         .iter()
@@ -551,6 +560,16 @@ pub fn run_headless(args: &Args) -> Result<(), String> {
     Ok(())
 }
 
+/// What `DistanceFieldSceneCasters` did to the scene.
+fn scene_counts(world: &mut World) -> SceneCasterCounts {
+    world
+        .query::<&SceneCasterCounts>()
+        .iter(world)
+        .next()
+        .copied()
+        .unwrap_or_default()
+}
+
 /// What a headless run prints: frame time, casters, bakes, Penumbra's pass times.
 fn report(
     app: &mut App,
@@ -577,13 +596,14 @@ fn report(
         total.as_secs_f64()
     );
     let world = app.world_mut();
-    let counts = world
-        .query::<&SceneCasterCounts>()
-        .iter(world)
-        .next()
-        .copied()
-        .unwrap_or_default();
+    let counts = scene_counts(world);
     println!("viewer: casters {counts:?}");
+    if let Some(baked) = world.resource::<BakeClock>().1 {
+        println!(
+            "viewer: every caster had its SDF {:.2} s after startup",
+            baked.as_secs_f64()
+        );
+    }
     if let Some(stats) = world.get_resource::<penumbra::df::SdfBakeStats>() {
         println!("viewer: bakes {stats:?}");
     }
@@ -637,12 +657,7 @@ fn dump_buffers(app: &mut App, args: &Args, dir: &std::path::Path) -> Result<u64
             light["buffer"] = serde_json::Value::Null;
         }
     }
-    let counts = world
-        .query::<&SceneCasterCounts>()
-        .iter(world)
-        .next()
-        .copied()
-        .unwrap_or_default();
+    let counts = scene_counts(world);
     let (baked, failed) = {
         let mut q = world
             .query_filtered::<(Has<SdfBaked>, Has<SdfBakeFailed>), With<DistanceFieldCaster>>();

@@ -8,6 +8,9 @@
 //!   entity's `Mesh3d` (baked automatically on the async pool and cached, see
 //!   [`crate::sdf_asset`]; instances of one mesh share one SDF), from an explicit
 //!   [`SdfVolumeAsset`] handle, or from an analytic shape (sphere, box, capsule, plane).
+//!   [`DistanceFieldSceneCasters`] on a glTF scene's root makes every mesh under it a
+//!   caster, by a documented rule (skinned, small and alpha-blended meshes skipped;
+//!   open double-sided and alpha-masked ones two-sided).
 //! - Every SDF in use is placed once in a 3D `R16Float` **atlas** under a memory budget
 //!   ([`DistanceFieldSceneSettings::atlas_budget_bytes`]); freed space is reused. When a
 //!   volume does not fit, one warning is logged and the volume is halved in resolution

@@ -1,35 +1,7 @@
 //! Tagging a whole scene: [`DistanceFieldSceneCasters`] on a glTF `WorldAssetRoot` (or any
 //! entity) makes the meshes spawned under it distance-field casters.
 //!
-//! The rule, applied to every `Mesh3d` entity below the root (at any depth) when it
-//! appears — the scene instanced, spawned later, or respawned by a hot reload — and to
-//! all of them again when the root's settings change:
-//!
-//! 1. **Skinned or morphed** meshes (`SkinnedMesh`, `MeshMorphWeights`): skipped, or cast
-//!    from their bind pose ([`SkinnedCasters`]). A bind-pose SDF does not follow the
-//!    animation: right for a statue, wrong for a running fox.
-//! 2. **Not triangles** (lines, points) or no `Float32x3` positions: skipped.
-//! 3. **Small**: the largest side of the mesh's world-space bounding box below
-//!    [`DistanceFieldSceneCasters::min_size`]: skipped (a pebble is not worth a trace).
-//! 4. **Alpha-blended** `StandardMaterial`s (`Blend`, `Premultiplied`, `Add`,
-//!    `Multiply`): skipped. Glass and smoke would cast solid shadows.
-//! 5. Otherwise a [`DistanceFieldCaster`] from the root's template
-//!    ([`DistanceFieldSceneCasters::caster`]), **two-sided** (a shell around the
-//!    surface) when the material is alpha-masked (`Mask`, `AlphaToCoverage`: foliage
-//!    cards), or `double_sided` and the mesh is open (some edge, after welding equal
-//!    positions, is not shared by exactly two triangles: a wall, a leaf, a terrain
-//!    sheet), per [`SceneTwoSided`]. A closed double-sided mesh is baked solid:
-//!    exporters mark most materials double-sided (Blender does by default), and a
-//!    shell about a voxel thick makes a solid box self-shadow at grazing angles.
-//!    Materials other than `StandardMaterial` count as opaque and single-sided.
-//!
-//! A mesh entity that already has a `DistanceFieldCaster` of its own is left alone; the
-//! casters this module adds carry [`DistanceFieldSceneCaster`] and are removed when the
-//! root's settings change (then re-added by the new rule) or the component is removed.
-//! Instances of one mesh with the same settings share one bake (the bake cache keys on
-//! mesh content and settings) and one atlas volume.
-//!
-//! [`SceneCasterCounts`] on the root says what the rule did.
+//! The rule is documented on [`DistanceFieldSceneCasters`].
 
 use super::DistanceFieldCaster;
 use bevy::camera::primitives::MeshAabb;
@@ -62,7 +34,37 @@ pub enum SceneTwoSided {
 }
 
 /// Makes every mesh spawned under this entity (typically a glTF `WorldAssetRoot`) a
-/// [`DistanceFieldCaster`], by the rule in the [module docs](self).
+/// [`DistanceFieldCaster`].
+///
+/// The rule, applied to every `Mesh3d` entity below the root (at any depth) when it
+/// appears — the scene instanced, spawned later, or respawned by a hot reload — and to
+/// all of them again when the root's settings change:
+///
+/// 1. **Skinned or morphed** meshes (`SkinnedMesh`, `MeshMorphWeights`): skipped, or cast
+///    from their bind pose ([`SkinnedCasters`]). A bind-pose SDF does not follow the
+///    animation: right for a statue, wrong for a running fox.
+/// 2. **Not triangles** (lines, points) or no `Float32x3` positions: skipped.
+/// 3. **Small**: the largest side of the mesh's world-space bounding box below
+///    [`DistanceFieldSceneCasters::min_size`]: skipped (a pebble is not worth a trace).
+/// 4. **Alpha-blended** `StandardMaterial`s (`Blend`, `Premultiplied`, `Add`,
+///    `Multiply`): skipped. Glass and smoke would cast solid shadows.
+/// 5. Otherwise a [`DistanceFieldCaster`] from the root's template
+///    ([`DistanceFieldSceneCasters::caster`]), **two-sided** (a shell around the
+///    surface) when the material is alpha-masked (`Mask`, `AlphaToCoverage`: foliage
+///    cards), or `double_sided` and the mesh is open (some edge, after welding equal
+///    positions, is not shared by exactly two triangles: a wall, a leaf, a terrain
+///    sheet), per [`SceneTwoSided`]. A closed double-sided mesh is baked solid:
+///    exporters mark most materials double-sided (Blender does by default), and a
+///    shell about a voxel thick makes a solid box self-shadow at grazing angles.
+///    Materials other than `StandardMaterial` count as opaque and single-sided.
+///
+/// A mesh entity that already has a `DistanceFieldCaster` of its own is left alone; the
+/// casters it adds carry [`DistanceFieldSceneCaster`] and are removed when the
+/// root's settings change (then re-added by the new rule) or the component is removed.
+/// Instances of one mesh with the same settings share one bake (the bake cache keys on
+/// mesh content and settings) and one atlas volume.
+///
+/// [`SceneCasterCounts`] on the root says what the rule did.
 ///
 /// Cost: that of the casters it makes; the tagging itself runs once per new mesh entity
 /// (and once per descendant when these settings change).
