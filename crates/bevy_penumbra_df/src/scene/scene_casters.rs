@@ -271,8 +271,9 @@ pub(super) fn tag_scene_casters(
     meshes: MeshQuery,
     parents: Query<&ChildOf>,
     children: Query<&Children>,
-    mesh_assets: Res<Assets<Mesh>>,
-    materials: Res<Assets<StandardMaterial>>,
+    mesh_assets: Option<Res<Assets<Mesh>>>,
+    // Absent in apps without PBR (e.g. headless logic tests): no material, opaque.
+    materials: Option<Res<Assets<StandardMaterial>>>,
     mut counts: Query<&mut SceneCasterCounts>,
     mut waiting: Local<Vec<Entity>>,
     mut closed_meshes: Local<bevy::platform::collections::HashMap<AssetId<Mesh>, bool>>,
@@ -310,7 +311,9 @@ pub(super) fn tag_scene_casters(
         if caster.is_some() && tag.is_none() {
             tally.own = 1;
         } else {
-            let material = material.map(|m| materials.get(&m.0));
+            let material = material
+                .zip(materials.as_deref())
+                .map(|(m, all)| all.get(&m.0));
             let closed = |m: &Mesh| {
                 *closed_meshes
                     .entry(mesh.id())
@@ -318,7 +321,7 @@ pub(super) fn tag_scene_casters(
             };
             match verdict(
                 &settings,
-                mesh_assets.get(&mesh.0),
+                mesh_assets.as_deref().and_then(|a| a.get(&mesh.0)),
                 transform,
                 material,
                 skinned || morphed,
