@@ -151,6 +151,7 @@ fn add_viewer(app: &mut App, args: &Args) {
         ..default()
     })
     .init_resource::<ViewerError>()
+    .insert_resource(BakeClock(std::time::Instant::now(), None))
     .add_systems(Startup, (spawn_scene, spawn_camera))
     .add_systems(
         Update,
