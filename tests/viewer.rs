@@ -75,6 +75,7 @@ fn absurd_flags_are_rejected_with_the_flag_named() {
         (&["--eye", "1,1,1", "--target", "1,1,1"], "--eye"),
         (&["--eye", "0,5,0", "--target", "0,0,0"], "--eye"),
         (&["--dump", "out"], "--dump"),
+        (&["--headless", "--plain", "--dump", "out"], "--dump"),
         (&["--bogus"], "--bogus"),
     ];
     for (list, flag) in cases {

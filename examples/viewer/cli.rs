@@ -98,6 +98,9 @@ impl Args {
         if self.dump.is_some() && !self.headless {
             return err("--dump needs --headless".into());
         }
+        if self.dump.is_some() && self.plain {
+            return err("--dump reads Penumbra's buffers: not with --plain".into());
+        }
         Ok(())
     }
 
