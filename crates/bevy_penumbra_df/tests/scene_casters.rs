@@ -214,3 +214,31 @@ fn palm_tree_open_sheets_are_two_sided_and_small_meshes_are_skipped() {
     assert_eq!((c.casters, c.small), (3, 7), "{c:?}");
     assert_eq!(casters(&mut app).len(), 3);
 }
+
+#[test]
+fn a_respawned_scene_is_tagged_again_and_counted_once() {
+    let Some(dir) = scenes_dir() else { return };
+    let mut app = app(&dir);
+    let root = spawn(&mut app, "Fox.glb", coarse());
+    settle(&mut app);
+    assert_eq!(counts(&app, root).skinned, 1);
+    // The root's scene is replaced (as a hot reload respawns it): the old instance is
+    // despawned, the new one's meshes are tagged, the counts describe the new one only.
+    let cornell = app
+        .world()
+        .resource::<AssetServer>()
+        .load(GltfAssetLabel::Scene(0).from_asset("CornellBox.glb"));
+    app.world_mut()
+        .entity_mut(root)
+        .insert(WorldAssetRoot(cornell));
+    let start = std::time::Instant::now();
+    while counts(&app, root).casters == 0 {
+        assert!(start.elapsed().as_secs() < 20, "the new scene was not tagged in 20 s");
+        app.update();
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    settle(&mut app);
+    let c = counts(&app, root);
+    assert_eq!((c.casters, c.two_sided, c.skinned), (6, 4, 0), "{c:?}");
+    assert_eq!(casters(&mut app).len(), 6);
+}

@@ -349,6 +349,7 @@ impl Plugin for DistanceFieldScenePlugin {
                     (
                         scene_casters::untag_removed_roots,
                         scene_casters::tag_scene_casters,
+                        scene_casters::count_scene_casters,
                     )
                         .chain()
                         .in_set(DistanceFieldSystems::TagSceneCasters),

@@ -261,6 +261,14 @@ fn scene_root(
         .find(|&e| roots.contains(e))
 }
 
+/// What the rule decided for a mesh entity (kept on it, so that the root's counts are
+/// recomputed from the meshes that exist: a respawned scene does not count twice).
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct SceneMeshVerdict {
+    root: Entity,
+    counts: SceneCasterCounts,
+}
+
 /// Tags new mesh entities under a [`DistanceFieldSceneCasters`] root, and all of a
 /// root's meshes again when its settings change.
 #[allow(clippy::too_many_arguments, reason = "a Bevy system")]
@@ -274,17 +282,13 @@ pub(super) fn tag_scene_casters(
     mesh_assets: Option<Res<Assets<Mesh>>>,
     // Absent in apps without PBR (e.g. headless logic tests): no material, opaque.
     materials: Option<Res<Assets<StandardMaterial>>>,
-    mut counts: Query<&mut SceneCasterCounts>,
     mut waiting: Local<Vec<Entity>>,
     mut closed_meshes: Local<bevy::platform::collections::HashMap<AssetId<Mesh>, bool>>,
 ) {
     // (mesh entity, root) pairs to decide this frame.
     let mut todo: Vec<(Entity, Entity)> = Vec::new();
-    // This frame's counts per root; roots whose settings changed start from zero.
-    let mut tallies: Vec<(Entity, SceneCasterCounts, bool)> = Vec::new();
     for (root, settings) in &roots {
         if settings.is_changed() {
-            tallies.push((root, SceneCasterCounts::default(), true));
             todo.extend(
                 std::iter::once(root)
                     .chain(children.iter_descendants(root))
@@ -358,17 +362,38 @@ pub(super) fn tag_scene_casters(
                 }
             }
         }
-        match tallies.iter_mut().find(|(r, ..)| *r == root) {
-            Some((_, sum, _)) => add_counts(sum, &tally),
-            None => tallies.push((root, tally, false)),
-        }
+        commands.entity(entity).insert(SceneMeshVerdict {
+            root,
+            counts: tally,
+        });
     }
-    for (root, tally, fresh) in tallies {
-        match counts.get_mut(root) {
-            Ok(mut c) if !fresh => add_counts(&mut c, &tally),
-            _ => {
-                commands.entity(root).insert(tally);
-            }
+}
+
+/// Recomputes [`SceneCasterCounts`] on every root when a verdict was made or a judged
+/// mesh despawned (a respawned or hot-reloaded scene), from the meshes under it.
+pub(super) fn count_scene_casters(
+    mut commands: Commands,
+    changed: Query<(), Changed<SceneMeshVerdict>>,
+    mut removed: RemovedComponents<SceneMeshVerdict>,
+    roots: Query<(Entity, Option<&SceneCasterCounts>), With<DistanceFieldSceneCasters>>,
+    added_roots: Query<(), Added<DistanceFieldSceneCasters>>,
+    children: Query<&Children>,
+    verdicts: Query<&SceneMeshVerdict>,
+) {
+    let removed = removed.read().count() > 0;
+    if changed.is_empty() && !removed && added_roots.is_empty() {
+        return;
+    }
+    for (root, counts) in &roots {
+        let mut sum = SceneCasterCounts::default();
+        for v in std::iter::once(root)
+            .chain(children.iter_descendants(root))
+            .filter_map(|e| verdicts.get(e).ok())
+        {
+            add_counts(&mut sum, &v.counts);
+        }
+        if counts != Some(&sum) {
+            commands.entity(root).insert(sum);
         }
     }
 }
@@ -388,6 +413,7 @@ pub(super) fn untag_removed_roots(
     mut commands: Commands,
     mut removed: RemovedComponents<DistanceFieldSceneCasters>,
     tagged: Query<(Entity, &DistanceFieldSceneCaster)>,
+    judged: Query<(Entity, &SceneMeshVerdict)>,
 ) {
     let removed: Vec<Entity> = removed.read().collect();
     if removed.is_empty() {
@@ -398,6 +424,12 @@ pub(super) fn untag_removed_roots(
             commands
                 .entity(entity)
                 .remove::<(DistanceFieldCaster, DistanceFieldSceneCaster)>();
+        }
+    }
+    // Verdicts under a root that is no longer one are stale.
+    for (entity, verdict) in &judged {
+        if removed.contains(&verdict.root) {
+            commands.entity(entity).remove::<SceneMeshVerdict>();
         }
     }
     for root in removed {
