@@ -233,7 +233,10 @@ fn a_respawned_scene_is_tagged_again_and_counted_once() {
         .insert(WorldAssetRoot(cornell));
     let start = std::time::Instant::now();
     while counts(&app, root).casters == 0 {
-        assert!(start.elapsed().as_secs() < 20, "the new scene was not tagged in 20 s");
+        assert!(
+            start.elapsed().as_secs() < 20,
+            "the new scene was not tagged in 20 s"
+        );
         app.update();
         std::thread::sleep(std::time::Duration::from_millis(5));
     }
