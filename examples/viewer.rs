@@ -241,7 +241,17 @@ fn watch_load(
     if error.0.is_some() {
         return;
     }
-    if let Some(bevy::asset::LoadState::Failed(e)) = assets.get_load_state(root.0.id()) {
+    use bevy::asset::{LoadState, RecursiveDependencyLoadState};
+    let id = root.0.id();
+    let failure = match (
+        assets.get_load_state(id),
+        assets.get_recursive_dependency_load_state(id),
+    ) {
+        (Some(LoadState::Failed(e)), _) => Some(e.to_string()),
+        (_, Some(RecursiveDependencyLoadState::Failed(e))) => Some(e.to_string()),
+        _ => None,
+    };
+    if let Some(e) = failure {
         error.0 = Some(format!("the scene failed to load: {e}"));
         exit.write(AppExit::error());
     }
@@ -504,6 +514,10 @@ fn fit_shadow_bias(
 
 /// Whether the scene is framed and every caster has its SDF (or failed for good).
 fn scene_ready(world: &mut World) -> bool {
+    // A fatal error (the scene failed to load) ends the wait: `run_headless` reports it.
+    if world.resource::<ViewerError>().0.is_some() {
+        return true;
+    }
     if !world.contains_resource::<Framing>() {
         return false;
     }
@@ -515,7 +529,7 @@ fn scene_ready(world: &mut World) -> bool {
         )>()
         .iter(world)
         .count();
-    pending == 0 || world.resource::<ViewerError>().0.is_some()
+    pending == 0
 }
 
 /// Renders headless (see the module docs); the error says why not.

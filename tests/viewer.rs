@@ -419,3 +419,39 @@ fn a_scene_without_meshes_renders_an_empty_frame() {
     );
     assert_eq!(r.meta["settings"]["casters"]["casters"].as_u64(), Some(0));
 }
+
+#[test]
+fn a_missing_texture_is_named_and_the_scene_still_renders() {
+    if !gpu_or_skip("a_missing_texture_is_named_and_the_scene_still_renders") {
+        return;
+    }
+    let Some(bin) = viewer_binary() else { return };
+    // Valid glTF whose texture file is missing: the header checks pass; Bevy names the
+    // file in one error and the scene renders without the texture (degraded, not fatal).
+    let scene = scratch(
+        "missing_image.gltf",
+        br#"{"asset":{"version":"2.0"},"images":[{"uri":"missing.png"}],"textures":[{"source":0}],"materials":[{"pbrMetallicRoughness":{"baseColorTexture":{"index":0}}}],"scenes":[{"nodes":[]}],"scene":0}"#,
+    );
+    let out_png = output_dir().join("viewer_inputs/missing_image.png");
+    let out = std::process::Command::new(&bin)
+        .args([
+            scene.to_str().unwrap(),
+            "--headless",
+            "--size",
+            "32x32",
+            "--frames",
+            "1",
+        ])
+        .arg("--out")
+        .arg(&out_png)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert_eq!(
+        stderr.lines().filter(|l| l.contains("missing.png")).count(),
+        1,
+        "{stderr}"
+    );
+    assert!(out_png.is_file());
+}
