@@ -247,8 +247,9 @@ fn watch_load(
         assets.get_load_state(id),
         assets.get_recursive_dependency_load_state(id),
     ) {
-        (Some(LoadState::Failed(e)), _) => Some(e.to_string()),
-        (_, Some(RecursiveDependencyLoadState::Failed(e))) => Some(e.to_string()),
+        (Some(LoadState::Failed(e)), _) | (_, Some(RecursiveDependencyLoadState::Failed(e))) => {
+            Some(e.to_string())
+        }
         _ => None,
     };
     if let Some(e) = failure {
