@@ -15,10 +15,10 @@ use bevy::render::render_resource::binding_types::{
 };
 use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
-    BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d, MapMode, PipelineCache,
-    ShaderStages, ShaderType, TextureDescriptor, TextureDimension, TextureFormat,
+    BufferId, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d, MapMode,
+    PipelineCache, ShaderStages, ShaderType, TextureDescriptor, TextureDimension, TextureFormat,
     TextureSampleType, TextureUsages, TextureView, TextureViewDescriptor, TextureViewDimension,
-    UniformBuffer,
+    TextureViewId, UniformBuffer,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::sync_world::MainEntity;
@@ -51,7 +51,10 @@ struct BufferDumpPipeline {
     no_gbuffer: TextureView,
 }
 
-/// A dumping view's pooled buffers and this frame's bind group.
+/// The resources a dump bind group binds.
+type BindKey = (TextureViewId, TextureViewId, TextureViewId, BufferId);
+
+/// A dumping view's pooled buffers and its bind group.
 #[derive(Component)]
 struct ViewBufferDump {
     /// Pixels and mask layers the buffers are sized for.
@@ -61,7 +64,11 @@ struct ViewBufferDump {
     output: Buffer,
     staging: Buffer,
     uniform: UniformBuffer<DumpView>,
-    bind_group: Option<BindGroup>,
+    /// The bind group and what it binds (depth, G-buffer, masks, uniform): made again
+    /// only when one of them changes.
+    bind_group: Option<(BindKey, BindGroup)>,
+    /// Asked for this frame, and bound.
+    active: bool,
     /// The main-world lights of the mask layers, this frame.
     lights: Vec<Entity>,
     /// Copied this frame, to be mapped in `Cleanup`.
@@ -212,6 +219,7 @@ fn prepare_buffer_dumps(
             staging,
             uniform: UniformBuffer::default(),
             bind_group: None,
+            active: false,
             lights: Vec::new(),
             copied: Arc::default(),
             busy: Arc::default(),
@@ -239,12 +247,12 @@ fn prepare_buffer_dump_bind_groups(
         return;
     };
     for (view, prepass, inputs, mut dump, asked) in &mut views {
-        dump.bind_group = None;
+        dump.active = false;
         // No longer asked for: the buffers are kept (pooled), the pass does not run.
         let (true, Some(depth)) = (asked, prepass.depth_view()) else {
             continue;
         };
-        let gbuffer = prepass.deferred_view();
+        let gbuffer = prepass.deferred_view().unwrap_or(&pipeline.no_gbuffer);
         let masks = inputs.filter(|i| i.lights.len() as u32 == dump.layers);
         let uniform = DumpView {
             view_from_clip: view.clip_from_view.inverse(),
@@ -252,7 +260,7 @@ fn prepare_buffer_dump_bind_groups(
                 dump.size.x,
                 dump.size.y,
                 masks.map_or(0, |_| dump.layers),
-                u32::from(gbuffer.is_some()),
+                u32::from(prepass.deferred_view().is_some()),
             ),
         };
         let dump = &mut *dump;
@@ -261,22 +269,33 @@ fn prepare_buffer_dump_bind_groups(
         dump.lights = masks.map_or_else(Vec::new, |m| {
             m.lights.iter().map(|l| l.light.id()).collect()
         });
-        let Some(uniform) = dump.uniform.binding() else {
+        let mask_view = masks.map_or(&pipeline.no_masks, |m| &m.masks);
+        let (Some(uniform), Some(uniform_buffer)) = (dump.uniform.binding(), dump.uniform.buffer())
+        else {
             continue;
         };
-        let bind_group = allocations.bind_group(
-            &device,
-            "penumbra_buffer_dump",
-            &pipeline_cache.get_bind_group_layout(&pipeline.layout),
-            &BindGroupEntries::sequential((
-                depth,
-                gbuffer.unwrap_or(&pipeline.no_gbuffer),
-                masks.map_or(&pipeline.no_masks, |m| &m.masks),
-                uniform,
-                dump.output.as_entire_binding(),
-            )),
+        let key = (
+            depth.id(),
+            gbuffer.id(),
+            mask_view.id(),
+            uniform_buffer.id(),
         );
-        dump.bind_group = Some(bind_group);
+        if dump.bind_group.as_ref().is_none_or(|(k, _)| *k != key) {
+            let bind_group = allocations.bind_group(
+                &device,
+                "penumbra_buffer_dump",
+                &pipeline_cache.get_bind_group_layout(&pipeline.layout),
+                &BindGroupEntries::sequential((
+                    depth,
+                    gbuffer,
+                    mask_view,
+                    uniform,
+                    dump.output.as_entire_binding(),
+                )),
+            );
+            dump.bind_group = Some((key, bind_group));
+        }
+        dump.active = true;
     }
 }
 
@@ -289,7 +308,9 @@ fn penumbra_buffer_dump(
     mut ctx: RenderContext,
 ) {
     let dump = view.into_inner();
-    let (Some(pipeline), Some(bind_group)) = (pipeline, dump.bind_group.as_ref()) else {
+    let (Some(pipeline), true, Some((_, bind_group))) =
+        (pipeline, dump.active, dump.bind_group.as_ref())
+    else {
         return;
     };
     let Some(compute) = pipeline_cache.get_compute_pipeline(pipeline.pipeline) else {
