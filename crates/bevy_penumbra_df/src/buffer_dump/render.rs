@@ -4,7 +4,7 @@
 use super::{PenumbraBufferDump, RawDump};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::lighting::PenumbraLightingView;
-use crate::lighting::render::PenumbraLightingInputs;
+use crate::lighting::render::{PenumbraLightingInputs, PenumbraLightingPipeline};
 use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
@@ -17,8 +17,8 @@ use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
     BufferId, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d, MapMode,
     PipelineCache, ShaderStages, ShaderType, TextureDescriptor, TextureDimension, TextureFormat,
-    TextureSampleType, TextureUsages, TextureView, TextureViewDescriptor, TextureViewDimension,
-    TextureViewId, UniformBuffer,
+    TextureSampleType, TextureUsages, TextureView, TextureViewDescriptor, TextureViewId,
+    UniformBuffer,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::sync_world::MainEntity;
@@ -40,13 +40,12 @@ struct DumpView {
 #[derive(Resource)]
 struct DumpSender(Sender<RawDump>);
 
-/// The dump pipeline and what it binds when a view lacks an input.
+/// The dump pipeline and what it binds when a view has no G-buffer (views without
+/// masks bind the lighting pass's white layer).
 #[derive(Resource)]
 struct BufferDumpPipeline {
     layout: BindGroupLayoutDescriptor,
     pipeline: CachedComputePipelineId,
-    /// One white mask layer, for views without masks.
-    no_masks: TextureView,
     /// An empty G-buffer, for views without one (normals read as 0).
     no_gbuffer: TextureView,
 }
@@ -103,7 +102,6 @@ fn init_buffer_dump_pipeline(
     mut commands: Commands,
     pipeline_cache: Res<PipelineCache>,
     device: Res<RenderDevice>,
-    queue: Res<RenderQueue>,
     library: Option<Res<PenumbraShaderLibrary>>,
 ) {
     let Some(library) = library else {
@@ -129,34 +127,20 @@ fn init_buffer_dump_pipeline(
         "lighting/buffer_dump.wgsl",
         "dump",
     );
-    let texture = |label: &'static str, format: TextureFormat| {
-        device.create_texture(&TextureDescriptor {
-            label: Some(label),
-            size: Extent3d::default(),
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: TextureDimension::D2,
-            format,
-            usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
-            view_formats: &[],
-        })
-    };
-    let masks = texture("penumbra_buffer_dump_no_masks", TextureFormat::R32Float);
-    queue.write_texture(
-        masks.as_image_copy(),
-        &1.0f32.to_le_bytes(),
-        bevy::render::render_resource::TexelCopyBufferLayout::default(),
-        Extent3d::default(),
-    );
+    let no_gbuffer = device.create_texture(&TextureDescriptor {
+        label: Some("penumbra_buffer_dump_no_gbuffer"),
+        size: Extent3d::default(),
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: TextureDimension::D2,
+        format: TextureFormat::Rgba32Uint,
+        usage: TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    });
     commands.insert_resource(BufferDumpPipeline {
         layout,
         pipeline,
-        no_masks: masks.create_view(&TextureViewDescriptor {
-            dimension: Some(TextureViewDimension::D2Array),
-            ..default()
-        }),
-        no_gbuffer: texture("penumbra_buffer_dump_no_gbuffer", TextureFormat::Rgba32Uint)
-            .create_view(&TextureViewDescriptor::default()),
+        no_gbuffer: no_gbuffer.create_view(&TextureViewDescriptor::default()),
     });
 }
 
@@ -234,6 +218,8 @@ fn prepare_buffer_dump_bind_groups(
     queue: Res<RenderQueue>,
     allocations: Res<PenumbraGpuAllocations>,
     pipeline: Option<Res<BufferDumpPipeline>>,
+    // Its white mask layer is bound for views without masks.
+    lighting: Option<Res<PenumbraLightingPipeline>>,
     pipeline_cache: Res<PipelineCache>,
     mut views: Query<(
         &ExtractedView,
@@ -243,7 +229,7 @@ fn prepare_buffer_dump_bind_groups(
         Has<PenumbraBufferDump>,
     )>,
 ) {
-    let Some(pipeline) = pipeline else {
+    let (Some(pipeline), Some(lighting)) = (pipeline, lighting) else {
         return;
     };
     for (view, prepass, inputs, mut dump, asked) in &mut views {
@@ -269,7 +255,7 @@ fn prepare_buffer_dump_bind_groups(
         dump.lights = masks.map_or_else(Vec::new, |m| {
             m.lights.iter().map(|l| l.light.id()).collect()
         });
-        let mask_view = masks.map_or(&pipeline.no_masks, |m| &m.masks);
+        let mask_view = masks.map_or(&lighting.no_masks, |m| &m.masks);
         let (Some(uniform), Some(uniform_buffer)) = (dump.uniform.binding(), dump.uniform.buffer())
         else {
             continue;

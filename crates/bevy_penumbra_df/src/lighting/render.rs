@@ -90,7 +90,7 @@ pub struct PenumbraLightingPipeline {
     layout: BindGroupLayoutDescriptor,
     shader: Handle<Shader>,
     /// One white layer: bound when a view has no masks.
-    no_masks: TextureView,
+    pub(crate) no_masks: TextureView,
 }
 
 /// A view's specialised lighting pipeline.

@@ -285,6 +285,11 @@ pub(super) fn tag_scene_casters(
     mut waiting: Local<Vec<Entity>>,
     mut closed_meshes: Local<bevy::platform::collections::HashMap<AssetId<Mesh>, bool>>,
 ) {
+    // No root: nothing to tag (and no ancestor walk for every new mesh).
+    if roots.is_empty() {
+        waiting.clear();
+        return;
+    }
     // (mesh entity, root) pairs to decide this frame.
     let mut todo: Vec<(Entity, Entity)> = Vec::new();
     for (root, settings) in &roots {
