@@ -472,10 +472,13 @@ fn shadow_scene_lights(
 /// Once every caster is baked: the shadow rays' bias is at least two voxels of the
 /// coarsest two-sided caster, so that a surface does not shadow itself from inside its
 /// own shell (a shell is about a voxel thick; scenes in odd units or with large open
-/// meshes have coarse voxels). Solid casters need no such margin.
+/// meshes have coarse voxels). Solid casters need no such margin. Applied to every
+/// light when that voxel size changes, else only to lights that just got
+/// `DistanceFieldShadows`: a bias set in the panel stays.
 #[allow(clippy::type_complexity)]
 fn fit_shadow_bias(
     casters: Query<(&DistanceFieldCaster, Option<&SdfBaked>, &GlobalTransform)>,
+    rebaked: Query<(), Or<(Changed<SdfBaked>, Changed<DistanceFieldCaster>)>>,
     volumes: Res<Assets<SdfVolumeAsset>>,
     mut lights: Query<&mut DistanceFieldShadows>,
     mut fitted: Local<Option<f32>>,
@@ -486,6 +489,11 @@ fn fit_shadow_bias(
     }
     if clock.1.is_none() {
         clock.1 = Some(clock.0.elapsed());
+    }
+    // (Reading `is_added` through `Mut` does not mark the light changed.)
+    let any_new = lights.iter_mut().any(|l| l.is_added());
+    if fitted.is_some() && rebaked.is_empty() && !any_new {
+        return;
     }
     let voxel = casters
         .iter()
@@ -502,12 +510,10 @@ fn fit_shadow_bias(
             Some(volume.voxel_size * scale)
         })
         .fold(0.0f32, f32::max);
-    if *fitted == Some(voxel) && !lights.iter().any(|l| l.bias < 2.0 * voxel) {
-        return;
-    }
+    let all = *fitted != Some(voxel);
     *fitted = Some(voxel);
     for mut light in &mut lights {
-        if light.bias < 2.0 * voxel {
+        if (all || light.is_added()) && light.bias < 2.0 * voxel {
             light.bias = 2.0 * voxel;
         }
     }
