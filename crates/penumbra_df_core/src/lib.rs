@@ -26,6 +26,7 @@
 //! [`object::TILE_SIZE`] metres — so that a record stays precise 10⁵ m from the origin:
 //! shaders subtract the camera's tile first and work with small camera-relative numbers.
 
+pub mod ao;
 pub mod atlas;
 pub mod cull;
 pub mod object;

@@ -36,8 +36,7 @@ pub const RECORD_BYTES: usize = RECORD_WORDS * 4;
 pub mod flags {
     /// The caster shadows lights that use distance-field shadows.
     pub const CASTS_SHADOWS: u32 = 1 << 0;
-    /// The caster will occlude distance-field ambient occlusion (planned; no pass reads
-    /// it yet).
+    /// The caster occludes distance-field ambient occlusion.
     pub const CASTS_OCCLUSION: u32 = 1 << 1;
     /// Two-sided (foliage): baked as a shell around every surface (`SignMethod::
     /// TWO_SIDED`), so thin and open surfaces are solid about a voxel thick. Passes
@@ -59,6 +58,12 @@ pub mod flags {
     /// (`casts_shadows` in `shaders/df/shadow.wgsl`).
     pub const fn casts_shadows(f: u32) -> bool {
         f & LIVE != 0 && f & CASTS_SHADOWS != 0 && f & (VISIBLE | CAST_HIDDEN_SHADOW) != 0
+    }
+    /// Whether a record with flags `f` occludes distance-field ambient occlusion:
+    /// live, [`CASTS_OCCLUSION`], and visible or [`CAST_HIDDEN_SHADOW`]
+    /// (`casts_occlusion` in `shaders/df/ao.wgsl`).
+    pub const fn casts_occlusion(f: u32) -> bool {
+        f & LIVE != 0 && f & CASTS_OCCLUSION != 0 && f & (VISIBLE | CAST_HIDDEN_SHADOW) != 0
     }
     /// Shift of the shape kind ([`super::ShapeKind`]).
     pub const KIND_SHIFT: u32 = 8;

@@ -19,6 +19,8 @@
 //!   shapes) and the debug view's sphere tracing.
 //! - [`df_shadow`]: distance-field soft shadows (the march) and Monte Carlo area-light
 //!   ground truth.
+//! - [`dfao`]: distance-field ambient occlusion — the cone trace with its tiles, the
+//!   upsample, specular occlusion — and cosine-weighted Monte Carlo truth on triangles.
 //! - [`shadow_mask`]: the distance-field shadow-mask pass — per pixel, the march over the
 //!   GPU object records with its per-object cone culling.
 //! - [`scene`]: an analytic ray-traced scene (spheres, planes, directional lights with hard
@@ -26,6 +28,7 @@
 
 pub mod camera;
 pub mod df;
+pub mod dfao;
 pub mod df_shadow;
 pub mod pbr;
 pub mod scene;

@@ -1,0 +1,227 @@
+//! The GPU parameters of distance-field ambient occlusion (DFAO): the cone set every
+//! pixel traces ([`cone_axis`], [`cone_weight_direction`], [`cone_tan_half`]) and the
+//! trace pass's view uniform ([`AoTraceView`], `AoTraceView` in
+//! `shaders/df/ao_trace.wgsl`, laid out by `encase` as WGSL lays it out).
+//!
+//! **Cones.** `n` cones cover the hemisphere around the surface normal with equal
+//! cosine weight: their centres are a Fibonacci spiral on the unit disc (`ρ_k =
+//! √((k + ½) / n)`, `φ_k = k · 137.5°`) lifted onto the hemisphere (Malley's method),
+//! so each stands for `1 / n` of the cosine-weighted hemisphere and the AO is the mean
+//! of their visibilities. Each cone's half-angle θ gives it `1 / n` of the hemisphere's
+//! solid angle (`cos θ = 1 − 1 / n`, Unreal's rule), at most 45°. The cone is *marched*
+//! along an axis tilted up from its centre until its edge clears the tangent plane by
+//! a margin (`cos α ≥ tan θ`): the distance field's value at a sample is the distance
+//! to the receiver's own plane, shorter than the distance in the cone's section, so a
+//! lower axis would see its own flat surface as an occluder. Bent normals use the
+//! centres ([`cone_weight_direction`]).
+
+use crate::cull::CameraOrigin;
+use encase::ShaderType;
+use glam::{IVec3, Mat3, Mat4, UVec2, Vec3};
+
+/// Most cones per pixel.
+pub const MAX_CONES: u32 = 16;
+/// Most march steps per cone and object.
+pub const MAX_STEPS: u32 = 64;
+/// Golden angle, radians: the spiral's turn from one cone to the next.
+pub const GOLDEN_ANGLE: f32 = 2.399_963_3;
+/// The march steps at least this fraction of the cone's radius (sphere tracing
+/// otherwise crawls along surfaces parallel to the cone).
+pub const MIN_STEP_FRACTION: f32 = 0.5;
+/// The exponent applied to each cone's visibility: the approximate cone intersection
+/// (penumbra only) reports a cone next to an occluder's edge as nearly shut when about
+/// half of it is open; an exponent below 1 opens it up (chosen against ray-traced truth,
+/// `cargo bench -p penumbra_reference --bench dfao`).
+pub const CONE_SHAPING: f32 = 0.25;
+/// Pixels per tile side of the trace pass (its workgroup).
+pub const TILE: u32 = 8;
+
+/// Tangent of the half-angle of each of `n` cones (`cos θ = 1 − 1/n`, at most 45°).
+pub fn cone_tan_half(n: u32) -> f32 {
+    let c = 1.0 - 1.0 / n.clamp(1, MAX_CONES) as f32;
+    let s = (1.0 - c * c).max(0.0).sqrt();
+    (s / c.max(1e-6)).min(1.0)
+}
+
+/// Disc coordinates `(ρ, φ)` of cone `k` of `n`.
+fn spiral(k: u32, n: u32) -> (f32, f32) {
+    let n = n.clamp(1, MAX_CONES);
+    (((k as f32 + 0.5) / n as f32).sqrt(), k as f32 * GOLDEN_ANGLE)
+}
+
+/// Tangent-space (+Z the normal) centre of cone `k` of `n`: the direction its
+/// visibility weights in the bent normal.
+pub fn cone_weight_direction(k: u32, n: u32) -> Vec3 {
+    let (rho, phi) = spiral(k, n);
+    Vec3::new(rho * phi.cos(), rho * phi.sin(), (1.0 - rho * rho).max(0.0).sqrt())
+}
+
+/// Tangent-space axis cone `k` of `n` is marched along: its centre.
+pub fn cone_axis(k: u32, n: u32) -> Vec3 {
+    cone_weight_direction(k, n)
+}
+
+/// An orthonormal tangent frame `(t, b)` for unit `n` (Duff et al. 2017, branchless):
+/// tangent-space `v` is `t · v.x + b · v.y + n · v.z`.
+pub fn tangent_frame(n: Vec3) -> (Vec3, Vec3) {
+    let sign = if n.z >= 0.0 { 1.0 } else { -1.0 };
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        Vec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
+}
+
+/// The trace's settings, resolved and clamped (what the pass uses).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AoTrace {
+    /// Occluders farther than this along a cone do not occlude, metres (> 0).
+    pub max_distance: f32,
+    /// Cones per pixel, `1..=MAX_CONES`.
+    pub cone_count: u32,
+    /// March steps per cone and object, `1..=MAX_STEPS`.
+    pub steps_per_cone: u32,
+    /// The cones start this far along the normal, metres (≥ 0).
+    pub bias: f32,
+    /// Cone visibility `v` becomes `v^shaping` ([`CONE_SHAPING`]).
+    pub shaping: f32,
+}
+
+impl AoTrace {
+    /// How far from a pixel an occluder's surface can lower its AO: every sample lies
+    /// within `bias + max_distance` of it and occludes only while closer to a surface
+    /// than the cone's radius (at most `max_distance · tan θ`).
+    pub fn influence(&self) -> f32 {
+        self.bias + self.max_distance * (1.0 + cone_tan_half(self.cone_count))
+    }
+}
+
+/// The trace pass's per-view uniform (`AoTraceView` in `shaders/df/ao_trace.wgsl`).
+#[derive(ShaderType, Clone, Copy, Debug, Default, PartialEq)]
+pub struct AoTraceView {
+    /// Inverse projection (reverse-Z clip to view space).
+    pub view_from_clip: Mat4,
+    /// The camera's rotation (view to camera-relative world).
+    pub world_from_view: Mat3,
+    /// The camera's 512 m tile.
+    pub camera_tile: IVec3,
+    /// Object buffer slots (records to consider).
+    pub slot_count: u32,
+    /// The camera's position within its tile.
+    pub camera_offset: Vec3,
+    /// [`AoTrace::max_distance`].
+    pub max_distance: f32,
+    /// The view's size, pixels.
+    pub full_size: UVec2,
+    /// The trace's size: `ceil(full_size / divisor)`.
+    pub trace_size: UVec2,
+    /// Which pixel of its `divisor × divisor` cell each trace texel takes this frame.
+    pub jitter: UVec2,
+    /// Trace resolution divisor (1: every pixel).
+    pub divisor: u32,
+    /// [`AoTrace::cone_count`].
+    pub cone_count: u32,
+    /// [`AoTrace::steps_per_cone`].
+    pub steps_per_cone: u32,
+    /// [`AoTrace::bias`].
+    pub bias: f32,
+    /// [`cone_tan_half`] of the cone count.
+    pub tan_half: f32,
+    /// [`AoTrace::shaping`].
+    pub shaping: f32,
+    /// [`AoTrace::influence`].
+    pub influence: f32,
+}
+
+impl AoTraceView {
+    /// The uniform for a camera at `camera` (world position) with the given projection
+    /// inverse and rotation.
+    #[allow(clippy::too_many_arguments, reason = "one uniform's fields")]
+    pub fn new(
+        camera: &CameraOrigin,
+        view_from_clip: Mat4,
+        world_from_view: Mat3,
+        full_size: UVec2,
+        divisor: u32,
+        jitter: UVec2,
+        slot_count: u32,
+        trace: &AoTrace,
+    ) -> AoTraceView {
+        let divisor = divisor.max(1);
+        AoTraceView {
+            view_from_clip,
+            world_from_view,
+            camera_tile: IVec3::from_array(camera.tile),
+            slot_count,
+            camera_offset: camera.offset,
+            max_distance: trace.max_distance,
+            full_size,
+            trace_size: trace_size(full_size, divisor),
+            jitter: jitter.min(UVec2::splat(divisor - 1)),
+            divisor,
+            cone_count: trace.cone_count,
+            steps_per_cone: trace.steps_per_cone,
+            bias: trace.bias,
+            tan_half: cone_tan_half(trace.cone_count),
+            shaping: trace.shaping,
+            influence: trace.influence(),
+        }
+    }
+}
+
+/// The trace's size for a view of `full_size` at `divisor`.
+pub fn trace_size(full_size: UVec2, divisor: u32) -> UVec2 {
+    let d = divisor.max(1);
+    UVec2::new(full_size.x.div_ceil(d), full_size.y.div_ceil(d)).max(UVec2::ONE)
+}
+
+/// The jitter of frame `frame` for a `divisor`: four positions of the `divisor ×
+/// divisor` cell, in the order (0,0), (1,1), (1,0), (0,1) scaled by `divisor / 2`.
+pub fn jitter(frame: u32, divisor: u32) -> UVec2 {
+    if divisor <= 1 {
+        return UVec2::ZERO;
+    }
+    let step = divisor / 2;
+    let [x, y] = [[0, 0], [1, 1], [1, 0], [0, 1]][(frame % 4) as usize];
+    UVec2::new(x * step, y * step)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cones_cover_the_hemisphere_and_clear_the_plane() {
+        for n in 1..=MAX_CONES {
+            let t = cone_tan_half(n);
+            assert!(t > 0.0 && t <= 1.0, "{n}: {t}");
+            for k in 0..n {
+                let axis = cone_axis(k, n);
+                assert!((axis.length() - 1.0).abs() < 1e-5);
+                assert!(cone_weight_direction(k, n).z > 0.0);
+            }
+        }
+        assert!((cone_tan_half(9) - 27.27f32.to_radians().tan()).abs() < 1e-3);
+    }
+
+    #[test]
+    fn tangent_frames_are_orthonormal() {
+        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.8).normalize()] {
+            let (t, b) = tangent_frame(n);
+            for (u, v) in [(t, b), (t, n), (b, n)] {
+                assert!(u.dot(v).abs() < 1e-5);
+            }
+            assert!((t.cross(b) - n).length() < 1e-5, "{n}");
+        }
+    }
+
+    #[test]
+    fn the_uniform_has_wgsl_layout() {
+        // mat4 64 + mat3 48 + 16 + 16 + 8 + 8 + 8 + 7 words, rounded to 16.
+        assert_eq!(AoTraceView::min_size().get(), 64 + 48 + 16 + 16 + 8 + 8 + 8 + 32);
+        assert_eq!(jitter(5, 2), UVec2::new(1, 1));
+        assert_eq!(jitter(2, 4), UVec2::new(2, 0));
+        assert_eq!(trace_size(UVec2::new(5, 4), 2), UVec2::new(3, 2));
+    }
+}
