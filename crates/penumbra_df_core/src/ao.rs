@@ -46,14 +46,21 @@ pub fn cone_tan_half(n: u32) -> f32 {
 /// Disc coordinates `(ρ, φ)` of cone `k` of `n`.
 fn spiral(k: u32, n: u32) -> (f32, f32) {
     let n = n.clamp(1, MAX_CONES);
-    (((k as f32 + 0.5) / n as f32).sqrt(), k as f32 * GOLDEN_ANGLE)
+    (
+        ((k as f32 + 0.5) / n as f32).sqrt(),
+        k as f32 * GOLDEN_ANGLE,
+    )
 }
 
 /// Tangent-space (+Z the normal) centre of cone `k` of `n`: the direction its
 /// visibility weights in the bent normal.
 pub fn cone_weight_direction(k: u32, n: u32) -> Vec3 {
     let (rho, phi) = spiral(k, n);
-    Vec3::new(rho * phi.cos(), rho * phi.sin(), (1.0 - rho * rho).max(0.0).sqrt())
+    Vec3::new(
+        rho * phi.cos(),
+        rho * phi.sin(),
+        (1.0 - rho * rho).max(0.0).sqrt(),
+    )
 }
 
 /// Tangent-space axis cone `k` of `n` is marched along: its centre.
@@ -207,7 +214,12 @@ mod tests {
 
     #[test]
     fn tangent_frames_are_orthonormal() {
-        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.8).normalize()] {
+        for n in [
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::X,
+            Vec3::new(0.3, -0.5, 0.8).normalize(),
+        ] {
             let (t, b) = tangent_frame(n);
             for (u, v) in [(t, b), (t, n), (b, n)] {
                 assert!(u.dot(v).abs() < 1e-5);
@@ -219,7 +231,10 @@ mod tests {
     #[test]
     fn the_uniform_has_wgsl_layout() {
         // mat4 64 + mat3 48 + 16 + 16 + 8 + 8 + 8 + 7 words, rounded to 16.
-        assert_eq!(AoTraceView::min_size().get(), 64 + 48 + 16 + 16 + 8 + 8 + 8 + 32);
+        assert_eq!(
+            AoTraceView::min_size().get(),
+            64 + 48 + 16 + 16 + 8 + 8 + 8 + 32
+        );
         assert_eq!(jitter(5, 2), UVec2::new(1, 1));
         assert_eq!(jitter(2, 4), UVec2::new(2, 0));
         assert_eq!(trace_size(UVec2::new(5, 4), 2), UVec2::new(3, 2));

@@ -28,8 +28,8 @@
 
 pub mod camera;
 pub mod df;
-pub mod dfao;
 pub mod df_shadow;
+pub mod dfao;
 pub mod pbr;
 pub mod scene;
 pub mod shadow_mask;

@@ -59,7 +59,12 @@ impl AoSample {
 
     /// As the GPU stores it: `(ao, bent_normal)`.
     pub fn to_vec4(self) -> Vec4 {
-        Vec4::new(self.ao, self.bent_normal.x, self.bent_normal.y, self.bent_normal.z)
+        Vec4::new(
+            self.ao,
+            self.bent_normal.x,
+            self.bent_normal.y,
+            self.bent_normal.z,
+        )
     }
 }
 
@@ -314,7 +319,8 @@ pub fn trace_view(
             if texels.is_empty() {
                 continue;
             }
-            let points: Vec<(Vec3, f32)> = texels.iter().map(|&(_, p, _)| (p, p.length())).collect();
+            let points: Vec<(Vec3, f32)> =
+                texels.iter().map(|&(_, p, _)| (p, p.length())).collect();
             let ranges = tile_ranges(&points);
             let kept: [Vec<bool>; 2] = std::array::from_fn(|range| {
                 records
@@ -392,5 +398,11 @@ fn concentric_disc(u: Vec2) -> Vec2 {
     Vec2::new(r * phi.cos(), r * phi.sin())
 }
 
+mod apply;
 #[cfg(test)]
 mod tests;
+
+pub use apply::{
+    SpecularOcclusion, UPSAMPLE_DEPTH_TOLERANCE, UPSAMPLE_NORMAL_POWER, cone_cone_intersection,
+    finish_ao, specular_occlusion, upsample,
+};

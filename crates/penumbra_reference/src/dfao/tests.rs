@@ -42,9 +42,20 @@ fn an_open_plane_is_unoccluded() {
             cone_count,
             ..defaults()
         };
-        let s = pixel_ao(&records, &atlas, &origin(), Vec3::new(0.3, 0.0, -2.0), Vec3::Y, &trace);
+        let s = pixel_ao(
+            &records,
+            &atlas,
+            &origin(),
+            Vec3::new(0.3, 0.0, -2.0),
+            Vec3::Y,
+            &trace,
+        );
         assert_eq!(s.ao, 1.0, "{cone_count} cones");
-        assert!((s.bent_normal - Vec3::Y).length() < 1e-5, "{cone_count}: {}", s.bent_normal);
+        assert!(
+            (s.bent_normal - Vec3::Y).length() < 1e-5,
+            "{cone_count}: {}",
+            s.bent_normal
+        );
     }
 }
 
@@ -63,10 +74,20 @@ fn a_sphere_over_a_plane_matches_the_analytic_occlusion() {
         let center = Vec3::new(0.0, d, 0.0);
         let records = [
             ground(),
-            object(CasterShape::Sphere { radius }, Affine3A::from_translation(center)),
+            object(
+                CasterShape::Sphere { radius },
+                Affine3A::from_translation(center),
+            ),
         ];
         let want = 1.0 - (radius / d).powi(2);
-        let s = pixel_ao(&records, &atlas, &origin(), Vec3::ZERO, Vec3::Y, &defaults());
+        let s = pixel_ao(
+            &records,
+            &atlas,
+            &origin(),
+            Vec3::ZERO,
+            Vec3::Y,
+            &defaults(),
+        );
         worst = worst.max((s.ao - want).abs());
         // Few cones stay open under a near sphere: their sum leans.
         if d >= 1.2 {
@@ -76,7 +97,11 @@ fn a_sphere_over_a_plane_matches_the_analytic_occlusion() {
         let tris: Vec<[Vec3; 3]> = sphere_tris.iter().map(|t| t.map(|v| v + center)).collect();
         let bvh = penumbra_sdf::bvh::Bvh::build(&tris);
         let truth = monte_carlo_ao(&bvh, Vec3::ZERO, Vec3::Y, 10.0, 64);
-        assert!((truth.ao - want).abs() < 0.02, "{d}: truth {} want {want}", truth.ao);
+        assert!(
+            (truth.ao - want).abs() < 0.02,
+            "{d}: truth {} want {want}",
+            truth.ao
+        );
         // Not occluding: open.
         let mut hidden = records;
         hidden[1] = encode(&ObjectDesc {
@@ -97,12 +122,21 @@ pub(super) fn sphere_triangles(radius: f32, segments: u32) -> Vec<[Vec3; 3]> {
     let point = |i: u32, j: u32| {
         let theta = std::f32::consts::PI * i as f32 / segments as f32;
         let phi = std::f32::consts::TAU * j as f32 / segments as f32;
-        Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()) * radius
+        Vec3::new(
+            theta.sin() * phi.cos(),
+            theta.cos(),
+            theta.sin() * phi.sin(),
+        ) * radius
     };
     let mut tris = Vec::new();
     for i in 0..segments {
         for j in 0..segments {
-            let (a, b, c, d) = (point(i, j), point(i + 1, j), point(i + 1, j + 1), point(i, j + 1));
+            let (a, b, c, d) = (
+                point(i, j),
+                point(i + 1, j),
+                point(i + 1, j + 1),
+                point(i, j + 1),
+            );
             tris.push([a, b, c]);
             tris.push([a, c, d]);
         }
@@ -111,7 +145,10 @@ pub(super) fn sphere_triangles(radius: f32, segments: u32) -> Vec<[Vec3; 3]> {
 }
 
 fn quad(c: Vec3, u: Vec3, v: Vec3) -> [[Vec3; 3]; 2] {
-    [[c - u - v, c + u - v, c + u + v], [c - u - v, c + u + v, c - u + v]]
+    [
+        [c - u - v, c + u - v, c + u + v],
+        [c - u - v, c + u + v, c - u + v],
+    ]
 }
 
 /// A room corner (floor and two walls, boxes 0.2 m thick) against ray-traced truth on
@@ -136,11 +173,18 @@ fn a_corner_matches_monte_carlo_truth() {
         worst = worst.max(e);
         count += 1;
         // Away from both walls (+x, +z).
-        assert!(model.bent_normal.x > 0.0 && model.bent_normal.z > 0.0, "{p}: {}", model.bent_normal);
+        assert!(
+            model.bent_normal.x > 0.0 && model.bent_normal.z > 0.0,
+            "{p}: {}",
+            model.bent_normal
+        );
         angles += model.bent_normal.angle_between(truth.bent_normal);
     }
     let mean = sum / count as f32;
-    eprintln!("corner: mean |Δ| {mean:.4}, worst {worst:.4}, mean angle {:.3}", angles / count as f32);
+    eprintln!(
+        "corner: mean |Δ| {mean:.4}, worst {worst:.4}, mean angle {:.3}",
+        angles / count as f32
+    );
     assert!(mean <= 0.08 && worst < 0.2, "mean {mean} worst {worst}");
 }
 
@@ -149,8 +193,14 @@ fn corner_scene() -> (Vec<ObjectRecord>, penumbra_sdf::bvh::Bvh) {
     let half = Vec3::new(2.0, 0.1, 2.0);
     let walls = [
         (Vec3::new(0.0, -0.1, 0.0), Quat::IDENTITY),
-        (Vec3::new(0.0, 1.9, -2.1), Quat::from_rotation_x(std::f32::consts::FRAC_PI_2)),
-        (Vec3::new(-2.1, 1.9, 0.0), Quat::from_rotation_z(std::f32::consts::FRAC_PI_2)),
+        (
+            Vec3::new(0.0, 1.9, -2.1),
+            Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
+        ),
+        (
+            Vec3::new(-2.1, 1.9, 0.0),
+            Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
+        ),
     ];
     let records: Vec<ObjectRecord> = walls
         .iter()
@@ -164,9 +214,20 @@ fn corner_scene() -> (Vec<ObjectRecord>, penumbra_sdf::bvh::Bvh) {
     let mut tris = Vec::new();
     for &(c, q) in &walls {
         let m = Affine3A::from_rotation_translation(q, c);
-        let (x, y, z) = (m.transform_vector3(Vec3::X * half.x), m.transform_vector3(Vec3::Y * half.y), m.transform_vector3(Vec3::Z * half.z));
+        let (x, y, z) = (
+            m.transform_vector3(Vec3::X * half.x),
+            m.transform_vector3(Vec3::Y * half.y),
+            m.transform_vector3(Vec3::Z * half.z),
+        );
         let cc = m.transform_point3(Vec3::ZERO);
-        for (n, u, v) in [(y, x, z), (-y, z, x), (x, z, y), (-x, y, z), (z, y, x), (-z, x, y)] {
+        for (n, u, v) in [
+            (y, x, z),
+            (-y, z, x),
+            (x, z, y),
+            (-x, y, z),
+            (z, y, x),
+            (-z, x, y),
+        ] {
             tris.extend(quad(cc + n, u, v));
         }
     }
@@ -184,13 +245,21 @@ fn tiles_never_change_the_trace() {
         let a = i as f32 * 0.9;
         records.push(object(
             if i % 2 == 0 {
-                CasterShape::Sphere { radius: 0.3 + 0.05 * i as f32 }
+                CasterShape::Sphere {
+                    radius: 0.3 + 0.05 * i as f32,
+                }
             } else {
-                CasterShape::Cuboid { half_extents: Vec3::new(0.3, 0.6, 0.2) }
+                CasterShape::Cuboid {
+                    half_extents: Vec3::new(0.3, 0.6, 0.2),
+                }
             },
             Affine3A::from_rotation_translation(
                 Quat::from_rotation_y(a),
-                Vec3::new(a.cos() * (1.0 + 0.4 * i as f32), 0.4, a.sin() * (1.0 + 0.4 * i as f32) - 3.0),
+                Vec3::new(
+                    a.cos() * (1.0 + 0.4 * i as f32),
+                    0.4,
+                    a.sin() * (1.0 + 0.4 * i as f32) - 3.0,
+                ),
             ),
         ));
     }
@@ -201,7 +270,8 @@ fn tiles_never_change_the_trace() {
         40,
         32,
     );
-    let (size, depth, normals, view_from_clip, world_from_view) = ray_cast_view(&camera, &records, &atlas);
+    let (size, depth, normals, view_from_clip, world_from_view) =
+        ray_cast_view(&camera, &records, &atlas);
     let view = AoView {
         view_from_clip,
         world_from_view,
@@ -227,7 +297,13 @@ fn tiles_never_change_the_trace() {
                     assert_eq!(got, Vec4::new(1.0, 0.0, 0.0, 0.0));
                     continue;
                 }
-                let p = position_from_depth(view_from_clip, world_from_view, size.as_vec2(), px.as_vec2(), depth[k]);
+                let p = position_from_depth(
+                    view_from_clip,
+                    world_from_view,
+                    size.as_vec2(),
+                    px.as_vec2(),
+                    depth[k],
+                );
                 let want = pixel_ao(&records, &atlas, &origin, p, normals[k], &trace).to_vec4();
                 assert_eq!(got, want, "texel ({i}, {j})");
                 occluded += usize::from(want.x < 0.9);
@@ -295,91 +371,3 @@ pub(super) fn ray_cast_view(
     }
     (size, depth, normals, view_from_clip, world_from_view)
 }
-
-/// Sphere-traces `camera`'s pixels through the records (analytic shapes): size, reverse-Z
-/// depth, normals (central differences), and the matrices.
-pub(super) fn ray_cast_view(
-    camera: &crate::camera::PerspectiveCamera,
-    records: &[ObjectRecord],
-    atlas: &Atlas,
-) -> (UVec2, Vec<f32>, Vec<Vec3>, Mat4, Mat3) {
-    let eye = camera.world_from_view.transform_point3(Vec3::ZERO);
-    let origin = CameraOrigin::at(eye).expect("finite");
-    let size = UVec2::new(camera.width, camera.height);
-    // Camera-relative positions.
-    let distance = |p: Vec3| {
-        records
-            .iter()
-            .map(|r| object_distance(r, p, &origin, atlas))
-            .fold(f32::MAX, f32::min)
-    };
-    let clip_from_view = Mat4::perspective_infinite_reverse_rh(
-        camera.fov_y,
-        camera.width as f32 / camera.height as f32,
-        0.1,
-    );
-    let world_from_view = Mat3::from_mat4(camera.world_from_view);
-    let view_from_clip = clip_from_view.inverse();
-    let mut depth = vec![0.0; (size.x * size.y) as usize];
-    let mut normals = vec![Vec3::ZERO; depth.len()];
-    for y in 0..size.y {
-        for x in 0..size.x {
-            let mut ray = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
-            ray.origin = Vec3::ZERO;
-            let mut t = 0.0;
-            for _ in 0..256 {
-                let d = distance(ray.at(t));
-                if d < 1e-4 {
-                    let p = ray.at(t);
-                    let e = 1e-3;
-                    let n = Vec3::new(
-                        distance(p + Vec3::X * e) - distance(p - Vec3::X * e),
-                        distance(p + Vec3::Y * e) - distance(p - Vec3::Y * e),
-                        distance(p + Vec3::Z * e) - distance(p - Vec3::Z * e),
-                    )
-                    .normalize();
-                    let v = world_from_view.transpose() * p;
-                    let clip = clip_from_view * v.extend(1.0);
-                    let k = (y * size.x + x) as usize;
-                    depth[k] = clip.z / clip.w;
-                    normals[k] = n;
-                    break;
-                }
-                t += d;
-                if t > 100.0 {
-                    break;
-                }
-            }
-        }
-    }
-    (size, depth, normals, view_from_clip, world_from_view)
-}
-
-#[test]
-#[ignore = "exploration"]
-fn explore_shaping() {
-    let atlas = Atlas::new(glam::UVec3::ONE);
-    let (records, bvh) = corner_scene();
-    let mut corner_truth = Vec::new();
-    for k in 0..20 {
-        let s = 0.05 + 1.5 * k as f32 / 19.0;
-        let p = Vec3::new(-2.0 + s, 0.0, -2.0 + s);
-        corner_truth.push((p, monte_carlo_ao(&bvh, p, Vec3::Y, 3.0, 32).ao));
-    }
-    for shaping in [1.0f32, 0.7, 0.5, 0.4, 0.3, 0.2] {
-        let trace = AoTrace { shaping, bias: 0.01, ..defaults() };
-        let mut e_sphere = 0.0;
-        for d in [0.6f32, 0.8, 1.2, 2.0, 4.0] {
-            let records = [ground(), object(CasterShape::Sphere { radius: 0.5 }, Affine3A::from_translation(Vec3::Y * d))];
-            let s = pixel_ao(&records, &atlas, &origin(), Vec3::ZERO, Vec3::Y, &trace);
-            e_sphere += (s.ao - (1.0 - (0.5 / d).powi(2))) / 5.0;
-        }
-        let mut e_corner = 0.0;
-        for &(p, truth) in &corner_truth {
-            let s = pixel_ao(&records, &atlas, &origin(), p, Vec3::Y, &AoTrace { max_distance: 3.0, ..trace });
-            e_corner += (s.ao - truth) / 20.0;
-        }
-        eprintln!("shaping {shaping}: sphere {e_sphere:+.3} corner {e_corner:+.3}");
-    }
-}
-

@@ -1,0 +1,227 @@
+//! The steps after the trace: the geometry-aware upsample to full resolution
+//! (`shaders/df/ao_upsample.wgsl`) and what the lighting pass does with the result
+//! (`shaders/lighting/ao.wgsl`): contrast, min occlusion, specular occlusion.
+
+use glam::{UVec2, Vec2, Vec3, Vec4};
+
+/// Relative depth difference at which a trace texel's upsample weight reaches zero.
+pub const UPSAMPLE_DEPTH_TOLERANCE: f32 = 0.1;
+/// Exponent of the normal similarity `max(n · n_s, 0)` in the upsample weight.
+pub const UPSAMPLE_NORMAL_POWER: i32 = 8;
+
+/// Geometry-aware upsample of a reduced-resolution trace (`trace_size` texels, texel
+/// `(i, j)` traced at pixel `(i, j) · divisor + jitter`) to `full_size`: each pixel
+/// blends the four texels around it with bilinear weights scaled by depth similarity
+/// (`max(0, 1 − |Δd| / (d · tolerance))`, `d` the distance from the camera) and normal
+/// similarity (`max(n · n_s, 0)⁸`); if every weight is zero, the texel closest in depth
+/// wins. Background pixels (`distance` 0 or NaN) get `(1, 0, 0, 0)`. The bent normal is
+/// renormalised.
+pub fn upsample(
+    trace: &[Vec4],
+    trace_size: UVec2,
+    divisor: u32,
+    jitter: UVec2,
+    distance: &[f32],
+    normals: &[Vec3],
+    full_size: UVec2,
+) -> Vec<Vec4> {
+    let divisor = divisor.max(1);
+    let at = |p: UVec2| (p.y * full_size.x + p.x) as usize;
+    let mut out = Vec::with_capacity((full_size.x * full_size.y) as usize);
+    for y in 0..full_size.y {
+        for x in 0..full_size.x {
+            let here = UVec2::new(x, y);
+            let d = distance[at(here)];
+            if !(d > 0.0) {
+                out.push(Vec4::new(1.0, 0.0, 0.0, 0.0));
+                continue;
+            }
+            let n = normals[at(here)];
+            let h = ((here.as_vec2() - jitter.as_vec2()) / divisor as f32).max(Vec2::ZERO);
+            let (i0, f) = (h.floor(), h - h.floor());
+            let (mut sum, mut weights) = (Vec4::ZERO, 0.0f32);
+            let (mut nearest, mut nearest_error) = (Vec4::new(1.0, n.x, n.y, n.z), f32::MAX);
+            for k in 0..4u32 {
+                let o = UVec2::new(k & 1, k >> 1);
+                let texel = (i0.as_uvec2() + o).min(trace_size - UVec2::ONE);
+                let v = trace[(texel.y * trace_size.x + texel.x) as usize];
+                let source = (texel * divisor + jitter).min(full_size - UVec2::ONE);
+                let error = (distance[at(source)] - d).abs() / d;
+                let wx = if o.x == 1 { f.x } else { 1.0 - f.x };
+                let wy = if o.y == 1 { f.y } else { 1.0 - f.y };
+                let similar = n
+                    .dot(normals[at(source)])
+                    .max(0.0)
+                    .powi(UPSAMPLE_NORMAL_POWER);
+                let w = wx * wy * (1.0 - error / UPSAMPLE_DEPTH_TOLERANCE).max(0.0) * similar;
+                sum += v * w;
+                weights += w;
+                if error < nearest_error {
+                    nearest_error = error;
+                    nearest = v;
+                }
+            }
+            let v = if weights > 1e-4 {
+                sum / weights
+            } else {
+                nearest
+            };
+            let bent = Vec3::new(v.y, v.z, v.w);
+            let len = bent.length();
+            out.push(Vec4::new(
+                v.x.clamp(0.0, 1.0),
+                if len > 1e-6 { bent.x / len } else { n.x },
+                if len > 1e-6 { bent.y / len } else { n.y },
+                if len > 1e-6 { bent.z / len } else { n.z },
+            ));
+        }
+    }
+    out
+}
+
+/// Unreal's occlusion contrast and min occlusion on a traced AO: a logistic S-curve of
+/// slope `10 · contrast` through ½, normalised to keep 0 and 1 (identity at contrast 0),
+/// then lifted to `[min_occlusion, 1]`. NaN counts as open.
+pub fn finish_ao(ao: f32, contrast: f32, min_occlusion: f32) -> f32 {
+    // NaN (never written by the passes): open.
+    let ao = if ao.is_nan() { 1.0 } else { ao.clamp(0.0, 1.0) };
+    let shaped = if contrast > 1e-3 {
+        let k = 10.0 * contrast;
+        let s = |x: f32| 1.0 / (1.0 + (-k * (x - 0.5)).exp());
+        ((s(ao) - s(0.0)) / (s(1.0) - s(0.0))).clamp(0.0, 1.0)
+    } else {
+        ao
+    };
+    let m = min_occlusion.clamp(0.0, 1.0);
+    m + (1.0 - m) * shaped
+}
+
+/// How the AO occludes specular indirect light.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpecularOcclusion {
+    /// Not at all.
+    None,
+    /// From the AO alone (Lagarde and de Rousiers 2014, as Bevy's SSAO does).
+    NonDirectional,
+    /// The overlap of the reflection cone (from roughness) and the visibility cone
+    /// (around the bent normal, its aperture from the AO), Unreal's approximation.
+    ConeCone,
+}
+
+/// The specular occlusion of a surface with AO `ao` and unit `bent` normal, unit normal
+/// `n`, unit view vector `v` (toward the camera) and linear `roughness`.
+pub fn specular_occlusion(
+    mode: SpecularOcclusion,
+    ao: f32,
+    bent: Vec3,
+    n: Vec3,
+    v: Vec3,
+    roughness: f32,
+) -> f32 {
+    match mode {
+        SpecularOcclusion::None => 1.0,
+        SpecularOcclusion::NonDirectional => {
+            let n_dot_v = n.dot(v).max(1e-4);
+            ((n_dot_v + ao).powf((-16.0 * roughness - 1.0).exp2()) - 1.0 + ao).clamp(0.0, 1.0)
+        }
+        SpecularOcclusion::ConeCone => {
+            let r = (2.0 * n.dot(v) * n - v).normalize_or_zero();
+            let reflection = roughness.max(0.1) * std::f32::consts::PI;
+            let unoccluded = ao.clamp(0.0, 1.0) * std::f32::consts::PI;
+            let between = bent.dot(r).clamp(-1.0, 1.0).acos();
+            let o = cone_cone_intersection(reflection, unoccluded, between);
+            o * ((unoccluded - 0.1) / 0.2).clamp(0.0, 1.0)
+        }
+    }
+}
+
+/// The approximate overlap (0–1) of two cones of apertures `a` and `b` (radians) whose
+/// axes are `between` apart: 1 when one contains the other, 0 when disjoint, a
+/// smoothstep between (Oat and Sander 2007, as Unreal uses it).
+pub fn cone_cone_intersection(a: f32, b: f32, between: f32) -> f32 {
+    let difference = (a - b).abs();
+    let x = 1.0 - ((between - difference) / (a + b - difference).max(1e-6)).clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn finishing_keeps_the_ends_and_orders() {
+        for contrast in [0.0f32, 0.3, 1.0] {
+            assert_eq!(finish_ao(0.0, contrast, 0.0), 0.0);
+            assert!((finish_ao(1.0, contrast, 0.0) - 1.0).abs() < 1e-6);
+            assert!((finish_ao(0.5, contrast, 0.0) - 0.5).abs() < 1e-5);
+            assert!(finish_ao(0.3, contrast, 0.0) <= 0.3 + 1e-6);
+        }
+        assert!(finish_ao(0.3, 1.0, 0.0) < 0.2);
+        assert_eq!(finish_ao(0.0, 0.0, 0.25), 0.25);
+        assert_eq!(finish_ao(f32::NAN, 0.0, 0.0), 1.0);
+    }
+
+    /// Open surfaces keep their specular; fully occluded ones lose it; the cone–cone
+    /// mode keeps a reflection along the bent normal and loses one turned away from it.
+    #[test]
+    fn specular_occlusion_modes() {
+        let n = Vec3::Y;
+        let v = Vec3::new(0.3, 1.0, 0.0).normalize();
+        for mode in [
+            SpecularOcclusion::NonDirectional,
+            SpecularOcclusion::ConeCone,
+        ] {
+            assert!(
+                specular_occlusion(mode, 1.0, n, n, v, 0.3) > 0.99,
+                "{mode:?}"
+            );
+            assert!(
+                specular_occlusion(mode, 0.0, n, n, v, 0.3) < 0.01,
+                "{mode:?}"
+            );
+        }
+        assert_eq!(
+            specular_occlusion(SpecularOcclusion::None, 0.0, n, n, v, 0.3),
+            1.0
+        );
+        let r = (2.0 * n.dot(v) * n - v).normalize();
+        let toward = specular_occlusion(SpecularOcclusion::ConeCone, 0.3, r, n, v, 0.2);
+        let away = specular_occlusion(
+            SpecularOcclusion::ConeCone,
+            0.3,
+            (n - r).normalize(),
+            n,
+            v,
+            0.2,
+        );
+        assert!(toward > 0.9 && away < 0.5, "{toward} {away}");
+    }
+
+    /// A pixel whose four texels agree takes their value; across a depth edge the far
+    /// texels do not bleed in.
+    #[test]
+    fn upsample_respects_depth_edges() {
+        let full = UVec2::new(8, 4);
+        let size = UVec2::new(4, 2);
+        // Left half near (1 m, AO 0.2), right half far (10 m, AO 0.9).
+        let distance: Vec<f32> = (0..32)
+            .map(|i| if i % 8 < 4 { 1.0 } else { 10.0 })
+            .collect();
+        let normals = vec![Vec3::Y; 32];
+        let trace: Vec<Vec4> = (0..8)
+            .map(|i| {
+                if i % 4 < 2 {
+                    Vec4::new(0.2, 0.0, 1.0, 0.0)
+                } else {
+                    Vec4::new(0.9, 0.0, 1.0, 0.0)
+                }
+            })
+            .collect();
+        let out = upsample(&trace, size, 2, UVec2::ZERO, &distance, &normals, full);
+        for (i, v) in out.iter().enumerate() {
+            let want = if i % 8 < 4 { 0.2 } else { 0.9 };
+            assert!((v.x - want).abs() < 1e-6, "pixel {i}: {v}");
+            assert!((Vec3::new(v.y, v.z, v.w) - Vec3::Y).length() < 1e-6);
+        }
+    }
+}
