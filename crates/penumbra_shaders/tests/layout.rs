@@ -171,3 +171,39 @@ fn shadow_grid_layouts_match() {
     }
     assert_eq!(constant(&m, "MAX_CELLS") as usize, SHADOW_GRID_MAX_CELLS);
 }
+
+/// `AoTraceView` is laid out by `encase` from the Rust struct: the WGSL struct has the
+/// same members in the same order and the same size; the cone constants match.
+#[test]
+fn ao_layouts_and_constants_match() {
+    use encase::ShaderType;
+    use penumbra_df_core::ao::{AoTraceView, GOLDEN_ANGLE, MAX_CONES, MIN_STEP_FRACTION};
+    let m = parse("#import penumbra::df::ao\n");
+    let (members, size) = struct_layout(&m, "AoTraceView");
+    assert_eq!(u64::from(size), AoTraceView::min_size().get());
+    let names: Vec<&str> = members.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "view_from_clip",
+            "world_from_view",
+            "camera_tile",
+            "slot_count",
+            "camera_offset",
+            "max_distance",
+            "full_size",
+            "trace_size",
+            "jitter",
+            "divisor",
+            "cone_count",
+            "steps_per_cone",
+            "bias",
+            "tan_half",
+            "shaping",
+            "influence",
+        ]
+    );
+    assert_eq!(constant(&m, "MAX_CONES") as u32, MAX_CONES);
+    assert_eq!(constant(&m, "GOLDEN_ANGLE") as f32, GOLDEN_ANGLE);
+    assert_eq!(constant(&m, "MIN_STEP_FRACTION") as f32, MIN_STEP_FRACTION);
+}

@@ -1,0 +1,122 @@
+// Distance-field ambient occlusion: the cone set and the per-object cone march (the
+// arithmetic of `penumbra_reference::dfao` and `penumbra_df_core::ao`).
+#define_import_path penumbra::df::ao
+
+#import penumbra::df::object::{
+    DistanceFieldObject, FLAG_CASTS_OCCLUSION, FLAG_CAST_HIDDEN_SHADOW, FLAG_LIVE, FLAG_VISIBLE,
+}
+#import penumbra::df::distance::object_distance
+#import penumbra::df::shadow::cone_interval
+
+const MAX_CONES: u32 = 16u;
+const GOLDEN_ANGLE: f32 = 2.3999633;
+const MIN_STEP_FRACTION: f32 = 0.5;
+
+struct AoTraceView {
+    view_from_clip: mat4x4<f32>,
+    world_from_view: mat3x3<f32>,
+    camera_tile: vec3<i32>,
+    slot_count: u32,
+    camera_offset: vec3<f32>,
+    max_distance: f32,
+    full_size: vec2<u32>,
+    trace_size: vec2<u32>,
+    jitter: vec2<u32>,
+    divisor: u32,
+    cone_count: u32,
+    steps_per_cone: u32,
+    bias: f32,
+    tan_half: f32,
+    shaping: f32,
+    influence: f32,
+}
+
+// Live, occluding, and visible or a hidden-shadow proxy (`flags::casts_occlusion`).
+fn casts_occlusion(o: DistanceFieldObject) -> bool {
+    return (o.flags & FLAG_LIVE) != 0u && (o.flags & FLAG_CASTS_OCCLUSION) != 0u
+        && (o.flags & (FLAG_VISIBLE | FLAG_CAST_HIDDEN_SHADOW)) != 0u;
+}
+
+// Tangent-space centre of cone `k` of `n` (`ao::cone_weight_direction`).
+fn cone_direction(k: u32, n: u32) -> vec3<f32> {
+    let count = clamp(n, 1u, MAX_CONES);
+    let rho = sqrt((f32(k) + 0.5) / f32(count));
+    let phi = f32(k) * GOLDEN_ANGLE;
+    return vec3<f32>(rho * cos(phi), rho * sin(phi), sqrt(max(1.0 - rho * rho, 0.0)));
+}
+
+// Tangent and bitangent of unit `n` (Duff et al. 2017; `ao::tangent_frame`).
+fn tangent_frame(n: vec3<f32>) -> mat2x3<f32> {
+    let s = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (s + n.z);
+    let b = n.x * n.y * a;
+    return mat2x3<f32>(
+        vec3<f32>(1.0 + s * n.x * n.x * a, s * b, -s * n.x),
+        vec3<f32>(b, s + n.y * n.y * a, -n.y),
+    );
+}
+
+// The visibility of one cone (origin `o`, `bias` above the receiver's plane, unit `axis`
+// rising `rise` per metre) through object `obj` with bounding ball `sphere` (w < 0:
+// unbounded). CPU model: `dfao::march_cone`.
+fn march_cone(
+    obj: DistanceFieldObject,
+    sphere: vec4<f32>,
+    o: vec3<f32>,
+    axis: vec3<f32>,
+    rise: f32,
+    view: AoTraceView,
+    atlas: texture_3d<f32>,
+) -> f32 {
+    var t = view.bias;
+    var t_end = view.max_distance;
+    if sphere.w >= 0.0 {
+        let interval = cone_interval(o - sphere.xyz, axis, sphere.w, view.tan_half);
+        if interval.x > interval.y {
+            return 1.0;
+        }
+        t = max(t, interval.x);
+        t_end = min(t_end, interval.y);
+    }
+    var v = 1.0;
+    for (var i = 0u; i < view.steps_per_cone; i += 1u) {
+        if t >= t_end {
+            break;
+        }
+        let d = object_distance(obj, o + axis * t, view.camera_tile, view.camera_offset, atlas);
+        let cone = max(t * view.tan_half, 1e-6);
+        var floor = 0.0;
+        if sphere.w >= 0.0 {
+            floor = 1.0 - min((sphere.w / cone) * (sphere.w / cone), 1.0);
+        }
+        if d <= 0.0 {
+            v = min(v, floor);
+            break;
+        }
+        let open = max(min(cone, view.bias + t * rise), 1e-6);
+        v = min(v, max(d / open, floor));
+        t += max(d, cone * MIN_STEP_FRACTION);
+    }
+    v = clamp(v, 0.0, 1.0);
+    return select(0.0, pow(v, view.shaping), v > 0.0);
+}
+
+// AO and bent normal (world, around unit `n`) from the cones' visibilities.
+// CPU model: `dfao::combine`.
+fn combine(visibility: array<f32, MAX_CONES>, count: u32, n: vec3<f32>) -> vec4<f32> {
+    let frame = tangent_frame(n);
+    var sum = vec3<f32>(0.0);
+    var open = vec3<f32>(0.0);
+    var ao = 0.0;
+    for (var k = 0u; k < count; k += 1u) {
+        let w = cone_direction(k, count);
+        sum += w * visibility[k];
+        open += w;
+        ao += visibility[k];
+    }
+    ao = ao / f32(max(count, 1u));
+    let bent = sum - vec3<f32>(open.x, open.y, 0.0) * ao;
+    let world = frame[0] * bent.x + frame[1] * bent.y + n * bent.z;
+    let len = length(world);
+    return vec4<f32>(ao, select(n, world / len, len > 1e-6));
+}
