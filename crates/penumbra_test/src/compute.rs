@@ -106,7 +106,10 @@ impl GpuCompute {
         let usage = wgpu::TextureUsages::TEXTURE_BINDING
             | wgpu::TextureUsages::COPY_SRC
             | wgpu::TextureUsages::COPY_DST
-            | if format == wgpu::TextureFormat::R32Float {
+            | if matches!(
+                format,
+                wgpu::TextureFormat::R32Float | wgpu::TextureFormat::Rgba16Float
+            ) {
                 wgpu::TextureUsages::STORAGE_BINDING
             } else {
                 wgpu::TextureUsages::empty()
@@ -136,10 +139,11 @@ impl GpuCompute {
         texture
     }
 
-    /// Reads a 2D texture of 4-byte texels back as tightly packed rows.
+    /// Reads a 2D texture back as tightly packed rows.
     pub fn read_texture_2d(&self, texture: &wgpu::Texture) -> Vec<u8> {
         let (width, height) = (texture.width(), texture.height());
-        let row = width * 4;
+        let texel = texture.format().block_copy_size(None).unwrap_or(4);
+        let row = width * texel;
         let padded = row.next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("penumbra_test_texture_readback"),

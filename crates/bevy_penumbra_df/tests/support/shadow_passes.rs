@@ -46,7 +46,7 @@ pub fn scene(offset: Vec3) -> Scene {
     let bits: Vec<u16> = torus.data.iter().map(|h| h.to_bits()).collect();
     let mut atlas = Atlas::new(dims);
     atlas.write(UVec3::ZERO, dims, &bits);
-    let live = flags::LIVE | flags::CASTS_SHADOWS | flags::VISIBLE;
+    let live = flags::LIVE | flags::CASTS_SHADOWS | flags::CASTS_OCCLUSION | flags::VISIBLE;
     let at = |p: Vec3| Affine3A::from_translation(p + offset);
     let descs = [
         ObjectDesc {
