@@ -64,6 +64,8 @@ plugin_group! {
         bevy_penumbra_df::lighting:::PenumbraLightingPlugin,
         #[cfg(feature = "shadows")]
         bevy_penumbra_df::shadows:::DistanceFieldShadowsPlugin,
+        #[cfg(feature = "ao")]
+        bevy_penumbra_df::ao:::DistanceFieldAmbientOcclusionPlugin,
         bevy_penumbra_df::buffer_dump:::PenumbraBufferDumpPlugin,
     }
 }
@@ -91,6 +93,10 @@ pub mod prelude {
         CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldSceneCasters,
         DistanceFieldSceneSettings, DistanceFieldUploadStats, PenumbraLighting,
         PenumbraLightingPlugin, SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset,
+    };
+    #[cfg(feature = "ao")]
+    pub use bevy_penumbra_df::{
+        DistanceFieldAmbientOcclusion, DistanceFieldAoDebugView, DistanceFieldSpecularOcclusion,
     };
     #[cfg(feature = "debug_view")]
     pub use bevy_penumbra_df::{DistanceFieldDebugMode, DistanceFieldDebugView};

@@ -29,6 +29,8 @@
 //! - `shadows`: distance-field soft shadows (`DistanceFieldShadows`).
 //! - `debug_view`: the distance-field debug view (`DistanceFieldDebugView`).
 
+#[cfg(feature = "ao")]
+pub mod ao;
 pub mod buffer_dump;
 #[cfg(feature = "debug_view")]
 pub mod debug_view;
@@ -41,6 +43,11 @@ pub mod shader_library;
 #[cfg(feature = "shadows")]
 pub mod shadows;
 
+#[cfg(feature = "ao")]
+pub use ao::{
+    DistanceFieldAmbientOcclusion, DistanceFieldAmbientOcclusionPlugin, DistanceFieldAoDebugView,
+    DistanceFieldSpecularOcclusion,
+};
 pub use buffer_dump::{
     DumpedBuffer, PenumbraBufferDump, PenumbraBufferDumpPlugin, PenumbraBuffers,
 };

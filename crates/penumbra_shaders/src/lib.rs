@@ -47,6 +47,7 @@ shader_files! {
     "df/ao_upsample.wgsl" => Some("penumbra::df::ao_upsample"),
     "lighting/masks.wgsl" => Some("penumbra::lighting::masks"),
     "lighting/lights.wgsl" => Some("penumbra::lighting::lights"),
+    "lighting/ao.wgsl" => Some("penumbra::lighting::ao"),
     "lighting/pass.wgsl" => None,
     "lighting/buffer_dump.wgsl" => Some("penumbra::lighting::buffer_dump"),
 }

@@ -15,14 +15,14 @@ use bevy::pbr::{
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::binding_types::{
-    storage_buffer_read_only_sized, texture_2d_array, uniform_buffer_sized,
+    storage_buffer_read_only_sized, texture_2d, texture_2d_array, uniform_buffer_sized,
 };
 use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
     BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites, CompareFunction,
     DepthStencilState, Extent3d, FragmentState, LoadOp, Operations, PipelineCache,
     RenderPassDepthStencilAttachment, RenderPassDescriptor, RenderPipelineDescriptor, ShaderStages,
-    SpecializedRenderPipeline, SpecializedRenderPipelines, StoreOp, TextureDescriptor,
+    ShaderType, SpecializedRenderPipeline, SpecializedRenderPipelines, StoreOp, TextureDescriptor,
     TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
     TextureViewDescriptor, TextureViewDimension, TextureViewId, VertexState,
 };
@@ -32,8 +32,6 @@ use bevy::render::{Render, RenderStartup, RenderSystems};
 use bevy::shader::ShaderDefVal;
 use std::num::NonZeroU64;
 
-/// Bytes of `PenumbraLightingUniform` (`lighting/masks.wgsl`).
-const UNIFORM_BYTES: u64 = 16;
 /// Bevy's (crate-private) `IRRADIANCE_VOLUMES_ARE_USABLE`: off on the web, where they
 /// overflow the texture bindings of deferred rendering.
 const IRRADIANCE_VOLUMES_ARE_USABLE: bool = cfg!(not(target_arch = "wasm32"));
@@ -83,6 +81,38 @@ pub struct PenumbraLightingInputs {
     pub masks: TextureView,
 }
 
+/// A view's distance-field AO, inserted on the render-world view by the DFAO feature:
+/// the lighting pass occludes indirect light with it. Without it the AO is 1.
+#[derive(Component, Clone)]
+pub struct PenumbraAoInput {
+    /// `Rgba16Float` at the view's size: AO, then the world-space bent normal.
+    pub texture: TextureView,
+    /// Contrast, `[0, 1]`.
+    pub contrast: f32,
+    /// Min occlusion, `[0, 1]`.
+    pub min_occlusion: f32,
+    /// Occlusion tint (linear, `AmbientLight` units).
+    pub tint: LinearRgba,
+    /// 0 none, 1 non-directional, 2 cone–cone.
+    pub specular_occlusion: u32,
+    /// 0 shading, 1 AO, 2 bent normal.
+    pub debug_view: u32,
+}
+
+/// `PenumbraLightingUniform` (`lighting/masks.wgsl`).
+#[derive(ShaderType, Clone, Copy, Default)]
+struct PenumbraLightingUniform {
+    depth_id: u32,
+    shadowed_light_count: u32,
+    ao_enabled: u32,
+    ao_specular_occlusion: u32,
+    ao_tint: Vec4,
+    ao_contrast: f32,
+    ao_min_occlusion: f32,
+    ao_debug_view: u32,
+    reserved: u32,
+}
+
 /// The lighting pass's pipeline family and its group 2.
 #[derive(Resource)]
 pub struct PenumbraLightingPipeline {
@@ -91,6 +121,8 @@ pub struct PenumbraLightingPipeline {
     shader: Handle<Shader>,
     /// One white layer: bound when a view has no masks.
     pub(crate) no_masks: TextureView,
+    /// One texel: bound when a view has no AO.
+    no_ao: TextureView,
 }
 
 /// A view's specialised lighting pipeline.
@@ -104,7 +136,7 @@ pub(crate) struct PenumbraLightingBindGroup {
     uniform: Buffer,
     lights: Buffer,
     light_capacity: u64,
-    bind_group: Option<(BindGroup, TextureViewId)>,
+    bind_group: Option<(BindGroup, [TextureViewId; 2])>,
 }
 
 pub(super) fn build(render_app: &mut SubApp) {
@@ -148,9 +180,10 @@ fn init_penumbra_lighting_pipeline(
         &BindGroupLayoutEntries::sequential(
             ShaderStages::VERTEX_FRAGMENT,
             (
-                uniform_buffer_sized(false, NonZeroU64::new(UNIFORM_BYTES)),
+                uniform_buffer_sized(false, Some(PenumbraLightingUniform::min_size())),
                 storage_buffer_read_only_sized(false, NonZeroU64::new(SHADOWED_LIGHT_BYTES)),
                 texture_2d_array(TextureSampleType::Float { filterable: false }),
+                texture_2d(TextureSampleType::Float { filterable: false }),
             ),
         ),
     );
@@ -186,11 +219,16 @@ fn init_penumbra_lighting_pipeline(
         dimension: Some(TextureViewDimension::D2Array),
         ..default()
     });
+    let no_ao = texture.create_view(&TextureViewDescriptor {
+        dimension: Some(TextureViewDimension::D2),
+        ..default()
+    });
     commands.insert_resource(PenumbraLightingPipeline {
         mesh_pipeline: mesh_pipeline.clone(),
         layout,
         shader: library.handle("lighting/pass.wgsl"),
         no_masks,
+        no_ao,
     });
 }
 
@@ -374,13 +412,14 @@ fn prepare_penumbra_lighting_bind_groups(
         Entity,
         &PenumbraLightingView,
         Option<&PenumbraLightingInputs>,
+        Option<&PenumbraAoInput>,
         Option<&mut PenumbraLightingBindGroup>,
     )>,
 ) {
     let Some(pipeline) = pipeline else {
         return;
     };
-    for (entity, view, inputs, bind_group) in &mut views {
+    for (entity, view, inputs, ao, bind_group) in &mut views {
         let lights = inputs.map_or(&[][..], |i| i.lights.as_slice());
         let needed = (lights.len() as u64).max(1);
         let mut fresh = None;
@@ -392,7 +431,7 @@ fn prepare_penumbra_lighting_bind_groups(
                     uniform: allocations.sized_buffer(
                         &device,
                         "penumbra_lighting_uniform",
-                        UNIFORM_BYTES,
+                        PenumbraLightingUniform::min_size().get(),
                         BufferUsages::UNIFORM | BufferUsages::COPY_DST,
                     ),
                     lights: allocations.sized_buffer(
@@ -407,13 +446,27 @@ fn prepare_penumbra_lighting_bind_groups(
                 fresh.as_mut().expect("just set")
             }
         };
-        let uniform = [view.depth_id, lights.len() as u32, 0, 0];
-        queue.write_buffer(&group.uniform, 0, &bytemuck_u32(&uniform));
+        let uniform = PenumbraLightingUniform {
+            depth_id: view.depth_id,
+            shadowed_light_count: lights.len() as u32,
+            ao_enabled: u32::from(ao.is_some()),
+            ao_specular_occlusion: ao.map_or(0, |a| a.specular_occlusion),
+            ao_tint: ao.map_or(Vec4::ZERO, |a| a.tint.to_vec4()),
+            ao_contrast: ao.map_or(0.0, |a| a.contrast),
+            ao_min_occlusion: ao.map_or(0.0, |a| a.min_occlusion),
+            ao_debug_view: ao.map_or(0, |a| a.debug_view),
+            reserved: 0,
+        };
+        let mut bytes = bevy::render::render_resource::encase::UniformBuffer::new(Vec::new());
+        bytes.write(&uniform).expect("fixed-size uniform");
+        queue.write_buffer(&group.uniform, 0, bytes.as_ref());
         if !lights.is_empty() {
             queue.write_buffer(&group.lights, 0, &encode_shadowed_lights(lights));
         }
         let masks = inputs.map_or(&pipeline.no_masks, |i| &i.masks);
-        if group.bind_group.as_ref().map(|(_, id)| *id) != Some(masks.id()) {
+        let ao_texture = ao.map_or(&pipeline.no_ao, |a| &a.texture);
+        let key = [masks.id(), ao_texture.id()];
+        if group.bind_group.as_ref().map(|(_, id)| *id) != Some(key) {
             let bind_group = allocations.bind_group(
                 &device,
                 "penumbra_lighting_bind_group",
@@ -422,18 +475,15 @@ fn prepare_penumbra_lighting_bind_groups(
                     group.uniform.as_entire_binding(),
                     group.lights.as_entire_binding(),
                     masks,
+                    ao_texture,
                 )),
             );
-            group.bind_group = Some((bind_group, masks.id()));
+            group.bind_group = Some((bind_group, key));
         }
         if let Some(fresh) = fresh {
             commands.entity(entity).insert(fresh);
         }
     }
-}
-
-fn bytemuck_u32(words: &[u32]) -> Vec<u8> {
-    words.iter().flat_map(|w| w.to_le_bytes()).collect()
 }
 
 /// `PenumbraShadowedLight` records as `lighting/masks.wgsl` reads them.

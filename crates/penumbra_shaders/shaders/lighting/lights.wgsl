@@ -21,7 +21,10 @@
     pbr_functions,
     mesh_types::MESH_FLAGS_SHADOW_RECEIVER_BIT,
 }
-#import penumbra::lighting::masks::{clustered_light_mask, directional_light_mask, mask_visibility}
+#import penumbra::lighting::masks::{
+    clustered_light_mask, directional_light_mask, mask_visibility, penumbra_lighting,
+}
+#import penumbra::lighting::ao::{penumbra_ao, penumbra_ao_specular}
 
 #ifdef IRRADIANCE_VOLUME
 #import bevy_pbr::irradiance_volume
@@ -169,12 +172,21 @@ fn apply_lighting(in: pbr_types::PbrInput) -> vec4<f32> {
 #endif
 
     // Indirect: irradiance volume, else the environment map's diffuse part; the
-    // environment's specular unless SSR takes it; ambient.
-    let diffuse_occlusion = in.diffuse_occlusion;
+    // environment's specular unless SSR takes it; ambient. With distance-field AO: the
+    // diffuse parts are sampled along the bent normal, and each term takes the smaller
+    // of its SSAO and DFAO occlusion.
+    let dfao = penumbra_ao(in.frag_coord.xy, in.N);
+    let diffuse_occlusion = min(in.diffuse_occlusion, vec3(dfao.ao));
+    let specular_occlusion = min(
+        in.specular_occlusion,
+        penumbra_ao_specular(dfao, in.N, in.V, input.layers[LAYER_BASE].roughness),
+    );
+    var indirect_input = input;
+    indirect_input.layers[LAYER_BASE].N = dfao.bent_normal;
     var indirect = vec3(0.0);
     var found_diffuse_indirect = false;
 #ifdef IRRADIANCE_VOLUME
-    indirect += irradiance_volume::irradiance_volume_light(in.world_position.xyz, in.N, &ranges)
+    indirect += irradiance_volume::irradiance_volume_light(in.world_position.xyz, dfao.bent_normal, &ranges)
         * input.diffuse_color * diffuse_occlusion;
     found_diffuse_indirect = true;
 #endif
@@ -185,10 +197,10 @@ fn apply_lighting(in: pbr_types::PbrInput) -> vec4<f32> {
 #else
     let use_ssr = false;
 #endif
-    let environment = environment_map::environment_map_light(&input, &ranges, found_diffuse_indirect);
+    let environment = environment_map::environment_map_light(&indirect_input, &ranges, found_diffuse_indirect);
     indirect += environment.diffuse * diffuse_occlusion;
     if !use_ssr {
-        indirect += environment.specular * in.specular_occlusion;
+        indirect += environment.specular * specular_occlusion;
     }
 #endif
     let NdotV = input.layers[LAYER_BASE].NdotV;
@@ -197,6 +209,16 @@ fn apply_lighting(in: pbr_types::PbrInput) -> vec4<f32> {
         in.world_position, in.N, in.V, NdotV, input.diffuse_color, F0,
         in.material.perceptual_roughness, diffuse_occlusion
     );
+    if penumbra_lighting.ao_enabled != 0u {
+        // The occlusion tint fills the occluded part of the diffuse indirect light.
+        indirect += input.diffuse_color * penumbra_lighting.ao_tint.rgb * (1.0 - dfao.ao);
+        if penumbra_lighting.ao_debug_view == 1u {
+            return vec4(vec3(dfao.ao), 1.0);
+        }
+        if penumbra_lighting.ao_debug_view == 2u {
+            return vec4(dfao.bent_normal * 0.5 + 0.5, 1.0);
+        }
+    }
 
     // Emissive, under the clearcoat's Fresnel, exposed as the material asks.
     let emissive = in.material.emissive;

@@ -16,8 +16,16 @@ struct PenumbraLightingUniform {
     // Bevy's deferred lighting pass id (the G-buffer's material depth id).
     depth_id: u32,
     shadowed_light_count: u32,
-    // Unused (16-byte uniform).
-    reserved: vec2<u32>,
+    // Distance-field AO: 1 when `ambient_occlusion` holds it; specular occlusion mode
+    // (0 none, 1 non-directional, 2 cone–cone); tint (linear rgb, `AmbientLight` units);
+    // contrast and min occlusion; debug view (0 none, 1 AO, 2 bent normal).
+    ao_enabled: u32,
+    ao_specular_occlusion: u32,
+    ao_tint: vec4<f32>,
+    ao_contrast: f32,
+    ao_min_occlusion: f32,
+    ao_debug_view: u32,
+    reserved: u32,
 }
 
 const SHADOWED_DIRECTIONAL: u32 = 0u;
@@ -26,6 +34,8 @@ const SHADOWED_CLUSTERED: u32 = 1u;
 @group(2) @binding(0) var<uniform> penumbra_lighting: PenumbraLightingUniform;
 @group(2) @binding(1) var<storage, read> shadowed_lights: array<PenumbraShadowedLight>;
 @group(2) @binding(2) var shadow_masks: texture_2d_array<f32>;
+// Distance-field AO at the view's size: AO, then the world-space bent normal.
+@group(2) @binding(3) var ambient_occlusion: texture_2d<f32>;
 
 // The mask layer of clustered light `light_id`, or -1.
 fn clustered_light_mask(light_id: u32) -> i32 {

@@ -1,0 +1,430 @@
+//! Render-world side of DFAO: per-view textures, the trace and upsample passes, and the
+//! input the lighting pass reads.
+
+use super::{
+    DistanceFieldAmbientOcclusion, DistanceFieldAoDebugView, DistanceFieldSpecularOcclusion,
+};
+use crate::gpu_allocations::PenumbraGpuAllocations;
+use crate::lighting::{PenumbraAoInput, PenumbraLightingView};
+use crate::scene::DistanceFieldGpu;
+use crate::shader_library::PenumbraShaderLibrary;
+use bevy::core_pipeline::prepass::ViewPrepassTextures;
+use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
+use bevy::prelude::*;
+use bevy::render::diagnostic::RecordDiagnostics;
+use bevy::render::render_resource::binding_types::{
+    storage_buffer_read_only_sized, texture_2d, texture_3d, texture_storage_2d,
+    uniform_buffer_sized,
+};
+use bevy::render::render_resource::encase::UniformBuffer as EncaseBuffer;
+use bevy::render::render_resource::{
+    BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
+    BufferId, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d,
+    PipelineCache, ShaderStages, ShaderType, StorageTextureAccess, TextureDescriptor,
+    TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
+    TextureViewDescriptor, TextureViewId,
+};
+use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
+use bevy::render::view::ExtractedView;
+use bevy::render::{Render, RenderStartup, RenderSystems};
+use penumbra_df_core::ao::{AoTraceView, trace_size};
+use penumbra_df_core::cull::CameraOrigin;
+
+/// The passes' pipelines.
+#[derive(Resource)]
+struct AoPipelines {
+    trace_layout: BindGroupLayoutDescriptor,
+    trace: CachedComputePipelineId,
+    upsample_layout: BindGroupLayoutDescriptor,
+    upsample: CachedComputePipelineId,
+    /// Bound when the scene has no SDF volume (analytic casters only).
+    empty_atlas: TextureView,
+}
+
+/// A view's AO textures: the trace's (at the divisor's size) and, above divisor 1, the
+/// full-size result (otherwise the trace is the result).
+#[derive(Component)]
+struct ViewAoTextures {
+    trace: TextureView,
+    full: Option<TextureView>,
+    size: UVec2,
+    divisor: u32,
+}
+
+impl ViewAoTextures {
+    fn result(&self) -> &TextureView {
+        self.full.as_ref().unwrap_or(&self.trace)
+    }
+}
+
+/// What a view's bind groups bind: the object buffer; atlas, depth, G-buffer and trace
+/// views; the full-size view.
+type BindKey = (BufferId, [TextureViewId; 4], Option<TextureViewId>);
+
+/// A view's uniform and bind groups (remade only when a bound resource changes).
+#[derive(Component)]
+struct ViewAoBindGroups {
+    uniform: Buffer,
+    key: Option<BindKey>,
+    trace: Option<BindGroup>,
+    upsample: Option<BindGroup>,
+    /// Traced pixels this frame.
+    trace_size: UVec2,
+}
+
+pub(super) fn build(render_app: &mut SubApp) {
+    render_app
+        .add_systems(
+            Render,
+            (
+                prepare_dfao_textures
+                    .in_set(RenderSystems::PrepareResources)
+                    .after(crate::scene::DistanceFieldRenderSystems::PrepareGpu),
+                prepare_dfao_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+            ),
+        )
+        .add_systems(
+            Core3d,
+            distance_field_ambient_occlusion
+                .in_set(Core3dSystems::MainPass)
+                .before(crate::lighting::render::penumbra_lighting),
+        );
+}
+
+pub(super) fn finish(render_app: &mut SubApp) {
+    render_app.add_systems(RenderStartup, init_ao_pipelines);
+}
+
+fn init_ao_pipelines(
+    mut commands: Commands,
+    pipeline_cache: Res<PipelineCache>,
+    device: Res<RenderDevice>,
+    library: Option<Res<PenumbraShaderLibrary>>,
+) {
+    let Some(library) = library else {
+        return; // warned by the scene plugin
+    };
+    let view_bytes = AoTraceView::min_size();
+    let trace_layout = BindGroupLayoutDescriptor::new(
+        "penumbra_dfao_trace_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                storage_buffer_read_only_sized(false, None),
+                texture_3d(TextureSampleType::Float { filterable: false }),
+                texture_2d(TextureSampleType::Float { filterable: false }),
+                texture_2d(TextureSampleType::Uint),
+                uniform_buffer_sized(false, Some(view_bytes)),
+                texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+            ),
+        ),
+    );
+    let upsample_layout = BindGroupLayoutDescriptor::new(
+        "penumbra_dfao_upsample_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                texture_2d(TextureSampleType::Float { filterable: false }),
+                texture_2d(TextureSampleType::Float { filterable: false }),
+                texture_2d(TextureSampleType::Uint),
+                uniform_buffer_sized(false, Some(view_bytes)),
+                texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+            ),
+        ),
+    );
+    let trace = library.queue_compute(
+        &pipeline_cache,
+        "penumbra_dfao_trace",
+        &trace_layout,
+        "df/ao_trace.wgsl",
+        "trace",
+    );
+    let upsample = library.queue_compute(
+        &pipeline_cache,
+        "penumbra_dfao_upsample",
+        &upsample_layout,
+        "df/ao_upsample.wgsl",
+        "upsample",
+    );
+    commands.insert_resource(AoPipelines {
+        trace_layout,
+        trace,
+        upsample_layout,
+        upsample,
+        empty_atlas: crate::shader_library::empty_atlas(&device),
+    });
+}
+
+fn ao_texture(
+    allocations: &PenumbraGpuAllocations,
+    device: &RenderDevice,
+    label: &'static str,
+    size: UVec2,
+) -> TextureView {
+    allocations
+        .texture(
+            device,
+            &TextureDescriptor {
+                label: Some(label),
+                size: Extent3d {
+                    width: size.x,
+                    height: size.y,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: TextureDimension::D2,
+                format: TextureFormat::Rgba16Float,
+                usage: TextureUsages::STORAGE_BINDING | TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            },
+        )
+        .create_view(&TextureViewDescriptor::default())
+}
+
+/// Gives every DFAO view its textures (pooled: remade only when the view's size or
+/// the divisor changes) and tells its lighting pass to read them. Views without casters
+/// or before the pipelines compile get nothing: their AO is 1.
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+fn prepare_dfao_textures(
+    mut commands: Commands,
+    device: Res<RenderDevice>,
+    allocations: Res<PenumbraGpuAllocations>,
+    gpu: Option<Res<DistanceFieldGpu>>,
+    pipelines: Option<Res<AoPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    views: Query<
+        (
+            Entity,
+            &ExtractedView,
+            &DistanceFieldAmbientOcclusion,
+            Option<&ViewAoTextures>,
+        ),
+        With<PenumbraLightingView>,
+    >,
+) {
+    let ready = pipelines.as_ref().is_some_and(|p| {
+        pipeline_cache.get_compute_pipeline(p.trace).is_some()
+            && pipeline_cache.get_compute_pipeline(p.upsample).is_some()
+    });
+    let has_objects = gpu.as_ref().is_some_and(|g| g.objects.is_some());
+    for (entity, view, settings, textures) in &views {
+        if !(ready && has_objects) {
+            commands.entity(entity).remove::<PenumbraAoInput>();
+            continue;
+        }
+        let (resolved, _) = settings.resolve();
+        let size = view.viewport.zw().max(UVec2::ONE);
+        let mut fresh = None;
+        let textures = match textures {
+            Some(t) if t.size == size && t.divisor == resolved.divisor => t,
+            _ => {
+                let divisor = resolved.divisor;
+                fresh = Some(ViewAoTextures {
+                    trace: ao_texture(
+                        &allocations,
+                        &device,
+                        "penumbra_dfao_trace",
+                        trace_size(size, divisor),
+                    ),
+                    full: (divisor > 1)
+                        .then(|| ao_texture(&allocations, &device, "penumbra_dfao", size)),
+                    size,
+                    divisor,
+                });
+                fresh.as_ref().expect("just set")
+            }
+        };
+        let input = PenumbraAoInput {
+            texture: textures.result().clone(),
+            contrast: resolved.contrast,
+            min_occlusion: resolved.min_occlusion,
+            tint: resolved.tint,
+            specular_occlusion: match resolved.specular {
+                DistanceFieldSpecularOcclusion::None => 0,
+                DistanceFieldSpecularOcclusion::NonDirectional => 1,
+                DistanceFieldSpecularOcclusion::ConeCone => 2,
+            },
+            debug_view: match resolved.debug {
+                DistanceFieldAoDebugView::None => 0,
+                DistanceFieldAoDebugView::AmbientOcclusion => 1,
+                DistanceFieldAoDebugView::BentNormal => 2,
+            },
+        };
+        let mut view_entity = commands.entity(entity);
+        view_entity.insert(input);
+        if let Some(fresh) = fresh {
+            view_entity.insert(fresh);
+        }
+    }
+}
+
+/// Writes each DFAO view's uniform and (re)makes its bind groups when a bound resource
+/// changed.
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+fn prepare_dfao_bind_groups(
+    mut commands: Commands,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    allocations: Res<PenumbraGpuAllocations>,
+    gpu: Option<Res<DistanceFieldGpu>>,
+    pipelines: Option<Res<AoPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    mut views: Query<
+        (
+            Entity,
+            &ExtractedView,
+            &DistanceFieldAmbientOcclusion,
+            &ViewAoTextures,
+            &ViewPrepassTextures,
+            Option<&mut ViewAoBindGroups>,
+        ),
+        With<PenumbraAoInput>,
+    >,
+) {
+    let (Some(gpu), Some(pipelines)) = (gpu, pipelines) else {
+        return;
+    };
+    let Some(objects) = gpu.objects.as_ref() else {
+        return;
+    };
+    let atlas = gpu
+        .atlas
+        .as_ref()
+        .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
+    for (entity, view, settings, textures, prepass, groups) in &mut views {
+        let (Some(depth), Some(gbuffer), Some(camera)) = (
+            prepass.depth_view(),
+            prepass.deferred_view(),
+            CameraOrigin::at(view.world_from_view.translation()),
+        ) else {
+            continue;
+        };
+        let (settings, _) = settings.resolve();
+        let uniform = AoTraceView::new(
+            &camera,
+            view.clip_from_view.inverse(),
+            Mat3::from(view.world_from_view.affine().matrix3),
+            textures.size,
+            textures.divisor,
+            UVec2::ZERO,
+            gpu.slot_count,
+            &settings.trace,
+        );
+        let mut bytes = EncaseBuffer::new(Vec::new());
+        bytes.write(&uniform).expect("fixed-size uniform");
+        let mut fresh = None;
+        let groups = match groups {
+            Some(g) => g.into_inner(),
+            None => {
+                fresh = Some(ViewAoBindGroups {
+                    uniform: allocations.sized_buffer(
+                        &device,
+                        "penumbra_dfao_view",
+                        AoTraceView::min_size().get(),
+                        BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                    ),
+                    key: None,
+                    trace: None,
+                    upsample: None,
+                    trace_size: UVec2::ZERO,
+                });
+                fresh.as_mut().expect("just set")
+            }
+        };
+        queue.write_buffer(&groups.uniform, 0, bytes.as_ref());
+        groups.trace_size = uniform.trace_size;
+        let key = (
+            objects.id(),
+            [atlas.id(), depth.id(), gbuffer.id(), textures.trace.id()],
+            textures.full.as_ref().map(TextureView::id),
+        );
+        if groups.key != Some(key) {
+            groups.trace = Some(allocations.bind_group(
+                &device,
+                "penumbra_dfao_trace",
+                &pipeline_cache.get_bind_group_layout(&pipelines.trace_layout),
+                &BindGroupEntries::sequential((
+                    objects.as_entire_binding(),
+                    atlas,
+                    depth,
+                    gbuffer,
+                    groups.uniform.as_entire_binding(),
+                    &textures.trace,
+                )),
+            ));
+            groups.upsample = textures.full.as_ref().map(|full| {
+                allocations.bind_group(
+                    &device,
+                    "penumbra_dfao_upsample",
+                    &pipeline_cache.get_bind_group_layout(&pipelines.upsample_layout),
+                    &BindGroupEntries::sequential((
+                        &textures.trace,
+                        depth,
+                        gbuffer,
+                        groups.uniform.as_entire_binding(),
+                        full,
+                    )),
+                )
+            });
+            groups.key = Some(key);
+        }
+        if let Some(fresh) = fresh {
+            commands.entity(entity).insert(fresh);
+        }
+    }
+}
+
+/// The view's DFAO passes: the trace, then (above divisor 1) the upsample. Dispatches
+/// only.
+fn distance_field_ambient_occlusion(
+    view: ViewQuery<(&ViewAoBindGroups, &ViewAoTextures, &PenumbraAoInput)>,
+    pipelines: Option<Res<AoPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    let (groups, textures, _) = view.into_inner();
+    let Some(pipelines) = pipelines else {
+        return;
+    };
+    let (Some(trace), Some(upsample)) = (
+        pipeline_cache.get_compute_pipeline(pipelines.trace),
+        pipeline_cache.get_compute_pipeline(pipelines.upsample),
+    ) else {
+        return;
+    };
+    let Some(trace_group) = &groups.trace else {
+        return;
+    };
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_dfao");
+    {
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor {
+                label: Some("penumbra_dfao_trace"),
+                timestamp_writes: None,
+            });
+        pass.set_pipeline(trace);
+        pass.set_bind_group(0, trace_group, &[]);
+        pass.dispatch_workgroups(
+            groups.trace_size.x.div_ceil(8),
+            groups.trace_size.y.div_ceil(8),
+            1,
+        );
+    }
+    if let Some(upsample_group) = &groups.upsample {
+        // Its own pass: the trace, written as storage above, is sampled here.
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor {
+                label: Some("penumbra_dfao_upsample"),
+                timestamp_writes: None,
+            });
+        pass.set_pipeline(upsample);
+        pass.set_bind_group(0, upsample_group, &[]);
+        pass.dispatch_workgroups(textures.size.x.div_ceil(8), textures.size.y.div_ceil(8), 1);
+    }
+    time_span.end(ctx.command_encoder());
+}

@@ -1,0 +1,186 @@
+//! `DistanceFieldAmbientOcclusion` in a running app: a sphere caster floating over a
+//! plane, seen from above. The AO debug view (linear HDR capture) equals the CPU model
+//! (`penumbra_reference::dfao::pixel_ao` on the same caster) on the plane's pixels, the
+//! plane is occluded under the sphere and open far from it; with shading, only the
+//! indirect light darkens (a camera without the component renders the plane brighter
+//! under the sphere, a direct light's contribution is the same).
+
+use bevy::camera::Hdr;
+use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::pbr::DefaultOpaqueRendererMethod;
+use bevy::prelude::*;
+use penumbra::prelude::*;
+use penumbra_df_core::ao::AoTrace;
+use penumbra_df_core::cull::CameraOrigin;
+use penumbra_df_core::object::{CasterShape, ObjectDesc, encode, flags};
+use penumbra_reference::df::Atlas;
+use penumbra_reference::dfao::pixel_ao;
+use penumbra_test::{CaptureFormat, HeadlessRender, gpu_or_skip};
+
+const SIZE: u32 = 64;
+const EYE: Vec3 = Vec3::new(0.0, 3.0, 4.0);
+const FOV_DEG: f32 = 45.0;
+const SPHERE: Vec3 = Vec3::new(0.3, 0.65, 0.0);
+const RADIUS: f32 = 0.5;
+const MAX_DISTANCE: f32 = 3.0;
+
+#[derive(Resource, Clone)]
+struct Setup {
+    dfao: Option<DistanceFieldAmbientOcclusion>,
+}
+
+fn scene(
+    setup: Res<Setup>,
+    mut commands: Commands,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+) {
+    let grey = materials.add(StandardMaterial {
+        base_color: Color::srgb(0.7, 0.7, 0.7),
+        perceptual_roughness: 1.0,
+        ..default()
+    });
+    commands.spawn((
+        Mesh3d(meshes.add(Plane3d::default().mesh().size(20.0, 20.0))),
+        MeshMaterial3d(grey.clone()),
+    ));
+    commands.spawn((
+        Mesh3d(meshes.add(Sphere::new(RADIUS))),
+        MeshMaterial3d(grey),
+        Transform::from_translation(SPHERE),
+        DistanceFieldCaster {
+            source: CasterSource::Sphere { radius: RADIUS },
+            ..default()
+        },
+    ));
+    commands.insert_resource(GlobalAmbientLight {
+        color: Color::WHITE,
+        brightness: 2000.0,
+        ..default()
+    });
+    let mut camera = commands.spawn((
+        Camera3d::default(),
+        PenumbraLighting,
+        Hdr,
+        Tonemapping::None,
+        Projection::Perspective(PerspectiveProjection {
+            fov: FOV_DEG.to_radians(),
+            ..default()
+        }),
+        Transform::from_translation(EYE).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    if let Some(dfao) = setup.dfao.clone() {
+        camera.insert(dfao);
+    }
+}
+
+fn ray(i: u32, j: u32) -> Vec3 {
+    let forward = (Vec3::ZERO - EYE).normalize();
+    let right = forward.cross(Vec3::Y).normalize();
+    let up = right.cross(forward);
+    let t = (FOV_DEG.to_radians() * 0.5).tan();
+    let x = ((i as f32 + 0.5) / SIZE as f32 * 2.0 - 1.0) * t;
+    let y = (1.0 - (j as f32 + 0.5) / SIZE as f32 * 2.0) * t;
+    (forward + x * right + y * up).normalize()
+}
+
+fn render(dfao: Option<DistanceFieldAmbientOcclusion>) -> Vec<[f32; 4]> {
+    let render = HeadlessRender::new(SIZE, SIZE)
+        .frames(6)
+        .format(CaptureFormat::LinearF16);
+    let mut app = render.app();
+    app.add_plugins(PenumbraPlugins)
+        .insert_resource(DefaultOpaqueRendererMethod::deferred())
+        .insert_resource(Setup { dfao })
+        .add_systems(Startup, scene);
+    render.run(app).expect("headless render").to_linear()
+}
+
+/// The plane's pixels, away from the sphere's silhouette: `(index, world point)`.
+fn plane_pixels() -> Vec<(usize, Vec3)> {
+    let mut out = Vec::new();
+    for j in 0..SIZE {
+        for i in 0..SIZE {
+            let d = ray(i, j);
+            let to_centre = SPHERE - EYE;
+            let miss = (to_centre - d * to_centre.dot(d)).length();
+            if miss < RADIUS + 0.1 || d.y >= 0.0 {
+                continue;
+            }
+            out.push(((j * SIZE + i) as usize, EYE + d * (-EYE.y / d.y)));
+        }
+    }
+    out
+}
+
+#[test]
+fn dfao_matches_the_model_and_occludes_only_indirect_light() {
+    if !gpu_or_skip("dfao_matches_the_model_and_occludes_only_indirect_light") {
+        return;
+    }
+    let settings = DistanceFieldAmbientOcclusion {
+        max_occlusion_distance: MAX_DISTANCE,
+        trace_resolution_divisor: 1,
+        debug_view: DistanceFieldAoDebugView::AmbientOcclusion,
+        ..default()
+    };
+    let ao = render(Some(settings.clone()));
+    let record = encode(&ObjectDesc {
+        world_from_local: bevy::math::Affine3A::from_translation(SPHERE),
+        shape: CasterShape::Sphere { radius: RADIUS },
+        flags: flags::LIVE | flags::VISIBLE | flags::CASTS_OCCLUSION | flags::CASTS_SHADOWS,
+    })
+    .expect("encodes");
+    let camera = CameraOrigin::at(EYE).expect("finite");
+    let trace = AoTrace {
+        max_distance: MAX_DISTANCE,
+        cone_count: settings.cone_count,
+        steps_per_cone: settings.steps_per_cone,
+        bias: settings.surface_bias,
+        shaping: penumbra_df_core::ao::CONE_SHAPING,
+    };
+    let atlas = Atlas::new(UVec3::ONE);
+    let (mut sum, mut worst, mut n, mut under, mut open) = (0.0f32, 0.0f32, 0, 1.0f32, 0.0f32);
+    for (k, p) in plane_pixels() {
+        let want = pixel_ao(&[record], &atlas, &camera, p - EYE, Vec3::Y, &trace).ao;
+        let got = ao[k][0];
+        let e = (got - want).abs();
+        sum += e;
+        worst = worst.max(e);
+        n += 1;
+        if (p - Vec3::new(SPHERE.x, 0.0, SPHERE.z)).length() < 0.3 {
+            under = under.min(got);
+        }
+        if (p - Vec3::new(SPHERE.x, 0.0, SPHERE.z)).length() > 2.5 {
+            open = open.max(got);
+        }
+    }
+    let mean = sum / n as f32;
+    eprintln!(
+        "AO view vs model over {n} plane pixels: mean |Δ| {mean:.4}, worst {worst:.4}; under the sphere {under:.3}, far {open:.3}"
+    );
+    // The G-buffer's normals (octahedral, 12-bit) and f16 storage only.
+    assert!(mean < 0.01 && worst < 0.05, "mean {mean} worst {worst}");
+    assert!(under < 0.6 && open > 0.98, "under {under} far {open}");
+
+    // Shading: ambient light only, so the occluded plane is darker than without DFAO
+    // in proportion to the AO.
+    let shaded = render(Some(DistanceFieldAmbientOcclusion {
+        debug_view: DistanceFieldAoDebugView::None,
+        ..settings
+    }));
+    let plain = render(None);
+    let (mut ratio_error, mut m) = (0.0f32, 0);
+    for (k, _) in plane_pixels() {
+        if plain[k][1] > 1e-4 {
+            ratio_error += (shaded[k][1] / plain[k][1] - ao[k][1]).abs();
+            m += 1;
+        }
+    }
+    let ratio_error = ratio_error / m as f32;
+    eprintln!("shaded / plain vs AO over {m} pixels: mean |Δ| {ratio_error:.4}");
+    assert!(
+        ratio_error < 0.01,
+        "indirect light is not scaled by the AO: {ratio_error}"
+    );
+}
