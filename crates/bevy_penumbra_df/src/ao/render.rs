@@ -261,7 +261,11 @@ fn prepare_dfao_textures(
 
 /// Writes each DFAO view's uniform and (re)makes its bind groups when a bound resource
 /// changed.
-#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+#[allow(
+    clippy::too_many_arguments,
+    clippy::type_complexity,
+    reason = "a Bevy system"
+)]
 fn prepare_dfao_bind_groups(
     mut commands: Commands,
     device: Res<RenderDevice>,

@@ -401,6 +401,7 @@ fn prepare_penumbra_lighting_pipelines(
     }
 }
 
+#[allow(clippy::type_complexity, reason = "a Bevy system")]
 fn prepare_penumbra_lighting_bind_groups(
     mut commands: Commands,
     allocations: Res<PenumbraGpuAllocations>,

@@ -32,7 +32,7 @@ pub fn upsample(
         for x in 0..full_size.x {
             let here = UVec2::new(x, y);
             let d = distance[at(here)];
-            if !(d > 0.0) {
+            if d.is_nan() || d <= 0.0 {
                 out.push(Vec4::new(1.0, 0.0, 0.0, 0.0));
                 continue;
             }
