@@ -184,3 +184,59 @@ fn dfao_matches_the_model_and_occludes_only_indirect_light() {
         "indirect light is not scaled by the AO: {ratio_error}"
     );
 }
+
+/// Removing the component stops the passes: the render-world view loses its AO input
+/// (and with it the trace, the upsample and the lighting pass's occlusion); adding it
+/// back restores them.
+#[test]
+fn removing_dfao_removes_its_passes() {
+    if !gpu_or_skip("removing_dfao_removes_its_passes") {
+        return;
+    }
+    let render = HeadlessRender::new(SIZE, SIZE)
+        .frames(4)
+        .without_pipelining();
+    let mut app = render.app();
+    app.add_plugins(PenumbraPlugins)
+        .insert_resource(DefaultOpaqueRendererMethod::deferred())
+        .insert_resource(Setup {
+            dfao: Some(DistanceFieldAmbientOcclusion::default()),
+        })
+        .add_systems(Startup, scene);
+    let (_, mut app) = render.run_keeping_app(app).expect("headless render");
+    let inputs = |app: &mut App| {
+        let world = app.sub_app_mut(bevy::render::RenderApp).world_mut();
+        world
+            .query::<&penumbra::df::lighting::PenumbraAoInput>()
+            .iter(world)
+            .count()
+    };
+    assert_eq!(inputs(&mut app), 1, "the DFAO camera has its input");
+    let camera = app
+        .world_mut()
+        .query_filtered::<Entity, With<Camera3d>>()
+        .single(app.world())
+        .unwrap();
+    app.world_mut()
+        .entity_mut(camera)
+        .remove::<DistanceFieldAmbientOcclusion>();
+    for _ in 0..3 {
+        app.update();
+    }
+    assert_eq!(
+        inputs(&mut app),
+        0,
+        "a camera without DFAO keeps no AO input"
+    );
+    app.world_mut()
+        .entity_mut(camera)
+        .insert(DistanceFieldAmbientOcclusion::default());
+    for _ in 0..3 {
+        app.update();
+    }
+    assert_eq!(
+        inputs(&mut app),
+        1,
+        "the input comes back with the component"
+    );
+}

@@ -67,10 +67,11 @@
 
 mod render;
 
-use crate::lighting::PenumbraLighting;
+use crate::lighting::{PenumbraAoInput, PenumbraLighting};
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
+use bevy::render::sync_component::SyncComponent;
 pub use penumbra_df_core::ao::CONE_SHAPING;
 use penumbra_df_core::ao::{AoTrace, MAX_CONES, MAX_STEPS};
 
@@ -107,7 +108,7 @@ pub enum DistanceFieldAoDebugView {
 
 /// Put on a [`PenumbraLighting`] camera: distance-field ambient occlusion of its
 /// indirect light (module docs).
-#[derive(Component, Reflect, Clone, Debug, PartialEq, ExtractComponent)]
+#[derive(Component, Reflect, Clone, Debug, PartialEq)]
 #[reflect(Component, Clone, Default)]
 #[require(PenumbraLighting)]
 pub struct DistanceFieldAmbientOcclusion {
@@ -163,6 +164,31 @@ impl Default for DistanceFieldAmbientOcclusion {
     }
 }
 
+/// A DFAO camera's settings in the render world, resolved once per frame at extraction.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct ExtractedDfao(pub(crate) ResolvedAo);
+
+impl SyncComponent for DistanceFieldAmbientOcclusion {
+    /// Everything the render world keeps for a DFAO camera goes with the component (or
+    /// with its `PenumbraLighting`): no texture, bind group or pass is left behind.
+    type Target = (
+        ExtractedDfao,
+        PenumbraAoInput,
+        render::ViewAoTextures,
+        render::ViewAoBindGroups,
+    );
+}
+
+impl ExtractComponent for DistanceFieldAmbientOcclusion {
+    type QueryData = (&'static Self, Has<PenumbraLighting>);
+    type QueryFilter = ();
+    type Out = ExtractedDfao;
+
+    fn extract_component((settings, lit): (&Self, bool)) -> Option<ExtractedDfao> {
+        lit.then(|| ExtractedDfao(settings.resolve().0))
+    }
+}
+
 /// Settings as the passes use them: every value in range, finite.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct ResolvedAo {
@@ -176,7 +202,8 @@ pub(crate) struct ResolvedAo {
 }
 
 impl DistanceFieldAmbientOcclusion {
-    /// The settings clamped into range, and what had to be clamped (empty when nothing).
+    /// What is out of range, one message per setting naming the value used instead
+    /// (empty when nothing is).
     pub fn problems(&self) -> Vec<String> {
         self.resolve().1
     }

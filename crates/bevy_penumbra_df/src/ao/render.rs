@@ -1,9 +1,7 @@
 //! Render-world side of DFAO: per-view textures, the trace and upsample passes, and the
 //! input the lighting pass reads.
 
-use super::{
-    DistanceFieldAmbientOcclusion, DistanceFieldAoDebugView, DistanceFieldSpecularOcclusion,
-};
+use super::{DistanceFieldAoDebugView, DistanceFieldSpecularOcclusion, ExtractedDfao};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::lighting::{PenumbraAoInput, PenumbraLightingView};
 use crate::scene::DistanceFieldGpu;
@@ -44,7 +42,7 @@ struct AoPipelines {
 /// A view's AO textures: the trace's (at the divisor's size) and, above divisor 1, the
 /// full-size result (otherwise the trace is the result).
 #[derive(Component)]
-struct ViewAoTextures {
+pub struct ViewAoTextures {
     trace: TextureView,
     full: Option<TextureView>,
     size: UVec2,
@@ -63,13 +61,11 @@ type BindKey = (BufferId, [TextureViewId; 4], Option<TextureViewId>);
 
 /// A view's uniform and bind groups (remade only when a bound resource changes).
 #[derive(Component)]
-struct ViewAoBindGroups {
+pub struct ViewAoBindGroups {
     uniform: Buffer,
     key: Option<BindKey>,
     trace: Option<BindGroup>,
     upsample: Option<BindGroup>,
-    /// Traced pixels this frame.
-    trace_size: UVec2,
 }
 
 pub(super) fn build(render_app: &mut SubApp) {
@@ -197,7 +193,7 @@ fn prepare_dfao_textures(
         (
             Entity,
             &ExtractedView,
-            &DistanceFieldAmbientOcclusion,
+            &ExtractedDfao,
             Option<&ViewAoTextures>,
         ),
         With<PenumbraLightingView>,
@@ -208,12 +204,11 @@ fn prepare_dfao_textures(
             && pipeline_cache.get_compute_pipeline(p.upsample).is_some()
     });
     let has_objects = gpu.as_ref().is_some_and(|g| g.objects.is_some());
-    for (entity, view, settings, textures) in &views {
+    for (entity, view, &ExtractedDfao(resolved), textures) in &views {
         if !(ready && has_objects) {
             commands.entity(entity).remove::<PenumbraAoInput>();
             continue;
         }
-        let (resolved, _) = settings.resolve();
         let size = view.viewport.zw().max(UVec2::ONE);
         let mut fresh = None;
         let textures = match textures {
@@ -278,7 +273,7 @@ fn prepare_dfao_bind_groups(
         (
             Entity,
             &ExtractedView,
-            &DistanceFieldAmbientOcclusion,
+            &ExtractedDfao,
             &ViewAoTextures,
             &ViewPrepassTextures,
             Option<&mut ViewAoBindGroups>,
@@ -296,7 +291,7 @@ fn prepare_dfao_bind_groups(
         .atlas
         .as_ref()
         .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
-    for (entity, view, settings, textures, prepass, groups) in &mut views {
+    for (entity, view, ExtractedDfao(settings), textures, prepass, groups) in &mut views {
         let (Some(depth), Some(gbuffer), Some(camera)) = (
             prepass.depth_view(),
             prepass.deferred_view(),
@@ -304,7 +299,6 @@ fn prepare_dfao_bind_groups(
         ) else {
             continue;
         };
-        let (settings, _) = settings.resolve();
         let uniform = AoTraceView::new(
             &camera,
             view.clip_from_view.inverse(),
@@ -331,13 +325,11 @@ fn prepare_dfao_bind_groups(
                     key: None,
                     trace: None,
                     upsample: None,
-                    trace_size: UVec2::ZERO,
                 });
                 fresh.as_mut().expect("just set")
             }
         };
         queue.write_buffer(&groups.uniform, 0, bytes.as_ref());
-        groups.trace_size = uniform.trace_size;
         let key = (
             objects.id(),
             [atlas.id(), depth.id(), gbuffer.id(), textures.trace.id()],
@@ -412,11 +404,8 @@ fn distance_field_ambient_occlusion(
             });
         pass.set_pipeline(trace);
         pass.set_bind_group(0, trace_group, &[]);
-        pass.dispatch_workgroups(
-            groups.trace_size.x.div_ceil(8),
-            groups.trace_size.y.div_ceil(8),
-            1,
-        );
+        let size = trace_size(textures.size, textures.divisor);
+        pass.dispatch_workgroups(size.x.div_ceil(8), size.y.div_ceil(8), 1);
     }
     if let Some(upsample_group) = &groups.upsample {
         // Its own pass: the trace, written as storage above, is sampled here.

@@ -59,11 +59,7 @@ use bevy::render::RenderApp;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::sync_component::SyncComponent;
 
-#[cfg_attr(
-    not(feature = "ao"),
-    allow(unused_imports, reason = "only distance-field AO makes it")
-)]
-pub(crate) use render::PenumbraAoInput;
+pub use render::PenumbraAoInput;
 #[cfg_attr(
     not(feature = "shadows"),
     allow(
