@@ -85,43 +85,11 @@ fn gpu_ao(
     let mut bytes = bevy::render::render_resource::encase::UniformBuffer::new(Vec::new());
     bytes.write(uniform).expect("encodes");
     let uniform_buffer = gpu.buffer("ao_view", bytes.as_ref(), BufferUsages::UNIFORM);
-    let s = scene.atlas_size;
-    let atlas_bytes: Vec<u8> = scene
-        .atlas_bits
-        .iter()
-        .flat_map(|b| b.to_le_bytes())
-        .collect();
-    let atlas = gpu.texture(
-        "atlas",
-        extent(s.x, s.y, s.z),
-        wgpu::TextureDimension::D3,
-        wgpu::TextureFormat::R16Float,
-        2,
-        &atlas_bytes,
-    );
-    let depth_bytes: Vec<u8> = view.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
-    let depth = gpu.texture(
-        "depth",
-        extent(WIDTH, HEIGHT, 1),
-        wgpu::TextureDimension::D2,
-        wgpu::TextureFormat::R32Float,
-        4,
-        &depth_bytes,
-    );
-    let gbuffer_bytes: Vec<u8> = view
-        .normals
-        .iter()
-        .flat_map(|&n| [0u32, 0, 0, n])
-        .flat_map(u32::to_le_bytes)
-        .collect();
-    let gbuffer = gpu.texture(
-        "gbuffer",
-        extent(WIDTH, HEIGHT, 1),
-        wgpu::TextureDimension::D2,
-        wgpu::TextureFormat::Rgba32Uint,
-        16,
-        &gbuffer_bytes,
-    );
+    let ViewInputs {
+        atlas,
+        depth,
+        gbuffer,
+    } = view_inputs(gpu, scene, view);
     let size = uniform.trace_size;
     let traced = gpu.texture(
         "ao_trace",

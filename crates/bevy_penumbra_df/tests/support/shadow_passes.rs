@@ -503,29 +503,11 @@ pub fn gpu_mask_at(
         height: h,
         depth_or_array_layers: d,
     };
-    let atlas_bytes: Vec<u8> = scene
-        .atlas_bits
-        .iter()
-        .flat_map(|b| b.to_le_bytes())
-        .collect();
-    let s = scene.atlas_size;
-    let atlas = gpu.texture(
-        "atlas",
-        size(s.x, s.y, s.z),
-        wgpu::TextureDimension::D3,
-        wgpu::TextureFormat::R16Float,
-        2,
-        &atlas_bytes,
-    );
-    let depth_bytes: Vec<u8> = view.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
-    let depth = gpu.texture(
-        "depth",
-        size(WIDTH, HEIGHT, 1),
-        wgpu::TextureDimension::D2,
-        wgpu::TextureFormat::R32Float,
-        4,
-        &depth_bytes,
-    );
+    let ViewInputs {
+        atlas,
+        depth,
+        gbuffer,
+    } = view_inputs(gpu, scene, view);
     let mask = gpu.texture(
         "mask",
         size(mask_size.x, mask_size.y, 1),
@@ -535,20 +517,6 @@ pub fn gpu_mask_at(
         &[],
     );
     // Bevy's G-buffer layout: the normal word in the fourth channel.
-    let gbuffer_bytes: Vec<u8> = view
-        .normals
-        .iter()
-        .flat_map(|&n| [0u32, 0, 0, n])
-        .flat_map(u32::to_le_bytes)
-        .collect();
-    let gbuffer = gpu.texture(
-        "gbuffer",
-        size(WIDTH, HEIGHT, 1),
-        wgpu::TextureDimension::D2,
-        wgpu::TextureFormat::Rgba32Uint,
-        16,
-        &gbuffer_bytes,
-    );
     let trace_view = gpu.buffer(
         "trace_view",
         &words_to_bytes(&trace_view_words(
@@ -644,6 +612,64 @@ pub fn gpu_mask_at(
         texture: mask,
         grid: grid_stats,
         times,
+    }
+}
+
+/// The passes' scene and view inputs on the GPU: the atlas (`R16Float`), the depth
+/// buffer (`R32Float`) and the G-buffer (`Rgba32Uint`, the packed normal in `.a`).
+pub struct ViewInputs {
+    pub atlas: wgpu::Texture,
+    pub depth: wgpu::Texture,
+    pub gbuffer: wgpu::Texture,
+}
+
+pub fn view_inputs(gpu: &GpuCompute, scene: &Scene, view: &View) -> ViewInputs {
+    let size = |w, h, d| wgpu::Extent3d {
+        width: w,
+        height: h,
+        depth_or_array_layers: d,
+    };
+    let atlas_bytes: Vec<u8> = scene
+        .atlas_bits
+        .iter()
+        .flat_map(|b| b.to_le_bytes())
+        .collect();
+    let s = scene.atlas_size;
+    let atlas = gpu.texture(
+        "atlas",
+        size(s.x, s.y, s.z),
+        wgpu::TextureDimension::D3,
+        wgpu::TextureFormat::R16Float,
+        2,
+        &atlas_bytes,
+    );
+    let depth_bytes: Vec<u8> = view.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
+    let depth = gpu.texture(
+        "depth",
+        size(WIDTH, HEIGHT, 1),
+        wgpu::TextureDimension::D2,
+        wgpu::TextureFormat::R32Float,
+        4,
+        &depth_bytes,
+    );
+    let gbuffer_bytes: Vec<u8> = view
+        .normals
+        .iter()
+        .flat_map(|&n| [0u32, 0, 0, n])
+        .flat_map(u32::to_le_bytes)
+        .collect();
+    let gbuffer = gpu.texture(
+        "gbuffer",
+        size(WIDTH, HEIGHT, 1),
+        wgpu::TextureDimension::D2,
+        wgpu::TextureFormat::Rgba32Uint,
+        16,
+        &gbuffer_bytes,
+    );
+    ViewInputs {
+        atlas,
+        depth,
+        gbuffer,
     }
 }
 
