@@ -5,14 +5,17 @@
 //! cargo run --release --example viewer                          # the showcase room
 //! cargo run --release --example viewer -- SCENE.glb --headless --size 512x512 \
 //!     --frames 10 --out shot.png --eye 0,2,6 --target 0,1,0 --fov 45 \
-//!     --sun=-0.4,-1,-0.3 --angle 0.533 --point 1,3,0 --radius 0.1 --dump dump/
+//!     --sun=-0.4,-1,-0.3 --angle 0.533 --point 1,3,0 --radius 0.1 \
+//!     --ao-max-distance 2 --dump dump/
 //! ```
 //!
 //! The scene's meshes become distance-field casters (`DistanceFieldSceneCasters` on its
 //! root: skinned meshes skipped, double-sided and alpha-masked materials two-sided); the
 //! camera is framed on the scene's bounds (or `--eye/--target/--fov`); a sun (`--sun`,
 //! `--angle`), `--point` lights and the scene's own `KHR_lights_punctual` lights (unless
-//! `--no-scene-lights`) get `DistanceFieldShadows`. The shadow settings given in metres
+//! `--no-scene-lights`) get `DistanceFieldShadows`; `--ao-max-distance M` puts
+//! `DistanceFieldAmbientOcclusion` (max occlusion distance M, defaults otherwise) on the
+//! camera. The shadow settings given in metres
 //! (ray length, view distance, bias) are scaled with the scene's size when it is larger
 //! than 10 m, so scenes in centimetres or millimetres work as they are.
 //!
@@ -24,8 +27,8 @@
 //! Headless (`--headless`, or no display): renders `--frames` frames after every caster
 //! is baked, writes `--out`, prints the mean frame time and Penumbra's pass times, and
 //! with `--dump DIR` the view's buffers (`penumbra::df::buffer_dump`: `depth`, `normal`,
-//! `visibility_<light>`) as float32 `.npy` arrays with `DIR/meta.json`, for
-//! `../shared/tools/shadow_truth.py`. Bad flags exit with status 2 naming the flag; a
+//! `visibility_<light>`, with DFAO `ao` and `bent_normal`) as float32 `.npy` arrays with
+//! `DIR/meta.json`, for `../shared/tools/shadow_truth.py` and `ao_truth.py`. Bad flags exit with status 2 naming the flag; a
 //! scene that cannot be loaded exits with status 1 and one error.
 
 use bevy::camera::primitives::Aabb;
@@ -336,6 +339,16 @@ fn frame_scene(
     *rig = camera::CameraRig::new(framing.eye, framing.target);
     if !args.plain {
         commands.entity(camera).insert(PenumbraLighting);
+        if let Some(max_occlusion_distance) = args.ao_max_distance {
+            commands
+                .entity(camera)
+                .insert(DistanceFieldAmbientOcclusion {
+                    max_occlusion_distance,
+                    surface_bias: DistanceFieldAmbientOcclusion::default().surface_bias
+                        * framing.scale(),
+                    ..default()
+                });
+        }
     }
     spawn_lights(&mut commands, args, &framing);
 }
@@ -474,13 +487,14 @@ fn shadow_scene_lights(
 /// own shell (a shell is about a voxel thick; scenes in odd units or with large open
 /// meshes have coarse voxels). Solid casters need no such margin. Applied to every
 /// light when that voxel size changes, else only to lights that just got
-/// `DistanceFieldShadows`: a bias set in the panel stays.
+/// `DistanceFieldShadows`: a bias set in the panel stays. DFAO's surface bias likewise.
 #[allow(clippy::type_complexity)]
 fn fit_shadow_bias(
     casters: Query<(&DistanceFieldCaster, Option<&SdfBaked>, &GlobalTransform)>,
     rebaked: Query<(), Or<(Changed<SdfBaked>, Changed<DistanceFieldCaster>)>>,
     volumes: Res<Assets<SdfVolumeAsset>>,
     mut lights: Query<&mut DistanceFieldShadows>,
+    mut occlusion: Query<&mut DistanceFieldAmbientOcclusion>,
     mut fitted: Local<Option<f32>>,
     mut clock: ResMut<BakeClock>,
 ) {
@@ -491,7 +505,8 @@ fn fit_shadow_bias(
         clock.1 = Some(clock.0.elapsed());
     }
     // (Reading `is_added` through `Mut` does not mark the light changed.)
-    let any_new = lights.iter_mut().any(|l| l.is_added());
+    let any_new =
+        lights.iter_mut().any(|l| l.is_added()) || occlusion.iter_mut().any(|a| a.is_added());
     if fitted.is_some() && rebaked.is_empty() && !any_new {
         return;
     }
@@ -515,6 +530,12 @@ fn fit_shadow_bias(
     for mut light in &mut lights {
         if (all || light.is_added()) && light.bias < 2.0 * voxel {
             light.bias = 2.0 * voxel;
+        }
+    }
+    // DFAO's cones start above the same shell.
+    for mut ao in &mut occlusion {
+        if (all || ao.is_added()) && ao.surface_bias < 2.0 * voxel {
+            ao.surface_bias = 2.0 * voxel;
         }
     }
 }
@@ -679,6 +700,7 @@ fn dump_buffers(app: &mut App, args: &Args, dir: &std::path::Path) -> Result<u64
             light["buffer"] = serde_json::Value::Null;
         }
     }
+    let app_camera_ao = world.get::<DistanceFieldAmbientOcclusion>(camera).cloned();
     let counts = scene_counts(world);
     let (baked, failed) = {
         let mut q = world
@@ -709,6 +731,7 @@ fn dump_buffers(app: &mut App, args: &Args, dir: &std::path::Path) -> Result<u64
             "failed_bakes": failed,
             "metre_settings_scale": framing.scale(),
             "penumbra": !args.plain,
+            "ambient_occlusion": dump::ao_summary(app_camera_ao.as_ref()),
         }),
     };
     dump::write_dump(dir, &buffers, &meta)

@@ -6,6 +6,8 @@
 //!   that differs by up to 8 % in the corners here), NaN where the ray misses;
 //! - `normal` is the plane's +Y;
 //! - `visibility_sun` is ~0 inside the sphere's shadow disc and ~1 outside it;
+//! - `ao` is below 1 under the sphere, 1 where the sphere is beyond the max occlusion
+//!   distance, NaN on background; `bent_normal` is unit and leans away from the sphere;
 //!
 //! and dumping every frame creates no GPU resource once running.
 
@@ -21,6 +23,9 @@ const FOV_DEG: f32 = 45.0;
 const HALF_PLANE: f32 = 4.0;
 /// The sphere floats here: its shadow disc on the plane is in view, not behind it.
 const SPHERE: Vec3 = Vec3::new(1.5, 1.5, 0.0);
+/// DFAO's max occlusion distance: the whole sphere is within it from under the sphere,
+/// none of it from the plane's far corners.
+const AO_DISTANCE: f32 = 4.0;
 
 fn scene(
     mut commands: Commands,
@@ -56,6 +61,10 @@ fn scene(
     commands.spawn((
         Camera3d::default(),
         PenumbraLighting,
+        DistanceFieldAmbientOcclusion {
+            max_occlusion_distance: AO_DISTANCE,
+            ..default()
+        },
         Projection::Perspective(PerspectiveProjection {
             fov: FOV_DEG.to_radians(),
             ..default()
@@ -123,7 +132,10 @@ fn the_dump_is_distance_normal_and_mask_per_pixel_centre() {
     let depth = &dump.get("depth").unwrap().data;
     let normal = &dump.get("normal").unwrap().data;
     let sun = &dump.get("visibility_sun").expect("the sun's mask").data;
+    let ao = &dump.get("ao").expect("the AO").data;
+    let bent = &dump.get("bent_normal").expect("the bent normal").data;
     let (mut plane, mut shadowed, mut lit) = (0, 0, 0);
+    let (mut under, mut under_sum, mut open, mut lean, mut leaning) = (0, 0.0, 0, 0.0, 0);
     for j in 0..SIZE {
         for i in 0..SIZE {
             let k = (j * SIZE + i) as usize;
@@ -145,6 +157,7 @@ fn the_dump_is_distance_normal_and_mask_per_pixel_centre() {
                     depth[k]
                 );
                 assert!(normal[3 * k..3 * k + 3].iter().all(|v| v.is_nan()));
+                assert!(ao[k].is_nan() && bent[3 * k..3 * k + 3].iter().all(|v| v.is_nan()));
                 continue;
             }
             plane += 1;
@@ -156,6 +169,23 @@ fn the_dump_is_distance_normal_and_mask_per_pixel_centre() {
             let n = Vec3::from_slice(&normal[3 * k..3 * k + 3]);
             assert!(n.distance(Vec3::Y) < 2e-3, "({i}, {j}): normal {n}");
             let r = Vec2::new(hit.x - SPHERE.x, hit.z - SPHERE.z).length();
+            let b = Vec3::from_slice(&bent[3 * k..3 * k + 3]);
+            assert!(
+                (b.length() - 1.0).abs() < 1e-2 && b.y > 0.0,
+                "({i}, {j}): bent normal {b}"
+            );
+            if r < 0.3 {
+                under += 1;
+                under_sum += ao[k];
+            } else if hit.distance(SPHERE) > AO_DISTANCE + 0.6 {
+                open += 1;
+                assert!(ao[k] > 0.99, "({i}, {j}): AO {} out of reach", ao[k]);
+            } else if r > 0.5 && r < 1.5 {
+                // The bent normal leans away from the sphere.
+                let away = Vec3::new(hit.x - SPHERE.x, 0.0, hit.z - SPHERE.z).normalize();
+                lean += b.dot(away);
+                leaning += 1;
+            }
             if r < 0.4 {
                 shadowed += 1;
                 assert!(sun[k] < 0.1, "({i}, {j}): lit {} under the sphere", sun[k]);
@@ -168,5 +198,17 @@ fn the_dump_is_distance_normal_and_mask_per_pixel_centre() {
     assert!(
         plane > 1000 && shadowed > 5 && lit > 1000,
         "{plane} {shadowed} {lit}"
+    );
+    // Analytic AO under the sphere's centre: 1 − (R / h)² = 0.889.
+    let under_mean = under_sum / under as f32;
+    assert!(
+        under > 5 && (0.75..0.95).contains(&under_mean),
+        "AO under the sphere {under_mean} over {under} pixels"
+    );
+    assert!(open > 20, "{open} pixels out of the sphere's reach");
+    let lean = lean / leaning as f32;
+    assert!(
+        leaning > 20 && lean > 0.02,
+        "bent normals beside the sphere lean {lean} away from it ({leaning} pixels)"
     );
 }

@@ -76,6 +76,10 @@ fn absurd_flags_are_rejected_with_the_flag_named() {
         (&["--eye", "0,5,0", "--target", "0,0,0"], "--eye"),
         (&["--dump", "out"], "--dump"),
         (&["--headless", "--plain", "--dump", "out"], "--dump"),
+        (&["--ao-max-distance", "0"], "--ao-max-distance"),
+        (&["--ao-max-distance", "-2"], "--ao-max-distance"),
+        (&["--ao-max-distance", "nan"], "--ao-max-distance"),
+        (&["--plain", "--ao-max-distance", "2"], "--ao-max-distance"),
         (&["--bogus"], "--bogus"),
     ];
     for (list, flag) in cases {

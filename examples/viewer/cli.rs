@@ -54,6 +54,11 @@ pub struct Args {
     /// `meta.json` (headless only).
     #[arg(long)]
     pub dump: Option<PathBuf>,
+    /// Distance-field ambient occlusion on the camera with this max occlusion distance,
+    /// metres (scene units, not scaled), > 0; its other settings are the defaults.
+    /// `--dump` then writes `ao` and `bent_normal`.
+    #[arg(long, value_parser = parse_distance, allow_hyphen_values = true)]
+    pub ao_max_distance: Option<f32>,
     /// Plain Bevy: no Penumbra on the camera or the lights (shadow maps), to compare.
     #[arg(long)]
     pub plain: bool,
@@ -97,6 +102,9 @@ impl Args {
         }
         if self.dump.is_some() && !self.headless {
             return err("--dump needs --headless".into());
+        }
+        if self.ao_max_distance.is_some() && self.plain {
+            return err("--ao-max-distance is Penumbra's: not with --plain".into());
         }
         if self.dump.is_some() && self.plain {
             return err("--dump reads Penumbra's buffers: not with --plain".into());
@@ -176,6 +184,14 @@ fn parse_angle(s: &str) -> Result<f32, String> {
     let v = parse_number(s)?;
     if !(0.0..90.0).contains(&v) {
         return Err(format!("must be in [0, 90) degrees, got {v}"));
+    }
+    Ok(v)
+}
+
+fn parse_distance(s: &str) -> Result<f32, String> {
+    let v = parse_number(s)?;
+    if v <= 0.0 {
+        return Err(format!("must be > 0 metres, got {v}"));
     }
     Ok(v)
 }

@@ -83,6 +83,8 @@ pub fn write_dump(dir: &Path, buffers: &PenumbraBuffers, meta: &DumpMeta) -> Res
             "depth": "distance from the eye to the surface along the pixel-centre ray, scene units (metres); NaN: background",
             "normal": "world-space unit normal the passes read (deferred G-buffer); NaN: background",
             "visibility_<light>": "the distance-field shadow mask the lighting pass reads for that light, 1 = lit; includes the surface's own shadow (n . l); 1 on background",
+            "ao": "distance-field ambient occlusion the lighting pass reads, before contrast and min occlusion: 1 = open; NaN: background (with --ao-max-distance)",
+            "bent_normal": "world-space unit bent normal (mean unoccluded direction) of the distance-field AO; NaN: background (with --ao-max-distance)",
             "rows": "row 0 is the top of the image; pixel (i, j) is sampled at its centre",
         },
         "settings": meta.settings,
@@ -91,6 +93,23 @@ pub fn write_dump(dir: &Path, buffers: &PenumbraBuffers, meta: &DumpMeta) -> Res
     let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
     std::fs::write(&path, &text).map_err(|e| format!("writing {}: {e}", path.display()))?;
     Ok(bytes + text.len() as u64)
+}
+
+/// The camera's distance-field AO settings as `meta.json` describes them (null: off).
+pub fn ao_summary(
+    ao: Option<&penumbra::prelude::DistanceFieldAmbientOcclusion>,
+) -> serde_json::Value {
+    ao.map_or(serde_json::Value::Null, |a| {
+        serde_json::json!({
+            "max_occlusion_distance": a.max_occlusion_distance,
+            "cone_count": a.cone_count,
+            "steps_per_cone": a.steps_per_cone,
+            "trace_resolution_divisor": a.trace_resolution_divisor,
+            "surface_bias": a.surface_bias,
+            "occlusion_contrast": a.occlusion_contrast,
+            "min_occlusion": a.min_occlusion,
+        })
+    })
 }
 
 /// Every light as `meta.json` describes it: name (as in `visibility_<name>`), kind,

@@ -16,10 +16,13 @@
 //!   it); 1 for background. `<light>` is the light's `Name` (characters other than
 //!   letters, digits, `-` and `_` become `_`), else its entity (`12v0`).
 //!
-//! Later features add their buffers (`ao`, `bent_normal`, …) here.
+//! - `ao` and `bent_normal` (3 channels), on a camera with
+//!   [`DistanceFieldAmbientOcclusion`](crate::ao::DistanceFieldAmbientOcclusion): the
+//!   full-resolution AO the lighting pass reads (1 open), before contrast and min
+//!   occlusion, and the world-space unit bent normal; NaN for background.
 //!
 //! Cost: nothing without the component. With it: one compute pass and a copy of
-//! `(4 + lights) × 4` bytes per pixel each frame, and a buffer pair per camera, kept while
+//! `(4 + lights [+ 4 with AO]) × 4` bytes per pixel each frame, and a buffer pair per camera, kept while
 //! the size is unchanged. A frame whose previous read-back is still in flight is skipped.
 
 mod render;
@@ -74,6 +77,8 @@ struct RawDump {
     camera: Entity,
     size: UVec2,
     lights: Vec<Entity>,
+    /// Whether `data` ends with the AO and bent-normal planes.
+    ao: bool,
     data: Vec<f32>,
 }
 
@@ -185,6 +190,31 @@ fn unpack(raw: &RawDump, name: impl Fn(Entity) -> String) -> Vec<DumpedBuffer> {
             data: plane((4 + l) * n, n),
         });
     }
+    if raw.ao {
+        let base = (4 + raw.lights.len()) * n;
+        let mut ao = plane(base, n);
+        let mut bent = plane(base + n, 3 * n);
+        for (i, d) in buffers[0].data.iter().enumerate() {
+            if d.is_nan() {
+                if let Some(a) = ao.get_mut(i) {
+                    *a = f32::NAN;
+                }
+                if let Some(v) = bent.get_mut(3 * i..3 * i + 3) {
+                    v.fill(f32::NAN);
+                }
+            }
+        }
+        buffers.push(DumpedBuffer {
+            name: "ao".into(),
+            channels: 1,
+            data: ao,
+        });
+        buffers.push(DumpedBuffer {
+            name: "bent_normal".into(),
+            channels: 3,
+            data: bent,
+        });
+    }
     buffers
 }
 
@@ -201,7 +231,12 @@ mod tests {
             camera: Entity::PLACEHOLDER,
             size: UVec2::new(2, 1),
             lights: vec![sun, lamp],
-            data: vec![-1.0, 3.5, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.25, 1.0, 0.5],
+            ao: true,
+            data: vec![
+                -1.0, 3.5, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.25, 1.0,
+                0.5, // depth … masks
+                1.0, 0.75, 0.0, 0.0, 0.0, 0.6, 0.8, 0.0, // AO, bent normal
+            ],
         };
         // Both named "Sun": the second gets its entity appended.
         let b = unpack(&raw, |_| "Sun".into());
@@ -212,7 +247,9 @@ mod tests {
                 "depth",
                 "normal",
                 "visibility_Sun",
-                &format!("visibility_Sun_{lamp}")
+                &format!("visibility_Sun_{lamp}"),
+                "ao",
+                "bent_normal"
             ]
         );
         assert!(b[0].data[0].is_nan() && b[0].data[1] == 3.5);
@@ -220,6 +257,9 @@ mod tests {
         assert_eq!(&b[1].data[3..], &[0.0, 1.0, 0.0]);
         assert_eq!(b[2].data, [1.0, 0.25]);
         assert_eq!(b[3].data, [1.0, 0.5]);
+        assert!(b[4].data[0].is_nan() && b[4].data[1] == 0.75);
+        assert!(b[5].data[..3].iter().all(|v| v.is_nan()));
+        assert_eq!(&b[5].data[3..], &[0.6, 0.8, 0.0]);
         assert_eq!(light_name(sun, Some(&Name::new("a b/c"))), "a_b_c");
         assert_eq!(light_name(sun, None), sun.to_string());
     }

@@ -3,8 +3,8 @@
 
 use super::{PenumbraBufferDump, RawDump};
 use crate::gpu_allocations::PenumbraGpuAllocations;
-use crate::lighting::PenumbraLightingView;
 use crate::lighting::render::{PenumbraLightingInputs, PenumbraLightingPipeline};
+use crate::lighting::{PenumbraAoInput, PenumbraLightingView};
 use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
@@ -34,6 +34,8 @@ struct DumpView {
     view_from_clip: Mat4,
     /// Width, height, mask layers, 1 when the G-buffer is bound.
     size: UVec4,
+    /// x: 1 when the AO texture is bound.
+    ao: UVec4,
 }
 
 /// The render world's end of the read-back channel.
@@ -51,7 +53,13 @@ struct BufferDumpPipeline {
 }
 
 /// The resources a dump bind group binds.
-type BindKey = (TextureViewId, TextureViewId, TextureViewId, BufferId);
+type BindKey = (
+    TextureViewId,
+    TextureViewId,
+    TextureViewId,
+    BufferId,
+    TextureViewId,
+);
 
 /// A dumping view's pooled buffers and its bind group.
 #[derive(Component)]
@@ -59,6 +67,8 @@ struct ViewBufferDump {
     /// Pixels and mask layers the buffers are sized for.
     size: UVec2,
     layers: u32,
+    /// Whether the buffers hold the AO and bent-normal planes.
+    ao: bool,
     /// The pass's output (storage) and its copy for mapping.
     output: Buffer,
     staging: Buffer,
@@ -70,6 +80,8 @@ struct ViewBufferDump {
     active: bool,
     /// The main-world lights of the mask layers, this frame.
     lights: Vec<Entity>,
+    /// The AO planes hold this frame's AO (else they are unwritten).
+    ao_dumped: bool,
     /// Copied this frame, to be mapped in `Cleanup`.
     copied: Arc<AtomicBool>,
     /// The staging buffer is being mapped or read: no new copy into it.
@@ -117,6 +129,7 @@ fn init_buffer_dump_pipeline(
                 texture_2d_array(TextureSampleType::Float { filterable: false }),
                 uniform_buffer::<DumpView>(false),
                 storage_buffer_sized(false, None),
+                texture_2d(TextureSampleType::Float { filterable: false }),
             ),
         ),
     );
@@ -155,19 +168,21 @@ fn prepare_buffer_dumps(
             Entity,
             &ExtractedView,
             Option<&PenumbraLightingInputs>,
+            Has<PenumbraAoInput>,
             Option<&ViewBufferDump>,
         ),
         (With<PenumbraBufferDump>, With<PenumbraLightingView>),
     >,
     mut warned: Local<bool>,
 ) {
-    for (entity, view, inputs, dump) in &views {
+    for (entity, view, inputs, ao, dump) in &views {
         let size = view.viewport.zw().max(UVec2::ONE);
         let layers = inputs.map_or(0, |i| i.lights.len() as u32);
-        if dump.is_some_and(|d| d.size == size && d.layers == layers) {
+        if dump.is_some_and(|d| d.size == size && d.layers == layers && d.ao == ao) {
             continue;
         }
-        let bytes = u64::from(size.x) * u64::from(size.y) * u64::from(4 + layers) * 4;
+        let planes = 4 + layers + if ao { 4 } else { 0 };
+        let bytes = u64::from(size.x) * u64::from(size.y) * u64::from(planes) * 4;
         let limits = device.limits();
         if bytes
             > limits
@@ -199,12 +214,14 @@ fn prepare_buffer_dumps(
         commands.entity(entity).insert(ViewBufferDump {
             size,
             layers,
+            ao,
             output,
             staging,
             uniform: UniformBuffer::default(),
             bind_group: None,
             active: false,
             lights: Vec::new(),
+            ao_dumped: false,
             copied: Arc::default(),
             busy: Arc::default(),
         });
@@ -225,6 +242,7 @@ fn prepare_buffer_dump_bind_groups(
         &ExtractedView,
         &ViewPrepassTextures,
         Option<&PenumbraLightingInputs>,
+        Option<&PenumbraAoInput>,
         &mut ViewBufferDump,
         Has<PenumbraBufferDump>,
     )>,
@@ -232,7 +250,7 @@ fn prepare_buffer_dump_bind_groups(
     let (Some(pipeline), Some(lighting)) = (pipeline, lighting) else {
         return;
     };
-    for (view, prepass, inputs, mut dump, asked) in &mut views {
+    for (view, prepass, inputs, ao, mut dump, asked) in &mut views {
         dump.active = false;
         // No longer asked for: the buffers are kept (pooled), the pass does not run.
         let (true, Some(depth)) = (asked, prepass.depth_view()) else {
@@ -240,6 +258,7 @@ fn prepare_buffer_dump_bind_groups(
         };
         let gbuffer = prepass.deferred_view().unwrap_or(&pipeline.no_gbuffer);
         let masks = inputs.filter(|i| i.lights.len() as u32 == dump.layers);
+        let ao = ao.filter(|_| dump.ao);
         let uniform = DumpView {
             view_from_clip: view.clip_from_view.inverse(),
             size: UVec4::new(
@@ -248,6 +267,7 @@ fn prepare_buffer_dump_bind_groups(
                 masks.map_or(0, |_| dump.layers),
                 u32::from(prepass.deferred_view().is_some()),
             ),
+            ao: UVec4::new(u32::from(ao.is_some()), 0, 0, 0),
         };
         let dump = &mut *dump;
         dump.uniform.set(uniform);
@@ -255,7 +275,9 @@ fn prepare_buffer_dump_bind_groups(
         dump.lights = masks.map_or_else(Vec::new, |m| {
             m.lights.iter().map(|l| l.light.id()).collect()
         });
+        dump.ao_dumped = ao.is_some();
         let mask_view = masks.map_or(&lighting.no_masks, |m| &m.masks);
+        let ao_view = ao.map_or(&lighting.no_ao, |a| &a.texture);
         let (Some(uniform), Some(uniform_buffer)) = (dump.uniform.binding(), dump.uniform.buffer())
         else {
             continue;
@@ -265,6 +287,7 @@ fn prepare_buffer_dump_bind_groups(
             gbuffer.id(),
             mask_view.id(),
             uniform_buffer.id(),
+            ao_view.id(),
         );
         if dump.bind_group.as_ref().is_none_or(|(k, _)| *k != key) {
             let bind_group = allocations.bind_group(
@@ -277,6 +300,7 @@ fn prepare_buffer_dump_bind_groups(
                     mask_view,
                     uniform,
                     dump.output.as_entire_binding(),
+                    ao_view,
                 )),
             );
             dump.bind_group = Some((key, bind_group));
@@ -334,7 +358,8 @@ fn map_buffer_dumps(views: Query<(&MainEntity, &ViewBufferDump)>, sender: Res<Du
         let staging = dump.staging.clone();
         let busy = dump.busy.clone();
         let sender = sender.0.clone();
-        let (camera, size, lights) = (camera.id(), dump.size, dump.lights.clone());
+        let (camera, size, lights, ao) =
+            (camera.id(), dump.size, dump.lights.clone(), dump.ao_dumped);
         dump.staging
             .slice(..)
             .map_async(MapMode::Read, move |result| {
@@ -352,6 +377,7 @@ fn map_buffer_dumps(views: Query<(&MainEntity, &ViewBufferDump)>, sender: Res<Du
                         camera,
                         size,
                         lights,
+                        ao,
                         data,
                     });
                 }

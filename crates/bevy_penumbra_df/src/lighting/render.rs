@@ -122,7 +122,7 @@ pub struct PenumbraLightingPipeline {
     /// One white layer: bound when a view has no masks.
     pub(crate) no_masks: TextureView,
     /// One texel: bound when a view has no AO.
-    no_ao: TextureView,
+    pub(crate) no_ao: TextureView,
 }
 
 /// A view's specialised lighting pipeline.

@@ -4,6 +4,9 @@
 //                   (-1: background, turned into NaN on the CPU)
 //   [n, 4n)         world-space unit normal, xyz interleaved (0: background or no G-buffer)
 //   [4n + l n, …)   mask layer l (the visibility the lighting pass reads, 1 lit)
+// and, when the view has distance-field AO (after the L mask layers):
+//   [(4 + L) n, …)  AO before contrast and min occlusion (1 open)
+//   [(5 + L) n, …)  world-space unit bent normal, xyz interleaved
 // with n = width × height.
 #define_import_path penumbra::lighting::buffer_dump
 
@@ -13,6 +16,8 @@ struct DumpView {
     view_from_clip: mat4x4<f32>,
     // x, y: size in pixels; z: mask layers; w: 1 when `gbuffer` holds the view's normals.
     size: vec4<u32>,
+    // x: 1 when `ambient_occlusion` holds the view's distance-field AO.
+    ao: vec4<u32>,
 }
 
 // Reverse-Z depth (the prepass depth).
@@ -22,6 +27,8 @@ struct DumpView {
 @group(0) @binding(2) var masks: texture_2d_array<f32>;
 @group(0) @binding(3) var<uniform> view: DumpView;
 @group(0) @binding(4) var<storage, read_write> out: array<f32>;
+// The AO pass's full-resolution output (AO, bent normal), or one texel.
+@group(0) @binding(5) var ambient_occlusion: texture_2d<f32>;
 
 // View-space position of pixel `xy`'s centre at reverse-Z `depth`.
 fn view_position(xy: vec2<u32>, depth: f32) -> vec3<f32> {
@@ -59,5 +66,17 @@ fn dump(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     for (var l = 0u; l < view.size.z; l += 1u) {
         out[(4u + l) * n + i] = textureLoad(masks, vec2<i32>(gid.xy), i32(l), 0).r;
+    }
+    if view.ao.x != 0u {
+        dump_ao(gid.xy, i, n, (4u + view.size.z) * n);
+    }
+}
+
+// The AO plane at `base` and the bent normal's after it.
+fn dump_ao(xy: vec2<u32>, i: u32, n: u32, base: u32) {
+    let s = textureLoad(ambient_occlusion, vec2<i32>(xy), 0);
+    out[base + i] = s.x;
+    for (var k = 0u; k < 3u; k += 1u) {
+        out[base + n + 3u * i + k] = s[k + 1u];
     }
 }
