@@ -289,6 +289,21 @@ pub fn trace_view(
     jitter: UVec2,
     trace: &AoTrace,
 ) -> Vec<Vec4> {
+    trace_view_counted(records, atlas, camera, view, divisor, jitter, trace).0
+}
+
+/// [`trace_view`] and the distance evaluations of its texels' marches (the tile tests'
+/// one sample per object and range not counted).
+pub fn trace_view_counted(
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    camera: &CameraOrigin,
+    view: &AoView,
+    divisor: u32,
+    jitter: UVec2,
+    trace: &AoTrace,
+) -> (Vec<Vec4>, u64) {
+    let mut evaluations = 0u64;
     let size = penumbra_df_core::ao::trace_size(view.size, divisor);
     let mut out = vec![Vec4::new(1.0, 0.0, 0.0, 0.0); (size.x * size.y) as usize];
     let influence = trace.influence();
@@ -335,14 +350,15 @@ pub fn trace_view(
             });
             for ((i, j), p, n) in texels {
                 let range = usize::from(p.length() > ranges.split);
-                let (s, _) = pixel_ao_filtered(records, atlas, camera, p, n, trace, |slot| {
+                let (s, e) = pixel_ao_filtered(records, atlas, camera, p, n, trace, |slot| {
                     kept[range][slot]
                 });
+                evaluations += u64::from(e);
                 out[(j * size.x + i) as usize] = s.to_vec4();
             }
         }
     }
-    out
+    (out, evaluations)
 }
 
 /// Ground truth: `rays_sqrt²` cosine-weighted stratified rays (concentric disc mapping)
