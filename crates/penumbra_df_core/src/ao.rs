@@ -177,6 +177,42 @@ impl AoTraceView {
     }
 }
 
+/// History weight of the temporal filter at full confidence: each frame keeps this much
+/// of the reprojected history (Unreal's `r.AOHistoryWeight`, 0.85: about 6 frames).
+pub const HISTORY_WEIGHT: f32 = 0.85;
+/// Relative difference between a history texel's distance from the camera and the
+/// distance the pixel's surface point had from the previous camera beyond which the
+/// texel is another surface (rejected).
+pub const HISTORY_DEPTH_TOLERANCE: f32 = 0.05;
+/// Confidence gained per frame of accepted history (full after one jitter cycle).
+pub const CONFIDENCE_GAIN: f32 = 0.25;
+/// Where the new AO differs from the history by more than this (occlusion left behind
+/// by a moving caster, or arriving with it), the confidence falls, to 0 at twice this.
+pub const LEAK_TOLERANCE: f32 = 0.05;
+/// Pixels whose confidence is below this get the spatial fill.
+pub const FILL_CONFIDENCE: f32 = 0.5;
+/// The spatial fill's radius, pixels (a `(2r + 1)²` neighbourhood).
+pub const FILL_RADIUS: i32 = 2;
+
+/// The temporal pass's per-view uniform (`AoTemporalView` in `shaders/df/ao_temporal.wgsl`).
+#[derive(ShaderType, Clone, Copy, Debug, Default, PartialEq)]
+pub struct AoTemporalView {
+    /// Inverse projection (reverse-Z clip to view space).
+    pub view_from_clip: Mat4,
+    /// The camera's rotation (view to camera-relative world).
+    pub world_from_view: Mat3,
+    /// The previous frame's camera position relative to this frame's, metres.
+    pub previous_offset: Vec3,
+    /// 1 when the history holds a previous frame of this view (0: first frame, resize).
+    pub history_valid: u32,
+    /// The view's size, pixels.
+    pub full_size: UVec2,
+    /// 1: the confidence lowers the history's weight (flushes leaked occlusion).
+    pub confidence: u32,
+    /// 1: pixels of low confidence take a spatial fill of the current frame.
+    pub spatial_fill: u32,
+}
+
 /// The trace's size for a view of `full_size` at `divisor`.
 pub fn trace_size(full_size: UVec2, divisor: u32) -> UVec2 {
     let d = divisor.max(1);

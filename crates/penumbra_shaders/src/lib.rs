@@ -45,6 +45,7 @@ shader_files! {
     "df/ao.wgsl" => Some("penumbra::df::ao"),
     "df/ao_trace.wgsl" => Some("penumbra::df::ao_trace"),
     "df/ao_upsample.wgsl" => Some("penumbra::df::ao_upsample"),
+    "df/ao_temporal.wgsl" => Some("penumbra::df::ao_temporal"),
     "lighting/masks.wgsl" => Some("penumbra::lighting::masks"),
     "lighting/lights.wgsl" => Some("penumbra::lighting::lights"),
     "lighting/ao.wgsl" => Some("penumbra::lighting::ao"),

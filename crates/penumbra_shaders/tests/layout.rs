@@ -207,3 +207,39 @@ fn ao_layouts_and_constants_match() {
     assert_eq!(constant(&m, "GOLDEN_ANGLE") as f32, GOLDEN_ANGLE);
     assert_eq!(constant(&m, "MIN_STEP_FRACTION") as f32, MIN_STEP_FRACTION);
 }
+
+#[test]
+fn ao_temporal_layout_and_constants_match() {
+    use encase::ShaderType;
+    use penumbra_df_core::ao::{
+        AoTemporalView, CONFIDENCE_GAIN, FILL_CONFIDENCE, FILL_RADIUS, HISTORY_DEPTH_TOLERANCE,
+        HISTORY_WEIGHT, LEAK_TOLERANCE,
+    };
+    let m = parse("#import penumbra::df::ao_temporal\n");
+    let (members, size) = struct_layout(&m, "AoTemporalView");
+    assert_eq!(u64::from(size), AoTemporalView::min_size().get());
+    let names: Vec<&str> = members.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "view_from_clip",
+            "world_from_view",
+            "previous_offset",
+            "history_valid",
+            "full_size",
+            "confidence",
+            "spatial_fill",
+        ]
+    );
+    assert_eq!(constant(&m, "HISTORY_WEIGHT") as f32, HISTORY_WEIGHT);
+    assert_eq!(
+        constant(&m, "HISTORY_DEPTH_TOLERANCE") as f32,
+        HISTORY_DEPTH_TOLERANCE
+    );
+    assert_eq!(constant(&m, "CONFIDENCE_GAIN") as f32, CONFIDENCE_GAIN);
+    assert_eq!(constant(&m, "LEAK_TOLERANCE") as f32, LEAK_TOLERANCE);
+    assert_eq!(constant(&m, "FILL_CONFIDENCE") as f32, FILL_CONFIDENCE);
+    assert_eq!(constant(&m, "FILL_RADIUS") as i32, FILL_RADIUS);
+    // The fill weighs neighbours as the upsample does (`dfao::UPSAMPLE_DEPTH_TOLERANCE`).
+    assert_eq!(constant(&m, "UPSAMPLE_DEPTH_TOLERANCE") as f32, 0.1);
+}

@@ -415,8 +415,13 @@ fn concentric_disc(u: Vec2) -> Vec2 {
 }
 
 mod apply;
+mod temporal;
+#[cfg(test)]
+mod temporal_tests;
 #[cfg(test)]
 mod tests;
+
+pub use temporal::{AoHistory, TemporalFrame, TemporalSteps, temporal_step};
 
 pub use apply::{
     SpecularOcclusion, UPSAMPLE_DEPTH_TOLERANCE, UPSAMPLE_NORMAL_POWER, cone_cone_intersection,

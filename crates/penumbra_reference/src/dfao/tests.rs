@@ -4,7 +4,7 @@ use penumbra_df_core::object::{CasterShape, ObjectDesc, encode};
 
 const LIVE: u32 = flags::LIVE | flags::CASTS_OCCLUSION | flags::VISIBLE;
 
-fn object(shape: CasterShape, world_from_local: Affine3A) -> ObjectRecord {
+pub(super) fn object(shape: CasterShape, world_from_local: Affine3A) -> ObjectRecord {
     encode(&ObjectDesc {
         world_from_local,
         shape,
@@ -13,11 +13,11 @@ fn object(shape: CasterShape, world_from_local: Affine3A) -> ObjectRecord {
     .expect("encodes")
 }
 
-fn ground() -> ObjectRecord {
+pub(super) fn ground() -> ObjectRecord {
     object(CasterShape::Plane, Affine3A::IDENTITY)
 }
 
-fn defaults() -> AoTrace {
+pub(super) fn defaults() -> AoTrace {
     AoTrace {
         max_distance: 10.0,
         cone_count: 9,
