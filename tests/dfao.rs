@@ -121,6 +121,8 @@ fn dfao_matches_the_model_and_occludes_only_indirect_light() {
     let settings = DistanceFieldAmbientOcclusion {
         max_occlusion_distance: MAX_DISTANCE,
         trace_resolution_divisor: 1,
+        // One frame's trace, as the model computes it.
+        temporal_filter: false,
         debug_view: DistanceFieldAoDebugView::AmbientOcclusion,
         ..default()
     };
@@ -162,6 +164,31 @@ fn dfao_matches_the_model_and_occludes_only_indirect_light() {
     // The G-buffer's normals (octahedral, 12-bit) and f16 storage only.
     assert!(mean < 0.01 && worst < 0.05, "mean {mean} worst {worst}");
     assert!(under < 0.6 && open > 0.98, "under {under} far {open}");
+
+    // The defaults' path (half-resolution trace, jittered, temporally filtered over the
+    // 6 frames): the filtered AO the lighting reads is the same field (a history pair
+    // read before it is written, or the wrong pair bound, is far off).
+    let filtered = render(Some(DistanceFieldAmbientOcclusion {
+        trace_resolution_divisor: 2,
+        temporal_filter: true,
+        ..settings.clone()
+    }));
+    let (mut sum, mut worst, mut n) = (0.0f32, 0.0f32, 0);
+    for (k, p) in plane_pixels() {
+        let want = pixel_ao(&[record], &atlas, &camera, p - EYE, Vec3::Y, &trace).ao;
+        let e = (filtered[k][0] - want).abs();
+        sum += e;
+        worst = worst.max(e);
+        n += 1;
+    }
+    let mean = sum / n as f32;
+    eprintln!(
+        "temporally filtered half-resolution AO vs model: mean |Δ| {mean:.4}, worst {worst:.4}"
+    );
+    assert!(
+        mean < 0.01 && worst < 0.15,
+        "filtered: mean {mean} worst {worst}"
+    );
 
     // Shading: ambient light only, so the occluded plane is darker than without DFAO
     // in proportion to the AO.

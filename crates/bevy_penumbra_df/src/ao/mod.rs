@@ -32,7 +32,14 @@
 //!    marches its range's casters. Output `Rgba16Float`: AO and bent normal.
 //! 2. Upsample (compute, when the divisor is above 1): depth- and normal-aware to the
 //!    view's size.
-//! 3. Penumbra's lighting pass reads the result: contrast, min occlusion and tint are
+//! 3. Temporal filter (compute, full size, `temporal_filter`): each frame the trace takes
+//!    another of four pixels of its `divisor × divisor` cell (jitter); the result is
+//!    blended with the previous frame's, reprojected with Bevy's motion vectors (hence
+//!    the required [`MotionVectorPrepass`]), rejected where the previous frame saw
+//!    another surface (depth), with a confidence that flushes ghosting when a caster
+//!    moves and a spatial fill of pixels with little history
+//!    (`penumbra_reference::dfao::temporal_step` documents each step and its figures).
+//! 4. Penumbra's lighting pass reads the result: contrast, min occlusion and tint are
 //!    applied there.
 //!
 //! Every pass has a CPU model in `penumbra_reference::dfao`, equal on lavapipe
@@ -58,16 +65,21 @@
 //! - Nine cones are coarse under a caster nearly touching the surface (the analytic
 //!   sphere-over-plane test: mean error 0.08, worst 0.13); the AO is darker than truth
 //!   right beside edges.
-//! - Not yet: temporal filtering (with its jitter), the objects-per-tile debug view.
+//! - The temporal filter trades ghosting for stability: after a caster moves, its old
+//!   occlusion fades over about ten frames (the confidence flushes large changes at
+//!   once); a camera cut or a resize starts from a single frame.
+//! - Not yet: the objects-per-tile debug view.
 //!
 //! Cost: nothing without the component. Per camera: one trace over
 //! `(w / divisor) × (h / divisor)` pixels, each marching `cone_count × steps_per_cone`
-//! samples per caster within reach; an upsample; 8 bytes per pixel (full-size result)
-//! plus 8 per traced pixel.
+//! samples per caster within reach; an upsample; the temporal pass (one history read,
+//! a 5×5 fill on unstable pixels); 8 bytes per pixel (full-size result) plus 8 per
+//! traced pixel, plus 32 per pixel for the temporal filter's two history pairs.
 
 mod render;
 
 use crate::lighting::{PenumbraAoInput, PenumbraLighting};
+use bevy::core_pipeline::prepass::MotionVectorPrepass;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
@@ -110,7 +122,7 @@ pub enum DistanceFieldAoDebugView {
 /// indirect light (module docs).
 #[derive(Component, Reflect, Clone, Debug, PartialEq)]
 #[reflect(Component, Clone, Default)]
-#[require(PenumbraLighting)]
+#[require(PenumbraLighting, MotionVectorPrepass)]
 pub struct DistanceFieldAmbientOcclusion {
     /// How far an occluder can be and still occlude, metres. Default 10 (Unreal's
     /// "Max Occlusion Distance"). Cost grows with it: more casters are within reach of
@@ -136,6 +148,11 @@ pub struct DistanceFieldAmbientOcclusion {
     /// normal weights. Default 2 (a quarter of the pixels, as Unreal). 1 traces every
     /// pixel. Clamped to `1..=8` with a warning.
     pub trace_resolution_divisor: u32,
+    /// Temporal filtering: the trace jitters over four positions and the result is
+    /// blended with the reprojected previous frames (module docs). Default on (Unreal
+    /// always filters). Off: every frame stands alone, with the divisor's blockiness and
+    /// no history memory. Cost: one full-size pass and 32 bytes per pixel.
+    pub temporal_filter: bool,
     /// The cones start this far from the surface along its normal, metres. Default
     /// 0.02. Too small: the distance fields' error near surfaces occludes; too large:
     /// contact occlusion detaches. Clamped to `≥ 0` with a warning.
@@ -157,6 +174,7 @@ impl Default for DistanceFieldAmbientOcclusion {
             cone_count: 9,
             steps_per_cone: 16,
             trace_resolution_divisor: 2,
+            temporal_filter: true,
             surface_bias: 0.02,
             specular_occlusion: DistanceFieldSpecularOcclusion::ConeCone,
             debug_view: DistanceFieldAoDebugView::None,
@@ -194,6 +212,7 @@ impl ExtractComponent for DistanceFieldAmbientOcclusion {
 pub(crate) struct ResolvedAo {
     pub(crate) trace: AoTrace,
     pub(crate) divisor: u32,
+    pub(crate) temporal: bool,
     pub(crate) contrast: f32,
     pub(crate) min_occlusion: f32,
     pub(crate) tint: LinearRgba,
@@ -272,6 +291,7 @@ impl DistanceFieldAmbientOcclusion {
                     shaping: CONE_SHAPING,
                 },
                 divisor,
+                temporal: self.temporal_filter,
                 contrast,
                 min_occlusion,
                 tint,

@@ -6,7 +6,7 @@ use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::lighting::{PenumbraAoInput, PenumbraLightingView};
 use crate::scene::DistanceFieldGpu;
 use crate::shader_library::PenumbraShaderLibrary;
-use bevy::core_pipeline::prepass::ViewPrepassTextures;
+use bevy::core_pipeline::prepass::{MotionVectorPrepass, ViewPrepassTextures};
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
@@ -25,7 +25,7 @@ use bevy::render::render_resource::{
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::view::ExtractedView;
 use bevy::render::{Render, RenderStartup, RenderSystems};
-use penumbra_df_core::ao::{AoTraceView, trace_size};
+use penumbra_df_core::ao::{AoTemporalView, AoTraceView, jitter, trace_size};
 use penumbra_df_core::cull::CameraOrigin;
 
 /// The passes' pipelines.
@@ -35,37 +35,65 @@ struct AoPipelines {
     trace: CachedComputePipelineId,
     upsample_layout: BindGroupLayoutDescriptor,
     upsample: CachedComputePipelineId,
+    temporal_layout: BindGroupLayoutDescriptor,
+    temporal: CachedComputePipelineId,
     /// Bound when the scene has no SDF volume (analytic casters only).
     empty_atlas: TextureView,
 }
 
-/// A view's AO textures: the trace's (at the divisor's size) and, above divisor 1, the
-/// full-size result (otherwise the trace is the result).
+/// A view's AO textures: the trace's (at the divisor's size), above divisor 1 the
+/// full-size upsample (otherwise the trace is full-size), and with the temporal filter
+/// two history pairs (filtered AO and bent normal; distance and confidence), written in
+/// turn: frame `f` writes pair `f mod 2` and reads the other, and the filtered AO again
+/// in `filtered`, which the lighting pass binds (one texture for every frame: its bind
+/// group stays).
 #[derive(Component)]
 pub struct ViewAoTextures {
     trace: TextureView,
     full: Option<TextureView>,
+    history: Option<[[TextureView; 2]; 2]>,
+    filtered: Option<TextureView>,
     size: UVec2,
     divisor: u32,
+    /// Frames prepared since the textures were made (the jitter and history pair).
+    frame: u32,
+    /// The camera's position in the previous frame (None: no history yet).
+    previous_eye: Option<Vec3>,
 }
 
 impl ViewAoTextures {
-    fn result(&self) -> &TextureView {
+    /// Before the temporal filter: the upsample's output, or the trace's.
+    fn unfiltered(&self) -> &TextureView {
         self.full.as_ref().unwrap_or(&self.trace)
+    }
+
+    /// What the lighting pass reads this frame.
+    fn result(&self) -> &TextureView {
+        self.filtered.as_ref().unwrap_or_else(|| self.unfiltered())
     }
 }
 
 /// What a view's bind groups bind: the object buffer; atlas, depth, G-buffer and trace
-/// views; the full-size view.
-type BindKey = (BufferId, [TextureViewId; 4], Option<TextureViewId>);
+/// views; the full-size view; the motion vectors and first history view.
+type BindKey = (
+    BufferId,
+    [TextureViewId; 4],
+    Option<TextureViewId>,
+    Option<[TextureViewId; 2]>,
+);
 
-/// A view's uniform and bind groups (remade only when a bound resource changes).
+/// A view's uniforms and bind groups (remade only when a bound resource changes).
 #[derive(Component)]
 pub struct ViewAoBindGroups {
     uniform: Buffer,
+    temporal_uniform: Buffer,
     key: Option<BindKey>,
     trace: Option<BindGroup>,
     upsample: Option<BindGroup>,
+    /// The temporal pass of even and odd frames.
+    temporal: Option<[BindGroup; 2]>,
+    /// This frame's parity (which `temporal` group runs).
+    parity: usize,
 }
 
 pub(super) fn build(render_app: &mut SubApp) {
@@ -128,6 +156,32 @@ fn init_ao_pipelines(
             ),
         ),
     );
+    let float = || texture_2d(TextureSampleType::Float { filterable: false });
+    let temporal_layout = BindGroupLayoutDescriptor::new(
+        "penumbra_dfao_temporal_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                float(),
+                float(),
+                float(),
+                float(),
+                texture_2d(TextureSampleType::Uint),
+                float(),
+                uniform_buffer_sized(false, Some(AoTemporalView::min_size())),
+                texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+                texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+                texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+            ),
+        ),
+    );
+    let temporal = library.queue_compute(
+        &pipeline_cache,
+        "penumbra_dfao_temporal",
+        &temporal_layout,
+        "df/ao_temporal.wgsl",
+        "temporal",
+    );
     let trace = library.queue_compute(
         &pipeline_cache,
         "penumbra_dfao_trace",
@@ -147,6 +201,8 @@ fn init_ao_pipelines(
         trace,
         upsample_layout,
         upsample,
+        temporal_layout,
+        temporal,
         empty_atlas: crate::shader_library::empty_atlas(&device),
     });
 }
@@ -181,7 +237,11 @@ fn ao_texture(
 /// Gives every DFAO view its textures (pooled: remade only when the view's size or
 /// the divisor changes) and tells its lighting pass to read them. Views without casters
 /// or before the pipelines compile get nothing: their AO is 1.
-#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+#[allow(
+    clippy::too_many_arguments,
+    clippy::type_complexity,
+    reason = "a Bevy system"
+)]
 fn prepare_dfao_textures(
     mut commands: Commands,
     device: Res<RenderDevice>,
@@ -195,6 +255,7 @@ fn prepare_dfao_textures(
             &ExtractedView,
             &ExtractedDfao,
             Option<&ViewAoTextures>,
+            Has<MotionVectorPrepass>,
         ),
         With<PenumbraLightingView>,
     >,
@@ -202,19 +263,30 @@ fn prepare_dfao_textures(
     let ready = pipelines.as_ref().is_some_and(|p| {
         pipeline_cache.get_compute_pipeline(p.trace).is_some()
             && pipeline_cache.get_compute_pipeline(p.upsample).is_some()
+            && pipeline_cache.get_compute_pipeline(p.temporal).is_some()
     });
     let has_objects = gpu.as_ref().is_some_and(|g| g.objects.is_some());
-    for (entity, view, &ExtractedDfao(resolved), textures) in &views {
+    for (entity, view, &ExtractedDfao(resolved), textures, motion) in &views {
         if !(ready && has_objects) {
             commands.entity(entity).remove::<PenumbraAoInput>();
             continue;
         }
         let size = view.viewport.zw().max(UVec2::ONE);
+        // Without motion vectors (the prepass removed by hand) there is no temporal
+        // filter: each frame stands alone.
+        let temporal = resolved.temporal && motion;
         let mut fresh = None;
         let textures = match textures {
-            Some(t) if t.size == size && t.divisor == resolved.divisor => t,
+            Some(t)
+                if t.size == size
+                    && t.divisor == resolved.divisor
+                    && t.history.is_some() == temporal =>
+            {
+                t
+            }
             _ => {
                 let divisor = resolved.divisor;
+                let texture = |label| ao_texture(&allocations, &device, label, size);
                 fresh = Some(ViewAoTextures {
                     trace: ao_texture(
                         &allocations,
@@ -222,10 +294,20 @@ fn prepare_dfao_textures(
                         "penumbra_dfao_trace",
                         trace_size(size, divisor),
                     ),
-                    full: (divisor > 1)
-                        .then(|| ao_texture(&allocations, &device, "penumbra_dfao", size)),
+                    full: (divisor > 1).then(|| texture("penumbra_dfao")),
+                    history: temporal.then(|| {
+                        [0, 1].map(|_| {
+                            [
+                                texture("penumbra_dfao_history"),
+                                texture("penumbra_dfao_history_state"),
+                            ]
+                        })
+                    }),
+                    filtered: temporal.then(|| texture("penumbra_dfao_filtered")),
                     size,
                     divisor,
+                    frame: 0,
+                    previous_eye: None,
                 });
                 fresh.as_ref().expect("just set")
             }
@@ -274,7 +356,7 @@ fn prepare_dfao_bind_groups(
             Entity,
             &ExtractedView,
             &ExtractedDfao,
-            &ViewAoTextures,
+            &mut ViewAoTextures,
             &ViewPrepassTextures,
             Option<&mut ViewAoBindGroups>,
         ),
@@ -291,7 +373,7 @@ fn prepare_dfao_bind_groups(
         .atlas
         .as_ref()
         .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
-    for (entity, view, ExtractedDfao(settings), textures, prepass, groups) in &mut views {
+    for (entity, view, ExtractedDfao(settings), mut textures, prepass, groups) in &mut views {
         let (Some(depth), Some(gbuffer), Some(camera)) = (
             prepass.depth_view(),
             prepass.deferred_view(),
@@ -299,18 +381,43 @@ fn prepare_dfao_bind_groups(
         ) else {
             continue;
         };
+        let motion = prepass.motion_vectors_view();
+        let frame = textures.frame;
+        let eye = view.world_from_view.translation();
+        let view_from_clip = view.clip_from_view.inverse();
+        let world_from_view = Mat3::from(view.world_from_view.affine().matrix3);
+        let temporal = textures.history.is_some() && motion.is_some();
         let uniform = AoTraceView::new(
             &camera,
-            view.clip_from_view.inverse(),
-            Mat3::from(view.world_from_view.affine().matrix3),
+            view_from_clip,
+            world_from_view,
             textures.size,
             textures.divisor,
-            UVec2::ZERO,
+            if temporal {
+                jitter(frame, textures.divisor)
+            } else {
+                UVec2::ZERO
+            },
             gpu.slot_count,
             &settings.trace,
         );
         let mut bytes = EncaseBuffer::new(Vec::new());
         bytes.write(&uniform).expect("fixed-size uniform");
+        let temporal_uniform = AoTemporalView {
+            view_from_clip,
+            world_from_view,
+            previous_offset: textures.previous_eye.map_or(Vec3::ZERO, |p| p - eye),
+            history_valid: u32::from(textures.previous_eye.is_some()),
+            full_size: textures.size,
+            confidence: 1,
+            spatial_fill: 1,
+        };
+        let mut temporal_bytes = EncaseBuffer::new(Vec::new());
+        temporal_bytes
+            .write(&temporal_uniform)
+            .expect("fixed-size uniform");
+        textures.frame = frame.wrapping_add(1);
+        textures.previous_eye = temporal.then_some(eye);
         let mut fresh = None;
         let groups = match groups {
             Some(g) => g.into_inner(),
@@ -322,18 +429,30 @@ fn prepare_dfao_bind_groups(
                         AoTraceView::min_size().get(),
                         BufferUsages::UNIFORM | BufferUsages::COPY_DST,
                     ),
+                    temporal_uniform: allocations.sized_buffer(
+                        &device,
+                        "penumbra_dfao_temporal_view",
+                        AoTemporalView::min_size().get(),
+                        BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                    ),
                     key: None,
                     trace: None,
                     upsample: None,
+                    temporal: None,
+                    parity: 0,
                 });
                 fresh.as_mut().expect("just set")
             }
         };
         queue.write_buffer(&groups.uniform, 0, bytes.as_ref());
+        queue.write_buffer(&groups.temporal_uniform, 0, temporal_bytes.as_ref());
+        groups.parity = (frame % 2) as usize;
+        let history = textures.history.as_ref().filter(|_| temporal);
         let key = (
             objects.id(),
             [atlas.id(), depth.id(), gbuffer.id(), textures.trace.id()],
             textures.full.as_ref().map(TextureView::id),
+            motion.zip(history).map(|(m, h)| [m.id(), h[0][0].id()]),
         );
         if groups.key != Some(key) {
             groups.trace = Some(allocations.bind_group(
@@ -363,6 +482,34 @@ fn prepare_dfao_bind_groups(
                     )),
                 )
             });
+            let filtered = textures.filtered.as_ref();
+            groups.temporal =
+                motion
+                    .zip(history)
+                    .zip(filtered)
+                    .map(|((motion, pairs), filtered)| {
+                        // Parity p writes pair p and reads the other.
+                        [0, 1].map(|p| {
+                            let (read, write) = (&pairs[1 - p], &pairs[p]);
+                            allocations.bind_group(
+                                &device,
+                                "penumbra_dfao_temporal",
+                                &pipeline_cache.get_bind_group_layout(&pipelines.temporal_layout),
+                                &BindGroupEntries::sequential((
+                                    textures.unfiltered(),
+                                    &read[0],
+                                    &read[1],
+                                    depth,
+                                    gbuffer,
+                                    motion,
+                                    groups.temporal_uniform.as_entire_binding(),
+                                    &write[0],
+                                    &write[1],
+                                    filtered,
+                                )),
+                            )
+                        })
+                    });
             groups.key = Some(key);
         }
         if let Some(fresh) = fresh {
@@ -371,8 +518,8 @@ fn prepare_dfao_bind_groups(
     }
 }
 
-/// The view's DFAO passes: the trace, then (above divisor 1) the upsample. Dispatches
-/// only.
+/// The view's DFAO passes: the trace, then (above divisor 1) the upsample, then (with
+/// the temporal filter) the temporal pass. Dispatches only.
 fn distance_field_ambient_occlusion(
     view: ViewQuery<(&ViewAoBindGroups, &ViewAoTextures, &PenumbraAoInput)>,
     pipelines: Option<Res<AoPipelines>>,
@@ -383,9 +530,10 @@ fn distance_field_ambient_occlusion(
     let Some(pipelines) = pipelines else {
         return;
     };
-    let (Some(trace), Some(upsample)) = (
+    let (Some(trace), Some(upsample), Some(temporal)) = (
         pipeline_cache.get_compute_pipeline(pipelines.trace),
         pipeline_cache.get_compute_pipeline(pipelines.upsample),
+        pipeline_cache.get_compute_pipeline(pipelines.temporal),
     ) else {
         return;
     };
@@ -417,6 +565,17 @@ fn distance_field_ambient_occlusion(
             });
         pass.set_pipeline(upsample);
         pass.set_bind_group(0, upsample_group, &[]);
+        pass.dispatch_workgroups(textures.size.x.div_ceil(8), textures.size.y.div_ceil(8), 1);
+    }
+    if let Some(temporal_groups) = &groups.temporal {
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor {
+                label: Some("penumbra_dfao_temporal"),
+                timestamp_writes: None,
+            });
+        pass.set_pipeline(temporal);
+        pass.set_bind_group(0, &temporal_groups[groups.parity], &[]);
         pass.dispatch_workgroups(textures.size.x.div_ceil(8), textures.size.y.div_ceil(8), 1);
     }
     time_span.end(ctx.command_encoder());

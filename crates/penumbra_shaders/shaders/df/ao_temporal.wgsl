@@ -37,6 +37,9 @@ struct AoTemporalView {
 @group(0) @binding(6) var<uniform> view: AoTemporalView;
 @group(0) @binding(7) var out_value: texture_storage_2d<rgba16float, write>;
 @group(0) @binding(8) var out_state: texture_storage_2d<rgba16float, write>;
+// The same filtered value in a texture that stays the same across frames (what the
+// lighting pass binds).
+@group(0) @binding(9) var out_filtered: texture_storage_2d<rgba16float, write>;
 
 // Camera-relative world position of pixel `xy` (w = 0: background).
 fn pixel_position(xy: vec2<i32>) -> vec4<f32> {
@@ -133,6 +136,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = pixel_position(xy);
     if p.w == 0.0 {
         textureStore(out_value, xy, vec4<f32>(1.0, 0.0, 0.0, 0.0));
+        textureStore(out_filtered, xy, vec4<f32>(1.0, 0.0, 0.0, 0.0));
         textureStore(out_state, xy, vec4<f32>(0.0));
         return;
     }
@@ -164,6 +168,8 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let v = current + (h - current) * weight;
     let len = length(v.yzw);
     let bent = select(n, v.yzw / len, len > 1e-6);
-    textureStore(out_value, xy, vec4<f32>(clamp(v.x, 0.0, 1.0), bent));
+    let filtered = vec4<f32>(clamp(v.x, 0.0, 1.0), bent);
+    textureStore(out_value, xy, filtered);
+    textureStore(out_filtered, xy, filtered);
     textureStore(out_state, xy, vec4<f32>(d, confidence, 0.0, 0.0));
 }
