@@ -74,7 +74,8 @@
 //! `(w / divisor) × (h / divisor)` pixels, each marching `cone_count × steps_per_cone`
 //! samples per caster within reach; an upsample; the temporal pass (one history read,
 //! a 5×5 fill on unstable pixels); 8 bytes per pixel (full-size result) plus 8 per
-//! traced pixel, plus 32 per pixel for the temporal filter's two history pairs.
+//! traced pixel, plus 40 per pixel for the temporal filter (two history pairs and the
+//! filtered result).
 
 mod render;
 
@@ -151,7 +152,7 @@ pub struct DistanceFieldAmbientOcclusion {
     /// Temporal filtering: the trace jitters over four positions and the result is
     /// blended with the reprojected previous frames (module docs). Default on (Unreal
     /// always filters). Off: every frame stands alone, with the divisor's blockiness and
-    /// no history memory. Cost: one full-size pass and 32 bytes per pixel.
+    /// no history memory. Cost: one full-size pass and 40 bytes per pixel.
     pub temporal_filter: bool,
     /// The cones start this far from the surface along its normal, metres. Default
     /// 0.02. Too small: the distance fields' error near surfaces occludes; too large:
