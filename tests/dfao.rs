@@ -267,3 +267,46 @@ fn removing_dfao_removes_its_passes() {
         "the input comes back with the component"
     );
 }
+
+/// The objects-per-tile view: with a 0.5 m max distance (influence 0.78 m) the one
+/// caster is kept by the tiles around it and by no tile far from it; the view shows the
+/// heat ramp's colour for 1 (dark blue) and for 0 (black), and nothing else (the
+/// temporal filter is on in the settings, off in this view). AO shown instead, or a count that
+/// includes the plane-less background, fails it.
+#[test]
+fn objects_per_tile_view_shows_the_tiles_counts() {
+    if !gpu_or_skip("objects_per_tile_view_shows_the_tiles_counts") {
+        return;
+    }
+    let heat = render(Some(DistanceFieldAmbientOcclusion {
+        max_occlusion_distance: 0.5,
+        // 8×8-pixel tiles (at 64² a half-resolution tile is a quarter of the view).
+        trace_resolution_divisor: 1,
+        debug_view: DistanceFieldAoDebugView::ObjectsPerTile,
+        ..default()
+    }));
+    // The ramp at t = log2(2) / 8: 5/8 of the way from black to blue.
+    let one = [0.0, 0.0, 0.625];
+    let (mut near, mut far, mut other) = (0, 0, 0);
+    for (k, p) in plane_pixels() {
+        let c = heat[k];
+        let is = |want: [f32; 3]| (0..3).all(|a| (c[a] - want[a]).abs() < 0.02);
+        let from_sphere = (p - Vec3::new(SPHERE.x, 0.0, SPHERE.z)).length();
+        if from_sphere < 0.5 {
+            assert!(is(one), "under the sphere {c:?}");
+            near += 1;
+        } else if from_sphere > 2.8 {
+            assert!(
+                is([0.0; 3]),
+                "far from the sphere ({from_sphere:.2} m) {c:?}"
+            );
+            far += 1;
+        } else {
+            // Upsampled tile edges blend the two.
+            assert!(c[0] < 0.02 && c[1] < 0.02, "not a count of 0 or 1: {c:?}");
+            other += 1;
+        }
+    }
+    eprintln!("objects per tile: {near} pixels show 1, {far} show 0, {other} between");
+    assert!(near > 20 && far > 100, "near {near} far {far}");
+}

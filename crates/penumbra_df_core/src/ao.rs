@@ -139,7 +139,15 @@ pub struct AoTraceView {
     pub shaping: f32,
     /// [`AoTrace::influence`].
     pub influence: f32,
+    /// 1: the objects-per-tile debug view: the trace writes, instead of the AO, the
+    /// number of objects its tile keeps for the texel's distance range over
+    /// [`TILE_OBJECTS_SCALE`] (`penumbra_reference::dfao::tile_object_counts`).
+    pub tile_objects_debug: u32,
 }
+
+/// The objects-per-tile debug view stores `count / TILE_OBJECTS_SCALE` in the AO channel
+/// (exact in `f16`; counts above it show as it).
+pub const TILE_OBJECTS_SCALE: f32 = 1024.0;
 
 impl AoTraceView {
     /// The uniform for a camera at `camera` (world position) with the given projection
@@ -173,6 +181,7 @@ impl AoTraceView {
             tan_half: cone_tan_half(trace.cone_count),
             shaping: trace.shaping,
             influence: trace.influence(),
+            tile_objects_debug: 0,
         }
     }
 }

@@ -201,9 +201,14 @@ fn ao_layouts_and_constants_match() {
             "tan_half",
             "shaping",
             "influence",
+            "tile_objects_debug",
         ]
     );
     assert_eq!(constant(&m, "MAX_CONES") as u32, MAX_CONES);
+    assert_eq!(
+        constant(&m, "TILE_OBJECTS_SCALE") as f32,
+        penumbra_df_core::ao::TILE_OBJECTS_SCALE
+    );
     assert_eq!(constant(&m, "GOLDEN_ANGLE") as f32, GOLDEN_ANGLE);
     assert_eq!(constant(&m, "MIN_STEP_FRACTION") as f32, MIN_STEP_FRACTION);
 }

@@ -68,7 +68,6 @@
 //! - The temporal filter trades ghosting for stability: after a caster moves, its old
 //!   occlusion fades over about ten frames (the confidence flushes large changes at
 //!   once); a camera cut or a resize starts from a single frame.
-//! - Not yet: the objects-per-tile debug view.
 //!
 //! Cost: nothing without the component. Per camera: one trace over
 //! `(w / divisor) × (h / divisor)` pixels, each marching `cone_count × steps_per_cone`
@@ -117,6 +116,11 @@ pub enum DistanceFieldAoDebugView {
     AmbientOcclusion,
     /// The bent normal, `0.5 + 0.5 · n` as colour.
     BentNormal,
+    /// How many objects each 8×8 tile of trace texels keeps for the pixel's distance
+    /// range (what its pixels march), as a heat map: black 0, then blue, cyan, green,
+    /// yellow and red, each colour step about 2.5× the count before (red: ≥ 255). The
+    /// temporal filter is off in this view.
+    ObjectsPerTile,
 }
 
 /// Put on a [`PenumbraLighting`] camera: distance-field ambient occlusion of its

@@ -274,7 +274,10 @@ fn prepare_dfao_textures(
         let size = view.viewport.zw().max(UVec2::ONE);
         // Without motion vectors (the prepass removed by hand) there is no temporal
         // filter: each frame stands alone.
-        let temporal = resolved.temporal && motion;
+        // The objects-per-tile view shows the trace's counts unfiltered.
+        let temporal = resolved.temporal
+            && motion
+            && resolved.debug != DistanceFieldAoDebugView::ObjectsPerTile;
         let mut fresh = None;
         let textures = match textures {
             Some(t)
@@ -326,6 +329,7 @@ fn prepare_dfao_textures(
                 DistanceFieldAoDebugView::None => 0,
                 DistanceFieldAoDebugView::AmbientOcclusion => 1,
                 DistanceFieldAoDebugView::BentNormal => 2,
+                DistanceFieldAoDebugView::ObjectsPerTile => 3,
             },
         };
         let mut view_entity = commands.entity(entity);
@@ -387,7 +391,7 @@ fn prepare_dfao_bind_groups(
         let view_from_clip = view.clip_from_view.inverse();
         let world_from_view = Mat3::from(view.world_from_view.affine().matrix3);
         let temporal = textures.history.is_some() && motion.is_some();
-        let uniform = AoTraceView::new(
+        let mut uniform = AoTraceView::new(
             &camera,
             view_from_clip,
             world_from_view,
@@ -401,6 +405,8 @@ fn prepare_dfao_bind_groups(
             gpu.slot_count,
             &settings.trace,
         );
+        uniform.tile_objects_debug =
+            u32::from(settings.debug == DistanceFieldAoDebugView::ObjectsPerTile);
         let mut bytes = EncaseBuffer::new(Vec::new());
         bytes.write(&uniform).expect("fixed-size uniform");
         let temporal_uniform = AoTemporalView {

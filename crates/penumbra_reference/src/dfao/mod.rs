@@ -307,6 +307,62 @@ pub fn trace_view_counted(
     let size = penumbra_df_core::ao::trace_size(view.size, divisor);
     let mut out = vec![Vec4::new(1.0, 0.0, 0.0, 0.0); (size.x * size.y) as usize];
     let influence = trace.influence();
+    for_each_tile_texel(
+        records,
+        atlas,
+        camera,
+        view,
+        (divisor, jitter),
+        influence,
+        |texel, p, n, kept| {
+            let (s, e) = pixel_ao_filtered(records, atlas, camera, p, n, trace, |slot| kept[slot]);
+            evaluations += u64::from(e);
+            out[(texel.y * size.x + texel.x) as usize] = s.to_vec4();
+        },
+    );
+    (out, evaluations)
+}
+
+/// The objects-per-tile debug view's numbers: per trace texel (as [`trace_view`]), how
+/// many objects its tile keeps for the texel's distance range (0 for background).
+pub fn tile_object_counts(
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    camera: &CameraOrigin,
+    view: &AoView,
+    divisor: u32,
+    jitter: UVec2,
+    trace: &AoTrace,
+) -> Vec<u32> {
+    let size = penumbra_df_core::ao::trace_size(view.size, divisor);
+    let mut out = vec![0; (size.x * size.y) as usize];
+    for_each_tile_texel(
+        records,
+        atlas,
+        camera,
+        view,
+        (divisor, jitter),
+        trace.influence(),
+        |texel, _, _, kept| {
+            out[(texel.y * size.x + texel.x) as usize] = kept.iter().filter(|&&k| k).count() as u32;
+        },
+    );
+    out
+}
+
+/// Calls `visit(texel, position, normal, kept)` for every surface texel of the trace at
+/// `(divisor, jitter)`, `kept[slot]` telling whether its tile keeps object `slot` for
+/// the texel's distance range.
+fn for_each_tile_texel(
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    camera: &CameraOrigin,
+    view: &AoView,
+    (divisor, jitter): (u32, UVec2),
+    influence: f32,
+    mut visit: impl FnMut(UVec2, Vec3, Vec3, &[bool]),
+) {
+    let size = penumbra_df_core::ao::trace_size(view.size, divisor);
     let pixel_of = |i: u32, j: u32| {
         let p = UVec2::new(i, j) * divisor.max(1) + jitter;
         p.min(view.size - UVec2::ONE)
@@ -327,7 +383,7 @@ pub fn trace_view_counted(
                             px.as_vec2(),
                             depth,
                         );
-                        texels.push(((i, j), p, view.normals[k]));
+                        texels.push((UVec2::new(i, j), p, view.normals[k]));
                     }
                 }
             }
@@ -348,17 +404,12 @@ pub fn trace_view_counted(
                     })
                     .collect()
             });
-            for ((i, j), p, n) in texels {
+            for (texel, p, n) in texels {
                 let range = usize::from(p.length() > ranges.split);
-                let (s, e) = pixel_ao_filtered(records, atlas, camera, p, n, trace, |slot| {
-                    kept[range][slot]
-                });
-                evaluations += u64::from(e);
-                out[(j * size.x + i) as usize] = s.to_vec4();
+                visit(texel, p, n, &kept[range]);
             }
         }
     }
-    (out, evaluations)
 }
 
 /// Ground truth: `rays_sqrt²` cosine-weighted stratified rays (concentric disc mapping)

@@ -286,8 +286,10 @@ fn tiles_never_change_the_trace() {
     let origin = CameraOrigin::at(Vec3::new(0.0, 3.0, 5.0)).expect("finite");
     for (divisor, jitter) in [(1, UVec2::ZERO), (2, UVec2::new(1, 0))] {
         let tiled = trace_view(&records, &atlas, &origin, &view, divisor, jitter, &trace);
+        let counts = tile_object_counts(&records, &atlas, &origin, &view, divisor, jitter, &trace);
         let trace_size = penumbra_df_core::ao::trace_size(size, divisor);
         let mut occluded = 0;
+        let mut culled = 0;
         for j in 0..trace_size.y {
             for i in 0..trace_size.x {
                 let px = (UVec2::new(i, j) * divisor + jitter).min(size - UVec2::ONE);
@@ -306,10 +308,23 @@ fn tiles_never_change_the_trace() {
                 );
                 let want = pixel_ao(&records, &atlas, &origin, p, normals[k], &trace).to_vec4();
                 assert_eq!(got, want, "texel ({i}, {j})");
+                // The debug view's count: at least every object within reach of the
+                // texel, and some tiles drop some.
+                let count = counts[(j * trace_size.x + i) as usize] as usize;
+                let near = records
+                    .iter()
+                    .filter(|r| object_distance(r, p, &origin, &atlas) < trace.influence())
+                    .count();
+                assert!(count >= near, "texel ({i}, {j}): {count} < {near}");
+                culled += records.len() - count;
                 occluded += usize::from(want.x < 0.9);
             }
         }
         assert!(occluded > 20, "only {occluded} occluded texels");
+        assert!(
+            culled > 100,
+            "tiles culled only {culled} object-texel pairs"
+        );
     }
 }
 

@@ -29,7 +29,11 @@ struct AoTraceView {
     tan_half: f32,
     shaping: f32,
     influence: f32,
+    tile_objects_debug: u32,
 }
+
+// `ao::TILE_OBJECTS_SCALE`.
+const TILE_OBJECTS_SCALE: f32 = 1024.0;
 
 // Live, occluding, and visible or a hidden-shadow proxy (`flags::casts_occlusion`).
 fn casts_occlusion(o: DistanceFieldObject) -> bool {

@@ -5,7 +5,9 @@
 // centre, less its radius, is within the influence distance (64 objects at a time in
 // workgroup memory). Each pixel then marches its range's objects with every cone and
 // writes (AO, bent normal). Texel (i, j) traces full-resolution pixel
-// (i, j) · divisor + jitter; background texels get (1, 0, 0, 0).
+// (i, j) · divisor + jitter; background texels get (1, 0, 0, 0). The objects-per-tile
+// debug view writes the count of objects kept for the texel's range, over
+// TILE_OBJECTS_SCALE, in place of the AO (`dfao::tile_object_counts`).
 // CPU model: `penumbra_reference::dfao::trace_view`.
 #define_import_path penumbra::df::ao_trace
 
@@ -14,7 +16,7 @@
 #import penumbra::df::shadow::{bounding_sphere, cull_slack, gbuffer_normal}
 #import penumbra::df::shadow_grid::{from_order_key, order_key}
 #import penumbra::df::ao::{
-    AoTraceView, MAX_CONES, casts_occlusion, combine, cone_direction, march_cone, tangent_frame,
+    AoTraceView, MAX_CONES, TILE_OBJECTS_SCALE, casts_occlusion, combine, cone_direction, march_cone, tangent_frame,
 }
 
 @group(0) @binding(0) var<storage, read> objects: array<DistanceFieldObject>;
@@ -140,6 +142,7 @@ fn trace(
     for (var k = 0u; k < MAX_CONES; k += 1u) {
         visibility[k] = 1.0;
     }
+    var kept_objects = 0u;
     let total = select(0u, view.slot_count, any_surface);
     for (var base = 0u; base < total; base += TILE_PIXELS) {
         let slot = base + li;
@@ -170,7 +173,11 @@ fn trace(
         if surface {
             for (var i = 0u; i < kept; i += 1u) {
                 let sphere = tile_spheres[i];
-                if (tile_masks[i] & (1u << range)) == 0u || !in_reach(sphere, p) {
+                if (tile_masks[i] & (1u << range)) == 0u {
+                    continue;
+                }
+                kept_objects += 1u;
+                if !in_reach(sphere, p) {
                     continue;
                 }
                 let obj = objects[tile_slots[i]];
@@ -187,6 +194,9 @@ fn trace(
         var out = vec4<f32>(1.0, 0.0, 0.0, 0.0);
         if surface {
             out = combine(visibility, count, n);
+            if view.tile_objects_debug != 0u {
+                out.x = min(f32(kept_objects) / TILE_OBJECTS_SCALE, 1.0);
+            }
         }
         textureStore(output, vec2<i32>(gid.xy), out);
     }

@@ -36,6 +36,20 @@ fn penumbra_ao(frag_xy: vec2<f32>, n: vec3<f32>) -> PenumbraAo {
     return PenumbraAo(ao, select(n, s.yzw / len, len > 1e-6));
 }
 
+// The objects-per-tile debug view's colour at `frag_xy`: the count the trace stored
+// (over `TILE_OBJECTS_SCALE` = 1024) on a heat ramp, t = log2(1 + count) / 8: black,
+// blue, cyan, green, yellow, red (count ≥ 255).
+fn penumbra_ao_tile_heat(frag_xy: vec2<f32>) -> vec3<f32> {
+    let count = textureLoad(ambient_occlusion, vec2<i32>(frag_xy), 0).x * 1024.0;
+    let t = clamp(log2(1.0 + max(count, 0.0)) / 8.0, 0.0, 1.0) * 5.0;
+    let stops = array<vec3<f32>, 6>(
+        vec3(0.0), vec3(0.0, 0.0, 1.0), vec3(0.0, 1.0, 1.0), vec3(0.0, 1.0, 0.0),
+        vec3(1.0, 1.0, 0.0), vec3(1.0, 0.0, 0.0),
+    );
+    let i = min(u32(t), 4u);
+    return mix(stops[i], stops[i + 1u], t - f32(i));
+}
+
 // The approximate overlap of cones of apertures `a` and `b` whose axes are `between`
 // apart (Oat and Sander 2007).
 fn cone_cone_intersection(a: f32, b: f32, between: f32) -> f32 {

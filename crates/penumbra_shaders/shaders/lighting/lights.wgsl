@@ -24,7 +24,7 @@
 #import penumbra::lighting::masks::{
     clustered_light_mask, directional_light_mask, mask_visibility, penumbra_lighting,
 }
-#import penumbra::lighting::ao::{penumbra_ao, penumbra_ao_specular}
+#import penumbra::lighting::ao::{penumbra_ao, penumbra_ao_specular, penumbra_ao_tile_heat}
 
 #ifdef IRRADIANCE_VOLUME
 #import bevy_pbr::irradiance_volume
@@ -217,6 +217,9 @@ fn apply_lighting(in: pbr_types::PbrInput) -> vec4<f32> {
         }
         if penumbra_lighting.ao_debug_view == 2u {
             return vec4(dfao.bent_normal * 0.5 + 0.5, 1.0);
+        }
+        if penumbra_lighting.ao_debug_view == 3u {
+            return vec4(penumbra_ao_tile_heat(in.frag_coord.xy), 1.0);
         }
     }
 

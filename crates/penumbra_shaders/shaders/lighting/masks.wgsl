@@ -18,7 +18,8 @@ struct PenumbraLightingUniform {
     shadowed_light_count: u32,
     // Distance-field AO: 1 when `ambient_occlusion` holds it; specular occlusion mode
     // (0 none, 1 non-directional, 2 cone–cone); tint (linear rgb, `AmbientLight` units);
-    // contrast and min occlusion; debug view (0 none, 1 AO, 2 bent normal).
+    // contrast and min occlusion; debug view (0 none, 1 AO, 2 bent normal,
+    // 3 objects per tile).
     ao_enabled: u32,
     ao_specular_occlusion: u32,
     ao_tint: vec4<f32>,
