@@ -76,3 +76,51 @@ fn keys_toggle_shadows_half_resolution_and_debug_view() {
     assert!(app.world().get::<DistanceFieldDebugView>(camera).is_none());
     assert!(title(&app).contains("debug view: off"));
 }
+
+#[test]
+fn keys_toggle_dfao_and_its_debug_view() {
+    let mut app = App::new();
+    app.add_plugins(MinimalPlugins)
+        .init_resource::<ButtonInput<KeyCode>>();
+    controls::add_controls(&mut app, "test");
+    let camera = app
+        .world_mut()
+        .spawn((
+            Camera3d::default(),
+            DistanceFieldAmbientOcclusion {
+                max_occlusion_distance: 3.0,
+                ..default()
+            },
+        ))
+        .id();
+    let window = app.world_mut().spawn(Window::default()).id();
+    app.update();
+    let title = |app: &App| app.world().get::<Window>(window).unwrap().title.clone();
+    assert!(title(&app).contains("DFAO: on"), "{}", title(&app));
+    let ao = |app: &App| {
+        app.world()
+            .get::<DistanceFieldAmbientOcclusion>(camera)
+            .cloned()
+    };
+
+    press(&mut app, KeyCode::KeyV);
+    assert_eq!(
+        ao(&app).unwrap().debug_view,
+        DistanceFieldAoDebugView::AmbientOcclusion
+    );
+    press(&mut app, KeyCode::KeyA);
+    assert!(ao(&app).is_none(), "A removes DFAO");
+    assert!(title(&app).contains("DFAO: off"));
+    press(&mut app, KeyCode::KeyA);
+    let restored = ao(&app).expect("A restores it");
+    assert_eq!(restored.max_occlusion_distance, 3.0, "as it was");
+    for want in [
+        DistanceFieldAoDebugView::BentNormal,
+        DistanceFieldAoDebugView::ObjectsPerTile,
+        DistanceFieldAoDebugView::None,
+    ] {
+        press(&mut app, KeyCode::KeyV);
+        assert_eq!(ao(&app).unwrap().debug_view, want);
+    }
+    assert!(title(&app).contains("AO view: off"), "{}", title(&app));
+}

@@ -11,7 +11,10 @@
 //! `NAME.png`), `--size WxH` (default 256x256 headless, 1280x720 windowed), `--lights N`
 //! (examples with distance-field-shadowed lights: how many, 1..=8; see each example),
 //! `--glass` (`df_shadows`: add an alpha-blended pane, which Bevy lights in its forward
-//! pass, so the distance-field-shadowed lights keep their shadow maps for it).
+//! pass, so the distance-field-shadowed lights keep their shadow maps for it),
+//! `--plain` (without Penumbra's distance-field effects: the lights' shadows are Bevy's
+//! shadow maps and there is no DFAO — the "before" image), `--ao-view V` (examples with
+//! DFAO: its debug view, `ao`, `bent` or `tiles`).
 //!
 //! Windowed runs take keyboard toggles (`controls.rs`: `Space` distance-field shadows,
 //! `H` half resolution, `D` debug view), shown in the window title.
@@ -45,10 +48,15 @@ pub struct Options {
     pub lights: Option<u32>,
     /// Add an alpha-blended pane (a consumer of the lights' shadow maps).
     pub glass: bool,
+    /// Remove every `DistanceFieldShadows` and `DistanceFieldAmbientOcclusion` after
+    /// the scene spawns.
+    pub plain: bool,
+    /// The DFAO debug view of every camera that has DFAO.
+    pub ao_view: Option<penumbra::prelude::DistanceFieldAoDebugView>,
 }
 
-const USAGE: &str =
-    "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N] [--glass]";
+const USAGE: &str = "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N] [--glass] \
+     [--plain] [--ao-view ao|bent|tiles]";
 
 impl Options {
     /// Parses `std::env::args()`-style arguments (without the program name).
@@ -60,6 +68,8 @@ impl Options {
             size: None,
             lights: None,
             glass: false,
+            plain: false,
+            ao_view: None,
         };
         let mut args = args.into_iter();
         while let Some(arg) = args.next() {
@@ -67,6 +77,16 @@ impl Options {
             match arg.as_str() {
                 "--headless" => o.headless = true,
                 "--glass" => o.glass = true,
+                "--plain" => o.plain = true,
+                "--ao-view" => {
+                    use penumbra::prelude::DistanceFieldAoDebugView as View;
+                    o.ao_view = Some(match value("--ao-view")?.as_str() {
+                        "ao" => View::AmbientOcclusion,
+                        "bent" => View::BentNormal,
+                        "tiles" => View::ObjectsPerTile,
+                        v => return Err(format!("--ao-view: ao, bent or tiles, got {v:?}")),
+                    });
+                }
                 "--frames" => {
                     let v = value("--frames")?;
                     let n: u32 = v
@@ -172,6 +192,7 @@ pub fn run_headless(
     render.warm_up = ready;
     let mut app = render.app();
     app.insert_resource(options.clone())
+        .add_systems(PostStartup, apply_options)
         .init_resource::<AllocationLog>()
         .add_systems(Last, log_allocations);
     let shadow_passes = ShadowPassCount::default();
@@ -256,6 +277,33 @@ fn log_allocations(
     }
 }
 
+/// `--plain` and `--ao-view`, applied once the scene has spawned.
+fn apply_options(
+    mut commands: Commands,
+    options: Res<Options>,
+    shadowed: Query<Entity, With<penumbra::prelude::DistanceFieldShadows>>,
+    mut ao: Query<(
+        Entity,
+        &mut penumbra::prelude::DistanceFieldAmbientOcclusion,
+    )>,
+) {
+    use penumbra::prelude::{DistanceFieldAmbientOcclusion, DistanceFieldShadows};
+    for (entity, mut ao) in &mut ao {
+        if options.plain {
+            commands
+                .entity(entity)
+                .remove::<DistanceFieldAmbientOcclusion>();
+        } else if let Some(view) = options.ao_view {
+            ao.debug_view = view;
+        }
+    }
+    if options.plain {
+        for entity in &shadowed {
+            commands.entity(entity).remove::<DistanceFieldShadows>();
+        }
+    }
+}
+
 /// Opens a window; with `--frames N` exits after N frames (saving `--out` if given).
 fn run_windowed(name: &str, options: &Options, scene: fn(&mut App)) {
     let size = options.size.unwrap_or(UVec2::new(1280, 720));
@@ -268,7 +316,8 @@ fn run_windowed(name: &str, options: &Options, scene: fn(&mut App)) {
         }),
         ..default()
     }));
-    app.insert_resource(options.clone());
+    app.insert_resource(options.clone())
+        .add_systems(PostStartup, apply_options);
     scene(&mut app);
     controls::add_controls(&mut app, name);
     if let Some(frames) = options.frames {

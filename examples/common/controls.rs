@@ -5,6 +5,8 @@
 //!   maps (the examples' lights keep `shadow_maps_enabled`): compare the two.
 //! - `H`: half-resolution shadow tracing on/off.
 //! - `D`: the distance-field debug view: off → step-count heat map → shaded → off.
+//! - `A`: distance-field ambient occlusion on/off (cameras that have it).
+//! - `V`: the DFAO debug view: off → AO → bent normal → objects per tile → off.
 //!
 //! Windowed runs only: headless captures are not affected.
 
@@ -13,7 +15,8 @@ use penumbra::prelude::*;
 
 /// The toggles as text, printed at start.
 pub const HELP: &str = "keys: [Space] distance-field shadows on/off (off: Bevy's shadow maps) · \
-    [H] half-resolution shadows · [D] debug view (off / step count / shaded)";
+    [H] half-resolution shadows · [D] debug view (off / step count / shaded) · \
+    [A] distance-field AO on/off · [V] AO view (off / AO / bent normal / objects per tile)";
 
 /// Adds the toggles to a windowed example app.
 pub fn add_controls(app: &mut App, name: &str) {
@@ -32,11 +35,23 @@ struct Controls {
     shadows_off: bool,
     half_resolution: bool,
     debug: Option<DistanceFieldDebugMode>,
+    ao_off: bool,
+    ao_view: DistanceFieldAoDebugView,
 }
 
 /// A light's distance-field shadows while they are toggled off.
 #[derive(Component, Clone)]
 struct StashedShadows(DistanceFieldShadows);
+
+/// A camera's distance-field AO while it is toggled off.
+#[derive(Component, Clone)]
+struct StashedAo(DistanceFieldAmbientOcclusion);
+
+/// The cameras with DFAO on, and those with it stashed.
+type AoCameras<'w, 's> = (
+    Query<'w, 's, (Entity, &'static mut DistanceFieldAmbientOcclusion)>,
+    Query<'w, 's, (Entity, &'static StashedAo)>,
+);
 
 fn toggle(
     mut commands: Commands,
@@ -45,7 +60,9 @@ fn toggle(
     mut lit: Query<(Entity, &mut DistanceFieldShadows)>,
     stashed: Query<(Entity, &StashedShadows)>,
     cameras: Query<Entity, With<Camera3d>>,
+    ao: AoCameras,
 ) {
+    toggle_ao(&mut commands, &keys, &mut controls, ao);
     if keys.just_pressed(KeyCode::Space) {
         controls.shadows_off = !controls.shadows_off;
         if controls.shadows_off {
@@ -87,6 +104,44 @@ fn toggle(
     }
 }
 
+/// `A` and `V`.
+fn toggle_ao(
+    commands: &mut Commands,
+    keys: &ButtonInput<KeyCode>,
+    controls: &mut Controls,
+    (mut on, stashed): AoCameras,
+) {
+    if keys.just_pressed(KeyCode::KeyA) {
+        controls.ao_off = !controls.ao_off;
+        if controls.ao_off {
+            for (entity, ao) in &on {
+                commands
+                    .entity(entity)
+                    .insert(StashedAo(ao.clone()))
+                    .remove::<DistanceFieldAmbientOcclusion>();
+            }
+        } else {
+            for (entity, StashedAo(ao)) in &stashed {
+                commands
+                    .entity(entity)
+                    .insert(ao.clone())
+                    .remove::<StashedAo>();
+            }
+        }
+    }
+    if keys.just_pressed(KeyCode::KeyV) {
+        controls.ao_view = match controls.ao_view {
+            DistanceFieldAoDebugView::None => DistanceFieldAoDebugView::AmbientOcclusion,
+            DistanceFieldAoDebugView::AmbientOcclusion => DistanceFieldAoDebugView::BentNormal,
+            DistanceFieldAoDebugView::BentNormal => DistanceFieldAoDebugView::ObjectsPerTile,
+            DistanceFieldAoDebugView::ObjectsPerTile => DistanceFieldAoDebugView::None,
+        };
+        for (_, mut ao) in &mut on {
+            ao.debug_view = controls.ao_view;
+        }
+    }
+}
+
 fn show_in_title(controls: Res<Controls>, mut windows: Query<&mut Window>) {
     if !controls.is_changed() {
         return;
@@ -97,12 +152,21 @@ fn show_in_title(controls: Res<Controls>, mut windows: Query<&mut Window>) {
         Some(DistanceFieldDebugMode::StepCount) => "step count",
         Some(_) => "shaded",
     };
+    let ao_view = match controls.ao_view {
+        DistanceFieldAoDebugView::None => "off",
+        DistanceFieldAoDebugView::AmbientOcclusion => "AO",
+        DistanceFieldAoDebugView::BentNormal => "bent normal",
+        DistanceFieldAoDebugView::ObjectsPerTile => "objects per tile",
+    };
     let title = format!(
-        "Penumbra {} — [Space] DF shadows: {} · [H] half-res: {} · [D] debug view: {}",
+        "Penumbra {} — [Space] DF shadows: {} · [H] half-res: {} · [D] debug view: {} · \
+         [A] DFAO: {} · [V] AO view: {}",
         controls.name,
         on_off(!controls.shadows_off),
         on_off(controls.half_resolution),
-        debug
+        debug,
+        on_off(!controls.ao_off),
+        ao_view
     );
     for mut window in &mut windows {
         window.title = title.clone();
