@@ -13,7 +13,8 @@
 //!
 //! Flags as for every example (`examples/common/cli.rs`); `--ao-view ao|bent|tiles`
 //! shows a debug view (the AO, the bent normal, objects per tile), `--plain` leaves
-//! Penumbra's effects out. In a window, `A` turns DFAO off and on and `V` cycles its
+//! Penumbra's effects out, `--casters N` scatters N more small casters over the ground
+//! (how the passes' cost grows with objects: the figures in CHANGELOG.md). In a window, `A` turns DFAO off and on and `V` cycles its
 //! debug views. The animation advances per frame, so a headless capture is the same on
 //! every machine; its 256×256 screenshot after 40 frames is checked against
 //! `assets/reference/dfao.png` by `tests/dfao_example.rs`.
@@ -98,7 +99,9 @@ fn spawn_scene(
     mut commands: Commands,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
+    options: Option<Res<Options>>,
 ) {
+    let extra = options.as_ref().and_then(|o| o.casters).unwrap_or(0);
     let mut material = |color: Color, roughness: f32| {
         materials.add(StandardMaterial {
             base_color: color,
@@ -160,6 +163,30 @@ fn spawn_scene(
             &wood,
             Vec3::splat(size),
             Transform::from_translation(at).with_rotation(Quat::from_rotation_y(turn)),
+        ));
+    }
+    // `--casters N`: small blocks on a jittered grid over a 20 m square.
+    let side = (extra as f32).sqrt().ceil().max(1.0) as u32;
+    let block = meshes.add(Cuboid::from_size(Vec3::splat(0.3)));
+    for i in 0..extra {
+        let (gx, gz) = (i % side, i / side);
+        let h = (i.wrapping_mul(2_654_435_761) >> 8) as f32 / 16_777_216.0;
+        let cell = 20.0 / side as f32;
+        let at = Vec3::new(
+            -10.0 + (gx as f32 + 0.25 + 0.5 * h) * cell,
+            0.15,
+            -10.0 + (gz as f32 + 0.75 - 0.5 * h) * cell,
+        );
+        commands.spawn((
+            Mesh3d(block.clone()),
+            MeshMaterial3d(wood.clone()),
+            Transform::from_translation(at).with_rotation(Quat::from_rotation_y(6.0 * h)),
+            DistanceFieldCaster {
+                source: CasterSource::Cuboid {
+                    half_size: Vec3::splat(0.15),
+                },
+                ..default()
+            },
         ));
     }
     // A mesh caster lying on the ground: baked to an SDF in the background.

@@ -14,14 +14,17 @@
 //! pass, so the distance-field-shadowed lights keep their shadow maps for it),
 //! `--plain` (without Penumbra's distance-field effects: the lights' shadows are Bevy's
 //! shadow maps and there is no DFAO — the "before" image), `--ao-view V` (examples with
-//! DFAO: its debug view, `ao`, `bent` or `tiles`).
+//! DFAO: its debug view, `ao`, `bent` or `tiles`), `--casters N` (`dfao`: N extra small
+//! casters, to see how the cost grows).
 //!
 //! Windowed runs take keyboard toggles (`controls.rs`: `Space` distance-field shadows,
 //! `H` half resolution, `D` debug view), shown in the window title.
 //!
 //! Headless runs print the mean frame time, what Penumbra allocated on the GPU per
 //! frame (`PenumbraGpuAllocations`; pooled resources: 0 once the scene is steady) and
-//! how many shadow-map passes Bevy rendered per frame (cascades, cube faces, spots).
+//! how many shadow-map passes Bevy rendered per frame (cascades, cube faces, spots), and
+//! the mean GPU time of each of Penumbra's passes (`render/penumbra_*/elapsed_gpu`, from
+//! Bevy's `RenderDiagnosticsPlugin`; lavapipe's timestamps on a machine without a GPU).
 
 use bevy::{
     prelude::*,
@@ -53,10 +56,12 @@ pub struct Options {
     pub plain: bool,
     /// The DFAO debug view of every camera that has DFAO.
     pub ao_view: Option<penumbra::prelude::DistanceFieldAoDebugView>,
+    /// Extra casters, for examples that scale (`dfao`).
+    pub casters: Option<u32>,
 }
 
 const USAGE: &str = "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N] [--glass] \
-     [--plain] [--ao-view ao|bent|tiles]";
+     [--plain] [--ao-view ao|bent|tiles] [--casters N]";
 
 impl Options {
     /// Parses `std::env::args()`-style arguments (without the program name).
@@ -70,6 +75,7 @@ impl Options {
             glass: false,
             plain: false,
             ao_view: None,
+            casters: None,
         };
         let mut args = args.into_iter();
         while let Some(arg) = args.next() {
@@ -78,6 +84,13 @@ impl Options {
                 "--headless" => o.headless = true,
                 "--glass" => o.glass = true,
                 "--plain" => o.plain = true,
+                "--casters" => {
+                    let v = value("--casters")?;
+                    match v.parse::<u32>() {
+                        Ok(n) if n <= 100_000 => o.casters = Some(n),
+                        _ => return Err(format!("--casters must be in 0..=100000, got {v:?}")),
+                    }
+                }
                 "--ao-view" => {
                     use penumbra::prelude::DistanceFieldAoDebugView as View;
                     o.ao_view = Some(match value("--ao-view")?.as_str() {
@@ -204,8 +217,10 @@ pub fn run_headless(
                 count_shadow_passes.in_set(bevy::render::RenderSystems::Queue),
             );
     }
+    app.add_plugins(bevy::render::diagnostic::RenderDiagnosticsPlugin);
     scene(&mut app);
     let (capture, app) = render.run_keeping_app(app).map_err(|e| e.to_string())?;
+    print_pass_times(name, app.world());
     capture
         .to_rgba8()
         .save(&out)
@@ -274,6 +289,27 @@ fn log_allocations(
 ) {
     if let Some(a) = allocations {
         log.0.push(a.counts());
+    }
+}
+
+/// The mean GPU time of each of Penumbra's passes over the last frames.
+fn print_pass_times(name: &str, world: &World) {
+    let Some(store) = world.get_resource::<bevy::diagnostic::DiagnosticsStore>() else {
+        return;
+    };
+    let mut times: Vec<(String, f64)> = store
+        .iter()
+        .filter_map(|d| {
+            let path = d.path().as_str();
+            let pass = path.strip_prefix("render/")?.strip_suffix("/elapsed_gpu")?;
+            pass.starts_with("penumbra")
+                .then(|| Some((pass.to_string(), d.average()?)))
+                .flatten()
+        })
+        .collect();
+    times.sort_by(|a, b| a.0.cmp(&b.0));
+    for (pass, ms) in times {
+        println!("{name}: GPU time {pass} {ms:.2} ms");
     }
 }
 

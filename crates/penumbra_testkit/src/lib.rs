@@ -55,6 +55,11 @@ pub fn skip(test: &str, reason: &str) {
 /// `manifest_dir`, a crate's `CARGO_MANIFEST_DIR`), or `None` after reporting `test` as
 /// skipped (a failure under CI).
 pub fn shared_dir(test: &str, manifest_dir: &str, sub: &str) -> Option<PathBuf> {
+    // `cargo test` sets the crate's directory at run time too: prefer it, so a test
+    // binary built in another checkout of the same target dir (cargo reuses it) looks
+    // beside this one.
+    let runtime = std::env::var("CARGO_MANIFEST_DIR").ok();
+    let manifest_dir = runtime.as_deref().unwrap_or(manifest_dir);
     let mut root = PathBuf::from(manifest_dir);
     while !root.join("Cargo.lock").exists() {
         if !root.pop() {

@@ -74,7 +74,8 @@
 //! samples per caster within reach; an upsample; the temporal pass (one history read,
 //! a 5×5 fill on unstable pixels); 8 bytes per pixel (full-size result) plus 8 per
 //! traced pixel, plus 40 per pixel for the temporal filter (two history pairs and the
-//! filtered result).
+//! filtered result). Diagnostics: the time span `penumbra_dfao` (all passes; per-pass
+//! spans inside compute passes read wrongly on lavapipe, so there are none).
 
 mod render;
 
