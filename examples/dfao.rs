@@ -30,7 +30,7 @@ use penumbra::prelude::*;
 
 #[path = "common/cli.rs"]
 mod cli;
-pub use cli::Options;
+pub use cli::{Options, casters_ready};
 
 #[allow(dead_code, reason = "tests/dfao_example.rs includes this file")]
 fn main() -> std::process::ExitCode {
@@ -56,19 +56,6 @@ pub fn add_scene(app: &mut App) {
 /// Renders the example headless into `options.out` (a PNG).
 pub fn run_headless(options: &Options) -> Result<(), String> {
     cli::run_headless("dfao", options, add_scene, Some(casters_ready))
-}
-
-/// Whether every caster is in the distance-field scene (the torus's SDF baked and
-/// placed). The animation waits for it, and headless captures count frames from it.
-pub fn casters_ready(world: &mut World) -> bool {
-    let casters: Vec<Entity> = world
-        .query_filtered::<Entity, With<DistanceFieldCaster>>()
-        .iter(world)
-        .collect();
-    let Some(scene) = world.get_resource::<DistanceFieldScene>() else {
-        return false;
-    };
-    !casters.is_empty() && casters.iter().all(|&e| scene.slot(e).is_some())
 }
 
 /// The ball that rolls across the ground.

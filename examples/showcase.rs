@@ -29,7 +29,7 @@ use penumbra::prelude::*;
 
 #[path = "common/cli.rs"]
 mod cli;
-pub use cli::Options;
+pub use cli::{Options, casters_ready};
 
 #[allow(
     dead_code,
@@ -50,19 +50,6 @@ fn add_scene(app: &mut App) {
 /// Renders the showcase headless into `options.out` (a PNG).
 pub fn run_headless(options: &Options) -> Result<(), String> {
     cli::run_headless("showcase", options, add_scene, Some(casters_ready))
-}
-
-/// Whether every caster is in the distance-field scene (the torus's and the cylinder's
-/// SDFs baked and placed): headless captures count frames from it.
-pub fn casters_ready(world: &mut World) -> bool {
-    let casters: Vec<Entity> = world
-        .query_filtered::<Entity, With<DistanceFieldCaster>>()
-        .iter(world)
-        .collect();
-    let Some(scene) = world.get_resource::<DistanceFieldScene>() else {
-        return false;
-    };
-    !casters.is_empty() && casters.iter().all(|&e| scene.slot(e).is_some())
 }
 
 /// What an object of the room casts as a distance-field caster (the scene viewer tags

@@ -292,6 +292,21 @@ fn log_allocations(
     }
 }
 
+/// Whether every caster is in the distance-field scene (mesh casters' SDFs baked and
+/// placed): the examples' animations wait for it, and headless captures count frames
+/// from it.
+pub fn casters_ready(world: &mut World) -> bool {
+    use penumbra::prelude::{DistanceFieldCaster, DistanceFieldScene};
+    let casters: Vec<Entity> = world
+        .query_filtered::<Entity, With<DistanceFieldCaster>>()
+        .iter(world)
+        .collect();
+    let Some(scene) = world.get_resource::<DistanceFieldScene>() else {
+        return false;
+    };
+    !casters.is_empty() && casters.iter().all(|&e| scene.slot(e).is_some())
+}
+
 /// The mean GPU time of each of Penumbra's passes over the last frames.
 fn print_pass_times(name: &str, world: &World) {
     let Some(store) = world.get_resource::<bevy::diagnostic::DiagnosticsStore>() else {
