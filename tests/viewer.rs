@@ -158,16 +158,7 @@ fn bad_scene_files_get_one_clear_error() {
 }
 
 fn scenes_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    assert!(
-        std::env::var_os("CI").is_none(),
-        "../shared/scenes is missing under CI"
-    );
-    eprintln!("skipped: ../shared/scenes is absent");
-    None
+    penumbra_testkit::shared_dir("viewer", env!("CARGO_MANIFEST_DIR"), "scenes")
 }
 
 /// Reads a float32 `.npy` written by the viewer: (shape, values).

@@ -16,17 +16,8 @@ use bevy_penumbra_df::{
 use std::path::PathBuf;
 
 fn scenes_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes");
-    if dir.is_dir() {
-        Some(dir.canonicalize().expect("scenes dir"))
-    } else {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "../shared/scenes is missing under CI"
-        );
-        eprintln!("skipped: ../shared/scenes is absent");
-        None
-    }
+    let dir = penumbra_testkit::shared_dir("scene_casters", env!("CARGO_MANIFEST_DIR"), "scenes")?;
+    Some(dir.canonicalize().expect("scenes dir"))
 }
 
 fn app(dir: &std::path::Path) -> App {
