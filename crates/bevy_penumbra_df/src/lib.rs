@@ -59,7 +59,8 @@ pub use lighting::{PenumbraLighting, PenumbraLightingPlugin};
 pub use scene::{
     CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldSceneCaster,
     DistanceFieldSceneCasters, DistanceFieldScenePlugin, DistanceFieldSceneSettings,
-    DistanceFieldUploadStats, SceneCasterCounts, SceneTwoSided, SkinnedCasters,
+    DistanceFieldUploadStats, FOLIAGE_AO_TRANSMISSION, SceneCasterCounts, SceneTwoSided,
+    SkinnedCasters,
 };
 pub use sdf_asset::{SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset, SdfVolumeLoader};
 #[cfg(feature = "bake")]

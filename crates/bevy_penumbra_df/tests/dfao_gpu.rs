@@ -1,8 +1,8 @@
 //! Contract test of the distance-field AO passes on lavapipe: the trace
 //! (`df/ao_trace.wgsl`, 8×8 tiles with two depth ranges) and the upsample
 //! (`df/ao_upsample.wgsl`), run through wgpu directly on a known scene and depth buffer
-//! (a plane, a sphere, a box, a capsule, a baked torus, far and tiny objects and one that
-//! does not occlude), equal the CPU model (`penumbra_reference::dfao::trace_view`, then
+//! (a plane, a sphere, a box, a capsule, a baked torus that lets 40 % of the sky through,
+//! far and tiny objects and one that does not occlude), equal the CPU model (`penumbra_reference::dfao::trace_view`, then
 //! `upsample`) — at full resolution, and at half resolution with a jitter, near the
 //! origin and 10⁵ m away; and the temporal filter (`df/ao_temporal.wgsl`) equals
 //! `temporal_step` on a history with sub-pixel motion, rejected texels, leaks and

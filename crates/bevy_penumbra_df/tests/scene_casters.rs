@@ -10,8 +10,8 @@ use bevy::render::settings::{RenderCreation, WgpuSettings};
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_penumbra_df::{
     DistanceFieldCaster, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
-    DistanceFieldScenePlugin, DistanceFieldUploadStats, SceneCasterCounts, SdfAssetPlugin,
-    SdfBakeCache, SdfBakeStats, SdfBaked, SkinnedCasters,
+    DistanceFieldScenePlugin, DistanceFieldUploadStats, FOLIAGE_AO_TRANSMISSION, SceneCasterCounts,
+    SdfAssetPlugin, SdfBakeCache, SdfBakeStats, SdfBaked, SkinnedCasters,
 };
 use std::path::PathBuf;
 
@@ -235,4 +235,51 @@ fn a_respawned_scene_is_tagged_again_and_counted_once() {
     let c = counts(&app, root);
     assert_eq!((c.casters, c.two_sided, c.skinned), (6, 4, 0), "{c:?}");
     assert_eq!(casters(&mut app).len(), 6);
+}
+
+/// Alpha-masked meshes (foliage cards) get the scene's `masked_ao_transmission` and are
+/// two-sided; opaque ones keep the template's (solid). Needs no `../shared`.
+#[test]
+fn masked_meshes_let_the_foliage_transmission_through() {
+    let mut app = app(std::path::Path::new("assets"));
+    let (card, solid) = {
+        let world = app.world_mut();
+        let mut meshes = world.resource_mut::<Assets<Mesh>>();
+        let card = meshes.add(Rectangle::new(1.0, 1.0));
+        let solid = meshes.add(Cuboid::new(1.0, 1.0, 1.0));
+        (card, solid)
+    };
+    let (masked, opaque) = {
+        let mut materials = app.world_mut().resource_mut::<Assets<StandardMaterial>>();
+        let masked = materials.add(StandardMaterial {
+            alpha_mode: AlphaMode::Mask(0.5),
+            ..default()
+        });
+        (masked, materials.add(StandardMaterial::default()))
+    };
+    let leaf = app
+        .world_mut()
+        .spawn((Mesh3d(card), MeshMaterial3d(masked)))
+        .id();
+    let block = app
+        .world_mut()
+        .spawn((Mesh3d(solid), MeshMaterial3d(opaque)))
+        .id();
+    app.world_mut()
+        .spawn((coarse(), Transform::default(), Visibility::default()))
+        .add_children(&[leaf, block]);
+    for _ in 0..5 {
+        app.update();
+    }
+    let caster = |e: Entity| {
+        app.world()
+            .get::<DistanceFieldCaster>(e)
+            .cloned()
+            .expect("tagged")
+    };
+    let (leaf, block) = (caster(leaf), caster(block));
+    assert!(leaf.two_sided);
+    assert_eq!(leaf.ao_transmission, FOLIAGE_AO_TRANSMISSION);
+    assert!(!block.two_sided);
+    assert_eq!(block.ao_transmission, 0.0);
 }

@@ -8,7 +8,7 @@
 //! | 0–11 | `shape_from_world: mat3x4` rows | tile-relative world position → shape space |
 //! | 12–23 | `world_from_shape: mat3x4` rows | shape space → tile-relative world position |
 //! | 24–26 | `tile: vec3<i32>` | world position = `tile × TILE_SIZE` + the above |
-//! | 27 | `flags: u32` | [`flags`] bits; shape kind in bits 8–11 |
+//! | 27 | `flags: u32` | [`flags`] bits; shape kind in bits 8–11; AO transmission in bits 16–23 |
 //! | 28–30 | `params: vec3<u32>` | per kind, see [`CasterShape`] |
 //! | 31 | `conservative_scale: f32` | world metres per shape-space distance unit: the smallest singular value of the linear part (times the voxel size for volumes), so a distance read in shape space times this never overestimates the world distance, however non-uniform the scale |
 //!
@@ -40,7 +40,8 @@ pub mod flags {
     pub const CASTS_OCCLUSION: u32 = 1 << 1;
     /// Two-sided (foliage): baked as a shell around every surface (`SignMethod::
     /// TWO_SIDED`), so thin and open surfaces are solid about a voxel thick. Passes
-    /// treat it as any other caster (it occludes fully); informational.
+    /// treat it as any other caster (the shell occludes fully; softer ambient occlusion
+    /// comes from [`AO_TRANSMISSION_SHIFT`]); informational.
     pub const TWO_SIDED: u32 = 1 << 2;
     /// Visible (`Visibility` resolved to visible). Invisible records are culled from
     /// views and cast no shadow (as Bevy hides a hidden mesh's shadow), unless
@@ -69,6 +70,24 @@ pub mod flags {
     pub const KIND_SHIFT: u32 = 8;
     /// Mask of the shape kind after shifting.
     pub const KIND_MASK: u32 = 0xf;
+    /// Shift of the caster's ambient-occlusion transmission, an 8-bit fraction
+    /// ([`ao_transmission_bits`]): the share of the light in a cone that the caster
+    /// lets through where it would close the cone (foliage: Unreal's softened occlusion
+    /// of two-sided distance fields). 0 (the default) is solid.
+    pub const AO_TRANSMISSION_SHIFT: u32 = 16;
+    /// Mask of the transmission after shifting.
+    pub const AO_TRANSMISSION_MASK: u32 = 0xff;
+
+    /// The flag bits holding transmission `t` (clamped to 0…1, NaN as 0; steps of 1/255).
+    pub fn ao_transmission_bits(t: f32) -> u32 {
+        let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) };
+        ((t * 255.0).round() as u32) << AO_TRANSMISSION_SHIFT
+    }
+
+    /// The transmission held in flags `f` (`ao_transmission` in `shaders/df/object.wgsl`).
+    pub fn ao_transmission(f: u32) -> f32 {
+        ((f >> AO_TRANSMISSION_SHIFT) & AO_TRANSMISSION_MASK) as f32 / 255.0
+    }
 }
 
 /// Shape kinds as stored in the flags.

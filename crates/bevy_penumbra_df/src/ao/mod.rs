@@ -22,6 +22,15 @@
 //! penumbra-only intersection reports a cone beside an edge as nearly shut when about
 //! half of it is open, and the exponent was fitted against ray-traced truth.
 //!
+//! **Foliage** ([`DistanceFieldCaster::ao_transmission`](crate::DistanceFieldCaster),
+//! set by [`DistanceFieldCaster::foliage`](crate::DistanceFieldCaster::foliage) and for
+//! alpha-masked scene meshes): a two-sided caster's field fills its leaf cards in, while
+//! their alpha lets light through. Such a caster leaves `τ + (1 − τ) v` of a cone it
+//! would leave `v` of, so it dims a cone to its transmission `τ` and never shuts it —
+//! Unreal's softened occlusion of two-sided distance fields, made a setting. Checked
+//! against the analytic occlusion of a sphere that lets `τ` through
+//! (`1 − (1 − τ)(R/D)²`). Opaque open sheets (walls) are two-sided too, and stay solid.
+//!
 //! # Passes (per camera, `Core3d` `MainPass`, before Penumbra's lighting pass)
 //!
 //! 1. Trace (compute, 8×8 tiles of traced pixels, at `1 / trace_resolution_divisor` of

@@ -121,9 +121,33 @@ pub struct DistanceFieldCaster {
     /// not draw (Unreal's "Cast Hidden Shadow"). Default `false`: like Bevy's meshes, a
     /// hidden caster casts no shadow.
     pub cast_hidden_shadow: bool,
-    /// Occludes distance-field ambient occlusion (planned: recorded in the caster's
-    /// record, read by no pass yet). Default `true`.
+    /// Occludes distance-field ambient occlusion (`DistanceFieldAmbientOcclusion`).
+    /// Default `true`.
     pub casts_occlusion: bool,
+    /// The share of the sky light a cone keeps where this caster would close it, in
+    /// distance-field ambient occlusion: 0 (default) is solid; foliage, whose cards the
+    /// field fills in but whose alpha lets light through, wants about 0.5 (Unreal's
+    /// softened occlusion of two-sided foliage; [`DistanceFieldCaster::foliage`]). A
+    /// caster that leaves `v` of a cone open leaves `τ + (1 − τ) v`. Clamped to 0…1 (NaN
+    /// counts as 0), stored in 1/255 steps. Shadows ignore it. No run-time cost.
+    pub ao_transmission: f32,
+}
+
+/// [`DistanceFieldCaster::ao_transmission`] of [`DistanceFieldCaster::foliage`] and of
+/// alpha-masked scene meshes ([`DistanceFieldSceneCasters::masked_ao_transmission`]):
+/// leaf cards are about half leaf, half hole.
+pub const FOLIAGE_AO_TRANSMISSION: f32 = 0.5;
+
+impl DistanceFieldCaster {
+    /// A mesh caster for foliage and other open, leaky surfaces: two-sided, letting
+    /// [`FOLIAGE_AO_TRANSMISSION`] of the sky through in ambient occlusion.
+    pub fn foliage() -> Self {
+        Self {
+            two_sided: true,
+            ao_transmission: FOLIAGE_AO_TRANSMISSION,
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for DistanceFieldCaster {
@@ -135,6 +159,7 @@ impl Default for DistanceFieldCaster {
             casts_shadows: true,
             cast_hidden_shadow: false,
             casts_occlusion: true,
+            ao_transmission: 0.0,
         }
     }
 }
@@ -594,7 +619,7 @@ fn caster_flags(caster: &DistanceFieldCaster, visible: bool) -> u32 {
             f |= bit;
         }
     }
-    f
+    f | flags::ao_transmission_bits(caster.ao_transmission)
 }
 
 /// Re-encodes changed casters (and those whose SDF just arrived, changed or failed;

@@ -78,6 +78,10 @@ pub struct DistanceFieldSceneCasters {
     pub min_size: f32,
     /// When a mesh is baked two-sided. Default [`SceneTwoSided::FromMaterial`].
     pub two_sided: SceneTwoSided,
+    /// [`DistanceFieldCaster::ao_transmission`] of meshes with alpha-masked materials
+    /// (foliage cards: the field fills the cards in, the alpha lets light through).
+    /// Default [`super::FOLIAGE_AO_TRANSMISSION`] (0.5); 0 makes them solid.
+    pub masked_ao_transmission: f32,
     /// The casters' options (`resolution_scale`, `casts_shadows`, …); `source` and
     /// `two_sided` are set per mesh. Default: `DistanceFieldCaster::default()`.
     pub caster: DistanceFieldCaster,
@@ -89,6 +93,7 @@ impl Default for DistanceFieldSceneCasters {
             skinned: SkinnedCasters::Skip,
             min_size: 0.05,
             two_sided: SceneTwoSided::FromMaterial,
+            masked_ao_transmission: super::FOLIAGE_AO_TRANSMISSION,
             caster: DistanceFieldCaster::default(),
         }
     }
@@ -125,6 +130,8 @@ pub struct SceneCasterCounts {
 enum Verdict {
     Caster {
         two_sided: bool,
+        /// Alpha-masked material (foliage).
+        masked: bool,
     },
     Skinned,
     Small,
@@ -247,7 +254,7 @@ fn verdict(
         SceneTwoSided::FromMaterial => masked || double_sided && !closed(mesh),
         SceneTwoSided::Always => true,
     };
-    Verdict::Caster { two_sided }
+    Verdict::Caster { two_sided, masked }
 }
 
 /// The nearest ancestor (or the entity itself) with [`DistanceFieldSceneCasters`].
@@ -340,13 +347,19 @@ pub(super) fn tag_scene_casters(
                     waiting.push(entity);
                     continue;
                 }
-                Verdict::Caster { two_sided } => {
+                Verdict::Caster { two_sided, masked } => {
                     tally.casters = 1;
                     tally.two_sided = u32::from(two_sided);
+                    let ao_transmission = if masked {
+                        settings.masked_ao_transmission
+                    } else {
+                        settings.caster.ao_transmission
+                    };
                     commands.entity(entity).insert((
                         DistanceFieldCaster {
                             source: super::CasterSource::Mesh,
                             two_sided,
+                            ao_transmission,
                             ..settings.caster.clone()
                         },
                         DistanceFieldSceneCaster(root),

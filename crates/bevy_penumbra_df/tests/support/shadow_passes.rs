@@ -95,7 +95,8 @@ pub fn scene(offset: Vec3) -> Scene {
                 voxel_size: torus.voxel_size,
                 margin: torus.margin,
             },
-            flags: live,
+            // Foliage-like: lets 40 % of the sky through in DFAO (shadows ignore it).
+            flags: live | flags::TWO_SIDED | flags::ao_transmission_bits(0.4),
         },
         ObjectDesc {
             world_from_local: at(Vec3::new(0.9, 2.6, 1.0)),

@@ -10,7 +10,10 @@
 //! `d / r` of the cone open (`d` its distance, `r` the cone's radius there: Unreal's
 //! approximate cone intersection, penumbra only — inside an object the cone is shut),
 //! never less than `1 − (R / r)²` for an object of bounding radius `R` (small objects on
-//! the axis dim a cone rather than close it). A cone's visibility is the minimum over
+//! the axis dim a cone rather than close it). A caster with an AO transmission `τ`
+//! ([`flags::ao_transmission`]: foliage, Unreal's softened occlusion of two-sided
+//! distance fields) leaves `τ + (1 − τ) v` of a cone it would leave `v` of: it can dim
+//! a cone to `τ`, never close it. A cone's visibility is the minimum over
 //! its samples and over the objects; the AO is the mean over the cones (they carry
 //! equal cosine weight), the bent normal the visibility-weighted sum of the cones'
 //! centres, less the sum's bias when every cone is open (so an open surface's bent normal
@@ -118,7 +121,10 @@ fn march_cone(
         v = v.min((d / open).max(floor));
         t += d.max(cone * MIN_STEP_FRACTION);
     }
-    (v.clamp(0.0, 1.0).powf(trace.shaping), evaluations)
+    let v = v.clamp(0.0, 1.0).powf(trace.shaping);
+    // A transmissive caster (foliage) lets `transmission` of what it covers through.
+    let transmission = flags::ao_transmission(r.flags());
+    (transmission + (1.0 - transmission) * v, evaluations)
 }
 
 /// The open fraction of a disc of radius 1 whose centre lies `x` from a straight edge

@@ -4,6 +4,7 @@
 
 #import penumbra::df::object::{
     DistanceFieldObject, FLAG_CASTS_OCCLUSION, FLAG_CAST_HIDDEN_SHADOW, FLAG_LIVE, FLAG_VISIBLE,
+    ao_transmission,
 }
 #import penumbra::df::distance::object_distance
 #import penumbra::df::shadow::cone_interval
@@ -102,7 +103,9 @@ fn march_cone(
         t += max(d, cone * MIN_STEP_FRACTION);
     }
     v = clamp(v, 0.0, 1.0);
-    return select(0.0, pow(v, view.shaping), v > 0.0);
+    let shaped = select(0.0, pow(v, view.shaping), v > 0.0);
+    let transmission = ao_transmission(obj);
+    return transmission + (1.0 - transmission) * shaped;
 }
 
 // AO and bent normal (world, around unit `n`) from the cones' visibilities.

@@ -14,6 +14,8 @@ const FLAG_LIVE: u32 = 32u;
 const FLAG_CAST_HIDDEN_SHADOW: u32 = 64u;
 const KIND_SHIFT: u32 = 8u;
 const KIND_MASK: u32 = 15u;
+const AO_TRANSMISSION_SHIFT: u32 = 16u;
+const AO_TRANSMISSION_MASK: u32 = 255u;
 
 const KIND_VOLUME: u32 = 0u;
 const KIND_SPHERE: u32 = 1u;
@@ -45,6 +47,12 @@ struct ShapeBounds {
 
 fn object_kind(o: DistanceFieldObject) -> u32 {
     return (o.flags >> KIND_SHIFT) & KIND_MASK;
+}
+
+// The share of a cone's light the object lets through where it would close the cone
+// (`flags::ao_transmission`).
+fn ao_transmission(o: DistanceFieldObject) -> f32 {
+    return f32((o.flags >> AO_TRANSMISSION_SHIFT) & AO_TRANSMISSION_MASK) / 255.0;
 }
 
 fn unpack_10_10_12(p: u32) -> vec3<u32> {
