@@ -337,6 +337,11 @@ fn frame_scene(
         ..default()
     });
     *rig = camera::CameraRig::new(framing.eye, framing.target);
+    if args.ssao {
+        commands
+            .entity(camera)
+            .insert(bevy::pbr::ScreenSpaceAmbientOcclusion::default());
+    }
     if !args.plain {
         commands.entity(camera).insert(PenumbraLighting);
         if let Some(max_occlusion_distance) = args.ao_max_distance {
@@ -532,10 +537,12 @@ fn fit_shadow_bias(
             light.bias = 2.0 * voxel;
         }
     }
-    // DFAO's cones start above the same shell.
+    // DFAO's cones start above the same shell, within a quarter of their reach (beyond
+    // it the cones would start out of reach; the shell may then occlude a little).
     for mut ao in &mut occlusion {
-        if (all || ao.is_added()) && ao.surface_bias < 2.0 * voxel {
-            ao.surface_bias = 2.0 * voxel;
+        let bias = (2.0 * voxel).min(0.25 * ao.max_occlusion_distance);
+        if (all || ao.is_added()) && ao.surface_bias < bias {
+            ao.surface_bias = bias;
         }
     }
 }
@@ -659,7 +666,7 @@ fn report(
             } else {
                 d.value()
             };
-            if path.contains("penumbra")
+            if (path.contains("penumbra") || path == "render/ssao/elapsed_gpu")
                 && let Some(v) = value
             {
                 println!("viewer: diagnostic {path} = {v:.3}{}", d.suffix);

@@ -59,6 +59,11 @@ pub struct Args {
     /// `--dump` then writes `ao` and `bent_normal`.
     #[arg(long, value_parser = parse_distance, allow_hyphen_values = true)]
     pub ao_max_distance: Option<f32>,
+    /// Bevy's own `ScreenSpaceAmbientOcclusion` (its defaults) on the camera, to compare
+    /// with DFAO on the same view. `--dump` then writes `ssao` (Bevy's SSAO visibility),
+    /// unless `--ao-max-distance` is given too (its planes win).
+    #[arg(long)]
+    pub ssao: bool,
     /// Plain Bevy: no Penumbra on the camera or the lights (shadow maps), to compare.
     #[arg(long)]
     pub plain: bool,

@@ -84,6 +84,7 @@ pub fn write_dump(dir: &Path, buffers: &PenumbraBuffers, meta: &DumpMeta) -> Res
             "normal": "world-space unit normal the passes read (deferred G-buffer); NaN: background",
             "visibility_<light>": "the distance-field shadow mask the lighting pass reads for that light, 1 = lit; includes the surface's own shadow (n . l); 1 on background",
             "ao": "distance-field ambient occlusion the lighting pass reads, before contrast and min occlusion: 1 = open; NaN: background (with --ao-max-distance)",
+            "ssao": "Bevy's ScreenSpaceAmbientOcclusion visibility (spatially denoised, as its lighting reads it): 1 = open; NaN: background (with --ssao and no --ao-max-distance)",
             "bent_normal": "world-space unit bent normal (mean unoccluded direction) of the distance-field AO; NaN: background (with --ao-max-distance)",
             "rows": "row 0 is the top of the image; pixel (i, j) is sampled at its centre",
         },

@@ -170,7 +170,8 @@ pub struct DistanceFieldAmbientOcclusion {
     pub temporal_filter: bool,
     /// The cones start this far from the surface along its normal, metres. Default
     /// 0.02. Too small: the distance fields' error near surfaces occludes; too large:
-    /// contact occlusion detaches. Clamped to `≥ 0` with a warning.
+    /// contact occlusion detaches. Clamped to `≥ 0`, and to a quarter of
+    /// `max_occlusion_distance` when at least half of it, with a warning.
     pub surface_bias: f32,
     /// How specular indirect light is occluded. Default
     /// [`DistanceFieldSpecularOcclusion::ConeCone`]. No cost to speak of.
@@ -262,7 +263,16 @@ impl DistanceFieldAmbientOcclusion {
                 10.0
             },
         );
-        let bias = positive("surface_bias", self.surface_bias, 0.0, 0.0);
+        let mut bias = positive("surface_bias", self.surface_bias, 0.0, 0.0);
+        if bias >= 0.5 * max_distance {
+            // The cones would start (nearly) beyond their reach: no occlusion at all.
+            let c = 0.25 * max_distance;
+            problems.push(format!(
+                "surface_bias = {bias} is at least half of max_occlusion_distance \
+                 ({max_distance}): the cones would start out of reach (using {c})"
+            ));
+            bias = c;
+        }
         let mut unit = |name: &str, v: f32| {
             if (0.0..=1.0).contains(&v) {
                 v
@@ -392,5 +402,14 @@ mod tests {
         };
         assert_eq!(negative.resolve().0.trace.max_distance, 10.0);
         assert!(problems[0].contains("max_occlusion_distance"));
+        // A bias beyond half the reach would leave every cone open.
+        let far_bias = DistanceFieldAmbientOcclusion {
+            max_occlusion_distance: 2.0,
+            surface_bias: 3.0,
+            ..default()
+        };
+        let (resolved, problems) = far_bias.resolve();
+        assert_eq!(resolved.trace.bias, 0.5);
+        assert!(problems[0].contains("surface_bias"), "{problems:?}");
     }
 }

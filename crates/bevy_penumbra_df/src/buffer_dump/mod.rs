@@ -20,6 +20,9 @@
 //!   [`DistanceFieldAmbientOcclusion`](crate::ao::DistanceFieldAmbientOcclusion): the
 //!   full-resolution AO the lighting pass reads (1 open), before contrast and min
 //!   occlusion, and the world-space unit bent normal; NaN for background.
+//! - `ssao`, on a camera with Bevy's `ScreenSpaceAmbientOcclusion` and no DFAO: SSAO's
+//!   spatially denoised visibility (1 open) as Bevy's lighting reads it; NaN for
+//!   background. (With both, the DFAO planes are dumped.)
 //!
 //! Cost: nothing without the component. With it: one compute pass and a copy of
 //! `(4 + lights [+ 4 with AO]) × 4` bytes per pixel each frame, and a buffer pair per camera, kept while
@@ -77,9 +80,20 @@ struct RawDump {
     camera: Entity,
     size: UVec2,
     lights: Vec<Entity>,
-    /// Whether `data` ends with the AO and bent-normal planes.
-    ao: bool,
+    /// What the AO and bent-normal planes at the end of `data` hold.
+    ao: AoPlanes,
     data: Vec<f32>,
+}
+
+/// The source of a dump's AO planes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum AoPlanes {
+    /// None: the camera has no AO (the planes are absent or unwritten).
+    None,
+    /// Distance-field AO and its bent normal.
+    Dfao,
+    /// Bevy's SSAO (its visibility; the bent-normal planes hold nothing).
+    Ssao,
 }
 
 /// The main world's end of the read-back channel.
@@ -190,7 +204,7 @@ fn unpack(raw: &RawDump, name: impl Fn(Entity) -> String) -> Vec<DumpedBuffer> {
             data: plane((4 + l) * n, n),
         });
     }
-    if raw.ao {
+    if raw.ao != AoPlanes::None {
         let base = (4 + raw.lights.len()) * n;
         let mut ao = plane(base, n);
         let mut bent = plane(base + n, 3 * n);
@@ -203,6 +217,14 @@ fn unpack(raw: &RawDump, name: impl Fn(Entity) -> String) -> Vec<DumpedBuffer> {
                     v.fill(f32::NAN);
                 }
             }
+        }
+        if raw.ao == AoPlanes::Ssao {
+            buffers.push(DumpedBuffer {
+                name: "ssao".into(),
+                channels: 1,
+                data: ao,
+            });
+            return buffers;
         }
         buffers.push(DumpedBuffer {
             name: "ao".into(),
@@ -231,7 +253,7 @@ mod tests {
             camera: Entity::PLACEHOLDER,
             size: UVec2::new(2, 1),
             lights: vec![sun, lamp],
-            ao: true,
+            ao: AoPlanes::Dfao,
             data: vec![
                 -1.0, 3.5, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.25, 1.0,
                 0.5, // depth … masks
@@ -260,6 +282,17 @@ mod tests {
         assert!(b[4].data[0].is_nan() && b[4].data[1] == 0.75);
         assert!(b[5].data[..3].iter().all(|v| v.is_nan()));
         assert_eq!(&b[5].data[3..], &[0.6, 0.8, 0.0]);
+        // The same planes from SSAO: one `ssao` buffer, no bent normal.
+        let ssao = unpack(
+            &RawDump {
+                ao: AoPlanes::Ssao,
+                ..raw
+            },
+            |_| "Sun".into(),
+        );
+        assert_eq!(ssao.len(), 5);
+        assert_eq!(ssao[4].name, "ssao");
+        assert!(ssao[4].data[0].is_nan() && ssao[4].data[1] == 0.75);
         assert_eq!(light_name(sun, Some(&Name::new("a b/c"))), "a_b_c");
         assert_eq!(light_name(sun, None), sun.to_string());
     }

@@ -1,13 +1,14 @@
 //! Render-world side of buffer dumps: a pooled output/staging buffer pair per dumping
 //! view, the dump pass, and the asynchronous read-back.
 
-use super::{PenumbraBufferDump, RawDump};
+use super::{AoPlanes, PenumbraBufferDump, RawDump};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::lighting::render::{PenumbraLightingInputs, PenumbraLightingPipeline};
 use crate::lighting::{PenumbraAoInput, PenumbraLightingView};
 use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
+use bevy::pbr::ScreenSpaceAmbientOcclusionResources;
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::binding_types::{
@@ -67,7 +68,7 @@ struct ViewBufferDump {
     /// Pixels and mask layers the buffers are sized for.
     size: UVec2,
     layers: u32,
-    /// Whether the buffers hold the AO and bent-normal planes.
+    /// Whether the buffers hold the AO and bent-normal planes (DFAO's, else SSAO's).
     ao: bool,
     /// The pass's output (storage) and its copy for mapping.
     output: Buffer,
@@ -80,8 +81,8 @@ struct ViewBufferDump {
     active: bool,
     /// The main-world lights of the mask layers, this frame.
     lights: Vec<Entity>,
-    /// The AO planes hold this frame's AO (else they are unwritten).
-    ao_dumped: bool,
+    /// What the AO planes hold this frame.
+    ao_dumped: AoPlanes,
     /// Copied this frame, to be mapped in `Cleanup`.
     copied: Arc<AtomicBool>,
     /// The staging buffer is being mapped or read: no new copy into it.
@@ -169,13 +170,15 @@ fn prepare_buffer_dumps(
             &ExtractedView,
             Option<&PenumbraLightingInputs>,
             Has<PenumbraAoInput>,
+            Has<ScreenSpaceAmbientOcclusionResources>,
             Option<&ViewBufferDump>,
         ),
         (With<PenumbraBufferDump>, With<PenumbraLightingView>),
     >,
     mut warned: Local<bool>,
 ) {
-    for (entity, view, inputs, ao, dump) in &views {
+    for (entity, view, inputs, dfao, ssao, dump) in &views {
+        let ao = dfao || ssao;
         let size = view.viewport.zw().max(UVec2::ONE);
         let layers = inputs.map_or(0, |i| i.lights.len() as u32);
         if dump.is_some_and(|d| d.size == size && d.layers == layers && d.ao == ao) {
@@ -221,7 +224,7 @@ fn prepare_buffer_dumps(
             bind_group: None,
             active: false,
             lights: Vec::new(),
-            ao_dumped: false,
+            ao_dumped: AoPlanes::None,
             copied: Arc::default(),
             busy: Arc::default(),
         });
@@ -243,6 +246,7 @@ fn prepare_buffer_dump_bind_groups(
         &ViewPrepassTextures,
         Option<&PenumbraLightingInputs>,
         Option<&PenumbraAoInput>,
+        Option<&ScreenSpaceAmbientOcclusionResources>,
         &mut ViewBufferDump,
         Has<PenumbraBufferDump>,
     )>,
@@ -250,7 +254,7 @@ fn prepare_buffer_dump_bind_groups(
     let (Some(pipeline), Some(lighting)) = (pipeline, lighting) else {
         return;
     };
-    for (view, prepass, inputs, ao, mut dump, asked) in &mut views {
+    for (view, prepass, inputs, dfao, ssao, mut dump, asked) in &mut views {
         dump.active = false;
         // No longer asked for: the buffers are kept (pooled), the pass does not run.
         let (true, Some(depth)) = (asked, prepass.depth_view()) else {
@@ -258,7 +262,16 @@ fn prepare_buffer_dump_bind_groups(
         };
         let gbuffer = prepass.deferred_view().unwrap_or(&pipeline.no_gbuffer);
         let masks = inputs.filter(|i| i.lights.len() as u32 == dump.layers);
-        let ao = ao.filter(|_| dump.ao);
+        // DFAO's planes, else (a camera with Bevy's SSAO only) SSAO's visibility.
+        let ao = match (dfao, ssao) {
+            _ if !dump.ao => None,
+            (Some(a), _) => Some((AoPlanes::Dfao, &a.texture)),
+            (None, Some(s)) => Some((
+                AoPlanes::Ssao,
+                &s.screen_space_ambient_occlusion_texture.default_view,
+            )),
+            (None, None) => None,
+        };
         let uniform = DumpView {
             view_from_clip: view.clip_from_view.inverse(),
             size: UVec4::new(
@@ -275,9 +288,9 @@ fn prepare_buffer_dump_bind_groups(
         dump.lights = masks.map_or_else(Vec::new, |m| {
             m.lights.iter().map(|l| l.light.id()).collect()
         });
-        dump.ao_dumped = ao.is_some();
+        dump.ao_dumped = ao.map_or(AoPlanes::None, |(planes, _)| planes);
         let mask_view = masks.map_or(&lighting.no_masks, |m| &m.masks);
-        let ao_view = ao.map_or(&lighting.no_ao, |a| &a.texture);
+        let ao_view = ao.map_or(&lighting.no_ao, |(_, texture)| texture);
         let (Some(uniform), Some(uniform_buffer)) = (dump.uniform.binding(), dump.uniform.buffer())
         else {
             continue;
