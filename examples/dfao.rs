@@ -39,7 +39,20 @@ fn main() -> std::process::ExitCode {
 
 /// Penumbra's plugins and this example's scene.
 pub fn add_scene(app: &mut App) {
-    app.add_plugins(PenumbraPlugins)
+    let no_plugin = app
+        .world()
+        .get_resource::<Options>()
+        .is_some_and(|o| o.no_dfao == Some(cli::NoDfao::Plugin));
+    if no_plugin {
+        app.add_plugins(
+            PenumbraPlugins
+                .build()
+                .disable::<penumbra::df::DistanceFieldAmbientOcclusionPlugin>(),
+        );
+    } else {
+        app.add_plugins(PenumbraPlugins);
+    }
+    app
         // Penumbra's lighting pass shades deferred materials (Bevy's switch, app-wide).
         .insert_resource(DefaultOpaqueRendererMethod::deferred())
         .insert_resource(ClearColor(Color::srgb(0.55, 0.7, 0.9)))

@@ -331,6 +331,30 @@ fn viewer_renders_every_shared_scene_and_dumps_its_buffers() {
     let s = check_run("depth_of_field", &r, 16);
     assert_eq!(s.len(), 2, "{s:?}");
     assert!(s.iter().all(|(_, d)| *d > 0.01), "{s:?}");
+    // The same view with Bevy's SSAO: its visibility is dumped as `ssao`, background NaN
+    // where the depth is, and it occludes beside the spheres and cubes.
+    let r = run(
+        "depth_of_field_ssao",
+        &[&scene("DepthOfFieldExample.glb"), "--ssao"],
+    );
+    let (_, depth) = read_npy(&r.dir.join("depth.npy"));
+    let (shape, ssao) = read_npy(&r.dir.join("ssao.npy"));
+    assert_eq!(shape, [128, 128]);
+    assert!(
+        depth
+            .iter()
+            .zip(&ssao)
+            .all(|(d, a)| d.is_nan() == a.is_nan())
+    );
+    let surface: Vec<f32> = ssao.iter().copied().filter(|a| !a.is_nan()).collect();
+    assert!(surface.iter().all(|a| (0.0..=1.0).contains(a)));
+    let occluded = surface.iter().filter(|&&a| a < 0.8).count();
+    assert!(
+        occluded > 20 && occluded < surface.len() / 2,
+        "ssao: {occluded} of {} occluded",
+        surface.len()
+    );
+    assert!(!r.dir.join("ao.npy").exists());
     // The palm tree on its island (framing the 64 m island would make it a dot): its
     // leaves and trunk shadow the ground.
     let r = run(

@@ -58,10 +58,24 @@ pub struct Options {
     pub ao_view: Option<penumbra::prelude::DistanceFieldAoDebugView>,
     /// Extra casters, for examples that scale (`dfao`).
     pub casters: Option<u32>,
+    /// `--no-dfao component|plugin`: remove every `DistanceFieldAmbientOcclusion` after
+    /// the scene spawns (distance-field shadows stay), and with `plugin` also build
+    /// `PenumbraPlugins` without `DistanceFieldAmbientOcclusionPlugin` — the two runs
+    /// measure what the plugin costs a scene that does not use it.
+    pub no_dfao: Option<NoDfao>,
+}
+
+/// What `--no-dfao` leaves out.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NoDfao {
+    /// The component (the plugin stays).
+    Component,
+    /// The component and the plugin.
+    Plugin,
 }
 
 const USAGE: &str = "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N] [--glass] \
-     [--plain] [--ao-view ao|bent|tiles] [--casters N]";
+     [--plain] [--ao-view ao|bent|tiles] [--casters N] [--no-dfao component|plugin]";
 
 impl Options {
     /// Parses `std::env::args()`-style arguments (without the program name).
@@ -76,6 +90,7 @@ impl Options {
             plain: false,
             ao_view: None,
             casters: None,
+            no_dfao: None,
         };
         let mut args = args.into_iter();
         while let Some(arg) = args.next() {
@@ -90,6 +105,13 @@ impl Options {
                         Ok(n) if n <= 100_000 => o.casters = Some(n),
                         _ => return Err(format!("--casters must be in 0..=100000, got {v:?}")),
                     }
+                }
+                "--no-dfao" => {
+                    o.no_dfao = Some(match value("--no-dfao")?.as_str() {
+                        "component" => NoDfao::Component,
+                        "plugin" => NoDfao::Plugin,
+                        v => return Err(format!("--no-dfao: component or plugin, got {v:?}")),
+                    });
                 }
                 "--ao-view" => {
                     use penumbra::prelude::DistanceFieldAoDebugView as View;
@@ -340,7 +362,7 @@ fn apply_options(
 ) {
     use penumbra::prelude::{DistanceFieldAmbientOcclusion, DistanceFieldShadows};
     for (entity, mut ao) in &mut ao {
-        if options.plain {
+        if options.plain || options.no_dfao.is_some() {
             commands
                 .entity(entity)
                 .remove::<DistanceFieldAmbientOcclusion>();

@@ -20,8 +20,8 @@
 //! 1 m in the 2 m Cornell box, 0.5 m around the 1 m bunny, 1.5 m on the board (its
 //! objects are at most 1 m across and about 1.5 m apart; half the board, 3.2 m, would
 //! make every pixel of it see most of them).
-//! Swept: cone count × steps per cone × trace divisor; and, around the defaults (9 cones,
-//! 16 steps, divisor 2, bias 0.02 m, shaping `CONE_SHAPING`), the shaping exponent (at
+//! Swept: cone count × steps per cone × trace divisor; and, around the defaults (16 cones,
+//! 16 steps, divisor 4, bias 0.02 m, shaping `CONE_SHAPING`), the shaping exponent (at
 //! every cone count) and the bias.
 //!
 //! Error: mean |AO − truth| over every surface pixel (and its sign: mean AO − truth), and
@@ -35,9 +35,15 @@
 //! default max distance, 10 m, against truth traced to 10 m: the best shaping depends on
 //! how much of the scene is in reach. Writes `target/penumbra_bench/dfao.{md,csv}`.
 //!
-//! Every image is one frame of the trace's jitter ([`ao_image`]'s `frame`, 0 here); a
-//! temporal filter's sweep accumulates frames `0..N` of it and scores the filtered image
-//! against the same truth, with the frame count one more field of [`Config`].
+//! Contact error: the same over the pixels the truth occludes by a quarter or more (AO
+//! < 0.75: corners, under and beside casters), where fewer cones or a coarser trace
+//! lose detail that the mean over mostly open pixels hides.
+//!
+//! Every image of the sweep is one frame of the trace's jitter ([`ao_image`]'s `frame`,
+//! 0): the temporal filter off. The temporal table runs the filter's CPU model
+//! (`dfao::temporal_step`, both steps) over frames `0..N` of a still camera, N = 1, 4,
+//! 8, for 9 and 16 cones at divisors 2 and 4, and scores the filtered image against the
+//! same truth.
 //!
 //! `cargo bench -p penumbra_reference --bench dfao` (needs `../shared/meshes` and
 //! `../shared/scenes`; a scene whose file is missing is skipped, with a message).
@@ -50,10 +56,13 @@ mod report;
 mod scenes;
 
 use criterion::{Criterion, criterion_group};
-use glam::{UVec2, Vec3, Vec4};
+use glam::{UVec2, Vec2, Vec3, Vec4};
 use penumbra_df_core::ao::{AoTrace, CONE_SHAPING, jitter, trace_size};
 use penumbra_df_core::cull::CameraOrigin;
-use penumbra_reference::dfao::{AoView, trace_view_counted, upsample};
+use penumbra_reference::dfao::{
+    AoView, TemporalFrame, TemporalSteps, temporal_step, trace_view_counted, upsample,
+};
+use penumbra_reference::shadow_mask::position_from_depth;
 use report::{around_defaults, at_ten_metres, combined, tables};
 use scenes::{Scene, bunny, cornell, depth_of_field};
 use std::fmt::Write as _;
@@ -74,6 +83,14 @@ const BIASES: [f32; 5] = [0.005, 0.01, 0.02, 0.04, 0.08];
 const SLAB: f32 = 0.01;
 
 /// [`Config`]'s settings, by name.
+/// Truth below this marks a contact pixel ([`Errors::ao_contact`]).
+const CONTACT: f32 = 0.75;
+/// Frames of the temporal filter's sweep (a still camera: the filter averages the
+/// trace's four jitter positions).
+const TEMPORAL_FRAMES: [u32; 3] = [1, 4, 8];
+/// (cones, divisor) of the temporal sweep, the other settings the defaults'.
+const TEMPORAL_CONFIGS: [(u32, u32); 4] = [(9, 2), (9, 4), (16, 2), (16, 4)];
+
 const FIELDS: [&str; 5] = ["cones", "steps", "divisor", "shaping", "bias"];
 
 /// One configuration of the sweep.
@@ -90,9 +107,9 @@ struct Config {
 impl Config {
     /// `DistanceFieldAmbientOcclusion::default()`.
     const DEFAULT: Config = Config {
-        cones: 9,
+        cones: 16,
         steps: 16,
-        divisor: 2,
+        divisor: 4,
         shaping: CONE_SHAPING,
         bias: 0.02,
     };
@@ -181,12 +198,16 @@ struct Errors {
     signed: f32,
     /// … over the pixels the truth occludes (AO < 0.99).
     ao_occluded: f32,
+    /// … over the contact pixels, which the truth occludes by a quarter or more
+    /// (AO < 0.75: corners, under and beside casters — where detail shows).
+    ao_contact: f32,
     /// Mean angle between the bent normals, radians, over all surface pixels.
     bent: f32,
     /// … over the pixels the truth occludes.
     bent_occluded: f32,
     surface: usize,
     occluded: usize,
+    contact: usize,
 }
 
 fn errors(scene: &Scene, image: &[Vec4]) -> Errors {
@@ -204,12 +225,17 @@ fn errors(scene: &Scene, image: &[Vec4]) -> Errors {
             e.bent_occluded += bent;
             e.occluded += 1;
         }
+        if t.ao < CONTACT {
+            e.ao_contact += ao;
+            e.contact += 1;
+        }
     }
     let (all, occluded) = (e.surface.max(1) as f32, e.occluded.max(1) as f32);
     Errors {
         ao: e.ao / all,
         signed: e.signed / all,
         ao_occluded: e.ao_occluded / occluded,
+        ao_contact: e.ao_contact / e.contact.max(1) as f32,
         bent: e.bent / all,
         bent_occluded: e.bent_occluded / occluded,
         ..e
@@ -291,6 +317,82 @@ fn sweep(scene: &Scene) -> Vec<Row> {
     rows
 }
 
+/// The temporal filter's output after `frames` frames of a still camera (frame `k`
+/// traced at jitter position `k`), with both of its steps; and the marches' distance
+/// evaluations per frame. One frame is [`ao_image`]'s.
+fn temporal_image(scene: &Scene, c: Config, frames: u32) -> (Vec<Vec4>, u64) {
+    let full = UVec2::splat(SIZE);
+    let positions: Vec<Vec3> = (0..SIZE * SIZE)
+        .map(|i| {
+            let d = scene.depth[i as usize];
+            if d <= 0.0 {
+                return Vec3::NAN;
+            }
+            let px = Vec2::new((i % SIZE) as f32, (i / SIZE) as f32);
+            position_from_depth(
+                scene.view_from_clip,
+                scene.world_from_view,
+                full.as_vec2(),
+                px,
+                d,
+            )
+        })
+        .collect();
+    let motion = vec![Vec2::ZERO; positions.len()];
+    let (mut history, mut evaluations) = (None, 0);
+    if frames <= 1 {
+        // The filter off: the trace's first jitter position alone.
+        return ao_image(scene, c, 0);
+    }
+    for frame in 0..frames {
+        let (image, e) = ao_image(scene, c, frame);
+        evaluations += e;
+        let step = TemporalFrame {
+            size: full,
+            current: &image,
+            positions: &positions,
+            normals: &scene.normals,
+            motion: &motion,
+            previous_offset: Vec3::ZERO,
+        };
+        history = Some(temporal_step(&step, history.as_ref(), TemporalSteps::ALL));
+    }
+    let filtered = history.map_or_else(Vec::new, |h| h.value);
+    (filtered, evaluations / u64::from(frames))
+}
+
+/// The temporal filter on or off (1 frame) after N frames, per scene: the error of
+/// [`TEMPORAL_CONFIGS`] against the same truth; appended to `md`.
+fn temporal_table(scenes: &[Scene], md: &mut String) {
+    let _ = writeln!(
+        md,
+        "\n## Temporal filter, still camera\n\nFrames 1 = filter off (one jitter \
+         position, upsampled). Work per frame.\n\n| scene | cones | divisor | frames | \
+         distance evaluations / pixel / frame | mean \\|ΔAO\\| | mean \\|ΔAO\\|, contact \
+         | mean AO − truth | bent normal (rad) |\n|---|---|---|---|---|---|---|---|---|"
+    );
+    for scene in scenes {
+        for (cones, divisor) in TEMPORAL_CONFIGS {
+            let config = Config::around(|c| (c.cones, c.divisor) = (cones, divisor));
+            for frames in TEMPORAL_FRAMES {
+                let (image, evaluations) = temporal_image(scene, config, frames);
+                let e = errors(scene, &image);
+                let _ = writeln!(
+                    md,
+                    "| {} | {cones} | {divisor} | {frames} | {:.2} | {:.4} | {:.4} | {:+.4} | \
+                     {:.4} |",
+                    scene.name,
+                    evaluations as f64 / f64::from(SIZE * SIZE),
+                    e.ao,
+                    e.ao_contact,
+                    e.signed,
+                    e.bent
+                );
+            }
+        }
+    }
+}
+
 fn bench(c: &mut Criterion) {
     let start = Instant::now();
     let builders: [fn(f32) -> Option<Scene>; 3] = [|m| Some(cornell(m)), bunny, depth_of_field];
@@ -319,6 +421,7 @@ fn bench(c: &mut Criterion) {
     let csv = tables(&rows, &mut md);
     combined(&rows, scenes.len(), &mut md);
     around_defaults(&rows, &names, &mut md);
+    temporal_table(&scenes, &mut md);
     at_ten_metres(&builders, &mut md);
     let _ = writeln!(
         md,

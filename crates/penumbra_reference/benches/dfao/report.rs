@@ -2,16 +2,18 @@
 //! the defaults, the shaping at 10 m.
 
 use super::scenes::Scene;
-use super::{CONES, Config, Errors, FIELDS, Row, SHAPINGS, ao_image, configs, dominates, errors};
+use super::{
+    CONES, Config, Errors, FIELDS, Row, SHAPINGS, SIZE, ao_image, configs, dominates, errors,
+};
 use std::fmt::Write as _;
 
 /// The per-scene table: appended to `md`, returned as CSV.
 pub fn tables(rows: &[Row], md: &mut String) -> String {
-    let header = "scene | cones | steps | divisor | shaping | bias (m) | distance evaluations / pixel | time (ms, one thread) | mean \\|ΔAO\\|, all | mean AO − truth, all | mean \\|ΔAO\\|, occluded | occluded pixels | surface pixels | bent normal (rad), all | bent normal (rad), occluded | Pareto | default";
-    let _ = writeln!(md, "| {header} |\n|{}", "---|".repeat(17));
+    let header = "scene | cones | steps | divisor | shaping | bias (m) | distance evaluations / pixel | time (ms, one thread) | mean \\|ΔAO\\|, all | mean AO − truth, all | mean \\|ΔAO\\|, occluded | mean \\|ΔAO\\|, contact | occluded pixels | surface pixels | bent normal (rad), all | bent normal (rad), occluded | Pareto | default";
+    let _ = writeln!(md, "| {header} |\n|{}", "---|".repeat(18));
     let mut csv = String::from(
         "scene,cones,steps,divisor,shaping,bias,evaluations_per_pixel,milliseconds,ao_error_all,\
-         ao_signed_all,ao_error_occluded,occluded_pixels,surface_pixels,bent_error_all,bent_error_occluded,\
+         ao_signed_all,ao_error_occluded,ao_error_contact,occluded_pixels,surface_pixels,bent_error_all,bent_error_occluded,\
          pareto,default\n",
     );
     for r in rows {
@@ -28,6 +30,7 @@ pub fn tables(rows: &[Row], md: &mut String) -> String {
             format!("{:.4}", e.ao),
             format!("{:+.4}", e.signed),
             format!("{:.4}", e.ao_occluded),
+            format!("{:.4}", e.ao_contact),
             e.occluded.to_string(),
             e.surface.to_string(),
             format!("{:.4}", e.bent),
@@ -180,10 +183,10 @@ pub fn around_defaults(rows: &[Row], names: &[String], md: &mut String) {
     }
 }
 
-/// The shaping sweep again (9 cones, the other settings at the defaults) at the
+/// The shaping sweep again (the other settings at the defaults) at the
 /// component's default max distance, 10 m, against truth traced to 10 m.
 pub fn at_ten_metres(builders: &[fn(f32) -> Option<Scene>], md: &mut String) {
-    md.push_str("\n## Shaping at the component's 10 m max distance\n\n`shaping: mean |ΔAO| (mean AO − truth)`, all surface pixels; 9 cones, 16 steps, divisor 2, bias 0.02 m.\n\n");
+    md.push_str("\n## Shaping at the component's 10 m max distance\n\n`shaping: mean |ΔAO| (mean AO − truth)`, all surface pixels; the defaults otherwise (16 cones, 16 steps, divisor 4, bias 0.02 m).\n\n");
     for build in builders {
         let Some(scene) = build(10.0) else { continue };
         let errors: Vec<(f32, Errors)> = SHAPINGS
@@ -200,5 +203,33 @@ pub fn at_ten_metres(builders: &[fn(f32) -> Option<Scene>], md: &mut String) {
             .collect();
         let best = best.map_or(String::new(), |(s, e)| format!("; best {s} ({:.4})", e.ao));
         let _ = writeln!(md, "- {}: {}{best}", scene.name, cells.join("; "));
+        // Cones, steps and divisor at this reach (a march of few steps may end before a
+        // far occluder): `cones/steps/divisor: mean |ΔAO| (contact) [evaluations]`.
+        let cells: Vec<String> = TEN_METRE_CONFIGS
+            .iter()
+            .map(|&(cones, steps, divisor)| {
+                let config =
+                    Config::around(|c| (c.cones, c.steps, c.divisor) = (cones, steps, divisor));
+                let (image, evaluations) = ao_image(&scene, config, 0);
+                let e = super::errors(&scene, &image);
+                format!(
+                    "{cones}/{steps}/{divisor}: {:.4} ({:.4}) [{:.1}]",
+                    e.ao,
+                    e.ao_contact,
+                    evaluations as f64 / f64::from(SIZE * SIZE)
+                )
+            })
+            .collect();
+        let _ = writeln!(md, "  - {}", cells.join("; "));
     }
 }
+
+/// (cones, steps, divisor) compared at 10 m.
+const TEN_METRE_CONFIGS: [(u32, u32, u32); 6] = [
+    (9, 16, 2),
+    (9, 8, 2),
+    (9, 16, 4),
+    (9, 8, 4),
+    (16, 16, 4),
+    (16, 8, 4),
+];
