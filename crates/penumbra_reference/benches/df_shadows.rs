@@ -21,11 +21,13 @@
 
 #![allow(missing_docs, reason = "criterion_group! generates undocumented items")]
 
+#[path = "support/mod.rs"]
+mod support;
+
 use criterion::{Criterion, criterion_group};
-use glam::{Affine3A, Quat, UVec3, Vec3};
-use penumbra_df_core::atlas::AtlasRegion;
+use glam::{Affine3A, Vec3};
 use penumbra_df_core::cull::CameraOrigin;
-use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, encode, flags};
+use penumbra_df_core::object::{CasterShape, ObjectRecord, flags};
 use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind};
 use penumbra_reference::camera::PerspectiveCamera;
 use penumbra_reference::df::Atlas;
@@ -35,12 +37,13 @@ use penumbra_reference::df_shadow::{
 use penumbra_reference::shadow_mask::{
     pack_gbuffer_normal, pixel_visibility_counted, unpack_gbuffer_normal, upsample,
 };
+use penumbra_sdf::BakeSettings;
 use penumbra_sdf::geometry::Aabb;
 use penumbra_sdf::grid::GridPolicy;
-use penumbra_sdf::{BakeSettings, TriMesh, bake, obj, shapes};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
+use support::{Placed, world_triangles};
 
 const SIZE: u32 = 96;
 const MC: u32 = 12;
@@ -54,12 +57,6 @@ const DEFAULT_SHAPING: f32 = 0.325;
 /// Shaping costs nothing, so the default must be the best one at its work: swept in
 /// steps of 0.025 around it (coarser ones show the curve's shape).
 const SHAPINGS: [f32; 10] = [1.0, 0.6, 0.5, 0.4, 0.375, 0.35, 0.325, 0.3, 0.275, 0.25];
-
-/// A mesh placed in the world: baked for the model, traced for the truth.
-struct Placed {
-    mesh: TriMesh,
-    world_from_local: Affine3A,
-}
 
 struct Scene {
     name: &'static str,
@@ -77,27 +74,6 @@ struct Scene {
     truth: Vec<f32>,
     /// The plugin's default bake of the first mesh: samples along its longest axis.
     default_resolution: u32,
-}
-
-fn world_triangles(
-    scene_meshes: &[Placed],
-    analytic: &[(CasterShape, Affine3A)],
-) -> Vec<[Vec3; 3]> {
-    let mut tris = Vec::new();
-    for p in scene_meshes {
-        let (t, _) = p.mesh.validate().expect("valid mesh");
-        tris.extend(
-            t.into_iter()
-                .map(|t| t.map(|v| p.world_from_local.transform_point3(v))),
-        );
-    }
-    for (shape, m) in analytic {
-        if let CasterShape::Cuboid { half_extents } = shape {
-            let (t, _) = shapes::cuboid(*half_extents).validate().expect("box");
-            tris.extend(t.into_iter().map(|t| t.map(|v| m.transform_point3(v))));
-        }
-    }
-    tris
 }
 
 /// Traces the view on the triangles and computes the ground truth once per scene.
@@ -166,20 +142,8 @@ fn finish_scene(mut scene: Scene) -> Scene {
 }
 
 fn bunny() -> Option<Scene> {
-    let path =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/meshes/stanford-bunny.obj");
-    let text = std::fs::read_to_string(&path)
-        .map_err(|e| eprintln!("SKIPPED the bunny scene: {}: {e}", path.display()))
-        .ok()?;
-    let mut mesh = obj::parse_obj(&text).ok()?;
-    mesh.origin = glam::DVec3::ZERO; // the file's centred frame (positions are re-placed below)
-    let mut b = Aabb::EMPTY;
-    mesh.positions.iter().for_each(|&p| b.grow(p));
-    // A 1 m bunny standing on y = 0, centred: the mesh a game would have.
-    let (scale, c) = (1.0 / b.size().max_element(), b.center());
-    for p in &mut mesh.positions {
-        *p = Vec3::new(p.x - c.x, p.y - b.min.y, p.z - c.z) * scale;
-    }
+    // The mesh a game would have.
+    let mesh = support::bunny_mesh()?;
     let world_from_local = Affine3A::IDENTITY;
     let mut b = Aabb::EMPTY;
     mesh.positions.iter().for_each(|&p| b.grow(p));
@@ -213,46 +177,16 @@ fn bunny() -> Option<Scene> {
 }
 
 fn cornell() -> Scene {
-    let wall = |half: Vec3, at: Vec3| {
-        (
-            CasterShape::Cuboid { half_extents: half },
-            Affine3A::from_translation(at),
-        )
-    };
-    let t = 0.02;
-    let analytic = vec![
-        wall(Vec3::new(1.0 + t, t, 1.0 + t), Vec3::new(0.0, -t, 0.0)),
-        wall(Vec3::new(1.0 + t, t, 1.0 + t), Vec3::new(0.0, 2.0 + t, 0.0)),
-        wall(Vec3::new(1.0 + t, 1.0, t), Vec3::new(0.0, 1.0, -1.0 - t)),
-        wall(Vec3::new(t, 1.0, 1.0 + t), Vec3::new(-1.0 - t, 1.0, 0.0)),
-        wall(Vec3::new(t, 1.0, 1.0 + t), Vec3::new(1.0 + t, 1.0, 0.0)),
-    ];
-    let tall = shapes::cuboid(Vec3::new(0.3, 0.6, 0.3));
-    let short = shapes::cuboid(Vec3::splat(0.3));
+    let (analytic, baked) = support::cornell_box();
     let mut b = Aabb::EMPTY;
-    tall.positions.iter().for_each(|&p| b.grow(p));
+    baked[0].mesh.positions.iter().for_each(|&p| b.grow(p));
     let default_resolution = GridPolicy::default()
         .resolve(&b)
         .map(|g| g.dims.max_element() - 4)
         .unwrap_or(0);
     finish_scene(Scene {
         name: "Cornell box, sphere light r = 0.2 m",
-        baked: vec![
-            Placed {
-                mesh: tall,
-                world_from_local: Affine3A::from_rotation_translation(
-                    Quat::from_rotation_y(0.3),
-                    Vec3::new(-0.35, 0.6, -0.3),
-                ),
-            },
-            Placed {
-                mesh: short,
-                world_from_local: Affine3A::from_rotation_translation(
-                    Quat::from_rotation_y(-0.3),
-                    Vec3::new(0.4, 0.3, 0.35),
-                ),
-            },
-        ],
+        baked,
         analytic,
         light: AreaLight::Sphere {
             center: Vec3::new(0.0, 1.7, 0.1),
@@ -275,57 +209,8 @@ fn cornell() -> Scene {
 /// The scene's object records and atlas with its meshes baked at `resolution`.
 fn records(scene: &Scene, resolution: u32) -> (Vec<ObjectRecord>, Atlas) {
     let live = flags::LIVE | flags::CASTS_SHADOWS | flags::VISIBLE;
-    let volumes: Vec<_> = scene
-        .baked
-        .iter()
-        .map(|p| {
-            bake(&p.mesh, &BakeSettings::longest_axis(resolution), None)
-                .expect("bakes")
-                .volume
-        })
-        .collect();
-    // Side by side along x.
-    let size = UVec3::new(
-        volumes.iter().map(|v| v.dims.x).sum(),
-        volumes.iter().map(|v| v.dims.y).max().unwrap_or(1),
-        volumes.iter().map(|v| v.dims.z).max().unwrap_or(1),
-    );
-    let mut atlas = Atlas::new(size.max(UVec3::ONE));
-    let mut records = Vec::new();
-    let mut x = 0;
-    for (p, v) in scene.baked.iter().zip(&volumes) {
-        let origin = UVec3::new(x, 0, 0);
-        let bits: Vec<u16> = v.data.iter().map(|h| h.to_bits()).collect();
-        atlas.write(origin, v.dims, &bits);
-        records.push(
-            encode(&ObjectDesc {
-                world_from_local: p.world_from_local,
-                shape: CasterShape::Volume {
-                    region: AtlasRegion {
-                        origin,
-                        dims: v.dims,
-                    },
-                    local_origin: v.origin.as_vec3(),
-                    voxel_size: v.voxel_size,
-                    margin: v.margin,
-                },
-                flags: live,
-            })
-            .expect("encodes"),
-        );
-        x += v.dims.x;
-    }
-    for (shape, m) in &scene.analytic {
-        records.push(
-            encode(&ObjectDesc {
-                world_from_local: *m,
-                shape: *shape,
-                flags: live,
-            })
-            .expect("encodes"),
-        );
-    }
-    (records, atlas)
+    let settings = BakeSettings::longest_axis(resolution);
+    support::build_records(&scene.baked, &scene.analytic, &settings, live)
 }
 
 fn model_light(scene: &Scene, camera: &CameraOrigin, c: Config) -> ShadowLight {

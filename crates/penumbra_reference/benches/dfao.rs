@@ -54,6 +54,8 @@
 mod report;
 #[path = "dfao/scenes.rs"]
 mod scenes;
+#[path = "support/mod.rs"]
+mod support;
 
 use criterion::{Criterion, criterion_group};
 use glam::{UVec2, Vec2, Vec3, Vec4};

@@ -1,10 +1,10 @@
 //! The bench's scenes: meshes baked with the plugin's default grid and analytic shapes,
 //! their view (depth, G-buffer normals) and the Monte Carlo truth per pixel.
 
+use super::support::{Placed, world_triangles};
 use super::{MC, SIZE, SLAB};
-use glam::{Affine3A, Mat3, Mat4, Quat, UVec3, Vec3};
-use penumbra_df_core::atlas::AtlasRegion;
-use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, encode, flags};
+use glam::{Affine3A, Mat3, Mat4, Vec3};
+use penumbra_df_core::object::{CasterShape, ObjectRecord, flags};
 use penumbra_reference::camera::PerspectiveCamera;
 use penumbra_reference::df::Atlas;
 use penumbra_reference::dfao::{AoSample, monte_carlo_ao};
@@ -12,16 +12,9 @@ use penumbra_reference::shadow_mask::{pack_gbuffer_normal, unpack_gbuffer_normal
 use penumbra_sdf::bvh::Bvh;
 use penumbra_sdf::geometry::Aabb;
 use penumbra_sdf::gltf_input::{GltfSelection, load_gltf};
-use penumbra_sdf::{BakeSettings, TriMesh, bake, obj, shapes};
+use penumbra_sdf::{BakeSettings, TriMesh};
 use std::collections::{BTreeMap, HashMap};
-use std::path::PathBuf;
 use std::time::Instant;
-
-/// A mesh placed in the world: baked for the model, traced for the truth.
-pub struct Placed {
-    pub mesh: TriMesh,
-    pub world_from_local: Affine3A,
-}
 
 pub struct Scene {
     pub name: String,
@@ -42,95 +35,13 @@ pub struct Scene {
     pub truth: Vec<Option<AoSample>>,
 }
 
-pub fn shared() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared")
-}
-
-pub fn world_triangles(baked: &[Placed], analytic: &[(CasterShape, Affine3A)]) -> Vec<[Vec3; 3]> {
-    let mut tris = Vec::new();
-    for p in baked {
-        let (t, _) = p.mesh.validate().expect("valid mesh");
-        tris.extend(
-            t.into_iter()
-                .map(|t| t.map(|v| p.world_from_local.transform_point3(v))),
-        );
-    }
-    for (shape, m) in analytic {
-        let local = match shape {
-            CasterShape::Cuboid { half_extents } => {
-                shapes::cuboid(*half_extents).validate().expect("box").0
-            }
-            // 100 m of the plane: beyond every view and max distance here.
-            CasterShape::Plane => {
-                let c = |x: f32, z: f32| Vec3::new(x, 0.0, z) * 50.0;
-                vec![
-                    [c(-1.0, -1.0), c(-1.0, 1.0), c(1.0, 1.0)],
-                    [c(-1.0, -1.0), c(1.0, 1.0), c(1.0, -1.0)],
-                ]
-            }
-            other => panic!("no triangles for {other:?}"),
-        };
-        tris.extend(local.into_iter().map(|t| t.map(|v| m.transform_point3(v))));
-    }
-    tris
-}
-
-/// The object records and atlas: the meshes baked with the plugin's default grid, side
-/// by side along x, then the analytic shapes.
+/// The object records and atlas: the meshes baked with the plugin's default grid.
 pub fn build_records(
     baked: &[Placed],
     analytic: &[(CasterShape, Affine3A)],
 ) -> (Vec<ObjectRecord>, Atlas) {
     let live = flags::LIVE | flags::CASTS_OCCLUSION | flags::VISIBLE;
-    let volumes: Vec<_> = baked
-        .iter()
-        .map(|p| {
-            bake(&p.mesh, &BakeSettings::default(), None)
-                .expect("bakes")
-                .volume
-        })
-        .collect();
-    let size = UVec3::new(
-        volumes.iter().map(|v| v.dims.x).sum(),
-        volumes.iter().map(|v| v.dims.y).max().unwrap_or(1),
-        volumes.iter().map(|v| v.dims.z).max().unwrap_or(1),
-    );
-    let mut atlas = Atlas::new(size.max(UVec3::ONE));
-    let mut records = Vec::new();
-    let mut x = 0;
-    for (p, v) in baked.iter().zip(&volumes) {
-        let origin = UVec3::new(x, 0, 0);
-        let bits: Vec<u16> = v.data.iter().map(|h| h.to_bits()).collect();
-        atlas.write(origin, v.dims, &bits);
-        records.push(
-            encode(&ObjectDesc {
-                world_from_local: p.world_from_local,
-                shape: CasterShape::Volume {
-                    region: AtlasRegion {
-                        origin,
-                        dims: v.dims,
-                    },
-                    local_origin: v.origin.as_vec3(),
-                    voxel_size: v.voxel_size,
-                    margin: v.margin,
-                },
-                flags: live,
-            })
-            .expect("encodes"),
-        );
-        x += v.dims.x;
-    }
-    for (shape, m) in analytic {
-        records.push(
-            encode(&ObjectDesc {
-                world_from_local: *m,
-                shape: *shape,
-                flags: live,
-            })
-            .expect("encodes"),
-        );
-    }
-    (records, atlas)
+    super::support::build_records(baked, analytic, &BakeSettings::default(), live)
 }
 
 /// Bakes the scene, traces the view on its triangles (depth, G-buffer normals) and
@@ -197,36 +108,7 @@ pub fn finish_scene(
 }
 
 pub fn cornell(max_distance: f32) -> Scene {
-    let wall = |half: Vec3, at: Vec3| {
-        (
-            CasterShape::Cuboid { half_extents: half },
-            Affine3A::from_translation(at),
-        )
-    };
-    let t = 0.02;
-    let analytic = vec![
-        wall(Vec3::new(1.0 + t, t, 1.0 + t), Vec3::new(0.0, -t, 0.0)),
-        wall(Vec3::new(1.0 + t, t, 1.0 + t), Vec3::new(0.0, 2.0 + t, 0.0)),
-        wall(Vec3::new(1.0 + t, 1.0, t), Vec3::new(0.0, 1.0, -1.0 - t)),
-        wall(Vec3::new(t, 1.0, 1.0 + t), Vec3::new(-1.0 - t, 1.0, 0.0)),
-        wall(Vec3::new(t, 1.0, 1.0 + t), Vec3::new(1.0 + t, 1.0, 0.0)),
-    ];
-    let baked = vec![
-        Placed {
-            mesh: shapes::cuboid(Vec3::new(0.3, 0.6, 0.3)),
-            world_from_local: Affine3A::from_rotation_translation(
-                Quat::from_rotation_y(0.3),
-                Vec3::new(-0.35, 0.6, -0.3),
-            ),
-        },
-        Placed {
-            mesh: shapes::cuboid(Vec3::splat(0.3)),
-            world_from_local: Affine3A::from_rotation_translation(
-                Quat::from_rotation_y(-0.3),
-                Vec3::new(0.4, 0.3, 0.35),
-            ),
-        },
-    ];
+    let (analytic, baked) = super::support::cornell_box();
     let camera = PerspectiveCamera::looking_at(
         Vec3::new(0.0, 1.0, 3.3),
         Vec3::new(0.0, 0.9, 0.0),
@@ -244,19 +126,7 @@ pub fn cornell(max_distance: f32) -> Scene {
 }
 
 pub fn bunny(max_distance: f32) -> Option<Scene> {
-    let path = shared().join("meshes/stanford-bunny.obj");
-    let text = std::fs::read_to_string(&path)
-        .map_err(|e| eprintln!("SKIPPED the bunny scene: {}: {e}", path.display()))
-        .ok()?;
-    let mut mesh = obj::parse_obj(&text).ok()?;
-    mesh.origin = glam::DVec3::ZERO; // the file's centred frame (positions are re-placed below)
-    let mut b = Aabb::EMPTY;
-    mesh.positions.iter().for_each(|&p| b.grow(p));
-    // A 1 m bunny standing on y = 0, centred.
-    let (scale, c) = (1.0 / b.size().max_element(), b.center());
-    for p in &mut mesh.positions {
-        *p = Vec3::new(p.x - c.x, p.y - b.min.y, p.z - c.z) * scale;
-    }
+    let mesh = super::support::bunny_mesh()?;
     let camera = PerspectiveCamera::looking_at(
         Vec3::new(0.5, 1.8, 1.8),
         Vec3::new(-0.1, 0.3, -0.1),
@@ -330,7 +200,7 @@ pub fn parts(mesh: &TriMesh) -> Vec<TriMesh> {
 }
 
 pub fn depth_of_field(max_distance: f32) -> Option<Scene> {
-    let path = shared().join("scenes/DepthOfFieldExample.glb");
+    let path = super::support::shared("scenes/DepthOfFieldExample.glb");
     let bytes = std::fs::read(&path)
         .map_err(|e| eprintln!("SKIPPED the glTF scene: {}: {e}", path.display()))
         .ok()?;
