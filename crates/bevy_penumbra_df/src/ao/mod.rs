@@ -84,7 +84,8 @@
 //! a 5×5 fill on unstable pixels); 8 bytes per pixel (full-size result) plus 8 per
 //! traced pixel, plus 40 per pixel for the temporal filter (two history pairs and the
 //! filtered result). Diagnostics: the time span `penumbra_dfao` (all passes; per-pass
-//! spans inside compute passes read wrongly on lavapipe, so there are none).
+//! spans read wrongly on lavapipe — inside the compute passes, and also as encoder spans
+//! around each pass, whose sum was a sixth of the total — so there are none).
 
 mod render;
 
