@@ -85,7 +85,10 @@
 //! traced pixel, plus 40 per pixel for the temporal filter (two history pairs and the
 //! filtered result). Diagnostics: the time span `penumbra_dfao` (all passes; per-pass
 //! spans read wrongly on lavapipe — inside the compute passes, and also as encoder spans
-//! around each pass, whose sum was a sixth of the total — so there are none).
+//! around each pass, whose sum was a sixth of the total — so there are none;
+//! `tests/dfao_pass_times.rs`, ignored, times each pass through wgpu instead: at 512² on
+//! lavapipe the trace takes 73 / 111 / 552 ms for 10 / 100 / 1,000 casters, the
+//! upsample and the temporal pass about 15–23 ms each).
 
 mod render;
 

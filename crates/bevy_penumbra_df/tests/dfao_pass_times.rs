@@ -1,0 +1,368 @@
+//! A measurement, not a test (ignored; it asserts nothing about time): the wall-clock
+//! time of each DFAO pass — trace, upsample, temporal — on this machine's Vulkan adapter
+//! (lavapipe here) at 512², with the component's defaults (and Unreal's 9 cones at half
+//! resolution), for 10, 100 and 1,000 casters. Bevy's GPU time spans cannot split the passes on lavapipe (the module docs
+//! of `bevy_penumbra_df::ao`), so each pass is dispatched on its own through wgpu and
+//! timed from submission to the queue going idle, median of 5.
+//!
+//! The scene: a ground plane and spheres (radius 0.3–0.6 m) scattered over 40 × 40 m
+//! around a camera 6 m up looking 14 m ahead; depth and normals are ray-cast
+//! analytically. `cargo test -p bevy_penumbra_df --test dfao_pass_times -- --ignored
+//! --nocapture`.
+
+use bevy::render::render_resource::encase::internal::WriteInto;
+use bevy::render::render_resource::encase::{ShaderType, UniformBuffer};
+use glam::{Affine3A, Mat3, Mat4, UVec2, Vec2, Vec3, Vec4};
+use penumbra_df_core::ao::{AoTemporalView, AoTrace, AoTraceView, CONE_SHAPING, trace_size};
+use penumbra_df_core::cull::CameraOrigin;
+use penumbra_df_core::object::{CasterShape, ObjectDesc, encode, flags};
+use penumbra_reference::shadow_mask::pack_gbuffer_normal;
+use penumbra_shaders::flatten;
+use penumbra_test::wgpu::{self, BufferUsages};
+use penumbra_test::{GpuCompute, gpu_or_skip};
+use std::time::{Duration, Instant};
+
+const SIZE: u32 = 512;
+const EYE: Vec3 = Vec3::new(0.0, 6.0, 14.0);
+
+/// `DistanceFieldAmbientOcclusion::default()`'s trace at the dfao example's 3 m reach,
+/// with `cone_count` cones.
+fn trace_settings(cone_count: u32) -> AoTrace {
+    AoTrace {
+        max_distance: 3.0,
+        cone_count,
+        steps_per_cone: 16,
+        bias: 0.02,
+        shaping: CONE_SHAPING,
+    }
+}
+
+/// A small deterministic generator (xorshift).
+struct Rng(u32);
+
+impl Rng {
+    fn next(&mut self) -> f32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 17;
+        self.0 ^= self.0 << 5;
+        (self.0 >> 8) as f32 / (1 << 24) as f32
+    }
+}
+
+/// The plane and `count − 1` spheres `(centre, radius)`.
+fn spheres(count: u32) -> Vec<(Vec3, f32)> {
+    let mut rng = Rng(0x9e37_79b9);
+    (1..count)
+        .map(|_| {
+            let r = 0.3 + 0.3 * rng.next();
+            let c = Vec3::new(rng.next() * 40.0 - 20.0, r, rng.next() * 40.0 - 26.0);
+            (c, r)
+        })
+        .collect()
+}
+
+struct Inputs {
+    depth: Vec<f32>,
+    normals: Vec<u32>,
+    view_from_clip: Mat4,
+    world_from_view: Mat3,
+}
+
+/// Depth (reverse-Z) and packed normals of the plane and spheres, cast analytically.
+fn cast(spheres: &[(Vec3, f32)]) -> Inputs {
+    let view_from_world = Mat4::look_at_rh(EYE, Vec3::ZERO, Vec3::Y);
+    let world_from_view = Mat3::from_mat4(view_from_world).transpose();
+    let near = 0.1;
+    let clip_from_view = Mat4::perspective_infinite_reverse_rh(0.9, 1.0, near);
+    let view_from_clip = clip_from_view.inverse();
+    let forward = -world_from_view.z_axis;
+    let (mut depth, mut normals) = (Vec::new(), Vec::new());
+    for y in 0..SIZE {
+        for x in 0..SIZE {
+            let uv = (Vec2::new(x as f32, y as f32) + 0.5) / SIZE as f32;
+            let v = view_from_clip * Vec4::new(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, 0.5, 1.0);
+            let dir = (world_from_view * (v.truncate() / v.w)).normalize();
+            let mut hit = (f32::INFINITY, Vec3::ZERO);
+            if dir.y < 0.0 {
+                hit = (-EYE.y / dir.y, Vec3::Y);
+            }
+            for &(c, r) in spheres {
+                let oc = EYE - c;
+                let b = oc.dot(dir);
+                let disc = b * b - (oc.length_squared() - r * r);
+                if disc > 0.0 {
+                    let t = -b - disc.sqrt();
+                    if t > 0.0 && t < hit.0 {
+                        hit = (t, (EYE + dir * t - c) / r);
+                    }
+                }
+            }
+            let (t, n) = hit;
+            let z = t * dir.dot(forward);
+            depth.push(if t.is_finite() { near / z } else { 0.0 });
+            normals.push(if t.is_finite() {
+                pack_gbuffer_normal(n)
+            } else {
+                0
+            });
+        }
+    }
+    Inputs {
+        depth,
+        normals,
+        view_from_clip,
+        world_from_view,
+    }
+}
+
+fn extent(w: u32, h: u32, d: u32) -> wgpu::Extent3d {
+    wgpu::Extent3d {
+        width: w,
+        height: h,
+        depth_or_array_layers: d,
+    }
+}
+
+fn entry(binding: u32, resource: wgpu::BindingResource<'_>) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry { binding, resource }
+}
+
+fn uniform<T: ShaderType + WriteInto>(gpu: &GpuCompute, label: &str, value: &T) -> wgpu::Buffer {
+    let mut bytes = UniformBuffer::new(Vec::new());
+    bytes.write(value).expect("encodes");
+    gpu.buffer(label, bytes.as_ref(), BufferUsages::UNIFORM)
+}
+
+/// Median wall-clock of 5 runs of `pipeline` over `groups` workgroups, each from
+/// submission until the queue is idle.
+fn time(
+    gpu: &GpuCompute,
+    pipeline: &wgpu::ComputePipeline,
+    bind: &wgpu::BindGroup,
+    groups: UVec2,
+) -> Duration {
+    let wait = || {
+        gpu.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .expect("device poll");
+    };
+    let mut times: Vec<Duration> = (0..5)
+        .map(|_| {
+            wait();
+            let start = Instant::now();
+            gpu.dispatch(pipeline, bind, [groups.x, groups.y, 1]);
+            wait();
+            start.elapsed()
+        })
+        .collect();
+    times.sort();
+    times[2]
+}
+
+#[test]
+#[ignore = "a measurement: run with --ignored --nocapture"]
+fn dfao_pass_times_at_512() {
+    if !gpu_or_skip("dfao_pass_times_at_512") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let pipeline = |module: &str, entry: &str| {
+        gpu.pipeline(
+            &flatten(&format!("#import penumbra::df::{module}\n")).expect("flattens"),
+            entry,
+        )
+    };
+    let (trace, upsample, temporal) = (
+        pipeline("ao_trace", "trace"),
+        pipeline("ao_upsample", "upsample"),
+        pipeline("ao_temporal", "temporal"),
+    );
+    let full = UVec2::splat(SIZE);
+    let texture = |label: &str, size: UVec2, format, texel: u32, data: &[u8]| {
+        gpu.texture(
+            label,
+            extent(size.x, size.y, 1),
+            wgpu::TextureDimension::D2,
+            format,
+            texel,
+            data,
+        )
+    };
+    let atlas = gpu.texture(
+        "atlas",
+        extent(1, 1, 1),
+        wgpu::TextureDimension::D3,
+        wgpu::TextureFormat::R16Float,
+        2,
+        &[0, 0x3c],
+    );
+    eprintln!("| casters | cones / divisor | trace | upsample | temporal |\n|---|---|---|---|---|");
+    // The defaults, and Unreal's 9 cones at half resolution (the old defaults).
+    for (count, (cones, divisor)) in [10, 100, 1000]
+        .into_iter()
+        .flat_map(|n| [(n, (16, 4)), (n, (9, 2))])
+    {
+        let balls = spheres(count);
+        let inputs = cast(&balls);
+        let live = flags::LIVE | flags::CASTS_OCCLUSION | flags::VISIBLE;
+        let mut descs = vec![ObjectDesc {
+            world_from_local: Affine3A::IDENTITY,
+            shape: CasterShape::Plane,
+            flags: live | flags::UNBOUNDED,
+        }];
+        descs.extend(balls.iter().map(|&(c, radius)| ObjectDesc {
+            world_from_local: Affine3A::from_translation(c),
+            shape: CasterShape::Sphere { radius },
+            flags: live,
+        }));
+        let records: Vec<u8> = descs
+            .iter()
+            .flat_map(|d| encode(d).expect("encodes").to_bytes())
+            .collect();
+        let objects = gpu.buffer("objects", &records, BufferUsages::empty());
+        let camera = CameraOrigin::at(EYE).expect("finite");
+        let view = AoTraceView::new(
+            &camera,
+            inputs.view_from_clip,
+            inputs.world_from_view,
+            full,
+            divisor,
+            UVec2::ZERO,
+            descs.len() as u32,
+            &trace_settings(cones),
+        );
+        let trace_uniform = uniform(&gpu, "ao_view", &view);
+        let depth_bytes: Vec<u8> = inputs.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
+        let depth = texture(
+            "depth",
+            full,
+            wgpu::TextureFormat::R32Float,
+            4,
+            &depth_bytes,
+        );
+        let gbuffer_bytes: Vec<u8> = inputs
+            .normals
+            .iter()
+            .flat_map(|&n| [0u32, 0, 0, n])
+            .flat_map(u32::to_le_bytes)
+            .collect();
+        let gbuffer = texture(
+            "gbuffer",
+            full,
+            wgpu::TextureFormat::Rgba32Uint,
+            16,
+            &gbuffer_bytes,
+        );
+        let small = trace_size(full, divisor);
+        let traced = texture("traced", small, wgpu::TextureFormat::Rgba16Float, 8, &[]);
+        let upsampled = texture("upsampled", full, wgpu::TextureFormat::Rgba16Float, 8, &[]);
+        let value = texture("value", full, wgpu::TextureFormat::Rgba16Float, 8, &[]);
+        let state = texture("state", full, wgpu::TextureFormat::Rgba16Float, 8, &[]);
+        let filtered = texture("filtered", full, wgpu::TextureFormat::Rgba16Float, 8, &[]);
+        let history_value = texture(
+            "history_value",
+            full,
+            wgpu::TextureFormat::Rgba16Float,
+            8,
+            &[],
+        );
+        let history_state = texture(
+            "history_state",
+            full,
+            wgpu::TextureFormat::Rgba16Float,
+            8,
+            &[],
+        );
+        let motion = texture("motion", full, wgpu::TextureFormat::Rgba16Float, 8, &[]);
+        let v = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let views = [
+            &atlas,
+            &depth,
+            &gbuffer,
+            &traced,
+            &upsampled,
+            &value,
+            &state,
+            &filtered,
+            &history_value,
+            &history_state,
+            &motion,
+        ]
+        .map(v);
+        let tv = |i: usize| wgpu::BindingResource::TextureView(&views[i]);
+        let trace_bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ao_trace"),
+            layout: &trace.get_bind_group_layout(0),
+            entries: &[
+                entry(0, objects.as_entire_binding()),
+                entry(1, tv(0)),
+                entry(2, tv(1)),
+                entry(3, tv(2)),
+                entry(4, trace_uniform.as_entire_binding()),
+                entry(5, tv(3)),
+            ],
+        });
+        let upsample_bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ao_upsample"),
+            layout: &upsample.get_bind_group_layout(0),
+            entries: &[
+                entry(0, tv(3)),
+                entry(1, tv(1)),
+                entry(2, tv(2)),
+                entry(3, trace_uniform.as_entire_binding()),
+                entry(4, tv(4)),
+            ],
+        });
+        // The first frame of the filter: no history, so every pixel takes the spatial
+        // fill (its dearest case); then frames reading the previous one's output.
+        let temporal_bind = |history_valid: u32, history: (usize, usize), out: (usize, usize)| {
+            let t = AoTemporalView {
+                view_from_clip: inputs.view_from_clip,
+                world_from_view: inputs.world_from_view,
+                previous_offset: Vec3::ZERO,
+                history_valid,
+                full_size: full,
+                confidence: 1,
+                spatial_fill: 1,
+            };
+            let buffer = uniform(&gpu, "ao_temporal_view", &t);
+            let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("ao_temporal"),
+                layout: &temporal.get_bind_group_layout(0),
+                entries: &[
+                    entry(0, tv(4)),
+                    entry(1, tv(history.0)),
+                    entry(2, tv(history.1)),
+                    entry(3, tv(1)),
+                    entry(4, tv(2)),
+                    entry(5, tv(10)),
+                    entry(6, buffer.as_entire_binding()),
+                    entry(7, tv(out.0)),
+                    entry(8, tv(out.1)),
+                    entry(9, tv(7)),
+                ],
+            });
+            (bind, buffer)
+        };
+        let groups = |s: UVec2| UVec2::new(s.x.div_ceil(8), s.y.div_ceil(8));
+        let t_trace = time(&gpu, &trace, &trace_bind, groups(small));
+        let t_upsample = time(&gpu, &upsample, &upsample_bind, groups(full));
+        let (first, _keep) = temporal_bind(0, (8, 9), (5, 6));
+        let t_first = time(&gpu, &temporal, &first, groups(full));
+        // Three more frames (the confidence passes ½ after two), then the steady one.
+        for (history, out) in [((5, 6), (8, 9)), ((8, 9), (5, 6)), ((5, 6), (8, 9))] {
+            let (bind, _keep) = temporal_bind(1, history, out);
+            gpu.dispatch(&temporal, &bind, [groups(full).x, groups(full).y, 1]);
+        }
+        let (steady, _keep) = temporal_bind(1, (8, 9), (5, 6));
+        let t_steady = time(&gpu, &temporal, &steady, groups(full));
+        let ms = |d: Duration| d.as_secs_f64() * 1e3;
+        eprintln!(
+            "| {count} | {cones} / {divisor} | {:.1} ms | {:.1} ms | {:.1} ms ({:.1} ms on a first frame) |",
+            ms(t_trace),
+            ms(t_upsample),
+            ms(t_steady),
+            ms(t_first)
+        );
+    }
+}
