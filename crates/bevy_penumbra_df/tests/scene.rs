@@ -10,7 +10,7 @@ use bevy_penumbra_df::{
     DistanceFieldSceneSettings, DistanceFieldUploadStats, SdfAssetPlugin, SdfBakeCache,
     SdfVolumeAsset,
 };
-use penumbra_df_core::object::{ShapeKind, unpack_10_10_12};
+use penumbra_df_core::object::{ShapeKind, flags, unpack_10_10_12};
 use penumbra_sdf::SdfVolume;
 
 fn app(settings: DistanceFieldSceneSettings) -> App {
@@ -289,6 +289,39 @@ fn bad_transforms_are_skipped_not_fatal() {
     let scene = app.world().resource::<DistanceFieldScene>();
     assert_eq!(scene.len(), 1);
     assert!(scene.slot(ok).is_some());
+}
+
+/// `ao_transmission` reaches the record's flags (foliage 0.5), clamped (3 → 1, NaN → 0)
+/// rather than skipping the caster; the other flags are untouched.
+#[test]
+fn ao_transmission_reaches_the_record_clamped() {
+    let mut app = app(DistanceFieldSceneSettings::default());
+    let ids: Vec<Entity> = [0.5, 3.0, f32::NAN]
+        .into_iter()
+        .map(|ao_transmission| {
+            app.world_mut()
+                .spawn((
+                    DistanceFieldCaster {
+                        source: CasterSource::Sphere { radius: 1.0 },
+                        ao_transmission,
+                        ..default()
+                    },
+                    Transform::default(),
+                ))
+                .id()
+        })
+        .collect();
+    app.update();
+    let scene = app.world().resource::<DistanceFieldScene>();
+    let got: Vec<f32> = ids
+        .iter()
+        .map(|&e| {
+            let f = scene.records()[scene.slot(e).expect("encoded") as usize].flags();
+            assert!(flags::casts_occlusion(f) && flags::casts_shadows(f));
+            flags::ao_transmission(f)
+        })
+        .collect();
+    assert_eq!(got, [128.0 / 255.0, 1.0, 0.0]);
 }
 
 /// 50 distinct 50³ SDFs and 1,000 instances: the memory a typical level needs.

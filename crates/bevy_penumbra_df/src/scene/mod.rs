@@ -129,7 +129,7 @@ pub struct DistanceFieldCaster {
     /// field fills in but whose alpha lets light through, wants about 0.5 (Unreal's
     /// softened occlusion of two-sided foliage; [`DistanceFieldCaster::foliage`]). A
     /// caster that leaves `v` of a cone open leaves `τ + (1 − τ) v`. Clamped to 0…1 (NaN
-    /// counts as 0), stored in 1/255 steps. Shadows ignore it. No run-time cost.
+    /// counts as 0) with one warning, stored in 1/255 steps. Shadows ignore it. No run-time cost.
     pub ao_transmission: f32,
 }
 
@@ -287,6 +287,9 @@ pub struct DistanceFieldScene {
     /// Casters whose transform or shape was reported unusable (once each).
     #[reflect(ignore)]
     warned_casters: HashSet<Entity>,
+    /// Casters whose `ao_transmission` was reported out of range (once each).
+    #[reflect(ignore)]
+    warned_transmission: HashSet<Entity>,
     #[reflect(ignore)]
     downsampled: usize,
 }
@@ -451,6 +454,7 @@ fn remove_distance_field_casters(
         remove_record(&mut scene, entity);
         scene.waiting.remove(&entity);
         scene.warned_casters.remove(&entity);
+        scene.warned_transmission.remove(&entity);
         scene.unplaced_casters.remove(&entity);
         scene.over_cap.remove(&entity);
         release_volume(&mut scene, entity);
@@ -671,6 +675,15 @@ fn update_distance_field_casters(
             remove_record(scene, entity);
             continue;
         };
+        if !(0.0..=1.0).contains(&caster.ao_transmission)
+            && scene.warned_transmission.insert(entity)
+        {
+            warn!(
+                "Penumbra: distance-field caster {entity}: ao_transmission = {} is not in \
+                 [0, 1]; clamped (NaN: 0, solid). Reported once.",
+                caster.ao_transmission
+            );
+        }
         let desc = ObjectDesc {
             world_from_local: transform.affine(),
             shape,
