@@ -260,24 +260,27 @@ fn prepare_dfao_textures(
         With<PenumbraLightingView>,
     >,
 ) {
-    let ready = pipelines.as_ref().is_some_and(|p| {
-        pipeline_cache.get_compute_pipeline(p.trace).is_some()
-            && pipeline_cache.get_compute_pipeline(p.upsample).is_some()
-            && pipeline_cache.get_compute_pipeline(p.temporal).is_some()
+    // Which passes' pipelines have compiled (trace, upsample, temporal).
+    let compiled = pipelines.as_ref().map_or([false; 3], |p| {
+        [p.trace, p.upsample, p.temporal]
+            .map(|id| pipeline_cache.get_compute_pipeline(id).is_some())
     });
     let has_objects = gpu.as_ref().is_some_and(|g| g.objects.is_some());
     for (entity, view, &ExtractedDfao(resolved), textures, motion) in &views {
-        if !(ready && has_objects) {
-            commands.entity(entity).remove::<PenumbraAoInput>();
-            continue;
-        }
-        let size = view.viewport.zw().max(UVec2::ONE);
         // Without motion vectors (the prepass removed by hand) there is no temporal
         // filter: each frame stands alone.
         // The objects-per-tile view shows the trace's counts unfiltered.
         let temporal = resolved.temporal
             && motion
             && resolved.debug != DistanceFieldAoDebugView::ObjectsPerTile;
+        // Only the passes this view runs need to have compiled.
+        let ready =
+            compiled[0] && (resolved.divisor <= 1 || compiled[1]) && (!temporal || compiled[2]);
+        if !(ready && has_objects) {
+            commands.entity(entity).remove::<PenumbraAoInput>();
+            continue;
+        }
+        let size = view.viewport.zw().max(UVec2::ONE);
         let mut fresh = None;
         let textures = match textures {
             Some(t)
@@ -536,13 +539,13 @@ fn distance_field_ambient_occlusion(
     let Some(pipelines) = pipelines else {
         return;
     };
-    let (Some(trace), Some(upsample), Some(temporal)) = (
-        pipeline_cache.get_compute_pipeline(pipelines.trace),
-        pipeline_cache.get_compute_pipeline(pipelines.upsample),
-        pipeline_cache.get_compute_pipeline(pipelines.temporal),
-    ) else {
+    // `prepare_dfao_textures` gave the view its input only once the passes it runs
+    // had compiled.
+    let Some(trace) = pipeline_cache.get_compute_pipeline(pipelines.trace) else {
         return;
     };
+    let upsample = pipeline_cache.get_compute_pipeline(pipelines.upsample);
+    let temporal = pipeline_cache.get_compute_pipeline(pipelines.temporal);
     let Some(trace_group) = &groups.trace else {
         return;
     };
@@ -561,7 +564,7 @@ fn distance_field_ambient_occlusion(
         let size = trace_size(textures.size, textures.divisor);
         pass.dispatch_workgroups(size.x.div_ceil(8), size.y.div_ceil(8), 1);
     }
-    if let Some(upsample_group) = &groups.upsample {
+    if let (Some(upsample_group), Some(upsample)) = (&groups.upsample, upsample) {
         // Its own pass: the trace, written as storage above, is sampled here.
         let mut pass = ctx
             .command_encoder()
@@ -573,7 +576,7 @@ fn distance_field_ambient_occlusion(
         pass.set_bind_group(0, upsample_group, &[]);
         pass.dispatch_workgroups(textures.size.x.div_ceil(8), textures.size.y.div_ceil(8), 1);
     }
-    if let Some(temporal_groups) = &groups.temporal {
+    if let (Some(temporal_groups), Some(temporal)) = (&groups.temporal, temporal) {
         let mut pass = ctx
             .command_encoder()
             .begin_compute_pass(&ComputePassDescriptor {
