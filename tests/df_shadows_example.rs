@@ -16,14 +16,8 @@ use std::path::PathBuf;
 /// Frames before the capture: the torus's background bake lands within the first few.
 const FRAMES: u32 = 12;
 
-/// As for the showcase: lavapipe is deterministic on one machine; the slack covers other
-/// Mesa/LLVM builds.
-const TOLERANCE: Tolerance = Tolerance {
-    per_pixel: 4,
-    max_differing_fraction: 0.005,
-    max_mean: 0.5,
-    max_p99: 4.0,
-};
+/// The examples' golden-image tolerance.
+const TOLERANCE: Tolerance = Tolerance::GOLDEN;
 
 fn capture(frames: u32) -> image::RgbaImage {
     let dir = output_dir();

@@ -17,14 +17,8 @@ use std::path::PathBuf;
 /// and the temporal filter settles.
 const FRAMES: u32 = 12;
 
-/// As for the other examples: lavapipe is deterministic on one machine; the slack covers
-/// other Mesa/LLVM builds.
-const TOLERANCE: Tolerance = Tolerance {
-    per_pixel: 4,
-    max_differing_fraction: 0.005,
-    max_mean: 0.5,
-    max_p99: 4.0,
-};
+/// The examples' golden-image tolerance.
+const TOLERANCE: Tolerance = Tolerance::GOLDEN;
 
 fn capture(frames: u32, extra: &[&str]) -> image::RgbaImage {
     let dir = output_dir();

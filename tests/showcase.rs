@@ -16,14 +16,8 @@ fn reference_path() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/reference/showcase.png")
 }
 
-/// lavapipe is deterministic on one machine (measured: bit-exact); the slack covers
-/// other Mesa/LLVM builds. Moving the sphere by 10 cm exceeds it (1.1 % of pixels differ).
-const TOLERANCE: Tolerance = Tolerance {
-    per_pixel: 4,
-    max_differing_fraction: 0.005,
-    max_mean: 0.5,
-    max_p99: 4.0,
-};
+/// The examples' golden-image tolerance.
+const TOLERANCE: Tolerance = Tolerance::GOLDEN;
 
 #[test]
 fn showcase_headless_matches_reference() {

@@ -377,12 +377,8 @@ fn viewer_renders_every_shared_scene_and_dumps_its_buffers() {
     );
 }
 
-const TOLERANCE: Tolerance = Tolerance {
-    per_pixel: 4,
-    max_differing_fraction: 0.005,
-    max_mean: 0.5,
-    max_p99: 4.0,
-};
+/// The examples' golden-image tolerance.
+const TOLERANCE: Tolerance = Tolerance::GOLDEN;
 
 /// The example's binary, built by `cargo test` next to the test binaries.
 fn viewer_binary() -> Option<PathBuf> {

@@ -59,9 +59,10 @@ pub struct Options {
     /// Extra casters, for examples that scale (`dfao`).
     pub casters: Option<u32>,
     /// `--no-dfao component|plugin`: remove every `DistanceFieldAmbientOcclusion` after
-    /// the scene spawns (distance-field shadows stay), and with `plugin` also build
-    /// `PenumbraPlugins` without `DistanceFieldAmbientOcclusionPlugin` — the two runs
-    /// measure what the plugin costs a scene that does not use it.
+    /// the scene spawns (distance-field shadows stay); with `plugin` the `dfao` example
+    /// also builds `PenumbraPlugins` without `DistanceFieldAmbientOcclusionPlugin` (the
+    /// other examples treat it as `component`) — the two runs measure what the plugin
+    /// costs a scene that does not use it.
     pub no_dfao: Option<NoDfao>,
 }
 
