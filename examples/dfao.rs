@@ -25,16 +25,17 @@
 //! DFAO occludes like Unreal's sky light; the sun is direct light with distance-field
 //! shadows, which DFAO leaves alone.
 
+use bevy::diagnostic::FrameCount;
 use bevy::{light::GlobalAmbientLight, pbr::DefaultOpaqueRendererMethod, prelude::*};
 use penumbra::prelude::*;
 
 #[path = "common/cli.rs"]
 mod cli;
-pub use cli::{Options, casters_ready};
+pub use cli::Options;
 
 #[allow(dead_code, reason = "tests/dfao_example.rs includes this file")]
 fn main() -> std::process::ExitCode {
-    cli::main("dfao", add_scene, Some(casters_ready))
+    cli::main("dfao", add_scene, Some(rolling))
 }
 
 /// Penumbra's plugins and this example's scene.
@@ -62,13 +63,26 @@ pub fn add_scene(app: &mut App) {
             brightness: 1600.0,
             ..default()
         })
+        .init_resource::<RollStart>()
         .add_systems(Startup, spawn_scene)
         .add_systems(Update, roll_ball);
 }
 
 /// Renders the example headless into `options.out` (a PNG).
 pub fn run_headless(options: &Options) -> Result<(), String> {
-    cli::run_headless("dfao", options, add_scene, Some(casters_ready))
+    cli::run_headless("dfao", options, add_scene, Some(rolling))
+}
+
+/// The frame the ball started rolling on: the first with every caster placed
+/// (`cli::casters_ready`) and a multiple of 4, so that a capture a given number of
+/// frames later always sees the same one of DFAO's four jitter positions, however long
+/// the torus's bake took.
+#[derive(Resource, Default)]
+struct RollStart(Option<u32>);
+
+/// Whether the ball is rolling: headless captures count frames from it.
+pub fn rolling(world: &mut World) -> bool {
+    world.resource::<RollStart>().0.is_some()
 }
 
 /// The ball that rolls across the ground.
@@ -233,19 +247,20 @@ fn spawn_scene(
     ));
 }
 
-/// Per-frame animation (frame-counted: deterministic captures): the ball rolls to and
-/// fro in front of the colonnade.
+/// Per-frame animation (frame-counted from [`RollStart`]: deterministic captures): the
+/// ball rolls to and fro in front of the colonnade.
 fn roll_ball(
-    mut frame: Local<u32>,
+    frames: Res<FrameCount>,
+    mut start: ResMut<RollStart>,
     casters: Query<Entity, With<DistanceFieldCaster>>,
     scene: Res<DistanceFieldScene>,
     mut ball: Query<&mut Transform, With<Rolling>>,
 ) {
-    if *frame > 0 && casters.iter().any(|e| scene.slot(e).is_none()) {
-        return; // wait for the torus's bake (the first frame places everything)
+    let placed = || !casters.is_empty() && casters.iter().all(|e| scene.slot(e).is_some());
+    if start.0.is_none() && frames.0.is_multiple_of(4) && placed() {
+        start.0 = Some(frames.0);
     }
-    let t = *frame as f32 / 30.0;
-    *frame += 1;
+    let t = start.0.map_or(0.0, |s| (frames.0 - s) as f32 / 30.0);
     for mut transform in &mut ball {
         let x = 1.6 * (0.8 * t).sin();
         transform.translation = Vec3::new(x, 0.45, 0.2 - 0.3 * (0.8 * t).cos());

@@ -29,14 +29,14 @@ use penumbra::prelude::*;
 
 #[path = "common/cli.rs"]
 mod cli;
-pub use cli::{Options, casters_ready};
+pub use cli::{Options, casters_ready_in_phase};
 
 #[allow(
     dead_code,
     reason = "tests/showcase.rs includes this file for its scene"
 )]
 fn main() -> std::process::ExitCode {
-    cli::main("showcase", add_scene, Some(casters_ready))
+    cli::main("showcase", add_scene, Some(casters_ready_in_phase))
 }
 
 /// Penumbra's plugins, the showcase scene and its distance-field effects.
@@ -49,7 +49,7 @@ fn add_scene(app: &mut App) {
 
 /// Renders the showcase headless into `options.out` (a PNG).
 pub fn run_headless(options: &Options) -> Result<(), String> {
-    cli::run_headless("showcase", options, add_scene, Some(casters_ready))
+    cli::run_headless("showcase", options, add_scene, Some(casters_ready_in_phase))
 }
 
 /// What an object of the room casts as a distance-field caster (the scene viewer tags

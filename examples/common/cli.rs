@@ -317,7 +317,8 @@ fn log_allocations(
 
 /// Whether every caster is in the distance-field scene (mesh casters' SDFs baked and
 /// placed): the examples' animations wait for it, and headless captures count frames
-/// from it.
+/// from it (`dfao` waits on its own `rolling`, which also aligns DFAO's jitter).
+#[allow(dead_code, reason = "the dfao example waits on its own condition")]
 pub fn casters_ready(world: &mut World) -> bool {
     use penumbra::prelude::{DistanceFieldCaster, DistanceFieldScene};
     let casters: Vec<Entity> = world
@@ -328,6 +329,17 @@ pub fn casters_ready(world: &mut World) -> bool {
         return false;
     };
     !casters.is_empty() && casters.iter().all(|&e| scene.slot(e).is_some())
+}
+
+/// [`casters_ready`] on a frame that is a multiple of 4, DFAO's jitter cycle: for still
+/// scenes with DFAO (the showcase), so that a capture a given number of frames later
+/// always sees the same jitter position however long the bakes took.
+#[allow(dead_code, reason = "used by the still scenes with DFAO only")]
+pub fn casters_ready_in_phase(world: &mut World) -> bool {
+    world
+        .get_resource::<bevy::diagnostic::FrameCount>()
+        .is_some_and(|f| f.0.is_multiple_of(4))
+        && casters_ready(world)
 }
 
 /// The mean GPU time of each of Penumbra's passes over the last frames.
