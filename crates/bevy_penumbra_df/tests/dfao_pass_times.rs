@@ -1,7 +1,8 @@
 //! A measurement, not a test (ignored; it asserts nothing about time): the wall-clock
 //! time of each DFAO pass — trace, upsample, temporal — on this machine's Vulkan adapter
-//! (lavapipe here) at 512², with the component's defaults (and Unreal's 9 cones at half
-//! resolution), for 10, 100 and 1,000 casters. Bevy's GPU time spans cannot split the passes on lavapipe (the module docs
+//! (lavapipe here) at 512², with the component's defaults (9 cones, 8 steps, divisor 4),
+//! 16 cones of 16 steps at divisor 4, and 9 cones of 16 steps at half resolution, for 10,
+//! 100 and 1,000 casters. Bevy's GPU time spans cannot split the passes on lavapipe (the module docs
 //! of `bevy_penumbra_df::ao`), so each pass is dispatched on its own through wgpu and
 //! timed from submission to the queue going idle, median of 5.
 //!
@@ -26,12 +27,12 @@ const SIZE: u32 = 512;
 const EYE: Vec3 = Vec3::new(0.0, 6.0, 14.0);
 
 /// `DistanceFieldAmbientOcclusion::default()`'s trace at the dfao example's 3 m reach,
-/// with `cone_count` cones.
-fn trace_settings(cone_count: u32) -> AoTrace {
+/// with `cone_count` cones of `steps_per_cone` steps.
+fn trace_settings(cone_count: u32, steps_per_cone: u32) -> AoTrace {
     AoTrace {
         max_distance: 3.0,
         cone_count,
-        steps_per_cone: 16,
+        steps_per_cone,
         bias: 0.02,
         shaping: CONE_SHAPING,
     }
@@ -196,11 +197,13 @@ fn dfao_pass_times_at_512() {
         2,
         &[0, 0x3c],
     );
-    eprintln!("| casters | cones / divisor | trace | upsample | temporal |\n|---|---|---|---|---|");
-    // The defaults, and Unreal's 9 cones at half resolution (the old defaults).
-    for (count, (cones, divisor)) in [10, 100, 1000]
+    eprintln!(
+        "| casters | cones / steps / divisor | trace | upsample | temporal |\n|---|---|---|---|---|"
+    );
+    // The defaults, 16 cones, and 9 at half resolution (Unreal's trace resolution).
+    for (count, (cones, steps, divisor)) in [10, 100, 1000]
         .into_iter()
-        .flat_map(|n| [(n, (16, 4)), (n, (9, 2))])
+        .flat_map(|n| [(n, (9, 8, 4)), (n, (16, 16, 4)), (n, (9, 16, 2))])
     {
         let balls = spheres(count);
         let inputs = cast(&balls);
@@ -229,7 +232,7 @@ fn dfao_pass_times_at_512() {
             divisor,
             UVec2::ZERO,
             descs.len() as u32,
-            &trace_settings(cones),
+            &trace_settings(cones, steps),
         );
         let trace_uniform = uniform(&gpu, "ao_view", &view);
         let depth_bytes: Vec<u8> = inputs.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
@@ -358,7 +361,7 @@ fn dfao_pass_times_at_512() {
         let t_steady = time(&gpu, &temporal, &steady, groups(full));
         let ms = |d: Duration| d.as_secs_f64() * 1e3;
         eprintln!(
-            "| {count} | {cones} / {divisor} | {:.1} ms | {:.1} ms | {:.1} ms ({:.1} ms on a first frame) |",
+            "| {count} | {cones} / {steps} / {divisor} | {:.1} ms | {:.1} ms | {:.1} ms ({:.1} ms on a first frame) |",
             ms(t_trace),
             ms(t_upsample),
             ms(t_steady),

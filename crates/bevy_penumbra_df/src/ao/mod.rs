@@ -87,8 +87,8 @@
 //! spans read wrongly on lavapipe — inside the compute passes, and also as encoder spans
 //! around each pass, whose sum was a sixth of the total — so there are none;
 //! `tests/dfao_pass_times.rs`, ignored, times each pass through wgpu instead: at 512² on
-//! lavapipe the trace takes 73 / 111 / 552 ms for 10 / 100 / 1,000 casters, the
-//! upsample and the temporal pass about 15–23 ms each).
+//! lavapipe the trace takes 34 / 68 / 386 ms for 10 / 100 / 1,000 casters with the
+//! defaults, the upsample and the temporal pass about 14–22 ms each).
 
 mod render;
 
@@ -158,16 +158,18 @@ pub struct DistanceFieldAmbientOcclusion {
     /// Default black (Unreal's "Occlusion Tint"). No cost.
     pub occlusion_tint: Color,
     /// Cones per pixel, oriented in the normal's hemisphere with equal cosine weight.
-    /// Default 16 (Unreal uses 9 at half resolution: against ray-traced truth, 16 cones
-    /// at a quarter resolution have less error for less work — `benches/dfao.rs`). Cost
-    /// is linear in it. Clamped to `1..=16` with a warning.
+    /// Default 9 (Unreal's). Cost is linear in it; 16 cones have about a quarter less AO
+    /// error against ray-traced truth for 1.7× the trace (`benches/dfao.rs`). Clamped
+    /// to `1..=16` with a warning.
     pub cone_count: u32,
-    /// March steps per cone and caster. Default 16. Cost is at most linear in it.
-    /// Clamped to `1..=64` with a warning.
+    /// March steps per cone and caster. Default 8: more add work and, on the bench's
+    /// scenes, no accuracy (a cone's steps grow with its radius; at a 10 m reach 16
+    /// steps gain about 1 % of AO error for 14 % more work). Cost is at most linear in
+    /// it. Clamped to `1..=64` with a warning.
     pub steps_per_cone: u32,
     /// The trace runs on one pixel in `divisor × divisor`, upsampled with depth and
     /// normal weights, the temporal filter cycling the traced pixel. Default 4 (one
-    /// pixel in 16; Unreal traces one in 4, with 9 cones). 1 traces every pixel. Cost
+    /// pixel in 16; Unreal traces one in 4). 1 traces every pixel. Cost
     /// is about `1 / divisor²` of the trace. Clamped to `1..=8` with a warning.
     pub trace_resolution_divisor: u32,
     /// Temporal filtering: the trace jitters over four positions and the result is
@@ -194,8 +196,8 @@ impl Default for DistanceFieldAmbientOcclusion {
             occlusion_contrast: 0.0,
             min_occlusion: 0.0,
             occlusion_tint: Color::BLACK,
-            cone_count: 16,
-            steps_per_cone: 16,
+            cone_count: 9,
+            steps_per_cone: 8,
             trace_resolution_divisor: 4,
             temporal_filter: true,
             surface_bias: 0.02,

@@ -3,7 +3,8 @@
 
 use super::scenes::Scene;
 use super::{
-    CONES, Config, Errors, FIELDS, Row, SHAPINGS, SIZE, ao_image, configs, dominates, errors,
+    CONES, Config, Errors, FIELDS, Row, SHAPINGS, SIZE, ao_image, configs, costs, dominates,
+    errors, front,
 };
 use std::fmt::Write as _;
 
@@ -49,35 +50,35 @@ pub fn tables(rows: &[Row], md: &mut String) -> String {
     csv
 }
 
-/// Every scene: per configuration, the summed work and the mean of the AO errors (all
+/// Every scene: per configuration, the summed work and the means of the two errors (all
 /// surface pixels), with the Pareto front.
 pub fn combined(rows: &[Row], scenes: usize, md: &mut String) {
-    let table: Vec<(Config, f64, f32)> = configs()
+    let n = scenes.max(1) as f64;
+    let table: Vec<(Config, [f64; 3])> = configs()
         .into_iter()
         .map(|c| {
-            let rs: Vec<&Row> = rows.iter().filter(|r| r.config == c).collect();
-            let work = rs.iter().map(|r| r.evaluations).sum::<f64>();
-            let error = rs.iter().map(|r| r.errors.ao).sum::<f32>() / scenes.max(1) as f32;
-            (c, work, error)
+            let sum = rows
+                .iter()
+                .filter(|r| r.config == c)
+                .map(|r| costs(r.evaluations, &r.errors))
+                .fold([0.0; 3], |a, p| [a[0] + p[0], a[1] + p[1], a[2] + p[2]]);
+            (c, [sum[0], sum[1] / n, sum[2] / n])
         })
         .collect();
     md.push_str(
-        "\n## All scenes\n\nPer configuration: distance evaluations per pixel summed over the scenes, mean \\|ΔAO\\| (all surface pixels) averaged over them. Pareto front only, and the defaults.\n\n| cones | steps | divisor | shaping | bias (m) | evaluations / pixel (sum) | mean \\|ΔAO\\| | Pareto | default |\n|---|---|---|---|---|---|---|---|---|\n",
+        "\n## All scenes\n\nPer configuration: distance evaluations per pixel summed over the scenes, mean \\|ΔAO\\| and the bent normal's mean angle (all surface pixels) averaged over them. Pareto front (of the three, among the settable configurations) only, and the defaults.\n\n| cones | steps | divisor | shaping | bias (m) | evaluations / pixel (sum) | mean \\|ΔAO\\| | bent normal (rad) | Pareto | default |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
-    for &(c, work, error) in &table {
-        let front = !table
-            .iter()
-            .any(|&(_, w, e)| dominates((w, e), (work, error)));
-        if front || c == Config::DEFAULT {
+    for (&(c, [work, error, bent]), on) in table.iter().zip(front(&table)) {
+        if on || c == Config::DEFAULT {
             let _ = writeln!(
                 md,
-                "| {} | {} | {} | {} | {} | {work:.1} | {error:.4} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {work:.1} | {error:.4} | {bent:.4} | {} | {} |",
                 c.cones,
                 c.steps,
                 c.divisor,
                 c.shaping,
                 c.bias,
-                if front { "✓" } else { "" },
+                if on { "✓" } else { "" },
                 if c == Config::DEFAULT { "default" } else { "" }
             );
         }
@@ -157,7 +158,11 @@ pub fn around_defaults(rows: &[Row], names: &[String], md: &mut String) {
         let mut by: Vec<&&Row> = scene
             .iter()
             .filter(|r| {
-                r.pareto && dominates((r.evaluations, r.errors.ao), (d.evaluations, d.errors.ao))
+                r.pareto
+                    && dominates(
+                        costs(r.evaluations, &r.errors),
+                        costs(d.evaluations, &d.errors),
+                    )
             })
             .collect();
         by.sort_by(|a, b| a.errors.ao.total_cmp(&b.errors.ao));
@@ -186,7 +191,7 @@ pub fn around_defaults(rows: &[Row], names: &[String], md: &mut String) {
 /// The shaping sweep again (the other settings at the defaults) at the
 /// component's default max distance, 10 m, against truth traced to 10 m.
 pub fn at_ten_metres(builders: &[fn(f32) -> Option<Scene>], md: &mut String) {
-    md.push_str("\n## Shaping at the component's 10 m max distance\n\n`shaping: mean |ΔAO| (mean AO − truth)`, all surface pixels; the defaults otherwise (16 cones, 16 steps, divisor 4, bias 0.02 m).\n\n");
+    md.push_str("\n## Shaping at the component's 10 m max distance\n\n`shaping: mean |ΔAO| (mean AO − truth)`, all surface pixels; the defaults otherwise (9 cones, 8 steps, divisor 4, bias 0.02 m).\n\n");
     for build in builders {
         let Some(scene) = build(10.0) else { continue };
         let errors: Vec<(f32, Errors)> = SHAPINGS
