@@ -15,6 +15,9 @@
 //!   `(slot, record)` writes: a static scene sends nothing, `k` changes send `O(k)` bytes.
 //! - [`shadow`]: the GPU parameters of distance-field shadows (light and mask-pass view
 //!   uniforms).
+//! - [`clipmap`]: the global distance field's camera-centred clipmaps — layout,
+//!   toroidal addressing, scrolling in bricks, dirty regions, the per-frame brick budget
+//!   and which bricks are valid.
 //! - [`cull`]: frustum planes and the oriented-box test the GPU culling pass runs, as the
 //!   CPU reference the GPU output is compared with.
 //!
@@ -28,6 +31,7 @@
 
 pub mod ao;
 pub mod atlas;
+pub mod clipmap;
 pub mod cull;
 pub mod object;
 pub mod shadow;

@@ -21,6 +21,8 @@
 //!   ground truth.
 //! - [`dfao`]: distance-field ambient occlusion — the cone trace with its tiles, the
 //!   upsample, specular occlusion — and cosine-weighted Monte Carlo truth on triangles.
+//! - [`global_sdf`]: the global distance field's clipmap composition (brick jobs from
+//!   `penumbra_df_core::clipmap`), conservative storage and sampling.
 //! - [`shadow_mask`]: the distance-field shadow-mask pass — per pixel, the march over the
 //!   GPU object records with its per-object cone culling.
 //! - [`scene`]: an analytic ray-traced scene (spheres, planes, directional lights with hard
@@ -30,6 +32,7 @@ pub mod camera;
 pub mod df;
 pub mod df_shadow;
 pub mod dfao;
+pub mod global_sdf;
 pub mod pbr;
 pub mod scene;
 pub mod shadow_mask;
