@@ -66,15 +66,81 @@ pub fn store(format: ClipmapFormat, d: f32, band: f32) -> f32 {
     }
 }
 
-/// One object of the scene for composition: its world bounds and its distance (a lower
-/// bound of the true distance, at least the distance to the bounds outside them).
+/// One object of the scene for composition: its world bounds (infinite for unbounded
+/// shapes) and its distance (a lower bound of the true distance, at least the distance
+/// to the bounds outside them).
 pub struct FieldObject<'a> {
     /// Min corner of the world bounds.
     pub min: Vec3,
     /// Max corner of the world bounds.
     pub max: Vec3,
     /// World distance at a point, metres.
-    pub distance: &'a dyn Fn(Vec3) -> f32,
+    pub distance: Box<dyn Fn(Vec3) -> f32 + 'a>,
+}
+
+/// An analytic caster in world space with its exact distance: scenes for tests and
+/// benches whose truth is known everywhere.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AnalyticCaster {
+    /// A ball.
+    Sphere {
+        /// Centre, metres.
+        centre: Vec3,
+        /// Radius, metres.
+        radius: f32,
+    },
+    /// An axis-aligned box.
+    Cuboid {
+        /// Centre, metres.
+        centre: Vec3,
+        /// Half extents, metres.
+        half: Vec3,
+    },
+}
+
+impl AnalyticCaster {
+    /// The exact signed distance at `p`.
+    pub fn distance(&self, p: Vec3) -> f32 {
+        match *self {
+            AnalyticCaster::Sphere { centre, radius } => (p - centre).length() - radius,
+            AnalyticCaster::Cuboid { centre, half } => {
+                let q = (p - centre).abs() - half;
+                q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+            }
+        }
+    }
+
+    /// World bounds (min, max).
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        match *self {
+            AnalyticCaster::Sphere { centre, radius } => (centre - radius, centre + radius),
+            AnalyticCaster::Cuboid { centre, half } => (centre - half, centre + half),
+        }
+    }
+
+    /// The dirty region of its appearing, vanishing or having been here.
+    pub fn dirty(&self) -> penumbra_df_core::clipmap::DirtyBox {
+        let (min, max) = self.bounds();
+        penumbra_df_core::clipmap::DirtyBox { min, max }
+    }
+
+    /// As an object to compose.
+    pub fn field_object(self) -> FieldObject<'static> {
+        let (min, max) = self.bounds();
+        FieldObject {
+            min,
+            max,
+            distance: Box::new(move |p| self.distance(p)),
+        }
+    }
+}
+
+/// The exact distance of a scene of analytic casters (`+∞` when empty).
+pub fn analytic_distance(casters: &[AnalyticCaster], p: Vec3) -> f32 {
+    casters
+        .iter()
+        .map(|c| c.distance(p))
+        .fold(f32::INFINITY, f32::min)
 }
 
 /// The clipmap textures: per level `resolution³` values in storage order (x fastest),

@@ -1,36 +1,7 @@
 use super::*;
 use penumbra_df_core::clipmap::DirtyBox;
 
-/// Casters with exact distances: the ground truth of the composition.
-#[derive(Clone, Copy, Debug)]
-enum Shape {
-    Sphere { c: Vec3, r: f32 },
-    Cuboid { c: Vec3, half: Vec3 },
-}
-
-impl Shape {
-    fn distance(&self, p: Vec3) -> f32 {
-        match *self {
-            Shape::Sphere { c, r } => (p - c).length() - r,
-            Shape::Cuboid { c, half } => {
-                let q = (p - c).abs() - half;
-                q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
-            }
-        }
-    }
-
-    fn bounds(&self) -> (Vec3, Vec3) {
-        match *self {
-            Shape::Sphere { c, r } => (c - r, c + r),
-            Shape::Cuboid { c, half } => (c - half, c + half),
-        }
-    }
-
-    fn dirty(&self) -> DirtyBox {
-        let (min, max) = self.bounds();
-        DirtyBox { min, max }
-    }
-}
+type Shape = AnalyticCaster;
 
 /// xorshift32: deterministic.
 struct Rng(u32);
@@ -49,21 +20,19 @@ impl Rng {
         Vec3::new(self.range(-a, a), self.range(-a, a), self.range(-a, a))
     }
     fn shape(&mut self, around: Vec3) -> Shape {
-        let c = around + self.vec(6.0);
+        let centre = around + self.vec(6.0);
         if self.unit() < 0.5 {
             Shape::Sphere {
-                c,
-                r: self.range(0.1, 1.2),
+                centre,
+                radius: self.range(0.1, 1.2),
             }
         } else {
-            Shape::Cuboid {
-                c,
-                half: Vec3::new(
-                    self.range(0.03, 1.5),
-                    self.range(0.03, 0.8),
-                    self.range(0.03, 1.0),
-                ),
-            }
+            let half = Vec3::new(
+                self.range(0.03, 1.5),
+                self.range(0.03, 0.8),
+                self.range(0.03, 1.0),
+            );
+            Shape::Cuboid { centre, half }
         }
     }
 }
@@ -74,22 +43,7 @@ fn layout() -> ClipmapLayout {
 }
 
 fn composed(field: &mut GlobalField, jobs: &[BrickJob], shapes: &[Shape]) {
-    let fns: Vec<Box<dyn Fn(Vec3) -> f32>> = shapes
-        .iter()
-        .map(|&s| Box::new(move |p| s.distance(p)) as Box<dyn Fn(Vec3) -> f32>)
-        .collect();
-    let objects: Vec<FieldObject> = shapes
-        .iter()
-        .zip(&fns)
-        .map(|(s, f)| {
-            let (min, max) = s.bounds();
-            FieldObject {
-                min,
-                max,
-                distance: f.as_ref(),
-            }
-        })
-        .collect();
+    let objects: Vec<FieldObject> = shapes.iter().map(|s| s.field_object()).collect();
     for &job in jobs {
         field.compose(job, &objects);
     }
@@ -247,10 +201,7 @@ fn the_field_is_within_a_texel_diagonal_above_the_true_distance() {
             continue;
         };
         levels[level as usize] += 1;
-        let truth = shapes
-            .iter()
-            .map(|s| s.distance(p))
-            .fold(f32::INFINITY, f32::min);
+        let truth = analytic_distance(&shapes, p);
         let t = field.layout.texel(level);
         let diagonal = t * 3f32.sqrt();
         let band = field.layout.band(level);

@@ -1,0 +1,322 @@
+//! The global distance field's updates and storage, on the CPU model
+//! (`penumbra_df_core::clipmap` + `penumbra_reference::global_sdf`).
+//!
+//! The scene: a town of 1,000 analytic casters over 400 × 400 m — 600 buildings (boxes
+//! 2–12 m wide, 3–20 m tall) and 400 props (balls of 0.3–2 m) — on a ground slab, with
+//! exact distances. The clipmaps: the default layout (4 levels of 128³, 25.6 m to
+//! 204.8 m, ± 4 texels).
+//!
+//! **Updates**, 60 frames a second, with the default budget and without one: bricks
+//! composed per frame (a brick is 8³ texels), distance evaluations per frame (texels ×
+//! the objects that pass the brick's cull), the frames that ended with bricks still
+//! pending (the sampler falls back to coarser levels there), and frames to settle — for a
+//! still camera, a walk at 5 m/s, a flight at 30 m/s, one caster moving, 100 casters
+//! moving, and a teleport across the town.
+//!
+//! **Storage**: memory per layout and format, and each format's error against the exact
+//! distance at random points of each level (mean and 99th percentile of |field −
+//! min(truth, band)|, and the largest overshoot above the truth in texel diagonals,
+//! which the composition bounds by 1).
+//!
+//! `cargo bench -p penumbra_reference --bench global_sdf`; writes
+//! `target/penumbra_bench/global_sdf.md`.
+
+#![allow(missing_docs, reason = "criterion_group! generates undocumented items")]
+
+use criterion::{Criterion, criterion_group};
+use glam::{IVec3, Vec3};
+use penumbra_df_core::clipmap::{
+    BrickJob, ClipmapLayout, ClipmapState, DEFAULT_BRICK_BUDGET, DirtyBox,
+};
+use penumbra_reference::global_sdf::{
+    AnalyticCaster, ClipmapFormat, FieldObject, GlobalField, analytic_distance,
+};
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+/// The teleport scenario: from the town's centre to near a corner.
+const TELEPORT: &str = "teleport, 212 m across the town";
+
+/// A frame, seconds.
+const DT: f32 = 1.0 / 60.0;
+
+/// xorshift32.
+struct Rng(u32);
+
+impl Rng {
+    fn unit(&mut self) -> f32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 17;
+        self.0 ^= self.0 << 5;
+        (self.0 >> 8) as f32 / (1 << 24) as f32
+    }
+    fn range(&mut self, a: f32, b: f32) -> f32 {
+        a + (b - a) * self.unit()
+    }
+}
+
+fn town() -> Vec<AnalyticCaster> {
+    let mut rng = Rng(0x2545_f491);
+    let mut out = vec![AnalyticCaster::Cuboid {
+        centre: Vec3::new(0.0, -0.5, 0.0),
+        half: Vec3::new(200.0, 0.5, 200.0),
+    }];
+    for i in 0..1000 {
+        let (x, z) = (rng.range(-195.0, 195.0), rng.range(-195.0, 195.0));
+        out.push(if i < 600 {
+            let h = rng.range(3.0, 20.0);
+            AnalyticCaster::Cuboid {
+                centre: Vec3::new(x, 0.5 * h, z),
+                half: Vec3::new(rng.range(1.0, 6.0), 0.5 * h, rng.range(1.0, 6.0)),
+            }
+        } else {
+            let r = rng.range(0.3, 2.0);
+            AnalyticCaster::Sphere {
+                centre: Vec3::new(x, r, z),
+                radius: r,
+            }
+        });
+    }
+    out
+}
+
+/// One scenario's figures.
+#[derive(Default)]
+struct Figures {
+    frames: usize,
+    bricks: Vec<usize>,
+    evaluations: Vec<usize>,
+    pending_frames: usize,
+    /// Frames from the last event until nothing was pending.
+    settle: usize,
+}
+
+/// Runs `frames` frames: `step(frame, camera, casters)` moves the camera and casters
+/// and returns the dirty regions. The first frame (composing everything) is not counted.
+fn scenario(
+    casters: &mut Vec<AnalyticCaster>,
+    frames: usize,
+    budget: usize,
+    mut step: impl FnMut(usize, &mut Vec3, &mut Vec<AnalyticCaster>) -> Vec<DirtyBox>,
+) -> Figures {
+    let layout = ClipmapLayout::DEFAULT;
+    let mut state = ClipmapState::new(layout);
+    let mut field = GlobalField::new(layout, ClipmapFormat::F16);
+    let mut camera = Vec3::new(0.0, 1.7, 0.0);
+    let compose = |field: &mut GlobalField, jobs: &[BrickJob], casters: &[AnalyticCaster]| {
+        let objects: Vec<FieldObject> = casters.iter().map(|c| c.field_object()).collect();
+        jobs.iter()
+            .map(|&j| field.compose(j, &objects).evaluations)
+            .sum::<usize>()
+    };
+    let u = state.update(camera, &[], usize::MAX);
+    compose(&mut field, &u.jobs, casters);
+    let mut f = Figures {
+        frames,
+        ..Figures::default()
+    };
+    for frame in 0..frames {
+        let dirty = step(frame, &mut camera, casters);
+        let u = state.update(camera, &dirty, budget);
+        f.evaluations.push(compose(&mut field, &u.jobs, casters));
+        f.bricks.push(u.jobs.len());
+        if u.pending > 0 {
+            f.pending_frames += 1;
+            f.settle += 1;
+        } else if !dirty.is_empty() || !u.jobs.is_empty() {
+            f.settle = 0;
+        }
+    }
+    f
+}
+
+fn stats(v: &[usize]) -> (f64, usize) {
+    let mean = v.iter().sum::<usize>() as f64 / v.len().max(1) as f64;
+    (mean, v.iter().copied().max().unwrap_or(0))
+}
+
+fn updates(md: &mut String) {
+    md.push_str(
+        "## Updates (60 frames per second)\n\n| scenario | budget (bricks / frame) | frames | bricks / frame, mean | max | texels / frame, max | evaluations / frame, mean | max | frames ending with bricks pending |\n|---|---|---|---|---|---|---|---|---|\n",
+    );
+    type Step = Box<dyn FnMut(usize, &mut Vec3, &mut Vec<AnalyticCaster>) -> Vec<DirtyBox>>;
+    type Scenario = (&'static str, usize, fn() -> Step);
+    let scenarios: Vec<Scenario> = vec![
+        ("still camera", 300, || Box::new(|_, _, _| Vec::new())),
+        ("walk, 5 m/s", 600, || {
+            Box::new(move |_, c: &mut Vec3, _| {
+                *c += Vec3::new(0.8, 0.0, 0.6) * 5.0 * DT;
+                Vec::new()
+            })
+        }),
+        ("flight, 30 m/s", 600, || {
+            Box::new(move |f, c: &mut Vec3, _| {
+                let a = f as f32 * DT * 0.3;
+                *c += Vec3::new(a.cos(), 0.05, a.sin()) * 30.0 * DT;
+                Vec::new()
+            })
+        }),
+        ("one caster moving, 2 m/s", 300, || {
+            Box::new(move |f, _, casters: &mut Vec<AnalyticCaster>| {
+                let old = casters[1];
+                let a = f as f32 * DT * 2.0 / 5.0;
+                casters[1] = AnalyticCaster::Sphere {
+                    centre: Vec3::new(5.0 * a.cos(), 1.0, 5.0 * a.sin()),
+                    radius: 1.0,
+                };
+                vec![old.dirty(), casters[1].dirty()]
+            })
+        }),
+        ("100 casters moving, 2 m/s", 300, || {
+            Box::new(move |f, _, casters: &mut Vec<AnalyticCaster>| {
+                let mut dirty = Vec::new();
+                for i in 0..100 {
+                    let old = casters[i + 1];
+                    let a = f as f32 * DT * 2.0 / 8.0 + i as f32;
+                    let r = 8.0 + (i % 10) as f32 * 6.0;
+                    casters[i + 1] = AnalyticCaster::Sphere {
+                        centre: Vec3::new(r * a.cos(), 1.0, r * a.sin()),
+                        radius: 1.0,
+                    };
+                    dirty.extend([old.dirty(), casters[i + 1].dirty()]);
+                }
+                dirty
+            })
+        }),
+        (TELEPORT, 120, || {
+            Box::new(|f, c: &mut Vec3, _| {
+                if f == 0 {
+                    *c += Vec3::new(150.0, 0.0, -150.0);
+                }
+                Vec::new()
+            })
+        }),
+    ];
+    let base = town();
+    for (name, frames, make) in &scenarios {
+        for budget in [256, DEFAULT_BRICK_BUDGET, usize::MAX] {
+            let mut casters = base.clone();
+            let f = scenario(&mut casters, *frames, budget, make());
+            let (b_mean, b_max) = stats(&f.bricks);
+            let (e_mean, e_max) = stats(&f.evaluations);
+            let budget = if budget == usize::MAX {
+                "none".to_string()
+            } else {
+                budget.to_string()
+            };
+            let settle = if *name == TELEPORT {
+                format!(" (settled after {} frames)", f.pending_frames + 1)
+            } else {
+                String::new()
+            };
+            let _ = writeln!(
+                md,
+                "| {name} | {budget} | {} | {b_mean:.1} | {b_max} | {} | {e_mean:.0} | {e_max} | {}{settle} |",
+                f.frames,
+                b_max * 512,
+                f.pending_frames
+            );
+        }
+    }
+}
+
+fn storage(md: &mut String) {
+    md.push_str("\n## Memory\n\n| levels × resolution | f16 | unorm8 |\n|---|---|---|\n");
+    for (levels, res) in [(4u32, 64u32), (4, 128), (4, 256), (6, 128)] {
+        let texels = u64::from(levels) * u64::from(res).pow(3);
+        let _ = writeln!(
+            md,
+            "| {levels} × {res}³ | {:.1} MiB | {:.1} MiB |",
+            texels as f64 * 2.0 / 1048576.0,
+            texels as f64 / 1048576.0
+        );
+    }
+    md.push_str(
+        "\n## Storage error (town, camera at the centre, 20,000 points per level)\n\n| format | level | texel (m) | mean \\|field − min(truth, band)\\| (m) | p99 (m) | largest overshoot above truth (texel diagonals) |\n|---|---|---|---|---|---|\n",
+    );
+    let casters = town();
+    let objects: Vec<FieldObject> = casters.iter().map(|c| c.field_object()).collect();
+    let layout = ClipmapLayout::DEFAULT;
+    let camera = Vec3::new(3.0, 1.7, -2.0);
+    for format in [ClipmapFormat::F16, ClipmapFormat::Unorm8] {
+        let mut state = ClipmapState::new(layout);
+        let mut field = GlobalField::new(layout, format);
+        for job in state.update(camera, &[], usize::MAX).jobs {
+            field.compose(job, &objects);
+        }
+        let mut rng = Rng(77);
+        for level in 0..layout.levels {
+            let o = state.origin(level).expect("composed");
+            let t = layout.texel(level);
+            let (lo, hi) = (
+                layout.texel_centre(level, o),
+                layout.texel_centre(level, o + IVec3::splat(layout.resolution as i32 - 1)),
+            );
+            let band = layout.band(level);
+            let mut errors = Vec::new();
+            let mut overshoot = f32::NEG_INFINITY;
+            while errors.len() < 20_000 {
+                // Points near surfaces: within the band of the ground or a caster.
+                let p = Vec3::new(
+                    rng.range(lo.x, hi.x),
+                    rng.range(0.0, 25.0 * (level + 1) as f32),
+                    rng.range(lo.z, hi.z),
+                );
+                let truth = analytic_distance(&casters, p);
+                if truth.abs() > band {
+                    continue;
+                }
+                let Some(v) = field.sample_level(&state, level, p) else {
+                    continue;
+                };
+                errors.push((v - truth.min(band)).abs());
+                overshoot = overshoot.max((v - truth) / (t * 3f32.sqrt()));
+            }
+            errors.sort_by(f32::total_cmp);
+            let mean = errors.iter().sum::<f32>() / errors.len() as f32;
+            let _ = writeln!(
+                md,
+                "| {format:?} | {level} | {t:.2} | {mean:.4} | {:.4} | {overshoot:.2} |",
+                errors[errors.len() * 99 / 100]
+            );
+        }
+    }
+}
+
+fn bench(c: &mut Criterion) {
+    let mut md = String::from(
+        "# Global distance field: updates and storage\n\n`cargo bench -p penumbra_reference --bench global_sdf`: the CPU model, a town of 1,000 analytic casters, the default layout (4 levels of 128³ from 25.6 m, ± 4 texels).\n\n",
+    );
+    updates(&mut md);
+    storage(&mut md);
+    println!("{md}");
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/penumbra_bench");
+    if std::fs::create_dir_all(&dir).is_ok() {
+        let _ = std::fs::write(dir.join("global_sdf.md"), &md);
+    }
+    let casters = town();
+    let objects: Vec<FieldObject> = casters.iter().map(|c| c.field_object()).collect();
+    let mut field = GlobalField::new(ClipmapLayout::DEFAULT, ClipmapFormat::F16);
+    c.bench_function("global_sdf/compose one level-0 brick by the ground", |b| {
+        b.iter(|| {
+            field.compose(
+                BrickJob {
+                    level: 0,
+                    brick: IVec3::new(0, -1, 0),
+                },
+                &objects,
+            )
+        });
+    });
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(10);
+    targets = bench
+}
+
+fn main() {
+    benches();
+    Criterion::default().final_summary();
+}
