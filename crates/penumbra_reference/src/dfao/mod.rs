@@ -194,6 +194,22 @@ fn pixel_ao_filtered(
     trace: &AoTrace,
     keep: impl Fn(usize) -> bool,
 ) -> (AoSample, u32) {
+    let (visibility, evaluations) = cone_visibilities(records, atlas, camera, p, n, trace, keep);
+    (combine(&visibility, n), evaluations)
+}
+
+/// Each cone's visibility through the objects of `records` that `keep` keeps, and the
+/// distance evaluations.
+#[allow(clippy::too_many_arguments, reason = "the pass's inputs")]
+fn cone_visibilities(
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    camera: &CameraOrigin,
+    p: Vec3,
+    n: Vec3,
+    trace: &AoTrace,
+    keep: impl Fn(usize) -> bool,
+) -> (Vec<f32>, u32) {
     let count = trace.cone_count;
     let tan_half = cone_tan_half(count);
     let (t, b) = tangent_frame(n);
@@ -217,7 +233,7 @@ fn pixel_ao_filtered(
             evaluations += e;
         }
     }
-    (combine(&visibility, n), evaluations)
+    (visibility, evaluations)
 }
 
 /// A view to trace: depth (reverse-Z, 0 background) and unit normals per pixel.
@@ -472,12 +488,14 @@ fn concentric_disc(u: Vec2) -> Vec2 {
 }
 
 mod apply;
+mod far;
 mod temporal;
 #[cfg(test)]
 mod temporal_tests;
 #[cfg(test)]
 mod tests;
 
+pub use far::{FarField, pixel_ao_far};
 pub use temporal::{AoHistory, TemporalFrame, TemporalSteps, temporal_step};
 
 pub use apply::{

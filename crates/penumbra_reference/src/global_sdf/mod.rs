@@ -18,8 +18,12 @@
 #[cfg(test)]
 mod tests;
 
+use crate::df::{Atlas, object_distance};
+use crate::shadow_mask::bounding_sphere;
 use glam::{IVec3, Vec3};
 use penumbra_df_core::clipmap::{BRICK, BrickJob, ClipmapLayout, ClipmapState};
+use penumbra_df_core::cull::CameraOrigin;
+use penumbra_df_core::object::{ObjectRecord, TILE_SIZE, flags};
 use penumbra_sdf::volume::f16;
 
 /// How the clipmap textures store distances.
@@ -135,6 +139,42 @@ impl AnalyticCaster {
     }
 }
 
+/// The objects of GPU object records that occlude in the global field: live, occluding
+/// (`casts_occlusion`) and opaque to AO (transmissive casters — foliage — are left to the
+/// objects' own near-field trace). Distances through [`object_distance`] (what the
+/// compute pass evaluates), bounds from the records' bounding balls (unbounded shapes:
+/// everywhere). World positions are the camera's plus camera-relative ones.
+pub fn record_objects<'a>(
+    records: &'a [ObjectRecord],
+    camera: &'a CameraOrigin,
+    atlas: &'a Atlas,
+) -> Vec<FieldObject<'a>> {
+    let camera_world = camera_world(camera);
+    records
+        .iter()
+        .filter(|r| {
+            let f = r.flags();
+            f & flags::LIVE != 0 && flags::casts_occlusion(f) && flags::ao_transmission(f) == 0.0
+        })
+        .map(|r| {
+            let (min, max) = match bounding_sphere(r, camera) {
+                Some((c, radius)) => (camera_world + c - radius, camera_world + c + radius),
+                None => (Vec3::NEG_INFINITY, Vec3::INFINITY),
+            };
+            FieldObject {
+                min,
+                max,
+                distance: Box::new(move |p| object_distance(r, p - camera_world, camera, atlas)),
+            }
+        })
+        .collect()
+}
+
+/// The world position of a camera origin.
+pub fn camera_world(camera: &CameraOrigin) -> Vec3 {
+    Vec3::from_array(camera.tile.map(|t| t as f32)) * TILE_SIZE + camera.offset
+}
+
 /// The exact distance of a scene of analytic casters (`+∞` when empty).
 pub fn analytic_distance(casters: &[AnalyticCaster], p: Vec3) -> f32 {
     casters
@@ -226,8 +266,30 @@ impl GlobalField {
     /// The field at `p`: trilinear in the finest level whose eight texels around `p`
     /// are all in valid bricks of `state`, with that level; `None` where no level has.
     pub fn sample(&self, state: &ClipmapState, p: Vec3) -> Option<(f32, u32)> {
-        (0..self.layout.levels)
+        self.sample_from(state, p, 0)
+    }
+
+    /// [`GlobalField::sample`] from level `first` on.
+    pub fn sample_from(&self, state: &ClipmapState, p: Vec3, first: u32) -> Option<(f32, u32)> {
+        (first..self.layout.levels)
             .find_map(|level| self.sample_level(state, level, p).map(|d| (d, level)))
+    }
+
+    /// Whether `d`, read from level `level`, is the clamp (within the two quanta of
+    /// [`store`]'s rounding below it): "at least the band".
+    pub fn is_clamped(&self, level: u32, d: f32) -> bool {
+        let band = self.layout.band(level);
+        d >= band - 2.0 * self.format.quantum(band)
+    }
+
+    /// The finest level whose band reaches `radius` plus a texel diagonal (the coarsest
+    /// when none does): there a cone of that radius reads every value below its radius
+    /// from unclamped texels (trilinear weights reach a diagonal away), and a clamped
+    /// value as open, which it is.
+    pub fn level_for_radius(&self, radius: f32) -> u32 {
+        (0..self.layout.levels)
+            .find(|&l| self.layout.band(l) >= radius + 3f32.sqrt() * self.layout.texel(l))
+            .unwrap_or(self.layout.levels - 1)
     }
 
     /// The field at `p` in level `level` alone, if its texels there are valid.
