@@ -248,3 +248,22 @@ fn ao_temporal_layout_and_constants_match() {
     // The fill weighs neighbours as the upsample does (`dfao::UPSAMPLE_DEPTH_TOLERANCE`).
     assert_eq!(constant(&m, "UPSAMPLE_DEPTH_TOLERANCE") as f32, 0.1);
 }
+
+/// The global field's compose pass: `ComposeJob` and `ComposeParams` laid out by
+/// `encase` as the WGSL structs, and the brick constants.
+#[test]
+fn global_compose_layouts_and_constants_match() {
+    use encase::ShaderType;
+    use penumbra_df_core::clipmap::{BRICK, ComposeJob, ComposeParams, MAX_LEVELS};
+    let m = parse("#import penumbra::df::global_compose\n");
+    let (members, size) = struct_layout(&m, "ComposeJob");
+    assert_eq!(u64::from(size), ComposeJob::min_size().get());
+    let names: Vec<&str> = members.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["tile", "level", "first", "word"]);
+    let (members, size) = struct_layout(&m, "ComposeParams");
+    assert_eq!(u64::from(size), ComposeParams::min_size().get());
+    let names: Vec<&str> = members.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["levels", "slot_count", "job_count"]);
+    assert_eq!(constant(&m, "BRICK") as u32, BRICK);
+    assert_eq!(constant(&m, "MAX_LEVELS") as u32, MAX_LEVELS);
+}

@@ -36,7 +36,9 @@
 #[cfg(test)]
 mod tests;
 
-use glam::{IVec3, Vec3};
+use crate::object::TILE_SIZE;
+use encase::ShaderType;
+use glam::{DVec3, IVec3, Vec3, Vec4};
 use std::collections::BTreeSet;
 
 /// Texels per brick side: the unit of scrolling, dirty regions and composition.
@@ -510,4 +512,99 @@ impl ClipmapState {
         }
         words
     }
+}
+
+/// One brick for the compose pass (`ComposeJob` in `shaders/df/global_compose.wgsl`):
+/// where its texels are, in the object records' 512 m tiles, and where they go.
+#[derive(ShaderType, Clone, Copy, Debug, Default, PartialEq)]
+pub struct ComposeJob {
+    /// The tile the positions are relative to (the brick's first texel's).
+    pub tile: IVec3,
+    /// Clipmap level.
+    pub level: u32,
+    /// Centre of the brick's first texel relative to `tile`, metres (from f64).
+    pub first: Vec3,
+    /// The brick's first word in the field buffer ([`brick_word`]).
+    pub word: u32,
+}
+
+impl ComposeJob {
+    /// The job of brick `job`: texel `(i, j, k)` of it sits at `first + (i, j, k) ·
+    /// texel` relative to `tile` — computed in f64, so exact enough 10⁷ m out, and the
+    /// same on every frame (a brick composed twice gets the same values).
+    pub fn new(layout: &ClipmapLayout, job: BrickJob) -> ComposeJob {
+        let t = f64::from(layout.texel(job.level));
+        let w = (job.brick * BRICK as i32).as_dvec3();
+        let centre = (w + DVec3::splat(0.5)) * t;
+        let tile = (centre / f64::from(TILE_SIZE)).round();
+        let first = centre - tile * f64::from(TILE_SIZE);
+        ComposeJob {
+            tile: tile.as_ivec3(),
+            level: job.level,
+            first: first.as_vec3(),
+            word: brick_word(
+                layout,
+                job.level,
+                layout.storage(job.brick * BRICK as i32) / BRICK as i32,
+            ),
+        }
+    }
+}
+
+/// The compose pass's uniform (`ComposeParams` in `shaders/df/global_compose.wgsl`).
+#[derive(ShaderType, Clone, Copy, Debug, Default, PartialEq)]
+pub struct ComposeParams {
+    /// Per level: texel size, band, the storage quantum ([`unorm8_quantum`]), 0.
+    pub levels: [Vec4; MAX_LEVELS as usize],
+    /// Object buffer slots to consider.
+    pub slot_count: u32,
+    /// Jobs in the job buffer.
+    pub job_count: u32,
+}
+
+impl ComposeParams {
+    /// The uniform of `layout` for `slot_count` object slots and `job_count` jobs.
+    pub fn new(layout: &ClipmapLayout, slot_count: u32, job_count: u32) -> ComposeParams {
+        let mut levels = [Vec4::ZERO; MAX_LEVELS as usize];
+        for (l, v) in levels.iter_mut().enumerate().take(layout.levels as usize) {
+            let band = layout.band(l as u32);
+            *v = Vec4::new(layout.texel(l as u32), band, unorm8_quantum(band), 0.0);
+        }
+        ComposeParams {
+            levels,
+            slot_count,
+            job_count,
+        }
+    }
+}
+
+/// Words (`u32`) per brick in the field buffer: 512 texels of one byte.
+pub const BRICK_WORDS: u32 = BRICK * BRICK * BRICK / 4;
+
+/// The field buffer's size in words: every level's bricks, brick after brick.
+pub fn field_words(layout: &ClipmapLayout) -> u64 {
+    u64::from(layout.levels) * u64::from(layout.bricks_per_level()) * u64::from(BRICK_WORDS)
+}
+
+/// The first word of storage brick `s` (`0 ≤ s < bricks per side`) of level `level`.
+/// Within a brick texel `(i, j, k)` is byte `i % 4` of word `i / 4 + 2 (j + 8 k)`.
+pub fn brick_word(layout: &ClipmapLayout, level: u32, s: IVec3) -> u32 {
+    let n = layout.bricks_per_side() as i32;
+    let brick = (s.x + n * (s.y + n * s.z)) as u32;
+    (level * layout.bricks_per_level() + brick) * BRICK_WORDS
+}
+
+/// Where world texel `w` of level `level` is in the field buffer: word and byte.
+pub fn texel_byte(layout: &ClipmapLayout, level: u32, w: IVec3) -> (u32, u32) {
+    let s = layout.storage(w);
+    let b = BRICK as i32;
+    let inner = s.rem_euclid(IVec3::splat(b));
+    let word =
+        brick_word(layout, level, s / b) + (inner.x / 4 + 2 * (inner.y + b * inner.z)) as u32;
+    (word, (inner.x % 4) as u32)
+}
+
+/// The rounding step of the 8-bit storage over `± band`: `2 band / 255`.
+pub fn unorm8_quantum(band: f32) -> f32 {
+    2.0 * band / 255.0
 }

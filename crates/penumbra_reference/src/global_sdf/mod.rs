@@ -13,7 +13,8 @@
 //! the true distance (the baked volumes' outside bound, exact analytic shapes), so a
 //! trilinear sample at `p` mixes values at texel centres within a texel diagonal `δ` of
 //! `p`, each at most `d(p) + δ`: the field never reports more than the true distance
-//! plus one texel diagonal (tested against exact distances).
+//! plus one texel diagonal (tested against exact distances) — but deeper inside a
+//! surface than the band, where it reads `−band`: inside all the same.
 
 #[cfg(test)]
 mod tests;
@@ -21,7 +22,9 @@ mod tests;
 use crate::df::{Atlas, object_distance};
 use crate::shadow_mask::bounding_sphere;
 use glam::{IVec3, Vec3};
-use penumbra_df_core::clipmap::{BRICK, BrickJob, ClipmapLayout, ClipmapState};
+use penumbra_df_core::clipmap::{
+    BRICK, BrickJob, ClipmapLayout, ClipmapState, ComposeJob, unorm8_quantum,
+};
 use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::object::{ObjectRecord, TILE_SIZE, flags};
 use penumbra_sdf::volume::f16;
@@ -50,7 +53,7 @@ impl ClipmapFormat {
         match self {
             // f16 has 10 mantissa bits: a step of 2⁻¹⁰ of the binade's base (≤ band).
             ClipmapFormat::F16 => band * (1.0 / 1024.0),
-            ClipmapFormat::Unorm8 => 2.0 * band / 255.0,
+            ClipmapFormat::Unorm8 => unorm8_quantum(band),
         }
     }
 }
@@ -64,7 +67,8 @@ pub fn store(format: ClipmapFormat, d: f32, band: f32) -> f32 {
         ClipmapFormat::F16 => f16::from_f32(x).to_f32(),
         ClipmapFormat::Unorm8 => {
             let u = (0.5 + 0.5 * x / band).clamp(0.0, 1.0);
-            let q = (u * 255.0).round() / 255.0;
+            // floor(x + ½): WGSL's `round` goes to even, the shader does this.
+            let q = (u * 255.0 + 0.5).floor() / 255.0;
             (q - 0.5) * 2.0 * band
         }
     }
@@ -152,10 +156,7 @@ pub fn record_objects<'a>(
     let camera_world = camera_world(camera);
     records
         .iter()
-        .filter(|r| {
-            let f = r.flags();
-            f & flags::LIVE != 0 && flags::casts_occlusion(f) && flags::ao_transmission(f) == 0.0
-        })
+        .filter(|r| composes(r))
         .map(|r| {
             let (min, max) = match bounding_sphere(r, camera) {
                 Some((c, radius)) => (camera_world + c - radius, camera_world + c + radius),
@@ -168,6 +169,12 @@ pub fn record_objects<'a>(
             }
         })
         .collect()
+}
+
+/// Whether a record goes into the global field: live, occluding, opaque to AO.
+pub fn composes(r: &ObjectRecord) -> bool {
+    let f = r.flags();
+    f & flags::LIVE != 0 && flags::casts_occlusion(f) && flags::ao_transmission(f) == 0.0
 }
 
 /// The world position of a camera origin.
@@ -260,6 +267,52 @@ impl GlobalField {
         ComposeStats {
             objects: near.len(),
             evaluations,
+        }
+    }
+
+    /// Composes brick `job` from GPU object records as the compose pass does
+    /// (`shaders/df/global_compose.wgsl`): positions relative to the job's tile
+    /// ([`ComposeJob::new`]), a record kept when its bounding ball grown by the band
+    /// reaches the box of the brick's texel centres, distances by [`object_distance`].
+    pub fn compose_records(
+        &mut self,
+        job: BrickJob,
+        records: &[ObjectRecord],
+        atlas: &Atlas,
+    ) -> ComposeStats {
+        let frame = ComposeJob::new(&self.layout, job);
+        let camera = CameraOrigin {
+            tile: frame.tile.to_array(),
+            offset: Vec3::ZERO,
+        };
+        let t = self.layout.texel(job.level);
+        let band = self.layout.band(job.level);
+        let (lo, hi) = (
+            frame.first,
+            frame.first + Vec3::splat((BRICK - 1) as f32 * t),
+        );
+        let kept: Vec<&ObjectRecord> = records
+            .iter()
+            .filter(|r| composes(r))
+            .filter(|r| {
+                bounding_sphere(r, &camera)
+                    .is_none_or(|(c, radius)| (c.clamp(lo, hi) - c).length() <= radius + band)
+            })
+            .collect();
+        let b = BRICK as i32;
+        for i in 0..b * b * b {
+            let ijk = IVec3::new(i % b, (i / b) % b, i / (b * b));
+            let p = frame.first + ijk.as_vec3() * t;
+            let d = kept
+                .iter()
+                .map(|r| object_distance(r, p, &camera, atlas))
+                .fold(band, f32::min);
+            let at = self.index(job.brick * b + ijk);
+            self.texels[job.level as usize][at] = store(self.format, d, band);
+        }
+        ComposeStats {
+            objects: kept.len(),
+            evaluations: kept.len() * (b * b * b) as usize,
         }
     }
 
