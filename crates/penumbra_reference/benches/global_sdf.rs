@@ -25,11 +25,16 @@
 
 use criterion::{Criterion, criterion_group};
 use glam::{IVec3, Vec3};
+use penumbra_df_core::ao::{AoTrace, CONE_SHAPING};
 use penumbra_df_core::clipmap::{
     BrickJob, ClipmapLayout, ClipmapState, DEFAULT_BRICK_BUDGET, DirtyBox,
 };
+use penumbra_df_core::cull::CameraOrigin;
+use penumbra_df_core::object::ObjectRecord;
+use penumbra_reference::df::Atlas;
+use penumbra_reference::dfao::{FarField, pixel_ao_counted, pixel_ao_far};
 use penumbra_reference::global_sdf::{
-    AnalyticCaster, ClipmapFormat, FieldObject, GlobalField, analytic_distance,
+    AnalyticCaster, ClipmapFormat, FieldObject, GlobalField, analytic_distance, closed_room,
 };
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -194,7 +199,7 @@ fn updates(md: &mut String) {
     ];
     let base = town();
     for (name, frames, make) in &scenarios {
-        for budget in [256, DEFAULT_BRICK_BUDGET, usize::MAX] {
+        for budget in [1024, DEFAULT_BRICK_BUDGET, usize::MAX] {
             let mut casters = base.clone();
             let f = scenario(&mut casters, *frames, budget, make());
             let (b_mean, b_max) = stats(&f.bricks);
@@ -232,11 +237,16 @@ fn storage(md: &mut String) {
         );
     }
     md.push_str(
-        "\n## Storage error (town, camera at the centre, 20,000 points per level)\n\n| format | level | texel (m) | mean \\|field − min(truth, band)\\| (m) | p99 (m) | largest overshoot above truth (texel diagonals) |\n|---|---|---|---|---|---|\n",
+        "\n## Storage error (town, camera at the centre, 20,000 points per level within the band of a surface; the default layout without its dilation)\n\n| format | level | texel (m) | mean \\|field − min(truth, band)\\| (m) | p99 (m) | largest overshoot above truth (texel diagonals) |\n|---|---|---|---|---|---|\n",
     );
     let casters = town();
     let objects: Vec<FieldObject> = casters.iter().map(|c| c.field_object()).collect();
-    let layout = ClipmapLayout::DEFAULT;
+    // The formats' own error: without the dilation (which lowers every value by the
+    // same known amount).
+    let layout = ClipmapLayout {
+        dilation_texels: 0.0,
+        ..ClipmapLayout::DEFAULT
+    };
     let camera = Vec3::new(3.0, 1.7, -2.0);
     for format in [ClipmapFormat::F16, ClipmapFormat::Unorm8] {
         let mut state = ClipmapState::new(layout);
@@ -283,12 +293,164 @@ fn storage(md: &mut String) {
     }
 }
 
+/// The component's trace: 9 cones, 8 steps, 10 m, bias 0.02 m.
+fn trace() -> AoTrace {
+    AoTrace {
+        max_distance: 10.0,
+        cone_count: 9,
+        steps_per_cone: 8,
+        bias: 0.02,
+        shaping: CONE_SHAPING,
+    }
+}
+
+/// The field of `records` around `camera` (whole) with band and dilation in texels.
+fn field_of(
+    records: &[ObjectRecord],
+    camera: Vec3,
+    band: f32,
+    dilation: f32,
+) -> (GlobalField, ClipmapState) {
+    let layout = ClipmapLayout {
+        band_texels: band,
+        dilation_texels: dilation,
+        ..ClipmapLayout::DEFAULT
+    };
+    let atlas = Atlas::new(glam::UVec3::ONE);
+    let mut state = ClipmapState::new(layout);
+    let mut field = GlobalField::new(layout, ClipmapFormat::Unorm8);
+    for job in state.update(camera, &[], usize::MAX).jobs {
+        field.compose_records(job, records, &atlas);
+    }
+    (field, state)
+}
+
+/// Mean AO over `receivers` (world position, normal) with the far field from 1 m, the
+/// samples reading level `min_level` or coarser.
+fn far_ao(
+    records: &[ObjectRecord],
+    field: &GlobalField,
+    state: &ClipmapState,
+    camera: Vec3,
+    receivers: &[(Vec3, Vec3)],
+    min_level: u32,
+) -> f32 {
+    let origin = CameraOrigin::at(camera).expect("finite");
+    let atlas = Atlas::new(glam::UVec3::ONE);
+    let far = FarField {
+        field,
+        state,
+        camera_world: camera,
+        switch_distance: 1.0,
+        min_level,
+    };
+    receivers
+        .iter()
+        .map(|&(p, n)| {
+            pixel_ao_far(records, &atlas, &origin, p - camera, n, &trace(), &far)
+                .0
+                .ao
+        })
+        .sum::<f32>()
+        / receivers.len() as f32
+}
+
+/// Thin walls: a closed 4 × 2.5 × 4 m room (truth: AO 0 everywhere inside), and the far
+/// field's over-occlusion on open ground (balls of radius D/2 at D = 2–6 m over a plane:
+/// analytic AO 0.75), per band and dilation.
+fn thin_walls(md: &mut String) {
+    md.push_str("\n## Thin walls\n\nA closed room, 4 × 2.5 × 4 m inside (every ray hits a wall within 5 m: truth AO 0), walls of the given thickness; mean AO of four receivers (floor ×2, a wall, the ceiling; each at least 1.2 m from the walls it faces, beyond the switch) with the component's trace (9 cones, 8 steps, 10 m) and the far field from 1 m, the samples forced to read level L or coarser (level L's texel: 0.2 · 2^L m). Open ground: mean |AO − analytic| of balls over a plane seen through the far field (the objects' own trace: see the tests).\n\n| band (texels) | dilation (texels) | wall (m) | AO, L ≥ 0 | L ≥ 1 | L ≥ 2 | L ≥ 3 | objects only |\n|---|---|---|---|---|---|---|---|\n");
+    let half = Vec3::new(2.0, 1.25, 2.0);
+    // At least 1.2 m from the walls they face: beyond the 1 m switch.
+    let receivers = [
+        (Vec3::new(0.0, 0.0, 0.0), Vec3::Y),
+        (Vec3::new(0.6, 0.0, -0.7), Vec3::Y),
+        (Vec3::new(2.0, 1.2, 0.3), -Vec3::X),
+        (Vec3::new(-0.5, 2.5, 0.5), -Vec3::Y),
+    ];
+    let camera = Vec3::new(0.0, 1.2, 0.0);
+    let mut summary = Vec::new();
+    for band in [4.0f32, 8.0, 16.0] {
+        for dilation in [0.0f32, 0.5, 0.87] {
+            let mut thinnest = [None::<f32>; 4];
+            for wall in [0.4f32, 0.2, 0.1, 0.05, 0.02] {
+                let records: Vec<ObjectRecord> =
+                    closed_room(half, wall).iter().map(|c| c.record()).collect();
+                let (field, state) = field_of(&records, camera, band, dilation);
+                let ao: Vec<f32> = (0..4)
+                    .map(|l| far_ao(&records, &field, &state, camera, &receivers, l))
+                    .collect();
+                let origin = CameraOrigin::at(camera).expect("finite");
+                let atlas = Atlas::new(glam::UVec3::ONE);
+                let objects = receivers
+                    .iter()
+                    .map(|&(p, n)| {
+                        pixel_ao_counted(&records, &atlas, &origin, p - camera, n, &trace())
+                            .0
+                            .ao
+                    })
+                    .sum::<f32>()
+                    / receivers.len() as f32;
+                for (l, &a) in ao.iter().enumerate() {
+                    if a <= 0.05 {
+                        thinnest[l] = Some(wall);
+                    }
+                }
+                let _ = writeln!(
+                    md,
+                    "| {band} | {dilation} | {wall} | {:.3} | {:.3} | {:.3} | {:.3} | {objects:.3} |",
+                    ao[0], ao[1], ao[2], ao[3]
+                );
+            }
+            // Open ground.
+            let mut error = 0.0;
+            let ds = [2.0f32, 3.0, 4.0, 6.0];
+            for d in ds {
+                let ground = AnalyticCaster::Cuboid {
+                    centre: Vec3::new(0.0, -0.5, 0.0),
+                    half: Vec3::new(200.0, 0.5, 200.0),
+                };
+                let ball = AnalyticCaster::Sphere {
+                    centre: Vec3::new(0.0, d, 0.0),
+                    radius: 0.5 * d,
+                };
+                let records = [ground.record(), ball.record()];
+                let camera = Vec3::new(0.0, 1.7, 2.0);
+                let (field, state) = field_of(&records, camera, band, dilation);
+                let ao = far_ao(
+                    &records,
+                    &field,
+                    &state,
+                    camera,
+                    &[(Vec3::new(0.05, 0.0, -0.03), Vec3::Y)],
+                    0,
+                );
+                error += (ao - 0.75).abs() / ds.len() as f32;
+            }
+            summary.push((band, dilation, thinnest, error));
+        }
+    }
+    md.push_str("\n| band (texels) | dilation (texels) | thinnest wall with AO ≤ 0.05, L ≥ 0 / 1 / 2 / 3 (m) | open ground: mean \\|ΔAO\\| |\n|---|---|---|---|\n");
+    for (band, dilation, thinnest, error) in summary {
+        let cells: Vec<String> = thinnest
+            .iter()
+            .map(|t| t.map_or("> 0.4".to_string(), |w| w.to_string()))
+            .collect();
+        let _ = writeln!(
+            md,
+            "| {band} | {dilation} | {} | {error:.4} |",
+            cells.join(" / ")
+        );
+    }
+}
+
 fn bench(c: &mut Criterion) {
     let mut md = String::from(
         "# Global distance field: updates and storage\n\n`cargo bench -p penumbra_reference --bench global_sdf`: the CPU model, a town of 1,000 analytic casters, the default layout (4 levels of 128³ from 25.6 m, ± 4 texels).\n\n",
     );
     updates(&mut md);
     storage(&mut md);
+    thin_walls(&mut md);
     println!("{md}");
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/penumbra_bench");
     if std::fs::create_dir_all(&dir).is_ok() {

@@ -5,8 +5,9 @@
 //!
 //! **Layout** ([`ClipmapLayout`]). `levels` cubes of `resolution³` texels, level `L`
 //! covering `first_extent · growth^L` metres around the camera. A texel stores the
-//! scene's distance at its centre, clamped to `± band` (`band_texels` texels of its
-//! level): far from every surface the stored value is `band`, a valid lower bound of
+//! scene's distance at its centre, less a dilation (surfaces grown by half a texel
+//! diagonal, so that walls thinner than a texel stay opaque), clamped to `± band`
+//! (`band_texels` texels of its level): far from every surface the stored value is `band`, a valid lower bound of
 //! the distance for a sphere tracer, and an object's influence ends `band` past its
 //! bounds.
 //!
@@ -20,7 +21,7 @@
 //! **Updates** ([`ClipmapState::update`], once a frame). A brick needs composing when the
 //! window moves onto it (the newly revealed slabs) and when a caster's **dirty region**
 //! covers it: the old and the new bounds of a caster that moved, appeared or vanished,
-//! grown by the band. Such bricks are *pending*: out of date until composed, and the
+//! grown by the band (and the dilation, [`ClipmapLayout::reach`]). Such bricks are *pending*: out of date until composed, and the
 //! update hands back at most `budget` of them per frame (nearest the camera first,
 //! finest level first), so a teleport spreads over frames. A pending brick is marked
 //! invalid at once — in [`ClipmapState::valid_bits`], which a sampler reads — so a stale
@@ -43,12 +44,13 @@ use std::collections::BTreeSet;
 
 /// Texels per brick side: the unit of scrolling, dirty regions and composition.
 pub const BRICK: u32 = 8;
-/// Bricks composed per frame at most, by default: 2,048 bricks are 2²⁰ texels, an
-/// eighth of four 128³ levels — UE4 recomposes all four (a teleport) in about 7 ms on
-/// GCN, so about 1 ms. Enough for a flight at 30 m/s and for 100 casters moving at once
-/// (at most 768 and 1,757 bricks a frame in `benches/global_sdf.rs`); a teleport across
-/// a town settles in 8 frames.
-pub const DEFAULT_BRICK_BUDGET: usize = 2048;
+/// Bricks composed per frame at most, by default: 4,096 bricks are 2²¹ texels, a
+/// quarter of four 128³ levels — UE4 recomposes all four (a teleport) in about 7 ms on
+/// PS4-class GPUs, so under 2 ms there and a fraction of that on current ones. Enough
+/// for a flight at 30 m/s and for 100 one-metre casters moving at once near the camera
+/// (at most 768 and 3,894 bricks a frame in `benches/global_sdf.rs`); a teleport
+/// across a town settles in 4 frames.
+pub const DEFAULT_BRICK_BUDGET: usize = 4096;
 /// Most clipmap levels.
 pub const MAX_LEVELS: u32 = 8;
 /// The largest resolution (texels per side): 256³ texels are 32 MiB at 16 bits.
@@ -70,17 +72,27 @@ pub struct ClipmapLayout {
     pub growth: f32,
     /// Stored distances are clamped to `± band_texels` texels of their level.
     pub band_texels: f32,
+    /// Surfaces are grown by this many texels of their level when composed (the stored
+    /// distance is lowered by it), so that a wall thinner than a texel still has texels
+    /// inside it and stops far-field cones (`benches/global_sdf.rs`, thin walls).
+    pub dilation_texels: f32,
 }
 
 impl ClipmapLayout {
     /// Four levels of 128³, the first 25.6 m across (0.2 m texels), each twice the last
-    /// (the largest 204.8 m), distances clamped to ± 4 texels.
+    /// (the largest 204.8 m), distances clamped to ± 8 texels, surfaces grown by half a
+    /// texel diagonal (every surface point then has a texel centre at or inside it).
+    /// Chosen on `benches/global_sdf.rs`'s thin walls: with ± 4 texels and no growth a
+    /// room of 40 cm walls lets far-field cones through (AO 0.26 where the truth is 0);
+    /// these make 2 cm walls opaque at every level for 0.05 more AO error on open
+    /// ground (0.145 against 0.100).
     pub const DEFAULT: ClipmapLayout = ClipmapLayout {
         levels: 4,
         resolution: 128,
         first_extent: 25.6,
         growth: 2.0,
-        band_texels: 4.0,
+        band_texels: 8.0,
+        dilation_texels: 0.866,
     };
 
     /// A layout from requested values, each out-of-range one replaced by the nearest
@@ -136,6 +148,7 @@ impl ClipmapLayout {
             first_extent: extent,
             growth: g,
             band_texels: d.band_texels,
+            dilation_texels: d.dilation_texels,
         };
         // The largest level's texel coordinates must fit in i32 however far the camera
         // goes (10⁷ m) — a texel below 10⁷ / 2³⁰ m, about 1 cm, at level 0.
@@ -178,6 +191,17 @@ impl ClipmapLayout {
     /// The clamp of level `level`'s stored distances, metres.
     pub fn band(&self, level: u32) -> f32 {
         self.band_texels * self.texel(level)
+    }
+
+    /// How much level `level` grows surfaces, metres.
+    pub fn dilation(&self, level: u32) -> f32 {
+        self.dilation_texels * self.texel(level)
+    }
+
+    /// How far an object's surface can change level `level`'s stored values: the band
+    /// plus the dilation, metres. Culling and dirty regions grow bounds by it.
+    pub fn reach(&self, level: u32) -> f32 {
+        self.band(level) + self.dilation(level)
     }
 
     /// Bricks per side of a level.
@@ -407,7 +431,7 @@ impl ClipmapState {
             };
             let state = &mut self.levels[level as usize];
             for d in dirty {
-                let Some(bricks) = layout.bricks_near(level, d.min, d.max, layout.band(level))
+                let Some(bricks) = layout.bricks_near(level, d.min, d.max, layout.reach(level))
                 else {
                     continue;
                 };
@@ -554,7 +578,7 @@ impl ComposeJob {
 /// The compose pass's uniform (`ComposeParams` in `shaders/df/global_compose.wgsl`).
 #[derive(ShaderType, Clone, Copy, Debug, Default, PartialEq)]
 pub struct ComposeParams {
-    /// Per level: texel size, band, the storage quantum ([`unorm8_quantum`]), 0.
+    /// Per level: texel size, band, the storage quantum ([`unorm8_quantum`]), dilation.
     pub levels: [Vec4; MAX_LEVELS as usize],
     /// Object buffer slots to consider.
     pub slot_count: u32,
@@ -568,7 +592,13 @@ impl ComposeParams {
         let mut levels = [Vec4::ZERO; MAX_LEVELS as usize];
         for (l, v) in levels.iter_mut().enumerate().take(layout.levels as usize) {
             let band = layout.band(l as u32);
-            *v = Vec4::new(layout.texel(l as u32), band, unorm8_quantum(band), 0.0);
+            let l = l as u32;
+            *v = Vec4::new(
+                layout.texel(l),
+                band,
+                unorm8_quantum(band),
+                layout.dilation(l),
+            );
         }
         ComposeParams {
             levels,

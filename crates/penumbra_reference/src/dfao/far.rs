@@ -38,6 +38,8 @@ pub struct FarField<'a> {
     /// Object distance fields up to here along each cone, the global field beyond,
     /// metres.
     pub switch_distance: f32,
+    /// The finest level a sample may read (0 in use; measurements force coarser ones).
+    pub min_level: u32,
 }
 
 /// One cone's visibility through the global field from `far.switch_distance` to the
@@ -61,21 +63,34 @@ fn march_field(
         let open = cone.min(trace.bias + t * rise).max(1e-6);
         let p = far.camera_world + o + axis * t;
         samples += 1;
-        let first = far.field.level_for_radius(open);
+        let first = far.field.level_for_radius(open).max(far.min_level);
         let Some((d, level)) = far.field.sample_from(far.state, p, first) else {
             t += cone * MIN_STEP_FRACTION;
             continue;
         };
-        if d <= 0.0 {
+        // Surfaces are grown by the level's dilation so that thin walls have an inside;
+        // inside means shut — unless the receiver's own (grown) tangent plane alone
+        // would read as low (within a quarter texel: the storage's rounding), for a
+        // sample that low over it is swallowed by the plane's growth, not by an
+        // occluder. The penumbra takes the distance to the surface itself.
+        let layout = &far.field.layout;
+        let dilation = layout.dilation(level);
+        let own_plane = trace.bias + t * rise - dilation;
+        if d <= 0.0 && d < own_plane - 0.25 * layout.texel(level) {
             v = 0.0;
             break;
         }
         // A value at the clamp says only "at least the band": open, when the band
         // reaches the cone's radius (the level was chosen so, but for the coarsest).
         if !far.field.is_clamped(level, d) {
-            v = v.min(d / open);
+            v = v.min(((d + dilation) / open).max(0.0));
         }
-        t += d.max(cone * MIN_STEP_FRACTION);
+        // Never farther than `d + 2 × dilation`: a grown wall is at least that thick
+        // along the ray beyond its lower bound `d`, so no step passes through one.
+        t += d
+            .max(cone * MIN_STEP_FRACTION)
+            .min(d.max(0.0) + 2.0 * dilation)
+            .max(1e-3);
     }
     (v.clamp(0.0, 1.0).powf(trace.shaping), samples)
 }
@@ -140,10 +155,11 @@ mod tests {
 
     /// A sphere of radius R, its centre D above a point of a plane, hides `(R / D)²` of
     /// the cosine-weighted hemisphere. With the switch at 1 m the spheres 2–6 m up are
-    /// seen through the global field only: within 0.1 of the analytic value on average,
-    /// as the objects' own trace is (the approximate cone intersection's error under a
-    /// ball half as wide as it is high), and within 0.02 of that trace per point —
-    /// where ignoring the far field errs by 0.25.
+    /// seen through the global field only: within 0.16 of the analytic value on average
+    /// — the objects' own trace is within 0.1 (the approximate cone intersection's error
+    /// under a ball half as wide as it is high), and the field's dilation (which keeps
+    /// thin walls opaque) darkens by at most 0.08 more, never less — where ignoring the
+    /// far field errs by 0.25.
     #[test]
     fn far_spheres_seen_through_the_global_field_match_the_analytic_occlusion() {
         let atlas = Atlas::new(glam::UVec3::ONE);
@@ -166,6 +182,7 @@ mod tests {
                 state: &state,
                 camera_world: Vec3::ZERO,
                 switch_distance: 1.0,
+                min_level: 0,
             };
             let want = 1.0 - (radius / d).powi(2);
             let p = Vec3::new(0.05, 0.0, -0.03);
@@ -175,6 +192,12 @@ mod tests {
             let (all, _) = pixel_ao_counted(&records, &atlas, &camera, p, Vec3::Y, &defaults());
             far_sum += (s.ao - want).abs() / ds.len() as f32;
             worst_apart = worst_apart.max((s.ao - all.ao).abs());
+            assert!(
+                s.ao <= all.ao + 0.01,
+                "{d}: far {} objects {}",
+                s.ao,
+                all.ao
+            );
             near_sum += (all.ao - want).abs() / ds.len() as f32;
             blind_sum += (1.0 - want) / ds.len() as f32;
             assert!(s.bent_normal.y > 0.99, "{d}: {}", s.bent_normal);
@@ -184,8 +207,70 @@ mod tests {
              far against objects {worst_apart:.4}"
         );
         assert!(
-            far_sum < 0.1 && near_sum < 0.1 && worst_apart < 0.02 && blind_sum > 0.2,
+            far_sum < 0.16 && near_sum < 0.1 && worst_apart < 0.08 && blind_sum > 0.2,
             "{far_sum} {near_sum} {blind_sum} {worst_apart}"
+        );
+    }
+
+    /// Thin walls: inside a closed 4 × 2.5 × 4 m room of 5 cm walls every ray meets a
+    /// wall within 5 m (truth: AO 0). Through the near clipmaps (levels 0 and 1 of the
+    /// default layout) the far field lets no sky in — AO at most 0.05 at four receivers
+    /// whose walls are beyond the 1 m switch, with the samples in their own levels and
+    /// forced to level 1 — where a field without the dilation lets 0.5 of it in. (The
+    /// objects' own march leaks such walls too — `benches/global_sdf.rs`, "objects
+    /// only" — which within the switch distance the field does not mend.)
+    #[test]
+    fn a_closed_room_of_thin_walls_lets_no_sky_in_through_the_near_clipmaps() {
+        use crate::global_sdf::{FieldObject, closed_room};
+        let atlas = Atlas::new(glam::UVec3::ONE);
+        let camera_world = Vec3::new(0.0, 1.2, 0.0);
+        let camera = CameraOrigin::at(camera_world).expect("finite");
+        let room = closed_room(Vec3::new(2.0, 1.25, 2.0), 0.05);
+        let records: Vec<ObjectRecord> = room.iter().map(|c| c.record()).collect();
+        // At least 1.2 m from every wall they face: the walls are beyond the switch.
+        let receivers = [
+            (Vec3::new(0.0, 0.0, 0.0), Vec3::Y),
+            (Vec3::new(0.6, 0.0, -0.7), Vec3::Y),
+            (Vec3::new(2.0, 1.2, 0.3), -Vec3::X),
+            (Vec3::new(-0.5, 2.5, 0.5), -Vec3::Y),
+        ];
+        let ao = |dilation_texels: f32, min_level: u32| {
+            let layout = ClipmapLayout {
+                levels: 2,
+                dilation_texels,
+                ..ClipmapLayout::DEFAULT
+            };
+            let objects: Vec<FieldObject> = room.iter().map(|c| c.field_object()).collect();
+            let mut state = ClipmapState::new(layout);
+            let mut field = GlobalField::new(layout, ClipmapFormat::Unorm8);
+            for job in state.update(camera_world, &[], usize::MAX).jobs {
+                field.compose(job, &objects);
+            }
+            let far = FarField {
+                field: &field,
+                state: &state,
+                camera_world,
+                switch_distance: 1.0,
+                min_level,
+            };
+            receivers
+                .iter()
+                .map(|&(p, n)| {
+                    let p = p - camera_world;
+                    pixel_ao_far(&records, &atlas, &camera, p, n, &defaults(), &far)
+                        .0
+                        .ao
+                })
+                .fold(0.0f32, f32::max)
+        };
+        let dilation = ClipmapLayout::DEFAULT.dilation_texels;
+        let (own, level1, bare) = (ao(dilation, 0), ao(dilation, 1), ao(0.0, 0));
+        eprintln!(
+            "room of 5 cm walls: worst AO {own:.3} (level ≥ 1: {level1:.3}; no dilation {bare:.3})"
+        );
+        assert!(
+            own <= 0.05 && level1 <= 0.05 && bare > 0.3,
+            "{own} {level1} {bare}"
         );
     }
 
@@ -209,6 +294,7 @@ mod tests {
             state: &state,
             camera_world: Vec3::ZERO,
             switch_distance: 10.0,
+            min_level: 0,
         };
         let (s, _, samples) = pixel_ao_far(
             &records,
@@ -226,21 +312,23 @@ mod tests {
     }
 
     /// An open plane stays open through the field: the cones clear the receiver's own
-    /// surface in the global field as they do in its object field (but for the
-    /// conservative storage's quantum, which matters only centimetres from the surface:
-    /// with the switch at 0).
+    /// surface in the global field as they do in its object field, but for the
+    /// conservative storage's quantum — from a switch distance where the cones are
+    /// higher above the receiver than its level-0 dilation (0.17 m; at a switch of 0 the
+    /// grown plane swallows the first samples: `FarField::switch_distance`).
     #[test]
     fn an_open_plane_is_open_through_the_field() {
         let atlas = Atlas::new(glam::UVec3::ONE);
         let camera = CameraOrigin::at(Vec3::ZERO).expect("finite");
         let records = [ground()];
         let (field, state) = field_of(&records, &atlas);
-        for (switch_distance, floor) in [(0.0, 0.99), (0.5, 0.995), (2.0, 0.999)] {
+        for (switch_distance, floor) in [(0.5, 0.995), (1.0, 0.995), (2.0, 0.999)] {
             let far = FarField {
                 field: &field,
                 state: &state,
                 camera_world: Vec3::ZERO,
                 switch_distance,
+                min_level: 0,
             };
             let (s, _, samples) = pixel_ao_far(
                 &records,

@@ -21,12 +21,13 @@ mod tests;
 
 use crate::df::{Atlas, object_distance};
 use crate::shadow_mask::bounding_sphere;
+use glam::Affine3A;
 use glam::{IVec3, Vec3};
 use penumbra_df_core::clipmap::{
     BRICK, BrickJob, ClipmapLayout, ClipmapState, ComposeJob, unorm8_quantum,
 };
 use penumbra_df_core::cull::CameraOrigin;
-use penumbra_df_core::object::{ObjectRecord, TILE_SIZE, flags};
+use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, TILE_SIZE, encode, flags};
 use penumbra_sdf::volume::f16;
 
 /// How the clipmap textures store distances.
@@ -182,6 +183,55 @@ pub fn camera_world(camera: &CameraOrigin) -> Vec3 {
     Vec3::from_array(camera.tile.map(|t| t as f32)) * TILE_SIZE + camera.offset
 }
 
+impl AnalyticCaster {
+    /// As a GPU object record (live, occluding, visible).
+    pub fn record(&self) -> ObjectRecord {
+        let (centre, shape) = match *self {
+            AnalyticCaster::Sphere { centre, radius } => (centre, CasterShape::Sphere { radius }),
+            AnalyticCaster::Cuboid { centre, half } => {
+                (centre, CasterShape::Cuboid { half_extents: half })
+            }
+        };
+        encode(&ObjectDesc {
+            world_from_local: Affine3A::from_translation(centre),
+            shape,
+            flags: flags::LIVE | flags::CASTS_OCCLUSION | flags::CASTS_SHADOWS | flags::VISIBLE,
+        })
+        .expect("finite analytic caster")
+    }
+}
+
+/// A closed room: floor, ceiling and four walls of thickness `wall` around the interior
+/// `[−half.x, half.x] × [0, 2 half.y] × [−half.z, half.z]` (metres).
+pub fn closed_room(half: Vec3, wall: f32) -> Vec<AnalyticCaster> {
+    let h = 0.5 * wall;
+    let outer = half + wall;
+    let slab = |centre: Vec3, half: Vec3| AnalyticCaster::Cuboid { centre, half };
+    vec![
+        slab(Vec3::new(0.0, -h, 0.0), Vec3::new(outer.x, h, outer.z)),
+        slab(
+            Vec3::new(0.0, 2.0 * half.y + h, 0.0),
+            Vec3::new(outer.x, h, outer.z),
+        ),
+        slab(
+            Vec3::new(half.x + h, half.y, 0.0),
+            Vec3::new(h, half.y, outer.z),
+        ),
+        slab(
+            Vec3::new(-half.x - h, half.y, 0.0),
+            Vec3::new(h, half.y, outer.z),
+        ),
+        slab(
+            Vec3::new(0.0, half.y, half.z + h),
+            Vec3::new(half.x, half.y, h),
+        ),
+        slab(
+            Vec3::new(0.0, half.y, -half.z - h),
+            Vec3::new(half.x, half.y, h),
+        ),
+    ]
+}
+
 /// The exact distance of a scene of analytic casters (`+∞` when empty).
 pub fn analytic_distance(casters: &[AnalyticCaster], p: Vec3) -> f32 {
     casters
@@ -233,20 +283,20 @@ impl GlobalField {
         self.texels[level as usize][self.index(w)]
     }
 
-    /// The objects that can change brick `job`'s texels: bounds grown by the band reach
-    /// a texel centre of the brick.
+    /// The objects that can change brick `job`'s texels: bounds grown by the level's
+    /// reach (band and dilation) reach a texel centre of the brick.
     pub fn cull<'o, 'a>(
         &self,
         job: BrickJob,
         objects: &'o [FieldObject<'a>],
     ) -> Vec<&'o FieldObject<'a>> {
         let (level, t) = (job.level, self.layout.texel(job.level));
-        let band = self.layout.band(level);
+        let reach = self.layout.reach(level);
         let lo = self.layout.texel_centre(level, job.brick * BRICK as i32);
         let hi = lo + (BRICK - 1) as f32 * t;
         objects
             .iter()
-            .filter(|o| (o.min - band).cmple(hi).all() && (o.max + band).cmpge(lo).all())
+            .filter(|o| (o.min - reach).cmple(hi).all() && (o.max + reach).cmpge(lo).all())
             .collect()
     }
 
@@ -254,12 +304,16 @@ impl GlobalField {
     pub fn compose(&mut self, job: BrickJob, objects: &[FieldObject]) -> ComposeStats {
         let near = self.cull(job, objects);
         let band = self.layout.band(job.level);
+        let (reach, dilation) = (
+            self.layout.reach(job.level),
+            self.layout.dilation(job.level),
+        );
         let b = BRICK as i32;
         let mut evaluations = 0;
         for i in 0..b * b * b {
             let w = job.brick * b + IVec3::new(i % b, (i / b) % b, i / (b * b));
             let c = self.layout.texel_centre(job.level, w);
-            let d = near.iter().map(|o| (o.distance)(c)).fold(band, f32::min);
+            let d = near.iter().map(|o| (o.distance)(c)).fold(reach, f32::min) - dilation;
             evaluations += near.len();
             let at = self.index(w);
             self.texels[job.level as usize][at] = store(self.format, d, band);
@@ -272,8 +326,8 @@ impl GlobalField {
 
     /// Composes brick `job` from GPU object records as the compose pass does
     /// (`shaders/df/global_compose.wgsl`): positions relative to the job's tile
-    /// ([`ComposeJob::new`]), a record kept when its bounding ball grown by the band
-    /// reaches the box of the brick's texel centres, distances by [`object_distance`].
+    /// ([`ComposeJob::new`]), a record kept when its bounding ball grown by the reach
+    /// (band and dilation) meets the box of the brick's texel centres, distances by [`object_distance`].
     pub fn compose_records(
         &mut self,
         job: BrickJob,
@@ -287,6 +341,10 @@ impl GlobalField {
         };
         let t = self.layout.texel(job.level);
         let band = self.layout.band(job.level);
+        let (reach, dilation) = (
+            self.layout.reach(job.level),
+            self.layout.dilation(job.level),
+        );
         let (lo, hi) = (
             frame.first,
             frame.first + Vec3::splat((BRICK - 1) as f32 * t),
@@ -296,7 +354,7 @@ impl GlobalField {
             .filter(|r| composes(r))
             .filter(|r| {
                 bounding_sphere(r, &camera)
-                    .is_none_or(|(c, radius)| (c.clamp(lo, hi) - c).length() <= radius + band)
+                    .is_none_or(|(c, radius)| (c.clamp(lo, hi) - c).length() <= radius + reach)
             })
             .collect();
         let b = BRICK as i32;
@@ -306,7 +364,8 @@ impl GlobalField {
             let d = kept
                 .iter()
                 .map(|r| object_distance(r, p, &camera, atlas))
-                .fold(band, f32::min);
+                .fold(reach, f32::min)
+                - dilation;
             let at = self.index(job.brick * b + ijk);
             self.texels[job.level as usize][at] = store(self.format, d, band);
         }

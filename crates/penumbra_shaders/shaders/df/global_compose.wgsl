@@ -1,10 +1,12 @@
 // The global distance field's compose pass: one workgroup per brick job (8³ texels of
 // one clipmap level). The workgroup culls the object records 128 at a time into
 // workgroup memory — a record is kept when it goes into the field (live, occluding,
-// opaque to AO) and its bounding ball grown by the level's band reaches the box of the
-// brick's texel centres — and each invocation takes the smallest distance of the kept
-// records at four texels along x, clamps it to ± band, lowers it by one quantum and
-// rounds it to 8 bits (never above the true distance), and writes the four as one word.
+// opaque to AO) and its bounding ball grown by the level's reach (band and dilation)
+// meets the box of the brick's texel centres — and each invocation takes the smallest
+// distance of the kept records at four texels along x, lowers it by the level's
+// dilation (grown surfaces: a wall thinner than a texel keeps texels inside it), clamps
+// it to ± band, lowers it by one quantum and rounds it to 8 bits (never above the true
+// distance), and writes the four as one word.
 // Positions are relative to the job's 512 m tile, so a brick composed on any frame gets
 // the same values. CPU model: `penumbra_reference::global_sdf::GlobalField::compose_records`;
 // the job and buffer layout: `penumbra_df_core::clipmap::{ComposeJob, brick_word}`.
@@ -27,7 +29,7 @@ struct ComposeJob {
 }
 
 struct ComposeParams {
-    // Per level: texel size, band, quantum, 0.
+    // Per level: texel size, band, quantum, dilation.
     levels: array<vec4<f32>, MAX_LEVELS>,
     slot_count: u32,
     job_count: u32,
@@ -44,7 +46,7 @@ var<workgroup> kept_count: atomic<u32>;
 var<workgroup> kept_n: u32;
 
 // Whether record `o` can change the brick whose texel centres span [lo, hi].
-fn reaches(o: DistanceFieldObject, job: ComposeJob, lo: vec3<f32>, hi: vec3<f32>, band: f32) -> bool {
+fn reaches(o: DistanceFieldObject, job: ComposeJob, lo: vec3<f32>, hi: vec3<f32>, reach: f32) -> bool {
     if !casts_occlusion(o) || ao_transmission(o) != 0.0 {
         return false;
     }
@@ -52,7 +54,7 @@ fn reaches(o: DistanceFieldObject, job: ComposeJob, lo: vec3<f32>, hi: vec3<f32>
     if ball.w < 0.0 {
         return true;
     }
-    return length(clamp(ball.xyz, lo, hi) - ball.xyz) <= ball.w + band;
+    return length(clamp(ball.xyz, lo, hi) - ball.xyz) <= ball.w + reach;
 }
 
 // The stored byte of distance `d`: `store(Unorm8, d, band)` of the model.
@@ -72,18 +74,20 @@ fn compose(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
     let texel = level.x;
     let band = level.y;
     let quantum = level.z;
+    let dilation = level.w;
     let lo = job.first;
     let hi = job.first + vec3<f32>(f32(BRICK - 1u) * texel);
     // This invocation's four texels: x = 4 (index % 2) .. + 3, y, z.
     let base = vec3<u32>(4u * (index % 2u), (index / 2u) % BRICK, index / 16u);
-    var d = vec4<f32>(band);
+    let reach = band + dilation;
+    var d = vec4<f32>(reach);
     for (var start = 0u; start < params.slot_count; start += GROUP) {
         if index == 0u {
             atomicStore(&kept_count, 0u);
         }
         workgroupBarrier();
         let slot = start + index;
-        if slot < params.slot_count && reaches(objects[slot], job, lo, hi, band) {
+        if slot < params.slot_count && reaches(objects[slot], job, lo, hi, reach) {
             kept[atomicAdd(&kept_count, 1u)] = slot;
         }
         workgroupBarrier();
@@ -103,7 +107,7 @@ fn compose(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
     }
     var word = 0u;
     for (var i = 0u; i < 4u; i++) {
-        word |= encode(d[i], band, quantum) << (8u * i);
+        word |= encode(d[i] - dilation, band, quantum) << (8u * i);
     }
     field[job.word + index] = word;
 }
