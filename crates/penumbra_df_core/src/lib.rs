@@ -13,6 +13,8 @@
 //! - [`table`]: the CPU mirror of the GPU object buffer. It hands out slots (reusing
 //!   freed ones), and turns a frame's adds, removes and changes into a compact list of
 //!   `(slot, record)` writes: a static scene sends nothing, `k` changes send `O(k)` bytes.
+//! - [`query`]: gameplay queries on the CPU — distance, gradient, sphere casts —
+//!   against casters' volumes and analytic shapes.
 //! - [`shadow`]: the GPU parameters of distance-field shadows (light and mask-pass view
 //!   uniforms).
 //! - [`clipmap`]: the global distance field's camera-centred clipmaps — layout,
@@ -34,5 +36,6 @@ pub mod atlas;
 pub mod clipmap;
 pub mod cull;
 pub mod object;
+pub mod query;
 pub mod shadow;
 pub mod table;
