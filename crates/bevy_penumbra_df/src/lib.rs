@@ -57,10 +57,10 @@ pub use diagnostics::PenumbraDiagnosticsPlugin;
 pub use gpu_allocations::{GpuAllocationCounts, PenumbraGpuAllocations};
 pub use lighting::{PenumbraLighting, PenumbraLightingPlugin};
 pub use scene::{
-    CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldSceneCaster,
-    DistanceFieldSceneCasters, DistanceFieldScenePlugin, DistanceFieldSceneSettings,
-    DistanceFieldUploadStats, FOLIAGE_AO_TRANSMISSION, SceneCasterCounts, SceneTwoSided,
-    SkinnedCasters,
+    CasterSource, DistanceFieldCaster, DistanceFieldQuery, DistanceFieldScene,
+    DistanceFieldSceneCaster, DistanceFieldSceneCasters, DistanceFieldScenePlugin,
+    DistanceFieldSceneSettings, DistanceFieldUploadStats, FOLIAGE_AO_TRANSMISSION,
+    SceneCasterCounts, SceneTwoSided, SkinnedCasters, SphereHit,
 };
 pub use sdf_asset::{SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset, SdfVolumeLoader};
 #[cfg(feature = "bake")]

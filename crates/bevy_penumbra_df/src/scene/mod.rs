@@ -41,6 +41,7 @@
 
 mod bake_requests;
 mod cull;
+mod query;
 mod render;
 mod scene_casters;
 
@@ -54,6 +55,7 @@ use penumbra_df_core::object::{CasterShape, ObjectDesc, RECORD_BYTES, encode, fl
 use penumbra_df_core::table::{Deltas, ObjectTable};
 
 pub use cull::CulledObjects;
+pub use query::{DistanceFieldQuery, SphereHit};
 pub use render::{DistanceFieldGpu, DistanceFieldPipelines, DistanceFieldRenderSystems};
 pub use scene_casters::{
     DistanceFieldSceneCaster, DistanceFieldSceneCasters, SceneCasterCounts, SceneTwoSided,

@@ -23,18 +23,19 @@
 use crate::object::min_singular_value;
 use glam::{Affine3A, Mat3, Vec3};
 
+/// A baked distance field as the queries read it (Bevy's `SdfVolumeAsset` is one).
+pub trait LocalDistance {
+    /// The signed distance at local point `q`, local units.
+    fn local_distance(&self, q: Vec3) -> f32;
+    /// The local box the surface lies in (min, max).
+    fn local_bounds(&self) -> (Vec3, Vec3);
+}
+
 /// What an object's distances come from.
 #[derive(Clone, Copy)]
 pub enum QueryShape<'a> {
     /// A baked volume (local units = the mesh's).
-    Volume {
-        /// The local signed distance at a local point.
-        distance: &'a dyn Fn(Vec3) -> f32,
-        /// Local bounds of the surface (min, max).
-        min: Vec3,
-        /// See `min`.
-        max: Vec3,
-    },
+    Volume(&'a dyn LocalDistance),
     /// A ball around the local origin.
     Sphere {
         /// Radius, local units.
@@ -59,7 +60,7 @@ pub enum QueryShape<'a> {
 impl QueryShape<'_> {
     fn distance(&self, q: Vec3) -> f32 {
         match *self {
-            QueryShape::Volume { distance, .. } => distance(q),
+            QueryShape::Volume(v) => v.local_distance(q),
             QueryShape::Sphere { radius } => q.length() - radius,
             QueryShape::Cuboid { half_extents } => {
                 let a = q.abs() - half_extents;
@@ -76,7 +77,7 @@ impl QueryShape<'_> {
     /// Local bounds, `None` when unbounded.
     fn bounds(&self) -> Option<(Vec3, Vec3)> {
         match *self {
-            QueryShape::Volume { min, max, .. } => Some((min, max)),
+            QueryShape::Volume(v) => Some(v.local_bounds()),
             QueryShape::Sphere { radius } => Some((Vec3::splat(-radius), Vec3::splat(radius))),
             QueryShape::Cuboid { half_extents } => Some((-half_extents, half_extents)),
             QueryShape::Capsule {

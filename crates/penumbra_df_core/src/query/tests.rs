@@ -2,6 +2,19 @@ use super::*;
 use glam::{DVec3, Quat};
 use penumbra_sdf::{BakeSettings, SdfVolume, bake, exact, shapes};
 
+/// The baker's volume as the queries read it.
+struct Baked(SdfVolume);
+
+impl LocalDistance for Baked {
+    fn local_distance(&self, q: Vec3) -> f32 {
+        self.0.sample(q.as_dvec3())
+    }
+    fn local_bounds(&self) -> (Vec3, Vec3) {
+        let (lo, hi) = self.0.bounds();
+        (lo.as_vec3(), hi.as_vec3())
+    }
+}
+
 fn analytic() -> [(QueryShape<'static>, Affine3A); 4] {
     let rigid = |angle: f32, t: Vec3| {
         Affine3A::from_rotation_translation(
@@ -84,11 +97,12 @@ fn rigid_analytic_shapes_give_the_exact_distance() {
 #[test]
 fn volumes_and_scaled_shapes_stay_below_the_exact_distance() {
     let mesh = shapes::torus(0.5, 0.18, 48, 24);
-    let volume: SdfVolume = bake(&mesh, &BakeSettings::longest_axis(48), None)
-        .expect("bakes")
-        .volume;
-    let (lo, hi) = volume.bounds();
-    let sample = |q: Vec3| volume.sample(q.as_dvec3());
+    let baked = Baked(
+        bake(&mesh, &BakeSettings::longest_axis(48), None)
+            .expect("bakes")
+            .volume,
+    );
+    let volume = &baked.0;
     let torus = Affine3A::from_scale_rotation_translation(
         Vec3::splat(1.5),
         Quat::from_rotation_x(0.8),
@@ -100,11 +114,7 @@ fn volumes_and_scaled_shapes_stay_below_the_exact_distance() {
         Vec3::new(3.0, 0.5, 1.0),
     );
     let torus_scene = QueryScene::new([QueryObject {
-        shape: QueryShape::Volume {
-            distance: &sample,
-            min: lo.as_vec3(),
-            max: hi.as_vec3(),
-        },
+        shape: QueryShape::Volume(&baked),
         world_from_local: torus,
     }]);
     let box_scene = QueryScene::new([QueryObject {
@@ -162,21 +172,19 @@ fn volumes_and_scaled_shapes_stay_below_the_exact_distance() {
 #[test]
 fn sphere_casts_match_brute_force() {
     let mesh = shapes::torus(0.5, 0.18, 48, 24);
-    let volume = bake(&mesh, &BakeSettings::longest_axis(48), None)
-        .expect("bakes")
-        .volume;
+    let baked = Baked(
+        bake(&mesh, &BakeSettings::longest_axis(48), None)
+            .expect("bakes")
+            .volume,
+    );
+    let volume = &baked.0;
     let (lo, hi) = volume.bounds();
-    let sample = |q: Vec3| volume.sample(q.as_dvec3());
     let torus =
         Affine3A::from_rotation_translation(Quat::from_rotation_x(1.2), Vec3::new(0.0, 1.0, 0.0));
     let ball = Affine3A::from_translation(Vec3::new(2.0, 1.0, 0.0));
     let scene = QueryScene::new([
         QueryObject {
-            shape: QueryShape::Volume {
-                distance: &sample,
-                min: lo.as_vec3(),
-                max: hi.as_vec3(),
-            },
+            shape: QueryShape::Volume(&baked),
             world_from_local: torus,
         },
         QueryObject {
