@@ -13,13 +13,11 @@
 
 use glam::{IVec3, Vec3};
 use penumbra_df_core::clipmap::{
-    BrickJob, ClipmapLayout, ClipmapState, ComposeJob, ComposeParams, DirtyBox, field_words,
-    texel_byte,
+    BrickJob, ClipmapLayout, ClipmapState, ComposeJob, ComposeParams, field_words,
+    record_dirty_box, texel_byte,
 };
-use penumbra_df_core::cull::CameraOrigin;
-use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, encode, flags};
+use penumbra_df_core::object::{CasterShape, ObjectDesc, encode, flags};
 use penumbra_reference::global_sdf::{ClipmapFormat, GlobalField};
-use penumbra_reference::shadow_mask::bounding_sphere;
 use penumbra_shaders::flatten;
 use penumbra_test::wgpu::{self, BufferUsages};
 use penumbra_test::{GpuCompute, gpu_or_skip};
@@ -152,17 +150,6 @@ fn compare(
     (worst, apart, count)
 }
 
-/// A record's dirty region: its bounding ball's box (world positions in f32 are good to
-/// 8 mm 10⁵ m out: grown by 1 cm).
-fn dirty(r: &ObjectRecord) -> DirtyBox {
-    let world = CameraOrigin::at(Vec3::ZERO).expect("finite");
-    let (c, radius) = bounding_sphere(r, &world).expect("bounded");
-    DirtyBox {
-        min: c - radius - 0.01,
-        max: c + radius + 0.01,
-    }
-}
-
 fn check(name: &str, offset: Vec3) {
     if !gpu_or_skip(name) {
         return;
@@ -193,14 +180,14 @@ fn check(name: &str, offset: Vec3) {
 
     // The camera moves two bricks; the sphere (record 1) moves 1 m.
     camera += Vec3::new(3.2, 0.0, -1.6);
-    let old = dirty(&scene.records[1]);
+    let old = record_dirty_box(&scene.records[1]).expect("composes");
     scene.records[1] = encode(&ObjectDesc {
         world_from_local: glam::Affine3A::from_translation(offset + Vec3::new(-0.3, 0.6, -0.4)),
         shape: CasterShape::Sphere { radius: 0.6 },
         flags: flags::LIVE | flags::CASTS_SHADOWS | flags::CASTS_OCCLUSION | flags::VISIBLE,
     })
     .expect("encodes");
-    let new = dirty(&scene.records[1]);
+    let new = record_dirty_box(&scene.records[1]).expect("composes");
     let update = state.update(camera, &[old, new], usize::MAX);
     assert!(update.scrolled > 0 && update.dirtied > 0);
     compose(&mut model, &scene, &update.jobs);

@@ -18,55 +18,11 @@ use crate::df::{Atlas, object_distance};
 use crate::df_shadow::cone_interval;
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use penumbra_df_core::cull::CameraOrigin;
-use penumbra_df_core::object::{ObjectRecord, ShapeKind, flags};
+use penumbra_df_core::object::{ObjectRecord, flags};
 
 pub use penumbra_df_core::shadow::{ShadowLight as MaskLight, ShadowLightKind as MaskLightKind};
 
-/// Bounds of a cull volume: `(centre, radius)` in camera-relative metres.
-pub type Ball = (Vec3, f32);
-
-/// The bounding sphere of a live object's shape (camera-relative), or `None` for
-/// unbounded shapes (planes): for spheres and capsules, their own radius (and half
-/// length) scaled by a bound of the transform's largest singular value (Gershgorin on
-/// `MᵀM`: exact without shear); for boxes and volumes, the largest of the transformed
-/// box's four half-diagonals (exact for the parallelepiped).
-pub fn bounding_sphere(r: &ObjectRecord, camera: &CameraOrigin) -> Option<Ball> {
-    let (min, max) = r.shape_bounds()?;
-    let m = r.world_from_shape();
-    let half = (max - min) * 0.5;
-    let center = camera.relative(r.tile(), m.transform_point3((min + max) * 0.5));
-    let (cx, cy, cz) = (
-        Vec3::from(m.matrix3.x_axis),
-        Vec3::from(m.matrix3.y_axis),
-        Vec3::from(m.matrix3.z_axis),
-    );
-    let [p0, p1, _] = r.params();
-    let radius = match r.kind() {
-        k if k == ShapeKind::Sphere as u32 => f32::from_bits(p0) * max_scale(cx, cy, cz),
-        k if k == ShapeKind::Capsule as u32 => {
-            cy.length() * f32::from_bits(p1) + f32::from_bits(p0) * max_scale(cx, cy, cz)
-        }
-        _ => {
-            let (ax, ay, az) = (cx * half.x, cy * half.y, cz * half.z);
-            (ax + ay + az)
-                .length()
-                .max((ax + ay - az).length())
-                .max((ax - ay + az).length().max((ax - ay - az).length()))
-        }
-    };
-    Some((center, radius))
-}
-
-/// An upper bound of the largest singular value of the matrix with columns `c0, c1, c2`:
-/// the square root of Gershgorin's bound on `MᵀM`'s largest eigenvalue (exact when the
-/// columns are orthogonal: rotation times scale).
-pub fn max_scale(c0: Vec3, c1: Vec3, c2: Vec3) -> f32 {
-    let (g01, g02, g12) = (c0.dot(c1).abs(), c0.dot(c2).abs(), c1.dot(c2).abs());
-    (c0.length_squared() + g01 + g02)
-        .max(c1.length_squared() + g01 + g12)
-        .max(c2.length_squared() + g02 + g12)
-        .sqrt()
-}
+pub use penumbra_df_core::cull::{Ball, bounding_sphere, max_scale};
 
 /// Signed distance from `p` to the convex hull of balls `(a, ra)` and `(b, rb)` (a
 /// "round cone"; Quílez's formulation, exact when neither ball contains the other).

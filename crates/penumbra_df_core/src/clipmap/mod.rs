@@ -37,7 +37,8 @@
 #[cfg(test)]
 mod tests;
 
-use crate::object::TILE_SIZE;
+use crate::cull::{CameraOrigin, bounding_sphere};
+use crate::object::{ObjectRecord, TILE_SIZE, flags};
 use encase::ShaderType;
 use glam::{DVec3, IVec3, Vec3, Vec4};
 use std::collections::BTreeSet;
@@ -536,6 +537,41 @@ impl ClipmapState {
         }
         words
     }
+}
+
+/// Whether a record goes into the global field: live, occluding, opaque to AO
+/// (transmissive casters — foliage — stay out: they occlude only in the objects' own
+/// near-field trace). The compose pass applies the same rule.
+pub fn composes(r: &ObjectRecord) -> bool {
+    let f = r.flags();
+    f & flags::LIVE != 0 && flags::casts_occlusion(f) && flags::ao_transmission(f) == 0.0
+}
+
+/// The dirty region of a record that appears, vanishes or is overwritten: the box of
+/// its bounding ball (what the compose pass culls with), in world metres, grown by a
+/// millimetre and f32's rounding; everything for unbounded shapes; `None` for a record
+/// that does not go into the field ([`composes`]).
+pub fn record_dirty_box(r: &ObjectRecord) -> Option<DirtyBox> {
+    if !composes(r) {
+        return None;
+    }
+    let at_tile = CameraOrigin {
+        tile: r.tile(),
+        offset: Vec3::ZERO,
+    };
+    let Some((centre, radius)) = bounding_sphere(r, &at_tile) else {
+        return Some(DirtyBox {
+            min: Vec3::splat(-1e9),
+            max: Vec3::splat(1e9),
+        });
+    };
+    let tile = DVec3::from_array(r.tile().map(f64::from)) * f64::from(TILE_SIZE);
+    let world = tile + centre.as_dvec3();
+    let grow = f64::from(radius) + 1e-3 + 1e-6 * world.abs().max_element();
+    Some(DirtyBox {
+        min: (world - grow).as_vec3(),
+        max: (world + grow).as_vec3(),
+    })
 }
 
 /// One brick for the compose pass (`ComposeJob` in `shaders/df/global_compose.wgsl`):

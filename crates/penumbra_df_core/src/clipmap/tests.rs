@@ -217,3 +217,65 @@ fn valid_bits_follow_storage_addresses() {
     }
     assert!(bits.iter().map(|w| w.count_zeros()).sum::<u32>() > 0);
 }
+
+#[test]
+fn record_dirty_boxes_hold_the_bounding_ball_and_skip_what_stays_out() {
+    use crate::object::{CasterShape, ObjectDesc, encode, flags};
+    use glam::{Affine3A, Quat};
+    let live = flags::LIVE | flags::CASTS_OCCLUSION | flags::VISIBLE;
+    for offset in [Vec3::ZERO, Vec3::new(1.0e5, 3.0, -1.0e5)] {
+        let m = Affine3A::from_scale_rotation_translation(
+            Vec3::new(2.0, 1.0, 0.5),
+            Quat::from_rotation_y(0.7),
+            offset + Vec3::new(1.0, 2.0, 3.0),
+        );
+        let shape = CasterShape::Cuboid {
+            half_extents: Vec3::new(0.5, 1.0, 0.25),
+        };
+        let r = encode(&ObjectDesc {
+            world_from_local: m,
+            shape,
+            flags: live,
+        })
+        .unwrap();
+        let d = record_dirty_box(&r).expect("composes");
+        // Every corner of the box (world) is inside, and the box is not huge.
+        for i in 0..8 {
+            let c = Vec3::new(
+                if i & 1 == 0 { -0.5 } else { 0.5 },
+                if i & 2 == 0 { -1.0 } else { 1.0 },
+                if i & 4 == 0 { -0.25 } else { 0.25 },
+            );
+            let w = m.transform_point3(c);
+            assert!(w.cmpge(d.min).all() && w.cmple(d.max).all(), "{w} {d:?}");
+        }
+        assert!((d.max - d.min).max_element() < 5.0, "{d:?}");
+        let foliage = encode(&ObjectDesc {
+            world_from_local: m,
+            shape,
+            flags: live | flags::ao_transmission_bits(0.5),
+        })
+        .unwrap();
+        assert!(record_dirty_box(&foliage).is_none());
+        let no_ao = encode(&ObjectDesc {
+            world_from_local: m,
+            shape,
+            flags: flags::LIVE | flags::CASTS_SHADOWS | flags::VISIBLE,
+        })
+        .unwrap();
+        assert!(record_dirty_box(&no_ao).is_none());
+    }
+    let plane = encode(&ObjectDesc {
+        world_from_local: Affine3A::IDENTITY,
+        shape: CasterShape::Plane,
+        flags: live | flags::UNBOUNDED,
+    })
+    .unwrap();
+    let d = record_dirty_box(&plane).unwrap();
+    let layout = ClipmapLayout::DEFAULT;
+    let mut state = ClipmapState::new(layout);
+    state.update(Vec3::ZERO, &[], usize::MAX);
+    // A plane that changes dirties every brick of every level.
+    let u = state.update(Vec3::ZERO, &[d], 0);
+    assert_eq!(u.dirtied, 4 * layout.bricks_per_level() as usize);
+}

@@ -24,7 +24,7 @@ use crate::shadow_mask::bounding_sphere;
 use glam::Affine3A;
 use glam::{IVec3, Vec3};
 use penumbra_df_core::clipmap::{
-    BRICK, BrickJob, ClipmapLayout, ClipmapState, ComposeJob, unorm8_quantum,
+    BRICK, BrickJob, ClipmapLayout, ClipmapState, ComposeJob, composes, unorm8_quantum,
 };
 use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, TILE_SIZE, encode, flags};
@@ -170,12 +170,6 @@ pub fn record_objects<'a>(
             }
         })
         .collect()
-}
-
-/// Whether a record goes into the global field: live, occluding, opaque to AO.
-pub fn composes(r: &ObjectRecord) -> bool {
-    let f = r.flags();
-    f & flags::LIVE != 0 && flags::casts_occlusion(f) && flags::ao_transmission(f) == 0.0
 }
 
 /// The world position of a camera origin.
