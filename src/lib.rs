@@ -67,6 +67,7 @@ plugin_group! {
         #[cfg(feature = "ao")]
         bevy_penumbra_df::ao:::DistanceFieldAmbientOcclusionPlugin,
         bevy_penumbra_df::buffer_dump:::PenumbraBufferDumpPlugin,
+        bevy_penumbra_df::global_field:::GlobalDistanceFieldPlugin,
     }
 }
 
@@ -90,9 +91,10 @@ pub mod prelude {
     #[cfg(feature = "shadows")]
     pub use bevy_penumbra_df::DistanceFieldShadows;
     pub use bevy_penumbra_df::{
-        CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldSceneCasters,
-        DistanceFieldSceneSettings, DistanceFieldUploadStats, PenumbraLighting,
-        PenumbraLightingPlugin, SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset,
+        CasterSource, DistanceFieldCaster, DistanceFieldQuery, DistanceFieldScene,
+        DistanceFieldSceneCasters, DistanceFieldSceneSettings, DistanceFieldUploadStats,
+        GlobalDistanceField, GlobalDistanceFieldStats, PenumbraLighting, PenumbraLightingPlugin,
+        SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset,
     };
     #[cfg(feature = "ao")]
     pub use bevy_penumbra_df::{

@@ -15,6 +15,8 @@
 //!   read back to the CPU for checking against ground truth.
 //! - [`diagnostics`]: Penumbra's figures and pass times in Bevy's `DiagnosticsStore`.
 //! - [`shader_library`]: Penumbra's WGSL modules as Bevy shader assets.
+//! - [`global_field`]: the global distance field's clipmaps around a camera
+//!   (`GlobalDistanceField`; #17, the main-world half so far).
 //! - [`gpu_allocations`]: counts of the GPU resources Penumbra creates (pooled: a steady
 //!   frame creates none).
 //!
@@ -35,6 +37,7 @@ pub mod buffer_dump;
 #[cfg(feature = "debug_view")]
 pub mod debug_view;
 pub mod diagnostics;
+pub mod global_field;
 pub mod gpu_allocations;
 pub mod lighting;
 pub mod scene;
@@ -54,6 +57,10 @@ pub use buffer_dump::{
 #[cfg(feature = "debug_view")]
 pub use debug_view::{DistanceFieldDebugMode, DistanceFieldDebugPlugin, DistanceFieldDebugView};
 pub use diagnostics::PenumbraDiagnosticsPlugin;
+pub use global_field::{
+    GlobalDistanceField, GlobalDistanceFieldPlugin, GlobalDistanceFieldState,
+    GlobalDistanceFieldStats,
+};
 pub use gpu_allocations::{GpuAllocationCounts, PenumbraGpuAllocations};
 pub use lighting::{PenumbraLighting, PenumbraLightingPlugin};
 pub use scene::{
