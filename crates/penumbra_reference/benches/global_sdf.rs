@@ -338,11 +338,8 @@ fn far_ao(
     let origin = CameraOrigin::at(camera).expect("finite");
     let atlas = Atlas::new(glam::UVec3::ONE);
     let far = FarField {
-        field,
-        state,
-        camera_world: camera,
-        switch_distance: 1.0,
         min_level,
+        ..FarField::new(field, state, camera.as_dvec3(), 1.0)
     };
     receivers
         .iter()

@@ -222,14 +222,15 @@ impl ClipmapLayout {
 
     /// The origin (world texel coordinates of the min corner, a multiple of [`BRICK`])
     /// of level `level`'s window centred on `camera`: the camera is within half a brick
-    /// of the window's centre. `None` for a non-finite camera or one too far out for
+    /// of the window's centre (a brick, for an odd number of bricks per side). `None` for a non-finite camera or one too far out for
     /// `i32` texel coordinates.
     pub fn window_origin(&self, level: u32, camera: Vec3) -> Option<IVec3> {
         let brick = self.texel(level) * BRICK as f32;
         let b = (camera / brick).round();
         let limit = (i32::MAX / BRICK as i32 / 4) as f32;
-        (b.is_finite() && b.abs().max_element() < limit)
-            .then(|| b.as_ivec3() * BRICK as i32 - IVec3::splat(self.resolution as i32 / 2))
+        (b.is_finite() && b.abs().max_element() < limit).then(|| {
+            (b.as_ivec3() - IVec3::splat(self.bricks_per_side() as i32 / 2)) * BRICK as i32
+        })
     }
 
     /// World position of the centre of texel `w` of level `level`.
@@ -673,4 +674,85 @@ pub fn texel_byte(layout: &ClipmapLayout, level: u32, w: IVec3) -> (u32, u32) {
 /// The rounding step of the 8-bit storage over `± band`: `2 band / 255`.
 pub fn unorm8_quantum(band: f32) -> f32 {
     2.0 * band / 255.0
+}
+
+/// One level as a sampler reads it (`GlobalFieldLevel` in
+/// `shaders/df/global_field.wgsl`).
+#[derive(ShaderType, Clone, Copy, Debug, Default, PartialEq)]
+pub struct GlobalFieldLevel {
+    /// The camera's position relative to the window's min corner, metres (f64 on the
+    /// CPU: exact enough anywhere).
+    pub camera: Vec3,
+    /// Texel size, metres.
+    pub texel: f32,
+    /// The window's origin (world texels) modulo the resolution: where texel 0 of the
+    /// window is stored.
+    pub origin_mod: IVec3,
+    /// The band, metres.
+    pub band: f32,
+    /// The dilation, metres.
+    pub dilation: f32,
+    /// The storage quantum ([`unorm8_quantum`]), metres.
+    pub quantum: f32,
+    /// 1 when the level has a window, 0 before its first update.
+    pub ready: u32,
+    /// Padding.
+    pub _pad: u32,
+}
+
+/// The clipmaps as a sampler reads them, for one camera (`GlobalFieldView` in
+/// `shaders/df/global_field.wgsl`): positions are camera-relative.
+#[derive(ShaderType, Clone, Copy, Debug, Default, PartialEq)]
+pub struct GlobalFieldView {
+    /// Per level.
+    pub levels: [GlobalFieldLevel; MAX_LEVELS as usize],
+    /// Levels in use.
+    pub level_count: u32,
+    /// Texels per side.
+    pub resolution: u32,
+    /// Bricks per side.
+    pub bricks_per_side: u32,
+    /// Words of validity bits per level.
+    pub valid_words: u32,
+}
+
+impl GlobalFieldView {
+    /// The view of `state`'s windows from a camera at world position `camera` (f64).
+    pub fn new(state: &ClipmapState, camera: DVec3) -> GlobalFieldView {
+        let layout = state.layout();
+        let n = layout.resolution as i32;
+        let mut levels = [GlobalFieldLevel::default(); MAX_LEVELS as usize];
+        for (l, v) in levels.iter_mut().enumerate().take(layout.levels as usize) {
+            let level = l as u32;
+            let texel = layout.texel(level);
+            let band = layout.band(level);
+            let origin = state.origin(level);
+            let corner = origin.map_or(DVec3::ZERO, |o| o.as_dvec3() * f64::from(texel));
+            *v = GlobalFieldLevel {
+                camera: (camera - corner).as_vec3(),
+                texel,
+                origin_mod: origin.map_or(IVec3::ZERO, |o| o.rem_euclid(IVec3::splat(n))),
+                band,
+                dilation: layout.dilation(level),
+                quantum: unorm8_quantum(band),
+                ready: u32::from(origin.is_some()),
+                _pad: 0,
+            };
+        }
+        GlobalFieldView {
+            levels,
+            level_count: layout.levels,
+            resolution: layout.resolution,
+            bricks_per_side: layout.bricks_per_side(),
+            valid_words: layout.bricks_per_level().div_ceil(32),
+        }
+    }
+
+    /// Every level's [`ClipmapState::valid_bits`], level after level
+    /// ([`GlobalFieldView::valid_words`] words each): the sampler's validity buffer.
+    pub fn valid_bits(state: &ClipmapState) -> Vec<u32> {
+        (0..state.layout().levels)
+            .flat_map(|l| state.valid_bits(l))
+            .collect()
+    }
 }

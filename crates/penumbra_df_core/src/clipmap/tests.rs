@@ -61,6 +61,12 @@ fn windows_are_brick_aligned_around_the_camera_anywhere() {
             );
         }
     }
+    // An odd number of bricks per side (24 texels: 3) stays brick-aligned too.
+    let odd = ClipmapLayout::new(2, 24, 4.8, 2.0).0;
+    for x in [0.0, 0.7, 1.7, -3.3] {
+        let o = odd.window_origin(0, Vec3::new(x, 1.2, -x)).unwrap();
+        assert_eq!(o % BRICK as i32, IVec3::ZERO, "{o}");
+    }
     assert_eq!(layout.window_origin(0, Vec3::NAN), None);
     assert_eq!(layout.window_origin(0, Vec3::splat(1e30)), None);
     // Toroidal: the texels of a window land on every storage texel once.

@@ -21,25 +21,45 @@
 use super::{AoSample, combine, cone_visibilities};
 use crate::df::Atlas;
 use crate::global_sdf::GlobalField;
+use glam::DVec3;
 use glam::Vec3;
 use penumbra_df_core::ao::{AoTrace, MIN_STEP_FRACTION, cone_axis, cone_tan_half, tangent_frame};
-use penumbra_df_core::clipmap::ClipmapState;
+use penumbra_df_core::clipmap::{ClipmapState, GlobalFieldView};
 use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::object::ObjectRecord;
 
-/// The global field a far-field trace reads.
+/// The global field a far-field trace reads: the clipmaps, the view of them from the
+/// camera and the validity bits, as the GPU binds them.
 pub struct FarField<'a> {
     /// The clipmap textures.
     pub field: &'a GlobalField,
-    /// Which bricks are valid.
-    pub state: &'a ClipmapState,
-    /// The camera's world position (the model's positions are camera-relative).
-    pub camera_world: Vec3,
+    /// The clipmaps from the camera (positions are camera-relative).
+    pub view: GlobalFieldView,
+    /// Every level's validity bits ([`GlobalFieldView::valid_bits`]).
+    pub valid: Vec<u32>,
     /// Object distance fields up to here along each cone, the global field beyond,
     /// metres.
     pub switch_distance: f32,
     /// The finest level a sample may read (0 in use; measurements force coarser ones).
     pub min_level: u32,
+}
+
+impl<'a> FarField<'a> {
+    /// The far field of `field` and `state`'s windows from a camera at `camera_world`.
+    pub fn new(
+        field: &'a GlobalField,
+        state: &ClipmapState,
+        camera_world: DVec3,
+        switch_distance: f32,
+    ) -> FarField<'a> {
+        FarField {
+            field,
+            view: GlobalFieldView::new(state, camera_world),
+            valid: GlobalFieldView::valid_bits(state),
+            switch_distance,
+            min_level: 0,
+        }
+    }
 }
 
 /// One cone's visibility through the global field from `far.switch_distance` to the
@@ -61,10 +81,10 @@ fn march_field(
         }
         let cone = (t * tan_half).max(1e-6);
         let open = cone.min(trace.bias + t * rise).max(1e-6);
-        let p = far.camera_world + o + axis * t;
+        let p = o + axis * t;
         samples += 1;
         let first = far.field.level_for_radius(open).max(far.min_level);
-        let Some((d, level)) = far.field.sample_from(far.state, p, first) else {
+        let Some((d, level)) = far.field.sample_view(&far.view, &far.valid, p, first) else {
             t += cone * MIN_STEP_FRACTION;
             continue;
         };
@@ -177,13 +197,7 @@ mod tests {
                 ),
             ];
             let (field, state) = field_of(&records, &atlas);
-            let far = FarField {
-                field: &field,
-                state: &state,
-                camera_world: Vec3::ZERO,
-                switch_distance: 1.0,
-                min_level: 0,
-            };
+            let far = FarField::new(&field, &state, DVec3::ZERO, 1.0);
             let want = 1.0 - (radius / d).powi(2);
             let p = Vec3::new(0.05, 0.0, -0.03);
             let (s, evaluations, samples) =
@@ -247,11 +261,8 @@ mod tests {
                 field.compose(job, &objects);
             }
             let far = FarField {
-                field: &field,
-                state: &state,
-                camera_world,
-                switch_distance: 1.0,
                 min_level,
+                ..FarField::new(&field, &state, camera_world.as_dvec3(), 1.0)
             };
             receivers
                 .iter()
@@ -289,13 +300,7 @@ mod tests {
             ),
         ];
         let (field, state) = field_of(&records, &atlas);
-        let far = FarField {
-            field: &field,
-            state: &state,
-            camera_world: Vec3::ZERO,
-            switch_distance: 10.0,
-            min_level: 0,
-        };
+        let far = FarField::new(&field, &state, DVec3::ZERO, 10.0);
         let (s, _, samples) = pixel_ao_far(
             &records,
             &atlas,
@@ -323,13 +328,7 @@ mod tests {
         let records = [ground()];
         let (field, state) = field_of(&records, &atlas);
         for (switch_distance, floor) in [(0.5, 0.995), (1.0, 0.995), (2.0, 0.999)] {
-            let far = FarField {
-                field: &field,
-                state: &state,
-                camera_world: Vec3::ZERO,
-                switch_distance,
-                min_level: 0,
-            };
+            let far = FarField::new(&field, &state, DVec3::ZERO, switch_distance);
             let (s, _, samples) = pixel_ao_far(
                 &records,
                 &atlas,

@@ -24,7 +24,8 @@ use crate::shadow_mask::bounding_sphere;
 use glam::Affine3A;
 use glam::{IVec3, Vec3};
 use penumbra_df_core::clipmap::{
-    BRICK, BrickJob, ClipmapLayout, ClipmapState, ComposeJob, composes, unorm8_quantum,
+    BRICK, BrickJob, ClipmapLayout, ClipmapState, ComposeJob, GlobalFieldView, composes,
+    unorm8_quantum,
 };
 use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, TILE_SIZE, encode, flags};
@@ -396,6 +397,59 @@ impl GlobalField {
         (0..self.layout.levels)
             .find(|&l| self.layout.band(l) >= radius + 3f32.sqrt() * self.layout.texel(l))
             .unwrap_or(self.layout.levels - 1)
+    }
+
+    /// The field at camera-relative `p` as the GPU samples it: from level `first` on,
+    /// the first level whose window holds `p`'s eight trilinear texels in valid bricks
+    /// (`valid`: [`GlobalFieldView::valid_bits`]), with that level.
+    pub fn sample_view(
+        &self,
+        view: &GlobalFieldView,
+        valid: &[u32],
+        p: Vec3,
+        first: u32,
+    ) -> Option<(f32, u32)> {
+        (first..view.level_count).find_map(|level| {
+            self.sample_view_level(view, valid, level, p)
+                .map(|d| (d, level))
+        })
+    }
+
+    fn sample_view_level(
+        &self,
+        view: &GlobalFieldView,
+        valid: &[u32],
+        level: u32,
+        p: Vec3,
+    ) -> Option<f32> {
+        let l = &view.levels[level as usize];
+        if l.ready == 0 {
+            return None;
+        }
+        let u = (p + l.camera) / l.texel - 0.5;
+        let n = view.resolution as i32;
+        let w0 = u.floor();
+        if !(w0.cmpge(Vec3::ZERO).all() && w0.cmplt(Vec3::splat((n - 1) as f32)).all()) {
+            return None;
+        }
+        let f = u - w0;
+        let w0 = w0.as_ivec3();
+        let nb = view.bricks_per_side as i32;
+        let mut sum = 0.0;
+        for k in 0..8 {
+            let o = IVec3::new(k & 1, (k >> 1) & 1, k >> 2);
+            let s = (l.origin_mod + w0 + o) % n;
+            let b = s / BRICK as i32;
+            let bit = (b.x + nb * (b.y + nb * b.z)) as u32;
+            let word = valid[(level * view.valid_words + bit / 32) as usize];
+            if word >> (bit % 32) & 1 == 0 {
+                return None;
+            }
+            let weight = Vec3::select(o.cmpeq(IVec3::ONE), f, 1.0 - f);
+            let at = (s.x + n * (s.y + n * s.z)) as usize;
+            sum += weight.x * weight.y * weight.z * self.texels[level as usize][at];
+        }
+        Some(sum)
     }
 
     /// The field at `p` in level `level` alone, if its texels there are valid.
