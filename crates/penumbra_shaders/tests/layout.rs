@@ -267,3 +267,45 @@ fn global_compose_layouts_and_constants_match() {
     assert_eq!(constant(&m, "BRICK") as u32, BRICK);
     assert_eq!(constant(&m, "MAX_LEVELS") as u32, MAX_LEVELS);
 }
+
+/// The global field's sampler: `GlobalFieldView` (with its per-level structs) laid out
+/// by `encase` as the WGSL structs, and the march's step constant.
+#[test]
+fn global_field_layouts_and_constants_match() {
+    use encase::ShaderType;
+    use penumbra_df_core::clipmap::{GlobalFieldLevel, GlobalFieldView};
+    let m = parse("#import penumbra::df::global_field\n");
+    let (members, size) = struct_layout(&m, "GlobalFieldLevel");
+    assert_eq!(u64::from(size), GlobalFieldLevel::min_size().get());
+    let names: Vec<&str> = members.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "camera",
+            "texel",
+            "origin_mod",
+            "band",
+            "dilation",
+            "quantum",
+            "ready",
+            "_pad"
+        ]
+    );
+    let (members, size) = struct_layout(&m, "GlobalFieldView");
+    assert_eq!(u64::from(size), GlobalFieldView::min_size().get());
+    let names: Vec<&str> = members.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "levels",
+            "level_count",
+            "resolution",
+            "bricks_per_side",
+            "valid_words"
+        ]
+    );
+    assert_eq!(
+        constant(&m, "FIELD_MIN_STEP_FRACTION") as f32,
+        penumbra_df_core::ao::MIN_STEP_FRACTION
+    );
+}

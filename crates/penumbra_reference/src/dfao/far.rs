@@ -64,7 +64,7 @@ impl<'a> FarField<'a> {
 
 /// One cone's visibility through the global field from `far.switch_distance` to the
 /// trace's max distance (origin `o`, camera-relative), and the field samples it took.
-fn march_field(
+pub fn march_field(
     far: &FarField,
     o: Vec3,
     axis: Vec3,

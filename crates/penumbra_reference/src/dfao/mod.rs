@@ -495,7 +495,7 @@ mod temporal_tests;
 #[cfg(test)]
 mod tests;
 
-pub use far::{FarField, pixel_ao_far};
+pub use far::{FarField, march_field, pixel_ao_far};
 pub use temporal::{AoHistory, TemporalFrame, TemporalSteps, temporal_step};
 
 pub use apply::{
