@@ -400,3 +400,90 @@ fn far_field_march_matches_the_model_far_from_the_origin() {
         Vec3::new(1.0e5, 0.0, -1.0e5),
     );
 }
+
+/// A measurement, not a test (ignored; it asserts nothing about time): lavapipe's time
+/// for the compose pass with the default layout (4 × 128³) over a plane and 10, 100 and
+/// 1,000 balls scattered over 40 × 40 m — composing everything (a teleport's worth, in
+/// one dispatch), a camera step of one level-0 brick, and one ball moving 1 m; each
+/// dispatch timed from submission to idle, median of 3.
+/// `cargo test -p bevy_penumbra_df --test global_sdf_gpu -- --ignored --nocapture`.
+#[test]
+#[ignore = "a measurement; run it with --ignored"]
+fn compose_pass_times() {
+    use std::time::Instant;
+    if !gpu_or_skip("compose_pass_times") {
+        return;
+    }
+    let base = scene(Vec3::ZERO);
+    let layout = ClipmapLayout::DEFAULT;
+    let gpu = Gpu::new(GpuCompute::new().expect("adapter"), &base, &layout);
+    let live = flags::LIVE | flags::CASTS_OCCLUSION | flags::VISIBLE;
+    let ball = |c: Vec3, r: f32| {
+        encode(&ObjectDesc {
+            world_from_local: glam::Affine3A::from_translation(c),
+            shape: CasterShape::Sphere { radius: r },
+            flags: live,
+        })
+        .expect("encodes")
+    };
+    let time = |scene: &Scene, jobs: &[BrickJob]| {
+        let mut t: Vec<f64> = (0..3)
+            .map(|_| {
+                let start = Instant::now();
+                gpu.compose(&layout, scene, jobs);
+                gpu.gpu.wait();
+                start.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
+        t.sort_by(f64::total_cmp);
+        t[1]
+    };
+    eprintln!(
+        "| casters | everything (16,384 bricks) | camera step | one ball moves |\n|---|---|---|---|"
+    );
+    for count in [10u32, 100, 1000] {
+        let mut rng = 0x9e37_79b9u32;
+        let mut unit = || {
+            rng ^= rng << 13;
+            rng ^= rng >> 17;
+            rng ^= rng << 5;
+            (rng >> 8) as f32 / (1 << 24) as f32
+        };
+        let mut records = vec![base.records[0]];
+        for _ in 1..count {
+            let r = 0.3 + 0.3 * unit();
+            records.push(ball(
+                Vec3::new(unit() * 40.0 - 20.0, r, unit() * 40.0 - 20.0),
+                r,
+            ));
+        }
+        let scene = Scene {
+            records,
+            atlas: base.atlas.clone(),
+            atlas_size: base.atlas_size,
+            atlas_bits: base.atlas_bits.clone(),
+        };
+        let mut state = ClipmapState::new(layout);
+        let all = state.update(Vec3::new(0.0, 1.7, 0.0), &[], usize::MAX).jobs;
+        let everything = time(&scene, &all);
+        let step = state.update(Vec3::new(1.6, 1.7, 0.0), &[], usize::MAX).jobs;
+        let stepped = time(&scene, &step);
+        let mut moved = scene.records.clone();
+        let old = record_dirty_box(&moved[1]).expect("composes");
+        moved[1] = ball(Vec3::new(1.0, 0.5, 0.0), 0.5);
+        let new = record_dirty_box(&moved[1]).expect("composes");
+        let dirty = state
+            .update(Vec3::new(1.6, 1.7, 0.0), &[old, new], usize::MAX)
+            .jobs;
+        let scene = Scene {
+            records: moved,
+            ..scene
+        };
+        let one = time(&scene, &dirty);
+        eprintln!(
+            "| {count} | {everything:.0} ms | {stepped:.1} ms ({} bricks) | {one:.1} ms ({} bricks) |",
+            step.len(),
+            dirty.len()
+        );
+    }
+}
