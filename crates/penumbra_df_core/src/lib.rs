@@ -13,6 +13,7 @@
 //! - [`table`]: the CPU mirror of the GPU object buffer. It hands out slots (reusing
 //!   freed ones), and turns a frame's adds, removes and changes into a compact list of
 //!   `(slot, record)` writes: a static scene sends nothing, `k` changes send `O(k)` bytes.
+//! - [`heightfield`]: terrain grids as casters, with a conservative distance.
 //! - [`query`]: gameplay queries on the CPU — distance, gradient, sphere casts —
 //!   against casters' volumes and analytic shapes.
 //! - [`shadow`]: the GPU parameters of distance-field shadows (light and mask-pass view
@@ -35,6 +36,7 @@ pub mod ao;
 pub mod atlas;
 pub mod clipmap;
 pub mod cull;
+pub mod heightfield;
 pub mod object;
 pub mod query;
 pub mod shadow;
