@@ -489,6 +489,7 @@ fn concentric_disc(u: Vec2) -> Vec2 {
 
 mod apply;
 mod far;
+mod heightfield;
 mod temporal;
 #[cfg(test)]
 mod temporal_tests;
@@ -496,6 +497,7 @@ mod temporal_tests;
 mod tests;
 
 pub use far::{FarField, march_field, pixel_ao_far};
+pub use heightfield::{heightfield_ao, heightfield_visibilities};
 pub use temporal::{AoHistory, TemporalFrame, TemporalSteps, temporal_step};
 
 pub use apply::{

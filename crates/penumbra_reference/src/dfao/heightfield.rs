@@ -1,0 +1,135 @@
+//! DFAO against a heightfield (terrain): each cone sphere-traces the heightfield's
+//! conservative distance (`penumbra_df_core::heightfield`) from the surface bias to the
+//! max distance with the approximate cone intersection of the object trace — `d / r`,
+//! `r` capped by the sample's height over the receiver's plane, the cone shut where a
+//! sample is under the terrain — and the same shaping. The heightfield is one caster:
+//! its visibility joins the objects' by the minimum per cone.
+
+use super::{AoSample, combine};
+use glam::Vec3;
+use penumbra_df_core::ao::{AoTrace, MIN_STEP_FRACTION, cone_axis, cone_tan_half, tangent_frame};
+use penumbra_df_core::heightfield::Heightfield;
+
+/// Each cone's visibility through `terrain` from world `p` (unit normal `n`), and the
+/// distance evaluations.
+pub fn heightfield_visibilities(
+    terrain: &Heightfield,
+    p: Vec3,
+    n: Vec3,
+    trace: &AoTrace,
+) -> (Vec<f32>, u32) {
+    let count = trace.cone_count;
+    let tan_half = cone_tan_half(count);
+    let (t, b) = tangent_frame(n);
+    let o = p + n * trace.bias;
+    let mut evaluations = 0;
+    let visibility = (0..count)
+        .map(|k| {
+            let a = cone_axis(k, count);
+            let axis = t * a.x + b * a.y + n * a.z;
+            let mut s = trace.bias;
+            let mut v = 1.0f32;
+            for _ in 0..trace.steps_per_cone {
+                if s >= trace.max_distance {
+                    break;
+                }
+                let d = terrain.distance(o + axis * s);
+                evaluations += 1;
+                let cone = (s * tan_half).max(1e-6);
+                if d <= 0.0 {
+                    v = 0.0;
+                    break;
+                }
+                let open = cone.min(trace.bias + s * a.z).max(1e-6);
+                v = v.min(d / open);
+                s += d.max(cone * MIN_STEP_FRACTION);
+            }
+            v.clamp(0.0, 1.0).powf(trace.shaping)
+        })
+        .collect();
+    (visibility, evaluations)
+}
+
+/// The AO and bent normal at world `p` (unit normal `n`) from `terrain` alone.
+pub fn heightfield_ao(terrain: &Heightfield, p: Vec3, n: Vec3, trace: &AoTrace) -> AoSample {
+    let (visibility, _) = heightfield_visibilities(terrain, p, n, trace);
+    combine(&visibility, n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dfao::monte_carlo_ao;
+    use glam::{UVec2, Vec2};
+    use penumbra_df_core::ao::CONE_SHAPING;
+
+    /// A valley with walls rising 8 m within 5 m of its floor, over 40 × 40 m, 65 × 65
+    /// samples.
+    fn valley() -> Heightfield {
+        let size = UVec2::new(65, 65);
+        let (origin, extent) = (Vec2::splat(-20.0), Vec2::splat(40.0));
+        let heights = (0..size.y)
+            .flat_map(|j| (0..size.x).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let x = origin.x + extent.x * i as f32 / 64.0;
+                let z = origin.y + extent.y * j as f32 / 64.0;
+                0.6 * (0.4 * x).sin() * (0.3 * z).cos() + 0.4 * x * x / (1.0 + 0.02 * x * x)
+            })
+            .collect();
+        Heightfield::new(size, origin, extent, heights).expect("valid")
+    }
+
+    fn triangles(h: &Heightfield) -> Vec<[Vec3; 3]> {
+        let mut out = Vec::new();
+        let step = 40.0 / 128.0;
+        for j in 0..128 {
+            for i in 0..128 {
+                let v = |a: u32, b: u32| {
+                    let xz = Vec2::splat(-20.0) + Vec2::new(a as f32, b as f32) * step;
+                    Vec3::new(xz.x, h.height(xz), xz.y)
+                };
+                out.push([v(i, j), v(i, j + 1), v(i + 1, j + 1)]);
+                out.push([v(i, j), v(i + 1, j + 1), v(i + 1, j)]);
+            }
+        }
+        out
+    }
+
+    /// Receivers over a valley's floor and its slopes (normals from the surface),
+    /// against cosine-weighted Monte Carlo rays on the triangulated terrain, reach 5 m:
+    /// mean |ΔAO| 0.072, within 0.08 (the object trace's error on the bench's scenes),
+    /// where ignoring the terrain (AO 1) errs by 0.165.
+    #[test]
+    fn terrain_ao_matches_ray_traced_truth() {
+        let h = valley();
+        let bvh = penumbra_sdf::bvh::Bvh::build(&triangles(&h));
+        let trace = AoTrace {
+            max_distance: 5.0,
+            cone_count: 9,
+            steps_per_cone: 16,
+            bias: 0.02,
+            shaping: CONE_SHAPING,
+        };
+        let (mut error, mut blind, mut count) = (0.0f32, 0.0f32, 0);
+        for j in 0..8 {
+            for i in 0..12 {
+                let xz = Vec2::new(-5.5 + i as f32, -8.0 + 2.0 * j as f32);
+                let e = 0.05;
+                let g = Vec2::new(
+                    h.height(xz + Vec2::X * e) - h.height(xz - Vec2::X * e),
+                    h.height(xz + Vec2::Y * e) - h.height(xz - Vec2::Y * e),
+                ) / (2.0 * e);
+                let n = Vec3::new(-g.x, 1.0, -g.y).normalize();
+                let p = Vec3::new(xz.x, h.height(xz), xz.y);
+                let truth = monte_carlo_ao(&bvh, p, n, trace.max_distance, 24).ao;
+                let model = heightfield_ao(&h, p, n, &trace).ao;
+                error += (model - truth).abs();
+                blind += 1.0 - truth;
+                count += 1;
+            }
+        }
+        let (error, blind) = (error / count as f32, blind / count as f32);
+        eprintln!("terrain AO: mean |Δ| {error:.4}; ignoring the terrain {blind:.4}");
+        assert!(error < 0.08 && blind > 0.15, "{error} {blind}");
+    }
+}
