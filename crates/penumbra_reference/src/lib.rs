@@ -23,6 +23,7 @@
 //!   upsample, specular occlusion — and cosine-weighted Monte Carlo truth on triangles.
 //! - [`global_sdf`]: the global distance field's clipmap composition (brick jobs from
 //!   `penumbra_df_core::clipmap`), conservative storage and sampling.
+//! - [`particles`]: particles colliding with the global field (restitution, friction).
 //! - [`shadow_mask`]: the distance-field shadow-mask pass — per pixel, the march over the
 //!   GPU object records with its per-object cone culling.
 //! - [`scene`]: an analytic ray-traced scene (spheres, planes, directional lights with hard
@@ -33,6 +34,7 @@ pub mod df;
 pub mod df_shadow;
 pub mod dfao;
 pub mod global_sdf;
+pub mod particles;
 pub mod pbr;
 pub mod scene;
 pub mod shadow_mask;
