@@ -45,20 +45,7 @@ const TELEPORT: &str = "teleport, 212 m across the town";
 /// A frame, seconds.
 const DT: f32 = 1.0 / 60.0;
 
-/// xorshift32.
-struct Rng(u32);
-
-impl Rng {
-    fn unit(&mut self) -> f32 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 17;
-        self.0 ^= self.0 << 5;
-        (self.0 >> 8) as f32 / (1 << 24) as f32
-    }
-    fn range(&mut self, a: f32, b: f32) -> f32 {
-        a + (b - a) * self.unit()
-    }
-}
+use penumbra_testkit::XorShift as Rng;
 
 fn town() -> Vec<AnalyticCaster> {
     let mut rng = Rng(0x2545_f491);

@@ -6,6 +6,7 @@
 //!   CI that is a failure, never a skip. `cargo xtask test` counts skips as skipped, not
 //!   passed: it sets [`SKIP_LOG_ENV`] to a file each skip appends a line to.
 //! - [`shared_dir`]: `../shared/<sub>` beside the checkout, or a reported skip.
+//! - [`XorShift`]: a tiny deterministic generator for test scenes.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -100,5 +101,25 @@ mod tests {
         ] {
             assert_eq!(ci_value(value), want, "{value:?}");
         }
+    }
+}
+
+/// A tiny deterministic random generator (xorshift32) for test and bench scenes: the
+/// same numbers on every machine and thread count.
+#[derive(Clone, Debug)]
+pub struct XorShift(pub u32);
+
+impl XorShift {
+    /// The next number in `[0, 1)` (24 bits).
+    pub fn unit(&mut self) -> f32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 17;
+        self.0 ^= self.0 << 5;
+        (self.0 >> 8) as f32 / (1 << 24) as f32
+    }
+
+    /// The next number in `[a, b)`.
+    pub fn range(&mut self, a: f32, b: f32) -> f32 {
+        a + (b - a) * self.unit()
     }
 }

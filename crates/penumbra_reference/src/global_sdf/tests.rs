@@ -3,15 +3,15 @@ use penumbra_df_core::clipmap::{DirtyBox, GlobalFieldView};
 
 type Shape = AnalyticCaster;
 
-/// xorshift32: deterministic.
+/// Scene randomness: a deterministic generator and what the tests draw from it.
 struct Rng(u32);
 
 impl Rng {
     fn unit(&mut self) -> f32 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 17;
-        self.0 ^= self.0 << 5;
-        (self.0 >> 8) as f32 / (1 << 24) as f32
+        let mut g = penumbra_testkit::XorShift(self.0);
+        let u = g.unit();
+        self.0 = g.0;
+        u
     }
     fn range(&mut self, a: f32, b: f32) -> f32 {
         a + (b - a) * self.unit()
