@@ -49,6 +49,15 @@ fn exact_local(shape: &QueryShape, q: Vec3) -> f32 {
     shape.distance(q)
 }
 
+/// A torus mesh and its bake (48 samples along its longest axis).
+fn torus() -> (penumbra_sdf::TriMesh, Baked) {
+    let mesh = shapes::torus(0.5, 0.18, 48, 24);
+    let volume = bake(&mesh, &BakeSettings::longest_axis(48), None)
+        .expect("bakes")
+        .volume;
+    (mesh, Baked(volume))
+}
+
 struct Rng(penumbra_testkit::XorShift);
 
 impl Rng {
@@ -91,12 +100,7 @@ fn rigid_analytic_shapes_give_the_exact_distance() {
 /// to its triangles and above it times the scale's ratio.
 #[test]
 fn volumes_and_scaled_shapes_stay_below_the_exact_distance() {
-    let mesh = shapes::torus(0.5, 0.18, 48, 24);
-    let baked = Baked(
-        bake(&mesh, &BakeSettings::longest_axis(48), None)
-            .expect("bakes")
-            .volume,
-    );
+    let (mesh, baked) = torus();
     let volume = &baked.0;
     let torus = Affine3A::from_scale_rotation_translation(
         Vec3::splat(1.5),
@@ -166,12 +170,7 @@ fn volumes_and_scaled_shapes_stay_below_the_exact_distance() {
 /// 4: an early stop, never a pass); the normal at a ball is the ball's.
 #[test]
 fn sphere_casts_match_brute_force() {
-    let mesh = shapes::torus(0.5, 0.18, 48, 24);
-    let baked = Baked(
-        bake(&mesh, &BakeSettings::longest_axis(48), None)
-            .expect("bakes")
-            .volume,
-    );
+    let (mesh, baked) = torus();
     let volume = &baked.0;
     let (lo, hi) = volume.bounds();
     let torus =
