@@ -64,10 +64,11 @@ pub use global_field::{
 pub use gpu_allocations::{GpuAllocationCounts, PenumbraGpuAllocations};
 pub use lighting::{PenumbraLighting, PenumbraLightingPlugin};
 pub use scene::{
-    CasterSource, DistanceFieldCaster, DistanceFieldQuery, DistanceFieldScene,
-    DistanceFieldSceneCaster, DistanceFieldSceneCasters, DistanceFieldScenePlugin,
-    DistanceFieldSceneSettings, DistanceFieldUploadStats, FOLIAGE_AO_TRANSMISSION,
-    SceneCasterCounts, SceneTwoSided, SkinnedCasters, SphereHit,
+    CasterSource, DistanceFieldCaster, DistanceFieldHeightfield, DistanceFieldQuery,
+    DistanceFieldScene, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
+    DistanceFieldScenePlugin, DistanceFieldSceneSettings, DistanceFieldUploadStats,
+    FOLIAGE_AO_TRANSMISSION, HeightfieldTerrain, SceneCasterCounts, SceneTwoSided, SkinnedCasters,
+    SphereHit,
 };
 pub use sdf_asset::{SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset, SdfVolumeLoader};
 #[cfg(feature = "bake")]

@@ -106,3 +106,100 @@ fn queries_in_a_system_match_the_analytic_scene() {
     let g = answers.2;
     assert!(g.angle_between(Vec3::Z) < 0.05, "{g}");
 }
+
+fn height_image(
+    width: u32,
+    height: u32,
+    format: bevy::render::render_resource::TextureFormat,
+    data: Vec<u8>,
+) -> Image {
+    use bevy::asset::RenderAssetUsages;
+    use bevy::render::render_resource::{Extent3d, TextureDimension};
+    Image::new(
+        Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        TextureDimension::D2,
+        data,
+        format,
+        RenderAssetUsages::MAIN_WORLD,
+    )
+}
+
+#[derive(Resource, Default)]
+struct TerrainAnswer(f32);
+
+fn ask_terrain(query: DistanceFieldQuery, mut answer: ResMut<TerrainAnswer>) {
+    answer.0 = query.distance(Vec3::new(20.0, 3.0, 1.0));
+}
+
+/// A `DistanceFieldHeightfield` from an image: queries see the terrain (a ramp rising
+/// along x, 10 m across, centred on the entity); a wrong format, a 1 × 1 image or a NaN
+/// height scale are refused with a reason and give no terrain.
+#[test]
+fn heightfields_from_images_answer_queries_and_bad_images_are_refused() {
+    use bevy::render::render_resource::TextureFormat;
+    use bevy_penumbra_df::{DistanceFieldHeightfield, HeightfieldTerrain};
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        TransformPlugin,
+        AssetPlugin::default(),
+        bevy::mesh::MeshPlugin,
+        bevy::camera::visibility::VisibilityPlugin,
+    ))
+    .init_asset::<Shader>()
+    .init_asset::<Image>()
+    .add_plugins((
+        bevy_penumbra_df::SdfAssetPlugin,
+        bevy_penumbra_df::DistanceFieldScenePlugin,
+    ))
+    .init_resource::<TerrainAnswer>()
+    .add_systems(Update, ask_terrain);
+    // 3 × 3 R32Float heights 0, 0.5, 1 along x (scaled ×2: 0, 1, 2 m).
+    let ramp: Vec<u8> = (0..9)
+        .flat_map(|i| (0.5 * (i % 3) as f32).to_le_bytes())
+        .collect();
+    let mut images = app.world_mut().resource_mut::<Assets<Image>>();
+    let good = images.add(height_image(3, 3, TextureFormat::R32Float, ramp));
+    let rgba = images.add(height_image(2, 2, TextureFormat::Rgba8Unorm, vec![0; 16]));
+    let tiny = images.add(height_image(1, 1, TextureFormat::R8Unorm, vec![7]));
+    let terrain = |heights, height_scale| {
+        (
+            DistanceFieldHeightfield {
+                heights,
+                size: Vec2::splat(10.0),
+                height_scale,
+            },
+            Transform::from_xyz(20.0, 0.0, 0.0),
+        )
+    };
+    let ok = app.world_mut().spawn(terrain(good.clone(), 2.0)).id();
+    let refused = [
+        (app.world_mut().spawn(terrain(rgba, 1.0)).id(), "Rgba8Unorm"),
+        (app.world_mut().spawn(terrain(tiny, 1.0)).id(), "2 × 2"),
+        (
+            app.world_mut().spawn(terrain(good, f32::NAN)).id(),
+            "height_scale",
+        ),
+    ];
+    app.update();
+    app.update();
+    assert!(matches!(
+        app.world().get::<HeightfieldTerrain>(ok),
+        Some(HeightfieldTerrain::Ready(_))
+    ));
+    for (entity, why) in refused {
+        match app.world().get::<HeightfieldTerrain>(entity) {
+            Some(HeightfieldTerrain::Refused(reason)) => assert!(reason.contains(why), "{reason}"),
+            other => panic!("{why}: {other:?}"),
+        }
+    }
+    // Over the ramp's middle (height 1 m at x = 20) at y = 3: 2 m above it, less by the
+    // slope (0.2 m per m: √(1 + 0.04)).
+    let d = app.world().resource::<TerrainAnswer>().0;
+    let want = 2.0 / (1.0f32 + 0.04).sqrt();
+    assert!((d - want).abs() < 0.02, "{d} want {want}");
+}

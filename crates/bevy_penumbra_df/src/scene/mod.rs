@@ -41,6 +41,7 @@
 
 mod bake_requests;
 mod cull;
+mod heightfield;
 mod query;
 mod render;
 mod scene_casters;
@@ -55,6 +56,7 @@ use penumbra_df_core::object::{CasterShape, ObjectDesc, RECORD_BYTES, encode, fl
 use penumbra_df_core::table::{Deltas, ObjectTable};
 
 pub use cull::CulledObjects;
+pub use heightfield::{DistanceFieldHeightfield, HeightfieldTerrain, image_heights};
 pub use query::{DistanceFieldQuery, SphereHit};
 pub use render::{DistanceFieldGpu, DistanceFieldPipelines, DistanceFieldRenderSystems};
 pub use scene_casters::{
@@ -352,6 +354,7 @@ impl Plugin for DistanceFieldScenePlugin {
             "SdfAssetPlugin",
         );
         app.register_type::<DistanceFieldCaster>()
+            .register_type::<DistanceFieldHeightfield>()
             .register_type::<DistanceFieldScene>()
             .register_type::<DistanceFieldSceneSettings>()
             .register_type::<DistanceFieldUploadStats>()
@@ -391,6 +394,7 @@ impl Plugin for DistanceFieldScenePlugin {
                     )
                         .chain()
                         .in_set(DistanceFieldSystems::UpdateObjects),
+                    heightfield::build_heightfields.in_set(DistanceFieldSystems::UpdateObjects),
                 ),
             );
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {

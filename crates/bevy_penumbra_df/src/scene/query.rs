@@ -2,9 +2,10 @@
 //! the distance-field casters, on the CPU, from the SDFs and shapes the main world
 //! already holds (`penumbra_df_core::query` does the work and documents its bounds).
 
-use super::{CasterSource, DistanceFieldCaster};
+use super::{CasterSource, DistanceFieldCaster, HeightfieldTerrain};
 use crate::sdf_asset::{SdfBaked, SdfVolumeAsset};
 use bevy::ecs::system::SystemParam;
+use bevy::math::Affine3A;
 use bevy::prelude::*;
 use penumbra_df_core::query::{LocalDistance, QueryObject, QueryScene, QueryShape};
 
@@ -52,11 +53,20 @@ pub struct DistanceFieldQuery<'w, 's> {
         ),
     >,
     volumes: Res<'w, Assets<SdfVolumeAsset>>,
+    terrains: Query<'w, 's, &'static HeightfieldTerrain>,
 }
 
 impl DistanceFieldQuery<'_, '_> {
-    /// The casters as a scene to query (casters with bad transforms are left out).
+    /// The casters and terrains ([`super::DistanceFieldHeightfield`]) as a scene to
+    /// query (casters with bad transforms are left out).
     pub fn scene(&self) -> QueryScene<'_> {
+        let terrains = self.terrains.iter().filter_map(|t| match t {
+            HeightfieldTerrain::Ready(h) => Some(QueryObject {
+                shape: QueryShape::Terrain(h),
+                world_from_local: Affine3A::IDENTITY,
+            }),
+            HeightfieldTerrain::Refused(_) => None,
+        });
         QueryScene::new(
             self.casters
                 .iter()
@@ -81,7 +91,8 @@ impl DistanceFieldQuery<'_, '_> {
                         shape,
                         world_from_local: transform.affine(),
                     })
-                }),
+                })
+                .chain(terrains),
         )
     }
 

@@ -20,6 +20,7 @@
 //! `SdfVolume::sample`: trilinear inside the box, a lower bound outside it), so this
 //! crate stays free of the baker.
 
+use crate::heightfield::Heightfield;
 use crate::object::min_singular_value;
 use glam::{Affine3A, Mat3, Vec3};
 
@@ -55,6 +56,9 @@ pub enum QueryShape<'a> {
     },
     /// The plane `y = 0`, solid below.
     Plane,
+    /// A terrain heightfield (its own coordinates are world ones: place it with the
+    /// identity transform).
+    Terrain(&'a Heightfield),
 }
 
 impl QueryShape<'_> {
@@ -71,6 +75,7 @@ impl QueryShape<'_> {
                 half_length,
             } => (q - Vec3::new(0.0, q.y.clamp(-half_length, half_length), 0.0)).length() - radius,
             QueryShape::Plane => q.y,
+            QueryShape::Terrain(h) => h.distance(q),
         }
     }
 
@@ -88,6 +93,7 @@ impl QueryShape<'_> {
                 Some((-h, h))
             }
             QueryShape::Plane => None,
+            QueryShape::Terrain(h) => Some(h.bounds()),
         }
     }
 }

@@ -1,0 +1,146 @@
+//! [`DistanceFieldHeightfield`]: terrain from a height image, as a distance-field
+//! caster for the CPU queries ([`super::DistanceFieldQuery`]) — and, to come (#17),
+//! for DFAO and the global field. The distance is `penumbra_df_core::heightfield`'s
+//! conservative one (its module docs: per-tile slope bounds).
+
+use bevy::asset::AssetEvent;
+use bevy::prelude::*;
+use bevy::render::render_resource::TextureFormat;
+use penumbra_df_core::heightfield::Heightfield;
+use std::sync::Arc;
+
+/// Terrain from a single-channel height image over a world rectangle centred on the
+/// entity (x and z; its rotation and scale are ignored — a warning says so), solid
+/// below.
+///
+/// Cost: the heights once on the CPU (4 bytes a sample) and a slope bound per 8 × 8
+/// cells, rebuilt when the image or the settings change; nothing per frame.
+#[derive(Component, Reflect, Clone, Debug)]
+#[reflect(Component, Clone)]
+#[require(Transform)]
+pub struct DistanceFieldHeightfield {
+    /// The heights: `R8Unorm`, `R16Unorm` or `R32Float`, at least 2 × 2 texels, row
+    /// 0 at −z. Other formats or sizes are refused with one warning.
+    pub heights: Handle<Image>,
+    /// World size in x and z, metres. Must be finite and positive.
+    pub size: Vec2,
+    /// Metres per unit of the image's value (unorm values run 0–1). Default 1.
+    pub height_scale: f32,
+}
+
+impl Default for DistanceFieldHeightfield {
+    fn default() -> Self {
+        Self {
+            heights: Handle::default(),
+            size: Vec2::splat(100.0),
+            height_scale: 1.0,
+        }
+    }
+}
+
+/// The terrain a [`DistanceFieldHeightfield`] made (world coordinates), or why none.
+#[derive(Component, Clone, Debug)]
+pub enum HeightfieldTerrain {
+    /// Built.
+    Ready(Arc<Heightfield>),
+    /// Refused (warned once).
+    Refused(String),
+}
+
+/// Heights in metres from an image, or why not.
+pub fn image_heights(image: &Image, height_scale: f32) -> Result<(UVec2, Vec<f32>), String> {
+    let size = image.size();
+    let Some(data) = image.data.as_ref() else {
+        return Err(
+            "the height image has no CPU data (keep its RenderAssetUsages::MAIN_WORLD)".into(),
+        );
+    };
+    let n = (size.x as usize) * (size.y as usize);
+    let format = image.texture_descriptor.format;
+    let values: Vec<f32> = match format {
+        TextureFormat::R8Unorm => data.iter().take(n).map(|&b| f32::from(b) / 255.0).collect(),
+        TextureFormat::R16Unorm => data
+            .chunks_exact(2)
+            .take(n)
+            .map(|c| f32::from(u16::from_le_bytes([c[0], c[1]])) / 65535.0)
+            .collect(),
+        TextureFormat::R32Float => data
+            .chunks_exact(4)
+            .take(n)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect(),
+        other => {
+            return Err(format!(
+                "height image format {other:?} is not R8Unorm, R16Unorm or R32Float"
+            ));
+        }
+    };
+    if values.len() != n || size.x < 2 || size.y < 2 {
+        return Err(format!(
+            "height image of {}×{} with {} samples: needs at least 2 × 2, one value each",
+            size.x,
+            size.y,
+            values.len()
+        ));
+    }
+    if !height_scale.is_finite() {
+        return Err(format!("height_scale = {height_scale} is not finite"));
+    }
+    Ok((size, values.into_iter().map(|v| v * height_scale).collect()))
+}
+
+type HeightfieldItem = (
+    Entity,
+    Ref<'static, DistanceFieldHeightfield>,
+    Ref<'static, GlobalTransform>,
+    Option<&'static HeightfieldTerrain>,
+);
+
+/// (Re)builds the terrain of heightfields whose settings, transform or image changed.
+pub(super) fn build_heightfields(
+    mut commands: Commands,
+    images: Res<Assets<Image>>,
+    mut image_events: MessageReader<AssetEvent<Image>>,
+    heightfields: Query<HeightfieldItem>,
+) {
+    let changed_images: Vec<AssetId<Image>> = image_events
+        .read()
+        .filter_map(|e| match e {
+            AssetEvent::Added { id }
+            | AssetEvent::Modified { id }
+            | AssetEvent::LoadedWithDependencies { id } => Some(*id),
+            _ => None,
+        })
+        .collect();
+    for (entity, settings, transform, terrain) in &heightfields {
+        let image_changed = changed_images.contains(&settings.heights.id());
+        if terrain.is_some() && !settings.is_changed() && !transform.is_changed() && !image_changed
+        {
+            continue;
+        }
+        let Some(image) = images.get(&settings.heights) else {
+            continue; // still loading
+        };
+        let (_, rotation, translation) = transform.to_scale_rotation_translation();
+        let built = image_heights(image, settings.height_scale).and_then(|(size, heights)| {
+            let heights = heights.into_iter().map(|h| h + translation.y).collect();
+            let origin = Vec2::new(translation.x, translation.z) - 0.5 * settings.size;
+            Heightfield::new(size, origin, settings.size, heights).map_err(|e| e.to_string())
+        });
+        let next = match built {
+            Ok(h) => {
+                if rotation.angle_between(Quat::IDENTITY) > 1e-4 {
+                    warn!(
+                        "Penumbra: DistanceFieldHeightfield on {entity}: its rotation is ignored"
+                    );
+                }
+                HeightfieldTerrain::Ready(Arc::new(h))
+            }
+            Err(why) => {
+                warn!("Penumbra: DistanceFieldHeightfield on {entity}: {why}; no terrain");
+                HeightfieldTerrain::Refused(why)
+            }
+        };
+        commands.entity(entity).insert(next);
+    }
+}
