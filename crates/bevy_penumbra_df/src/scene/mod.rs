@@ -394,7 +394,10 @@ impl Plugin for DistanceFieldScenePlugin {
                     )
                         .chain()
                         .in_set(DistanceFieldSystems::UpdateObjects),
-                    heightfield::build_heightfields.in_set(DistanceFieldSystems::UpdateObjects),
+                    // Apps without images (no `ImagePlugin`) have no terrain to build.
+                    heightfield::build_heightfields
+                        .run_if(resource_exists::<Assets<Image>>)
+                        .in_set(DistanceFieldSystems::UpdateObjects),
                 ),
             );
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
