@@ -128,6 +128,9 @@ fn height_image(
     )
 }
 
+#[path = "support/main_world.rs"]
+mod main_world;
+
 #[derive(Resource, Default)]
 struct TerrainAnswer(f32);
 
@@ -142,22 +145,14 @@ fn ask_terrain(query: DistanceFieldQuery, mut answer: ResMut<TerrainAnswer>) {
 fn heightfields_from_images_answer_queries_and_bad_images_are_refused() {
     use bevy::render::render_resource::TextureFormat;
     use bevy_penumbra_df::{DistanceFieldHeightfield, HeightfieldTerrain};
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        TransformPlugin,
-        AssetPlugin::default(),
-        bevy::mesh::MeshPlugin,
-        bevy::camera::visibility::VisibilityPlugin,
-    ))
-    .init_asset::<Shader>()
-    .init_asset::<Image>()
-    .add_plugins((
-        bevy_penumbra_df::SdfAssetPlugin,
-        bevy_penumbra_df::DistanceFieldScenePlugin,
-    ))
-    .init_resource::<TerrainAnswer>()
-    .add_systems(Update, ask_terrain);
+    let mut app = main_world::main_world_app();
+    app.init_asset::<Image>()
+        .add_plugins((
+            bevy_penumbra_df::SdfAssetPlugin,
+            bevy_penumbra_df::DistanceFieldScenePlugin,
+        ))
+        .init_resource::<TerrainAnswer>()
+        .add_systems(Update, ask_terrain);
     // 3 × 3 R32Float heights 0, 0.5, 1 along x (scaled ×2: 0, 1, 2 m).
     let ramp: Vec<u8> = (0..9)
         .flat_map(|i| (0.5 * (i % 3) as f32).to_le_bytes())

@@ -10,17 +10,12 @@ use bevy_penumbra_df::{
     GlobalDistanceFieldPlugin, GlobalDistanceFieldState, GlobalDistanceFieldStats, SdfAssetPlugin,
 };
 
+#[path = "support/main_world.rs"]
+mod main_world;
+
 fn app() -> App {
-    let mut app = App::new();
+    let mut app = main_world::main_world_app();
     app.add_plugins((
-        MinimalPlugins,
-        TransformPlugin,
-        AssetPlugin::default(),
-        bevy::mesh::MeshPlugin,
-        bevy::camera::visibility::VisibilityPlugin,
-    ))
-    .init_asset::<Shader>()
-    .add_plugins((
         SdfAssetPlugin,
         DistanceFieldScenePlugin,
         GlobalDistanceFieldPlugin,

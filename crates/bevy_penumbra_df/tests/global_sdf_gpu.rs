@@ -44,26 +44,7 @@ impl Gpu {
             &flatten("#import penumbra::df::global_compose\n").expect("flattens"),
             "compose",
         );
-        let bytes: Vec<u8> = scene
-            .atlas_bits
-            .iter()
-            .flat_map(|b| b.to_le_bytes())
-            .collect();
-        let s = scene.atlas_size;
-        let atlas = gpu
-            .texture(
-                "atlas",
-                wgpu::Extent3d {
-                    width: s.x,
-                    height: s.y,
-                    depth_or_array_layers: s.z,
-                },
-                wgpu::TextureDimension::D3,
-                wgpu::TextureFormat::R16Float,
-                2,
-                &bytes,
-            )
-            .create_view(&Default::default());
+        let atlas = support::atlas_texture(&gpu, scene).create_view(&Default::default());
         let field = gpu.zeroed("field", field_words(layout) * 4, BufferUsages::empty());
         Gpu {
             gpu,
@@ -93,26 +74,14 @@ impl Gpu {
             label: Some("global_compose"),
             layout: &self.pipeline.get_bind_group_layout(0),
             entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: objects.as_entire_binding(),
-                },
+                entry(0, &objects),
                 wgpu::BindGroupEntry {
                     binding: 1,
                     resource: wgpu::BindingResource::TextureView(&self.atlas),
                 },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: job_buffer.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: uniform.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: self.field.as_entire_binding(),
-                },
+                entry(2, &job_buffer),
+                entry(3, &uniform),
+                entry(4, &self.field),
             ],
         });
         gpu.dispatch(&self.pipeline, &bind, [jobs.len() as u32, 1, 1]);

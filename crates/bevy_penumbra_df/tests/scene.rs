@@ -13,19 +13,14 @@ use bevy_penumbra_df::{
 use penumbra_df_core::object::{ShapeKind, flags, unpack_10_10_12};
 use penumbra_sdf::SdfVolume;
 
+#[path = "support/main_world.rs"]
+mod main_world;
+
 fn app(settings: DistanceFieldSceneSettings) -> App {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        TransformPlugin,
-        AssetPlugin::default(),
-        bevy::mesh::MeshPlugin,
-        bevy::camera::visibility::VisibilityPlugin,
-    ))
-    .init_asset::<Shader>()
-    .insert_resource(settings)
-    .insert_resource(SdfBakeCache::with_directory(None))
-    .add_plugins((SdfAssetPlugin, DistanceFieldScenePlugin));
+    let mut app = main_world::main_world_app();
+    app.insert_resource(settings)
+        .insert_resource(SdfBakeCache::with_directory(None))
+        .add_plugins((SdfAssetPlugin, DistanceFieldScenePlugin));
     app.finish();
     app.cleanup();
     app

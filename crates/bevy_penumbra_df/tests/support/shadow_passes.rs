@@ -624,26 +624,35 @@ pub struct ViewInputs {
     pub gbuffer: wgpu::Texture,
 }
 
+/// The scene's atlas as the GPU's `R16Float` 3D texture.
+pub fn atlas_texture(gpu: &GpuCompute, scene: &Scene) -> wgpu::Texture {
+    let bytes: Vec<u8> = scene
+        .atlas_bits
+        .iter()
+        .flat_map(|b| b.to_le_bytes())
+        .collect();
+    let s = scene.atlas_size;
+    gpu.texture(
+        "atlas",
+        wgpu::Extent3d {
+            width: s.x,
+            height: s.y,
+            depth_or_array_layers: s.z,
+        },
+        wgpu::TextureDimension::D3,
+        wgpu::TextureFormat::R16Float,
+        2,
+        &bytes,
+    )
+}
+
 pub fn view_inputs(gpu: &GpuCompute, scene: &Scene, view: &View) -> ViewInputs {
     let size = |w, h, d| wgpu::Extent3d {
         width: w,
         height: h,
         depth_or_array_layers: d,
     };
-    let atlas_bytes: Vec<u8> = scene
-        .atlas_bits
-        .iter()
-        .flat_map(|b| b.to_le_bytes())
-        .collect();
-    let s = scene.atlas_size;
-    let atlas = gpu.texture(
-        "atlas",
-        size(s.x, s.y, s.z),
-        wgpu::TextureDimension::D3,
-        wgpu::TextureFormat::R16Float,
-        2,
-        &atlas_bytes,
-    );
+    let atlas = atlas_texture(gpu, scene);
     let depth_bytes: Vec<u8> = view.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
     let depth = gpu.texture(
         "depth",
