@@ -3,7 +3,8 @@
 //! (`penumbra_reference::dfao::pixel_ao` on the same caster) on the plane's pixels, the
 //! plane is occluded under the sphere and open far from it; with shading, only the
 //! indirect light darkens (a camera without the component renders the plane brighter
-//! under the sphere, a direct light's contribution is the same).
+//! under the sphere, a direct light's contribution is the same). With a global distance
+//! field the cones' far part goes through it, as the far-field model's does.
 
 use bevy::camera::Hdr;
 use bevy::core_pipeline::tonemapping::Tonemapping;
@@ -27,6 +28,7 @@ const MAX_DISTANCE: f32 = 3.0;
 #[derive(Resource, Clone)]
 struct Setup {
     dfao: Option<DistanceFieldAmbientOcclusion>,
+    global_field: Option<GlobalDistanceField>,
 }
 
 fn scene(
@@ -72,6 +74,9 @@ fn scene(
     if let Some(dfao) = setup.dfao.clone() {
         camera.insert(dfao);
     }
+    if let Some(field) = setup.global_field.clone() {
+        camera.insert(field);
+    }
 }
 
 fn ray(i: u32, j: u32) -> Vec3 {
@@ -88,12 +93,23 @@ fn render(dfao: Option<DistanceFieldAmbientOcclusion>) -> Vec<[f32; 4]> {
     let render = HeadlessRender::new(SIZE, SIZE)
         .frames(6)
         .format(CaptureFormat::LinearF16);
+    render
+        .run(app(&render, dfao, None))
+        .expect("headless render")
+        .to_linear()
+}
+
+fn app(
+    render: &HeadlessRender,
+    dfao: Option<DistanceFieldAmbientOcclusion>,
+    global_field: Option<GlobalDistanceField>,
+) -> App {
     let mut app = render.app();
     app.add_plugins(PenumbraPlugins)
         .insert_resource(DefaultOpaqueRendererMethod::deferred())
-        .insert_resource(Setup { dfao })
+        .insert_resource(Setup { dfao, global_field })
         .add_systems(Startup, scene);
-    render.run(app).expect("headless render").to_linear()
+    app
 }
 
 /// The plane's pixels, away from the sphere's silhouette: `(index, world point)`.
@@ -212,6 +228,127 @@ fn dfao_matches_the_model_and_occludes_only_indirect_light() {
     );
 }
 
+/// With a `GlobalDistanceField` on the camera (two 32³ clipmaps, 0.2 and 0.4 m texels)
+/// and the switch at 0.3 m, the AO view equals the far-field model
+/// (`penumbra_reference::dfao::pixel_ao_far` through the model's composition of the
+/// same caster): the app composes the clipmaps on the GPU, binds them and traces the
+/// cones through them. The far part matters (the sphere's bottom is 0.15 m up: most of
+/// it is beyond the switch; the objects alone up to 0.3 m leave the plane far lighter),
+/// and removing the component removes the render world's clipmaps.
+#[test]
+fn dfao_traces_the_global_field_beyond_the_switch() {
+    use penumbra_df_core::clipmap::ClipmapState;
+    use penumbra_reference::dfao::{FarField, pixel_ao_far};
+    use penumbra_reference::global_sdf::{ClipmapFormat, GlobalField};
+    if !gpu_or_skip("dfao_traces_the_global_field_beyond_the_switch") {
+        return;
+    }
+    let settings = DistanceFieldAmbientOcclusion {
+        max_occlusion_distance: MAX_DISTANCE,
+        trace_resolution_divisor: 1,
+        temporal_filter: false,
+        global_field_start: 0.3,
+        debug_view: DistanceFieldAoDebugView::AmbientOcclusion,
+        ..default()
+    };
+    let field_settings = GlobalDistanceField {
+        clipmap_count: 2,
+        resolution: 32,
+        first_extent: 6.4,
+        ..default()
+    };
+    let render = HeadlessRender::new(SIZE, SIZE)
+        .frames(6)
+        .without_pipelining()
+        .format(CaptureFormat::LinearF16);
+    let (capture, mut kept) = render
+        .run_keeping_app(app(
+            &render,
+            Some(settings.clone()),
+            Some(field_settings.clone()),
+        ))
+        .expect("headless render");
+    let ao = capture.to_linear();
+
+    let record = encode(&ObjectDesc {
+        world_from_local: bevy::math::Affine3A::from_translation(SPHERE),
+        shape: CasterShape::Sphere { radius: RADIUS },
+        flags: flags::LIVE | flags::VISIBLE | flags::CASTS_OCCLUSION | flags::CASTS_SHADOWS,
+    })
+    .expect("encodes");
+    let atlas = Atlas::new(UVec3::ONE);
+    let (layout, _, _) = field_settings.resolve();
+    let mut state = ClipmapState::new(layout);
+    let mut field = GlobalField::new(layout, ClipmapFormat::Unorm8);
+    for job in state.update(EYE, &[], usize::MAX).jobs {
+        field.compose_records(job, &[record], &atlas);
+    }
+    let far = FarField::new(&field, &state, EYE.as_dvec3(), settings.global_field_start);
+    let camera = CameraOrigin::at(EYE).expect("finite");
+    let trace = AoTrace {
+        max_distance: MAX_DISTANCE,
+        cone_count: settings.cone_count,
+        steps_per_cone: settings.steps_per_cone,
+        bias: settings.surface_bias,
+        shaping: penumbra_df_core::ao::CONE_SHAPING,
+    };
+    let near = AoTrace {
+        max_distance: settings.global_field_start,
+        ..trace
+    };
+    let (mut sum, mut worst, mut n, mut far_matters, mut apart) = (0.0f32, 0.0f32, 0, 0, 0);
+    for (k, p) in plane_pixels() {
+        let (want, _, _) = pixel_ao_far(&[record], &atlas, &camera, p - EYE, Vec3::Y, &trace, &far);
+        let near_only = pixel_ao(&[record], &atlas, &camera, p - EYE, Vec3::Y, &near).ao;
+        far_matters += usize::from(near_only - want.ao > 0.1);
+        let e = (ao[k][0] - want.ao).abs();
+        sum += e;
+        worst = worst.max(e);
+        apart += usize::from(e > 0.02);
+        n += 1;
+    }
+    let mean = sum / n as f32;
+    eprintln!(
+        "AO view with the global field vs the far-field model over {n} plane pixels: mean |Δ| {mean:.4}, worst {worst:.4}, {apart} apart by > 0.02; {far_matters} pixels darkened by the far part"
+    );
+    assert!(
+        far_matters > 50,
+        "the far part hardly matters: {far_matters}"
+    );
+    // The G-buffer's normals and f16 storage; a field sample on the edge of the
+    // receiver-plane rule may flip a cone (one pixel in this scene).
+    assert!(
+        mean < 0.01 && apart * 100 <= n,
+        "mean {mean}, {apart} apart"
+    );
+
+    let fields = |app: &mut App| {
+        let world = app.sub_app_mut(bevy::render::RenderApp).world_mut();
+        world
+            .query::<&penumbra::df::global_field::ViewGlobalField>()
+            .iter(world)
+            .map(|f| f.backlog())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(
+        fields(&mut kept),
+        [0],
+        "one camera's clipmaps, all composed"
+    );
+    let camera = kept
+        .world_mut()
+        .query_filtered::<Entity, With<Camera3d>>()
+        .single(kept.world())
+        .unwrap();
+    kept.world_mut()
+        .entity_mut(camera)
+        .remove::<GlobalDistanceField>();
+    for _ in 0..3 {
+        kept.update();
+    }
+    assert!(fields(&mut kept).is_empty(), "clipmaps left behind");
+}
+
 /// Removing the component stops the passes: the render-world view loses its AO input
 /// (and with it the trace, the upsample and the lighting pass's occlusion); adding it
 /// back restores them.
@@ -228,6 +365,7 @@ fn removing_dfao_removes_its_passes() {
         .insert_resource(DefaultOpaqueRendererMethod::deferred())
         .insert_resource(Setup {
             dfao: Some(DistanceFieldAmbientOcclusion::default()),
+            global_field: None,
         })
         .add_systems(Startup, scene);
     let (_, mut app) = render.run_keeping_app(app).expect("headless render");

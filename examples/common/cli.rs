@@ -15,7 +15,8 @@
 //! `--plain` (without Penumbra's distance-field effects: the lights' shadows are Bevy's
 //! shadow maps and there is no DFAO — the "before" image), `--ao-view V` (examples with
 //! DFAO: its debug view, `ao`, `bent` or `tiles`), `--casters N` (`dfao`: N extra small
-//! casters, to see how the cost grows).
+//! casters, to see how the cost grows), `--global-field` (`dfao`: a
+//! `GlobalDistanceField` on the camera, the cones' far part traced through it).
 //!
 //! Windowed runs take keyboard toggles (`controls.rs`: `Space` distance-field shadows,
 //! `H` half resolution, `D` debug view), shown in the window title.
@@ -58,6 +59,9 @@ pub struct Options {
     pub ao_view: Option<penumbra::prelude::DistanceFieldAoDebugView>,
     /// Extra casters, for examples that scale (`dfao`).
     pub casters: Option<u32>,
+    /// Put a `GlobalDistanceField` on the DFAO cameras (`dfao`): their cones go on
+    /// through it beyond `global_field_start`.
+    pub global_field: bool,
     /// `--no-dfao component|plugin`: remove every `DistanceFieldAmbientOcclusion` after
     /// the scene spawns (distance-field shadows stay); with `plugin` the `dfao` example
     /// also builds `PenumbraPlugins` without `DistanceFieldAmbientOcclusionPlugin` (the
@@ -76,7 +80,7 @@ pub enum NoDfao {
 }
 
 const USAGE: &str = "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N] [--glass] \
-     [--plain] [--ao-view ao|bent|tiles] [--casters N] [--no-dfao component|plugin]";
+     [--plain] [--ao-view ao|bent|tiles] [--casters N] [--global-field] [--no-dfao component|plugin]";
 
 impl Options {
     /// Parses `std::env::args()`-style arguments (without the program name).
@@ -91,6 +95,7 @@ impl Options {
             plain: false,
             ao_view: None,
             casters: None,
+            global_field: false,
             no_dfao: None,
         };
         let mut args = args.into_iter();
@@ -100,6 +105,7 @@ impl Options {
                 "--headless" => o.headless = true,
                 "--glass" => o.glass = true,
                 "--plain" => o.plain = true,
+                "--global-field" => o.global_field = true,
                 "--casters" => {
                     let v = value("--casters")?;
                     match v.parse::<u32>() {
@@ -363,7 +369,7 @@ fn print_pass_times(name: &str, world: &World) {
     }
 }
 
-/// `--plain` and `--ao-view`, applied once the scene has spawned.
+/// `--plain`, `--ao-view` and `--global-field`, applied once the scene has spawned.
 fn apply_options(
     mut commands: Commands,
     options: Res<Options>,
@@ -379,8 +385,15 @@ fn apply_options(
             commands
                 .entity(entity)
                 .remove::<DistanceFieldAmbientOcclusion>();
-        } else if let Some(view) = options.ao_view {
-            ao.debug_view = view;
+        } else {
+            if let Some(view) = options.ao_view {
+                ao.debug_view = view;
+            }
+            if options.global_field {
+                commands
+                    .entity(entity)
+                    .insert(penumbra::prelude::GlobalDistanceField::default());
+            }
         }
     }
     if options.plain {

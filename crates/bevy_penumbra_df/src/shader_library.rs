@@ -37,10 +37,28 @@ impl PenumbraShaderLibrary {
         path: &str,
         entry: &'static str,
     ) -> bevy::render::render_resource::CachedComputePipelineId {
+        self.queue_compute_layouts(
+            pipeline_cache,
+            label,
+            std::slice::from_ref(layout),
+            path,
+            entry,
+        )
+    }
+
+    /// [`Self::queue_compute`] with bind groups `0..` of `layouts`.
+    pub fn queue_compute_layouts(
+        &self,
+        pipeline_cache: &bevy::render::render_resource::PipelineCache,
+        label: &'static str,
+        layouts: &[bevy::render::render_resource::BindGroupLayoutDescriptor],
+        path: &str,
+        entry: &'static str,
+    ) -> bevy::render::render_resource::CachedComputePipelineId {
         pipeline_cache.queue_compute_pipeline(
             bevy::render::render_resource::ComputePipelineDescriptor {
                 label: Some(label.into()),
-                layout: vec![layout.clone()],
+                layout: layouts.to_vec(),
                 shader: self.handle(path),
                 entry_point: Some(entry.into()),
                 ..default()

@@ -15,6 +15,7 @@ use bevy::render::render_resource::encase::internal::WriteInto;
 use bevy::render::render_resource::encase::{ShaderType, UniformBuffer};
 use glam::{Affine3A, Mat3, Mat4, UVec2, Vec2, Vec3, Vec4};
 use penumbra_df_core::ao::{AoTemporalView, AoTrace, AoTraceView, CONE_SHAPING, trace_size};
+use penumbra_df_core::clipmap::GlobalFieldView;
 use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::object::{CasterShape, ObjectDesc, encode, flags};
 use penumbra_reference::shadow_mask::pack_gbuffer_normal;
@@ -134,12 +135,35 @@ fn uniform<T: ShaderType + WriteInto>(gpu: &GpuCompute, label: &str, value: &T) 
     gpu.buffer(label, bytes.as_ref(), BufferUsages::UNIFORM)
 }
 
+/// The trace's group 1: a global field's bytes, validity bits and view.
+fn field_group(
+    gpu: &GpuCompute,
+    pipeline: &wgpu::ComputePipeline,
+    field: &[u8],
+    valid: &[u32],
+    view: &GlobalFieldView,
+) -> wgpu::BindGroup {
+    let field = gpu.buffer("global_field", field, BufferUsages::empty());
+    let valid: Vec<u8> = valid.iter().flat_map(|w| w.to_le_bytes()).collect();
+    let valid = gpu.buffer("global_valid", &valid, BufferUsages::empty());
+    let view = uniform(gpu, "global_view", view);
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("global_field"),
+        layout: &pipeline.get_bind_group_layout(1),
+        entries: &[
+            entry(0, field.as_entire_binding()),
+            entry(1, valid.as_entire_binding()),
+            entry(2, view.as_entire_binding()),
+        ],
+    })
+}
+
 /// Median wall-clock of 5 runs of `pipeline` over `groups` workgroups, each from
 /// submission until the queue is idle.
 fn time(
     gpu: &GpuCompute,
     pipeline: &wgpu::ComputePipeline,
-    bind: &wgpu::BindGroup,
+    binds: &[&wgpu::BindGroup],
     groups: UVec2,
 ) -> Duration {
     let wait = || {
@@ -151,7 +175,7 @@ fn time(
         .map(|_| {
             wait();
             let start = Instant::now();
-            gpu.dispatch(pipeline, bind, [groups.x, groups.y, 1]);
+            gpu.dispatch_groups(pipeline, binds, [groups.x, groups.y, 1]);
             wait();
             start.elapsed()
         })
@@ -348,17 +372,18 @@ fn dfao_pass_times_at_512() {
             (bind, buffer)
         };
         let groups = |s: UVec2| UVec2::new(s.x.div_ceil(8), s.y.div_ceil(8));
-        let t_trace = time(&gpu, &trace, &trace_bind, groups(small));
-        let t_upsample = time(&gpu, &upsample, &upsample_bind, groups(full));
+        let no_field = field_group(&gpu, &trace, &[0; 4], &[0], &GlobalFieldView::default());
+        let t_trace = time(&gpu, &trace, &[&trace_bind, &no_field], groups(small));
+        let t_upsample = time(&gpu, &upsample, &[&upsample_bind], groups(full));
         let (first, _keep) = temporal_bind(0, (8, 9), (5, 6));
-        let t_first = time(&gpu, &temporal, &first, groups(full));
+        let t_first = time(&gpu, &temporal, &[&first], groups(full));
         // Three more frames (the confidence passes ½ after two), then the steady one.
         for (history, out) in [((5, 6), (8, 9)), ((8, 9), (5, 6)), ((5, 6), (8, 9))] {
             let (bind, _keep) = temporal_bind(1, history, out);
             gpu.dispatch(&temporal, &bind, [groups(full).x, groups(full).y, 1]);
         }
         let (steady, _keep) = temporal_bind(1, (8, 9), (5, 6));
-        let t_steady = time(&gpu, &temporal, &steady, groups(full));
+        let t_steady = time(&gpu, &temporal, &[&steady], groups(full));
         let ms = |d: Duration| d.as_secs_f64() * 1e3;
         eprintln!(
             "| {count} | {cones} / {steps} / {divisor} | {:.1} ms | {:.1} ms | {:.1} ms ({:.1} ms on a first frame) |",

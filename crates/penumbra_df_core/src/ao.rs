@@ -143,6 +143,11 @@ pub struct AoTraceView {
     /// number of objects its tile keeps for the texel's distance range over
     /// [`TILE_OBJECTS_SCALE`] (`penumbra_reference::dfao::tile_object_counts`).
     pub tile_objects_debug: u32,
+    /// With a global distance field: the far field's reach along each cone, metres
+    /// (the trace's max distance; [`AoTraceView::max_distance`] is then the switch
+    /// distance, where the objects' march stops and the field's begins). 0: no far
+    /// field.
+    pub far_distance: f32,
 }
 
 /// The objects-per-tile debug view stores `count / TILE_OBJECTS_SCALE` in the AO channel
@@ -182,6 +187,29 @@ impl AoTraceView {
             shaping: trace.shaping,
             influence: trace.influence(),
             tile_objects_debug: 0,
+            far_distance: 0.0,
+        }
+    }
+
+    /// The uniform of a trace that marches the objects up to `switch_distance` along
+    /// each cone and a global distance field from there to `trace.max_distance`
+    /// (`penumbra_reference::dfao::far`): the objects' part is a trace whose max distance
+    /// (and influence, which culls the objects) is the switch distance. A switch at or
+    /// beyond the max distance is the objects-only trace.
+    pub fn with_far_field(self, trace: &AoTrace, switch_distance: f32) -> AoTraceView {
+        // NaN or at least the reach: the objects-only trace.
+        if switch_distance.is_nan() || switch_distance >= trace.max_distance {
+            return self;
+        }
+        let near = AoTrace {
+            max_distance: switch_distance.max(0.0),
+            ..*trace
+        };
+        AoTraceView {
+            max_distance: near.max_distance,
+            influence: near.influence(),
+            far_distance: trace.max_distance,
+            ..self
         }
     }
 }

@@ -202,6 +202,7 @@ fn ao_layouts_and_constants_match() {
             "shaping",
             "influence",
             "tile_objects_debug",
+            "far_distance",
         ]
     );
     assert_eq!(constant(&m, "MAX_CONES") as u32, MAX_CONES);

@@ -246,6 +246,25 @@ impl GpuCompute {
         self.queue.submit([encoder.finish()]);
     }
 
+    /// Records and submits one dispatch of `workgroups` with bind groups `0..`.
+    pub fn dispatch_groups(
+        &self,
+        pipeline: &wgpu::ComputePipeline,
+        groups: &[&wgpu::BindGroup],
+        workgroups: [u32; 3],
+    ) {
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipeline);
+            for (i, g) in groups.iter().enumerate() {
+                pass.set_bind_group(i as u32, *g, &[]);
+            }
+            pass.dispatch_workgroups(workgroups[0], workgroups[1], workgroups[2]);
+        }
+        self.queue.submit([encoder.finish()]);
+    }
+
     /// Waits for the queue and copies `buffer`'s first `size` bytes back.
     pub fn read(&self, buffer: &wgpu::Buffer, size: u64) -> Vec<u8> {
         let size = size.next_multiple_of(4);

@@ -182,6 +182,15 @@ pub struct DistanceFieldAmbientOcclusion {
     /// contact occlusion detaches. Clamped to `≥ 0`, and to a quarter of
     /// `max_occlusion_distance` when at least half of it, with a warning.
     pub surface_bias: f32,
+    /// With a [`GlobalDistanceField`](crate::GlobalDistanceField) on the camera: each
+    /// cone marches the casters' own distance fields up to this far, metres, and the
+    /// global field from there to `max_occlusion_distance` (Wright 2015; Unreal's
+    /// `r.AOGlobalDFStartDistance`). Default 1. Shorter: fewer casters per pixel (the
+    /// trace visits only those within about this distance) and coarser occlusion
+    /// nearby (the field's texels are 0.2 m and up). Ignored without a global field,
+    /// or when at least `max_occlusion_distance`. Must be ≥ 0 (the default otherwise,
+    /// with a warning).
+    pub global_field_start: f32,
     /// How specular indirect light is occluded. Default
     /// [`DistanceFieldSpecularOcclusion::ConeCone`]. No cost to speak of.
     pub specular_occlusion: DistanceFieldSpecularOcclusion,
@@ -201,6 +210,7 @@ impl Default for DistanceFieldAmbientOcclusion {
             trace_resolution_divisor: 4,
             temporal_filter: true,
             surface_bias: 0.02,
+            global_field_start: 1.0,
             specular_occlusion: DistanceFieldSpecularOcclusion::ConeCone,
             debug_view: DistanceFieldAoDebugView::None,
         }
@@ -238,6 +248,8 @@ pub(crate) struct ResolvedAo {
     pub(crate) trace: AoTrace,
     pub(crate) divisor: u32,
     pub(crate) temporal: bool,
+    /// Where the cones switch to the global field, metres.
+    pub(crate) global_field_start: f32,
     pub(crate) contrast: f32,
     pub(crate) min_occlusion: f32,
     pub(crate) tint: LinearRgba,
@@ -273,6 +285,7 @@ impl DistanceFieldAmbientOcclusion {
             },
         );
         let mut bias = positive("surface_bias", self.surface_bias, 0.0, 0.0);
+        let global_field_start = positive("global_field_start", self.global_field_start, 0.0, 1.0);
         if bias >= 0.5 * max_distance {
             // The cones would start (nearly) beyond their reach: no occlusion at all.
             let c = 0.25 * max_distance;
@@ -326,6 +339,7 @@ impl DistanceFieldAmbientOcclusion {
                 },
                 divisor,
                 temporal: self.temporal_filter,
+                global_field_start,
                 contrast,
                 min_occlusion,
                 tint,

@@ -2,6 +2,7 @@
 //! input the lighting pass reads.
 
 use super::{DistanceFieldAoDebugView, DistanceFieldSpecularOcclusion, ExtractedDfao};
+use crate::global_field::ViewGlobalField;
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::lighting::{PenumbraAoInput, PenumbraLightingView};
 use crate::scene::DistanceFieldGpu;
@@ -94,6 +95,10 @@ pub struct ViewAoBindGroups {
     temporal: Option<[BindGroup; 2]>,
     /// This frame's parity (which `temporal` group runs).
     parity: usize,
+    /// The trace's group 1: the camera's global field, or `no_field`.
+    far: Option<BindGroup>,
+    /// An empty global field (made when first needed).
+    no_field: Option<BindGroup>,
 }
 
 pub(super) fn build(render_app: &mut SubApp) {
@@ -182,10 +187,11 @@ fn init_ao_pipelines(
         "df/ao_temporal.wgsl",
         "temporal",
     );
-    let trace = library.queue_compute(
+    // Group 1: the camera's global distance field (an empty one without).
+    let trace = library.queue_compute_layouts(
         &pipeline_cache,
         "penumbra_dfao_trace",
-        &trace_layout,
+        &[trace_layout.clone(), crate::global_field::read_layout()],
         "df/ao_trace.wgsl",
         "trace",
     );
@@ -366,6 +372,7 @@ fn prepare_dfao_bind_groups(
             &mut ViewAoTextures,
             &ViewPrepassTextures,
             Option<&mut ViewAoBindGroups>,
+            Option<&ViewGlobalField>,
         ),
         With<PenumbraAoInput>,
     >,
@@ -380,7 +387,8 @@ fn prepare_dfao_bind_groups(
         .atlas
         .as_ref()
         .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
-    for (entity, view, ExtractedDfao(settings), mut textures, prepass, groups) in &mut views {
+    for (entity, view, ExtractedDfao(settings), mut textures, prepass, groups, field) in &mut views
+    {
         let (Some(depth), Some(gbuffer), Some(camera)) = (
             prepass.depth_view(),
             prepass.deferred_view(),
@@ -410,6 +418,9 @@ fn prepare_dfao_bind_groups(
         );
         uniform.tile_objects_debug =
             u32::from(settings.debug == DistanceFieldAoDebugView::ObjectsPerTile);
+        if field.is_some() {
+            uniform = uniform.with_far_field(&settings.trace, settings.global_field_start);
+        }
         let mut bytes = EncaseBuffer::new(Vec::new());
         bytes.write(&uniform).expect("fixed-size uniform");
         let temporal_uniform = AoTemporalView {
@@ -449,10 +460,21 @@ fn prepare_dfao_bind_groups(
                     upsample: None,
                     temporal: None,
                     parity: 0,
+                    far: None,
+                    no_field: None,
                 });
                 fresh.as_mut().expect("just set")
             }
         };
+        groups.far = Some(match field {
+            Some(field) => field.read_group().clone(),
+            None => groups
+                .no_field
+                .get_or_insert_with(|| {
+                    crate::global_field::empty_read_group(&allocations, &device, &pipeline_cache)
+                })
+                .clone(),
+        });
         queue.write_buffer(&groups.uniform, 0, bytes.as_ref());
         queue.write_buffer(&groups.temporal_uniform, 0, temporal_bytes.as_ref());
         groups.parity = (frame % 2) as usize;
@@ -546,7 +568,7 @@ fn distance_field_ambient_occlusion(
     };
     let upsample = pipeline_cache.get_compute_pipeline(pipelines.upsample);
     let temporal = pipeline_cache.get_compute_pipeline(pipelines.temporal);
-    let Some(trace_group) = &groups.trace else {
+    let (Some(trace_group), Some(far_group)) = (&groups.trace, &groups.far) else {
         return;
     };
     let diagnostics = ctx.diagnostic_recorder();
@@ -561,6 +583,7 @@ fn distance_field_ambient_occlusion(
             });
         pass.set_pipeline(trace);
         pass.set_bind_group(0, trace_group, &[]);
+        pass.set_bind_group(1, far_group, &[]);
         let size = trace_size(textures.size, textures.divisor);
         pass.dispatch_workgroups(size.x.div_ceil(8), size.y.div_ceil(8), 1);
     }

@@ -34,12 +34,19 @@
 //! Status (#17): the main-world bookkeeping is here; the GPU buffers, the compose
 //! dispatch, DFAO's far field, heightfields, particles and debug views are to come.
 
+mod render;
+
 use crate::scene::{DistanceFieldFrame, DistanceFieldScene, DistanceFieldSystems};
 use bevy::prelude::*;
+use bevy::render::RenderApp;
+use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
+use bevy::render::sync_component::SyncComponent;
 use penumbra_df_core::clipmap::{
     ClipmapLayout, ClipmapState, DEFAULT_BRICK_BUDGET, DirtyBox, record_dirty_box,
 };
 use penumbra_df_core::object::ObjectRecord;
+pub use render::{ExtractedGlobalField, ViewGlobalField};
+pub(crate) use render::{empty_read_group, read_layout};
 
 /// Adds the global distance field to cameras with [`GlobalDistanceField`]. Part of
 /// `PenumbraPlugins`; needs `DistanceFieldScenePlugin`.
@@ -126,6 +133,23 @@ impl GlobalDistanceFieldState {
     }
 }
 
+impl SyncComponent for GlobalDistanceField {
+    /// The render world's clipmaps go with the component.
+    type Target = (ExtractedGlobalField, ViewGlobalField);
+}
+
+impl ExtractComponent for GlobalDistanceField {
+    type QueryData = (&'static GlobalDistanceFieldState, &'static GlobalTransform);
+    type QueryFilter = ();
+    type Out = ExtractedGlobalField;
+
+    fn extract_component(
+        (state, transform): (&GlobalDistanceFieldState, &GlobalTransform),
+    ) -> Option<ExtractedGlobalField> {
+        Some(ExtractedGlobalField::new(state, transform.translation()))
+    }
+}
+
 /// This frame's global-field work, summed over the cameras.
 #[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct GlobalDistanceFieldStats {
@@ -157,6 +181,7 @@ impl Plugin for GlobalDistanceFieldPlugin {
             "GlobalDistanceFieldPlugin",
             "DistanceFieldScenePlugin",
         );
+        crate::shader_library::register_shader_library(app);
         app.register_type::<GlobalDistanceField>()
             .init_resource::<GlobalDistanceFieldStats>()
             .init_resource::<SeenRecords>()
@@ -166,6 +191,18 @@ impl Plugin for GlobalDistanceFieldPlugin {
                     .chain()
                     .after(DistanceFieldSystems::UpdateObjects),
             );
+        // Headless apps without a renderer (servers asking `DistanceFieldQuery`) keep
+        // the main-world books only.
+        if app.get_sub_app(RenderApp).is_some() {
+            app.add_plugins(ExtractComponentPlugin::<GlobalDistanceField>::default());
+            render::build(app.sub_app_mut(RenderApp));
+        }
+    }
+
+    fn finish(&self, app: &mut App) {
+        if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
+            render::finish(render_app);
+        }
     }
 }
 

@@ -58,6 +58,7 @@ use penumbra_df_core::table::{Deltas, ObjectTable};
 pub use cull::CulledObjects;
 pub use heightfield::{DistanceFieldHeightfield, HeightfieldTerrain, image_heights};
 pub use query::{DistanceFieldQuery, SphereHit};
+pub(crate) use render::apply_distance_field_deltas;
 pub use render::{DistanceFieldGpu, DistanceFieldPipelines, DistanceFieldRenderSystems};
 pub use scene_casters::{
     DistanceFieldSceneCaster, DistanceFieldSceneCasters, SceneCasterCounts, SceneTwoSided,

@@ -51,6 +51,14 @@ pub struct DistanceFieldGpu {
     writes_per_chunk: u32,
 }
 
+impl DistanceFieldGpu {
+    /// Whether object writes are held back (the delta pipeline compiling): the object
+    /// buffer is then behind the main world's records.
+    pub fn deltas_held_back(&self) -> bool {
+        !self.pending.is_empty()
+    }
+}
+
 /// The delta pass's buffers: the frame's writes (all chunks back to back) and one
 /// `DeltaParams` per chunk, with a bind group per chunk.
 struct DeltaBuffers {
@@ -424,7 +432,7 @@ fn write_atlas(queue: &RenderQueue, texture: &Texture, upload: &AtlasUpload) {
 }
 
 /// The delta pass: one dispatch per chunk of this frame's writes.
-fn apply_distance_field_deltas(
+pub(crate) fn apply_distance_field_deltas(
     mut ctx: RenderContext,
     gpu: Res<DistanceFieldGpu>,
     pipelines: Option<Res<DistanceFieldPipelines>>,

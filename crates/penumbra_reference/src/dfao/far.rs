@@ -127,12 +127,31 @@ pub fn pixel_ao_far(
     trace: &AoTrace,
     far: &FarField,
 ) -> (AoSample, u32, u32) {
-    let near = AoTrace {
-        max_distance: trace.max_distance.min(far.switch_distance),
+    pixel_ao_far_filtered(records, atlas, camera, p, n, trace, far, |_| true)
+}
+
+/// The objects' part of a far-field trace: `trace` up to the switch distance.
+fn near_trace(trace: &AoTrace, far: &FarField) -> AoTrace {
+    AoTrace {
+        max_distance: trace.max_distance.min(far.switch_distance.max(0.0)),
         ..*trace
-    };
+    }
+}
+
+#[allow(clippy::too_many_arguments, reason = "the pass's inputs")]
+fn pixel_ao_far_filtered(
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    camera: &CameraOrigin,
+    p: Vec3,
+    n: Vec3,
+    trace: &AoTrace,
+    far: &FarField,
+    keep: impl Fn(usize) -> bool,
+) -> (AoSample, u32, u32) {
+    let near = near_trace(trace, far);
     let (mut visibility, evaluations) =
-        cone_visibilities(records, atlas, camera, p, n, &near, |_| true);
+        cone_visibilities(records, atlas, camera, p, n, &near, keep);
     let count = trace.cone_count;
     let tan_half = cone_tan_half(count);
     let (t, b) = tangent_frame(n);
@@ -148,6 +167,44 @@ pub fn pixel_ao_far(
         }
     }
     (combine(&visibility, n), evaluations, samples)
+}
+
+/// The trace pass over a view with the far field (`shaders/df/ao_trace.wgsl` with a
+/// global distance field bound): [`super::trace_view`]'s tiles, culled with the objects'
+/// part's influence (up to the switch distance), each texel's cones going on through
+/// the field. Returns the texels, the object distance evaluations and the field
+/// samples.
+#[allow(clippy::too_many_arguments, reason = "the pass's inputs")]
+pub fn trace_view_far(
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    camera: &CameraOrigin,
+    view: &super::AoView,
+    divisor: u32,
+    jitter: glam::UVec2,
+    trace: &AoTrace,
+    far: &FarField,
+) -> (Vec<glam::Vec4>, u64, u64) {
+    let size = penumbra_df_core::ao::trace_size(view.size, divisor);
+    let mut out = vec![glam::Vec4::new(1.0, 0.0, 0.0, 0.0); (size.x * size.y) as usize];
+    let (mut evaluations, mut samples) = (0u64, 0u64);
+    let influence = near_trace(trace, far).influence();
+    super::for_each_tile_texel(
+        records,
+        atlas,
+        camera,
+        view,
+        (divisor, jitter),
+        influence,
+        |texel, p, n, kept| {
+            let (s, e, f) =
+                pixel_ao_far_filtered(records, atlas, camera, p, n, trace, far, |slot| kept[slot]);
+            evaluations += u64::from(e);
+            samples += u64::from(f);
+            out[(texel.y * size.x + texel.x) as usize] = s.to_vec4();
+        },
+    );
+    (out, evaluations, samples)
 }
 
 #[cfg(test)]

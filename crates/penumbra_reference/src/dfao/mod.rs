@@ -496,7 +496,7 @@ mod temporal_tests;
 #[cfg(test)]
 mod tests;
 
-pub use far::{FarField, march_field, pixel_ao_far};
+pub use far::{FarField, march_field, pixel_ao_far, trace_view_far};
 pub use heightfield::{heightfield_ao, heightfield_visibilities};
 pub use temporal::{AoHistory, TemporalFrame, TemporalSteps, temporal_step};
 

@@ -278,6 +278,29 @@ impl GlobalField {
         self.texels[level as usize][self.index(w)]
     }
 
+    /// The field buffer as the GPU holds it (`penumbra_df_core::clipmap::texel_byte`):
+    /// 8-bit codes of every stored texel (0 where none was composed). Only for
+    /// [`ClipmapFormat::Unorm8`], the GPU's format.
+    pub fn field_bytes(&self) -> Vec<u8> {
+        let layout = &self.layout;
+        let n = layout.resolution as i32;
+        let mut bytes = vec![0u8; penumbra_df_core::clipmap::field_words(layout) as usize * 4];
+        for level in 0..layout.levels {
+            let band = layout.band(level);
+            for (i, &v) in self.texels[level as usize].iter().enumerate() {
+                if v.is_nan() {
+                    continue;
+                }
+                let i = i as i32;
+                let s = IVec3::new(i % n, (i / n) % n, i / (n * n));
+                let (word, byte) = penumbra_df_core::clipmap::texel_byte(layout, level, s);
+                let code = ((0.5 + 0.5 * v / band) * 255.0).round().clamp(0.0, 255.0);
+                bytes[(4 * word + byte) as usize] = code as u8;
+            }
+        }
+        bytes
+    }
+
     /// The objects that can change brick `job`'s texels: bounds grown by the level's
     /// reach (band and dilation) reach a texel centre of the brick.
     pub fn cull<'o, 'a>(

@@ -31,6 +31,8 @@ struct AoTraceView {
     shaping: f32,
     influence: f32,
     tile_objects_debug: u32,
+    // The far field's reach (0: none; `max_distance` is then the switch distance).
+    far_distance: f32,
 }
 
 // `ao::TILE_OBJECTS_SCALE`.

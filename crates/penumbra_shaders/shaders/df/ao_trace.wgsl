@@ -7,8 +7,11 @@
 // writes (AO, bent normal). Texel (i, j) traces full-resolution pixel
 // (i, j) · divisor + jitter; background texels get (1, 0, 0, 0). The objects-per-tile
 // debug view writes the count of objects kept for the texel's range, over
-// TILE_OBJECTS_SCALE, in place of the AO (`dfao::tile_object_counts`).
-// CPU model: `penumbra_reference::dfao::trace_view`.
+// TILE_OBJECTS_SCALE, in place of the AO (`dfao::tile_object_counts`). With a global
+// distance field (`far_distance` > `max_distance`, group 1 bound to its clipmaps) each
+// cone goes on through the field from the switch distance (`max_distance`) to
+// `far_distance`; otherwise group 1 is an empty field that is never read.
+// CPU model: `penumbra_reference::dfao::trace_view` (`trace_view_far` with the field).
 #define_import_path penumbra::df::ao_trace
 
 #import penumbra::df::object::DistanceFieldObject
@@ -18,6 +21,7 @@
 #import penumbra::df::ao::{
     AoTraceView, MAX_CONES, TILE_OBJECTS_SCALE, casts_occlusion, combine, cone_direction, march_cone, tangent_frame,
 }
+#import penumbra::df::global_field::{FarCone, march_field}
 
 @group(0) @binding(0) var<storage, read> objects: array<DistanceFieldObject>;
 @group(0) @binding(1) var atlas: texture_3d<f32>;
@@ -84,6 +88,15 @@ fn tile_keeps(o: DistanceFieldObject, sphere: vec4<f32>, ball: vec4<f32>) -> boo
 fn in_reach(sphere: vec4<f32>, p: vec3<f32>) -> bool {
     return sphere.w < 0.0
         || length(sphere.xyz - p) - sphere.w < view.influence + cull_slack(sphere.w + view.influence);
+}
+
+// One cone's visibility through the global field from the switch distance (the
+// objects' max distance) to the far distance (`dfao::far::pixel_ao_far`).
+fn far_cone(o: vec3<f32>, axis: vec3<f32>, rise: f32) -> f32 {
+    return march_field(FarCone(
+        o, axis, rise, view.tan_half, view.bias, view.far_distance, view.steps_per_cone,
+        view.shaping, view.max_distance, 0u,
+    ));
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -189,6 +202,13 @@ fn trace(
             }
         }
         workgroupBarrier();
+    }
+    if surface && view.far_distance > view.max_distance {
+        for (var k = 0u; k < count; k += 1u) {
+            let a = cone_direction(k, count);
+            let axis = frame[0] * a.x + frame[1] * a.y + n * a.z;
+            visibility[k] = min(visibility[k], far_cone(o, axis, a.z));
+        }
     }
     if inside {
         var out = vec4<f32>(1.0, 0.0, 0.0, 0.0);
