@@ -390,6 +390,9 @@ fn apply_options(
                 ao.debug_view = view;
             }
             if options.global_field {
+                // The field from 1 m: within the example's 3 m reach (the default
+                // switch, 3 m, would leave it unused).
+                ao.global_field_start = 1.0;
                 commands
                     .entity(entity)
                     .insert(penumbra::prelude::GlobalDistanceField::default());

@@ -394,3 +394,242 @@ fn dfao_pass_times_at_512() {
         );
     }
 }
+
+/// Ground truth: the AO at world point `p` (normal `n`) from `rays_sqrt²` stratified
+/// cosine-weighted rays, each blocked when it meets the plane `y = 0` or a ball within
+/// `reach` (exact intersections).
+fn truth_ao(balls: &[(Vec3, f32)], p: Vec3, n: Vec3, reach: f32, rays_sqrt: u32) -> f32 {
+    let near: Vec<(Vec3, f32)> = balls
+        .iter()
+        .copied()
+        .filter(|&(c, r)| (c - p).length() < reach + r)
+        .collect();
+    let (t, b) = penumbra_df_core::ao::tangent_frame(n);
+    let origin = p + n * 1e-3;
+    let mut open = 0;
+    for i in 0..rays_sqrt {
+        for j in 0..rays_sqrt {
+            let u = (i as f32 + 0.5) / rays_sqrt as f32;
+            let phi = std::f32::consts::TAU * (j as f32 + 0.5) / rays_sqrt as f32;
+            let (rho, z) = (u.sqrt(), (1.0 - u).sqrt());
+            let dir = (t * (rho * phi.cos()) + b * (rho * phi.sin()) + n * z).normalize();
+            let plane = dir.y < 0.0 && -origin.y / dir.y < reach;
+            let ball = near.iter().any(|&(c, r)| {
+                let oc = origin - c;
+                let bb = oc.dot(dir);
+                let disc = bb * bb - (oc.length_squared() - r * r);
+                disc > 0.0 && {
+                    let s = disc.sqrt();
+                    let t = if -bb - s > 0.0 { -bb - s } else { -bb + s };
+                    t > 0.0 && t < reach
+                }
+            });
+            open += usize::from(!(plane || ball));
+        }
+    }
+    open as f32 / (rays_sqrt * rays_sqrt) as f32
+}
+
+/// The global field's far field on 1,000 casters (the plane and 999 balls above), the
+/// component's defaults at Unreal's 10 m reach: per configuration — objects only, and
+/// the far field from a switch distance of 0.5, 1, 2, 3 and 4 m — the object distance
+/// evaluations and field samples per pixel and the mean |AO − truth| (the CPU model on
+/// every 16th pixel of each axis; truth: 1,024 exact rays per pixel), and the trace
+/// pass's lavapipe time at 512² with divisor 4 (median of 5). The field: the default
+/// clipmaps (4 × 128³) around the camera, composed by the model (equal to the GPU's:
+/// `global_sdf_gpu`). `cargo test -p bevy_penumbra_df --test dfao_pass_times
+/// dfao_far_field -- --ignored --nocapture`.
+#[test]
+#[ignore = "a measurement: run with --ignored --nocapture"]
+fn dfao_far_field_figures_at_512() {
+    use penumbra_df_core::clipmap::{ClipmapLayout, ClipmapState};
+    use penumbra_reference::df::Atlas;
+    use penumbra_reference::dfao::{FarField, pixel_ao_counted, pixel_ao_far};
+    use penumbra_reference::global_sdf::{ClipmapFormat, GlobalField};
+    use penumbra_reference::shadow_mask::position_from_depth;
+    if !gpu_or_skip("dfao_far_field_figures_at_512") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let trace_pipeline = gpu.pipeline(
+        &flatten("#import penumbra::df::ao_trace\n").expect("flattens"),
+        "trace",
+    );
+    let balls = spheres(1000);
+    let inputs = cast(&balls);
+    let live = flags::LIVE | flags::CASTS_OCCLUSION | flags::VISIBLE;
+    let mut descs = vec![ObjectDesc {
+        world_from_local: Affine3A::IDENTITY,
+        shape: CasterShape::Plane,
+        flags: live | flags::UNBOUNDED,
+    }];
+    descs.extend(balls.iter().map(|&(c, radius)| ObjectDesc {
+        world_from_local: Affine3A::from_translation(c),
+        shape: CasterShape::Sphere { radius },
+        flags: live,
+    }));
+    let records: Vec<_> = descs.iter().map(|d| encode(d).expect("encodes")).collect();
+    let trace = AoTrace {
+        max_distance: 10.0,
+        ..trace_settings(9, 8)
+    };
+    let atlas = Atlas::new(glam::UVec3::ONE);
+    let layout = ClipmapLayout::DEFAULT;
+    let mut state = ClipmapState::new(layout);
+    let mut field = GlobalField::new(layout, ClipmapFormat::Unorm8);
+    let start = Instant::now();
+    for job in state.update(EYE, &[], usize::MAX).jobs {
+        field.compose_records(job, &records, &atlas);
+    }
+    eprintln!(
+        "model composition of the default clipmaps: {:.1} s",
+        start.elapsed().as_secs_f64()
+    );
+    let camera = CameraOrigin::at(EYE).expect("finite");
+
+    // The CPU figures.
+    let mut pixels = Vec::new();
+    for y in (8..SIZE).step_by(16) {
+        for x in (8..SIZE).step_by(16) {
+            let i = (y * SIZE + x) as usize;
+            let d = inputs.depth[i];
+            if d <= 0.0 {
+                continue;
+            }
+            let p = position_from_depth(
+                inputs.view_from_clip,
+                inputs.world_from_view,
+                Vec2::splat(SIZE as f32),
+                Vec2::new(x as f32, y as f32),
+                d,
+            );
+            let world = EYE + p;
+            let n = balls
+                .iter()
+                .find(|&&(c, r)| ((world - c).length() - r).abs() < 1e-2)
+                .map_or(Vec3::Y, |&(c, _)| (world - c).normalize());
+            pixels.push((p, n, truth_ao(&balls, world, n, trace.max_distance, 32)));
+        }
+    }
+    let switches = [None, Some(0.5), Some(1.0), Some(2.0), Some(3.0), Some(4.0)];
+    eprintln!(
+        "\n{} casters, {} pixels, 9 cones × 8 steps, 10 m reach\n\n| trace | object evaluations / px | field samples / px | mean \\|AO − truth\\| | trace at 512², divisor 4 (lavapipe) |\n|---|---|---|---|---|",
+        records.len(),
+        pixels.len()
+    );
+    // The GPU inputs.
+    let full = UVec2::splat(SIZE);
+    let texture = |label: &str, size: UVec2, format, texel: u32, data: &[u8]| {
+        gpu.texture(
+            label,
+            extent(size.x, size.y, 1),
+            wgpu::TextureDimension::D2,
+            format,
+            texel,
+            data,
+        )
+    };
+    let record_bytes: Vec<u8> = records.iter().flat_map(|r| r.to_bytes()).collect();
+    let objects = gpu.buffer("objects", &record_bytes, BufferUsages::empty());
+    let atlas_texture = gpu.texture(
+        "atlas",
+        extent(1, 1, 1),
+        wgpu::TextureDimension::D3,
+        wgpu::TextureFormat::R16Float,
+        2,
+        &[0, 0x3c],
+    );
+    let depth_bytes: Vec<u8> = inputs.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
+    let depth = texture(
+        "depth",
+        full,
+        wgpu::TextureFormat::R32Float,
+        4,
+        &depth_bytes,
+    );
+    let gbuffer_bytes: Vec<u8> = inputs
+        .normals
+        .iter()
+        .flat_map(|&n| [0u32, 0, 0, n])
+        .flat_map(u32::to_le_bytes)
+        .collect();
+    let gbuffer = texture(
+        "gbuffer",
+        full,
+        wgpu::TextureFormat::Rgba32Uint,
+        16,
+        &gbuffer_bytes,
+    );
+    let divisor = 4;
+    let small = trace_size(full, divisor);
+    let traced = texture("traced", small, wgpu::TextureFormat::Rgba16Float, 8, &[]);
+    let views =
+        [&atlas_texture, &depth, &gbuffer, &traced].map(|t| t.create_view(&Default::default()));
+    let far_view = FarField::new(&field, &state, EYE.as_dvec3(), 1.0);
+    let with_field = field_group(
+        &gpu,
+        &trace_pipeline,
+        &field.field_bytes(),
+        &far_view.valid,
+        &far_view.view,
+    );
+    for switch in switches {
+        let (mut evaluations, mut samples, mut error) = (0u64, 0u64, 0.0f64);
+        for &(p, n, truth) in &pixels {
+            let (ao, e, s) = match switch {
+                None => {
+                    let (s, e) = pixel_ao_counted(&records, &atlas, &camera, p, n, &trace);
+                    (s.ao, e, 0)
+                }
+                Some(switch) => {
+                    let far = FarField::new(&field, &state, EYE.as_dvec3(), switch);
+                    let (s, e, f) = pixel_ao_far(&records, &atlas, &camera, p, n, &trace, &far);
+                    (s.ao, e, f)
+                }
+            };
+            evaluations += u64::from(e);
+            samples += u64::from(s);
+            error += f64::from((ao - truth).abs());
+        }
+        let mut view = AoTraceView::new(
+            &camera,
+            inputs.view_from_clip,
+            inputs.world_from_view,
+            full,
+            divisor,
+            UVec2::ZERO,
+            records.len() as u32,
+            &trace,
+        );
+        if let Some(switch) = switch {
+            view = view.with_far_field(&trace, switch);
+        }
+        let trace_uniform = uniform(&gpu, "ao_view", &view);
+        let tv = |i: usize| wgpu::BindingResource::TextureView(&views[i]);
+        let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ao_trace"),
+            layout: &trace_pipeline.get_bind_group_layout(0),
+            entries: &[
+                entry(0, objects.as_entire_binding()),
+                entry(1, tv(0)),
+                entry(2, tv(1)),
+                entry(3, tv(2)),
+                entry(4, trace_uniform.as_entire_binding()),
+                entry(5, tv(3)),
+            ],
+        });
+        let groups = UVec2::new(small.x.div_ceil(8), small.y.div_ceil(8));
+        let t = time(&gpu, &trace_pipeline, &[&bind, &with_field], groups);
+        let n = pixels.len() as f64;
+        eprintln!(
+            "| {} | {:.1} | {:.1} | {:.4} | {:.1} ms |",
+            switch.map_or("objects only".to_string(), |s| format!(
+                "far field from {s} m"
+            )),
+            evaluations as f64 / n,
+            samples as f64 / n,
+            error / n,
+            t.as_secs_f64() * 1e3
+        );
+    }
+}

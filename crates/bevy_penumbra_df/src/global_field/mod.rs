@@ -31,8 +31,11 @@
 //! bytes (8 MiB by default) and the composition of the handed-out bricks — none for a
 //! still camera in a still scene.
 //!
-//! Status (#17): the main-world bookkeeping is here; the GPU buffers, the compose
-//! dispatch, DFAO's far field, heightfields, particles and debug views are to come.
+//! On the GPU (`render.rs`): per camera, the clipmaps in pooled buffers, composed in the
+//! `RenderGraph` schedule after the object deltas; DFAO's trace reads them beyond
+//! `DistanceFieldAmbientOcclusion::global_field_start`.
+//!
+//! Status (#17): heightfields in the field, particles and debug views are to come.
 
 mod render;
 
