@@ -49,6 +49,8 @@ use penumbra_df_core::clipmap::{
 };
 use penumbra_df_core::object::ObjectRecord;
 pub use render::{ExtractedGlobalField, ViewGlobalField};
+// The field's readers: DFAO's trace.
+#[cfg(feature = "ao")]
 pub(crate) use render::{empty_read_group, read_layout};
 
 /// Adds the global distance field to cameras with [`GlobalDistanceField`]. Part of

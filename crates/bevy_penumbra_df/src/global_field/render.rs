@@ -130,6 +130,7 @@ pub(crate) fn read_layout() -> BindGroupLayoutDescriptor {
     )
 }
 
+#[cfg(feature = "ao")]
 /// A group 1 for a reader on a camera without a global field: an empty field (no
 /// level) that is never read. Small buffers, made once per reader view.
 pub(crate) fn empty_read_group(
