@@ -17,7 +17,7 @@ use glam::{Affine3A, Mat3, Mat4, UVec2, Vec2, Vec3, Vec4};
 use penumbra_df_core::ao::{AoTemporalView, AoTrace, AoTraceView, CONE_SHAPING, trace_size};
 use penumbra_df_core::clipmap::GlobalFieldView;
 use penumbra_df_core::cull::CameraOrigin;
-use penumbra_df_core::object::{CasterShape, ObjectDesc, encode, flags};
+use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, encode, flags};
 use penumbra_reference::shadow_mask::pack_gbuffer_normal;
 use penumbra_shaders::flatten;
 use penumbra_test::wgpu::{self, BufferUsages};
@@ -117,6 +117,74 @@ fn cast(spheres: &[(Vec3, f32)]) -> Inputs {
     }
 }
 
+/// The plane and the balls as occluding casters.
+fn records(balls: &[(Vec3, f32)]) -> Vec<ObjectRecord> {
+    let live = flags::LIVE | flags::CASTS_OCCLUSION | flags::VISIBLE;
+    let plane = ObjectDesc {
+        world_from_local: Affine3A::IDENTITY,
+        shape: CasterShape::Plane,
+        flags: live | flags::UNBOUNDED,
+    };
+    std::iter::once(plane)
+        .chain(balls.iter().map(|&(c, radius)| ObjectDesc {
+            world_from_local: Affine3A::from_translation(c),
+            shape: CasterShape::Sphere { radius },
+            flags: live,
+        }))
+        .map(|d| encode(&d).expect("encodes"))
+        .collect()
+}
+
+/// The trace's inputs on the GPU: the object buffer, depth and G-buffer.
+struct GpuInputs {
+    objects: wgpu::Buffer,
+    depth: wgpu::Texture,
+    gbuffer: wgpu::Texture,
+}
+
+fn gpu_inputs(gpu: &GpuCompute, records: &[ObjectRecord], inputs: &Inputs) -> GpuInputs {
+    let record_bytes: Vec<u8> = records.iter().flat_map(|r| r.to_bytes()).collect();
+    let depth_bytes: Vec<u8> = inputs.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
+    let gbuffer_bytes: Vec<u8> = inputs
+        .normals
+        .iter()
+        .flat_map(|&n| [0u32, 0, 0, n])
+        .flat_map(u32::to_le_bytes)
+        .collect();
+    let texture = |label: &str, format, texel: u32, data: &[u8]| {
+        gpu.texture(
+            label,
+            extent(SIZE, SIZE, 1),
+            wgpu::TextureDimension::D2,
+            format,
+            texel,
+            data,
+        )
+    };
+    GpuInputs {
+        objects: gpu.buffer("objects", &record_bytes, BufferUsages::empty()),
+        depth: texture("depth", wgpu::TextureFormat::R32Float, 4, &depth_bytes),
+        gbuffer: texture(
+            "gbuffer",
+            wgpu::TextureFormat::Rgba32Uint,
+            16,
+            &gbuffer_bytes,
+        ),
+    }
+}
+
+/// A 1-voxel atlas (analytic casters only).
+fn empty_atlas(gpu: &GpuCompute) -> wgpu::Texture {
+    gpu.texture(
+        "atlas",
+        extent(1, 1, 1),
+        wgpu::TextureDimension::D3,
+        wgpu::TextureFormat::R16Float,
+        2,
+        &[0, 0x3c],
+    )
+}
+
 fn extent(w: u32, h: u32, d: u32) -> wgpu::Extent3d {
     wgpu::Extent3d {
         width: w,
@@ -213,14 +281,7 @@ fn dfao_pass_times_at_512() {
             data,
         )
     };
-    let atlas = gpu.texture(
-        "atlas",
-        extent(1, 1, 1),
-        wgpu::TextureDimension::D3,
-        wgpu::TextureFormat::R16Float,
-        2,
-        &[0, 0x3c],
-    );
+    let atlas = empty_atlas(&gpu);
     eprintln!(
         "| casters | cones / steps / divisor | trace | upsample | temporal |\n|---|---|---|---|---|"
     );
@@ -231,22 +292,12 @@ fn dfao_pass_times_at_512() {
     {
         let balls = spheres(count);
         let inputs = cast(&balls);
-        let live = flags::LIVE | flags::CASTS_OCCLUSION | flags::VISIBLE;
-        let mut descs = vec![ObjectDesc {
-            world_from_local: Affine3A::IDENTITY,
-            shape: CasterShape::Plane,
-            flags: live | flags::UNBOUNDED,
-        }];
-        descs.extend(balls.iter().map(|&(c, radius)| ObjectDesc {
-            world_from_local: Affine3A::from_translation(c),
-            shape: CasterShape::Sphere { radius },
-            flags: live,
-        }));
-        let records: Vec<u8> = descs
-            .iter()
-            .flat_map(|d| encode(d).expect("encodes").to_bytes())
-            .collect();
-        let objects = gpu.buffer("objects", &records, BufferUsages::empty());
+        let records = records(&balls);
+        let GpuInputs {
+            objects,
+            depth,
+            gbuffer,
+        } = gpu_inputs(&gpu, &records, &inputs);
         let camera = CameraOrigin::at(EYE).expect("finite");
         let view = AoTraceView::new(
             &camera,
@@ -255,31 +306,10 @@ fn dfao_pass_times_at_512() {
             full,
             divisor,
             UVec2::ZERO,
-            descs.len() as u32,
+            records.len() as u32,
             &trace_settings(cones, steps),
         );
         let trace_uniform = uniform(&gpu, "ao_view", &view);
-        let depth_bytes: Vec<u8> = inputs.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
-        let depth = texture(
-            "depth",
-            full,
-            wgpu::TextureFormat::R32Float,
-            4,
-            &depth_bytes,
-        );
-        let gbuffer_bytes: Vec<u8> = inputs
-            .normals
-            .iter()
-            .flat_map(|&n| [0u32, 0, 0, n])
-            .flat_map(u32::to_le_bytes)
-            .collect();
-        let gbuffer = texture(
-            "gbuffer",
-            full,
-            wgpu::TextureFormat::Rgba32Uint,
-            16,
-            &gbuffer_bytes,
-        );
         let small = trace_size(full, divisor);
         let traced = texture("traced", small, wgpu::TextureFormat::Rgba16Float, 8, &[]);
         let upsampled = texture("upsampled", full, wgpu::TextureFormat::Rgba16Float, 8, &[]);
@@ -457,18 +487,7 @@ fn dfao_far_field_figures_at_512() {
     );
     let balls = spheres(1000);
     let inputs = cast(&balls);
-    let live = flags::LIVE | flags::CASTS_OCCLUSION | flags::VISIBLE;
-    let mut descs = vec![ObjectDesc {
-        world_from_local: Affine3A::IDENTITY,
-        shape: CasterShape::Plane,
-        flags: live | flags::UNBOUNDED,
-    }];
-    descs.extend(balls.iter().map(|&(c, radius)| ObjectDesc {
-        world_from_local: Affine3A::from_translation(c),
-        shape: CasterShape::Sphere { radius },
-        flags: live,
-    }));
-    let records: Vec<_> = descs.iter().map(|d| encode(d).expect("encodes")).collect();
+    let records = records(&balls);
     let trace = AoTrace {
         max_distance: 10.0,
         ..trace_settings(9, 8)
@@ -529,37 +548,12 @@ fn dfao_far_field_figures_at_512() {
             data,
         )
     };
-    let record_bytes: Vec<u8> = records.iter().flat_map(|r| r.to_bytes()).collect();
-    let objects = gpu.buffer("objects", &record_bytes, BufferUsages::empty());
-    let atlas_texture = gpu.texture(
-        "atlas",
-        extent(1, 1, 1),
-        wgpu::TextureDimension::D3,
-        wgpu::TextureFormat::R16Float,
-        2,
-        &[0, 0x3c],
-    );
-    let depth_bytes: Vec<u8> = inputs.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
-    let depth = texture(
-        "depth",
-        full,
-        wgpu::TextureFormat::R32Float,
-        4,
-        &depth_bytes,
-    );
-    let gbuffer_bytes: Vec<u8> = inputs
-        .normals
-        .iter()
-        .flat_map(|&n| [0u32, 0, 0, n])
-        .flat_map(u32::to_le_bytes)
-        .collect();
-    let gbuffer = texture(
-        "gbuffer",
-        full,
-        wgpu::TextureFormat::Rgba32Uint,
-        16,
-        &gbuffer_bytes,
-    );
+    let GpuInputs {
+        objects,
+        depth,
+        gbuffer,
+    } = gpu_inputs(&gpu, &records, &inputs);
+    let atlas_texture = empty_atlas(&gpu);
     let divisor = 4;
     let small = trace_size(full, divisor);
     let traced = texture("traced", small, wgpu::TextureFormat::Rgba16Float, 8, &[]);
