@@ -67,8 +67,8 @@ pub use scene::{
     CasterSource, DistanceFieldCaster, DistanceFieldHeightfield, DistanceFieldQuery,
     DistanceFieldScene, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
     DistanceFieldScenePlugin, DistanceFieldSceneSettings, DistanceFieldUploadStats,
-    FOLIAGE_AO_TRANSMISSION, HeightfieldTerrain, SceneCasterCounts, SceneTwoSided, SkinnedCasters,
-    SphereHit,
+    FOLIAGE_AO_TRANSMISSION, HeightfieldTerrain, SceneCasterCounts, SceneHeightfields,
+    SceneTwoSided, SkinnedCasters, SphereHit,
 };
 pub use sdf_asset::{SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset, SdfVolumeLoader};
 #[cfg(feature = "bake")]

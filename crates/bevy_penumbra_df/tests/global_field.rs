@@ -204,3 +204,95 @@ fn bad_settings_are_clamped_and_named() {
         assert!(layout.extent(layout.levels - 1).is_finite());
     }
 }
+
+/// Terrains are casters of the field: a `DistanceFieldHeightfield` appearing, changing
+/// (its height scale) and going dirties the bricks around its bounds (before and after)
+/// and bumps `SceneHeightfields`' generation; a still terrain dirties nothing.
+#[test]
+fn terrains_dirty_the_field_when_they_appear_change_and_go() {
+    use bevy::asset::RenderAssetUsages;
+    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+    use bevy_penumbra_df::{DistanceFieldHeightfield, SceneHeightfields};
+    let mut app = main_world::main_world_app();
+    app.init_asset::<Image>().add_plugins((
+        SdfAssetPlugin,
+        DistanceFieldScenePlugin,
+        GlobalDistanceFieldPlugin,
+    ));
+    app.finish();
+    app.cleanup();
+    app.world_mut()
+        .spawn((Transform::from_xyz(0.0, 1.7, 0.0), small()));
+    app.update();
+    app.update();
+    assert_eq!(stats(&app).bricks, 0);
+    // 3 × 3 heights over 4 × 4 m around (1, 0, 1): a bump of 0.5 m in the middle.
+    let heights: Vec<u8> = [0.0f32, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.0]
+        .iter()
+        .flat_map(|h| h.to_le_bytes())
+        .collect();
+    let image = app
+        .world_mut()
+        .resource_mut::<Assets<Image>>()
+        .add(Image::new(
+            Extent3d {
+                width: 3,
+                height: 3,
+                depth_or_array_layers: 1,
+            },
+            TextureDimension::D2,
+            heights,
+            TextureFormat::R32Float,
+            RenderAssetUsages::MAIN_WORLD,
+        ));
+    let generation = |app: &App| app.world().resource::<SceneHeightfields>().generation();
+    let terrain = app
+        .world_mut()
+        .spawn((
+            DistanceFieldHeightfield {
+                heights: image,
+                size: Vec2::splat(4.0),
+                height_scale: 1.0,
+            },
+            Transform::from_xyz(1.0, 0.0, 1.0),
+        ))
+        .id();
+    app.update();
+    let s = stats(&app);
+    assert!(s.dirty_regions == 1 && s.dirtied > 0, "{s:?}");
+    assert_eq!(generation(&app), 1);
+    assert_eq!(
+        app.world()
+            .resource::<SceneHeightfields>()
+            .terrains()
+            .count(),
+        1
+    );
+    for _ in 0..3 {
+        app.update();
+        let s = stats(&app);
+        assert_eq!((s.dirty_regions, s.bricks), (0, 0), "{s:?}");
+    }
+    app.world_mut()
+        .get_mut::<DistanceFieldHeightfield>(terrain)
+        .unwrap()
+        .height_scale = 3.0;
+    app.update();
+    let s = stats(&app);
+    assert!(s.dirty_regions == 2 && s.dirtied > 0, "{s:?}");
+    assert_eq!(generation(&app), 2);
+    app.world_mut()
+        .entity_mut(terrain)
+        .remove::<DistanceFieldHeightfield>();
+    app.update();
+    let s = stats(&app);
+    assert!(s.dirty_regions == 1 && s.dirtied > 0, "{s:?}");
+    app.update();
+    let scene = app.world().resource::<SceneHeightfields>();
+    assert_eq!((scene.terrains().count(), scene.generation()), (0, 3));
+    assert!(
+        app.world()
+            .get::<bevy_penumbra_df::HeightfieldTerrain>(terrain)
+            .is_none()
+    );
+}

@@ -9,7 +9,8 @@
 //! that forgets the conservative quantum differs in 3 texels of 4) — composed whole,
 //! then after the camera moves and a caster moves
 //! (only the bricks the update hands out are recomposed on both sides), near the origin
-//! and 10⁵ m away. And DFAO's far-field march (`df/global_field.wgsl`) through the
+//! and 10⁵ m away; a heightfield (hills across the scene, `df/heightfield.wgsl`) joins
+//! the objects (`compose_records_and_terrain`), and changes thousands of texels. And DFAO's far-field march (`df/global_field.wgsl`) through the
 //! composed clipmaps equals the model's (`penumbra_reference::dfao::march_field`) per
 //! cone (on lavapipe to the last bit; forgetting the dilation in the penumbra, the
 //! toroidal offset or the receiver-plane rule fails it).
@@ -19,6 +20,7 @@ use penumbra_df_core::clipmap::{
     BrickJob, ClipmapLayout, ClipmapState, ComposeJob, ComposeParams, field_words,
     record_dirty_box, texel_byte,
 };
+use penumbra_df_core::heightfield::{Heightfield, HeightfieldTexture};
 use penumbra_df_core::object::{CasterShape, ObjectDesc, encode, flags};
 use penumbra_reference::global_sdf::{ClipmapFormat, GlobalField};
 use penumbra_shaders::flatten;
@@ -30,27 +32,81 @@ mod support;
 
 use support::{Scene, scene};
 
-/// The GPU side: pipeline, atlas and the field buffer, kept across updates.
+/// The GPU side: pipeline, atlas, terrains and the field buffer, kept across updates.
 struct Gpu {
     gpu: GpuCompute,
     pipeline: wgpu::ComputePipeline,
     atlas: wgpu::TextureView,
     field: wgpu::Buffer,
+    terrain_records: wgpu::Buffer,
+    terrain_count: u32,
+    heights: wgpu::TextureView,
+}
+
+/// Hills over 12 × 12 m around the scene's origin, 1.5 m high at most, dipping below
+/// the plane (49 × 49 samples), or none.
+fn hills(offset: Vec3) -> HeightfieldTexture {
+    let size = glam::UVec2::new(49, 49);
+    let heights = (0..size.y)
+        .flat_map(|j| (0..size.x).map(move |i| (i as f32 / 4.0 - 6.0, j as f32 / 4.0 - 6.0)))
+        .map(|(x, z)| offset.y - 0.4 + 1.2 * (0.7 * x).sin().powi(2) * (0.5 * z).cos())
+        .collect();
+    let h = Heightfield::new(
+        size,
+        glam::Vec2::new(offset.x - 6.0, offset.z - 6.0),
+        glam::Vec2::splat(12.0),
+        heights,
+    )
+    .expect("valid");
+    HeightfieldTexture::pack(&[&h], 4096).0
 }
 
 impl Gpu {
-    fn new(gpu: GpuCompute, scene: &Scene, layout: &ClipmapLayout) -> Gpu {
+    fn new(
+        gpu: GpuCompute,
+        scene: &Scene,
+        layout: &ClipmapLayout,
+        terrain: &HeightfieldTexture,
+    ) -> Gpu {
         let pipeline = gpu.pipeline(
             &flatten("#import penumbra::df::global_compose\n").expect("flattens"),
             "compose",
         );
         let atlas = support::atlas_texture(&gpu, scene).create_view(&Default::default());
         let field = gpu.zeroed("field", field_words(layout) * 4, BufferUsages::empty());
+        let mut records = terrain.records.clone();
+        let terrain_count = records.len() as u32;
+        records.resize(records.len().max(1), Default::default());
+        let mut bytes = bevy::render::render_resource::encase::StorageBuffer::new(Vec::new());
+        bytes.write(&records).expect("encodes");
+        let terrain_records = gpu.buffer("terrains", bytes.as_ref(), BufferUsages::empty());
+        let texels: Vec<u8> = terrain
+            .texels
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let heights = gpu
+            .texture(
+                "heights",
+                wgpu::Extent3d {
+                    width: terrain.width.max(1),
+                    height: terrain.rows.max(1),
+                    depth_or_array_layers: 1,
+                },
+                wgpu::TextureDimension::D2,
+                wgpu::TextureFormat::R32Float,
+                4,
+                &texels,
+            )
+            .create_view(&Default::default());
         Gpu {
             gpu,
             pipeline,
             atlas,
             field,
+            terrain_records,
+            terrain_count,
+            heights,
         }
     }
 
@@ -66,7 +122,10 @@ impl Gpu {
             jobs.iter().map(|&j| ComposeJob::new(layout, j)).collect();
         job_bytes.write(&compose_jobs).expect("encodes");
         let job_buffer = gpu.buffer("jobs", job_bytes.as_ref(), BufferUsages::empty());
-        let params = ComposeParams::new(layout, scene.records.len() as u32, jobs.len() as u32);
+        let params = ComposeParams {
+            heightfield_count: self.terrain_count,
+            ..ComposeParams::new(layout, scene.records.len() as u32, jobs.len() as u32)
+        };
         let mut param_bytes = bevy::render::render_resource::encase::UniformBuffer::new(Vec::new());
         param_bytes.write(&params).expect("encodes");
         let uniform = gpu.buffer("params", param_bytes.as_ref(), BufferUsages::UNIFORM);
@@ -82,6 +141,11 @@ impl Gpu {
                 entry(2, &job_buffer),
                 entry(3, &uniform),
                 entry(4, &self.field),
+                entry(5, &self.terrain_records),
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: wgpu::BindingResource::TextureView(&self.heights),
+                },
             ],
         });
         gpu.dispatch(&self.pipeline, &bind, [jobs.len() as u32, 1, 1]);
@@ -129,12 +193,19 @@ fn check(name: &str, offset: Vec3) {
     let mut scene = scene(offset);
     // Two levels of 32³ (64 bricks each), 0.2 and 0.4 m texels.
     let layout = ClipmapLayout::new(2, 32, 6.4, 2.0).0;
-    let gpu = Gpu::new(GpuCompute::new().expect("adapter"), &scene, &layout);
+    let terrain = hills(offset);
+    let gpu = Gpu::new(
+        GpuCompute::new().expect("adapter"),
+        &scene,
+        &layout,
+        &terrain,
+    );
     let mut state = ClipmapState::new(layout);
     let mut model = GlobalField::new(layout, ClipmapFormat::Unorm8);
+    let mut objects_only = GlobalField::new(layout, ClipmapFormat::Unorm8);
     let compose = |model: &mut GlobalField, scene: &Scene, jobs: &[BrickJob]| {
         for &j in jobs {
-            model.compose_records(j, &scene.records, &scene.atlas);
+            model.compose_records_and_terrain(j, &scene.records, &scene.atlas, &terrain);
         }
         gpu.compose(&layout, scene, jobs);
     };
@@ -149,6 +220,16 @@ fn check(name: &str, offset: Vec3) {
     );
     // Some texels see each kind of object: not a field of bands.
     assert!(model.texels.iter().flatten().filter(|v| **v < 0.0).count() > 1000);
+    // The terrain is in it: thousands of texels are not what the objects alone give.
+    for &j in &jobs {
+        objects_only.compose_records(j, &scene.records, &scene.atlas);
+    }
+    let terrain_texels = (model.texels.iter().flatten())
+        .zip(objects_only.texels.iter().flatten())
+        .filter(|(a, b)| (*a - *b).abs() > 0.05)
+        .count();
+    eprintln!("{name}: {terrain_texels} texels from the terrain");
+    assert!(terrain_texels > 5000, "{terrain_texels}");
 
     // The camera moves two bricks; the sphere (record 1) moves 1 m.
     camera += Vec3::new(3.2, 0.0, -1.6);
@@ -205,7 +286,12 @@ fn check_far(name: &str, offset: Vec3) {
     }
     let scene = scene(offset);
     let layout = ClipmapLayout::new(3, 32, 6.4, 2.0).0;
-    let gpu = Gpu::new(GpuCompute::new().expect("adapter"), &scene, &layout);
+    let gpu = Gpu::new(
+        GpuCompute::new().expect("adapter"),
+        &scene,
+        &layout,
+        &HeightfieldTexture::default(),
+    );
     let mut state = ClipmapState::new(layout);
     let mut model = GlobalField::new(layout, ClipmapFormat::Unorm8);
     let camera = offset + Vec3::new(0.3, 1.5, 0.2);
@@ -385,7 +471,12 @@ fn compose_pass_times() {
     }
     let base = scene(Vec3::ZERO);
     let layout = ClipmapLayout::DEFAULT;
-    let gpu = Gpu::new(GpuCompute::new().expect("adapter"), &base, &layout);
+    let gpu = Gpu::new(
+        GpuCompute::new().expect("adapter"),
+        &base,
+        &layout,
+        &HeightfieldTexture::default(),
+    );
     let live = flags::LIVE | flags::CASTS_OCCLUSION | flags::VISIBLE;
     let ball = |c: Vec3, r: f32| {
         encode(&ObjectDesc {

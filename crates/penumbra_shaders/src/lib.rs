@@ -48,6 +48,7 @@ shader_files! {
     "df/ao_temporal.wgsl" => Some("penumbra::df::ao_temporal"),
     "df/global_compose.wgsl" => Some("penumbra::df::global_compose"),
     "df/global_field.wgsl" => Some("penumbra::df::global_field"),
+    "df/heightfield.wgsl" => Some("penumbra::df::heightfield"),
     "lighting/masks.wgsl" => Some("penumbra::lighting::masks"),
     "lighting/lights.wgsl" => Some("penumbra::lighting::lights"),
     "lighting/ao.wgsl" => Some("penumbra::lighting::ao"),

@@ -264,9 +264,32 @@ fn global_compose_layouts_and_constants_match() {
     let (members, size) = struct_layout(&m, "ComposeParams");
     assert_eq!(u64::from(size), ComposeParams::min_size().get());
     let names: Vec<&str> = members.iter().map(|(n, _)| n.as_str()).collect();
-    assert_eq!(names, ["levels", "slot_count", "job_count"]);
+    assert_eq!(
+        names,
+        ["levels", "slot_count", "job_count", "heightfield_count"]
+    );
     assert_eq!(constant(&m, "BRICK") as u32, BRICK);
     assert_eq!(constant(&m, "MAX_LEVELS") as u32, MAX_LEVELS);
+}
+
+/// Heightfields: `HeightfieldRecord` laid out by `encase` as the WGSL struct (an array
+/// element: its stride too), and the slope tile.
+#[test]
+fn heightfield_layout_and_constants_match() {
+    use encase::ShaderType;
+    use penumbra_df_core::heightfield::{HeightfieldRecord, SLOPE_TILE};
+    let m = parse("#import penumbra::df::heightfield\n");
+    let (members, size) = struct_layout(&m, "HeightfieldRecord");
+    assert_eq!(u64::from(size), HeightfieldRecord::min_size().get());
+    let names: Vec<&str> = members.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        ["tile", "row", "origin", "extent", "size", "tiles", "bounds"]
+    );
+    let offsets: Vec<u32> = members.iter().map(|(_, o)| *o).collect();
+    assert_eq!(offsets, [0, 12, 16, 24, 32, 40, 48]);
+    assert_eq!(HeightfieldRecord::min_size().get(), 64);
+    assert_eq!(constant(&m, "SLOPE_TILE") as u32, SLOPE_TILE);
 }
 
 /// The global field's sampler: `GlobalFieldView` (with its per-level structs) laid out

@@ -39,7 +39,9 @@
 
 mod render;
 
-use crate::scene::{DistanceFieldFrame, DistanceFieldScene, DistanceFieldSystems};
+use crate::scene::{
+    DistanceFieldFrame, DistanceFieldScene, DistanceFieldSystems, SceneHeightfields,
+};
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
@@ -242,10 +244,12 @@ fn dirty_regions(seen: &mut Vec<ObjectRecord>, frame: &DistanceFieldFrame) -> Ve
     dirty
 }
 
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
 fn update_global_distance_fields(
     mut commands: Commands,
     scene: Res<DistanceFieldScene>,
     frame: Res<DistanceFieldFrame>,
+    terrains: Res<SceneHeightfields>,
     mut seen: ResMut<SeenRecords>,
     mut stats: ResMut<GlobalDistanceFieldStats>,
     mut cameras: Query<(
@@ -268,13 +272,19 @@ fn update_global_distance_fields(
     }
     // The records are followed while a camera has clipmaps; from the current ones when
     // the first appears (every camera is then new and composes everything).
-    let dirty = match &mut seen.0 {
+    let mut dirty = match &mut seen.0 {
         Some(records) => dirty_regions(records, &frame),
         None => {
             seen.0 = Some(scene.records().to_vec());
             Vec::new()
         }
     };
+    dirty.extend(
+        terrains
+            .dirty()
+            .iter()
+            .map(|&(min, max)| DirtyBox { min, max }),
+    );
     stats.dirty_regions = dirty.len();
     for (entity, settings, transform, state) in &mut cameras {
         let camera = transform.translation();

@@ -13,25 +13,28 @@
 
 use super::GlobalDistanceFieldState;
 use crate::gpu_allocations::PenumbraGpuAllocations;
-use crate::scene::{DistanceFieldGpu, DistanceFieldRenderSystems};
+use crate::scene::{DistanceFieldGpu, DistanceFieldRenderSystems, GpuHeightfields};
 use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::binding_types::{
-    storage_buffer_read_only_sized, storage_buffer_sized, texture_3d, uniform_buffer_sized,
+    storage_buffer_read_only_sized, storage_buffer_sized, texture_2d, texture_3d,
+    uniform_buffer_sized,
 };
 use bevy::render::render_resource::encase::{StorageBuffer, UniformBuffer};
 use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
-    BufferId, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, PipelineCache,
-    ShaderStages, ShaderType, TextureSampleType, TextureView, TextureViewId,
+    BufferId, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d,
+    PipelineCache, ShaderStages, ShaderType, TextureDescriptor, TextureDimension, TextureFormat,
+    TextureSampleType, TextureUsages, TextureView, TextureViewDescriptor, TextureViewId,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
 use bevy::render::{Render, RenderStartup, RenderSystems};
 use penumbra_df_core::clipmap::{
     BRICK_WORDS, BrickJob, ClipmapLayout, ComposeJob, ComposeParams, GlobalFieldView, field_words,
 };
+use penumbra_df_core::heightfield::HeightfieldRecord;
 use penumbra_df_core::object::RECORD_BYTES;
 use std::collections::BTreeMap;
 
@@ -63,7 +66,7 @@ impl ExtractedGlobalField {
 }
 
 /// What a camera's compose bind group binds: the object buffer, the atlas and the jobs.
-type ComposeKey = (BufferId, TextureViewId, BufferId);
+type ComposeKey = (BufferId, TextureViewId, BufferId, BufferId, TextureViewId);
 
 /// A camera's clipmaps on the GPU (pooled: made again only when the layout changes).
 #[derive(Component)]
@@ -77,6 +80,8 @@ pub struct ViewGlobalField {
     params: Buffer,
     /// Bound as the object buffer before any caster exists (never read then).
     no_objects: Buffer,
+    /// Bound as the terrains while the scene has none (never read then).
+    no_heightfields: (Buffer, TextureView),
     /// Bricks handed out but not yet composed, by their first word in `field`.
     backlog: BTreeMap<u32, ComposeJob>,
     /// Bricks composed this frame (workgroups of the compose dispatch).
@@ -214,6 +219,8 @@ fn init_global_field_pipelines(
                 storage_buffer_read_only_sized(false, None),
                 uniform_buffer_sized(false, Some(ComposeParams::min_size())),
                 storage_buffer_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                texture_2d(TextureSampleType::Float { filterable: false }),
             ),
         ),
     );
@@ -284,12 +291,43 @@ fn view_buffers(
             RECORD_BYTES as u64,
             BufferUsages::STORAGE,
         ),
+        no_heightfields: no_heightfields(allocations, device),
         backlog: BTreeMap::new(),
         dispatch: 0,
         uploaded: None,
         compose_group: None,
         read_group,
     }
+}
+
+/// A zeroed terrain record and a 1 × 1 heightfield texture.
+fn no_heightfields(
+    allocations: &PenumbraGpuAllocations,
+    device: &RenderDevice,
+) -> (Buffer, TextureView) {
+    let records = allocations.sized_buffer(
+        device,
+        "penumbra_global_field_no_heightfields",
+        HeightfieldRecord::min_size().get(),
+        BufferUsages::STORAGE,
+    );
+    let texture = allocations.texture(
+        device,
+        &TextureDescriptor {
+            label: Some("penumbra_global_field_no_heightfield_texture"),
+            size: Extent3d::default(),
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: TextureDimension::D2,
+            format: TextureFormat::R32Float,
+            usage: TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        },
+    );
+    (
+        records,
+        texture.create_view(&TextureViewDescriptor::default()),
+    )
 }
 
 fn job_buffer(
@@ -317,6 +355,7 @@ fn prepare_global_field_buffers(
     pipeline_cache: Res<PipelineCache>,
     pipelines: Option<Res<GlobalFieldPipelines>>,
     gpu: Res<DistanceFieldGpu>,
+    terrains: Option<Res<GpuHeightfields>>,
     mut views: Query<(Entity, &ExtractedGlobalField, Option<&mut ViewGlobalField>)>,
 ) {
     let can_compose = pipelines
@@ -358,7 +397,10 @@ fn prepare_global_field_buffers(
             let mut bytes = StorageBuffer::new(Vec::new());
             bytes.write(&jobs).expect("encodes");
             queue.write_buffer(&buffers.jobs, 0, bytes.as_ref());
-            let params = ComposeParams::new(layout, gpu.slot_count, jobs.len() as u32);
+            let params = ComposeParams {
+                heightfield_count: terrains.as_ref().map_or(0, |t| t.count),
+                ..ComposeParams::new(layout, gpu.slot_count, jobs.len() as u32)
+            };
             queue.write_buffer(&buffers.params, 0, &uniform_bytes(&params));
             buffers.dispatch = jobs.len() as u32;
         }
@@ -390,6 +432,7 @@ fn prepare_global_field_bind_groups(
     pipeline_cache: Res<PipelineCache>,
     pipelines: Option<Res<GlobalFieldPipelines>>,
     gpu: Res<DistanceFieldGpu>,
+    terrains: Option<Res<GpuHeightfields>>,
     mut views: Query<&mut ViewGlobalField>,
 ) {
     let Some(pipelines) = pipelines else {
@@ -405,7 +448,17 @@ fn prepare_global_field_bind_groups(
         }
         let buffers = &mut *buffers;
         let objects = gpu.objects.as_ref().unwrap_or(&buffers.no_objects);
-        let key = (objects.id(), atlas.id(), buffers.jobs.id());
+        let (records, heights) = terrains.as_ref().map_or(
+            (&buffers.no_heightfields.0, &buffers.no_heightfields.1),
+            |t| (&t.records, &t.texture),
+        );
+        let key = (
+            objects.id(),
+            atlas.id(),
+            buffers.jobs.id(),
+            records.id(),
+            heights.id(),
+        );
         if buffers
             .compose_group
             .as_ref()
@@ -423,6 +476,8 @@ fn prepare_global_field_bind_groups(
                 buffers.jobs.as_entire_binding(),
                 buffers.params.as_entire_binding(),
                 buffers.field.as_entire_binding(),
+                records.as_entire_binding(),
+                heights,
             )),
         );
         buffers.compose_group = Some((group, key));

@@ -1,12 +1,15 @@
 //! [`DistanceFieldHeightfield`]: terrain from a height image, as a distance-field
-//! caster for the CPU queries ([`super::DistanceFieldQuery`]) — and, to come (#17),
-//! for DFAO and the global field. The distance is `penumbra_df_core::heightfield`'s
-//! conservative one (its module docs: per-tile slope bounds).
+//! caster for the CPU queries ([`super::DistanceFieldQuery`]) and the global distance
+//! field (composed into it like objects; the GPU form is
+//! `penumbra_df_core::heightfield::HeightfieldTexture`, uploaded by `render.rs` while the
+//! scene has a terrain). The distance is `penumbra_df_core::heightfield`'s conservative
+//! one (its module docs: per-tile slope bounds).
 
 use bevy::asset::AssetEvent;
 use bevy::prelude::*;
 use bevy::render::render_resource::TextureFormat;
 use penumbra_df_core::heightfield::Heightfield;
+use std::collections::BTreeMap;
 use std::sync::Arc;
 
 /// Terrain from a single-channel height image over a world rectangle centred on the
@@ -142,5 +145,72 @@ pub(super) fn build_heightfields(
             }
         };
         commands.entity(entity).insert(next);
+    }
+}
+
+/// The scene's built terrains, in entity order (deterministic), with a generation that
+/// changes with them and this frame's changed bounds (for the global field's dirty
+/// regions).
+#[derive(Resource, Default, Clone, Debug)]
+pub struct SceneHeightfields {
+    generation: u64,
+    terrains: BTreeMap<Entity, Arc<Heightfield>>,
+    dirty: Vec<(Vec3, Vec3)>,
+}
+
+impl SceneHeightfields {
+    /// Changes whenever a terrain appears, changes or goes.
+    pub fn generation(&self) -> u64 {
+        self.generation
+    }
+
+    /// The terrains.
+    pub fn terrains(&self) -> impl Iterator<Item = &Arc<Heightfield>> {
+        self.terrains.values()
+    }
+
+    /// This frame's changed regions: the bounds (min, max) of each terrain that
+    /// appeared, changed or went, before and after.
+    pub fn dirty(&self) -> &[(Vec3, Vec3)] {
+        &self.dirty
+    }
+}
+
+/// Follows the built terrains into [`SceneHeightfields`]; a terrain goes with its
+/// [`DistanceFieldHeightfield`].
+pub(super) fn collect_heightfields(
+    mut commands: Commands,
+    mut scene: ResMut<SceneHeightfields>,
+    changed: Query<(Entity, &HeightfieldTerrain), Changed<HeightfieldTerrain>>,
+    mut removed_terrains: RemovedComponents<HeightfieldTerrain>,
+    mut removed_settings: RemovedComponents<DistanceFieldHeightfield>,
+) {
+    scene.dirty.clear();
+    let mut gone: Vec<Entity> = removed_terrains.read().collect();
+    for entity in removed_settings.read() {
+        if let Ok(mut e) = commands.get_entity(entity) {
+            e.try_remove::<HeightfieldTerrain>();
+        }
+        gone.push(entity);
+    }
+    let mut changed_any = false;
+    for entity in gone {
+        if let Some(old) = scene.terrains.remove(&entity) {
+            scene.dirty.push(old.bounds());
+            changed_any = true;
+        }
+    }
+    for (entity, terrain) in &changed {
+        if let Some(old) = scene.terrains.remove(&entity) {
+            scene.dirty.push(old.bounds());
+        }
+        if let HeightfieldTerrain::Ready(h) = terrain {
+            scene.dirty.push(h.bounds());
+            scene.terrains.insert(entity, h.clone());
+        }
+        changed_any = true;
+    }
+    if changed_any {
+        scene.generation += 1;
     }
 }

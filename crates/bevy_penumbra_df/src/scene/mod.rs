@@ -56,10 +56,14 @@ use penumbra_df_core::object::{CasterShape, ObjectDesc, RECORD_BYTES, encode, fl
 use penumbra_df_core::table::{Deltas, ObjectTable};
 
 pub use cull::CulledObjects;
-pub use heightfield::{DistanceFieldHeightfield, HeightfieldTerrain, image_heights};
+pub use heightfield::{
+    DistanceFieldHeightfield, HeightfieldTerrain, SceneHeightfields, image_heights,
+};
 pub use query::{DistanceFieldQuery, SphereHit};
 pub(crate) use render::apply_distance_field_deltas;
-pub use render::{DistanceFieldGpu, DistanceFieldPipelines, DistanceFieldRenderSystems};
+pub use render::{
+    DistanceFieldGpu, DistanceFieldPipelines, DistanceFieldRenderSystems, GpuHeightfields,
+};
 pub use scene_casters::{
     DistanceFieldSceneCaster, DistanceFieldSceneCasters, SceneCasterCounts, SceneTwoSided,
     SkinnedCasters,
@@ -366,6 +370,7 @@ impl Plugin for DistanceFieldScenePlugin {
             .init_resource::<DistanceFieldUploadStats>()
             .init_resource::<DistanceFieldScene>()
             .init_resource::<DistanceFieldFrame>()
+            .init_resource::<SceneHeightfields>()
             .configure_sets(
                 PostUpdate,
                 (
@@ -396,8 +401,11 @@ impl Plugin for DistanceFieldScenePlugin {
                         .chain()
                         .in_set(DistanceFieldSystems::UpdateObjects),
                     // Apps without images (no `ImagePlugin`) have no terrain to build.
-                    heightfield::build_heightfields
-                        .run_if(resource_exists::<Assets<Image>>)
+                    (
+                        heightfield::build_heightfields.run_if(resource_exists::<Assets<Image>>),
+                        heightfield::collect_heightfields,
+                    )
+                        .chain()
                         .in_set(DistanceFieldSystems::UpdateObjects),
                 ),
             );

@@ -2,9 +2,10 @@
 //! and the delta pass. Everything is pooled: the object buffer grows by doubling, the
 //! delta pass's writes and params buffers grow with the largest frame seen, and their
 //! bind groups are made again only when a buffer changes. Per-view culling is in
-//! `cull`.
+//! `cull`. The terrains' records and texture ([`GpuHeightfields`]) exist while the
+//! scene has a terrain and are made again only when the terrains change.
 
-use super::{AtlasUpload, DistanceFieldFrame};
+use super::{AtlasUpload, DistanceFieldFrame, SceneHeightfields};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::schedule::camera_driver;
@@ -22,12 +23,14 @@ use bevy::render::render_resource::{
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
+use penumbra_df_core::heightfield::{Heightfield, HeightfieldRecord, HeightfieldTexture};
 use penumbra_df_core::object::{ObjectRecord, RECORD_BYTES};
 use penumbra_df_core::table::{
     DELTA_PARAMS_STRIDE, DeltaChunk, DeltaWrite, Deltas, writes_per_chunk,
 };
 use std::collections::BTreeMap;
 use std::num::NonZeroU64;
+use std::sync::Arc;
 
 /// The scene's GPU resources (render world). Absent buffers mean no caster has ever
 /// existed: nothing was allocated.
@@ -105,9 +108,14 @@ pub(super) fn build(render_app: &mut SubApp) {
             Render,
             DistanceFieldRenderSystems::PrepareGpu.in_set(RenderSystems::PrepareResources),
         )
+        .add_systems(ExtractSchedule, extract_heightfields)
         .add_systems(
             Render,
-            prepare_distance_field_gpu.in_set(DistanceFieldRenderSystems::PrepareGpu),
+            (
+                prepare_distance_field_gpu,
+                prepare_heightfields.run_if(resource_exists::<ExtractedHeightfields>),
+            )
+                .in_set(DistanceFieldRenderSystems::PrepareGpu),
         )
         .add_systems(
             RenderGraph,
@@ -462,4 +470,143 @@ pub(crate) fn apply_distance_field_deltas(
     }
     drop(pass);
     time_span.end(ctx.command_encoder());
+}
+
+/// The terrains as of the last change (render world), cloned only when they change.
+#[derive(Resource, Default)]
+struct ExtractedHeightfields {
+    generation: u64,
+    terrains: Vec<Arc<Heightfield>>,
+    /// The generation last prepared.
+    prepared: Option<u64>,
+}
+
+/// The scene's terrains on the GPU (`shaders/df/heightfield.wgsl`): present only while
+/// the scene has at least one terrain that fits.
+#[derive(Resource)]
+pub struct GpuHeightfields {
+    /// `array<HeightfieldRecord>`, `count` of them.
+    pub records: Buffer,
+    /// The heights and slope bounds (`R32Float`, 2D).
+    pub texture: TextureView,
+    /// Terrains in `records`.
+    pub count: u32,
+}
+
+fn extract_heightfields(
+    mut commands: Commands,
+    main: Extract<Option<Res<SceneHeightfields>>>,
+    extracted: Option<ResMut<ExtractedHeightfields>>,
+) {
+    let Some(main) = main.as_ref() else {
+        return;
+    };
+    match extracted {
+        Some(e) if e.generation == main.generation() => {}
+        Some(mut e) => {
+            e.generation = main.generation();
+            e.terrains = main.terrains().cloned().collect();
+        }
+        None if main.generation() == 0 => {}
+        None => commands.insert_resource(ExtractedHeightfields {
+            generation: main.generation(),
+            terrains: main.terrains().cloned().collect(),
+            prepared: None,
+        }),
+    }
+}
+
+/// Uploads the terrains when they changed: the records and the texture, made again
+/// (terrains change rarely); none while there is no terrain. Terrains beyond the
+/// device's 2D texture size are left out with a warning.
+fn prepare_heightfields(
+    mut commands: Commands,
+    allocations: Res<PenumbraGpuAllocations>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    mut extracted: ResMut<ExtractedHeightfields>,
+) {
+    if extracted.prepared == Some(extracted.generation) {
+        return;
+    }
+    extracted.prepared = Some(extracted.generation);
+    let terrains: Vec<&Heightfield> = extracted.terrains.iter().map(|t| &**t).collect();
+    let (packed, refused) =
+        HeightfieldTexture::pack(&terrains, device.limits().max_texture_dimension_2d);
+    for (i, why) in refused {
+        warn!("Penumbra: heightfield {i} stays out of the GPU's distance fields: {why}");
+    }
+    if packed.records.is_empty() {
+        commands.remove_resource::<GpuHeightfields>();
+        return;
+    }
+    let (records, texture) = heightfield_resources(&packed, &allocations, &device, &queue);
+    commands.insert_resource(GpuHeightfields {
+        records,
+        texture,
+        count: packed.records.len() as u32,
+    });
+}
+
+/// The records buffer and the texture of `packed` (at least one record: an empty
+/// texture's records are zeros), uploaded.
+fn heightfield_resources(
+    packed: &HeightfieldTexture,
+    allocations: &PenumbraGpuAllocations,
+    device: &RenderDevice,
+    queue: &RenderQueue,
+) -> (Buffer, TextureView) {
+    use bevy::render::render_resource::ShaderType;
+    use bevy::render::render_resource::encase::StorageBuffer;
+    let mut records = packed.records.clone();
+    if records.is_empty() {
+        records.push(HeightfieldRecord::default());
+    }
+    let mut bytes = StorageBuffer::new(Vec::new());
+    bytes.write(&records).expect("encodes");
+    let buffer = allocations.sized_buffer(
+        device,
+        "penumbra_heightfield_records",
+        (records.len() as u64 * HeightfieldRecord::min_size().get()).max(16),
+        BufferUsages::STORAGE | BufferUsages::COPY_DST,
+    );
+    queue.write_buffer(&buffer, 0, bytes.as_ref());
+    let size = Extent3d {
+        width: packed.width,
+        height: packed.rows,
+        depth_or_array_layers: 1,
+    };
+    let texture = allocations.texture(
+        device,
+        &TextureDescriptor {
+            label: Some("penumbra_heightfield_texture"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: TextureDimension::D2,
+            format: TextureFormat::R32Float,
+            usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
+            view_formats: &[],
+        },
+    );
+    let texels: Vec<u8> = packed.texels.iter().flat_map(|v| v.to_le_bytes()).collect();
+    queue.write_texture(
+        TexelCopyTextureInfo {
+            texture: &texture,
+            mip_level: 0,
+            origin: Origin3d::ZERO,
+            aspect: TextureAspect::All,
+        },
+        &texels,
+        TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(4 * packed.width),
+            rows_per_image: Some(packed.rows),
+        },
+        size,
+    );
+    (
+        buffer,
+        texture.create_view(&TextureViewDescriptor::default()),
+    )
 }

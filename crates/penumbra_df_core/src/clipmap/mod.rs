@@ -621,6 +621,8 @@ pub struct ComposeParams {
     pub slot_count: u32,
     /// Jobs in the job buffer.
     pub job_count: u32,
+    /// Heightfield records to consider.
+    pub heightfield_count: u32,
 }
 
 impl ComposeParams {
@@ -641,6 +643,7 @@ impl ComposeParams {
             levels,
             slot_count,
             job_count,
+            heightfield_count: 0,
         }
     }
 }

@@ -14,6 +14,9 @@
 
 use glam::{UVec2, Vec2, Vec3};
 
+mod gpu;
+pub use gpu::{HeightfieldRecord, HeightfieldTexture};
+
 /// Cells per slope tile side.
 pub const SLOPE_TILE: u32 = 8;
 

@@ -1,4 +1,5 @@
 use super::*;
+use crate::object::TILE_SIZE;
 use glam::DVec3;
 use penumbra_sdf::exact;
 
@@ -117,4 +118,74 @@ fn bad_heights_are_refused_with_a_reason() {
     // Beside the rectangle: positive, at least the horizontal gap.
     let h = terrain();
     assert!(h.distance(Vec3::new(30.0, -5.0, 0.0)) >= 10.0);
+}
+
+/// The GPU's form (tile-relative, heights and slope bounds in a texture beside another
+/// terrain) gives the CPU distance: within 1e-5 m near the origin and within f32's
+/// rounding of world positions 10⁵ m out.
+#[test]
+fn the_texture_form_gives_the_cpu_distance() {
+    let near = terrain();
+    let far = {
+        let t = terrain();
+        let lift = |v: f32| v + 30.0;
+        Heightfield::new(
+            t.size,
+            t.origin + Vec2::new(1.0e5, -7.0e4),
+            t.extent,
+            t.heights.iter().copied().map(lift).collect(),
+        )
+        .expect("valid")
+    };
+    let small = Heightfield::new(
+        UVec2::new(3, 2),
+        Vec2::new(5.0, 5.0),
+        Vec2::new(2.0, 1.0),
+        vec![0.0, 1.0, 0.5, 0.2, 0.3, 0.4],
+    )
+    .expect("valid");
+    let (texture, refused) = HeightfieldTexture::pack(&[&small, &near, &far], 4096);
+    assert!(refused.is_empty());
+    assert_eq!(texture.records.len(), 3);
+    assert_eq!(texture.width, 65);
+    let mut rng = 0x2545_f491_u64;
+    let mut next = move || {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        (rng >> 11) as f32 / (1u64 << 53) as f32
+    };
+    for (h, record, tolerance) in [
+        (&small, &texture.records[0], 1e-5),
+        (&near, &texture.records[1], 1e-5),
+        (&far, &texture.records[2], 0.02),
+    ] {
+        let tile = record.tile.as_vec3() * TILE_SIZE;
+        let mut worst = 0.0f32;
+        for _ in 0..4000 {
+            let (lo, hi) = h.bounds();
+            let u = Vec3::new(next(), next(), next());
+            let world = lo - Vec3::splat(3.0) + (hi - lo + Vec3::splat(6.0)) * u;
+            let gpu = texture.distance(record, world - tile);
+            worst = worst.max((gpu - h.distance(world)).abs());
+        }
+        assert!(worst <= tolerance, "{worst} > {tolerance}");
+    }
+}
+
+/// Terrains that do not fit the texture are left out with a reason; the rest keep
+/// their rows.
+#[test]
+fn terrains_beyond_the_texture_are_left_out() {
+    let t = terrain();
+    let (texture, refused) = HeightfieldTexture::pack(&[&t, &t, &t], 160);
+    // 65 height rows + 8 slope rows each: two fit in 160.
+    assert_eq!(texture.records.len(), 2);
+    assert_eq!(texture.records[1].row, 73);
+    assert_eq!(refused.len(), 1);
+    assert_eq!(refused[0].0, 2);
+    assert!(refused[0].1.contains("160"), "{}", refused[0].1);
+    let (empty, none) = HeightfieldTexture::pack(&[], 160);
+    assert!(none.is_empty() && empty.records.is_empty());
+    assert_eq!((empty.width, empty.rows, empty.texels.len()), (1, 1, 1));
 }

@@ -28,6 +28,7 @@ use penumbra_df_core::clipmap::{
     unorm8_quantum,
 };
 use penumbra_df_core::cull::CameraOrigin;
+use penumbra_df_core::heightfield::{HeightfieldRecord, HeightfieldTexture};
 use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, TILE_SIZE, encode, flags};
 use penumbra_sdf::volume::f16;
 
@@ -352,6 +353,19 @@ impl GlobalField {
         records: &[ObjectRecord],
         atlas: &Atlas,
     ) -> ComposeStats {
+        self.compose_records_and_terrain(job, records, atlas, &HeightfieldTexture::default())
+    }
+
+    /// [`Self::compose_records`] with heightfields as the compose pass adds them: a
+    /// terrain whose box grown by the reach meets the brick's texel-centre box adds its
+    /// distance ([`HeightfieldTexture::distance`]) at every texel.
+    pub fn compose_records_and_terrain(
+        &mut self,
+        job: BrickJob,
+        records: &[ObjectRecord],
+        atlas: &Atlas,
+        terrain: &HeightfieldTexture,
+    ) -> ComposeStats {
         let frame = ComposeJob::new(&self.layout, job);
         let camera = CameraOrigin {
             tile: frame.tile.to_array(),
@@ -375,21 +389,38 @@ impl GlobalField {
                     .is_none_or(|(c, radius)| (c.clamp(lo, hi) - c).length() <= radius + reach)
             })
             .collect();
+        // Terrains in their own tile's frame, with the brick's first texel centre there.
+        let terrains: Vec<(&HeightfieldRecord, Vec3)> = terrain
+            .records
+            .iter()
+            .map(|h| {
+                let first = (frame.tile - h.tile).as_vec3() * TILE_SIZE + frame.first;
+                (h, first)
+            })
+            .filter(|(h, first)| {
+                let (min, max) = h.aabb();
+                (min - reach).cmple(*first + (hi - lo)).all() && (max + reach).cmpge(*first).all()
+            })
+            .collect();
         let b = BRICK as i32;
         for i in 0..b * b * b {
             let ijk = IVec3::new(i % b, (i / b) % b, i / (b * b));
             let p = frame.first + ijk.as_vec3() * t;
-            let d = kept
+            let objects = kept
                 .iter()
                 .map(|r| object_distance(r, p, &camera, atlas))
-                .fold(reach, f32::min)
+                .fold(reach, f32::min);
+            let d = terrains
+                .iter()
+                .map(|(h, first)| terrain.distance(h, *first + ijk.as_vec3() * t))
+                .fold(objects, f32::min)
                 - dilation;
             let at = self.index(job.brick * b + ijk);
             self.texels[job.level as usize][at] = store(self.format, d, band);
         }
         ComposeStats {
-            objects: kept.len(),
-            evaluations: kept.len() * (b * b * b) as usize,
+            objects: kept.len() + terrains.len(),
+            evaluations: (kept.len() + terrains.len()) * (b * b * b) as usize,
         }
     }
 

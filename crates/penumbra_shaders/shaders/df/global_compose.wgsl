@@ -6,7 +6,8 @@
 // distance of the kept records at four texels along x, lowers it by the level's
 // dilation (grown surfaces: a wall thinner than a texel keeps texels inside it), clamps
 // it to ± band, lowers it by one quantum and rounds it to 8 bits (never above the true
-// distance), and writes the four as one word.
+// distance), and writes the four as one word. Heightfields (terrain) join like objects:
+// each whose box grown by the reach meets the brick's, by its conservative distance.
 // Positions are relative to the job's 512 m tile, so a brick composed on any frame gets
 // the same values. CPU model: `penumbra_reference::global_sdf::GlobalField::compose_records`;
 // the job and buffer layout: `penumbra_df_core::clipmap::{ComposeJob, brick_word}`.
@@ -16,6 +17,9 @@
 #import penumbra::df::distance::object_distance
 #import penumbra::df::shadow::bounding_sphere
 #import penumbra::df::ao::casts_occlusion
+#import penumbra::df::heightfield::{
+    HeightfieldRecord, heightfield_distance, heightfield_local, heightfield_reaches,
+}
 
 const BRICK: u32 = 8u;
 const GROUP: u32 = 128u;
@@ -33,6 +37,7 @@ struct ComposeParams {
     levels: array<vec4<f32>, MAX_LEVELS>,
     slot_count: u32,
     job_count: u32,
+    heightfield_count: u32,
 }
 
 @group(0) @binding(0) var<storage, read> objects: array<DistanceFieldObject>;
@@ -40,6 +45,8 @@ struct ComposeParams {
 @group(0) @binding(2) var<storage, read> jobs: array<ComposeJob>;
 @group(0) @binding(3) var<uniform> params: ComposeParams;
 @group(0) @binding(4) var<storage, read_write> field: array<u32>;
+@group(0) @binding(5) var<storage, read> heightfields: array<HeightfieldRecord>;
+@group(0) @binding(6) var heights: texture_2d<f32>;
 
 var<workgroup> kept: array<u32, GROUP>;
 var<workgroup> kept_count: atomic<u32>;
@@ -62,6 +69,30 @@ fn encode(d: f32, band: f32, quantum: f32) -> u32 {
     let x = clamp(d, -band, band) - quantum;
     let u = clamp(0.5 + 0.5 * x / band, 0.0, 1.0);
     return u32(floor(u * 255.0 + 0.5));
+}
+
+// The distances of the heightfields reaching the brick at this invocation's four texels.
+fn terrain_distances(
+    job: ComposeJob,
+    lo: vec3<f32>,
+    hi: vec3<f32>,
+    base: vec3<u32>,
+    texel: f32,
+    reach: f32,
+) -> vec4<f32> {
+    var d = vec4<f32>(reach);
+    for (var t = 0u; t < params.heightfield_count; t++) {
+        let h = heightfields[t];
+        let first = heightfield_local(h, job.tile, job.first);
+        if !heightfield_reaches(h, first, first + (hi - lo), reach) {
+            continue;
+        }
+        for (var i = 0u; i < 4u; i++) {
+            let p = first + vec3<f32>(base + vec3<u32>(i, 0u, 0u)) * texel;
+            d[i] = min(d[i], heightfield_distance(h, heights, p));
+        }
+    }
+    return d;
 }
 
 @compute @workgroup_size(128, 1, 1)
@@ -105,6 +136,7 @@ fn compose(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
         }
         workgroupBarrier();
     }
+    d = min(d, terrain_distances(job, lo, hi, base, texel, reach));
     var word = 0u;
     for (var i = 0u; i < 4u; i++) {
         word |= encode(d[i] - dilation, band, quantum) << (8u * i);
