@@ -15,10 +15,11 @@ use penumbra_df_core::ao::{
     AoTemporalView, AoTrace, AoTraceView, CONE_SHAPING, TILE_OBJECTS_SCALE, trace_size,
 };
 use penumbra_df_core::clipmap::{ClipmapLayout, ClipmapState, GlobalFieldView};
+use penumbra_df_core::heightfield::HeightfieldTexture;
 use penumbra_reference::df::f16_to_f32;
 use penumbra_reference::dfao::{
     AoHistory, AoView, FarField, TemporalFrame, TemporalSteps, temporal_step, tile_object_counts,
-    trace_view, trace_view_far, upsample,
+    trace_view, trace_view_with_terrain, upsample,
 };
 use penumbra_reference::global_sdf::{ClipmapFormat, GlobalField};
 use penumbra_reference::shadow_mask::position_from_depth;
@@ -94,7 +95,15 @@ fn gpu_ao(
     view: &View,
     uniform: &AoTraceView,
 ) -> (Vec<Vec4>, Option<Vec<Vec4>>) {
-    gpu_ao_far(gpu, pipelines, scene, view, uniform, &FarInput::none())
+    gpu_ao_far(
+        gpu,
+        pipelines,
+        scene,
+        view,
+        uniform,
+        &FarInput::none(),
+        &HeightfieldTexture::default(),
+    )
 }
 
 /// The global field group 1 binds: the field buffer's bytes, the validity bits and the
@@ -133,7 +142,7 @@ impl FarInput {
     }
 }
 
-/// [`gpu_ao`] with the global field `far` bound.
+/// [`gpu_ao`] with the global field `far` and the terrains `terrain` bound.
 fn gpu_ao_far(
     gpu: &GpuCompute,
     pipelines: &Pipelines,
@@ -141,7 +150,9 @@ fn gpu_ao_far(
     view: &View,
     uniform: &AoTraceView,
     far: &FarInput,
+    terrain: &HeightfieldTexture,
 ) -> (Vec<Vec4>, Option<Vec<Vec4>>) {
+    let (terrain_records, heights) = terrain_inputs(gpu, terrain);
     let records: Vec<u8> = scene.records.iter().flat_map(|r| r.to_bytes()).collect();
     let objects = gpu.buffer("objects", &records, BufferUsages::empty());
     let mut bytes = bevy::render::render_resource::encase::UniformBuffer::new(Vec::new());
@@ -178,6 +189,8 @@ fn gpu_ao_far(
             entry(3, wgpu::BindingResource::TextureView(&gbuffer_view)),
             entry(4, uniform_buffer.as_entire_binding()),
             entry(5, wgpu::BindingResource::TextureView(&traced_view)),
+            entry(6, terrain_records.as_entire_binding()),
+            entry(7, wgpu::BindingResource::TextureView(&heights)),
         ],
     });
     let far_group = far.bind_group(gpu, &pipelines.trace);
@@ -415,8 +428,9 @@ fn check_far(name: &str, offset: Vec3) {
     let layout = ClipmapLayout::new(3, 32, 6.4, 2.0).0;
     let mut state = ClipmapState::new(layout);
     let mut field = GlobalField::new(layout, ClipmapFormat::Unorm8);
+    let terrain = hills(offset);
     for job in state.update(camera.as_vec3(), &[], usize::MAX).jobs {
-        field.compose_records(job, &scene.records, &scene.atlas);
+        field.compose_records_and_terrain(job, &scene.records, &scene.atlas, &terrain);
     }
     let far = FarField::new(&field, &state, camera, switch);
     let input = FarInput {
@@ -424,28 +438,30 @@ fn check_far(name: &str, offset: Vec3) {
         valid: far.valid.clone(),
         view: far.view,
     };
-    let (want, evaluations, samples) = trace_view_far(
-        &scene.records,
-        &scene.atlas,
-        &view.camera,
-        &model_view,
-        1,
-        UVec2::ZERO,
-        &trace,
-        &far,
-    );
-    let near_only = trace_view(
-        &scene.records,
-        &scene.atlas,
-        &view.camera,
-        &model_view,
-        1,
-        UVec2::ZERO,
-        &AoTrace {
-            max_distance: switch,
-            ..trace
-        },
-    );
+    let model = |far: Option<&FarField>, trace: &AoTrace, terrain: &HeightfieldTexture| {
+        trace_view_with_terrain(
+            &scene.records,
+            &scene.atlas,
+            &view.camera,
+            &model_view,
+            (1, UVec2::ZERO),
+            trace,
+            far,
+            terrain,
+        )
+    };
+    let (want, evaluations, samples) = model(Some(&far), &trace, &terrain);
+    let near = AoTrace {
+        max_distance: switch,
+        ..trace
+    };
+    let (near_only, _, _) = model(None, &near, &terrain);
+    let (no_terrain, _, _) = model(None, &near, &HeightfieldTexture::default());
+    let terrain_matters = near_only
+        .iter()
+        .zip(&no_terrain)
+        .filter(|(w, n)| (w.x - n.x).abs() > 0.05)
+        .count();
     let far_matters = want
         .iter()
         .zip(&near_only)
@@ -462,13 +478,18 @@ fn check_far(name: &str, offset: Vec3) {
         &trace,
     )
     .with_far_field(&trace, switch);
-    let (got, _) = gpu_ao_far(&gpu, &pipelines, &scene, &view, &uniform, &input);
+    let uniform = AoTraceView {
+        heightfield_count: terrain.records.len() as u32,
+        ..uniform
+    };
+    let (got, _) = gpu_ao_far(&gpu, &pipelines, &scene, &view, &uniform, &input, &terrain);
     let (worst, mean, angle) = compare(&got, &want);
     eprintln!(
-        "{name}: {} texels, {far_matters} changed by the far field, {evaluations} object evaluations and {samples} field samples; max |Δ| {worst:.4}, mean {mean:.5}, bent max {angle:.4} rad",
+        "{name}: {} texels, {far_matters} changed by the far field, {terrain_matters} by the terrain's near trace, {evaluations} distance evaluations and {samples} field samples; max |Δ| {worst:.4}, mean {mean:.5}, bent max {angle:.4} rad",
         got.len()
     );
     assert!(far_matters > 300, "{name}: the far field hardly matters");
+    assert!(terrain_matters > 300, "{name}: the terrain hardly matters");
     assert!(
         worst < 0.02 && mean < 2e-3 && angle < 0.05,
         "{name}: trace differs"

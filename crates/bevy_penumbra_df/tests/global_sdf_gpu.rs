@@ -20,7 +20,7 @@ use penumbra_df_core::clipmap::{
     BrickJob, ClipmapLayout, ClipmapState, ComposeJob, ComposeParams, field_words,
     record_dirty_box, texel_byte,
 };
-use penumbra_df_core::heightfield::{Heightfield, HeightfieldTexture};
+use penumbra_df_core::heightfield::HeightfieldTexture;
 use penumbra_df_core::object::{CasterShape, ObjectDesc, encode, flags};
 use penumbra_reference::global_sdf::{ClipmapFormat, GlobalField};
 use penumbra_shaders::flatten;
@@ -30,7 +30,7 @@ use penumbra_test::{GpuCompute, gpu_or_skip};
 #[path = "support/shadow_passes.rs"]
 mod support;
 
-use support::{Scene, scene};
+use support::{Scene, hills, scene};
 
 /// The GPU side: pipeline, atlas, terrains and the field buffer, kept across updates.
 struct Gpu {
@@ -41,24 +41,6 @@ struct Gpu {
     terrain_records: wgpu::Buffer,
     terrain_count: u32,
     heights: wgpu::TextureView,
-}
-
-/// Hills over 12 × 12 m around the scene's origin, 1.5 m high at most, dipping below
-/// the plane (49 × 49 samples), or none.
-fn hills(offset: Vec3) -> HeightfieldTexture {
-    let size = glam::UVec2::new(49, 49);
-    let heights = (0..size.y)
-        .flat_map(|j| (0..size.x).map(move |i| (i as f32 / 4.0 - 6.0, j as f32 / 4.0 - 6.0)))
-        .map(|(x, z)| offset.y - 0.4 + 1.2 * (0.7 * x).sin().powi(2) * (0.5 * z).cos())
-        .collect();
-    let h = Heightfield::new(
-        size,
-        glam::Vec2::new(offset.x - 6.0, offset.z - 6.0),
-        glam::Vec2::splat(12.0),
-        heights,
-    )
-    .expect("valid");
-    HeightfieldTexture::pack(&[&h], 4096).0
 }
 
 impl Gpu {
@@ -74,31 +56,8 @@ impl Gpu {
         );
         let atlas = support::atlas_texture(&gpu, scene).create_view(&Default::default());
         let field = gpu.zeroed("field", field_words(layout) * 4, BufferUsages::empty());
-        let mut records = terrain.records.clone();
-        let terrain_count = records.len() as u32;
-        records.resize(records.len().max(1), Default::default());
-        let mut bytes = bevy::render::render_resource::encase::StorageBuffer::new(Vec::new());
-        bytes.write(&records).expect("encodes");
-        let terrain_records = gpu.buffer("terrains", bytes.as_ref(), BufferUsages::empty());
-        let texels: Vec<u8> = terrain
-            .texels
-            .iter()
-            .flat_map(|v| v.to_le_bytes())
-            .collect();
-        let heights = gpu
-            .texture(
-                "heights",
-                wgpu::Extent3d {
-                    width: terrain.width.max(1),
-                    height: terrain.rows.max(1),
-                    depth_or_array_layers: 1,
-                },
-                wgpu::TextureDimension::D2,
-                wgpu::TextureFormat::R32Float,
-                4,
-                &texels,
-            )
-            .create_view(&Default::default());
+        let (terrain_records, heights) = support::terrain_inputs(&gpu, terrain);
+        let terrain_count = terrain.records.len() as u32;
         Gpu {
             gpu,
             pipeline,

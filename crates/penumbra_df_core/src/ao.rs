@@ -148,6 +148,9 @@ pub struct AoTraceView {
     /// distance, where the objects' march stops and the field's begins). 0: no far
     /// field.
     pub far_distance: f32,
+    /// Terrains (heightfield records bound) each cone also marches up to
+    /// [`AoTraceView::max_distance`] (`penumbra_reference::dfao::texture_visibilities`).
+    pub heightfield_count: u32,
 }
 
 /// The objects-per-tile debug view stores `count / TILE_OBJECTS_SCALE` in the AO channel
@@ -188,6 +191,7 @@ impl AoTraceView {
             influence: trace.influence(),
             tile_objects_debug: 0,
             far_distance: 0.0,
+            heightfield_count: 0,
         }
     }
 

@@ -203,6 +203,7 @@ fn ao_layouts_and_constants_match() {
             "influence",
             "tile_objects_debug",
             "far_distance",
+            "heightfield_count",
         ]
     );
     assert_eq!(constant(&m, "MAX_CONES") as u32, MAX_CONES);

@@ -5,7 +5,7 @@ use super::{DistanceFieldAoDebugView, DistanceFieldSpecularOcclusion, ExtractedD
 use crate::global_field::ViewGlobalField;
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::lighting::{PenumbraAoInput, PenumbraLightingView};
-use crate::scene::DistanceFieldGpu;
+use crate::scene::{DistanceFieldGpu, GpuHeightfields};
 use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::prepass::{MotionVectorPrepass, ViewPrepassTextures};
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
@@ -77,8 +77,8 @@ impl ViewAoTextures {
 /// What a view's bind groups bind: the object buffer; atlas, depth, G-buffer and trace
 /// views; the full-size view; the motion vectors and first history view.
 type BindKey = (
-    BufferId,
-    [TextureViewId; 4],
+    [BufferId; 2],
+    [TextureViewId; 5],
     Option<TextureViewId>,
     Option<[TextureViewId; 2]>,
 );
@@ -99,6 +99,8 @@ pub struct ViewAoBindGroups {
     far: Option<BindGroup>,
     /// An empty global field (made when first needed).
     no_field: Option<BindGroup>,
+    /// No terrain (made when first needed).
+    no_terrain: Option<(Buffer, TextureView)>,
 }
 
 pub(super) fn build(render_app: &mut SubApp) {
@@ -145,6 +147,8 @@ fn init_ao_pipelines(
                 texture_2d(TextureSampleType::Uint),
                 uniform_buffer_sized(false, Some(view_bytes)),
                 texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+                storage_buffer_read_only_sized(false, None),
+                texture_2d(TextureSampleType::Float { filterable: false }),
             ),
         ),
     );
@@ -362,6 +366,7 @@ fn prepare_dfao_bind_groups(
     queue: Res<RenderQueue>,
     allocations: Res<PenumbraGpuAllocations>,
     gpu: Option<Res<DistanceFieldGpu>>,
+    terrains: Option<Res<GpuHeightfields>>,
     pipelines: Option<Res<AoPipelines>>,
     pipeline_cache: Res<PipelineCache>,
     mut views: Query<
@@ -421,6 +426,7 @@ fn prepare_dfao_bind_groups(
         if field.is_some() {
             uniform = uniform.with_far_field(&settings.trace, settings.global_field_start);
         }
+        uniform.heightfield_count = terrains.as_ref().map_or(0, |t| t.count);
         let mut bytes = EncaseBuffer::new(Vec::new());
         bytes.write(&uniform).expect("fixed-size uniform");
         let temporal_uniform = AoTemporalView {
@@ -462,6 +468,7 @@ fn prepare_dfao_bind_groups(
                     parity: 0,
                     far: None,
                     no_field: None,
+                    no_terrain: None,
                 });
                 fresh.as_mut().expect("just set")
             }
@@ -479,9 +486,24 @@ fn prepare_dfao_bind_groups(
         queue.write_buffer(&groups.temporal_uniform, 0, temporal_bytes.as_ref());
         groups.parity = (frame % 2) as usize;
         let history = textures.history.as_ref().filter(|_| temporal);
+        let (terrain_records, heights) = match terrains.as_ref() {
+            Some(t) => (&t.records, &t.texture),
+            None => {
+                let none = groups
+                    .no_terrain
+                    .get_or_insert_with(|| crate::scene::no_heightfields(&allocations, &device));
+                (&none.0, &none.1)
+            }
+        };
         let key = (
-            objects.id(),
-            [atlas.id(), depth.id(), gbuffer.id(), textures.trace.id()],
+            [objects.id(), terrain_records.id()],
+            [
+                atlas.id(),
+                depth.id(),
+                gbuffer.id(),
+                textures.trace.id(),
+                heights.id(),
+            ],
             textures.full.as_ref().map(TextureView::id),
             motion.zip(history).map(|(m, h)| [m.id(), h[0][0].id()]),
         );
@@ -497,6 +519,8 @@ fn prepare_dfao_bind_groups(
                     gbuffer,
                     groups.uniform.as_entire_binding(),
                     &textures.trace,
+                    terrain_records.as_entire_binding(),
+                    heights,
                 )),
             ));
             groups.upsample = textures.full.as_ref().map(|full| {

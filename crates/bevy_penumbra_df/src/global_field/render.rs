@@ -25,16 +25,14 @@ use bevy::render::render_resource::binding_types::{
 use bevy::render::render_resource::encase::{StorageBuffer, UniformBuffer};
 use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
-    BufferId, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d,
-    PipelineCache, ShaderStages, ShaderType, TextureDescriptor, TextureDimension, TextureFormat,
-    TextureSampleType, TextureUsages, TextureView, TextureViewDescriptor, TextureViewId,
+    BufferId, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, PipelineCache,
+    ShaderStages, ShaderType, TextureSampleType, TextureView, TextureViewId,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
 use bevy::render::{Render, RenderStartup, RenderSystems};
 use penumbra_df_core::clipmap::{
     BRICK_WORDS, BrickJob, ClipmapLayout, ComposeJob, ComposeParams, GlobalFieldView, field_words,
 };
-use penumbra_df_core::heightfield::HeightfieldRecord;
 use penumbra_df_core::object::RECORD_BYTES;
 use std::collections::BTreeMap;
 
@@ -291,43 +289,13 @@ fn view_buffers(
             RECORD_BYTES as u64,
             BufferUsages::STORAGE,
         ),
-        no_heightfields: no_heightfields(allocations, device),
+        no_heightfields: crate::scene::no_heightfields(allocations, device),
         backlog: BTreeMap::new(),
         dispatch: 0,
         uploaded: None,
         compose_group: None,
         read_group,
     }
-}
-
-/// A zeroed terrain record and a 1 × 1 heightfield texture.
-fn no_heightfields(
-    allocations: &PenumbraGpuAllocations,
-    device: &RenderDevice,
-) -> (Buffer, TextureView) {
-    let records = allocations.sized_buffer(
-        device,
-        "penumbra_global_field_no_heightfields",
-        HeightfieldRecord::min_size().get(),
-        BufferUsages::STORAGE,
-    );
-    let texture = allocations.texture(
-        device,
-        &TextureDescriptor {
-            label: Some("penumbra_global_field_no_heightfield_texture"),
-            size: Extent3d::default(),
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: TextureDimension::D2,
-            format: TextureFormat::R32Float,
-            usage: TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        },
-    );
-    (
-        records,
-        texture.create_view(&TextureViewDescriptor::default()),
-    )
 }
 
 fn job_buffer(

@@ -61,6 +61,7 @@ pub use heightfield::{
 };
 pub use query::{DistanceFieldQuery, SphereHit};
 pub(crate) use render::apply_distance_field_deltas;
+pub(crate) use render::no_heightfields;
 pub use render::{
     DistanceFieldGpu, DistanceFieldPipelines, DistanceFieldRenderSystems, GpuHeightfields,
 };

@@ -11,6 +11,7 @@ use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
+use bevy::render::render_resource::ShaderType;
 use bevy::render::render_resource::binding_types::{
     storage_buffer_read_only_sized, storage_buffer_sized, uniform_buffer_sized,
 };
@@ -548,6 +549,37 @@ fn prepare_heightfields(
     });
 }
 
+/// A zeroed terrain record and a 1 × 1 heightfield texture: what passes bind as the
+/// terrains while the scene has none (never read then).
+pub(crate) fn no_heightfields(
+    allocations: &PenumbraGpuAllocations,
+    device: &RenderDevice,
+) -> (Buffer, TextureView) {
+    let records = allocations.sized_buffer(
+        device,
+        "penumbra_no_heightfields",
+        HeightfieldRecord::min_size().get(),
+        BufferUsages::STORAGE,
+    );
+    let texture = allocations.texture(
+        device,
+        &TextureDescriptor {
+            label: Some("penumbra_no_heightfield_texture"),
+            size: Extent3d::default(),
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: TextureDimension::D2,
+            format: TextureFormat::R32Float,
+            usage: TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        },
+    );
+    (
+        records,
+        texture.create_view(&TextureViewDescriptor::default()),
+    )
+}
+
 /// The records buffer and the texture of `packed` (at least one record: an empty
 /// texture's records are zeros), uploaded.
 fn heightfield_resources(
@@ -556,7 +588,6 @@ fn heightfield_resources(
     device: &RenderDevice,
     queue: &RenderQueue,
 ) -> (Buffer, TextureView) {
-    use bevy::render::render_resource::ShaderType;
     use bevy::render::render_resource::encase::StorageBuffer;
     let mut records = packed.records.clone();
     if records.is_empty() {

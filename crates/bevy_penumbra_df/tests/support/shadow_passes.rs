@@ -9,6 +9,7 @@
 use glam::{Affine3A, Mat3, Mat4, Quat, UVec2, UVec3, Vec2, Vec3};
 use penumbra_df_core::atlas::AtlasRegion;
 use penumbra_df_core::cull::{CameraOrigin, Frustum, cull_view_words, grid_64};
+use penumbra_df_core::heightfield::{Heightfield, HeightfieldTexture};
 use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, encode, flags};
 use penumbra_df_core::shadow::{
     SHADOW_GRID_BYTES, SHADOW_GRID_MAX_CELLS, ShadowLight, ShadowLightKind, grid_view_words,
@@ -753,4 +754,55 @@ pub fn compare(gpu: &[f32], cpu: &[f32]) -> (f32, f32, f32) {
     let mean = diffs.iter().sum::<f32>() / diffs.len() as f32;
     let over = diffs.iter().filter(|&&d| d > 0.05).count() as f32 / diffs.len() as f32;
     (mean, over, diffs.iter().copied().fold(0.0, f32::max))
+}
+
+/// Hills over 12 × 12 m around the scene's origin, 1.5 m high at most, dipping below
+/// the plane (49 × 49 samples), or none.
+pub fn hills(offset: Vec3) -> HeightfieldTexture {
+    let size = UVec2::new(49, 49);
+    let heights = (0..size.y)
+        .flat_map(|j| (0..size.x).map(move |i| (i as f32 / 4.0 - 6.0, j as f32 / 4.0 - 6.0)))
+        .map(|(x, z)| offset.y - 0.4 + 1.2 * (0.7 * x).sin().powi(2) * (0.5 * z).cos())
+        .collect();
+    let h = Heightfield::new(
+        size,
+        Vec2::new(offset.x - 6.0, offset.z - 6.0),
+        Vec2::splat(12.0),
+        heights,
+    )
+    .expect("valid");
+    HeightfieldTexture::pack(&[&h], 4096).0
+}
+
+/// The terrains' records buffer (one zeroed record when there is none) and texture
+/// view, as the passes bind them.
+pub fn terrain_inputs(
+    gpu: &GpuCompute,
+    terrain: &HeightfieldTexture,
+) -> (wgpu::Buffer, wgpu::TextureView) {
+    let mut records = terrain.records.clone();
+    records.resize(records.len().max(1), Default::default());
+    let mut bytes = bevy::render::render_resource::encase::StorageBuffer::new(Vec::new());
+    bytes.write(&records).expect("encodes");
+    let buffer = gpu.buffer("terrains", bytes.as_ref(), BufferUsages::empty());
+    let texels: Vec<u8> = terrain
+        .texels
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let heights = gpu
+        .texture(
+            "heights",
+            wgpu::Extent3d {
+                width: terrain.width.max(1),
+                height: terrain.rows.max(1),
+                depth_or_array_layers: 1,
+            },
+            wgpu::TextureDimension::D2,
+            wgpu::TextureFormat::R32Float,
+            4,
+            &texels,
+        )
+        .create_view(&Default::default());
+    (buffer, heights)
 }

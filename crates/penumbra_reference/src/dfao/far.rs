@@ -18,7 +18,7 @@
 //! ([`crate::global_sdf::record_objects`]): they occlude only within the switch
 //! distance.
 
-use super::{AoSample, combine, cone_visibilities};
+use super::{AoSample, combine, cone_visibilities, texture_visibilities};
 use crate::df::Atlas;
 use crate::global_sdf::GlobalField;
 use glam::DVec3;
@@ -26,6 +26,7 @@ use glam::Vec3;
 use penumbra_df_core::ao::{AoTrace, MIN_STEP_FRACTION, cone_axis, cone_tan_half, tangent_frame};
 use penumbra_df_core::clipmap::{ClipmapState, GlobalFieldView};
 use penumbra_df_core::cull::CameraOrigin;
+use penumbra_df_core::heightfield::HeightfieldTexture;
 use penumbra_df_core::object::ObjectRecord;
 
 /// The global field a far-field trace reads: the clipmaps, the view of them from the
@@ -127,11 +128,32 @@ pub fn pixel_ao_far(
     trace: &AoTrace,
     far: &FarField,
 ) -> (AoSample, u32, u32) {
-    pixel_ao_far_filtered(records, atlas, camera, p, n, trace, far, |_| true)
+    pixel_ao_far_filtered(
+        records,
+        atlas,
+        camera,
+        p,
+        n,
+        trace,
+        Some(far),
+        &NO_TERRAIN,
+        |_| true,
+    )
 }
 
+/// No terrain.
+static NO_TERRAIN: HeightfieldTexture = HeightfieldTexture {
+    width: 0,
+    rows: 0,
+    texels: Vec::new(),
+    records: Vec::new(),
+};
+
 /// The objects' part of a far-field trace: `trace` up to the switch distance.
-fn near_trace(trace: &AoTrace, far: &FarField) -> AoTrace {
+fn near_trace(trace: &AoTrace, far: Option<&FarField>) -> AoTrace {
+    let Some(far) = far else {
+        return *trace;
+    };
     AoTrace {
         max_distance: trace.max_distance.min(far.switch_distance.max(0.0)),
         ..*trace
@@ -146,12 +168,21 @@ fn pixel_ao_far_filtered(
     p: Vec3,
     n: Vec3,
     trace: &AoTrace,
-    far: &FarField,
+    far: Option<&FarField>,
+    terrain: &HeightfieldTexture,
     keep: impl Fn(usize) -> bool,
 ) -> (AoSample, u32, u32) {
     let near = near_trace(trace, far);
-    let (mut visibility, evaluations) =
+    let (mut visibility, mut evaluations) =
         cone_visibilities(records, atlas, camera, p, n, &near, keep);
+    let (terrain, e) = texture_visibilities(terrain, camera, p, n, &near);
+    evaluations += e;
+    for (v, t) in visibility.iter_mut().zip(terrain) {
+        *v = v.min(t);
+    }
+    let Some(far) = far else {
+        return (combine(&visibility, n), evaluations, 0);
+    };
     let count = trace.cone_count;
     let tan_half = cone_tan_half(count);
     let (t, b) = tangent_frame(n);
@@ -185,6 +216,33 @@ pub fn trace_view_far(
     trace: &AoTrace,
     far: &FarField,
 ) -> (Vec<glam::Vec4>, u64, u64) {
+    trace_view_with_terrain(
+        records,
+        atlas,
+        camera,
+        view,
+        (divisor, jitter),
+        trace,
+        Some(far),
+        &NO_TERRAIN,
+    )
+}
+
+/// The trace pass with terrains bound (and the far field, where given): each cone also
+/// marches every terrain ([`super::texture_visibilities`]) up to the switch distance
+/// (the max distance without a far field). Returns the texels, the distance evaluations
+/// (objects and terrains) and the field samples.
+#[allow(clippy::too_many_arguments, reason = "the pass's inputs")]
+pub fn trace_view_with_terrain(
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    camera: &CameraOrigin,
+    view: &super::AoView,
+    (divisor, jitter): (u32, glam::UVec2),
+    trace: &AoTrace,
+    far: Option<&FarField>,
+    terrain: &HeightfieldTexture,
+) -> (Vec<glam::Vec4>, u64, u64) {
     let size = penumbra_df_core::ao::trace_size(view.size, divisor);
     let mut out = vec![glam::Vec4::new(1.0, 0.0, 0.0, 0.0); (size.x * size.y) as usize];
     let (mut evaluations, mut samples) = (0u64, 0u64);
@@ -198,7 +256,9 @@ pub fn trace_view_far(
         influence,
         |texel, p, n, kept| {
             let (s, e, f) =
-                pixel_ao_far_filtered(records, atlas, camera, p, n, trace, far, |slot| kept[slot]);
+                pixel_ao_far_filtered(records, atlas, camera, p, n, trace, far, terrain, |slot| {
+                    kept[slot]
+                });
             evaluations += u64::from(e);
             samples += u64::from(f);
             out[(texel.y * size.x + texel.x) as usize] = s.to_vec4();

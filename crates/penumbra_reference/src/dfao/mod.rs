@@ -496,8 +496,10 @@ mod temporal_tests;
 #[cfg(test)]
 mod tests;
 
-pub use far::{FarField, march_field, pixel_ao_far, trace_view_far};
-pub use heightfield::{heightfield_ao, heightfield_visibilities};
+pub use far::{FarField, march_field, pixel_ao_far, trace_view_far, trace_view_with_terrain};
+pub use heightfield::{
+    heightfield_ao, heightfield_visibilities, march_terrain, texture_visibilities,
+};
 pub use temporal::{AoHistory, TemporalFrame, TemporalSteps, temporal_step};
 
 pub use apply::{

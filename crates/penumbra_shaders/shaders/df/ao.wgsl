@@ -33,6 +33,8 @@ struct AoTraceView {
     tile_objects_debug: u32,
     // The far field's reach (0: none; `max_distance` is then the switch distance).
     far_distance: f32,
+    // Terrains each cone also marches (`heightfields` of the trace).
+    heightfield_count: u32,
 }
 
 // `ao::TILE_OBJECTS_SCALE`.

@@ -10,18 +10,23 @@
 // TILE_OBJECTS_SCALE, in place of the AO (`dfao::tile_object_counts`). With a global
 // distance field (`far_distance` > `max_distance`, group 1 bound to its clipmaps) each
 // cone goes on through the field from the switch distance (`max_distance`) to
-// `far_distance`; otherwise group 1 is an empty field that is never read.
+// `far_distance`; otherwise group 1 is an empty field that is never read. Terrains
+// (`heightfield_count` records, `df/heightfield.wgsl`) are marched by every cone up to
+// `max_distance`, each skipped where its box is beyond the influence of the pixel
+// (`dfao::texture_visibilities`).
 // CPU model: `penumbra_reference::dfao::trace_view` (`trace_view_far` with the field).
 #define_import_path penumbra::df::ao_trace
 
-#import penumbra::df::object::DistanceFieldObject
+#import penumbra::df::object::{DistanceFieldObject, TILE_SIZE}
 #import penumbra::df::distance::object_distance
 #import penumbra::df::shadow::{bounding_sphere, cull_slack, gbuffer_normal}
 #import penumbra::df::shadow_grid::{from_order_key, order_key}
 #import penumbra::df::ao::{
-    AoTraceView, MAX_CONES, TILE_OBJECTS_SCALE, casts_occlusion, combine, cone_direction, march_cone, tangent_frame,
+    AoTraceView, MAX_CONES, MIN_STEP_FRACTION, TILE_OBJECTS_SCALE, casts_occlusion, combine, cone_direction,
+    march_cone, tangent_frame,
 }
 #import penumbra::df::global_field::{FarCone, march_field}
+#import penumbra::df::heightfield::{HeightfieldRecord, heightfield_distance}
 
 @group(0) @binding(0) var<storage, read> objects: array<DistanceFieldObject>;
 @group(0) @binding(1) var atlas: texture_3d<f32>;
@@ -31,6 +36,8 @@
 @group(0) @binding(3) var gbuffer: texture_2d<u32>;
 @group(0) @binding(4) var<uniform> view: AoTraceView;
 @group(0) @binding(5) var output: texture_storage_2d<rgba16float, write>;
+@group(0) @binding(6) var<storage, read> heightfields: array<HeightfieldRecord>;
+@group(0) @binding(7) var heights: texture_2d<f32>;
 
 const TILE_PIXELS: u32 = 64u;
 
@@ -97,6 +104,54 @@ fn far_cone(o: vec3<f32>, axis: vec3<f32>, rise: f32) -> f32 {
         o, axis, rise, view.tan_half, view.bias, view.far_distance, view.steps_per_cone,
         view.shaping, view.max_distance, 0u,
     ));
+}
+
+// One cone's shaped visibility through terrain `h` from `o` (in its frame)
+// (`dfao::march_terrain`).
+fn terrain_cone(h: HeightfieldRecord, o: vec3<f32>, axis: vec3<f32>, rise: f32) -> f32 {
+    var s = view.bias;
+    var v = 1.0;
+    for (var i = 0u; i < view.steps_per_cone; i += 1u) {
+        if s >= view.max_distance {
+            break;
+        }
+        let d = heightfield_distance(h, heights, o + axis * s);
+        let cone = max(s * view.tan_half, 1e-6);
+        if d <= 0.0 {
+            v = 0.0;
+            break;
+        }
+        let open = max(min(cone, view.bias + s * rise), 1e-6);
+        v = min(v, d / open);
+        s += max(d, cone * MIN_STEP_FRACTION);
+    }
+    return pow(clamp(v, 0.0, 1.0), view.shaping);
+}
+
+// Every cone's visibility lowered by the terrains within reach of `p` (camera-relative,
+// unit normal `n`).
+fn terrain_cones(
+    visibility: ptr<function, array<f32, MAX_CONES>>,
+    p: vec3<f32>,
+    n: vec3<f32>,
+    frame: mat2x3<f32>,
+    count: u32,
+) {
+    for (var t = 0u; t < view.heightfield_count; t += 1u) {
+        let h = heightfields[t];
+        let local = vec3<f32>(view.camera_tile - h.tile) * TILE_SIZE + view.camera_offset + p;
+        let lo = vec3<f32>(h.origin.x, h.bounds.z, h.origin.y);
+        let hi = vec3<f32>(h.origin.x + h.extent.x, h.bounds.w, h.origin.y + h.extent.y);
+        if length(max(max(lo - local, local - hi), vec3<f32>(0.0))) >= view.influence {
+            continue;
+        }
+        let o = local + n * view.bias;
+        for (var k = 0u; k < count; k += 1u) {
+            let a = cone_direction(k, count);
+            let axis = frame[0] * a.x + frame[1] * a.y + n * a.z;
+            (*visibility)[k] = min((*visibility)[k], terrain_cone(h, o, axis, a.z));
+        }
+    }
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -202,6 +257,9 @@ fn trace(
             }
         }
         workgroupBarrier();
+    }
+    if surface {
+        terrain_cones(&visibility, p, n, frame, count);
     }
     if surface && view.far_distance > view.max_distance {
         for (var k = 0u; k < count; k += 1u) {
