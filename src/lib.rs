@@ -91,10 +91,10 @@ pub mod prelude {
     #[cfg(feature = "shadows")]
     pub use bevy_penumbra_df::DistanceFieldShadows;
     pub use bevy_penumbra_df::{
-        CasterSource, DistanceFieldCaster, DistanceFieldQuery, DistanceFieldScene,
-        DistanceFieldSceneCasters, DistanceFieldSceneSettings, DistanceFieldUploadStats,
-        GlobalDistanceField, GlobalDistanceFieldStats, PenumbraLighting, PenumbraLightingPlugin,
-        SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset,
+        CasterSource, DistanceFieldCaster, DistanceFieldHeightfield, DistanceFieldQuery,
+        DistanceFieldScene, DistanceFieldSceneCasters, DistanceFieldSceneSettings,
+        DistanceFieldUploadStats, GlobalDistanceField, GlobalDistanceFieldStats, PenumbraLighting,
+        PenumbraLightingPlugin, SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset,
     };
     #[cfg(feature = "ao")]
     pub use bevy_penumbra_df::{

@@ -29,13 +29,30 @@ const MAX_DISTANCE: f32 = 3.0;
 struct Setup {
     dfao: Option<DistanceFieldAmbientOcclusion>,
     global_field: Option<GlobalDistanceField>,
+    /// A terrain with a ridge beside the sphere ([`ridge`]), seen only by the
+    /// distance fields.
+    terrain: bool,
 }
+
+/// The ridge terrain: 17 × 17 heights over 6 × 6 m centred at [`RIDGE`], 0.5 m below
+/// the plane but for a ridge along z at its centre, 0.5 m above it.
+fn ridge_heights() -> Vec<f32> {
+    (0..17 * 17)
+        .map(|i| {
+            let x = (i % 17) as f32 * 6.0 / 16.0 - 3.0;
+            -0.5 + (-(x / 0.6).powi(2)).exp()
+        })
+        .collect()
+}
+
+const RIDGE: Vec3 = Vec3::new(-1.6, 0.0, 0.0);
 
 fn scene(
     setup: Res<Setup>,
     mut commands: Commands,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
+    mut images: ResMut<Assets<Image>>,
 ) {
     let grey = materials.add(StandardMaterial {
         base_color: Color::srgb(0.7, 0.7, 0.7),
@@ -77,6 +94,33 @@ fn scene(
     if let Some(field) = setup.global_field.clone() {
         camera.insert(field);
     }
+    if setup.terrain {
+        use bevy::asset::RenderAssetUsages;
+        use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+        let bytes = ridge_heights()
+            .iter()
+            .flat_map(|h| h.to_le_bytes())
+            .collect();
+        let heights = images.add(Image::new(
+            Extent3d {
+                width: 17,
+                height: 17,
+                depth_or_array_layers: 1,
+            },
+            TextureDimension::D2,
+            bytes,
+            TextureFormat::R32Float,
+            RenderAssetUsages::MAIN_WORLD,
+        ));
+        commands.spawn((
+            DistanceFieldHeightfield {
+                heights,
+                size: Vec2::splat(6.0),
+                height_scale: 1.0,
+            },
+            Transform::from_translation(RIDGE),
+        ));
+    }
 }
 
 fn ray(i: u32, j: u32) -> Vec3 {
@@ -107,7 +151,11 @@ fn app(
     let mut app = render.app();
     app.add_plugins(PenumbraPlugins)
         .insert_resource(DefaultOpaqueRendererMethod::deferred())
-        .insert_resource(Setup { dfao, global_field })
+        .insert_resource(Setup {
+            dfao,
+            global_field,
+            terrain: false,
+        })
         .add_systems(Startup, scene);
     app
 }
@@ -366,6 +414,7 @@ fn removing_dfao_removes_its_passes() {
         .insert_resource(Setup {
             dfao: Some(DistanceFieldAmbientOcclusion::default()),
             global_field: None,
+            terrain: false,
         })
         .add_systems(Startup, scene);
     let (_, mut app) = render.run_keeping_app(app).expect("headless render");
@@ -447,4 +496,123 @@ fn objects_per_tile_view_shows_the_tiles_counts() {
     }
     eprintln!("objects per tile: {near} pixels show 1, {far} show 0, {other} between");
     assert!(near > 20 && far > 100, "near {near} far {far}");
+}
+
+/// A `DistanceFieldHeightfield` (a ridge beside the sphere, no mesh: only the distance
+/// fields see it) with a `GlobalDistanceField` and the switch at 0.3 m: the AO view
+/// equals the model with the terrain (`penumbra_reference::dfao::pixel_ao_with_terrain`:
+/// the terrain's own cones up to the switch, the field — composed with the terrain on
+/// the GPU — beyond). The terrain matters: without it the plane by the ridge is lighter.
+#[test]
+fn dfao_sees_terrains_near_and_through_the_global_field() {
+    use penumbra_df_core::clipmap::ClipmapState;
+    use penumbra_df_core::heightfield::{Heightfield, HeightfieldTexture};
+    use penumbra_reference::dfao::{FarField, pixel_ao_with_terrain};
+    use penumbra_reference::global_sdf::{ClipmapFormat, GlobalField};
+    if !gpu_or_skip("dfao_sees_terrains_near_and_through_the_global_field") {
+        return;
+    }
+    let settings = DistanceFieldAmbientOcclusion {
+        max_occlusion_distance: MAX_DISTANCE,
+        trace_resolution_divisor: 1,
+        temporal_filter: false,
+        global_field_start: 0.3,
+        debug_view: DistanceFieldAoDebugView::AmbientOcclusion,
+        ..default()
+    };
+    let field_settings = GlobalDistanceField {
+        clipmap_count: 2,
+        resolution: 32,
+        first_extent: 6.4,
+        ..default()
+    };
+    let render = HeadlessRender::new(SIZE, SIZE)
+        .frames(6)
+        .format(CaptureFormat::LinearF16);
+    let mut app = app(
+        &render,
+        Some(settings.clone()),
+        Some(field_settings.clone()),
+    );
+    app.insert_resource(Setup {
+        dfao: Some(settings.clone()),
+        global_field: Some(field_settings.clone()),
+        terrain: true,
+    });
+    let ao = render.run(app).expect("headless render").to_linear();
+
+    let record = encode(&ObjectDesc {
+        world_from_local: bevy::math::Affine3A::from_translation(SPHERE),
+        shape: CasterShape::Sphere { radius: RADIUS },
+        flags: flags::LIVE | flags::VISIBLE | flags::CASTS_OCCLUSION | flags::CASTS_SHADOWS,
+    })
+    .expect("encodes");
+    let ridge = Heightfield::new(
+        UVec2::splat(17),
+        Vec2::new(RIDGE.x, RIDGE.z) - 3.0,
+        Vec2::splat(6.0),
+        ridge_heights(),
+    )
+    .expect("valid");
+    let (terrain, _) = HeightfieldTexture::pack(&[&ridge], 4096);
+    let atlas = Atlas::new(UVec3::ONE);
+    let (layout, _, _) = field_settings.resolve();
+    let compose = |terrain: &HeightfieldTexture| {
+        let mut state = ClipmapState::new(layout);
+        let mut field = GlobalField::new(layout, ClipmapFormat::Unorm8);
+        for job in state.update(EYE, &[], usize::MAX).jobs {
+            field.compose_records_and_terrain(job, &[record], &atlas, terrain);
+        }
+        (field, state)
+    };
+    let (field, state) = compose(&terrain);
+    let none = HeightfieldTexture::default();
+    let (bare_field, bare_state) = compose(&none);
+    let far = FarField::new(&field, &state, EYE.as_dvec3(), settings.global_field_start);
+    let bare = FarField::new(
+        &bare_field,
+        &bare_state,
+        EYE.as_dvec3(),
+        settings.global_field_start,
+    );
+    let camera = CameraOrigin::at(EYE).expect("finite");
+    let trace = AoTrace {
+        max_distance: MAX_DISTANCE,
+        cone_count: settings.cone_count,
+        steps_per_cone: settings.steps_per_cone,
+        bias: settings.surface_bias,
+        shaping: penumbra_df_core::ao::CONE_SHAPING,
+    };
+    let (mut sum, mut n, mut terrain_matters, mut apart) = (0.0f32, 0, 0, 0);
+    for (k, p) in plane_pixels() {
+        let model = |far, terrain| {
+            pixel_ao_with_terrain(
+                &[record],
+                &atlas,
+                &camera,
+                p - EYE,
+                Vec3::Y,
+                &trace,
+                Some(far),
+                terrain,
+            )
+            .0
+            .ao
+        };
+        let want = model(&far, &terrain);
+        terrain_matters += usize::from(model(&bare, &none) - want > 0.1);
+        let e = (ao[k][0] - want).abs();
+        sum += e;
+        apart += usize::from(e > 0.02);
+        n += 1;
+    }
+    let mean = sum / n as f32;
+    eprintln!(
+        "AO view with a terrain vs the model over {n} plane pixels: mean |Δ| {mean:.4}, {apart} apart by > 0.02; {terrain_matters} pixels darkened by the terrain"
+    );
+    assert!(
+        terrain_matters > 200,
+        "the terrain hardly matters: {terrain_matters}"
+    );
+    assert!(mean < 0.01 && apart * 50 <= n, "mean {mean}, {apart} apart");
 }

@@ -141,6 +141,24 @@ pub fn pixel_ao_far(
     )
 }
 
+/// The AO at camera-relative `p` (unit normal `n`) as the trace pass computes it with
+/// terrains bound (and the far field, where given): objects and terrains up to the
+/// switch distance (the max distance without a far field), the field beyond. Returns
+/// the sample, the distance evaluations and the field samples.
+#[allow(clippy::too_many_arguments, reason = "the pass's inputs")]
+pub fn pixel_ao_with_terrain(
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    camera: &CameraOrigin,
+    p: Vec3,
+    n: Vec3,
+    trace: &AoTrace,
+    far: Option<&FarField>,
+    terrain: &HeightfieldTexture,
+) -> (AoSample, u32, u32) {
+    pixel_ao_far_filtered(records, atlas, camera, p, n, trace, far, terrain, |_| true)
+}
+
 /// No terrain.
 static NO_TERRAIN: HeightfieldTexture = HeightfieldTexture {
     width: 0,

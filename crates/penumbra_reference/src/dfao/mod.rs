@@ -496,7 +496,10 @@ mod temporal_tests;
 #[cfg(test)]
 mod tests;
 
-pub use far::{FarField, march_field, pixel_ao_far, trace_view_far, trace_view_with_terrain};
+pub use far::{
+    FarField, march_field, pixel_ao_far, pixel_ao_with_terrain, trace_view_far,
+    trace_view_with_terrain,
+};
 pub use heightfield::{
     heightfield_ao, heightfield_visibilities, march_terrain, texture_visibilities,
 };
