@@ -481,6 +481,7 @@ fn compose_pass_times() {
             atlas: base.atlas.clone(),
             atlas_size: base.atlas_size,
             atlas_bits: base.atlas_bits.clone(),
+            terrain: HeightfieldTexture::default(),
         };
         let mut state = ClipmapState::new(layout);
         let all = state.update(Vec3::new(0.0, 1.7, 0.0), &[], usize::MAX).jobs;

@@ -3,7 +3,8 @@
 //! directly on a known scene and depth buffer, produce the mask the CPU model
 //! (`penumbra_reference::shadow_mask::pixel_visibility`, over *all* objects) computes
 //! from the same depth values — for a soft sun (also cut at a maximum view distance), a
-//! sphere light and a spot light with a short range, near the origin and 10⁵ m away.
+//! sphere light and a spot light with a short range, near the origin and 10⁵ m away;
+//! and with a terrain (`df/heightfield.wgsl`) marched by every pixel.
 //!
 //! The scene, its depth buffer and the passes: `support/shadow_passes.rs`.
 
@@ -100,6 +101,61 @@ fn gpu_shadow_mask_matches_the_cpu_model() {
 fn gpu_shadow_mask_matches_far_from_the_origin() {
     check(
         "gpu_shadow_mask_matches_far_from_the_origin",
+        Vec3::new(1.0e5, 0.0, -1.0e5),
+    );
+}
+
+/// With a terrain (hills across the scene, seen only by the distance fields) every
+/// light's mask still equals the model's (`pixel_visibility_with_terrain`), near the
+/// origin and 10⁵ m away, and the terrain changes hundreds of pixels.
+fn check_terrain(name: &str, offset: Vec3) {
+    if !gpu_or_skip(name) {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let passes = passes(&gpu);
+    let mut scene = scene(offset);
+    let view = view(&scene, offset);
+    let eye = EYE + offset;
+    let bare: Vec<Vec<f32>> = lights(offset, eye)
+        .iter()
+        .map(|(_, light)| reference_mask(&scene, &view, light))
+        .collect();
+    scene.terrain = hills(offset);
+    for ((light_name, light), bare) in lights(offset, eye).into_iter().zip(bare) {
+        let want = reference_mask(&scene, &view, &light);
+        let (got, _) = gpu_mask(&gpu, &passes, &scene, &view, &light);
+        let changed = want
+            .iter()
+            .zip(&bare)
+            .filter(|(w, b)| (*w - *b).abs() > 0.1)
+            .count();
+        let (mean, over, max) = compare(&got, &want);
+        println!(
+            "{name}, {light_name}: the terrain changes {changed} pixels; |gpu − cpu| mean \
+             {mean:.5}, {:.3} % over 0.05, max {max:.3}",
+            over * 100.0
+        );
+        assert!(
+            changed > 200,
+            "{light_name}: the terrain changes {changed} pixels"
+        );
+        assert!(
+            mean < 1e-4 && max < 0.05,
+            "{light_name}: mean {mean}, over {over}, max {max}"
+        );
+    }
+}
+
+#[test]
+fn gpu_shadow_mask_with_a_terrain_matches_the_cpu_model() {
+    check_terrain("gpu_shadow_mask_with_a_terrain", Vec3::ZERO);
+}
+
+#[test]
+fn gpu_shadow_mask_with_a_terrain_matches_far_from_the_origin() {
+    check_terrain(
+        "gpu_shadow_mask_with_a_terrain_far",
         Vec3::new(1.0e5, 0.0, -1.0e5),
     );
 }

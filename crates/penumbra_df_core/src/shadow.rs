@@ -91,8 +91,9 @@ impl ShadowLight {
 /// The `ShadowTraceView` uniform: the camera's `view_from_clip` (inverse projection),
 /// its world-from-view rotation (camera-relative positions need no translation), its
 /// tile origin, the mask size and its stride (`1`: full resolution; `2`: half, texel
-/// `(i, j)` traces pixel `(2i, 2j)`), and whether the pass's G-buffer binding holds the
-/// view's normals (then it adds the surface's own shadow).
+/// `(i, j)` traces pixel `(2i, 2j)`), whether the pass's G-buffer binding holds the
+/// view's normals (then it adds the surface's own shadow), and how many terrains
+/// (heightfield records bound) each pixel also marches (the tile word's `w`).
 pub fn trace_view_words(
     view_from_clip: Mat4,
     world_from_view: Mat3,
@@ -100,6 +101,7 @@ pub fn trace_view_words(
     size: UVec2,
     stride: u32,
     normals: bool,
+    heightfields: u32,
 ) -> Vec<u32> {
     let mut words = Vec::with_capacity(SHADOW_TRACE_VIEW_BYTES / 4);
     words.extend(view_from_clip.to_cols_array().map(f32::to_bits));
@@ -114,7 +116,7 @@ pub fn trace_view_words(
         camera.tile[0] as u32,
         camera.tile[1] as u32,
         camera.tile[2] as u32,
-        0,
+        heightfields,
     ]);
     words.extend(camera.offset.extend(0.0).to_array().map(f32::to_bits));
     words.extend([size.x, size.y, stride.max(1), u32::from(normals)]);

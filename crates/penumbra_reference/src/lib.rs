@@ -38,3 +38,5 @@ pub mod particles;
 pub mod pbr;
 pub mod scene;
 pub mod shadow_mask;
+#[cfg(test)]
+mod test_terrain;

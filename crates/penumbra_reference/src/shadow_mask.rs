@@ -16,9 +16,10 @@
 
 use crate::df::{Atlas, object_distance};
 use crate::df_shadow::cone_interval;
-use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
+use glam::{IVec3, Mat3, Mat4, Vec2, Vec3, Vec4};
 use penumbra_df_core::cull::CameraOrigin;
-use penumbra_df_core::object::{ObjectRecord, flags};
+use penumbra_df_core::heightfield::HeightfieldTexture;
+use penumbra_df_core::object::{ObjectRecord, TILE_SIZE, flags};
 
 pub use penumbra_df_core::shadow::{ShadowLight as MaskLight, ShadowLightKind as MaskLightKind};
 
@@ -100,6 +101,34 @@ pub fn pixel_visibility_counted(
     normal: Vec3,
     light: &MaskLight,
 ) -> (f32, u32) {
+    pixel_visibility_with_terrain(
+        records,
+        atlas,
+        camera,
+        p,
+        normal,
+        light,
+        &HeightfieldTexture::default(),
+    )
+}
+
+/// [`pixel_visibility_counted`] with terrains bound (`shaders/df/shadow_trace.wgsl`'s
+/// `terrain_visibility`): each terrain whose box, grown by the cone's end radius, meets
+/// the box of the shadow ray is sphere-traced along it in its tile's frame
+/// ([`HeightfieldTexture::distance`]) with the objects' cone test (`d / r`, shut
+/// inside) and no small-object floor; each step at least half a terrain cell across
+/// (the bound is small along a slope: a ray grazing one would use up its steps and
+/// leak).
+#[allow(clippy::too_many_arguments, reason = "the pass's inputs")]
+pub fn pixel_visibility_with_terrain(
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    camera: &CameraOrigin,
+    p: Vec3,
+    normal: Vec3,
+    light: &MaskLight,
+    terrain: &HeightfieldTexture,
+) -> (f32, u32) {
     let mut evaluations = 0;
     if matches!(light.kind, MaskLightKind::Directional(_)) {
         // The encoder's `max(0)`: NaN traces nothing.
@@ -158,10 +187,56 @@ pub fn pixel_visibility_counted(
         }
         visibility = visibility.min(v.clamp(0.0, 1.0));
     }
+    let (v, e) = terrain_visibility(terrain, camera, p, (dir, t_max, tan_half), light);
+    visibility = visibility.min(v);
+    evaluations += e;
     (
         finish(visibility, light.shaping.clamp(0.05, 20.0)).min(own),
         evaluations,
     )
+}
+
+/// The terrains' visibility along the shadow ray `(dir, t_max, tan_half)` from
+/// camera-relative `p`, and the evaluations.
+fn terrain_visibility(
+    terrain: &HeightfieldTexture,
+    camera: &CameraOrigin,
+    p: Vec3,
+    (dir, t_max, tan_half): (Vec3, f32, f32),
+    light: &MaskLight,
+) -> (f32, u32) {
+    let (mut visibility, mut evaluations) = (1.0f32, 0);
+    for h in &terrain.records {
+        let base = (IVec3::from_array(camera.tile) - h.tile).as_vec3() * TILE_SIZE + camera.offset;
+        let local = base + p;
+        let end = local + dir * t_max;
+        let grow = t_max * tan_half;
+        let (lo, hi) = h.aabb();
+        if (local.min(end) - grow).cmpgt(hi).any() || (local.max(end) + grow).cmplt(lo).any() {
+            continue;
+        }
+        // At least half a cell across the terrain per step: a ray running along a slope
+        // (where the bound is small) still crosses the terrain in the step budget.
+        let cell = (h.extent / (h.size - glam::UVec2::ONE).as_vec2()).min_element();
+        let min_step = 0.5 * cell / Vec2::new(dir.x, dir.z).length().max(1e-3);
+        let mut t = light.bias;
+        let mut v = 1.0f32;
+        for _ in 0..light.max_steps {
+            if t >= t_max {
+                break;
+            }
+            let d = terrain.distance(h, local + dir * t);
+            evaluations += 1;
+            if d <= 0.0 {
+                v = 0.0;
+                break;
+            }
+            v = v.min(d / (t * tan_half).max(1e-6));
+            t += d.max(min_step);
+        }
+        visibility = visibility.min(v.clamp(0.0, 1.0));
+    }
+    (visibility, evaluations)
 }
 
 /// Whether a point or spot light reaches camera-relative `p` at all: within its range
@@ -322,6 +397,77 @@ pub fn position_from_depth(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Terrain shadows against rays: a sun 25° above the horizon and 3° across, across
+    /// the valley (`test_terrain`; half its receivers mostly shaded), the march's
+    /// visibility (`pixel_visibility_with_terrain`, nothing but the terrain, 64 steps)
+    /// against the fraction of 256 rays spread over the sun's disc that miss the
+    /// triangulated surface within the ray length: mean |Δ| 0.044 (bound 0.06), where
+    /// ignoring the terrain errs by 0.22. (Without the half-cell minimum step, rays
+    /// running along a slope use up their steps and leak: 0.139.)
+    #[test]
+    fn terrain_shadows_match_rays() {
+        use crate::test_terrain::{receivers, triangles, valley};
+        use penumbra_sdf::bvh::Bvh;
+        let h = valley();
+        let bvh = Bvh::build(&triangles(&h));
+        let (terrain, _) = HeightfieldTexture::pack(&[&h], 4096);
+        let (elevation, azimuth) = (25f32.to_radians(), 70f32.to_radians());
+        let to_sun = Vec3::new(
+            elevation.cos() * azimuth.cos(),
+            elevation.sin(),
+            elevation.cos() * azimuth.sin(),
+        );
+        let light = MaskLight {
+            kind: MaskLightKind::Directional(to_sun),
+            source: 1.5f32.to_radians().tan(),
+            max_distance: 40.0,
+            bias: 0.03,
+            shaping: 1.0,
+            range: 0.0,
+            max_steps: 64,
+            max_view_distance: f32::INFINITY,
+            spot: None,
+        };
+        let camera = CameraOrigin::at(Vec3::ZERO).expect("finite");
+        let (t1, t2) = {
+            let a = to_sun.cross(Vec3::Y).normalize();
+            (a, to_sun.cross(a))
+        };
+        let (mut error, mut blind, mut shaded, mut count) = (0.0f32, 0.0f32, 0, 0);
+        for (p, n) in receivers(&h) {
+            let (model, _) = pixel_visibility_with_terrain(
+                &[],
+                &Atlas::new(glam::UVec3::ONE),
+                &camera,
+                p,
+                n,
+                &light,
+                &terrain,
+            );
+            let mut open = 0;
+            for k in 0..256 {
+                let r = light.source * ((k as f32 + 0.5) / 256.0).sqrt();
+                let a = k as f32 * 2.399_963;
+                let d = (to_sun + t1 * (r * a.cos()) + t2 * (r * a.sin())).normalize();
+                let own = d.dot(n) > 0.0;
+                let hit = bvh
+                    .ray_nearest(p, d, light.bias, light.max_distance)
+                    .is_some();
+                open += usize::from(own && !hit);
+            }
+            let truth = open as f32 / 256.0;
+            error += (model - truth).abs();
+            blind += (horizon(n, to_sun, light.source) - truth).abs();
+            shaded += usize::from(truth < 0.5);
+            count += 1;
+        }
+        let (error, blind) = (error / count as f32, blind / count as f32);
+        eprintln!(
+            "terrain shadows: mean |Δ| {error:.4} vs rays; ignoring the terrain {blind:.4}; {shaded} of {count} receivers mostly shaded"
+        );
+        assert!(error <= 0.06 && blind > 0.2, "{error} {blind}");
+    }
 
     /// The horizon term against counting: directions spread uniformly over the light's
     /// cone (16k per case), the fraction above the tangent plane; from back faces to

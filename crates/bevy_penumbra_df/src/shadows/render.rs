@@ -10,7 +10,7 @@ use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::lighting::{
     PenumbraLightingInputs, PenumbraLightingView, PenumbraShadowedLight, ShadowedLightKind,
 };
-use crate::scene::DistanceFieldGpu;
+use crate::scene::{DistanceFieldGpu, GpuHeightfields};
 use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
@@ -215,6 +215,8 @@ fn init_shadow_pipelines(
                 storage_buffer_read_only_sized(false, None),
                 uniform_buffer_sized(false, NonZeroU64::new(SHADOW_GRID_VIEW_BYTES as u64)),
                 texture_2d(TextureSampleType::Uint),
+                storage_buffer_read_only_sized(false, None),
+                texture_2d(TextureSampleType::Float { filterable: false }),
             ),
         ),
     );
@@ -460,6 +462,7 @@ fn prepare_distance_field_shadow_bind_groups(
     queue: Res<RenderQueue>,
     allocations: Res<PenumbraGpuAllocations>,
     gpu: Option<Res<DistanceFieldGpu>>,
+    terrains: Option<Res<GpuHeightfields>>,
     pipelines: Option<Res<ShadowPipelines>>,
     pipeline_cache: Res<PipelineCache>,
     frame: Res<FrameLights>,
@@ -500,12 +503,21 @@ fn prepare_distance_field_shadow_bind_groups(
             size: masks.size,
             slots: gpu.slot_count,
             normals: gbuffer.is_some(),
+            heightfields: terrains.as_ref().map_or(0, |t| t.count),
+        };
+        let (terrain_records, heights) = match terrains.as_ref() {
+            Some(t) => (t.records.clone(), t.texture.clone()),
+            None => resources
+                .no_terrain
+                .get_or_insert_with(|| crate::scene::no_heightfields(&allocations, &device))
+                .clone(),
         };
         let textures = ViewTextures {
             objects,
             atlas,
             depth,
             gbuffer: gbuffer.unwrap_or(&pipelines.empty_gbuffer),
+            terrain: (&terrain_records, &heights),
             layers: &masks.layers,
             half: masks.half.as_ref(),
         };

@@ -39,6 +39,8 @@ pub struct DistanceFieldShadowResources {
     upsample_view: Buffer,
     /// Per light, in mask-layer order.
     pub(super) lights: Vec<LightResources>,
+    /// Bound as the terrains while the scene has none (made when first needed).
+    pub(super) no_terrain: Option<(Buffer, TextureView)>,
 }
 
 /// One light's buffers and bind groups.
@@ -82,6 +84,7 @@ struct BindKey {
     gbuffer: TextureViewId,
     layer: TextureViewId,
     half: Option<(TextureViewId, TextureViewId)>,
+    terrain: (BufferId, TextureViewId),
 }
 
 /// The view-level textures the bind groups reference.
@@ -90,6 +93,8 @@ pub(super) struct ViewTextures<'a> {
     pub(super) atlas: &'a TextureView,
     pub(super) depth: &'a TextureView,
     pub(super) gbuffer: &'a TextureView,
+    /// The terrains' records and heights (`GpuHeightfields`, or none).
+    pub(super) terrain: (&'a Buffer, &'a TextureView),
     pub(super) layers: &'a [TextureView],
     pub(super) half: Option<&'a (TextureView, TextureView)>,
 }
@@ -237,6 +242,7 @@ impl DistanceFieldShadowResources {
                 UPSAMPLE_VIEW_BYTES,
             ),
             lights: Vec::new(),
+            no_terrain: None,
         }
     }
 
@@ -291,6 +297,7 @@ impl DistanceFieldShadowResources {
                 size,
                 stride,
                 view.normals,
+                view.heightfields,
             ))
         };
         queue.write_buffer(&self.full_view, 0, &trace(1, view.size));
@@ -332,6 +339,7 @@ impl DistanceFieldShadowResources {
                     .half
                     .filter(|_| r.half)
                     .map(|(storage, sampled)| (storage.id(), sampled.id())),
+                terrain: (textures.terrain.0.id(), textures.terrain.1.id()),
             };
             if r.key != Some(key) || r.bind_groups.is_none() {
                 r.bind_groups = Some(bind_groups(
@@ -373,6 +381,8 @@ pub(super) struct ShadowViewParams {
     pub(super) slots: u32,
     /// Whether the G-buffer binding holds the view's normals.
     pub(super) normals: bool,
+    /// Terrains bound.
+    pub(super) heightfields: u32,
 }
 
 #[allow(clippy::too_many_arguments, reason = "every binding of four passes")]
@@ -440,6 +450,8 @@ fn bind_groups(
             r.large.as_entire_binding(),
             r.grid_view.as_entire_binding(),
             t.gbuffer,
+            t.terrain.0.as_entire_binding(),
+            t.terrain.1,
         )),
     );
     let upsample = half.map(|(_, sampled)| {

@@ -17,7 +17,7 @@ use penumbra_df_core::shadow::{
 };
 use penumbra_reference::df::{Atlas, object_distance};
 use penumbra_reference::shadow_mask::{
-    pack_gbuffer_normal, pixel_visibility, position_from_depth, unpack_gbuffer_normal,
+    pack_gbuffer_normal, pixel_visibility_with_terrain, position_from_depth, unpack_gbuffer_normal,
 };
 use penumbra_sdf::{BakeSettings, bake, shapes};
 use penumbra_shaders::flatten;
@@ -33,6 +33,8 @@ pub struct Scene {
     pub atlas: Atlas,
     pub atlas_size: UVec3,
     pub atlas_bits: Vec<u16>,
+    /// Terrains (none unless a test adds [`hills`]).
+    pub terrain: HeightfieldTexture,
 }
 
 pub fn scene(offset: Vec3) -> Scene {
@@ -132,6 +134,7 @@ pub fn scene(offset: Vec3) -> Scene {
         atlas,
         atlas_size: dims,
         atlas_bits: bits,
+        terrain: HeightfieldTexture::default(),
     }
 }
 
@@ -234,7 +237,16 @@ pub fn reference_mask(scene: &Scene, view: &View, light: &ShadowLight) -> Vec<f3
                 depth,
             );
             let n = view.normal(i as usize);
-            pixel_visibility(&scene.records, &scene.atlas, &view.camera, p, n, light)
+            pixel_visibility_with_terrain(
+                &scene.records,
+                &scene.atlas,
+                &view.camera,
+                p,
+                n,
+                light,
+                &scene.terrain,
+            )
+            .0
         })
         .collect()
 }
@@ -322,6 +334,8 @@ pub fn passes(gpu: &GpuCompute) -> Passes {
                     },
                     count: None,
                 },
+                storage(13),
+                texture(14, wgpu::TextureViewDimension::D2),
             ],
         });
     let trace = gpu.pipeline_with_layouts(
@@ -518,6 +532,7 @@ pub fn gpu_mask_at(
         4,
         &[],
     );
+    let (terrain_records, heights) = terrain_inputs(gpu, &scene.terrain);
     // Bevy's G-buffer layout: the normal word in the fourth channel.
     let trace_view = gpu.buffer(
         "trace_view",
@@ -528,6 +543,7 @@ pub fn gpu_mask_at(
             mask_size,
             stride,
             true,
+            scene.terrain.records.len() as u32,
         )),
         BufferUsages::UNIFORM,
     );
@@ -592,6 +608,14 @@ pub fn gpu_mask_at(
             wgpu::BindGroupEntry {
                 binding: 12,
                 resource: wgpu::BindingResource::TextureView(&views[3]),
+            },
+            wgpu::BindGroupEntry {
+                binding: 13,
+                resource: terrain_records.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 14,
+                resource: wgpu::BindingResource::TextureView(&heights),
             },
         ],
     });

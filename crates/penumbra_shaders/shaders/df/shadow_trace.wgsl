@@ -2,13 +2,17 @@
 // the light-culled objects are culled again against the round cone (the hull of the
 // tile's bounding ball and the light's end ball) that contains every pixel's shadow
 // cone, 64 at a time into workgroup memory; each pixel then marches the survivors
-// (`penumbra::df::shadow`). Writes visibility (1 lit, 0 shadowed) for every pixel;
-// background pixels (depth 0) get 1.
+// (`penumbra::df::shadow`). Terrains (`camera_tile.w` heightfield records,
+// `df/heightfield.wgsl`) are marched by every pixel whose shadow ray's box, grown by the
+// cone's end radius, meets theirs. Writes visibility (1 lit, 0 shadowed) for every
+// pixel; background pixels (depth 0) get 1. CPU model:
+// `penumbra_reference::shadow_mask::pixel_visibility_with_terrain`.
 #define_import_path penumbra::df::shadow_trace
 
-#import penumbra::df::object::DistanceFieldObject
+#import penumbra::df::object::{DistanceFieldObject, TILE_SIZE}
+#import penumbra::df::heightfield::{HeightfieldRecord, heightfield_distance}
 #import penumbra::df::shadow::{
-    ShadowLight, bounding_sphere, casts_shadows, cull_slack, finish_visibility, gbuffer_normal,
+    ShadowLight, ShadowRay, bounding_sphere, casts_shadows, cull_slack, finish_visibility, gbuffer_normal,
     horizon_visibility, is_directional, light_reaches, march_object, object_in_cone,
     round_cone_distance, shadow_ray,
 }
@@ -21,6 +25,7 @@ struct ShadowTraceView {
     view_from_clip: mat4x4<f32>,
     // Columns of the camera's world-from-view rotation (xyz).
     world_from_view: array<vec4<f32>, 3>,
+    // xyz: the camera's tile; w: terrains bound (`heightfields`).
     camera_tile: vec4<i32>,
     // xyz: the camera's position within its tile.
     camera_offset: vec4<f32>,
@@ -48,6 +53,8 @@ struct ShadowTraceView {
 @group(0) @binding(11) var<uniform> grid_view: ShadowGridView;
 // Bevy's deferred G-buffer (Rgba32Uint; the normal in `.a`), read when `view.size.w` is 1.
 @group(0) @binding(12) var gbuffer: texture_2d<u32>;
+@group(0) @binding(13) var<storage, read> heightfields: array<HeightfieldRecord>;
+@group(0) @binding(14) var heights: texture_2d<f32>;
 
 const TILE_PIXELS: u32 = 64u;
 
@@ -72,6 +79,42 @@ fn position_from_depth(xy: vec2<u32>, depth: f32) -> vec3<f32> {
     let q = v.xyz / v.w;
     return view.world_from_view[0].xyz * q.x + view.world_from_view[1].xyz * q.y
         + view.world_from_view[2].xyz * q.z;
+}
+
+// The terrains' visibility along `ray` from camera-relative `p`
+// (`shadow_mask::terrain_visibility`): each step at least half a terrain cell across,
+// so a ray grazing a slope still crosses the terrain within the step budget.
+fn terrain_visibility(p: vec3<f32>, ray: ShadowRay) -> f32 {
+    var visibility = 1.0;
+    for (var i = 0u; i < u32(view.camera_tile.w); i += 1u) {
+        let h = heightfields[i];
+        let local = vec3<f32>(view.camera_tile.xyz - h.tile) * TILE_SIZE + view.camera_offset.xyz + p;
+        let end = local + ray.dir * ray.t_max;
+        let grow = ray.t_max * ray.tan_half;
+        let lo = vec3<f32>(h.origin.x, h.bounds.z, h.origin.y);
+        let hi = vec3<f32>(h.origin.x + h.extent.x, h.bounds.w, h.origin.y + h.extent.y);
+        if any(min(local, end) - grow > hi) || any(max(local, end) + grow < lo) {
+            continue;
+        }
+        let cells = h.extent / vec2<f32>(h.size - vec2<u32>(1u));
+        let min_step = 0.5 * min(cells.x, cells.y) / max(length(ray.dir.xz), 1e-3);
+        var t = light.bias;
+        var v = 1.0;
+        for (var step = 0u; step < light.max_steps; step += 1u) {
+            if t >= ray.t_max {
+                break;
+            }
+            let d = heightfield_distance(h, heights, local + ray.dir * t);
+            if d <= 0.0 {
+                v = 0.0;
+                break;
+            }
+            v = min(v, d / max(t * ray.tan_half, 1e-6));
+            t += max(d, min_step);
+        }
+        visibility = min(visibility, clamp(v, 0.0, 1.0));
+    }
+    return visibility;
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -256,6 +299,9 @@ fn trace(
             }
         }
         workgroupBarrier();
+    }
+    if march {
+        visibility = min(visibility, terrain_visibility(p, ray));
     }
     if inside {
         var out = 1.0;
