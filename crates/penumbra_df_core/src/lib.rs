@@ -38,6 +38,7 @@ pub mod clipmap;
 pub mod cull;
 pub mod heightfield;
 pub mod object;
+pub mod particles;
 pub mod query;
 pub mod shadow;
 pub mod table;

@@ -56,8 +56,22 @@ pub fn field_normal(
     Some((d + view.levels[level as usize].dilation, g.try_normalize()?))
 }
 
-/// Advances `particles` by `dt` seconds.
+/// Advances `particles` (camera-relative) by `dt` seconds.
 pub fn step(
+    particles: &mut [Particle],
+    field: &GlobalField,
+    view: &GlobalFieldView,
+    valid: &[u32],
+    collision: &Collision,
+    dt: f32,
+) {
+    step_from(Vec3::ZERO, particles, field, view, valid, collision, dt);
+}
+
+/// [`step`] for particles whose positions are relative to `origin` (camera-relative),
+/// as the GPU step keeps them (`shaders/df/particles.wgsl`).
+pub fn step_from(
+    origin: Vec3,
     particles: &mut [Particle],
     field: &GlobalField,
     view: &GlobalFieldView,
@@ -68,7 +82,7 @@ pub fn step(
     for p in particles {
         p.velocity += collision.gravity * dt;
         p.position += p.velocity * dt;
-        let Some((d, n)) = field_normal(field, view, valid, p.position) else {
+        let Some((d, n)) = field_normal(field, view, valid, origin + p.position) else {
             continue;
         };
         if d >= collision.radius {

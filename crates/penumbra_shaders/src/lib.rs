@@ -49,6 +49,7 @@ shader_files! {
     "df/global_compose.wgsl" => Some("penumbra::df::global_compose"),
     "df/global_field.wgsl" => Some("penumbra::df::global_field"),
     "df/heightfield.wgsl" => Some("penumbra::df::heightfield"),
+    "df/particles.wgsl" => Some("penumbra::df::particles"),
     "lighting/masks.wgsl" => Some("penumbra::lighting::masks"),
     "lighting/lights.wgsl" => Some("penumbra::lighting::lights"),
     "lighting/ao.wgsl" => Some("penumbra::lighting::ao"),

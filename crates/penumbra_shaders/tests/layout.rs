@@ -334,3 +334,30 @@ fn global_field_layouts_and_constants_match() {
         penumbra_df_core::ao::MIN_STEP_FRACTION
     );
 }
+
+/// Particles: `GpuParticle` and `ParticleStep` laid out by `encase` as the WGSL structs.
+#[test]
+fn particle_layouts_match() {
+    use encase::ShaderType;
+    use penumbra_df_core::particles::{GpuParticle, ParticleStep};
+    let m = parse("#import penumbra::df::particles\n");
+    let (members, size) = struct_layout(&m, "DistanceFieldParticle");
+    assert_eq!(u64::from(size), GpuParticle::min_size().get());
+    let names: Vec<&str> = members.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["position", "age", "velocity", "alive"]);
+    let (members, size) = struct_layout(&m, "ParticleStep");
+    assert_eq!(u64::from(size), ParticleStep::min_size().get());
+    let names: Vec<&str> = members.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "gravity",
+            "dt",
+            "origin",
+            "restitution",
+            "friction",
+            "radius",
+            "count"
+        ]
+    );
+}

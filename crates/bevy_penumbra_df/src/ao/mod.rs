@@ -38,7 +38,10 @@
 //!    the camera, bounds each by a ball, and keeps a caster for a range when the
 //!    caster's ball grown by the influence distance meets it and one distance sample at
 //!    its centre is within reach (64 casters at a time in workgroup memory); each pixel
-//!    marches its range's casters. Output `Rgba16Float`: AO and bent normal.
+//!    marches its range's casters, then every terrain
+//!    ([`DistanceFieldHeightfield`](crate::DistanceFieldHeightfield)) within reach
+//!    (its conservative heightfield distance; no small-object floor). Output
+//!    `Rgba16Float`: AO and bent normal.
 //! 2. Upsample (compute, when the divisor is above 1): depth- and normal-aware to the
 //!    view's size.
 //! 3. Temporal filter (compute, full size, `temporal_filter`): each frame the trace takes

@@ -35,7 +35,10 @@
 //! `RenderGraph` schedule after the object deltas; DFAO's trace reads them beyond
 //! `DistanceFieldAmbientOcclusion::global_field_start`.
 //!
-//! Status (#17): heightfields in the field, particles and debug views are to come.
+//! Terrains (`DistanceFieldHeightfield`) are composed like objects; a terrain that
+//! appears, changes or goes dirties its bounds.
+//!
+//! Status (#17): particles and debug views are to come.
 
 mod render;
 

@@ -14,10 +14,13 @@ use std::sync::Arc;
 
 /// Terrain from a single-channel height image over a world rectangle centred on the
 /// entity (x and z; its rotation and scale are ignored — a warning says so), solid
-/// below.
+/// below. A caster of the CPU queries, the global distance field, DFAO and
+/// distance-field shadows (module docs).
 ///
 /// Cost: the heights once on the CPU (4 bytes a sample) and a slope bound per 8 × 8
-/// cells, rebuilt when the image or the settings change; nothing per frame.
+/// cells, rebuilt when the image or the settings change, and the same again on the GPU
+/// (one `R32Float` texture for all terrains), uploaded only then. Per frame: each DFAO
+/// cone and each shadow ray near a terrain marches it (up to the steps of the pass).
 #[derive(Component, Reflect, Clone, Debug)]
 #[reflect(Component, Clone)]
 #[require(Transform)]

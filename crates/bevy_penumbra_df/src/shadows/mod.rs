@@ -34,8 +34,11 @@
 //! 2. The mask (compute, 8×8 tiles): each tile gathers candidates — the light's list, or
 //!    for directional lights the grid cells under the tile's own projected cone (cut at
 //!    the casters' height) — and culls them against the round cone from its pixels to the
-//!    light, 64 at a time in workgroup memory; each pixel marches the tile's list. One
-//!    `R32Float` layer per light, at the view's size.
+//!    light, 64 at a time in workgroup memory; each pixel marches the tile's list, then
+//!    every terrain ([`DistanceFieldHeightfield`](crate::DistanceFieldHeightfield))
+//!    whose box its ray's meets, at least half a terrain cell per step (a ray along a
+//!    slope, where the conservative bound is small, would otherwise spend its steps and
+//!    leak). One `R32Float` layer per light, at the view's size.
 //! 3. Penumbra's lighting pass multiplies the light's contribution by the mask.
 //!
 //! 4. Optionally ([`DistanceFieldShadows::half_resolution`]) step 2 traces one pixel in
