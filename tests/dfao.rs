@@ -616,3 +616,64 @@ fn dfao_sees_terrains_near_and_through_the_global_field() {
     );
     assert!(mean < 0.01 && apart * 50 <= n, "mean {mean}, {apart} apart");
 }
+
+/// Skip: a DFAO camera without `GlobalDistanceField` allocates exactly what it does in an
+/// app without `GlobalDistanceFieldPlugin` — buffers, bytes, textures and bind groups —
+/// has no clipmaps in the render world and counts no brick; the same camera with the
+/// component allocates its 8 MiB of clipmaps (so the counters see them).
+#[test]
+fn the_global_field_costs_nothing_without_its_component() {
+    use bevy::app::PluginGroup;
+    use penumbra::df::{GlobalDistanceFieldPlugin, GpuAllocationCounts, PenumbraGpuAllocations};
+    if !gpu_or_skip("the_global_field_costs_nothing_without_its_component") {
+        return;
+    }
+    let run = |plugin: bool, field: Option<GlobalDistanceField>| {
+        let render = HeadlessRender::new(SIZE, SIZE)
+            .frames(4)
+            .without_pipelining();
+        let mut app = render.app();
+        let plugins = PenumbraPlugins.build();
+        let plugins = if plugin {
+            plugins
+        } else {
+            plugins.disable::<GlobalDistanceFieldPlugin>()
+        };
+        app.add_plugins(plugins)
+            .insert_resource(DefaultOpaqueRendererMethod::deferred())
+            .insert_resource(Setup {
+                dfao: Some(DistanceFieldAmbientOcclusion::default()),
+                global_field: field,
+                terrain: false,
+            })
+            .add_systems(Startup, scene);
+        let (_, mut kept) = render.run_keeping_app(app).expect("headless render");
+        let counts: GpuAllocationCounts =
+            kept.world().resource::<PenumbraGpuAllocations>().counts();
+        let world = kept.sub_app_mut(bevy::render::RenderApp).world_mut();
+        let fields = world
+            .query::<&penumbra::df::global_field::ViewGlobalField>()
+            .iter(world)
+            .count();
+        let stats = kept
+            .world()
+            .get_resource::<GlobalDistanceFieldStats>()
+            .copied()
+            .unwrap_or_default();
+        (counts, fields, stats)
+    };
+    let (without_plugin, _, _) = run(false, None);
+    let (without_component, fields, stats) = run(true, None);
+    let (with_component, with_fields, _) = run(true, Some(GlobalDistanceField::default()));
+    println!(
+        "allocations: no plugin {without_plugin:?}; plugin, no component {without_component:?}; \
+         with the component {with_component:?}"
+    );
+    assert_eq!(without_component, without_plugin);
+    assert_eq!((fields, stats), (0, GlobalDistanceFieldStats::default()));
+    assert_eq!(with_fields, 1);
+    assert!(
+        with_component.buffer_bytes >= without_plugin.buffer_bytes + (8 << 20),
+        "the clipmaps were not counted"
+    );
+}
