@@ -68,6 +68,7 @@ plugin_group! {
         bevy_penumbra_df::ao:::DistanceFieldAmbientOcclusionPlugin,
         bevy_penumbra_df::buffer_dump:::PenumbraBufferDumpPlugin,
         bevy_penumbra_df::global_field:::GlobalDistanceFieldPlugin,
+        bevy_penumbra_df::particles:::DistanceFieldParticlesPlugin,
     }
 }
 
@@ -91,10 +92,11 @@ pub mod prelude {
     #[cfg(feature = "shadows")]
     pub use bevy_penumbra_df::DistanceFieldShadows;
     pub use bevy_penumbra_df::{
-        CasterSource, DistanceFieldCaster, DistanceFieldHeightfield, DistanceFieldQuery,
-        DistanceFieldScene, DistanceFieldSceneCasters, DistanceFieldSceneSettings,
-        DistanceFieldUploadStats, GlobalDistanceField, GlobalDistanceFieldStats, PenumbraLighting,
-        PenumbraLightingPlugin, SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset,
+        CasterSource, DistanceFieldCaster, DistanceFieldHeightfield, DistanceFieldParticles,
+        DistanceFieldQuery, DistanceFieldScene, DistanceFieldSceneCasters,
+        DistanceFieldSceneSettings, DistanceFieldUploadStats, GlobalDistanceField,
+        GlobalDistanceFieldStats, PenumbraLighting, PenumbraLightingPlugin, SdfAssetPlugin,
+        SdfBakeFailed, SdfBaked, SdfVolumeAsset,
     };
     #[cfg(feature = "ao")]
     pub use bevy_penumbra_df::{

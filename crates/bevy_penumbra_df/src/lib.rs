@@ -40,6 +40,7 @@ pub mod diagnostics;
 pub mod global_field;
 pub mod gpu_allocations;
 pub mod lighting;
+pub mod particles;
 pub mod scene;
 pub mod sdf_asset;
 pub mod shader_library;
@@ -63,6 +64,10 @@ pub use global_field::{
 };
 pub use gpu_allocations::{GpuAllocationCounts, PenumbraGpuAllocations};
 pub use lighting::{PenumbraLighting, PenumbraLightingPlugin};
+pub use particles::{
+    DistanceFieldParticleMaterial, DistanceFieldParticles, DistanceFieldParticlesPlugin,
+    DistanceFieldParticlesState,
+};
 pub use scene::{
     CasterSource, DistanceFieldCaster, DistanceFieldHeightfield, DistanceFieldQuery,
     DistanceFieldScene, DistanceFieldSceneCaster, DistanceFieldSceneCasters,

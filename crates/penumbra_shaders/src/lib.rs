@@ -50,6 +50,7 @@ shader_files! {
     "df/global_field.wgsl" => Some("penumbra::df::global_field"),
     "df/heightfield.wgsl" => Some("penumbra::df::heightfield"),
     "df/particles.wgsl" => Some("penumbra::df::particles"),
+    "df/particles_draw.wgsl" => None,
     "lighting/masks.wgsl" => Some("penumbra::lighting::masks"),
     "lighting/lights.wgsl" => Some("penumbra::lighting::lights"),
     "lighting/ao.wgsl" => Some("penumbra::lighting::ao"),

@@ -54,9 +54,8 @@ use penumbra_df_core::clipmap::{
 };
 use penumbra_df_core::object::ObjectRecord;
 pub use render::{ExtractedGlobalField, ViewGlobalField};
-// The field's readers: DFAO's trace.
-#[cfg(feature = "ao")]
-pub(crate) use render::{empty_read_group, read_layout};
+// The field's readers: DFAO's trace and the particles' step.
+pub(crate) use render::{compose_global_fields, empty_read_group, read_layout};
 
 /// Adds the global distance field to cameras with [`GlobalDistanceField`]. Part of
 /// `PenumbraPlugins`; needs `DistanceFieldScenePlugin`.

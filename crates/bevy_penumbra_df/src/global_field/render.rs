@@ -110,7 +110,7 @@ impl ViewGlobalField {
 
 /// The compose pipeline.
 #[derive(Resource)]
-struct GlobalFieldPipelines {
+pub(crate) struct GlobalFieldPipelines {
     compose_layout: BindGroupLayoutDescriptor,
     compose: CachedComputePipelineId,
     /// Bound as the atlas where no SDF volume exists.
@@ -133,7 +133,6 @@ pub(crate) fn read_layout() -> BindGroupLayoutDescriptor {
     )
 }
 
-#[cfg(feature = "ao")]
 /// A group 1 for a reader on a camera without a global field: an empty field (no
 /// level) that is never read. Small buffers, made once per reader view.
 pub(crate) fn empty_read_group(
@@ -454,7 +453,7 @@ fn prepare_global_field_bind_groups(
 
 /// The compose pass: per camera, one workgroup per brick handed out this frame.
 /// Dispatches only.
-fn compose_global_fields(
+pub(crate) fn compose_global_fields(
     mut ctx: RenderContext,
     views: Query<&ViewGlobalField>,
     pipelines: Option<Res<GlobalFieldPipelines>>,
