@@ -124,3 +124,38 @@ fn keys_toggle_dfao_and_its_debug_view() {
     }
     assert!(title(&app).contains("AO view: off"), "{}", title(&app));
 }
+
+/// On a camera with a `GlobalDistanceField`, `D` goes on from the shaded view to the
+/// field's three views before turning off.
+#[test]
+fn d_cycles_through_the_global_field_views_on_a_field_camera() {
+    let mut app = App::new();
+    app.add_plugins(MinimalPlugins)
+        .init_resource::<ButtonInput<KeyCode>>();
+    controls::add_controls(&mut app, "test");
+    let camera = app
+        .world_mut()
+        .spawn((Camera3d::default(), GlobalDistanceField::default()))
+        .id();
+    let mut modes = Vec::new();
+    for _ in 0..6 {
+        press(&mut app, KeyCode::KeyD);
+        modes.push(
+            app.world()
+                .get::<DistanceFieldDebugView>(camera)
+                .map(|v| v.mode),
+        );
+    }
+    use DistanceFieldDebugMode as M;
+    assert_eq!(
+        modes,
+        [
+            Some(M::StepCount),
+            Some(M::Shaded),
+            Some(M::GlobalField),
+            Some(M::ClipmapLevels),
+            Some(M::GlobalFieldUpdates),
+            None
+        ]
+    );
+}

@@ -4,7 +4,9 @@
 //! - `Space`: distance-field shadows on/off. Off, the lights fall back to Bevy's shadow
 //!   maps (the examples' lights keep `shadow_maps_enabled`): compare the two.
 //! - `H`: half-resolution shadow tracing on/off.
-//! - `D`: the distance-field debug view: off → step-count heat map → shaded → off.
+//! - `D`: the distance-field debug view: off → step-count heat map → shaded → off; with
+//!   a `GlobalDistanceField` on a camera (`dfao --global-field`), also its clipmaps
+//!   (shaded → tinted by clipmap level → bricks updated this frame) before off.
 //! - `A`: distance-field ambient occlusion on/off (cameras that have it).
 //! - `V`: the DFAO debug view: off → AO → bent normal → objects per tile → off.
 //!
@@ -15,7 +17,8 @@ use penumbra::prelude::*;
 
 /// The toggles as text, printed at start.
 pub const HELP: &str = "keys: [Space] distance-field shadows on/off (off: Bevy's shadow maps) · \
-    [H] half-resolution shadows · [D] debug view (off / step count / shaded) · \
+    [H] half-resolution shadows · [D] debug view (off / step count / shaded / \
+    global field / clipmap levels / field updates) · \
     [A] distance-field AO on/off · [V] AO view (off / AO / bent normal / objects per tile)";
 
 /// Adds the toggles to a windowed example app.
@@ -59,7 +62,7 @@ fn toggle(
     mut controls: ResMut<Controls>,
     mut lit: Query<(Entity, &mut DistanceFieldShadows)>,
     stashed: Query<(Entity, &StashedShadows)>,
-    cameras: Query<Entity, With<Camera3d>>,
+    cameras: Query<(Entity, Has<GlobalDistanceField>), With<Camera3d>>,
     ao: AoCameras,
 ) {
     toggle_ao(&mut commands, &keys, &mut controls, ao);
@@ -91,9 +94,18 @@ fn toggle(
         controls.debug = match controls.debug {
             None => Some(DistanceFieldDebugMode::StepCount),
             Some(DistanceFieldDebugMode::StepCount) => Some(DistanceFieldDebugMode::Shaded),
+            Some(DistanceFieldDebugMode::Shaded) if cameras.iter().any(|(_, field)| field) => {
+                Some(DistanceFieldDebugMode::GlobalField)
+            }
+            Some(DistanceFieldDebugMode::GlobalField) => {
+                Some(DistanceFieldDebugMode::ClipmapLevels)
+            }
+            Some(DistanceFieldDebugMode::ClipmapLevels) => {
+                Some(DistanceFieldDebugMode::GlobalFieldUpdates)
+            }
             Some(_) => None,
         };
-        for camera in &cameras {
+        for (camera, _) in &cameras {
             match controls.debug {
                 Some(mode) => commands
                     .entity(camera)
@@ -150,7 +162,10 @@ fn show_in_title(controls: Res<Controls>, mut windows: Query<&mut Window>) {
     let debug = match controls.debug {
         None => "off",
         Some(DistanceFieldDebugMode::StepCount) => "step count",
-        Some(_) => "shaded",
+        Some(DistanceFieldDebugMode::Shaded) => "shaded",
+        Some(DistanceFieldDebugMode::GlobalField) => "global field",
+        Some(DistanceFieldDebugMode::ClipmapLevels) => "clipmap levels",
+        Some(DistanceFieldDebugMode::GlobalFieldUpdates) => "field updates",
     };
     let ao_view = match controls.ao_view {
         DistanceFieldAoDebugView::None => "off",

@@ -16,7 +16,10 @@
 //! - [`diagnostics`]: Penumbra's figures and pass times in Bevy's `DiagnosticsStore`.
 //! - [`shader_library`]: Penumbra's WGSL modules as Bevy shader assets.
 //! - [`global_field`]: the global distance field's clipmaps around a camera
-//!   (`GlobalDistanceField`; #17, the main-world half so far).
+//!   (`GlobalDistanceField`), composed on the GPU; DFAO's far field, terrains,
+//!   particles and debug views read it.
+//! - [`particles`]: GPU particles colliding with the global field
+//!   (`DistanceFieldParticles`).
 //! - [`gpu_allocations`]: counts of the GPU resources Penumbra creates (pooled: a steady
 //!   frame creates none).
 //!

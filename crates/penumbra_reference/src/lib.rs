@@ -33,6 +33,7 @@ pub mod camera;
 pub mod df;
 pub mod df_shadow;
 pub mod dfao;
+pub mod field_debug;
 pub mod global_sdf;
 pub mod particles;
 pub mod pbr;

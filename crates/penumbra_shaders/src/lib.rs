@@ -51,6 +51,7 @@ shader_files! {
     "df/heightfield.wgsl" => Some("penumbra::df::heightfield"),
     "df/particles.wgsl" => Some("penumbra::df::particles"),
     "df/particles_draw.wgsl" => None,
+    "df/global_field_debug.wgsl" => Some("penumbra::df::global_field_debug"),
     "lighting/masks.wgsl" => Some("penumbra::lighting::masks"),
     "lighting/lights.wgsl" => Some("penumbra::lighting::lights"),
     "lighting/ao.wgsl" => Some("penumbra::lighting::ao"),

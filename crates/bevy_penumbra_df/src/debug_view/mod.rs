@@ -12,6 +12,19 @@
 //! - [`DistanceFieldDebugMode::Shaded`]: the traced surfaces, Lambert-shaded with a fixed
 //!   light — what the distance fields *are* (compare with the rasterised meshes).
 //!
+//! and, on a camera that also has a
+//! [`GlobalDistanceField`](crate::GlobalDistanceField), views of its clipmaps instead
+//! of the objects (drawn by the global-field module; CPU model
+//! `penumbra_reference::field_debug`): the ray sphere-traced through the finest valid
+//! clipmap, the surface shaded by the field's gradient
+//! ([`DistanceFieldDebugMode::GlobalField`]), tinted by the clipmap that answered —
+//! red, orange, yellow, green, cyan, blue, violet, magenta from the finest
+//! ([`DistanceFieldDebugMode::ClipmapLevels`]: where each texel size is used) — or
+//! orange where its brick was composed this frame
+//! ([`DistanceFieldDebugMode::GlobalFieldUpdates`]: scrolling slabs, dirty regions,
+//! a teleport's backlog). Without a `GlobalDistanceField` these modes warn once and
+//! leave the image as it is.
+//!
 //! Cost: one fullscreen pass looping over every culled object at every step; meant for
 //! inspection, not shipping. Perspective cameras only (an orthographic one gets a
 //! one-time warning). The CPU model is `penumbra_reference::df::debug_pixel`.
@@ -34,6 +47,22 @@ pub enum DistanceFieldDebugMode {
     StepCount,
     /// Lambert-shaded traced surfaces.
     Shaded,
+    /// The camera's global distance field, sphere-traced and shaded.
+    GlobalField,
+    /// The global field tinted by the clipmap (texel size) that answered.
+    ClipmapLevels,
+    /// The global field, bricks composed this frame in orange.
+    GlobalFieldUpdates,
+}
+
+impl DistanceFieldDebugMode {
+    /// Whether the mode shows the camera's global distance field (not the objects).
+    pub fn is_global_field(self) -> bool {
+        matches!(
+            self,
+            Self::GlobalField | Self::ClipmapLevels | Self::GlobalFieldUpdates
+        )
+    }
 }
 
 /// Replaces a camera's image with a view of the distance-field scene.

@@ -162,6 +162,9 @@ fn prepare_debug_view_resources(
         return; // no caster has ever existed: nothing to trace
     };
     for (entity, extracted, settings, culled, resources) in &mut views {
+        if settings.mode.is_global_field() {
+            continue; // the global field's debug pass draws it
+        }
         if extracted.clip_from_view.w_axis.w == 1.0 {
             if !*warned_ortho {
                 warn!("Penumbra: DistanceFieldDebugView supports perspective cameras only");
@@ -231,7 +234,8 @@ fn debug_view_words(
     words.extend(origin.offset.extend(0.0).to_array().map(f32::to_bits));
     let mode = match settings.mode {
         DistanceFieldDebugMode::StepCount => 0,
-        DistanceFieldDebugMode::Shaded => 1,
+        // The global field's modes are drawn by its module (skipped above).
+        _ => 1,
     };
     words.extend([
         mode,

@@ -33,13 +33,19 @@
 //!
 //! On the GPU (`render.rs`): per camera, the clipmaps in pooled buffers, composed in the
 //! `RenderGraph` schedule after the object deltas; DFAO's trace reads them beyond
-//! `DistanceFieldAmbientOcclusion::global_field_start`.
+//! `DistanceFieldAmbientOcclusion::global_field_start`, and `DistanceFieldParticles`
+//! collide with them. (Distance-field shadows trace the objects' own fields: their
+//! rays are short and need the objects' detail.)
 //!
 //! Terrains (`DistanceFieldHeightfield`) are composed like objects; a terrain that
 //! appears, changes or goes dirties its bounds.
 //!
-//! Status (#17): particles and debug views are to come.
+//! Debug views (`debug.rs`): a `DistanceFieldDebugView` in mode
+//! `GlobalField`, `ClipmapLevels` or `GlobalFieldUpdates` on the same camera shows the
+//! clipmaps sphere-traced and shaded, tinted by the level that answered, or with the
+//! bricks composed this frame in orange (`debug_view` module docs).
 
+mod debug;
 mod render;
 
 use crate::scene::{
@@ -205,12 +211,14 @@ impl Plugin for GlobalDistanceFieldPlugin {
         if app.get_sub_app(RenderApp).is_some() {
             app.add_plugins(ExtractComponentPlugin::<GlobalDistanceField>::default());
             render::build(app.sub_app_mut(RenderApp));
+            debug::build(app.sub_app_mut(RenderApp));
         }
     }
 
     fn finish(&self, app: &mut App) {
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::finish(render_app);
+            debug::finish(render_app);
         }
     }
 }

@@ -84,6 +84,8 @@ pub struct ViewGlobalField {
     backlog: BTreeMap<u32, ComposeJob>,
     /// Bricks composed this frame (workgroups of the compose dispatch).
     dispatch: u32,
+    /// Their jobs (for the debug view of this frame's updates).
+    composed: Vec<ComposeJob>,
     /// The view and validity bits last written.
     uploaded: Option<(GlobalFieldView, Vec<u32>)>,
     compose_group: Option<(BindGroup, ComposeKey)>,
@@ -105,6 +107,16 @@ impl ViewGlobalField {
     /// Bricks composed this frame.
     pub fn composed(&self) -> u32 {
         self.dispatch
+    }
+
+    /// The layout of the clipmaps.
+    pub fn layout(&self) -> &ClipmapLayout {
+        &self.layout
+    }
+
+    /// The jobs of the bricks composed this frame.
+    pub fn composed_jobs(&self) -> &[ComposeJob] {
+        &self.composed
     }
 }
 
@@ -291,6 +303,7 @@ fn view_buffers(
         no_heightfields: crate::scene::no_heightfields(allocations, device),
         backlog: BTreeMap::new(),
         dispatch: 0,
+        composed: Vec::new(),
         uploaded: None,
         compose_group: None,
         read_group,
@@ -346,6 +359,7 @@ fn prepare_global_field_buffers(
             buffers.backlog.insert(job.word, job);
         }
         buffers.dispatch = 0;
+        buffers.composed.clear();
         if can_compose && !buffers.backlog.is_empty() {
             let take = buffers
                 .backlog
@@ -370,6 +384,7 @@ fn prepare_global_field_buffers(
             };
             queue.write_buffer(&buffers.params, 0, &uniform_bytes(&params));
             buffers.dispatch = jobs.len() as u32;
+            buffers.composed = jobs;
         }
         let mut valid = extracted.valid.clone();
         let words_per_level = layout.bricks_per_level().div_ceil(32);

@@ -34,6 +34,7 @@
 //! values — is the reference model's (`penumbra_reference::global_sdf`) and the compute
 //! shader's.
 
+pub mod debug;
 #[cfg(test)]
 mod tests;
 

@@ -8,7 +8,7 @@
 // layouts: `penumbra_df_core::particles`.
 #define_import_path penumbra::df::particles
 
-#import penumbra::df::global_field::{global_view, sample_field}
+#import penumbra::df::global_field::field_normal
 
 struct DistanceFieldParticle {
     position: vec3<f32>,
@@ -29,38 +29,6 @@ struct ParticleStep {
 
 @group(0) @binding(0) var<storage, read_write> particles: array<DistanceFieldParticle>;
 @group(0) @binding(1) var<uniform> params: ParticleStep;
-
-// The surface distance at camera-relative `p` (the stored value plus its level's
-// dilation) in `w` and the field's unit gradient in `xyz`; `ok` false where the field
-// cannot be read or has no gradient (`particles::field_normal`).
-struct FieldNormal {
-    normal: vec3<f32>,
-    distance: f32,
-    ok: bool,
-}
-
-fn field_normal(p: vec3<f32>) -> FieldNormal {
-    let s = sample_field(p, 0u);
-    if s.z == 0.0 {
-        return FieldNormal(vec3<f32>(0.0), 0.0, false);
-    }
-    let level = u32(s.y);
-    let l = global_view.levels[level];
-    let h = 0.5 * l.texel;
-    var at: array<f32, 6>;
-    for (var i = 0u; i < 6u; i++) {
-        var o = vec3<f32>(0.0);
-        o[i / 2u] = select(h, -h, (i % 2u) == 1u);
-        let q = sample_field(p + o, level);
-        at[i] = select(s.x, q.x, q.z > 0.0);
-    }
-    let g = vec3<f32>(at[0] - at[1], at[2] - at[3], at[4] - at[5]);
-    let len = length(g);
-    if !(len > 0.0) {
-        return FieldNormal(vec3<f32>(0.0), 0.0, false);
-    }
-    return FieldNormal(g / len, s.x + l.dilation, true);
-}
 
 @compute @workgroup_size(64, 1, 1)
 fn step_particles(@builtin(global_invocation_id) gid: vec3<u32>) {
