@@ -174,6 +174,30 @@ fn gpu_inputs(gpu: &GpuCompute, records: &[ObjectRecord], inputs: &Inputs) -> Gp
 }
 
 /// A 1-voxel atlas (analytic casters only).
+/// The trace's terrain bindings without a terrain: one zeroed record and a 1 × 1
+/// height texture (what the app binds then).
+fn no_terrain(gpu: &GpuCompute) -> (wgpu::Buffer, wgpu::TextureView) {
+    use bevy::render::render_resource::encase::StorageBuffer;
+    let mut bytes = StorageBuffer::new(Vec::new());
+    bytes
+        .write(&vec![
+            penumbra_df_core::heightfield::HeightfieldRecord::default(),
+        ])
+        .expect("encodes");
+    let records = gpu.buffer("terrains", bytes.as_ref(), BufferUsages::empty());
+    let heights = gpu
+        .texture(
+            "heights",
+            extent(1, 1, 1),
+            wgpu::TextureDimension::D2,
+            wgpu::TextureFormat::R32Float,
+            4,
+            &[0; 4],
+        )
+        .create_view(&Default::default());
+    (records, heights)
+}
+
 fn empty_atlas(gpu: &GpuCompute) -> wgpu::Texture {
     gpu.texture(
         "atlas",
@@ -259,6 +283,7 @@ fn dfao_pass_times_at_512() {
         return;
     }
     let gpu = GpuCompute::new().expect("adapter");
+    let no_terrain = no_terrain(&gpu);
     let pipeline = |module: &str, entry: &str| {
         gpu.pipeline(
             &flatten(&format!("#import penumbra::df::{module}\n")).expect("flattens"),
@@ -357,6 +382,8 @@ fn dfao_pass_times_at_512() {
                 entry(3, tv(2)),
                 entry(4, trace_uniform.as_entire_binding()),
                 entry(5, tv(3)),
+                entry(6, no_terrain.0.as_entire_binding()),
+                entry(7, wgpu::BindingResource::TextureView(&no_terrain.1)),
             ],
         });
         let upsample_bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -481,6 +508,7 @@ fn dfao_far_field_figures_at_512() {
         return;
     }
     let gpu = GpuCompute::new().expect("adapter");
+    let no_terrain = no_terrain(&gpu);
     let trace_pipeline = gpu.pipeline(
         &flatten("#import penumbra::df::ao_trace\n").expect("flattens"),
         "trace",
@@ -532,9 +560,10 @@ fn dfao_far_field_figures_at_512() {
     }
     let switches = [None, Some(0.5), Some(1.0), Some(2.0), Some(3.0), Some(4.0)];
     eprintln!(
-        "\n{} casters, {} pixels, 9 cones × 8 steps, 10 m reach\n\n| trace | object evaluations / px | field samples / px | mean \\|AO − truth\\| | trace at 512², divisor 4 (lavapipe) |\n|---|---|---|---|---|",
+        "\n{} casters, {} pixels, 9 cones × 8 steps, 10 m reach\n\n| trace | object evaluations / px | field samples / px | mean \\|AO − truth\\| | trace at 512², divisor 4 ({}) |\n|---|---|---|---|---|",
         records.len(),
-        pixels.len()
+        pixels.len(),
+        penumbra_test::vulkan_adapter().unwrap_or("?")
     );
     // The GPU inputs.
     let full = UVec2::splat(SIZE);
@@ -610,6 +639,8 @@ fn dfao_far_field_figures_at_512() {
                 entry(3, tv(2)),
                 entry(4, trace_uniform.as_entire_binding()),
                 entry(5, tv(3)),
+                entry(6, no_terrain.0.as_entire_binding()),
+                entry(7, wgpu::BindingResource::TextureView(&no_terrain.1)),
             ],
         });
         let groups = UVec2::new(small.x.div_ceil(8), small.y.div_ceil(8));

@@ -507,3 +507,67 @@ fn compose_pass_times() {
         );
     }
 }
+
+/// A measurement, not a test (ignored; it asserts nothing about time): the `global_sdf`
+/// bench's town scenarios (`penumbra_reference::global_sdf::scenarios`: 1,000 casters,
+/// still / walking 5 m/s / flying 30 m/s / one and 100 casters moving / a teleport) at
+/// the default layout and brick budget, each frame's compose dispatch on lavapipe timed
+/// from submission to idle — bricks and milliseconds per frame (mean, max) over the
+/// first 120 frames after the first full composition.
+/// `cargo test -p bevy_penumbra_df --test global_sdf_gpu compose_times -- --ignored --nocapture`.
+#[test]
+#[ignore = "a measurement; run it with --ignored"]
+fn compose_times_per_scenario() {
+    use penumbra_df_core::clipmap::DEFAULT_BRICK_BUDGET;
+    use penumbra_reference::global_sdf::scenarios::{START, scenarios, town};
+    use std::time::Instant;
+    if !gpu_or_skip("compose_times_per_scenario") {
+        return;
+    }
+    let layout = ClipmapLayout::DEFAULT;
+    let base = scene(Vec3::ZERO);
+    let gpu = Gpu::new(
+        GpuCompute::new().expect("adapter"),
+        &base,
+        &layout,
+        &HeightfieldTexture::default(),
+    );
+    eprintln!(
+        "| scenario | frames | bricks / frame, mean | max | ms / frame, mean | max | frames with bricks pending |\n|---|---|---|---|---|---|---|"
+    );
+    for (name, frames, make) in scenarios() {
+        let frames = frames.min(120);
+        let mut casters = town();
+        let mut step = make();
+        let mut state = ClipmapState::new(layout);
+        let mut camera = START;
+        let _ = state.update(camera, &[], usize::MAX);
+        let (mut bricks, mut ms, mut pending) = (Vec::new(), Vec::new(), 0);
+        for frame in 0..frames {
+            let dirty = step(frame, &mut camera, &mut casters);
+            let update = state.update(camera, &dirty, DEFAULT_BRICK_BUDGET);
+            let scene = Scene {
+                records: casters.iter().map(|c| c.record()).collect(),
+                atlas: base.atlas.clone(),
+                atlas_size: base.atlas_size,
+                atlas_bits: base.atlas_bits.clone(),
+                terrain: HeightfieldTexture::default(),
+            };
+            let start = Instant::now();
+            gpu.compose(&layout, &scene, &update.jobs);
+            gpu.gpu.wait();
+            ms.push(start.elapsed().as_secs_f64() * 1e3);
+            bricks.push(update.jobs.len());
+            pending += usize::from(update.pending > 0);
+        }
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        let b: Vec<f64> = bricks.iter().map(|&b| b as f64).collect();
+        eprintln!(
+            "| {name} | {frames} | {:.0} | {} | {:.1} | {:.1} | {pending} |",
+            mean(&b),
+            bricks.iter().max().unwrap_or(&0),
+            mean(&ms),
+            ms.iter().copied().fold(0.0, f64::max),
+        );
+    }
+}

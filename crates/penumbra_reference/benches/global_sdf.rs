@@ -33,44 +33,14 @@ use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::object::ObjectRecord;
 use penumbra_reference::df::Atlas;
 use penumbra_reference::dfao::{FarField, pixel_ao_counted, pixel_ao_far};
+use penumbra_reference::global_sdf::scenarios::{TELEPORT, scenarios, town};
 use penumbra_reference::global_sdf::{
     AnalyticCaster, ClipmapFormat, FieldObject, GlobalField, analytic_distance, closed_room,
 };
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-/// The teleport scenario: from the town's centre to near a corner.
-const TELEPORT: &str = "teleport, 212 m across the town";
-
-/// A frame, seconds.
-const DT: f32 = 1.0 / 60.0;
-
 use penumbra_testkit::XorShift as Rng;
-
-fn town() -> Vec<AnalyticCaster> {
-    let mut rng = Rng(0x2545_f491);
-    let mut out = vec![AnalyticCaster::Cuboid {
-        centre: Vec3::new(0.0, -0.5, 0.0),
-        half: Vec3::new(200.0, 0.5, 200.0),
-    }];
-    for i in 0..1000 {
-        let (x, z) = (rng.range(-195.0, 195.0), rng.range(-195.0, 195.0));
-        out.push(if i < 600 {
-            let h = rng.range(3.0, 20.0);
-            AnalyticCaster::Cuboid {
-                centre: Vec3::new(x, 0.5 * h, z),
-                half: Vec3::new(rng.range(1.0, 6.0), 0.5 * h, rng.range(1.0, 6.0)),
-            }
-        } else {
-            let r = rng.range(0.3, 2.0);
-            AnalyticCaster::Sphere {
-                centre: Vec3::new(x, r, z),
-                radius: r,
-            }
-        });
-    }
-    out
-}
 
 /// One scenario's figures.
 #[derive(Default)]
@@ -131,59 +101,7 @@ fn updates(md: &mut String) {
     md.push_str(
         "## Updates (60 frames per second)\n\n| scenario | budget (bricks / frame) | frames | bricks / frame, mean | max | texels / frame, max | evaluations / frame, mean | max | frames ending with bricks pending |\n|---|---|---|---|---|---|---|---|---|\n",
     );
-    type Step = Box<dyn FnMut(usize, &mut Vec3, &mut Vec<AnalyticCaster>) -> Vec<DirtyBox>>;
-    type Scenario = (&'static str, usize, fn() -> Step);
-    let scenarios: Vec<Scenario> = vec![
-        ("still camera", 300, || Box::new(|_, _, _| Vec::new())),
-        ("walk, 5 m/s", 600, || {
-            Box::new(move |_, c: &mut Vec3, _| {
-                *c += Vec3::new(0.8, 0.0, 0.6) * 5.0 * DT;
-                Vec::new()
-            })
-        }),
-        ("flight, 30 m/s", 600, || {
-            Box::new(move |f, c: &mut Vec3, _| {
-                let a = f as f32 * DT * 0.3;
-                *c += Vec3::new(a.cos(), 0.05, a.sin()) * 30.0 * DT;
-                Vec::new()
-            })
-        }),
-        ("one caster moving, 2 m/s", 300, || {
-            Box::new(move |f, _, casters: &mut Vec<AnalyticCaster>| {
-                let old = casters[1];
-                let a = f as f32 * DT * 2.0 / 5.0;
-                casters[1] = AnalyticCaster::Sphere {
-                    centre: Vec3::new(5.0 * a.cos(), 1.0, 5.0 * a.sin()),
-                    radius: 1.0,
-                };
-                vec![old.dirty(), casters[1].dirty()]
-            })
-        }),
-        ("100 casters moving, 2 m/s", 300, || {
-            Box::new(move |f, _, casters: &mut Vec<AnalyticCaster>| {
-                let mut dirty = Vec::new();
-                for i in 0..100 {
-                    let old = casters[i + 1];
-                    let a = f as f32 * DT * 2.0 / 8.0 + i as f32;
-                    let r = 8.0 + (i % 10) as f32 * 6.0;
-                    casters[i + 1] = AnalyticCaster::Sphere {
-                        centre: Vec3::new(r * a.cos(), 1.0, r * a.sin()),
-                        radius: 1.0,
-                    };
-                    dirty.extend([old.dirty(), casters[i + 1].dirty()]);
-                }
-                dirty
-            })
-        }),
-        (TELEPORT, 120, || {
-            Box::new(|f, c: &mut Vec3, _| {
-                if f == 0 {
-                    *c += Vec3::new(150.0, 0.0, -150.0);
-                }
-                Vec::new()
-            })
-        }),
-    ];
+    let scenarios = scenarios();
     let base = town();
     for (name, frames, make) in &scenarios {
         for budget in [1024, DEFAULT_BRICK_BUDGET, usize::MAX] {

@@ -16,6 +16,7 @@
 //! plus one texel diagonal (tested against exact distances) — but deeper inside a
 //! surface than the band, where it reads `−band`: inside all the same.
 
+pub mod scenarios;
 #[cfg(test)]
 mod tests;
 
