@@ -19,6 +19,10 @@
 //! every machine; its 256×256 screenshot after 40 frames is checked against
 //! `assets/reference/dfao.png` by `tests/dfao_example.rs`.
 //!
+//! With `--global-field` the camera also has a `GlobalDistanceField` (the cones' far
+//! part goes through it) and a fountain of `DistanceFieldParticles` bounces off the
+//! casters through it.
+//!
 //! Occlusion comes only from `DistanceFieldCaster`s: here analytic shapes, the ground
 //! (a `Plane` caster: objects standing on it darken at their feet) and a torus mesh (its
 //! SDF baked in the background on first use). The sky is `GlobalAmbientLight`, which
@@ -234,6 +238,23 @@ fn spawn_scene(
             ..default()
         },
     ));
+    if options.as_ref().is_some_and(|o| o.global_field) {
+        // With the global field: a fountain of sparks bouncing off the ball, the torus
+        // and the ground through it (`DistanceFieldParticles`).
+        commands.spawn((
+            DistanceFieldParticles {
+                rate: 400.0,
+                spawn_half_extents: Vec3::splat(0.05),
+                velocity: Vec3::new(-0.6, 3.0, 0.2),
+                velocity_jitter: 1.2,
+                radius: 0.025,
+                restitution: 0.5,
+                color: Color::srgb(1.0, 0.8, 0.4),
+                ..default()
+            },
+            Transform::from_xyz(0.3, 1.4, 0.5),
+        ));
+    }
     commands.spawn((
         Camera3d::default(),
         PenumbraLighting,

@@ -16,7 +16,8 @@
 //! shadow maps and there is no DFAO — the "before" image), `--ao-view V` (examples with
 //! DFAO: its debug view, `ao`, `bent` or `tiles`), `--casters N` (`dfao`: N extra small
 //! casters, to see how the cost grows), `--global-field` (`dfao`: a
-//! `GlobalDistanceField` on the camera, the cones' far part traced through it).
+//! `GlobalDistanceField` on the camera, the cones' far part traced through it, and a
+//! fountain of particles colliding with it).
 //!
 //! Windowed runs take keyboard toggles (`controls.rs`: `Space` distance-field shadows,
 //! `H` half resolution, `D` debug view), shown in the window title.

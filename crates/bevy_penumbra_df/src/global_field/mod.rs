@@ -45,6 +45,7 @@
 //! clipmaps sphere-traced and shaded, tinted by the level that answered, or with the
 //! bricks composed this frame in orange (`debug_view` module docs).
 
+#[cfg(feature = "debug_view")]
 mod debug;
 mod render;
 
@@ -211,6 +212,7 @@ impl Plugin for GlobalDistanceFieldPlugin {
         if app.get_sub_app(RenderApp).is_some() {
             app.add_plugins(ExtractComponentPlugin::<GlobalDistanceField>::default());
             render::build(app.sub_app_mut(RenderApp));
+            #[cfg(feature = "debug_view")]
             debug::build(app.sub_app_mut(RenderApp));
         }
     }
@@ -218,6 +220,7 @@ impl Plugin for GlobalDistanceFieldPlugin {
     fn finish(&self, app: &mut App) {
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::finish(render_app);
+            #[cfg(feature = "debug_view")]
             debug::finish(render_app);
         }
     }
