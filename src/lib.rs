@@ -89,8 +89,6 @@ impl Plugin for PenumbraCorePlugin {
 /// Common imports: `use penumbra::prelude::*;`.
 pub mod prelude {
     pub use crate::{PenumbraCorePlugin, PenumbraPlugins};
-    #[cfg(feature = "shadows")]
-    pub use bevy_penumbra_df::DistanceFieldShadows;
     pub use bevy_penumbra_df::{
         CasterSource, DistanceFieldCaster, DistanceFieldHeightfield, DistanceFieldParticles,
         DistanceFieldQuery, DistanceFieldScene, DistanceFieldSceneCasters,
@@ -104,6 +102,8 @@ pub mod prelude {
     };
     #[cfg(feature = "debug_view")]
     pub use bevy_penumbra_df::{DistanceFieldDebugMode, DistanceFieldDebugView};
+    #[cfg(feature = "shadows")]
+    pub use bevy_penumbra_df::{DistanceFieldShadows, ReadsNoShadowMaps};
     #[cfg(feature = "bake")]
     pub use bevy_penumbra_df::{SdfBakeRequest, SdfBakeTask};
 }

@@ -31,6 +31,10 @@ struct Extras {
     masked: bool,
     /// An alpha-blended sphere.
     blended: bool,
+    /// The blended sphere marked `ReadsNoShadowMaps`.
+    unlit: bool,
+    /// A `DistanceFieldParticles` emitter (blended, unlit discs).
+    particles: bool,
 }
 
 fn spawn_scene(
@@ -82,10 +86,22 @@ fn spawn_scene(
                 alpha_mode: AlphaMode::Blend,
                 ..default()
             });
-            commands.spawn((
+            let mut sphere = commands.spawn((
                 Mesh3d(meshes.add(Sphere::new(0.35).mesh().uv(24, 12))),
                 MeshMaterial3d(blended),
                 Transform::from_xyz(0.7, 0.35, 0.8),
+            ));
+            if extras.unlit {
+                sphere.insert(ReadsNoShadowMaps);
+            }
+        }
+        if extras.particles {
+            commands.spawn((
+                DistanceFieldParticles {
+                    rate: 2000.0,
+                    ..default()
+                },
+                Transform::from_xyz(0.0, 1.0, 0.0),
             ));
         }
         commands.spawn((
@@ -138,6 +154,8 @@ fn render_user_scene(camera: UserCamera, penumbra: bool) -> Vec<u8> {
     let extras = Extras {
         masked: true,
         blended: true,
+        unlit: false,
+        particles: false,
     };
     app.add_systems(Startup, spawn_scene(extras));
     app.add_systems(Startup, move |mut commands: Commands| {
@@ -254,6 +272,8 @@ fn shadow_maps_are_skipped_when_no_one_reads_them() {
     let extras = Extras {
         masked: true,
         blended: false,
+        unlit: false,
+        particles: false,
     };
     let mut app = render_penumbra(extras, false);
     assert!(!shadow_maps_enabled(&mut app));
@@ -267,9 +287,28 @@ fn shadow_maps_are_kept_for_blended_materials() {
     let extras = Extras {
         masked: false,
         blended: true,
+        unlit: false,
+        particles: false,
     };
     let mut app = render_penumbra(extras, false);
     assert!(shadow_maps_enabled(&mut app));
+}
+
+/// Blended meshes that read no shadow map — marked ones, Penumbra's particles — keep
+/// none alive.
+#[test]
+fn shadow_maps_are_skipped_for_unlit_blended_meshes() {
+    if !gpu_or_skip("shadow_maps_are_skipped_for_unlit_blended_meshes") {
+        return;
+    }
+    let extras = Extras {
+        masked: false,
+        blended: true,
+        unlit: true,
+        particles: true,
+    };
+    let mut app = render_penumbra(extras, false);
+    assert!(!shadow_maps_enabled(&mut app));
 }
 
 #[test]
@@ -280,6 +319,8 @@ fn shadow_maps_are_kept_for_other_cameras() {
     let extras = Extras {
         masked: false,
         blended: false,
+        unlit: false,
+        particles: false,
     };
     let mut app = render_penumbra(extras, true);
     assert!(shadow_maps_enabled(&mut app));

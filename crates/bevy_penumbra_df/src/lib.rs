@@ -85,7 +85,7 @@ pub use sdf_asset::{
 };
 pub use shader_library::{PenumbraShaderLibrary, register_shader_library};
 #[cfg(feature = "shadows")]
-pub use shadows::{DistanceFieldShadows, DistanceFieldShadowsPlugin};
+pub use shadows::{DistanceFieldShadows, DistanceFieldShadowsPlugin, ReadsNoShadowMaps};
 
 /// Panics, naming the missing plugin, when `P` has not been added before `plugin`: as
 /// Bevy's own plugins do, prerequisites are checked in `build`, not discovered later as

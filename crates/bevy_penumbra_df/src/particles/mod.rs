@@ -418,6 +418,9 @@ fn new_state(
             ChildOf(entity),
         ))
         .id();
+    // Unlit: the discs keep no light's shadow map alive.
+    #[cfg(feature = "shadows")]
+    commands.entity(draw).insert(crate::ReadsNoShadowMaps);
     DistanceFieldParticlesState {
         settings: settings.clone(),
         buffer,

@@ -11,6 +11,9 @@
 //!   alpha-blended or transmissive, or opaque / alpha-masked with the forward method;
 //! - the light is volumetric (`VolumetricLight`: Bevy's fog samples the map).
 //!
+//! A forward mesh marked [`ReadsNoShadowMaps`] (an unlit effect: Penumbra's particle
+//! discs carry it) does not count.
+//!
 //! Cost: one hash lookup per visible mesh of each Penumbra camera per frame, stopping at
 //! the first forward material; nothing for apps without DF-shadowed lights.
 
@@ -20,10 +23,32 @@ use bevy::material::{OpaqueRendererMethod, RenderPhaseType};
 use bevy::pbr::{
     ExtractedDirectionalLight, ExtractedPointLight, PreparedMaterial, RenderMaterialInstances,
 };
+use bevy::platform::collections::HashSet;
 use bevy::prelude::*;
+use bevy::render::Extract;
 use bevy::render::erased_render_asset::ErasedRenderAssets;
 use bevy::render::sync_world::MainEntity;
 use bevy::render::view::{ExtractedView, RenderVisibleEntities};
+
+/// Put on a mesh whose material Bevy draws in a forward phase (blended, transmissive or
+/// forward) but which reads no shadow map — unlit effects, like
+/// `DistanceFieldParticles`' discs: it does not keep distance-field-shadowed lights'
+/// shadow maps alive. Cost: one set entry per marked entity per frame.
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Component, Clone, Default)]
+pub struct ReadsNoShadowMaps;
+
+/// Render world: this frame's entities marked [`ReadsNoShadowMaps`].
+#[derive(Resource, Default)]
+pub(super) struct NoShadowMapReaders(HashSet<MainEntity>);
+
+pub(super) fn extract_no_shadow_map_readers(
+    mut readers: ResMut<NoShadowMapReaders>,
+    marked: Extract<Query<Entity, With<ReadsNoShadowMaps>>>,
+) {
+    readers.0.clear();
+    readers.0.extend(marked.iter().map(MainEntity::from));
+}
 
 /// Render-world view data the decision reads.
 type ViewQuery<'a> = (Has<PenumbraLightingView>, Option<&'a RenderVisibleEntities>);
@@ -42,6 +67,7 @@ pub(super) fn skip_unread_shadow_maps(
     views: Query<ViewQuery, (With<ExtractedView>, With<Camera3d>)>,
     material_instances: Res<RenderMaterialInstances>,
     materials: Res<ErasedRenderAssets<PreparedMaterial>>,
+    readers: Res<NoShadowMapReaders>,
     mut consumers: ResMut<ShadowMapConsumers>,
     mut points: Query<&mut ExtractedPointLight, With<DistanceFieldShadows>>,
     mut directionals: Query<&mut ExtractedDirectionalLight, With<DistanceFieldShadows>>,
@@ -53,7 +79,9 @@ pub(super) fn skip_unread_shadow_maps(
     }
     let forward_lit = views.iter().any(|(penumbra, visible)| {
         !penumbra
-            || visible.is_some_and(|v| sees_forward_material(v, &material_instances, &materials))
+            || visible.is_some_and(|v| {
+                sees_forward_material(v, &material_instances, &materials, &readers)
+            })
     });
     consumers.forward_lit = forward_lit;
     for mut light in &mut points {
@@ -71,6 +99,7 @@ fn sees_forward_material(
     visible: &RenderVisibleEntities,
     material_instances: &RenderMaterialInstances,
     materials: &ErasedRenderAssets<PreparedMaterial>,
+    readers: &NoShadowMapReaders,
 ) -> bool {
     let Some(meshes) = visible.get::<Mesh3d>() else {
         return false;
@@ -78,16 +107,17 @@ fn sees_forward_material(
     let cpu_culled = meshes.entities_cpu_culling.iter().map(|(_, main)| *main);
     let gpu_culled = meshes.entities_gpu_culling.keys().copied();
     cpu_culled.chain(gpu_culled).any(|entity: MainEntity| {
-        material_instances
-            .instances
-            .get(&entity)
-            .and_then(|instance| materials.get(instance.asset_id))
-            .is_some_and(|material| {
-                is_forward_lit(
-                    material.properties.render_phase_type,
-                    material.properties.render_method,
-                )
-            })
+        !readers.0.contains(&entity)
+            && material_instances
+                .instances
+                .get(&entity)
+                .and_then(|instance| materials.get(instance.asset_id))
+                .is_some_and(|material| {
+                    is_forward_lit(
+                        material.properties.render_phase_type,
+                        material.properties.render_method,
+                    )
+                })
     })
 }
 

@@ -78,7 +78,7 @@ mod consumers;
 mod render;
 mod resources;
 
-pub use consumers::ShadowMapConsumers;
+pub use consumers::{ReadsNoShadowMaps, ShadowMapConsumers};
 
 use bevy::prelude::*;
 use bevy::render::RenderApp;
@@ -160,6 +160,7 @@ impl Plugin for DistanceFieldShadowsPlugin {
         crate::shader_library::register_shader_library(app);
         app.register_type::<DistanceFieldShadows>()
             .register_type::<ShadowMapConsumers>()
+            .register_type::<ReadsNoShadowMaps>()
             .add_plugins(ExtractComponentPlugin::<DistanceFieldShadows>::default());
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app);

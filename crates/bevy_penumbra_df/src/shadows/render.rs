@@ -32,7 +32,7 @@ use bevy::render::render_resource::{
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::sync_world::MainEntity;
 use bevy::render::view::ExtractedView;
-use bevy::render::{Render, RenderStartup, RenderSystems};
+use bevy::render::{ExtractSchedule, Render, RenderStartup, RenderSystems};
 use penumbra_df_core::cull::{CameraOrigin, Frustum, grid_64};
 use penumbra_df_core::object::{tile_of, tile_relative};
 use penumbra_df_core::shadow::{
@@ -151,6 +151,11 @@ pub(super) fn build(render_app: &mut SubApp) {
     render_app
         .init_resource::<FrameLights>()
         .init_resource::<super::consumers::ShadowMapConsumers>()
+        .init_resource::<super::consumers::NoShadowMapReaders>()
+        .add_systems(
+            ExtractSchedule,
+            super::consumers::extract_no_shadow_map_readers,
+        )
         .add_systems(
             Render,
             (
