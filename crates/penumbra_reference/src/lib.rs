@@ -35,6 +35,7 @@ pub mod df_shadow;
 pub mod dfao;
 pub mod field_debug;
 pub mod global_sdf;
+pub mod msaa;
 pub mod particles;
 pub mod pbr;
 pub mod scene;
