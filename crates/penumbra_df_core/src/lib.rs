@@ -37,6 +37,7 @@ pub mod atlas;
 pub mod clipmap;
 pub mod cull;
 pub mod heightfield;
+pub mod msaa;
 pub mod object;
 pub mod particles;
 pub mod query;

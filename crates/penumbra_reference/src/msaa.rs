@@ -50,36 +50,17 @@ pub struct GPixel {
     pub z_slope: f32,
 }
 
-/// The edge test's thresholds.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct EdgeTest {
-    /// Samples may differ in depth by this many times the pixel's depth slope.
-    /// Default 1 (every sample is within a pixel of sample 0 in x and in y).
-    pub slope_scale: f32,
-    /// …plus this fraction of the depth (storage and derivative precision).
-    /// Default 10⁻³.
-    pub relative_depth: f32,
-    /// Samples whose normals' cosine falls below this differ. Default 0.98 (11.5°).
-    pub normal_cos: f32,
-}
-
-impl Default for EdgeTest {
-    fn default() -> Self {
-        Self {
-            slope_scale: 1.0,
-            relative_depth: 1e-3,
-            normal_cos: 0.98,
-        }
-    }
-}
+/// The edge test's thresholds (the shader's uniform).
+pub use penumbra_df_core::msaa::EdgeParams as EdgeTest;
 
 /// Whether a pixel's samples differ (it is shaded per sample).
 pub fn is_edge(pixel: &GPixel, test: &EdgeTest) -> bool {
+    let count = (test.sample_count as usize).clamp(1, 4);
     let Some(first) = pixel.samples[0] else {
-        return pixel.samples.iter().any(Option::is_some);
+        return pixel.samples[..count].iter().any(Option::is_some);
     };
     let allowed = test.slope_scale * pixel.z_slope + test.relative_depth * first.view_z;
-    pixel.samples[1..].iter().any(|s| match s {
+    pixel.samples[1..count].iter().any(|s| match s {
         None => true,
         Some(s) => {
             s.material != first.material
@@ -90,8 +71,8 @@ pub fn is_edge(pixel: &GPixel, test: &EdgeTest) -> bool {
 }
 
 /// The resolve: the mean of the samples' colours.
-pub fn resolve(colors: &[Vec3; 4]) -> Vec3 {
-    colors.iter().copied().sum::<Vec3>() / 4.0
+pub fn resolve(colors: &[Vec3]) -> Vec3 {
+    colors.iter().copied().sum::<Vec3>() / colors.len().max(1) as f32
 }
 
 /// How a pixel is shaded.

@@ -55,6 +55,7 @@ shader_files! {
     "lighting/masks.wgsl" => Some("penumbra::lighting::masks"),
     "lighting/lights.wgsl" => Some("penumbra::lighting::lights"),
     "lighting/ao.wgsl" => Some("penumbra::lighting::ao"),
+    "lighting/msaa.wgsl" => Some("penumbra::lighting::msaa"),
     "lighting/pass.wgsl" => None,
     "lighting/buffer_dump.wgsl" => Some("penumbra::lighting::buffer_dump"),
 }
