@@ -12,7 +12,7 @@ use penumbra_reference::field_debug::{FieldDebugScene, field_debug_pixel};
 use penumbra_reference::global_sdf::{AnalyticCaster, ClipmapFormat, FieldObject, GlobalField};
 use penumbra_shaders::flatten;
 use penumbra_test::wgpu::{self, BufferUsages};
-use penumbra_test::{GpuCompute, gpu_or_skip};
+use penumbra_test::{GpuCompute, gpu_or_skip, uniform_bytes};
 
 const SIZE: u32 = 64;
 
@@ -47,23 +47,6 @@ fn scene(offset: Vec3, ball: Vec3) -> Vec<AnalyticCaster> {
             radius: 0.4,
         },
     ]
-}
-
-fn encode<T>(value: &T, uniform: bool) -> Vec<u8>
-where
-    T: bevy::render::render_resource::ShaderType
-        + bevy::render::render_resource::encase::internal::WriteInto,
-{
-    use bevy::render::render_resource::encase::{StorageBuffer, UniformBuffer};
-    if uniform {
-        let mut b = UniformBuffer::new(Vec::new());
-        b.write(value).expect("encodes");
-        b.into_inner()
-    } else {
-        let mut b = StorageBuffer::new(Vec::new());
-        b.write(value).expect("encodes");
-        b.into_inner()
-    }
 }
 
 fn bytes(words: &[u32]) -> Vec<u8> {
@@ -117,11 +100,11 @@ fn compare(gpu: &GpuCompute, offset: Vec3, mode: FieldDebugMode) -> (f32, usize,
     };
 
     let pipeline = gpu.pipeline(&flatten(WRAPPER).expect("flattens"), "debug_pixels");
-    let uniform = gpu.buffer("params", &encode(&params, true), BufferUsages::UNIFORM);
+    let uniform = gpu.buffer("params", &uniform_bytes(&params), BufferUsages::UNIFORM);
     let updated_buffer = gpu.buffer("updated", &bytes(&updated), BufferUsages::empty());
     let field_buffer = gpu.buffer("field", &field.field_bytes(), BufferUsages::empty());
     let valid_buffer = gpu.buffer("valid", &bytes(&valid), BufferUsages::empty());
-    let view_buffer = gpu.buffer("view", &encode(&view, true), BufferUsages::UNIFORM);
+    let view_buffer = gpu.buffer("view", &uniform_bytes(&view), BufferUsages::UNIFORM);
     let out_size = u64::from(SIZE * SIZE) * 16;
     let out = gpu.buffer(
         "pixels",

@@ -7,16 +7,14 @@
 //! samples; the resolve equals the model's mean.
 
 use bevy::render::render_resource::ShaderType;
-use bevy::render::render_resource::encase::{StorageBuffer, UniformBuffer};
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use penumbra_df_core::msaa::EdgeParams;
-use penumbra_reference::camera::PerspectiveCamera;
-use penumbra_reference::msaa::{GPixel, GSample, is_edge, resolve, sample_pixel};
-use penumbra_reference::pbr::{self, DirectionalLight, Material};
-use penumbra_reference::scene::{Object, Scene, Shape};
+use penumbra_reference::msaa::{
+    FENCE_SIZE, GPixel, GSample, fence, fence_camera, is_edge, resolve, sample_pixel,
+};
 use penumbra_shaders::flatten;
 use penumbra_test::wgpu::{self, BufferUsages};
-use penumbra_test::{GpuCompute, gpu_or_skip};
+use penumbra_test::{GpuCompute, gpu_or_skip, storage_bytes, uniform_bytes};
 
 const WRAPPER: &str = "
 #import penumbra::lighting::msaa::{MsaaEdgeParams, MsaaSample, msaa_is_edge, msaa_resolve}
@@ -61,74 +59,10 @@ struct GpuPixel {
     z_slope: f32,
 }
 
-fn rect(center: Vec3, normal: Vec3, u: Vec3, half: Vec2) -> Object {
-    Object {
-        shape: Shape::Rect {
-            center,
-            normal: normal.normalize(),
-            u: u.normalize(),
-            half_size: half,
-        },
-        material: Material::default(),
-    }
-}
-
-fn fence() -> Scene {
-    let mut objects = vec![rect(
-        Vec3::new(0.0, 0.0, -2.0),
-        Vec3::new(0.0, 1.0, 0.15),
-        Vec3::X,
-        Vec2::new(5.0, 4.0),
-    )];
-    for (i, y) in [1.45f32, 1.62, 1.8].into_iter().enumerate() {
-        objects.push(rect(
-            Vec3::new(0.0, y, 0.2 * i as f32),
-            Vec3::Z,
-            Vec3::new(1.0, 0.08 * i as f32, 0.0),
-            Vec2::new(4.0, 0.01),
-        ));
-    }
-    for i in 0..9 {
-        objects.push(rect(
-            Vec3::new(-1.9 + 0.14 * i as f32, 0.75, 0.6),
-            Vec3::Z,
-            Vec3::X,
-            Vec2::new(0.015, 0.55),
-        ));
-    }
-    objects.push(Object {
-        shape: Shape::Sphere {
-            center: Vec3::new(1.3, 0.55, 0.3),
-            radius: 0.5,
-        },
-        material: Material::default(),
-    });
-    Scene {
-        objects,
-        lights: vec![(
-            DirectionalLight {
-                direction_to_light: Vec3::Y,
-                color_lux: Vec3::splat(8000.0),
-            },
-            false,
-        )],
-        ambient: Vec3::splat(400.0),
-        background: Vec3::ONE,
-        exposure: pbr::exposure_from_ev100(9.7),
-    }
-}
-
 /// The model's pixels, then each pixel with sample 2 nudged just inside and just
 /// beyond the depth and normal thresholds.
 fn pixels() -> Vec<GPixel> {
-    let (scene, w, h) = (fence(), 96, 64);
-    let camera = PerspectiveCamera::looking_at(
-        Vec3::new(0.3, 1.3, 4.2),
-        Vec3::new(0.0, 1.0, 0.0),
-        std::f32::consts::FRAC_PI_4,
-        w,
-        h,
-    );
+    let (scene, camera, (w, h)) = (fence(), fence_camera(), FENCE_SIZE);
     let mut out: Vec<GPixel> = (0..w * h)
         .map(|i| sample_pixel(&scene, &camera, i % w, i / w).0)
         .collect();
@@ -196,9 +130,7 @@ fn edge_test_and_resolve_match_the_model() {
         .enumerate()
         .map(|(i, p)| to_gpu(p, i))
         .collect();
-    let mut bytes = StorageBuffer::new(Vec::new());
-    bytes.write(&gpu_pixels).expect("encodes");
-    let input = gpu.buffer("pixels", bytes.as_ref(), BufferUsages::empty());
+    let input = gpu.buffer("pixels", &storage_bytes(&gpu_pixels), BufferUsages::empty());
     let out_size = pixels.len() as u64 * 16;
     let out = gpu.zeroed("out", out_size, BufferUsages::COPY_SRC);
     let d = EdgeParams::default();
@@ -218,9 +150,7 @@ fn edge_test_and_resolve_match_the_model() {
             ..d
         },
     ] {
-        let mut u = UniformBuffer::new(Vec::new());
-        u.write(&params).expect("encodes");
-        let uniform = gpu.buffer("params", u.as_ref(), BufferUsages::UNIFORM);
+        let uniform = gpu.buffer("params", &uniform_bytes(&params), BufferUsages::UNIFORM);
         let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: None,
             layout: &pipeline.get_bind_group_layout(0),

@@ -15,7 +15,7 @@ use penumbra_reference::global_sdf::{
 use penumbra_reference::particles::{Collision, Particle, step_from};
 use penumbra_shaders::flatten;
 use penumbra_test::wgpu::{self, BufferUsages};
-use penumbra_test::{GpuCompute, gpu_or_skip};
+use penumbra_test::{GpuCompute, gpu_or_skip, storage_bytes, uniform_bytes};
 
 const STEPS: usize = 240;
 const DT: f32 = 1.0 / 60.0;
@@ -24,25 +24,6 @@ fn entry(binding: u32, b: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {
         binding,
         resource: b.as_entire_binding(),
-    }
-}
-
-fn encode<
-    T: bevy::render::render_resource::ShaderType
-        + bevy::render::render_resource::encase::internal::WriteInto,
->(
-    value: &T,
-    uniform: bool,
-) -> Vec<u8> {
-    use bevy::render::render_resource::encase::{StorageBuffer, UniformBuffer};
-    if uniform {
-        let mut b = UniformBuffer::new(Vec::new());
-        b.write(value).expect("encodes");
-        b.into_inner()
-    } else {
-        let mut b = StorageBuffer::new(Vec::new());
-        b.write(value).expect("encodes");
-        b.into_inner()
     }
 }
 
@@ -109,7 +90,7 @@ fn particle_step_matches_the_model() {
                 alive: 1,
             })
             .collect();
-        encode(&gpu_particles, false)
+        storage_bytes(&gpu_particles)
     };
     let bytes = to_gpu(&start);
     let particles = gpu.buffer("particles", &bytes, BufferUsages::COPY_SRC);
@@ -122,11 +103,11 @@ fn particle_step_matches_the_model() {
         radius: collision.radius,
         count: start.len() as u32,
     };
-    let params = gpu.buffer("params", &encode(&params, true), BufferUsages::UNIFORM);
+    let params = gpu.buffer("params", &uniform_bytes(&params), BufferUsages::UNIFORM);
     let field_buffer = gpu.buffer("field", &field.field_bytes(), BufferUsages::empty());
     let valid_bytes: Vec<u8> = valid.iter().flat_map(|w| w.to_le_bytes()).collect();
     let valid_buffer = gpu.buffer("valid", &valid_bytes, BufferUsages::empty());
-    let view_buffer = gpu.buffer("view", &encode(&view, true), BufferUsages::UNIFORM);
+    let view_buffer = gpu.buffer("view", &uniform_bytes(&view), BufferUsages::UNIFORM);
     let group = |index: u32, entries: &[wgpu::BindGroupEntry]| {
         gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: None,

@@ -18,7 +18,8 @@
 
 use crate::camera::{PerspectiveCamera, Ray};
 use crate::pbr;
-use crate::scene::{Hit, Scene};
+use crate::pbr::{DirectionalLight, Material};
+use crate::scene::{Hit, Object, Scene, Shape};
 use glam::{Vec2, Vec3};
 
 /// Vulkan's (and D3D's) standard 4× sample positions within a pixel, from its top-left
@@ -201,6 +202,89 @@ pub fn display(c: Vec3) -> Vec3 {
         .to_array()
         .map(pbr::linear_to_srgb)
         .into()
+}
+
+/// The fence's image size.
+pub const FENCE_SIZE: (u32, u32) = (96, 64);
+
+fn rect(center: Vec3, normal: Vec3, u: Vec3, half: Vec2, color: Vec3) -> Object {
+    Object {
+        shape: Shape::Rect {
+            center,
+            normal: normal.normalize(),
+            u: u.normalize(),
+            half_size: half,
+        },
+        material: Material {
+            base_color: color,
+            ..Material::default()
+        },
+    }
+}
+
+/// The test scene: thin high-contrast geometry against a bright sky: three 2 cm wires (0.4 px), a grille
+/// of 3 cm bars, a ball, and a tilted ground whose far edge meets the sky.
+pub fn fence() -> Scene {
+    let dark = Vec3::splat(0.04);
+    let mut objects = vec![rect(
+        Vec3::new(0.0, 0.0, -2.0),
+        Vec3::new(0.0, 1.0, 0.15),
+        Vec3::X,
+        Vec2::new(5.0, 4.0),
+        Vec3::new(0.5, 0.45, 0.4),
+    )];
+    for (i, y) in [1.45, 1.62, 1.8].into_iter().enumerate() {
+        objects.push(rect(
+            Vec3::new(0.0, y, 0.2 * i as f32),
+            Vec3::Z,
+            Vec3::new(1.0, 0.08 * i as f32, 0.0),
+            Vec2::new(4.0, 0.01),
+            dark,
+        ));
+    }
+    for i in 0..9 {
+        objects.push(rect(
+            Vec3::new(-1.9 + 0.14 * i as f32, 0.75, 0.6),
+            Vec3::Z,
+            Vec3::X,
+            Vec2::new(0.015, 0.55),
+            dark,
+        ));
+    }
+    objects.push(Object {
+        shape: Shape::Sphere {
+            center: Vec3::new(1.3, 0.55, 0.3),
+            radius: 0.5,
+        },
+        material: Material {
+            base_color: Vec3::new(0.7, 0.15, 0.1),
+            ..Material::default()
+        },
+    });
+    Scene {
+        objects,
+        lights: vec![(
+            DirectionalLight {
+                direction_to_light: Vec3::new(0.3, 1.0, 0.5).normalize(),
+                color_lux: Vec3::splat(8000.0),
+            },
+            false,
+        )],
+        ambient: Vec3::splat(400.0),
+        background: Vec3::new(1.6, 1.8, 2.2),
+        exposure: pbr::exposure_from_ev100(9.7),
+    }
+}
+
+/// The fence's camera ([`FENCE_SIZE`] pixels).
+pub fn fence_camera() -> PerspectiveCamera {
+    PerspectiveCamera::looking_at(
+        Vec3::new(0.3, 1.3, 4.2),
+        Vec3::new(0.0, 1.0, 0.0),
+        std::f32::consts::FRAC_PI_4,
+        FENCE_SIZE.0,
+        FENCE_SIZE.1,
+    )
 }
 
 #[cfg(test)]

@@ -306,3 +306,25 @@ fn bevy_like_compilation() -> wgpu::PipelineCompilationOptions<'static> {
         ..Default::default()
     }
 }
+
+/// `value` laid out as a WGSL uniform (`encase`).
+pub fn uniform_bytes<T>(value: &T) -> Vec<u8>
+where
+    T: bevy::render::render_resource::ShaderType
+        + bevy::render::render_resource::encase::internal::WriteInto,
+{
+    let mut bytes = bevy::render::render_resource::encase::UniformBuffer::new(Vec::new());
+    bytes.write(value).expect("a uniform encodes");
+    bytes.into_inner()
+}
+
+/// `value` laid out as a WGSL storage buffer (`encase`).
+pub fn storage_bytes<T>(value: &T) -> Vec<u8>
+where
+    T: bevy::render::render_resource::ShaderType
+        + bevy::render::render_resource::encase::internal::WriteInto,
+{
+    let mut bytes = bevy::render::render_resource::encase::StorageBuffer::new(Vec::new());
+    bytes.write(value).expect("a storage value encodes");
+    bytes.into_inner()
+}

@@ -37,6 +37,6 @@ pub use compare::{
     Comparison, Tolerance, assert_images_match, assert_not_blank, check_golden, compare_rgba8,
     output_dir,
 };
-pub use compute::GpuCompute;
+pub use compute::{GpuCompute, storage_bytes, uniform_bytes};
 pub use gpu::{gpu_or_skip, vulkan_adapter};
 pub use harness::{Capture, CaptureFormat, HarnessError, HeadlessRender, KeptApp};
