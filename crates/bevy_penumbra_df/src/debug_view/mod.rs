@@ -29,7 +29,7 @@
 //! inspection, not shipping. Perspective cameras only (an orthographic one gets a
 //! one-time warning). The CPU model is `penumbra_reference::df::debug_pixel`.
 
-mod render;
+pub(crate) mod render;
 
 use bevy::prelude::*;
 use bevy::render::RenderApp;

@@ -14,7 +14,7 @@ use bevy::render::render_resource::binding_types::{
 use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
     BufferId, BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites, FragmentState,
-    Operations, PipelineCache, RenderPassColorAttachment, RenderPassDescriptor,
+    Operations, PipelineCache, RenderPassColorAttachment, RenderPassDescriptor, RenderPipeline,
     RenderPipelineDescriptor, ShaderStages, TextureFormat, TextureSampleType, TextureView,
     TextureViewId,
 };
@@ -100,7 +100,7 @@ fn init_debug_view_pipelines(
 }
 
 fn prepare_debug_view_pipelines(
-    views: Query<&ViewTarget, With<DistanceFieldDebugView>>,
+    views: Query<(&ViewTarget, &DistanceFieldDebugView)>,
     pipelines: Option<ResMut<DebugViewPipelines>>,
     pipeline_cache: Res<PipelineCache>,
     fullscreen: Res<FullscreenShader>,
@@ -108,27 +108,19 @@ fn prepare_debug_view_pipelines(
     let Some(mut pipelines) = pipelines else {
         return;
     };
-    for target in &views {
+    for (target, view) in &views {
         let format = target.main_texture_format();
-        if pipelines.by_format.contains_key(&format) {
-            continue;
+        if view.mode.is_global_field() || pipelines.by_format.contains_key(&format) {
+            continue; // the global field's modes have their own pipeline
         }
-        let id = pipeline_cache.queue_render_pipeline(RenderPipelineDescriptor {
-            label: Some("penumbra_df_debug_view".into()),
-            layout: vec![pipelines.layout.clone()],
-            vertex: fullscreen.to_vertex_state(),
-            fragment: Some(FragmentState {
-                shader: pipelines.shader.clone(),
-                entry_point: Some("debug_view".into()),
-                targets: vec![Some(ColorTargetState {
-                    format,
-                    blend: None,
-                    write_mask: ColorWrites::ALL,
-                })],
-                ..default()
-            }),
-            ..default()
-        });
+        let id = pipeline_cache.queue_render_pipeline(fullscreen_pipeline(
+            "penumbra_df_debug_view",
+            vec![pipelines.layout.clone()],
+            &pipelines.shader,
+            "debug_view",
+            format,
+            &fullscreen,
+        ));
         pipelines.by_format.insert(format, id);
     }
 }
@@ -308,25 +300,73 @@ fn distance_field_debug_view(
     let diagnostics = diagnostics.as_deref();
     let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_df_debug_view");
     if culled.dispatch(&mut ctx, &scene_pipelines, &pipeline_cache) {
-        let post_process = target.post_process_write();
-        let mut pass = ctx
-            .command_encoder()
-            .begin_render_pass(&RenderPassDescriptor {
-                label: Some("penumbra_df_debug_view"),
-                color_attachments: &[Some(RenderPassColorAttachment {
-                    view: post_process.destination,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: Operations::default(),
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, bind_group, &[]);
-        pass.draw(0..3, 0..1);
+        draw_over_view(
+            &mut ctx,
+            target,
+            "penumbra_df_debug_view",
+            pipeline,
+            &[bind_group],
+        );
     }
     time_span.end(ctx.command_encoder());
+}
+
+/// A debug view's fullscreen pipeline: fragment `entry` of `shader` over `layouts`,
+/// writing a view's `format` unblended.
+pub(crate) fn fullscreen_pipeline(
+    label: &'static str,
+    layouts: Vec<BindGroupLayoutDescriptor>,
+    shader: &Handle<Shader>,
+    entry: &'static str,
+    format: TextureFormat,
+    fullscreen: &FullscreenShader,
+) -> RenderPipelineDescriptor {
+    RenderPipelineDescriptor {
+        label: Some(label.into()),
+        layout: layouts,
+        vertex: fullscreen.to_vertex_state(),
+        fragment: Some(FragmentState {
+            shader: shader.clone(),
+            entry_point: Some(entry.into()),
+            targets: vec![Some(ColorTargetState {
+                format,
+                blend: None,
+                write_mask: ColorWrites::ALL,
+            })],
+            ..default()
+        }),
+        ..default()
+    }
+}
+
+/// Draws a fullscreen `pipeline` with bind groups `groups` (0, 1, …) over the view's
+/// image (its post-process destination).
+pub(crate) fn draw_over_view(
+    ctx: &mut RenderContext,
+    target: &ViewTarget,
+    label: &'static str,
+    pipeline: &RenderPipeline,
+    groups: &[&BindGroup],
+) {
+    let post_process = target.post_process_write();
+    let mut pass = ctx
+        .command_encoder()
+        .begin_render_pass(&RenderPassDescriptor {
+            label: Some(label),
+            color_attachments: &[Some(RenderPassColorAttachment {
+                view: post_process.destination,
+                depth_slice: None,
+                resolve_target: None,
+                ops: Operations::default(),
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+    pass.set_pipeline(pipeline);
+    for (index, group) in groups.iter().enumerate() {
+        pass.set_bind_group(index as u32, *group, &[]);
+    }
+    pass.draw(0..3, 0..1);
 }

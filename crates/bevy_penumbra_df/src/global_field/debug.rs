@@ -6,6 +6,7 @@
 //! 1 the field's read group).
 
 use super::render::{ViewGlobalField, read_layout};
+use crate::debug_view::render::{draw_over_view, fullscreen_pipeline};
 use crate::debug_view::{DistanceFieldDebugMode, DistanceFieldDebugView};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::shader_library::PenumbraShaderLibrary;
@@ -19,9 +20,7 @@ use bevy::render::render_resource::binding_types::{
 use bevy::render::render_resource::encase::UniformBuffer;
 use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
-    BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites, FragmentState, Operations,
-    PipelineCache, RenderPassColorAttachment, RenderPassDescriptor, RenderPipelineDescriptor,
-    ShaderStages, ShaderType, TextureFormat,
+    BufferUsages, CachedRenderPipelineId, PipelineCache, ShaderStages, ShaderType, TextureFormat,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::view::{ExtractedView, ViewTarget};
@@ -108,22 +107,14 @@ fn prepare_field_debug_pipelines(
         if field_mode(view).is_none() || pipelines.by_format.contains_key(&format) {
             continue;
         }
-        let id = pipeline_cache.queue_render_pipeline(RenderPipelineDescriptor {
-            label: Some("penumbra_global_field_debug".into()),
-            layout: vec![pipelines.layout.clone(), read_layout()],
-            vertex: fullscreen.to_vertex_state(),
-            fragment: Some(FragmentState {
-                shader: pipelines.shader.clone(),
-                entry_point: Some("global_field_debug".into()),
-                targets: vec![Some(ColorTargetState {
-                    format,
-                    blend: None,
-                    write_mask: ColorWrites::ALL,
-                })],
-                ..default()
-            }),
-            ..default()
-        });
+        let id = pipeline_cache.queue_render_pipeline(fullscreen_pipeline(
+            "penumbra_global_field_debug",
+            vec![pipelines.layout.clone(), read_layout()],
+            &pipelines.shader,
+            "global_field_debug",
+            format,
+            &fullscreen,
+        ));
         pipelines.by_format.insert(format, id);
     }
 }
@@ -182,11 +173,11 @@ fn prepare_field_debug_resources(
             max_steps: settings.max_steps.clamp(1, 4096),
             max_distance: settings.max_distance.max(0.0),
         };
-        let bits = composed_bits(field.layout(), field.composed_jobs());
-        let bits: Vec<u8> = bits.iter().flat_map(|w| w.to_le_bytes()).collect();
+        let layout = field.layout();
+        let bits_size = u64::from(layout.bricks_per_level().div_ceil(32) * layout.levels) * 4;
         let mut fresh = None;
         let resources = match resources {
-            Some(r) if r.updated.size() >= bits.len() as u64 => r.into_inner(),
+            Some(r) if r.updated.size() >= bits_size => r.into_inner(),
             _ => {
                 let uniform = allocations.sized_buffer(
                     &device,
@@ -197,7 +188,7 @@ fn prepare_field_debug_resources(
                 let updated = allocations.sized_buffer(
                     &device,
                     "penumbra_global_field_debug_updated",
-                    bits.len() as u64,
+                    bits_size,
                     BufferUsages::STORAGE | BufferUsages::COPY_DST,
                 );
                 let group = allocations.bind_group(
@@ -219,7 +210,12 @@ fn prepare_field_debug_resources(
         let mut bytes = UniformBuffer::new(Vec::new());
         bytes.write(&params).expect("fixed-size uniform");
         queue.write_buffer(&resources.uniform, 0, bytes.as_ref());
-        queue.write_buffer(&resources.updated, 0, &bits);
+        // Only the updates view reads this frame's composed bricks.
+        if mode == FieldDebugMode::Updates {
+            let bits = composed_bits(layout, field.composed_jobs());
+            let bytes: Vec<u8> = bits.iter().flat_map(|w| w.to_le_bytes()).collect();
+            queue.write_buffer(&resources.updated, 0, &bytes);
+        }
         if let Some(fresh) = fresh {
             commands.entity(entity).insert(fresh);
         }
@@ -255,26 +251,12 @@ fn global_field_debug_view(
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
     let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_global_field_debug");
-    let post_process = target.post_process_write();
-    let mut pass = ctx
-        .command_encoder()
-        .begin_render_pass(&RenderPassDescriptor {
-            label: Some("penumbra_global_field_debug"),
-            color_attachments: &[Some(RenderPassColorAttachment {
-                view: post_process.destination,
-                depth_slice: None,
-                resolve_target: None,
-                ops: Operations::default(),
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
-    pass.set_pipeline(pipeline);
-    pass.set_bind_group(0, &resources.group, &[]);
-    pass.set_bind_group(1, field.read_group(), &[]);
-    pass.draw(0..3, 0..1);
-    drop(pass);
+    draw_over_view(
+        &mut ctx,
+        target,
+        "penumbra_global_field_debug",
+        pipeline,
+        &[&resources.group, field.read_group()],
+    );
     time_span.end(ctx.command_encoder());
 }
