@@ -234,13 +234,13 @@ fn to_png(pixels: &[[f32; 4]]) -> image::RgbaImage {
     })
 }
 
-/// A `PenumbraLighting` camera asking for MSAA is still served: Bevy switches MSAA off on
-/// deferred cameras (with its own warning), and Penumbra's lighting pass runs, Bevy's
-/// deferred pass is skipped.
+/// A `PenumbraLighting` camera asking for MSAA keeps it: Bevy would switch MSAA off on
+/// a deferred camera; Penumbra's deferred MSAA serves it (Bevy's deferred pass is
+/// skipped), and the image is rendered.
 #[test]
-fn msaa_cameras_are_served_without_msaa() {
+fn msaa_cameras_are_served_with_deferred_msaa() {
     use bevy::render::RenderApp;
-    if !gpu_or_skip("msaa_cameras_are_served_without_msaa") {
+    if !gpu_or_skip("msaa_cameras_are_served_with_deferred_msaa") {
         return;
     }
     let harness = HeadlessRender::new(64, 64).without_pipelining().frames(3);
@@ -256,24 +256,25 @@ fn msaa_cameras_are_served_without_msaa() {
             Transform::from_xyz(1.5, 3.0, 5.5).looking_at(Vec3::ZERO, Vec3::Y),
         ));
     });
-    let (_, mut app) = harness.run_keeping_app(app).expect("renders");
+    let (capture, mut app) = harness.run_keeping_app(app).expect("renders");
+    penumbra_test::assert_not_blank(&capture.to_rgba8());
     let msaa: Vec<Msaa> = app
         .world_mut()
         .query_filtered::<&Msaa, With<PenumbraLighting>>()
         .iter(app.world())
         .copied()
         .collect();
-    assert_eq!(msaa, [Msaa::Off]);
+    assert_eq!(msaa, [Msaa::Sample4]);
     let render_world = app.sub_app_mut(RenderApp).world_mut();
-    let served: Vec<Entity> = render_world
-        .query_filtered::<Entity, (
-            With<bevy_penumbra_df::lighting::PenumbraLightingView>,
+    let served: Vec<bool> = render_world
+        .query_filtered::<&bevy_penumbra_df::lighting::PenumbraLightingView, (
             With<bevy::pbr::deferred::SkipDeferredLighting>,
             With<bevy::render::view::ExtractedView>,
         )>()
         .iter(render_world)
+        .map(|v| v.msaa.is_some())
         .collect();
-    assert_eq!(served.len(), 1, "the camera is served: {served:?}");
+    assert_eq!(served, [true], "the camera is served with MSAA");
 }
 
 /// Only cameras with `PenumbraLighting` are served by Penumbra's lighting pass: Bevy's

@@ -56,6 +56,8 @@ shader_files! {
     "lighting/lights.wgsl" => Some("penumbra::lighting::lights"),
     "lighting/ao.wgsl" => Some("penumbra::lighting::ao"),
     "lighting/msaa.wgsl" => Some("penumbra::lighting::msaa"),
+    "lighting/msaa_view.wgsl" => Some("penumbra::lighting::msaa_view"),
+    "lighting/msaa_classify.wgsl" => None,
     "lighting/pass.wgsl" => None,
     "lighting/buffer_dump.wgsl" => Some("penumbra::lighting::buffer_dump"),
 }

@@ -4,6 +4,7 @@
 use super::{DistanceFieldAoDebugView, DistanceFieldSpecularOcclusion, ExtractedDfao};
 use crate::global_field::ViewGlobalField;
 use crate::gpu_allocations::PenumbraGpuAllocations;
+use crate::lighting::msaa_render::{DeferredMsaaTextures, pixel_prepass};
 use crate::lighting::{PenumbraAoInput, PenumbraLightingView};
 use crate::scene::{DistanceFieldGpu, GpuHeightfields};
 use crate::shader_library::PenumbraShaderLibrary;
@@ -376,6 +377,7 @@ fn prepare_dfao_bind_groups(
             &ExtractedDfao,
             &mut ViewAoTextures,
             &ViewPrepassTextures,
+            Option<&DeferredMsaaTextures>,
             Option<&mut ViewAoBindGroups>,
             Option<&ViewGlobalField>,
         ),
@@ -392,16 +394,19 @@ fn prepare_dfao_bind_groups(
         .atlas
         .as_ref()
         .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
-    for (entity, view, ExtractedDfao(settings), mut textures, prepass, groups, field) in &mut views
+    for (entity, view, ExtractedDfao(settings), mut textures, prepass, msaa, groups, field) in
+        &mut views
     {
+        let (depth, gbuffer) = pixel_prepass(prepass, msaa);
         let (Some(depth), Some(gbuffer), Some(camera)) = (
-            prepass.depth_view(),
-            prepass.deferred_view(),
+            depth,
+            gbuffer,
             CameraOrigin::at(view.world_from_view.translation()),
         ) else {
             continue;
         };
-        let motion = prepass.motion_vectors_view();
+        // Multisampled motion vectors (deferred MSAA) are not read: no temporal filter.
+        let motion = prepass.motion_vectors_view().filter(|_| msaa.is_none());
         let frame = textures.frame;
         let eye = view.world_from_view.translation();
         let view_from_clip = view.clip_from_view.inverse();

@@ -3,6 +3,7 @@
 
 use super::{AoPlanes, PenumbraBufferDump, RawDump};
 use crate::gpu_allocations::PenumbraGpuAllocations;
+use crate::lighting::msaa_render::{DeferredMsaaTextures, pixel_prepass};
 use crate::lighting::render::{PenumbraLightingInputs, PenumbraLightingPipeline};
 use crate::lighting::{PenumbraAoInput, PenumbraLightingView};
 use crate::shader_library::PenumbraShaderLibrary;
@@ -244,6 +245,7 @@ fn prepare_buffer_dump_bind_groups(
     mut views: Query<(
         &ExtractedView,
         &ViewPrepassTextures,
+        Option<&DeferredMsaaTextures>,
         Option<&PenumbraLightingInputs>,
         Option<&PenumbraAoInput>,
         Option<&ScreenSpaceAmbientOcclusionResources>,
@@ -254,13 +256,16 @@ fn prepare_buffer_dump_bind_groups(
     let (Some(pipeline), Some(lighting)) = (pipeline, lighting) else {
         return;
     };
-    for (view, prepass, inputs, dfao, ssao, mut dump, asked) in &mut views {
+    for (view, prepass, msaa, inputs, dfao, ssao, mut dump, asked) in &mut views {
         dump.active = false;
+        // Deferred MSAA: the representative sample of each pixel.
+        let (depth, gbuffer) = pixel_prepass(prepass, msaa);
         // No longer asked for: the buffers are kept (pooled), the pass does not run.
-        let (true, Some(depth)) = (asked, prepass.depth_view()) else {
+        let (true, Some(depth)) = (asked, depth) else {
             continue;
         };
-        let gbuffer = prepass.deferred_view().unwrap_or(&pipeline.no_gbuffer);
+        let has_gbuffer = gbuffer.is_some();
+        let gbuffer = gbuffer.unwrap_or(&pipeline.no_gbuffer);
         let masks = inputs.filter(|i| i.lights.len() as u32 == dump.layers);
         // DFAO's planes, else (a camera with Bevy's SSAO only) SSAO's visibility.
         let ao = match (dfao, ssao) {
@@ -278,7 +283,7 @@ fn prepare_buffer_dump_bind_groups(
                 dump.size.x,
                 dump.size.y,
                 masks.map_or(0, |_| dump.layers),
-                u32::from(prepass.deferred_view().is_some()),
+                u32::from(has_gbuffer),
             ),
             ao: UVec4::new(u32::from(ao.is_some()), 0, 0, 0),
         };

@@ -43,12 +43,15 @@
 //! cameras: with deferred the default, a 3D camera needs a `DeferredPrepass` to draw
 //! them (warned once per camera).
 //!
-//! Limits: MSAA is not supported on deferred cameras; `PenumbraLighting` requires
-//! `Msaa::Off`, and a camera given MSAA explicitly is left to Bevy (warned once).
+//! MSAA: `PenumbraLighting` requires `Msaa::Off` (Bevy's deferred rule), but a camera
+//! given `Msaa::Sample4` (or [`DeferredMsaa`]) is shaded with deferred 4× MSAA: per
+//! pixel where its samples agree, per sample on edges ([`msaa`]).
 //!
 //! Cost: one fullscreen pass per camera, replacing Bevy's; nothing for cameras without
 //! the component.
 
+pub mod msaa;
+pub(crate) mod msaa_render;
 pub(crate) mod render;
 
 use bevy::core_pipeline::prepass::{DeferredPrepass, DepthPrepass};
@@ -59,6 +62,7 @@ use bevy::render::RenderApp;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::sync_component::SyncComponent;
 
+pub use msaa::{DeferredMsaa, DeferredMsaaShading};
 pub use render::PenumbraAoInput;
 #[cfg_attr(
     not(feature = "shadows"),
@@ -103,11 +107,13 @@ pub struct PenumbraLighting;
 
 /// Render-world marker of a camera served by Penumbra's lighting pass, with the
 /// G-buffer's material pass id.
-#[derive(Component, Reflect, Clone, Copy, Debug)]
+#[derive(Component, Reflect, Clone, Debug)]
 #[reflect(Component, Clone)]
 pub struct PenumbraLightingView {
     /// Bevy's deferred lighting pass id (`PbrDeferredLightingDepthId`).
     pub depth_id: u32,
+    /// Deferred 4× MSAA's settings, when the camera has `Msaa::Sample4`.
+    pub msaa: Option<DeferredMsaa>,
 }
 
 impl SyncComponent for PenumbraLighting {
@@ -119,6 +125,7 @@ impl ExtractComponent for PenumbraLighting {
         Entity,
         Option<&'static PbrDeferredLightingDepthId>,
         Option<&'static Msaa>,
+        Option<&'static DeferredMsaa>,
     );
     // Bevy's extraction queries `QueryData` with this filter only: without it, every
     // render-synced entity (lights, other cameras) got the marker and
@@ -126,28 +133,25 @@ impl ExtractComponent for PenumbraLighting {
     type QueryFilter = With<PenumbraLighting>;
     type Out = (PenumbraLightingView, SkipDeferredLighting);
 
+    /// `Msaa` other than `Off` reaches here only as `Sample4` on a renderer that
+    /// multisamples the G-buffer (`msaa::hold_deferred_msaa`; otherwise Bevy's
+    /// `check_msaa` turned it off).
     fn extract_component(
-        (entity, depth_id, msaa): (Entity, Option<&PbrDeferredLightingDepthId>, Option<&Msaa>),
+        (_, depth_id, msaa, settings): (
+            Entity,
+            Option<&PbrDeferredLightingDepthId>,
+            Option<&Msaa>,
+            Option<&DeferredMsaa>,
+        ),
     ) -> Option<Self::Out> {
-        if msaa.is_some_and(|m| *m != Msaa::Off) {
-            warn_once_per_camera(entity);
-            return None; // Bevy's own deferred pass (or its MSAA warning) takes over
-        }
         let depth_id = depth_id.copied().unwrap_or_default().get() as u32;
-        Some((PenumbraLightingView { depth_id }, SkipDeferredLighting))
-    }
-}
-
-fn warn_once_per_camera(entity: Entity) {
-    use std::sync::Mutex;
-    static WARNED: Mutex<Vec<Entity>> = Mutex::new(Vec::new());
-    let mut warned = WARNED.lock().unwrap_or_else(|e| e.into_inner());
-    if !warned.contains(&entity) {
-        warned.push(entity);
-        warn!(
-            "Penumbra: camera {entity} has PenumbraLighting and MSAA; deferred lighting needs \
-             `Msaa::Off`: Penumbra's lighting (and its distance-field shadows) is off for it"
-        );
+        let msaa = msaa
+            .is_some_and(|m| *m != Msaa::Off)
+            .then(|| settings.cloned().unwrap_or_default());
+        Some((
+            PenumbraLightingView { depth_id, msaa },
+            SkipDeferredLighting,
+        ))
     }
 }
 
@@ -161,20 +165,34 @@ impl Plugin for PenumbraLightingPlugin {
         crate::shader_library::register_shader_library(app);
         app.register_type::<PenumbraLighting>()
             .register_type::<PenumbraLightingView>()
+            .register_type::<DeferredMsaa>()
+            .init_resource::<msaa::HeldMsaa>()
             .insert_resource(LightingPluginSettings {
                 require_deferred_default: self.require_deferred_default,
             })
             .add_plugins(ExtractComponentPlugin::<PenumbraLighting>::default())
-            .add_systems(PostUpdate, (check_render_method, warn_forward_cameras));
+            .add_systems(PostUpdate, (check_render_method, warn_forward_cameras))
+            .add_systems(
+                PostUpdate,
+                (
+                    msaa::hold_deferred_msaa.before(bevy::core_pipeline::core_3d::check_msaa),
+                    msaa::restore_deferred_msaa.after(bevy::core_pipeline::core_3d::check_msaa),
+                ),
+            );
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app);
         }
     }
 
     fn finish(&self, app: &mut App) {
+        let mut support = None;
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::finish(render_app);
+            support = Some(msaa_render::support(render_app.world()));
         }
+        app.insert_resource(msaa::DeferredMsaaSupport {
+            unsupported: support.unwrap_or_else(|| Some("there is no renderer".into())),
+        });
     }
 }
 

@@ -1,6 +1,8 @@
 //! Render-world side of Penumbra's lighting pass.
 
 use super::PenumbraLightingView;
+use super::msaa::DeferredMsaaShading;
+use super::msaa_render::{self, DeferredMsaaTextures, LightingVariant, MSAA_VARIANTS};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::core_3d::main_opaque_pass_3d;
@@ -15,7 +17,8 @@ use bevy::pbr::{
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::binding_types::{
-    storage_buffer_read_only_sized, texture_2d, texture_2d_array, uniform_buffer_sized,
+    storage_buffer_read_only_sized, texture_2d, texture_2d_array, texture_2d_multisampled,
+    uniform_buffer_sized,
 };
 use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
@@ -113,30 +116,59 @@ struct PenumbraLightingUniform {
     reserved: u32,
 }
 
+/// `PenumbraMsaaUniform` (`lighting/msaa_view.wgsl`).
+#[derive(ShaderType, Clone, Copy)]
+struct PenumbraMsaaUniform {
+    edge: penumbra_df_core::msaa::EdgeParams,
+    per_sample_everywhere: u32,
+    show_edges: u32,
+    reserved: UVec2,
+}
+
 /// The lighting pass's pipeline family and its group 2.
 #[derive(Resource)]
 pub struct PenumbraLightingPipeline {
     mesh_pipeline: MeshPipeline,
     layout: BindGroupLayoutDescriptor,
+    /// Group 2 of deferred MSAA's draws: `layout`'s entries, then the MSAA uniform, the
+    /// multisampled G-buffer and lighting id, and the pixels' classes.
+    msaa_layout: BindGroupLayoutDescriptor,
     shader: Handle<Shader>,
+    classify_shader: Handle<Shader>,
     /// One white layer: bound when a view has no masks.
     pub(crate) no_masks: TextureView,
     /// One texel: bound when a view has no AO.
     pub(crate) no_ao: TextureView,
+    /// One `R8Uint` texel: the classes' slot while the classification writes them.
+    no_class: TextureView,
 }
 
-/// A view's specialised lighting pipeline.
+/// A view's specialised lighting pipelines.
 #[derive(Component)]
-pub struct PenumbraLightingPipelineId(pub CachedRenderPipelineId);
+pub struct PenumbraLightingPipelineId {
+    /// Without MSAA: the one draw.
+    pub single: Option<CachedRenderPipelineId>,
+    /// Deferred MSAA: classification, the two stencil marks, per pixel, per sample.
+    pub msaa: Option<[CachedRenderPipelineId; 5]>,
+}
 
-/// A view's group 2 and the buffers behind it (reused across frames; the bind group is
-/// made again only when the masks it binds change).
+/// A view's group 2 and the buffers behind it (reused across frames; the bind groups
+/// are made again only when the textures they bind change).
 #[derive(Component)]
 pub(crate) struct PenumbraLightingBindGroup {
     uniform: Buffer,
     lights: Buffer,
     light_capacity: u64,
-    bind_group: Option<(BindGroup, [TextureViewId; 2])>,
+    msaa_uniform: Option<Buffer>,
+    bind_group: Option<(BindGroup, Vec<TextureViewId>)>,
+    /// Deferred MSAA's classification group (the classes' slot holds a placeholder).
+    classify_bind_group: Option<BindGroup>,
+}
+
+impl PenumbraLightingBindGroup {
+    pub(crate) fn classify_bind_group(&self) -> Option<&BindGroup> {
+        self.classify_bind_group.as_ref()
+    }
 }
 
 pub(super) fn build(render_app: &mut SubApp) {
@@ -150,11 +182,26 @@ pub(super) fn build(render_app: &mut SubApp) {
             ),
         )
         .add_systems(
+            Render,
+            msaa_render::prepare_deferred_msaa_textures
+                .in_set(RenderSystems::PrepareResourcesFlush),
+        )
+        .add_systems(
             Core3d,
-            penumbra_lighting
-                .after(bevy::pbr::deferred::deferred_lighting)
-                .before(main_opaque_pass_3d)
-                .in_set(Core3dSystems::MainPass),
+            (
+                penumbra_lighting
+                    .after(bevy::pbr::deferred::deferred_lighting)
+                    .before(main_opaque_pass_3d)
+                    .in_set(Core3dSystems::MainPass),
+                msaa_render::swap_in_msaa_gbuffer.before(Core3dSystems::Prepass),
+                (
+                    msaa_render::swap_out_msaa_gbuffer,
+                    msaa_render::classify_deferred_msaa,
+                )
+                    .chain()
+                    .after(Core3dSystems::Prepass)
+                    .before(Core3dSystems::MainPass),
+            ),
         );
 }
 
@@ -175,15 +222,29 @@ fn init_penumbra_lighting_pipeline(
     let Some(library) = library else {
         return;
     };
+    let common = (
+        uniform_buffer_sized(false, Some(PenumbraLightingUniform::min_size())),
+        storage_buffer_read_only_sized(false, NonZeroU64::new(SHADOWED_LIGHT_BYTES)),
+        texture_2d_array(TextureSampleType::Float { filterable: false }),
+        texture_2d(TextureSampleType::Float { filterable: false }),
+    );
     let layout = BindGroupLayoutDescriptor::new(
         "penumbra_lighting_layout",
+        &BindGroupLayoutEntries::sequential(ShaderStages::VERTEX_FRAGMENT, common),
+    );
+    let msaa_layout = BindGroupLayoutDescriptor::new(
+        "penumbra_lighting_msaa_layout",
         &BindGroupLayoutEntries::sequential(
             ShaderStages::VERTEX_FRAGMENT,
             (
-                uniform_buffer_sized(false, Some(PenumbraLightingUniform::min_size())),
-                storage_buffer_read_only_sized(false, NonZeroU64::new(SHADOWED_LIGHT_BYTES)),
-                texture_2d_array(TextureSampleType::Float { filterable: false }),
-                texture_2d(TextureSampleType::Float { filterable: false }),
+                common.0,
+                common.1,
+                common.2,
+                common.3,
+                uniform_buffer_sized(false, Some(PenumbraMsaaUniform::min_size())),
+                texture_2d_multisampled(TextureSampleType::Uint),
+                texture_2d_multisampled(TextureSampleType::Uint),
+                texture_2d(TextureSampleType::Uint),
             ),
         ),
     );
@@ -223,21 +284,40 @@ fn init_penumbra_lighting_pipeline(
         dimension: Some(TextureViewDimension::D2),
         ..default()
     });
+    let no_class = device
+        .create_texture(&TextureDescriptor {
+            label: Some("penumbra_lighting_no_class"),
+            size: Extent3d {
+                width: 1,
+                height: 1,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: TextureDimension::D2,
+            format: TextureFormat::R8Uint,
+            usage: TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        })
+        .create_view(&TextureViewDescriptor::default());
     commands.insert_resource(PenumbraLightingPipeline {
         mesh_pipeline: mesh_pipeline.clone(),
         layout,
+        msaa_layout,
         shader: library.handle("lighting/pass.wgsl"),
+        classify_shader: library.handle("lighting/msaa_classify.wgsl"),
         no_masks,
         no_ao,
+        no_class,
     });
 }
 
 impl SpecializedRenderPipeline for PenumbraLightingPipeline {
-    type Key = MeshPipelineKey;
+    type Key = (MeshPipelineKey, LightingVariant);
 
     /// The shader definitions follow Bevy's deferred lighting pipeline: the view bind
     /// group layout (chosen from the same key) must match what the shader declares.
-    fn specialize(&self, key: Self::Key) -> RenderPipelineDescriptor {
+    fn specialize(&self, (key, variant): Self::Key) -> RenderPipelineDescriptor {
         let mut defs: Vec<ShaderDefVal> = vec![
             "DEFERRED_LIGHTING_PIPELINE".into(),
             "DEFERRED_PREPASS".into(),
@@ -343,13 +423,22 @@ impl SpecializedRenderPipeline for PenumbraLightingPipeline {
         if self.mesh_pipeline.clustered_decals_are_usable {
             defs.push("CLUSTERED_DECALS_ARE_USABLE".into());
         }
+        let msaa = variant != LightingVariant::Single;
+        if msaa {
+            defs.push("PENUMBRA_MSAA".into());
+            defs.push("MULTISAMPLED".into());
+        }
         let view_layout = self.mesh_pipeline.get_view_layout(key.into());
-        RenderPipelineDescriptor {
+        let mut desc = RenderPipelineDescriptor {
             label: Some("penumbra_lighting_pipeline".into()),
             layout: vec![
                 view_layout.main_layout,
                 view_layout.binding_array_layout,
-                self.layout.clone(),
+                if msaa {
+                    self.msaa_layout.clone()
+                } else {
+                    self.layout.clone()
+                },
             ],
             vertex: VertexState {
                 shader: self.shader.clone(),
@@ -374,7 +463,9 @@ impl SpecializedRenderPipeline for PenumbraLightingPipeline {
                 bias: default(),
             }),
             ..default()
-        }
+        };
+        msaa_render::specialize_variant(&mut desc, variant, &self.classify_shader);
+        desc
     }
 }
 
@@ -384,20 +475,30 @@ fn prepare_penumbra_lighting_pipelines(
     view_key_cache: Res<ViewKeyCache>,
     mut pipelines: ResMut<SpecializedRenderPipelines<PenumbraLightingPipeline>>,
     pipeline: Option<Res<PenumbraLightingPipeline>>,
-    views: Query<(Entity, &ExtractedView), With<PenumbraLightingView>>,
+    views: Query<(Entity, &ExtractedView, &PenumbraLightingView)>,
 ) {
     let Some(pipeline) = pipeline else {
         return;
     };
-    for (entity, view) in &views {
+    for (entity, view, lighting) in &views {
         // The same key as Bevy's forward and deferred passes for this view.
         let Some(key) = view_key_cache.get(&view.retained_view_entity) else {
             continue;
         };
-        let id = pipelines.specialize(&pipeline_cache, &pipeline, *key);
-        commands
-            .entity(entity)
-            .insert(PenumbraLightingPipelineId(id));
+        let mut specialize =
+            |variant| pipelines.specialize(&pipeline_cache, &pipeline, (*key, variant));
+        let ids = if lighting.msaa.is_some() {
+            PenumbraLightingPipelineId {
+                single: None,
+                msaa: Some(MSAA_VARIANTS.map(&mut specialize)),
+            }
+        } else {
+            PenumbraLightingPipelineId {
+                single: Some(specialize(LightingVariant::Single)),
+                msaa: None,
+            }
+        };
+        commands.entity(entity).insert(ids);
     }
 }
 
@@ -414,13 +515,15 @@ fn prepare_penumbra_lighting_bind_groups(
         &PenumbraLightingView,
         Option<&PenumbraLightingInputs>,
         Option<&PenumbraAoInput>,
+        Option<&DeferredMsaaTextures>,
         Option<&mut PenumbraLightingBindGroup>,
     )>,
 ) {
     let Some(pipeline) = pipeline else {
         return;
     };
-    for (entity, view, inputs, ao, bind_group) in &mut views {
+    for (entity, view, inputs, ao, msaa_textures, bind_group) in &mut views {
+        let msaa = view.msaa.as_ref().zip(msaa_textures);
         let lights = inputs.map_or(&[][..], |i| i.lights.as_slice());
         let needed = (lights.len() as u64).max(1);
         let mut fresh = None;
@@ -442,7 +545,9 @@ fn prepare_penumbra_lighting_bind_groups(
                         BufferUsages::STORAGE | BufferUsages::COPY_DST,
                     ),
                     light_capacity: capacity,
+                    msaa_uniform: None,
                     bind_group: None,
+                    classify_bind_group: None,
                 });
                 fresh.as_mut().expect("just set")
             }
@@ -466,20 +571,81 @@ fn prepare_penumbra_lighting_bind_groups(
         }
         let masks = inputs.map_or(&pipeline.no_masks, |i| &i.masks);
         let ao_texture = ao.map_or(&pipeline.no_ao, |a| &a.texture);
-        let key = [masks.id(), ao_texture.id()];
-        if group.bind_group.as_ref().map(|(_, id)| *id) != Some(key) {
-            let bind_group = allocations.bind_group(
-                &device,
-                "penumbra_lighting_bind_group",
-                &pipeline_cache.get_bind_group_layout(&pipeline.layout),
-                &BindGroupEntries::sequential((
-                    group.uniform.as_entire_binding(),
-                    group.lights.as_entire_binding(),
-                    masks,
-                    ao_texture,
-                )),
+        let mut key = vec![masks.id(), ao_texture.id()];
+        let Some((settings, textures)) = msaa else {
+            if group.bind_group.as_ref().map(|(_, id)| id) != Some(&key) {
+                let bind_group = allocations.bind_group(
+                    &device,
+                    "penumbra_lighting_bind_group",
+                    &pipeline_cache.get_bind_group_layout(&pipeline.layout),
+                    &BindGroupEntries::sequential((
+                        group.uniform.as_entire_binding(),
+                        group.lights.as_entire_binding(),
+                        masks,
+                        ao_texture,
+                    )),
+                );
+                group.bind_group = Some((bind_group, key));
+                group.classify_bind_group = None;
+            }
+            if let Some(fresh) = fresh {
+                commands.entity(entity).insert(fresh);
+            }
+            continue;
+        };
+        let msaa_uniform = group
+            .msaa_uniform
+            .get_or_insert_with(|| {
+                allocations.sized_buffer(
+                    &device,
+                    "penumbra_lighting_msaa_uniform",
+                    PenumbraMsaaUniform::min_size().get(),
+                    BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                )
+            })
+            .clone();
+        let uniform = PenumbraMsaaUniform {
+            edge: settings.edge_params(),
+            per_sample_everywhere: u32::from(settings.shading == DeferredMsaaShading::EverySample),
+            show_edges: u32::from(settings.show_edges),
+            reserved: UVec2::ZERO,
+        };
+        let mut bytes = bevy::render::render_resource::encase::UniformBuffer::new(Vec::new());
+        bytes.write(&uniform).expect("fixed-size uniform");
+        queue.write_buffer(&msaa_uniform, 0, bytes.as_ref());
+        key.extend([
+            textures.gbuffer_view.id(),
+            textures.lighting_id_view.id(),
+            textures.class.default_view.id(),
+        ]);
+        if group.bind_group.as_ref().map(|(_, id)| id) != Some(&key) {
+            let layout = pipeline_cache.get_bind_group_layout(&pipeline.msaa_layout);
+            let make = |label, class| {
+                allocations.bind_group(
+                    &device,
+                    label,
+                    &layout,
+                    &BindGroupEntries::sequential((
+                        group.uniform.as_entire_binding(),
+                        group.lights.as_entire_binding(),
+                        masks,
+                        ao_texture,
+                        msaa_uniform.as_entire_binding(),
+                        &textures.gbuffer_view,
+                        &textures.lighting_id_view,
+                        class,
+                    )),
+                )
+            };
+            let lighting = make(
+                "penumbra_lighting_msaa_bind_group",
+                &textures.class.default_view,
             );
-            group.bind_group = Some((bind_group, key));
+            group.classify_bind_group = Some(make(
+                "penumbra_msaa_classify_bind_group",
+                &pipeline.no_class,
+            ));
+            group.bind_group = Some((lighting, key));
         }
         if let Some(fresh) = fresh {
             commands.entity(entity).insert(fresh);
@@ -505,24 +671,43 @@ pub(crate) fn encode_shadowed_lights(lights: &[PenumbraShadowedLight]) -> Vec<u8
     bytes
 }
 
-/// The lighting pass: Bevy's deferred lighting pass with Penumbra's shader and group 2.
+/// The lighting pass: Bevy's deferred lighting pass with Penumbra's shader and group 2
+/// (on a deferred MSAA view: `msaa_render::draw_msaa_lighting`).
+#[allow(clippy::type_complexity, reason = "a Bevy system")]
 pub(crate) fn penumbra_lighting(
     view: ViewQuery<(
         &MeshViewBindGroup,
         &ViewTarget,
-        &DeferredLightingIdDepthTexture,
+        Option<&DeferredLightingIdDepthTexture>,
+        Option<&DeferredMsaaTextures>,
         &PenumbraLightingPipelineId,
         &PenumbraLightingBindGroup,
     )>,
     pipeline_cache: Res<PipelineCache>,
     mut ctx: RenderContext,
 ) {
-    let (mesh_view_bind_group, target, lighting_id_depth, pipeline_id, group) = view.into_inner();
-    let Some(pipeline) = pipeline_cache.get_render_pipeline(pipeline_id.0) else {
-        return; // compiling
-    };
+    let (mesh_view_bind_group, target, lighting_id_depth, msaa, pipeline_ids, group) =
+        view.into_inner();
     let Some((bind_group, _)) = &group.bind_group else {
         return;
+    };
+    if let (Some(textures), Some(ids)) = (msaa, &pipeline_ids.msaa) {
+        msaa_render::draw_msaa_lighting(
+            &mut ctx,
+            &pipeline_cache,
+            mesh_view_bind_group,
+            target,
+            textures,
+            ids,
+            bind_group,
+        );
+        return;
+    }
+    let (Some(lighting_id_depth), Some(id)) = (lighting_id_depth, pipeline_ids.single) else {
+        return;
+    };
+    let Some(pipeline) = pipeline_cache.get_render_pipeline(id) else {
+        return; // compiling
     };
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();

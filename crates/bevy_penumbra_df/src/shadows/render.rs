@@ -7,6 +7,7 @@ use super::resources::{
     ViewTextures,
 };
 use crate::gpu_allocations::PenumbraGpuAllocations;
+use crate::lighting::msaa_render::{DeferredMsaaTextures, pixel_prepass};
 use crate::lighting::{
     PenumbraLightingInputs, PenumbraLightingView, PenumbraShadowedLight, ShadowedLightKind,
 };
@@ -475,6 +476,7 @@ fn prepare_distance_field_shadow_bind_groups(
         &ExtractedView,
         &DistanceFieldShadowMasks,
         &ViewPrepassTextures,
+        Option<&DeferredMsaaTextures>,
         &mut DistanceFieldShadowResources,
     )>,
 ) {
@@ -488,16 +490,15 @@ fn prepare_distance_field_shadow_bind_groups(
         .atlas
         .as_ref()
         .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
-    for (view, masks, prepass, mut resources) in &mut views {
-        let (Some(depth), Some(camera)) = (
-            prepass.depth_view(),
-            CameraOrigin::at(view.world_from_view.translation()),
-        ) else {
+    for (view, masks, prepass, msaa, mut resources) in &mut views {
+        let (depth, gbuffer) = pixel_prepass(prepass, msaa);
+        let (Some(depth), Some(camera)) =
+            (depth, CameraOrigin::at(view.world_from_view.translation()))
+        else {
             continue;
         };
         // The G-buffer's normals give the surface's own shadow (back faces and the
         // terminator); `PenumbraLighting` cameras always have it.
-        let gbuffer = prepass.deferred_view();
         let rotation = Mat3::from(view.world_from_view.affine().matrix3);
         let clip_from_relative = view.clip_from_view * Mat4::from_mat3(rotation).inverse();
         let params = ShadowViewParams {

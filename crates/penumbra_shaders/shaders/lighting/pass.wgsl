@@ -6,12 +6,16 @@
     prepass_utils,
     pbr_types::STANDARD_MATERIAL_FLAGS_UNLIT_BIT,
     pbr_functions,
+    pbr_types,
     pbr_deferred_functions::pbr_input_from_deferred_gbuffer,
     lighting,
     mesh_view_bindings::deferred_prepass_texture,
 }
 #import penumbra::lighting::lights::apply_lighting
 #import penumbra::lighting::masks::penumbra_lighting
+#ifdef PENUMBRA_MSAA
+#import penumbra::lighting::msaa_view
+#endif
 
 #ifdef SCREEN_SPACE_AMBIENT_OCCLUSION
 #import bevy_pbr::mesh_view_bindings::screen_space_ambient_occlusion_texture
@@ -38,11 +42,16 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
 #ifdef DEPTH_PREPASS
     frag_coord.z = prepass_utils::prepass_depth(in.position, 0u);
 #endif
-    var pbr_input = pbr_input_from_deferred_gbuffer(frag_coord, gbuffer);
+    return shade(pbr_input_from_deferred_gbuffer(frag_coord, gbuffer));
+}
+
+// Shades one G-buffer sample.
+fn shade(input: pbr_types::PbrInput) -> vec4<f32> {
+    var pbr_input = input;
     var color = pbr_input.material.base_color;
     if (pbr_input.material.flags & STANDARD_MATERIAL_FLAGS_UNLIT_BIT) == 0u {
 #ifdef SCREEN_SPACE_AMBIENT_OCCLUSION
-        let ssao = textureLoad(screen_space_ambient_occlusion_texture, vec2<i32>(in.position.xy), 0i).r;
+        let ssao = textureLoad(screen_space_ambient_occlusion_texture, vec2<i32>(pbr_input.frag_coord.xy), 0i).r;
         pbr_input.diffuse_occlusion = min(pbr_input.diffuse_occlusion, ssao_multibounce(ssao, pbr_input.material.base_color.rgb));
         // Specular occlusion from SSAO (Lagarde and Rousiers 2014), as Bevy does.
         let NdotV = max(dot(pbr_input.N, pbr_input.V), 0.0001);
@@ -53,3 +62,48 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
     }
     return pbr_functions::main_pass_post_lighting_processing(pbr_input, color);
 }
+
+#ifdef PENUMBRA_MSAA
+// Deferred 4× MSAA (`lighting/msaa_view.wgsl`): the stencil marks each pixel 1 (its
+// samples agree: shaded once) or 2 (an edge: shaded per sample).
+
+// A pixel whose samples agree, shaded once at its centre: the samples' mean NDC depth
+// (exact at the centre on a plane: the pattern's centroid is the centre) and mean
+// normal, sample 0's material.
+@fragment
+fn fragment_msaa_pixel(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
+    let pixel = vec2<i32>(in.position.xy);
+    var depth = 0.0;
+    var normal = vec3(0.0);
+    for (var i = 0u; i < 4u; i++) {
+        depth += prepass_utils::prepass_depth(in.position, i);
+        normal += msaa_view::msaa_sample_normal(pixel, i);
+    }
+    let frag_coord = vec4(in.position.xy, depth * 0.25, 0.0);
+    var pbr_input = pbr_input_from_deferred_gbuffer(frag_coord, textureLoad(msaa_view::msaa_gbuffer, pixel, 0));
+    let n = normalize(normal);
+    pbr_input.N = n;
+    pbr_input.world_normal = n;
+    pbr_input.clearcoat_N = n;
+    return shade(pbr_input);
+}
+
+// One sample of an edge pixel, shaded at its own position (the stencil holds only the
+// samples of this pass's material: the others are left to the passes that draw them).
+// No `discard`: the stencil test can run before shading.
+@fragment
+fn fragment_msaa_sample(
+    in: FullscreenVertexOutput,
+    @builtin(sample_index) sample_index: u32,
+) -> @location(0) vec4<f32> {
+    let pixel = vec2<i32>(in.position.xy);
+    let xy = msaa_view::msaa_sample_position(pixel, sample_index);
+    let frag_coord = vec4(xy, prepass_utils::prepass_depth(in.position, sample_index), 0.0);
+    let gbuffer = textureLoad(msaa_view::msaa_gbuffer, pixel, i32(sample_index));
+    let color = shade(pbr_input_from_deferred_gbuffer(frag_coord, gbuffer));
+    if msaa_view::penumbra_msaa.show_edges != 0u {
+        return vec4(mix(color.rgb, vec3(1.0, 0.0, 1.0), 0.6), color.a);
+    }
+    return color;
+}
+#endif

@@ -1,0 +1,162 @@
+//! Deferred shading with 4× MSAA (Samaritan, GDC 2011; Lauritzen, *Deferred Rendering
+//! for Current and Future Rendering Pipelines*, 2010).
+//!
+//! A [`PenumbraLighting`] camera with `Msaa::Sample4` keeps its MSAA: Bevy's deferred
+//! prepass renders into a **multisampled G-buffer** (Bevy's own layout: `Rgba32Uint`
+//! words plus the `R8Uint` lighting pass id, 17 bytes per sample, plus the 4-byte depth
+//! sample), a classification pass marks each pixel in a multisampled stencil — **once**
+//! where its samples agree, **per sample** where they differ in depth beyond the
+//! surface's own slope, in normal beyond a cone or in material, or where only some hold
+//! the deferred material — and the lighting pass draws twice, stencil-tested: per pixel
+//! at the pixel centre, then per sample (`@builtin(sample_index)`) on the edges. The
+//! hardware resolve at the end of Bevy's main pass is the box filter over the samples.
+//! Forward materials, the sky and transparent meshes draw into the same multisampled
+//! target afterwards, as on a forward MSAA camera. The CPU model is
+//! `penumbra_reference::msaa`; the thresholds `penumbra_df_core::msaa::EdgeParams`.
+//!
+//! How Bevy is brought along: Bevy 0.19 turns MSAA off on deferred cameras
+//! (`check_msaa`); Penumbra keeps a supported camera's `Msaa` across that system, makes
+//! the deferred prepass render into its multisampled G-buffer (swapped into Bevy's
+//! `ViewPrepassTextures` for the prepass only: Bevy's view bind group keeps the
+//! single-sample texture it was made with), and skips Bevy's lighting-id copy, which
+//! the classification replaces.
+//!
+//! The G-buffer format: Bevy's `Rgba32Uint` multisamples only with
+//! `TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES` (lavapipe, Vulkan, D3D12 and Metal
+//! desktop GPUs; not WebGPU): checked in `Plugin::finish`; without it the camera falls
+//! back to Bevy's rule (MSAA off, warned once). A portable layout (two `Rgba16Uint`
+//! targets, also 16 bytes per sample, guaranteed multisampled) would need Penumbra's
+//! own G-buffer encoding in every deferred material's shader.
+//!
+//! Distance-field shadows and DFAO trace once per pixel, from a representative sample
+//! (the samples' mean depth where they agree, the first covered sample on edges) that
+//! the classification pass writes; the lighting reads their masks per pixel for every
+//! sample. Only 4× is served: `Sample2` and `Sample8` are set to `Sample4` (warned
+//! once). SSR and Bevy's SSAO stay unavailable with MSAA, as on any Bevy camera.
+//!
+//! Cost: the multisampled G-buffer (4 × 17 bytes) plus the stencil (4 × 1), the class
+//! (1) and the representative G-buffer and depth (16 + 4) per pixel; one
+//! classification pass; lighting once per pixel plus three more times on edge pixels.
+
+use super::PenumbraLighting;
+use bevy::prelude::*;
+
+pub use penumbra_df_core::msaa::EdgeParams;
+
+/// How the pixels of a deferred MSAA camera are shaded.
+#[derive(Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DeferredMsaaShading {
+    /// Once per pixel where the samples agree, per sample on edges (Samaritan's).
+    #[default]
+    Classified,
+    /// Every covered sample shaded: the reference the classifier is measured against
+    /// (up to 4× the lighting cost).
+    EverySample,
+}
+
+/// Settings of deferred 4× MSAA on a [`PenumbraLighting`] camera (module docs). Optional:
+/// `Msaa::Sample4` on the camera is what turns deferred MSAA on; this component tunes
+/// it (and requires `Msaa::Sample4`, which `Msaa::Off` still overrides).
+#[derive(Component, Reflect, Clone, Debug)]
+#[reflect(Component, Clone, Default)]
+#[require(PenumbraLighting, Msaa::Sample4)]
+pub struct DeferredMsaa {
+    /// Samples may differ in view depth by this many times the pixel's depth slope
+    /// (`|∂z/∂x| + |∂z/∂y|` of sample 0's tangent plane). Default 1. Lower finds more
+    /// edges (more per-sample shading); no other cost.
+    pub depth_slope_scale: f32,
+    /// …plus this fraction of the view depth. Default 10⁻³.
+    pub relative_depth: f32,
+    /// Samples whose normals' cosine falls below this differ. Default 0.98 (11.5°).
+    pub normal_cos: f32,
+    /// Classified (default) or every sample.
+    pub shading: DeferredMsaaShading,
+    /// Debug view: tint the per-sample-shaded samples magenta. Default false.
+    pub show_edges: bool,
+}
+
+impl Default for DeferredMsaa {
+    fn default() -> Self {
+        let edge = EdgeParams::default();
+        Self {
+            depth_slope_scale: edge.slope_scale,
+            relative_depth: edge.relative_depth,
+            normal_cos: edge.normal_cos,
+            shading: DeferredMsaaShading::Classified,
+            show_edges: false,
+        }
+    }
+}
+
+impl DeferredMsaa {
+    /// The edge test's uniform.
+    pub fn edge_params(&self) -> EdgeParams {
+        EdgeParams {
+            slope_scale: self.depth_slope_scale,
+            relative_depth: self.relative_depth,
+            normal_cos: self.normal_cos,
+            sample_count: 4,
+        }
+    }
+}
+
+/// Whether this renderer multisamples Bevy's G-buffer (set in `Plugin::finish`).
+#[derive(Resource, Clone, Debug)]
+pub(crate) struct DeferredMsaaSupport {
+    /// `None`: supported; otherwise why not.
+    pub unsupported: Option<String>,
+}
+
+/// `Msaa` of the Penumbra cameras kept across Bevy's `check_msaa` this frame.
+#[derive(Resource, Default)]
+pub(crate) struct HeldMsaa(Vec<(Entity, Msaa)>);
+
+/// Before `check_msaa`: a supported Penumbra camera's MSAA is set aside (and non-4×
+/// counts become 4×, warned once per camera).
+pub(crate) fn hold_deferred_msaa(
+    mut cameras: Query<(Entity, &mut Msaa), With<PenumbraLighting>>,
+    support: Option<Res<DeferredMsaaSupport>>,
+    mut held: ResMut<HeldMsaa>,
+    mut warned: Local<Vec<Entity>>,
+) {
+    held.0.clear();
+    for (entity, mut msaa) in &mut cameras {
+        if *msaa == Msaa::Off {
+            continue;
+        }
+        if let Some(reason) = support.as_ref().and_then(|s| s.unsupported.as_ref()) {
+            if !warned.contains(&entity) {
+                warned.push(entity);
+                warn!(
+                    "Penumbra: camera {entity} asks for MSAA with PenumbraLighting, but {reason}: \
+                     it renders without MSAA"
+                );
+            }
+            continue;
+        }
+        let served = Msaa::Sample4;
+        if *msaa != served && !warned.contains(&entity) {
+            warned.push(entity);
+            warn!(
+                "Penumbra: camera {entity} has {:?}; Penumbra's deferred MSAA serves 4× only: \
+                 it is set to Msaa::Sample4",
+                *msaa
+            );
+        }
+        held.0.push((entity, served));
+        *msaa.bypass_change_detection() = Msaa::Off;
+    }
+}
+
+/// After `check_msaa`: the held MSAA is put back (what the render world extracts).
+pub(crate) fn restore_deferred_msaa(mut cameras: Query<&mut Msaa>, held: Res<HeldMsaa>) {
+    for (entity, msaa) in &held.0 {
+        if let Ok(mut current) = cameras.get_mut(*entity) {
+            let changed = *current != *msaa;
+            *current.bypass_change_detection() = *msaa;
+            if changed {
+                current.set_changed();
+            }
+        }
+    }
+}
