@@ -90,11 +90,11 @@ impl Plugin for PenumbraCorePlugin {
 pub mod prelude {
     pub use crate::{PenumbraCorePlugin, PenumbraPlugins};
     pub use bevy_penumbra_df::{
-        CasterSource, DistanceFieldCaster, DistanceFieldHeightfield, DistanceFieldParticles,
-        DistanceFieldQuery, DistanceFieldScene, DistanceFieldSceneCasters,
-        DistanceFieldSceneSettings, DistanceFieldUploadStats, GlobalDistanceField,
-        GlobalDistanceFieldStats, PenumbraLighting, PenumbraLightingPlugin, SdfAssetPlugin,
-        SdfBakeFailed, SdfBaked, SdfVolumeAsset,
+        CasterSource, DeferredMsaa, DeferredMsaaShading, DistanceFieldCaster,
+        DistanceFieldHeightfield, DistanceFieldParticles, DistanceFieldQuery, DistanceFieldScene,
+        DistanceFieldSceneCasters, DistanceFieldSceneSettings, DistanceFieldUploadStats,
+        GlobalDistanceField, GlobalDistanceFieldStats, PenumbraLighting, PenumbraLightingPlugin,
+        SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset,
     };
     #[cfg(feature = "ao")]
     pub use bevy_penumbra_df::{

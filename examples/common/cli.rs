@@ -17,7 +17,9 @@
 //! DFAO: its debug view, `ao`, `bent` or `tiles`), `--casters N` (`dfao`: N extra small
 //! casters, to see how the cost grows), `--global-field` (`dfao`: a
 //! `GlobalDistanceField` on the camera, the cones' far part traced through it, and a
-//! fountain of particles colliding with it).
+//! fountain of particles colliding with it), `--msaa off|4|every|edges`
+//! (`deferred_msaa`: MSAA off, deferred 4× classified — the default —, every sample
+//! shaded, or the per-sample mask's debug view).
 //!
 //! Windowed runs take keyboard toggles (`controls.rs`: `Space` distance-field shadows,
 //! `H` half resolution, `D` debug view), shown in the window title.
@@ -69,6 +71,21 @@ pub struct Options {
     /// other examples treat it as `component`) — the two runs measure what the plugin
     /// costs a scene that does not use it.
     pub no_dfao: Option<NoDfao>,
+    /// `--msaa`: the deferred MSAA mode of examples that show it (`deferred_msaa`).
+    pub msaa: Option<MsaaMode>,
+}
+
+/// What `--msaa` asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MsaaMode {
+    /// `Msaa::Off`.
+    Off,
+    /// Deferred 4×, classified.
+    Classified,
+    /// Deferred 4×, every sample shaded.
+    EverySample,
+    /// Deferred 4×, classified, per-sample pixels tinted (`DeferredMsaa::show_edges`).
+    Edges,
 }
 
 /// What `--no-dfao` leaves out.
@@ -81,7 +98,7 @@ pub enum NoDfao {
 }
 
 const USAGE: &str = "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N] [--glass] \
-     [--plain] [--ao-view ao|bent|tiles] [--casters N] [--global-field] [--no-dfao component|plugin]";
+     [--plain] [--ao-view ao|bent|tiles] [--casters N] [--global-field] [--no-dfao component|plugin] [--msaa off|4|every|edges]";
 
 impl Options {
     /// Parses `std::env::args()`-style arguments (without the program name).
@@ -98,6 +115,7 @@ impl Options {
             casters: None,
             global_field: false,
             no_dfao: None,
+            msaa: None,
         };
         let mut args = args.into_iter();
         while let Some(arg) = args.next() {
@@ -119,6 +137,15 @@ impl Options {
                         "component" => NoDfao::Component,
                         "plugin" => NoDfao::Plugin,
                         v => return Err(format!("--no-dfao: component or plugin, got {v:?}")),
+                    });
+                }
+                "--msaa" => {
+                    o.msaa = Some(match value("--msaa")?.as_str() {
+                        "off" => MsaaMode::Off,
+                        "4" => MsaaMode::Classified,
+                        "every" => MsaaMode::EverySample,
+                        "edges" => MsaaMode::Edges,
+                        v => return Err(format!("--msaa: off, 4, every or edges, got {v:?}")),
                     });
                 }
                 "--ao-view" => {

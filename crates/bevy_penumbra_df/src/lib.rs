@@ -66,7 +66,7 @@ pub use global_field::{
     GlobalDistanceFieldStats,
 };
 pub use gpu_allocations::{GpuAllocationCounts, PenumbraGpuAllocations};
-pub use lighting::{PenumbraLighting, PenumbraLightingPlugin};
+pub use lighting::{DeferredMsaa, DeferredMsaaShading, PenumbraLighting, PenumbraLightingPlugin};
 pub use particles::{
     DistanceFieldParticleMaterial, DistanceFieldParticles, DistanceFieldParticlesPlugin,
     DistanceFieldParticlesState,

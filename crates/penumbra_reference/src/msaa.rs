@@ -10,9 +10,9 @@
 //!
 //! The scene side is a small rasteriser of [`Scene`]: each sample is the hit of the
 //! camera ray through its position in the pixel (Vulkan's standard 4× pattern,
-//! [`SAMPLE_POSITIONS_4X`]); the depth slope is what the G-buffer pass stores from the
-//! hardware's fine derivatives — the change of view depth over one pixel across sample
-//! 0's tangent plane, in x plus in y. Ground truth for the image is 4 × 4 supersampling
+//! [`SAMPLE_POSITIONS_4X`]); the depth slope is what the GPU derives from sample 0's
+//! G-buffer position and normal (`lighting/msaa_view.wgsl`) — the change of view depth
+//! over one pixel across sample 0's tangent plane, in x plus in y. Ground truth for the image is 4 × 4 supersampling
 //! ([`render_truth`]), and for the classifier the samples' primitive ids
 //! ([`primitive_edge`]).
 
