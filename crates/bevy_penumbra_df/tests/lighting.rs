@@ -234,47 +234,59 @@ fn to_png(pixels: &[[f32; 4]]) -> image::RgbaImage {
     })
 }
 
-/// A `PenumbraLighting` camera asking for MSAA keeps it: Bevy would switch MSAA off on
-/// a deferred camera; Penumbra's deferred MSAA serves it (Bevy's deferred pass is
-/// skipped), and the image is rendered.
+/// A `PenumbraLighting` camera with `DeferredMsaa` keeps its MSAA: Bevy would switch it
+/// off on a deferred camera; Penumbra's deferred MSAA serves it (Bevy's deferred pass is
+/// skipped), and the image is rendered. One without `DeferredMsaa` but with Bevy's
+/// default `Msaa::Sample4` renders without MSAA, as before (the opt-in is explicit).
 #[test]
-fn msaa_cameras_are_served_with_deferred_msaa() {
+fn msaa_is_served_to_deferred_msaa_cameras_only() {
     use bevy::render::RenderApp;
-    if !gpu_or_skip("msaa_cameras_are_served_with_deferred_msaa") {
+    use bevy_penumbra_df::lighting::DeferredMsaa;
+    if !gpu_or_skip("msaa_is_served_to_deferred_msaa_cameras_only") {
         return;
     }
-    let harness = HeadlessRender::new(64, 64).without_pipelining().frames(3);
-    let mut app = harness.app();
-    app.add_plugins(PenumbraLightingPlugin::default())
-        .insert_resource(DefaultOpaqueRendererMethod::deferred());
-    app.add_systems(Startup, scene);
-    app.add_systems(Startup, |mut commands: Commands| {
-        commands.spawn((
-            Camera3d::default(),
-            PenumbraLighting,
-            Msaa::Sample4,
-            Transform::from_xyz(1.5, 3.0, 5.5).looking_at(Vec3::ZERO, Vec3::Y),
-        ));
-    });
-    let (capture, mut app) = harness.run_keeping_app(app).expect("renders");
-    penumbra_test::assert_not_blank(&capture.to_rgba8());
-    let msaa: Vec<Msaa> = app
-        .world_mut()
-        .query_filtered::<&Msaa, With<PenumbraLighting>>()
-        .iter(app.world())
-        .copied()
-        .collect();
-    assert_eq!(msaa, [Msaa::Sample4]);
-    let render_world = app.sub_app_mut(RenderApp).world_mut();
-    let served: Vec<bool> = render_world
-        .query_filtered::<&bevy_penumbra_df::lighting::PenumbraLightingView, (
-            With<bevy::pbr::deferred::SkipDeferredLighting>,
-            With<bevy::render::view::ExtractedView>,
-        )>()
-        .iter(render_world)
-        .map(|v| v.msaa.is_some())
-        .collect();
-    assert_eq!(served, [true], "the camera is served with MSAA");
+    for opt_in in [true, false] {
+        let harness = HeadlessRender::new(64, 64).without_pipelining().frames(3);
+        let mut app = harness.app();
+        app.add_plugins(PenumbraLightingPlugin::default())
+            .insert_resource(DefaultOpaqueRendererMethod::deferred());
+        app.add_systems(Startup, scene);
+        app.add_systems(Startup, move |mut commands: Commands| {
+            let mut camera = commands.spawn((
+                Camera3d::default(),
+                PenumbraLighting,
+                Msaa::Sample4,
+                Transform::from_xyz(1.5, 3.0, 5.5).looking_at(Vec3::ZERO, Vec3::Y),
+            ));
+            if opt_in {
+                camera.insert(DeferredMsaa::default());
+            }
+        });
+        let (capture, mut app) = harness.run_keeping_app(app).expect("renders");
+        penumbra_test::assert_not_blank(&capture.to_rgba8());
+        let msaa: Vec<Msaa> = app
+            .world_mut()
+            .query_filtered::<&Msaa, With<PenumbraLighting>>()
+            .iter(app.world())
+            .copied()
+            .collect();
+        let expected = if opt_in { Msaa::Sample4 } else { Msaa::Off };
+        assert_eq!(msaa, [expected]);
+        let render_world = app.sub_app_mut(RenderApp).world_mut();
+        let served: Vec<bool> = render_world
+            .query_filtered::<&bevy_penumbra_df::lighting::PenumbraLightingView, (
+                With<bevy::pbr::deferred::SkipDeferredLighting>,
+                With<bevy::render::view::ExtractedView>,
+            )>()
+            .iter(render_world)
+            .map(|v| v.msaa.is_some())
+            .collect();
+        assert_eq!(
+            served,
+            [opt_in],
+            "the camera is served, with MSAA: {opt_in}"
+        );
+    }
 }
 
 /// Only cameras with `PenumbraLighting` are served by Penumbra's lighting pass: Bevy's

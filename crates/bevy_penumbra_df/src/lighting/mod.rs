@@ -43,9 +43,9 @@
 //! cameras: with deferred the default, a 3D camera needs a `DeferredPrepass` to draw
 //! them (warned once per camera).
 //!
-//! MSAA: `PenumbraLighting` requires `Msaa::Off` (Bevy's deferred rule), but a camera
-//! given `Msaa::Sample4` (or [`DeferredMsaa`]) is shaded with deferred 4× MSAA: per
-//! pixel where its samples agree, per sample on edges ([`msaa`]).
+//! MSAA: without more, a `PenumbraLighting` camera renders without MSAA (Bevy's deferred
+//! rule); with [`DeferredMsaa`] it is shaded with deferred 4× MSAA: per pixel where its
+//! samples agree, per sample on edges ([`msaa`]).
 //!
 //! Cost: one fullscreen pass per camera, replacing Bevy's; nothing for cameras without
 //! the component.
@@ -133,9 +133,9 @@ impl ExtractComponent for PenumbraLighting {
     type QueryFilter = With<PenumbraLighting>;
     type Out = (PenumbraLightingView, SkipDeferredLighting);
 
-    /// `Msaa` other than `Off` reaches here only as `Sample4` on a renderer that
-    /// multisamples the G-buffer (`msaa::hold_deferred_msaa`; otherwise Bevy's
-    /// `check_msaa` turned it off).
+    /// `Msaa` other than `Off` reaches here only as `Sample4` on a `DeferredMsaa` camera
+    /// whose renderer multisamples the G-buffer (`msaa::hold_deferred_msaa`; otherwise
+    /// Bevy's `check_msaa` turned it off).
     fn extract_component(
         (_, depth_id, msaa, settings): (
             Entity,
@@ -145,9 +145,9 @@ impl ExtractComponent for PenumbraLighting {
         ),
     ) -> Option<Self::Out> {
         let depth_id = depth_id.copied().unwrap_or_default().get() as u32;
-        let msaa = msaa
-            .is_some_and(|m| *m != Msaa::Off)
-            .then(|| settings.cloned().unwrap_or_default());
+        let msaa = settings
+            .filter(|_| msaa.is_some_and(|m| *m != Msaa::Off))
+            .cloned();
         Some((
             PenumbraLightingView { depth_id, msaa },
             SkipDeferredLighting,

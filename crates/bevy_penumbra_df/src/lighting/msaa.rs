@@ -1,7 +1,8 @@
 //! Deferred shading with 4× MSAA (Samaritan, GDC 2011; Lauritzen, *Deferred Rendering
 //! for Current and Future Rendering Pipelines*, 2010).
 //!
-//! A [`PenumbraLighting`] camera with `Msaa::Sample4` keeps its MSAA: Bevy's deferred
+//! A [`PenumbraLighting`] camera with [`DeferredMsaa`] (and `Msaa::Sample4`, which the
+//! component brings) keeps its MSAA: Bevy's deferred
 //! prepass renders into a **multisampled G-buffer** (Bevy's own layout: `Rgba32Uint`
 //! words plus the `R8Uint` lighting pass id, 17 bytes per sample, plus the 4-byte depth
 //! sample), a classification pass marks each pixel in a multisampled stencil — **once**
@@ -13,6 +14,13 @@
 //! Forward materials, the sky and transparent meshes draw into the same multisampled
 //! target afterwards, as on a forward MSAA camera. The CPU model is
 //! `penumbra_reference::msaa`; the thresholds `penumbra_df_core::msaa::EdgeParams`.
+//!
+//! Opt-in: `Msaa::Sample4` is Bevy's default on every camera (a `Camera3d` spawned with
+//! `PenumbraLighting` has it unless the app says otherwise), so it cannot tell a user's
+//! choice apart; the explicit `DeferredMsaa` is what asks for deferred MSAA and its
+//! memory (about 5× the G-buffer's). Without it a `PenumbraLighting` camera renders
+//! without MSAA as before (Bevy's `check_msaa` warns; Penumbra adds, once, that
+//! `DeferredMsaa` keeps it); `Msaa::Off` on a `DeferredMsaa` camera turns it off.
 //!
 //! How Bevy is brought along: Bevy 0.19 turns MSAA off on deferred cameras
 //! (`check_msaa`); Penumbra keeps a supported camera's `Msaa` across that system, makes
@@ -54,9 +62,9 @@ pub enum DeferredMsaaShading {
     EverySample,
 }
 
-/// Settings of deferred 4× MSAA on a [`PenumbraLighting`] camera (module docs). Optional:
-/// `Msaa::Sample4` on the camera is what turns deferred MSAA on; this component tunes
-/// it (and requires `Msaa::Sample4`, which `Msaa::Off` still overrides).
+/// Deferred 4× MSAA on a [`PenumbraLighting`] camera, and its settings (module docs):
+/// the opt-in. Requires `Msaa::Sample4` (filled in only where the camera has no `Msaa`
+/// yet); `Msaa::Off` on the camera turns deferred MSAA off while the component stays.
 #[derive(Component, Reflect, Clone, Debug)]
 #[reflect(Component, Clone, Default)]
 #[require(PenumbraLighting, Msaa::Sample4)]
@@ -111,17 +119,29 @@ pub(crate) struct DeferredMsaaSupport {
 #[derive(Resource, Default)]
 pub(crate) struct HeldMsaa(Vec<(Entity, Msaa)>);
 
-/// Before `check_msaa`: a supported Penumbra camera's MSAA is set aside (and non-4×
-/// counts become 4×, warned once per camera).
+/// Before `check_msaa`: a supported `DeferredMsaa` camera's MSAA is set aside (and
+/// non-4× counts become 4×, warned once per camera); other `PenumbraLighting` cameras
+/// with MSAA are told, once, how to keep it.
 pub(crate) fn hold_deferred_msaa(
-    mut cameras: Query<(Entity, &mut Msaa), With<PenumbraLighting>>,
+    mut cameras: Query<(Entity, &mut Msaa, Has<DeferredMsaa>), With<PenumbraLighting>>,
     support: Option<Res<DeferredMsaaSupport>>,
     mut held: ResMut<HeldMsaa>,
     mut warned: Local<Vec<Entity>>,
 ) {
     held.0.clear();
-    for (entity, mut msaa) in &mut cameras {
+    for (entity, mut msaa, deferred_msaa) in &mut cameras {
         if *msaa == Msaa::Off {
+            continue;
+        }
+        if !deferred_msaa {
+            if !warned.contains(&entity) {
+                warned.push(entity);
+                info!(
+                    "Penumbra: camera {entity} has PenumbraLighting and {:?} (Bevy's default): \
+                     it renders without MSAA; add `DeferredMsaa` for deferred 4× MSAA",
+                    *msaa
+                );
+            }
             continue;
         }
         if let Some(reason) = support.as_ref().and_then(|s| s.unsupported.as_ref()) {

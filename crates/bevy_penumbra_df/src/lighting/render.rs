@@ -248,20 +248,23 @@ fn init_penumbra_lighting_pipeline(
             ),
         ),
     );
-    let texture = device.create_texture(&TextureDescriptor {
-        label: Some("penumbra_lighting_no_masks"),
-        size: Extent3d {
-            width: 1,
-            height: 1,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: TextureDimension::D2,
-        format: TextureFormat::R32Float,
-        usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
+    let one_texel = |label, format| {
+        device.create_texture(&TextureDescriptor {
+            label: Some(label),
+            size: Extent3d {
+                width: 1,
+                height: 1,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: TextureDimension::D2,
+            format,
+            usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
+            view_formats: &[],
+        })
+    };
+    let texture = one_texel("penumbra_lighting_no_masks", TextureFormat::R32Float);
     queue.write_texture(
         texture.as_image_copy(),
         &1.0f32.to_le_bytes(),
@@ -284,21 +287,7 @@ fn init_penumbra_lighting_pipeline(
         dimension: Some(TextureViewDimension::D2),
         ..default()
     });
-    let no_class = device
-        .create_texture(&TextureDescriptor {
-            label: Some("penumbra_lighting_no_class"),
-            size: Extent3d {
-                width: 1,
-                height: 1,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: TextureDimension::D2,
-            format: TextureFormat::R8Uint,
-            usage: TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        })
+    let no_class = one_texel("penumbra_lighting_no_class", TextureFormat::R8Uint)
         .create_view(&TextureViewDescriptor::default());
     commands.insert_resource(PenumbraLightingPipeline {
         mesh_pipeline: mesh_pipeline.clone(),
