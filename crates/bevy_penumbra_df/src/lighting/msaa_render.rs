@@ -3,7 +3,9 @@
 //! two stencil-tested lighting draws.
 
 use super::PenumbraLightingView;
-use super::render::{PenumbraLightingBindGroup, PenumbraLightingPipelineId};
+use super::render::{
+    PenumbraLightingBindGroup, PenumbraLightingPipelineId, set_lighting_bind_groups,
+};
 use bevy::core_pipeline::deferred::copy_lighting_id::DeferredLightingIdDepthTexture;
 use bevy::core_pipeline::deferred::{DEFERRED_LIGHTING_PASS_ID_FORMAT, DEFERRED_PREPASS_FORMAT};
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
@@ -374,9 +376,7 @@ pub(crate) fn classify_deferred_msaa(
     });
     let span = diagnostics.pass_span(&mut pass, "penumbra_msaa_classify");
     pass.set_render_pipeline(pipeline);
-    pass.set_bind_group(0, &mesh_view.main, &mesh_view.main_offsets);
-    pass.set_bind_group(1, &mesh_view.binding_array, &[]);
-    pass.set_bind_group(2, bind_group, &[]);
+    set_lighting_bind_groups(&mut pass, mesh_view, bind_group);
     pass.draw(0..3, 0..1);
     span.end(&mut pass);
 }
@@ -417,9 +417,7 @@ pub(crate) fn draw_msaa_lighting(
         multiview_mask: None,
     });
     let span = diagnostics.pass_span(&mut pass, "penumbra_lighting");
-    pass.set_bind_group(0, &mesh_view.main, &mesh_view.main_offsets);
-    pass.set_bind_group(1, &mesh_view.binding_array, &[]);
-    pass.set_bind_group(2, bind_group, &[]);
+    set_lighting_bind_groups(&mut pass, mesh_view, bind_group);
     let references = [
         STENCIL_ONCE,
         STENCIL_PER_SAMPLE,

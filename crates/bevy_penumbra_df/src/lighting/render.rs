@@ -660,6 +660,17 @@ pub(crate) fn encode_shadowed_lights(lights: &[PenumbraShadowedLight]) -> Vec<u8
     bytes
 }
 
+/// Binds the lighting pass's groups: Bevy's view (0, 1) and Penumbra's (2).
+pub(crate) fn set_lighting_bind_groups<'a>(
+    pass: &mut bevy::render::render_phase::TrackedRenderPass<'a>,
+    mesh_view: &'a MeshViewBindGroup,
+    group: &'a BindGroup,
+) {
+    pass.set_bind_group(0, &mesh_view.main, &mesh_view.main_offsets);
+    pass.set_bind_group(1, &mesh_view.binding_array, &[]);
+    pass.set_bind_group(2, group, &[]);
+}
+
 /// The lighting pass: Bevy's deferred lighting pass with Penumbra's shader and group 2
 /// (on a deferred MSAA view: `msaa_render::draw_msaa_lighting`).
 #[allow(clippy::type_complexity, reason = "a Bevy system")]
@@ -716,13 +727,7 @@ pub(crate) fn penumbra_lighting(
         multiview_mask: None,
     });
     pass.set_render_pipeline(pipeline);
-    pass.set_bind_group(
-        0,
-        &mesh_view_bind_group.main,
-        &mesh_view_bind_group.main_offsets,
-    );
-    pass.set_bind_group(1, &mesh_view_bind_group.binding_array, &[]);
-    pass.set_bind_group(2, bind_group, &[]);
+    set_lighting_bind_groups(&mut pass, mesh_view_bind_group, bind_group);
     let pass_span = diagnostics.pass_span(&mut pass, "penumbra_lighting");
     pass.draw(0..3, 0..1);
     pass_span.end(&mut pass);
