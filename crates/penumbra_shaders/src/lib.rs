@@ -110,22 +110,58 @@ impl std::error::Error for FlattenError {}
 /// directly. Penumbra's modules are written so that this textual inclusion and
 /// `naga_oil` composition mean the same thing (imported items are used by their bare
 /// names, and no two modules define the same name).
+/// No shader definition is set: every `#ifdef` block takes its `#else` branch.
 pub fn flatten(source: &str) -> Result<String, FlattenError> {
+    flatten_with_defs(source, &[])
+}
+
+/// [`flatten`] with the shader definitions `defs` set (`#ifdef`, `#ifndef`, `#else`
+/// and `#endif` are resolved as `naga_oil` does for boolean definitions).
+pub fn flatten_with_defs(source: &str, defs: &[&str]) -> Result<String, FlattenError> {
     let mut out = String::new();
     let mut included = Vec::new();
-    flatten_into(source, &mut out, &mut included)?;
+    flatten_into(source, defs, &mut out, &mut included)?;
     Ok(out)
+}
+
+/// Whether the lines under the open conditionals are kept.
+fn conditions_hold(stack: &[bool]) -> bool {
+    stack.iter().all(|&keep| keep)
 }
 
 fn flatten_into(
     source: &str,
+    defs: &[&str],
     out: &mut String,
     included: &mut Vec<&'static str>,
 ) -> Result<(), FlattenError> {
     let mut lines = source.lines();
+    // One entry per open `#ifdef` / `#ifndef`: whether its current branch is kept.
+    let mut stack: Vec<bool> = Vec::new();
     while let Some(line) = lines.next() {
         let trimmed = line.trim();
-        if trimmed.starts_with("#define_import_path") {
+        if let Some(name) = trimmed.strip_prefix("#ifdef ") {
+            stack.push(defs.contains(&name.trim()));
+            continue;
+        }
+        if let Some(name) = trimmed.strip_prefix("#ifndef ") {
+            stack.push(!defs.contains(&name.trim()));
+            continue;
+        }
+        if trimmed == "#else" {
+            let top = stack
+                .last_mut()
+                .ok_or_else(|| FlattenError("#else without #ifdef".into()))?;
+            *top = !*top;
+            continue;
+        }
+        if trimmed == "#endif" {
+            stack
+                .pop()
+                .ok_or_else(|| FlattenError("#endif without #ifdef".into()))?;
+            continue;
+        }
+        if !conditions_hold(&stack) || trimmed.starts_with("#define_import_path") {
             continue;
         }
         let Some(rest) = trimmed.strip_prefix("#import") else {
@@ -162,8 +198,11 @@ fn flatten_into(
         };
         if !included.contains(&file.path) {
             included.push(file.path);
-            flatten_into(file.source, out, included)?;
+            flatten_into(file.source, defs, out, included)?;
         }
+    }
+    if !stack.is_empty() {
+        return Err(FlattenError("#ifdef without #endif".into()));
     }
     Ok(())
 }

@@ -4,7 +4,7 @@
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 use naga_oil::compose::{
     ComposableModuleDescriptor, Composer, ComposerError, ComposerErrorInner, NagaModuleDescriptor,
-    ShaderLanguage, ShaderType,
+    ShaderDefValue, ShaderLanguage, ShaderType,
 };
 use penumbra_shaders::{SHADERS, ShaderFile, declared_import_path, shaders_dir};
 use std::path::Path;
@@ -64,11 +64,24 @@ fn describe(composer: &Composer, e: &ComposerError) -> String {
 
 /// Composes one file into a full naga module and validates it.
 fn compose_and_validate(composer: &mut Composer, file: &ShaderFile) -> Result<(), String> {
+    compose_with_defs(composer, file, &[])
+}
+
+/// [`compose_and_validate`] with boolean shader definitions set.
+fn compose_with_defs(
+    composer: &mut Composer,
+    file: &ShaderFile,
+    defs: &[&str],
+) -> Result<(), String> {
     let module = composer
         .make_naga_module(NagaModuleDescriptor {
             source: file.source,
             file_path: file.path,
             shader_type: ShaderType::Wgsl,
+            shader_defs: defs
+                .iter()
+                .map(|d| (d.to_string(), ShaderDefValue::Bool(true)))
+                .collect(),
             ..Default::default()
         })
         .map_err(|e| describe(composer, &e))?;
@@ -123,6 +136,35 @@ fn every_shader_composes_and_validates() {
         .filter_map(|f| compose_and_validate(&mut composer, f).err())
         .collect();
     assert!(failures.is_empty(), "{}", failures.join("\n\n"));
+}
+
+/// The variants Penumbra compiles with shader definitions (deferred MSAA's per-sample
+/// shadow trace and AO upsample) compose and validate too, and flatten (for contract
+/// tests) to the same branch.
+#[test]
+fn shader_def_variants_compose_and_validate() {
+    let standalone = standalone();
+    let mut composer = composer_with_library(&standalone).unwrap_or_else(|e| panic!("{e}"));
+    for (path, def, marker) in [
+        (
+            "df/shadow_trace.wgsl",
+            "PENUMBRA_SAMPLE_TRACE",
+            "pixel_class",
+        ),
+        (
+            "df/ao_upsample.wgsl",
+            "PENUMBRA_SAMPLE_UPSAMPLE",
+            "upsample_samples",
+        ),
+    ] {
+        let file = standalone.iter().find(|f| f.path == path).expect(path);
+        compose_with_defs(&mut composer, file, &[def]).unwrap_or_else(|e| panic!("{e}"));
+        let with = penumbra_shaders::flatten_with_defs(file.source, &[def]).expect("flattens");
+        let without = penumbra_shaders::flatten(file.source).expect("flattens");
+        assert!(with.contains(marker) && !without.contains(marker), "{path}");
+    }
+    assert!(penumbra_shaders::flatten("#ifdef A\nx\n").is_err());
+    assert!(penumbra_shaders::flatten("#else\n").is_err());
 }
 
 /// The check can fail: a type error in a module that imports the library is reported.

@@ -13,16 +13,16 @@ use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::binding_types::{
-    storage_buffer_read_only_sized, texture_2d, texture_3d, texture_storage_2d,
-    uniform_buffer_sized,
+    storage_buffer_read_only_sized, texture_2d, texture_2d_multisampled, texture_3d,
+    texture_depth_2d_multisampled, texture_storage_2d, uniform_buffer_sized,
 };
 use bevy::render::render_resource::encase::UniformBuffer as EncaseBuffer;
 use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
-    BufferId, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d,
-    PipelineCache, ShaderStages, ShaderType, StorageTextureAccess, TextureDescriptor,
-    TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
-    TextureViewDescriptor, TextureViewId,
+    BufferId, BufferUsages, CachedComputePipelineId, ComputePassDescriptor,
+    ComputePipelineDescriptor, Extent3d, PipelineCache, ShaderStages, ShaderType,
+    StorageTextureAccess, TextureDescriptor, TextureDimension, TextureFormat, TextureSampleType,
+    TextureUsages, TextureView, TextureViewDescriptor, TextureViewId,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::view::ExtractedView;
@@ -37,6 +37,11 @@ struct AoPipelines {
     trace: CachedComputePipelineId,
     upsample_layout: BindGroupLayoutDescriptor,
     upsample: CachedComputePipelineId,
+    /// Deferred MSAA's per-sample upsample (`PENUMBRA_SAMPLE_UPSAMPLE`): the upsample's
+    /// layout, then the multisampled depth and G-buffer and the pixels' classes; queued
+    /// for the first deferred MSAA view.
+    sample_upsample_layout: BindGroupLayoutDescriptor,
+    sample_upsample: Option<CachedComputePipelineId>,
     temporal_layout: BindGroupLayoutDescriptor,
     temporal: CachedComputePipelineId,
     /// Bound when the scene has no SDF volume (analytic casters only).
@@ -53,6 +58,8 @@ struct AoPipelines {
 pub struct ViewAoTextures {
     trace: TextureView,
     full: Option<TextureView>,
+    /// Deferred MSAA: the per-sample upsample's output, at twice the view's size.
+    samples: Option<TextureView>,
     history: Option<[[TextureView; 2]; 2]>,
     filtered: Option<TextureView>,
     size: UVec2,
@@ -76,12 +83,14 @@ impl ViewAoTextures {
 }
 
 /// What a view's bind groups bind: the object buffer; atlas, depth, G-buffer and trace
-/// views; the full-size view; the motion vectors and first history view.
+/// views; the full-size view; the motion vectors and first history view; the
+/// per-sample upsample's depth, G-buffer, classes and output.
 type BindKey = (
     [BufferId; 2],
     [TextureViewId; 5],
     Option<TextureViewId>,
     Option<[TextureViewId; 2]>,
+    Option<[TextureViewId; 4]>,
 );
 
 /// A view's uniforms and bind groups (remade only when a bound resource changes).
@@ -92,6 +101,8 @@ pub struct ViewAoBindGroups {
     key: Option<BindKey>,
     trace: Option<BindGroup>,
     upsample: Option<BindGroup>,
+    /// Deferred MSAA's per-sample upsample.
+    sample_upsample: Option<BindGroup>,
     /// The temporal pass of even and odd frames.
     temporal: Option<[BindGroup; 2]>,
     /// This frame's parity (which `temporal` group runs).
@@ -153,16 +164,31 @@ fn init_ao_pipelines(
             ),
         ),
     );
+    let upsample_entries = (
+        texture_2d(TextureSampleType::Float { filterable: false }),
+        texture_2d(TextureSampleType::Float { filterable: false }),
+        texture_2d(TextureSampleType::Uint),
+        uniform_buffer_sized(false, Some(view_bytes)),
+        texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+    );
     let upsample_layout = BindGroupLayoutDescriptor::new(
         "penumbra_dfao_upsample_layout",
+        &BindGroupLayoutEntries::sequential(ShaderStages::COMPUTE, upsample_entries),
+    );
+    let (e0, e1, e2, e3, e4) = upsample_entries;
+    let sample_upsample_layout = BindGroupLayoutDescriptor::new(
+        "penumbra_dfao_sample_upsample_layout",
         &BindGroupLayoutEntries::sequential(
             ShaderStages::COMPUTE,
             (
-                texture_2d(TextureSampleType::Float { filterable: false }),
-                texture_2d(TextureSampleType::Float { filterable: false }),
+                e0,
+                e1,
+                e2,
+                e3,
+                e4,
+                texture_depth_2d_multisampled(),
+                texture_2d_multisampled(TextureSampleType::Uint),
                 texture_2d(TextureSampleType::Uint),
-                uniform_buffer_sized(false, Some(view_bytes)),
-                texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
             ),
         ),
     );
@@ -212,10 +238,30 @@ fn init_ao_pipelines(
         trace,
         upsample_layout,
         upsample,
+        sample_upsample_layout,
+        sample_upsample: None,
         temporal_layout,
         temporal,
         empty_atlas: crate::shader_library::empty_atlas(&device),
     });
+}
+
+/// Queues deferred MSAA's per-sample upsample (once).
+fn queue_sample_upsample(
+    pipelines: &mut AoPipelines,
+    library: &PenumbraShaderLibrary,
+    pipeline_cache: &PipelineCache,
+) -> CachedComputePipelineId {
+    *pipelines.sample_upsample.get_or_insert_with(|| {
+        pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
+            label: Some("penumbra_dfao_sample_upsample".into()),
+            layout: vec![pipelines.sample_upsample_layout.clone()],
+            shader: library.handle("df/ao_upsample.wgsl"),
+            shader_defs: vec!["PENUMBRA_SAMPLE_UPSAMPLE".into()],
+            entry_point: Some("upsample_samples".into()),
+            ..default()
+        })
+    })
 }
 
 fn ao_texture(
@@ -258,18 +304,17 @@ fn prepare_dfao_textures(
     device: Res<RenderDevice>,
     allocations: Res<PenumbraGpuAllocations>,
     gpu: Option<Res<DistanceFieldGpu>>,
-    pipelines: Option<Res<AoPipelines>>,
+    mut pipelines: Option<ResMut<AoPipelines>>,
+    library: Option<Res<PenumbraShaderLibrary>>,
     pipeline_cache: Res<PipelineCache>,
-    views: Query<
-        (
-            Entity,
-            &ExtractedView,
-            &ExtractedDfao,
-            Option<&ViewAoTextures>,
-            Has<MotionVectorPrepass>,
-        ),
-        With<PenumbraLightingView>,
-    >,
+    views: Query<(
+        Entity,
+        &ExtractedView,
+        &PenumbraLightingView,
+        &ExtractedDfao,
+        Option<&ViewAoTextures>,
+        Has<MotionVectorPrepass>,
+    )>,
 ) {
     // Which passes' pipelines have compiled (trace, upsample, temporal).
     let compiled = pipelines.as_ref().map_or([false; 3], |p| {
@@ -277,7 +322,20 @@ fn prepare_dfao_textures(
             .map(|id| pipeline_cache.get_compute_pipeline(id).is_some())
     });
     let has_objects = gpu.as_ref().is_some_and(|g| g.objects.is_some());
-    for (entity, view, &ExtractedDfao(resolved), textures, motion) in &views {
+    for (entity, view, lighting_view, &ExtractedDfao(resolved), textures, motion) in &views {
+        // Deferred MSAA: edge pixels upsampled per sample, once that pass has compiled.
+        let sample_upsample = match (
+            lighting_view.msaa.as_ref().filter(|m| m.sample_occlusion),
+            pipelines.as_deref_mut(),
+            library.as_deref(),
+        ) {
+            (Some(_), Some(p), Some(library)) => {
+                Some(queue_sample_upsample(p, library, &pipeline_cache))
+            }
+            _ => None,
+        };
+        let samples =
+            sample_upsample.is_some_and(|id| pipeline_cache.get_compute_pipeline(id).is_some());
         // Without motion vectors (the prepass removed by hand) there is no temporal
         // filter: each frame stands alone.
         // The objects-per-tile view shows the trace's counts unfiltered.
@@ -297,7 +355,8 @@ fn prepare_dfao_textures(
             Some(t)
                 if t.size == size
                     && t.divisor == resolved.divisor
-                    && t.history.is_some() == temporal =>
+                    && t.history.is_some() == temporal
+                    && t.samples.is_some() == samples =>
             {
                 t
             }
@@ -312,6 +371,9 @@ fn prepare_dfao_textures(
                         trace_size(size, divisor),
                     ),
                     full: (divisor > 1).then(|| texture("penumbra_dfao")),
+                    samples: samples.then(|| {
+                        ao_texture(&allocations, &device, "penumbra_dfao_samples", 2 * size)
+                    }),
                     history: temporal.then(|| {
                         [0, 1].map(|_| {
                             [
@@ -331,6 +393,7 @@ fn prepare_dfao_textures(
         };
         let input = PenumbraAoInput {
             texture: textures.result().clone(),
+            samples: textures.samples.clone(),
             contrast: resolved.contrast,
             min_occlusion: resolved.min_occlusion,
             tint: resolved.tint,
@@ -405,6 +468,20 @@ fn prepare_dfao_bind_groups(
         ) else {
             continue;
         };
+        // Deferred MSAA: the multisampled depth and G-buffer, the classes, the output.
+        let samples = textures
+            .samples
+            .clone()
+            .zip(msaa)
+            .zip(prepass.depth_view())
+            .map(|((out, msaa), depth)| {
+                [
+                    depth.clone(),
+                    msaa.gbuffer_view.clone(),
+                    msaa.class.default_view.clone(),
+                    out,
+                ]
+            });
         // Multisampled motion vectors (deferred MSAA) are not read: no temporal filter.
         let motion = prepass.motion_vectors_view().filter(|_| msaa.is_none());
         let frame = textures.frame;
@@ -469,6 +546,7 @@ fn prepare_dfao_bind_groups(
                     key: None,
                     trace: None,
                     upsample: None,
+                    sample_upsample: None,
                     temporal: None,
                     parity: 0,
                     far: None,
@@ -511,6 +589,7 @@ fn prepare_dfao_bind_groups(
             ],
             textures.full.as_ref().map(TextureView::id),
             motion.zip(history).map(|(m, h)| [m.id(), h[0][0].id()]),
+            samples.as_ref().map(|s| s.each_ref().map(|v| v.id())),
         );
         if groups.key != Some(key) {
             groups.trace = Some(allocations.bind_group(
@@ -539,6 +618,24 @@ fn prepare_dfao_bind_groups(
                         gbuffer,
                         groups.uniform.as_entire_binding(),
                         full,
+                    )),
+                )
+            });
+            groups.sample_upsample = samples.as_ref().map(|[ms_depth, ms_gbuffer, class, out]| {
+                let layout = &pipelines.sample_upsample_layout;
+                allocations.bind_group(
+                    &device,
+                    "penumbra_dfao_sample_upsample",
+                    &pipeline_cache.get_bind_group_layout(layout),
+                    &BindGroupEntries::sequential((
+                        &textures.trace,
+                        depth,
+                        gbuffer,
+                        groups.uniform.as_entire_binding(),
+                        out,
+                        ms_depth,
+                        ms_gbuffer,
+                        class,
                     )),
                 )
             });
@@ -596,6 +693,9 @@ fn distance_field_ambient_occlusion(
         return;
     };
     let upsample = pipeline_cache.get_compute_pipeline(pipelines.upsample);
+    let sample_upsample = pipelines
+        .sample_upsample
+        .and_then(|id| pipeline_cache.get_compute_pipeline(id));
     let temporal = pipeline_cache.get_compute_pipeline(pipelines.temporal);
     let (Some(trace_group), Some(far_group)) = (&groups.trace, &groups.far) else {
         return;
@@ -627,6 +727,19 @@ fn distance_field_ambient_occlusion(
         pass.set_pipeline(upsample);
         pass.set_bind_group(0, upsample_group, &[]);
         pass.dispatch_workgroups(textures.size.x.div_ceil(8), textures.size.y.div_ceil(8), 1);
+    }
+    if let (Some(group), Some(pipeline)) = (&groups.sample_upsample, sample_upsample) {
+        // Deferred MSAA: the edge pixels' samples, one thread each (the trace is
+        // sampled here, as by the upsample).
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor {
+                label: Some("penumbra_dfao_sample_upsample"),
+                timestamp_writes: None,
+            });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, group, &[]);
+        pass.dispatch_workgroups(textures.size.x.div_ceil(4), textures.size.y.div_ceil(4), 1);
     }
     if let (Some(temporal_groups), Some(temporal)) = (&groups.temporal, temporal) {
         let mut pass = ctx

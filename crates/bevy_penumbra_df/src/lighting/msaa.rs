@@ -38,8 +38,11 @@
 //!
 //! Distance-field shadows and DFAO trace once per pixel, from a representative sample
 //! (the samples' mean depth where they agree, the first covered sample on edges) that
-//! the classification pass writes; the lighting reads their masks per pixel for every
-//! sample. Only 4× is served: `Sample2` and `Sample8` are set to `Sample4` (warned
+//! the classification pass writes. On the pixels shaded per sample they are redone per
+//! sample ([`DeferredMsaa::sample_occlusion`]): a second shadow trace whose threads are
+//! the samples of those pixels (the others exit at once) and a per-sample AO upsample
+//! from the per-pixel trace, each into a texture at twice the view's size (a 2×2 block
+//! of texels per pixel), which the per-sample lighting reads. Only 4× is served: `Sample2` and `Sample8` are set to `Sample4` (warned
 //! once). SSR and Bevy's SSAO stay unavailable with MSAA, as on any Bevy camera.
 //!
 //! Cost: the multisampled G-buffer (4 × 17 bytes) plus the stencil (4 × 1), the class
@@ -79,6 +82,14 @@ pub struct DeferredMsaa {
     pub normal_cos: f32,
     /// Classified (default) or every sample.
     pub shading: DeferredMsaaShading,
+    /// Distance-field shadows and DFAO per sample on the pixels shaded per sample: each
+    /// sample takes the visibility and AO of its own surface (a lit wire in front of a
+    /// shadowed wall stays lit). Default true. Costs, with it: a second shadow trace per
+    /// light over the edge pixels' samples and a per-sample AO upsample over them, and
+    /// 16 bytes per pixel per shadowed light plus 32 with DFAO (textures at twice the
+    /// view's size). False: every sample of a pixel takes the pixel's (its first covered
+    /// sample's).
+    pub sample_occlusion: bool,
     /// Debug view: tint the per-sample-shaded samples magenta. Default false.
     pub show_edges: bool,
 }
@@ -91,6 +102,7 @@ impl Default for DeferredMsaa {
             relative_depth: edge.relative_depth,
             normal_cos: edge.normal_cos,
             shading: DeferredMsaaShading::Classified,
+            sample_occlusion: true,
             show_edges: false,
         }
     }

@@ -82,6 +82,10 @@ pub struct PenumbraLightingInputs {
     pub lights: Vec<PenumbraShadowedLight>,
     /// `texture_2d_array<f32>` at the view's size, one layer per masked light.
     pub masks: TextureView,
+    /// Deferred MSAA: the masks of the pixels shaded per sample, per sample
+    /// (`texture_2d_array<f32>` at twice the view's size, each pixel's samples in a 2×2
+    /// block); `None`: those samples read `masks`.
+    pub sample_masks: Option<TextureView>,
 }
 
 /// A view's distance-field AO, inserted on the render-world view by the DFAO feature:
@@ -90,6 +94,10 @@ pub struct PenumbraLightingInputs {
 pub struct PenumbraAoInput {
     /// `Rgba16Float` at the view's size: AO, then the world-space bent normal.
     pub texture: TextureView,
+    /// Deferred MSAA: the AO of the pixels shaded per sample, per sample (`Rgba16Float`
+    /// at twice the view's size, laid out as the per-sample shadow masks); `None`:
+    /// those samples read `texture`.
+    pub samples: Option<TextureView>,
     /// Contrast, `[0, 1]`.
     pub contrast: f32,
     /// Min occlusion, `[0, 1]`.
@@ -122,7 +130,8 @@ struct PenumbraMsaaUniform {
     edge: penumbra_df_core::msaa::EdgeParams,
     per_sample_everywhere: u32,
     show_edges: u32,
-    reserved: UVec2,
+    sample_shadows: u32,
+    sample_ao: u32,
 }
 
 /// The lighting pass's pipeline family and its group 2.
@@ -131,7 +140,8 @@ pub struct PenumbraLightingPipeline {
     mesh_pipeline: MeshPipeline,
     layout: BindGroupLayoutDescriptor,
     /// Group 2 of deferred MSAA's draws: `layout`'s entries, then the MSAA uniform, the
-    /// multisampled G-buffer and lighting id, and the pixels' classes.
+    /// multisampled G-buffer and lighting id, the pixels' classes, and the per-sample
+    /// masks and AO.
     msaa_layout: BindGroupLayoutDescriptor,
     shader: Handle<Shader>,
     classify_shader: Handle<Shader>,
@@ -245,6 +255,8 @@ fn init_penumbra_lighting_pipeline(
                 texture_2d_multisampled(TextureSampleType::Uint),
                 texture_2d_multisampled(TextureSampleType::Uint),
                 texture_2d(TextureSampleType::Uint),
+                common.2,
+                common.3,
             ),
         ),
     );
@@ -561,6 +573,8 @@ fn prepare_penumbra_lighting_bind_groups(
         let masks = inputs.map_or(&pipeline.no_masks, |i| &i.masks);
         let ao_texture = ao.map_or(&pipeline.no_ao, |a| &a.texture);
         let mut key = vec![masks.id(), ao_texture.id()];
+        let sample_masks = inputs.and_then(|i| i.sample_masks.as_ref());
+        let sample_ao = ao.and_then(|a| a.samples.as_ref());
         let Some((settings, textures)) = msaa else {
             if group.bind_group.as_ref().map(|(_, id)| id) != Some(&key) {
                 let bind_group = allocations.bind_group(
@@ -597,15 +611,20 @@ fn prepare_penumbra_lighting_bind_groups(
             edge: settings.edge_params(),
             per_sample_everywhere: u32::from(settings.shading == DeferredMsaaShading::EverySample),
             show_edges: u32::from(settings.show_edges),
-            reserved: UVec2::ZERO,
+            sample_shadows: u32::from(sample_masks.is_some()),
+            sample_ao: u32::from(sample_ao.is_some()),
         };
         let mut bytes = bevy::render::render_resource::encase::UniformBuffer::new(Vec::new());
         bytes.write(&uniform).expect("fixed-size uniform");
         queue.write_buffer(&msaa_uniform, 0, bytes.as_ref());
+        let sample_masks = sample_masks.unwrap_or(&pipeline.no_masks);
+        let sample_ao = sample_ao.unwrap_or(&pipeline.no_ao);
         key.extend([
             textures.gbuffer_view.id(),
             textures.lighting_id_view.id(),
             textures.class.default_view.id(),
+            sample_masks.id(),
+            sample_ao.id(),
         ]);
         if group.bind_group.as_ref().map(|(_, id)| id) != Some(&key) {
             let layout = pipeline_cache.get_bind_group_layout(&pipeline.msaa_layout);
@@ -623,6 +642,8 @@ fn prepare_penumbra_lighting_bind_groups(
                         &textures.gbuffer_view,
                         &textures.lighting_id_view,
                         class,
+                        sample_masks,
+                        sample_ao,
                     )),
                 )
             };

@@ -72,9 +72,13 @@
 //!
 //! Cost: nothing without the component; per light and camera, one culling dispatch
 //! over the object buffer and one pass over the view's pixels (march cost ∝ casters per
-//! tile × `max_steps`); 4 bytes per pixel per light of mask memory.
+//! tile × `max_steps`); 4 bytes per pixel per light of mask memory. Under deferred MSAA
+//! ([`DeferredMsaa::sample_occlusion`](crate::DeferredMsaa::sample_occlusion)) the
+//! pixels shaded per sample are traced again per sample (`msaa.rs`): 16 more bytes per
+//! pixel per light.
 
 mod consumers;
+mod msaa;
 mod render;
 mod resources;
 

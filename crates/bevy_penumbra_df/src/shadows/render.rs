@@ -2,6 +2,7 @@
 //! mask passes.
 
 use super::DistanceFieldShadows;
+use super::msaa::{SampleMasks, SampleTraceInputs, layer_views, queue_sample_trace};
 use super::resources::{
     CULL_VIEW_BYTES, DistanceFieldShadowResources, ShadowViewParams, UPSAMPLE_VIEW_BYTES,
     ViewTextures,
@@ -128,6 +129,8 @@ pub struct DistanceFieldShadowMasks {
     /// Half-resolution lights' traces, upsampled into their layer: (storage view,
     /// sampled view), at [`half_size`].
     half: Option<(TextureView, TextureView)>,
+    /// Deferred MSAA: the edge pixels' masks per sample.
+    samples: Option<SampleMasks>,
 }
 
 /// The passes' pipelines.
@@ -139,6 +142,9 @@ pub(super) struct ShadowPipelines {
     trace: CachedComputePipelineId,
     pub(super) upsample_layout: BindGroupLayoutDescriptor,
     upsample: CachedComputePipelineId,
+    /// The per-sample trace of deferred MSAA views (`msaa.rs`), queued for the first.
+    pub(super) sample_trace_layout: BindGroupLayoutDescriptor,
+    pub(super) sample_trace: Option<CachedComputePipelineId>,
     pub(super) grid_layout: BindGroupLayoutDescriptor,
     /// The light-space grid's passes: reset, bounds, count, scan, fill.
     grid: [CachedComputePipelineId; 5],
@@ -300,6 +306,8 @@ fn init_shadow_pipelines(
         trace,
         upsample_layout,
         upsample,
+        sample_trace_layout: super::msaa::sample_trace_layout(),
+        sample_trace: None,
         grid_layout,
         grid,
         empty_atlas: crate::shader_library::empty_atlas(&device),
@@ -322,6 +330,7 @@ fn init_shadow_pipelines(
 type ShadowViewQuery<'a> = (
     Entity,
     &'a ExtractedView,
+    &'a PenumbraLightingView,
     Option<&'a DistanceFieldShadowMasks>,
     Option<&'a mut DistanceFieldShadowResources>,
 );
@@ -349,8 +358,9 @@ fn prepare_distance_field_shadows(
         Option<&ExtractedDirectionalLight>,
         Option<&ExtractedPointLight>,
     )>,
-    mut views: Query<ShadowViewQuery, With<PenumbraLightingView>>,
-    pipelines: Option<Res<ShadowPipelines>>,
+    mut views: Query<ShadowViewQuery>,
+    mut pipelines: Option<ResMut<ShadowPipelines>>,
+    library: Option<Res<PenumbraShaderLibrary>>,
     pipeline_cache: Res<PipelineCache>,
 ) {
     frame.0.clear();
@@ -397,7 +407,20 @@ fn prepare_distance_field_shadows(
                 .iter()
                 .all(|&g| pipeline_cache.get_compute_pipeline(g).is_some())
     });
-    for (entity, view, masks, resources) in &mut views {
+    for (entity, view, lighting_view, masks, resources) in &mut views {
+        // Deferred MSAA: edge pixels traced per sample, once that pass has compiled.
+        let sample_trace = match (
+            lighting_view.msaa.as_ref().filter(|m| m.sample_occlusion),
+            pipelines.as_deref_mut(),
+            library.as_deref(),
+        ) {
+            (Some(_), Some(p), Some(library)) => {
+                Some(queue_sample_trace(p, library, &pipeline_cache))
+            }
+            _ => None,
+        };
+        let samples =
+            sample_trace.is_some_and(|id| pipeline_cache.get_compute_pipeline(id).is_some());
         let (Some(slots), true, false) = (slots, ready, frame.0.is_empty()) else {
             // No mask: the lights are unshadowed (their shadow maps are off). Pooled
             // buffers are kept for when they come back.
@@ -410,7 +433,12 @@ fn prepare_distance_field_shadows(
         let layers = frame.0.len();
         let half = frame.0.iter().any(|l| l.settings.half_resolution);
         let fresh = match masks {
-            Some(m) if m.size == size && m.layers.len() == layers && m.half.is_some() == half => {
+            Some(m)
+                if m.size == size
+                    && m.layers.len() == layers
+                    && m.half.is_some() == half
+                    && m.samples.is_some() == samples =>
+            {
                 None
             }
             _ => Some(create_masks(
@@ -419,9 +447,13 @@ fn prepare_distance_field_shadows(
                 size,
                 layers as u32,
                 half,
+                samples,
             )),
         };
-        let Some(array) = fresh.as_ref().or(masks).map(|m| m.array.clone()) else {
+        let Some((array, sample_masks)) = fresh.as_ref().or(masks).map(|m| {
+            let samples = m.samples.as_ref().map(|s| s.array.clone());
+            (m.array.clone(), samples)
+        }) else {
             continue;
         };
         let mut view_entity = commands.entity(entity);
@@ -456,6 +488,7 @@ fn prepare_distance_field_shadows(
         view_entity.insert(PenumbraLightingInputs {
             lights,
             masks: array,
+            sample_masks,
         });
     }
 }
@@ -492,6 +525,17 @@ fn prepare_distance_field_shadow_bind_groups(
         .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
     for (view, masks, prepass, msaa, mut resources) in &mut views {
         let (depth, gbuffer) = pixel_prepass(prepass, msaa);
+        let samples = masks
+            .samples
+            .as_ref()
+            .zip(msaa)
+            .zip(prepass.depth_view())
+            .map(|((samples, msaa), depth)| SampleTraceInputs {
+                depth,
+                gbuffer: &msaa.gbuffer_view,
+                class: &msaa.class.default_view,
+                layers: &samples.layers,
+            });
         let (Some(depth), Some(camera)) =
             (depth, CameraOrigin::at(view.world_from_view.translation()))
         else {
@@ -526,6 +570,7 @@ fn prepare_distance_field_shadow_bind_groups(
             terrain: (&terrain_records, &heights),
             layers: &masks.layers,
             half: masks.half.as_ref(),
+            samples,
         };
         resources.update(
             &allocations,
@@ -561,6 +606,9 @@ fn distance_field_shadows(
     ) else {
         return;
     };
+    let sample_trace = pipelines
+        .sample_trace
+        .and_then(|id| pipeline_cache.get_compute_pipeline(id));
     let grid_pipelines: Option<Vec<_>> = pipelines
         .grid
         .iter()
@@ -612,6 +660,12 @@ fn distance_field_shadows(
         pass.set_pipeline(trace);
         pass.set_bind_group(0, &bind.trace, &[]);
         pass.dispatch_workgroups(trace_size.x.div_ceil(8), trace_size.y.div_ceil(8), 1);
+        if let (Some(group), Some(pipeline)) = (&bind.sample_trace, sample_trace) {
+            // Deferred MSAA: the edge pixels' samples, one thread each.
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(masks.size.x.div_ceil(4), masks.size.y.div_ceil(4), 1);
+        }
         drop(pass);
         if let Some(upsample_bind) = bind.upsample.as_ref().filter(|_| r.half) {
             // Its own pass: the half texture, written as storage above, is read as a
@@ -671,6 +725,7 @@ fn create_masks(
     size: UVec2,
     layers: u32,
     half: bool,
+    samples: bool,
 ) -> DistanceFieldShadowMasks {
     let texture = mask_texture(
         allocations,
@@ -679,17 +734,8 @@ fn create_masks(
         size,
         layers,
     );
-    let layers = (0..layers)
-        .map(|layer| {
-            texture.create_view(&TextureViewDescriptor {
-                label: Some("penumbra_df_shadow_mask_layer"),
-                dimension: Some(TextureViewDimension::D2),
-                base_array_layer: layer,
-                array_layer_count: Some(1),
-                ..default()
-            })
-        })
-        .collect();
+    let samples = samples.then(|| SampleMasks::new(allocations, device, size, layers));
+    let layers = layer_views(&texture, layers);
     let half = half.then(|| {
         let texture = mask_texture(
             allocations,
@@ -709,5 +755,6 @@ fn create_masks(
         layers,
         size,
         half,
+        samples,
     }
 }

@@ -3,6 +3,7 @@
 //! storage buffers grow with the object buffer (never per frame), counters are cleared
 //! on the GPU, and bind groups are rebuilt only when a resource they bind changes.
 
+use super::msaa::SampleTraceInputs;
 use super::render::{FrameLight, ShadowPipelines};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use bevy::prelude::*;
@@ -37,6 +38,8 @@ pub struct DistanceFieldShadowResources {
     full_view: Buffer,
     half_view: Buffer,
     upsample_view: Buffer,
+    /// Deferred MSAA's per-sample trace: `ShadowTraceView` over twice the view's size.
+    sample_view: Buffer,
     /// Per light, in mask-layer order.
     pub(super) lights: Vec<LightResources>,
     /// Bound as the terrains while the scene has none (made when first needed).
@@ -73,6 +76,8 @@ pub(super) struct LightBindGroups {
     pub(super) grid: Option<BindGroup>,
     pub(super) trace: BindGroup,
     pub(super) upsample: Option<BindGroup>,
+    /// Deferred MSAA's per-sample trace (`msaa.rs`).
+    pub(super) sample_trace: Option<BindGroup>,
 }
 
 /// What a light's bind groups reference besides its own buffers.
@@ -85,6 +90,8 @@ struct BindKey {
     layer: TextureViewId,
     half: Option<(TextureViewId, TextureViewId)>,
     terrain: (BufferId, TextureViewId),
+    /// The per-sample trace's depth, G-buffer, classes and layer.
+    samples: Option<[TextureViewId; 4]>,
 }
 
 /// The view-level textures the bind groups reference.
@@ -97,6 +104,8 @@ pub(super) struct ViewTextures<'a> {
     pub(super) terrain: (&'a Buffer, &'a TextureView),
     pub(super) layers: &'a [TextureView],
     pub(super) half: Option<&'a (TextureView, TextureView)>,
+    /// Deferred MSAA: what the per-sample trace reads and writes.
+    pub(super) samples: Option<SampleTraceInputs<'a>>,
 }
 
 fn storage(
@@ -241,6 +250,12 @@ impl DistanceFieldShadowResources {
                 "penumbra_df_shadow_upsample_view",
                 UPSAMPLE_VIEW_BYTES,
             ),
+            sample_view: uniform(
+                allocations,
+                device,
+                "penumbra_df_shadow_sample_trace_view",
+                trace_bytes,
+            ),
             lights: Vec::new(),
             no_terrain: None,
         }
@@ -302,6 +317,9 @@ impl DistanceFieldShadowResources {
         };
         queue.write_buffer(&self.full_view, 0, &trace(1, view.size));
         queue.write_buffer(&self.half_view, 0, &trace(2, half_size(view.size)));
+        if textures.samples.is_some() {
+            queue.write_buffer(&self.sample_view, 0, &trace(1, 2 * view.size));
+        }
         let mut upsample: Vec<u32> = view
             .view_from_clip
             .to_cols_array()
@@ -315,8 +333,14 @@ impl DistanceFieldShadowResources {
             &self.half_view,
             &self.upsample_view,
             &self.cull_view,
+            &self.sample_view,
         ];
-        for ((light, r), layer) in frame.iter().zip(&mut self.lights).zip(textures.layers) {
+        for (i, ((light, r), layer)) in frame
+            .iter()
+            .zip(&mut self.lights)
+            .zip(textures.layers)
+            .enumerate()
+        {
             // A light that cannot be placed (non-finite, beyond ±2³¹ tiles) marches
             // nothing: its mask is all lit.
             let params = light.shadow_light(&view.camera).unwrap_or(UNLIT);
@@ -340,6 +364,10 @@ impl DistanceFieldShadowResources {
                     .filter(|_| r.half)
                     .map(|(storage, sampled)| (storage.id(), sampled.id())),
                 terrain: (textures.terrain.0.id(), textures.terrain.1.id()),
+                samples: textures.samples.as_ref().and_then(|s| {
+                    let layer = s.layers.get(i)?;
+                    Some([s.depth.id(), s.gbuffer.id(), s.class.id(), layer.id()])
+                }),
             };
             if r.key != Some(key) || r.bind_groups.is_none() {
                 r.bind_groups = Some(bind_groups(
@@ -350,7 +378,7 @@ impl DistanceFieldShadowResources {
                     r,
                     views,
                     textures,
-                    layer,
+                    (layer, i),
                 ));
                 r.key = Some(key);
             }
@@ -392,9 +420,9 @@ fn bind_groups(
     pipelines: &ShadowPipelines,
     pipeline_cache: &PipelineCache,
     r: &LightResources,
-    [full_view, half_view, upsample_view, cull_view]: [&Buffer; 4],
+    [full_view, half_view, upsample_view, cull_view, sample_view]: [&Buffer; 5],
     t: &ViewTextures,
-    layer: &TextureView,
+    (layer, index): (&TextureView, usize),
 ) -> LightBindGroups {
     let layout = |l| pipeline_cache.get_bind_group_layout(l);
     let cull = allocations.bind_group(
@@ -467,10 +495,37 @@ fn bind_groups(
             )),
         )
     });
+    let sample_trace = t.samples.as_ref().and_then(|s| {
+        let target = s.layers.get(index)?;
+        Some(allocations.bind_group(
+            device,
+            "penumbra_df_shadow_sample_trace",
+            &layout(&pipelines.sample_trace_layout),
+            &BindGroupEntries::sequential((
+                t.objects.as_entire_binding(),
+                r.list.as_entire_binding(),
+                r.count.as_entire_binding(),
+                t.atlas,
+                s.depth,
+                sample_view.as_entire_binding(),
+                r.light.as_entire_binding(),
+                target,
+                r.grid.as_entire_binding(),
+                r.items.as_entire_binding(),
+                r.large.as_entire_binding(),
+                r.grid_view.as_entire_binding(),
+                s.gbuffer,
+                t.terrain.0.as_entire_binding(),
+                t.terrain.1,
+                s.class,
+            )),
+        ))
+    });
     LightBindGroups {
         cull,
         grid,
         trace,
         upsample,
+        sample_trace,
     }
 }

@@ -7,25 +7,40 @@
 
 #import penumbra::df::shadow::gbuffer_normal
 #import penumbra::df::ao::AoTraceView
+#import penumbra::lighting::msaa::MSAA_SAMPLE_POSITIONS
 
 @group(0) @binding(0) var trace_texture: texture_2d<f32>;
 @group(0) @binding(1) var depth_texture: texture_2d<f32>;
 @group(0) @binding(2) var gbuffer: texture_2d<u32>;
 @group(0) @binding(3) var<uniform> view: AoTraceView;
 @group(0) @binding(4) var output: texture_storage_2d<rgba16float, write>;
+#ifdef PENUMBRA_SAMPLE_UPSAMPLE
+// Deferred MSAA's per-sample upsample: the multisampled depth and G-buffer of the
+// samples written (those of the pixels shaded per sample, class 2), into `output` at
+// twice the view's size (`msaa_sample_texel`); the trace's texels are still described
+// by the representative `depth_texture` and `gbuffer`.
+@group(0) @binding(5) var sample_depth: texture_depth_multisampled_2d;
+@group(0) @binding(6) var sample_gbuffer: texture_multisampled_2d<u32>;
+@group(0) @binding(7) var pixel_class: texture_2d<u32>;
+#endif
 
 const DEPTH_TOLERANCE: f32 = 0.1;
 
-// Distance from the camera of pixel `xy` (0: background).
-fn pixel_distance(xy: vec2<u32>) -> f32 {
-    let depth = textureLoad(depth_texture, vec2<i32>(xy), 0).r;
+// Distance from the camera of frame-buffer point `screen` at reverse-Z `depth` (0:
+// background).
+fn distance_at(screen: vec2<f32>, depth: f32) -> f32 {
     if !(depth > 0.0) {
         return 0.0;
     }
-    let uv = (vec2<f32>(xy) + 0.5) / vec2<f32>(view.full_size);
+    let uv = screen / vec2<f32>(view.full_size);
     let v = view.view_from_clip * vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
     let d = length(view.world_from_view * (v.xyz / v.w));
     return select(0.0, d, d > 0.0 && d < 3.0e38);
+}
+
+// Distance from the camera of pixel `xy` (0: background).
+fn pixel_distance(xy: vec2<u32>) -> f32 {
+    return distance_at(vec2<f32>(xy) + 0.5, textureLoad(depth_texture, vec2<i32>(xy), 0).r);
 }
 
 fn pixel_normal(xy: vec2<u32>) -> vec3<f32> {
@@ -42,9 +57,14 @@ fn upsample(@builtin(global_invocation_id) gid: vec3<u32>) {
         textureStore(output, vec2<i32>(gid.xy), vec4<f32>(1.0, 0.0, 0.0, 0.0));
         return;
     }
-    let n = pixel_normal(gid.xy);
+    textureStore(output, vec2<i32>(gid.xy), blend(vec2<f32>(gid.xy) + 0.5, d, pixel_normal(gid.xy)));
+}
+
+// The AO texel (AO, unit bent normal) of the surface at frame-buffer point `screen`,
+// distance `d` from the camera, normal `n`: the trace texels around it, weighted.
+fn blend(screen: vec2<f32>, d: f32, n: vec3<f32>) -> vec4<f32> {
     let divisor = max(view.divisor, 1u);
-    let h = max((vec2<f32>(gid.xy) - vec2<f32>(view.jitter)) / f32(divisor), vec2<f32>(0.0));
+    let h = max((screen - 0.5 - vec2<f32>(view.jitter)) / f32(divisor), vec2<f32>(0.0));
     let i0 = vec2<u32>(floor(h));
     let f = h - floor(h);
     let last = view.trace_size - vec2<u32>(1u);
@@ -75,5 +95,26 @@ fn upsample(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let len = length(v.yzw);
     let bent = select(n, v.yzw / len, len > 1e-6);
-    textureStore(output, vec2<i32>(gid.xy), vec4<f32>(clamp(v.x, 0.0, 1.0), bent));
+    return vec4<f32>(clamp(v.x, 0.0, 1.0), bent);
 }
+
+#ifdef PENUMBRA_SAMPLE_UPSAMPLE
+// Sample `(gid.x & 1) | (gid.y & 1) << 1` of pixel `gid / 2`, where the pixel is shaded
+// per sample: the trace blended for the sample's own surface.
+@compute @workgroup_size(8, 8, 1)
+fn upsample_samples(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let pixel = vec2<i32>(gid.xy / 2u);
+    if any(gid.xy / 2u >= view.full_size) || textureLoad(pixel_class, pixel, 0).r != 2u {
+        return;
+    }
+    let i = (gid.x & 1u) | ((gid.y & 1u) << 1u);
+    let screen = vec2<f32>(pixel) + MSAA_SAMPLE_POSITIONS[i];
+    let d = distance_at(screen, textureLoad(sample_depth, pixel, i32(i)));
+    if d <= 0.0 {
+        textureStore(output, vec2<i32>(gid.xy), vec4<f32>(1.0, 0.0, 0.0, 0.0));
+        return;
+    }
+    let n = gbuffer_normal(textureLoad(sample_gbuffer, pixel, i32(i)).a);
+    textureStore(output, vec2<i32>(gid.xy), blend(screen, d, n));
+}
+#endif

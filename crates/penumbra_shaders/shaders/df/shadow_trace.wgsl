@@ -16,6 +16,7 @@
     horizon_visibility, is_directional, light_reaches, march_object, object_in_cone,
     round_cone_distance, shadow_ray,
 }
+#import penumbra::lighting::msaa::MSAA_SAMPLE_POSITIONS
 #import penumbra::df::shadow_grid::{
     GRID_SIZE, MAX_CELLS, ShadowGridRead, ShadowGridView, cell_range, from_order_key,
     grid_frame, grid_light, light_space_disc, order_key, range_cells,
@@ -40,8 +41,19 @@ struct ShadowTraceView {
 @group(0) @binding(1) var<storage, read> light_objects: array<u32>;
 @group(0) @binding(2) var<storage, read> light_object_count: array<u32>;
 @group(0) @binding(3) var atlas: texture_3d<f32>;
+#ifdef PENUMBRA_SAMPLE_TRACE
+// Deferred MSAA's per-sample trace: the multisampled reverse-Z depth and G-buffer; the
+// threads cover the samples of the pixels the classification shades per sample
+// (class 2), and `mask` is twice the view's size (`msaa_sample_texel`).
+@group(0) @binding(4) var depth_texture: texture_depth_multisampled_2d;
+@group(0) @binding(12) var gbuffer: texture_multisampled_2d<u32>;
+@group(0) @binding(15) var pixel_class: texture_2d<u32>;
+#else
 // Reverse-Z depth (the prepass depth, bound as an unfilterable float texture).
 @group(0) @binding(4) var depth_texture: texture_2d<f32>;
+// Bevy's deferred G-buffer (Rgba32Uint; the normal in `.a`), read when `view.size.w` is 1.
+@group(0) @binding(12) var gbuffer: texture_2d<u32>;
+#endif
 @group(0) @binding(5) var<uniform> view: ShadowTraceView;
 @group(0) @binding(6) var<uniform> light: ShadowLight;
 @group(0) @binding(7) var mask: texture_storage_2d<r32float, write>;
@@ -51,8 +63,6 @@ struct ShadowTraceView {
 @group(0) @binding(9) var<storage, read> grid_items: array<u32>;
 @group(0) @binding(10) var<storage, read> grid_large: array<u32>;
 @group(0) @binding(11) var<uniform> grid_view: ShadowGridView;
-// Bevy's deferred G-buffer (Rgba32Uint; the normal in `.a`), read when `view.size.w` is 1.
-@group(0) @binding(12) var gbuffer: texture_2d<u32>;
 @group(0) @binding(13) var<storage, read> heightfields: array<HeightfieldRecord>;
 @group(0) @binding(14) var heights: texture_2d<f32>;
 
@@ -71,9 +81,49 @@ var<workgroup> tile_mode: u32;
 var<workgroup> tile_cells: vec4<i32>;
 var<workgroup> tile_large: u32;
 
-// Camera-relative world position of full-resolution pixel `xy` at reverse-Z `depth`.
-fn position_from_depth(xy: vec2<u32>, depth: f32) -> vec3<f32> {
-    let uv = (vec2<f32>(xy) + 0.5) / vec2<f32>(textureDimensions(depth_texture));
+// What a thread traces: a frame-buffer point, its reverse-Z depth (0: nothing) and
+// its G-buffer normal word; `store`: whether the thread writes its mask texel.
+struct TracePoint {
+    screen: vec2<f32>,
+    depth: f32,
+    normal_word: u32,
+    store: bool,
+}
+
+#ifdef PENUMBRA_SAMPLE_TRACE
+// Sample `(gid.x & 1) | (gid.y & 1) << 1` of pixel `gid / 2`, traced where the pixel is
+// shaded per sample.
+fn trace_point(gid: vec2<u32>, inside: bool) -> TracePoint {
+    let pixel = vec2<i32>(gid / 2u);
+    let i = (gid.x & 1u) | ((gid.y & 1u) << 1u);
+    if !inside || textureLoad(pixel_class, pixel, 0).r != 2u {
+        return TracePoint(vec2<f32>(0.0), 0.0, 0u, false);
+    }
+    return TracePoint(
+        vec2<f32>(pixel) + MSAA_SAMPLE_POSITIONS[i],
+        textureLoad(depth_texture, pixel, i32(i)),
+        textureLoad(gbuffer, pixel, i32(i)).a,
+        true,
+    );
+}
+#else
+// The centre of full-resolution pixel `gid × stride`.
+fn trace_point(gid: vec2<u32>, inside: bool) -> TracePoint {
+    let pixel = vec2<i32>(gid * max(view.size.z, 1u));
+    if !inside {
+        return TracePoint(vec2<f32>(0.0), 0.0, 0u, false);
+    }
+    var word = 0u;
+    if view.size.w == 1u {
+        word = textureLoad(gbuffer, pixel, 0).a;
+    }
+    return TracePoint(vec2<f32>(pixel) + 0.5, textureLoad(depth_texture, pixel, 0).r, word, true);
+}
+#endif
+
+// Camera-relative world position of frame-buffer point `screen` at reverse-Z `depth`.
+fn position_from_depth(screen: vec2<f32>, depth: f32) -> vec3<f32> {
+    let uv = screen / vec2<f32>(textureDimensions(depth_texture));
     let ndc = vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
     let v = view.view_from_clip * ndc;
     let q = v.xyz / v.w;
@@ -135,15 +185,11 @@ fn trace(
     workgroupBarrier();
 
     let inside = gid.x < view.size.x && gid.y < view.size.y;
-    let pixel = gid.xy * max(view.size.z, 1u);
-    var depth = 0.0;
-    if inside {
-        depth = textureLoad(depth_texture, vec2<i32>(pixel), 0).r;
-    }
-    var surface = inside && depth > 0.0;
+    let point = trace_point(gid.xy, inside);
+    var surface = point.depth > 0.0;
     var p = vec3<f32>(0.0);
     if surface {
-        p = position_from_depth(pixel, depth);
+        p = position_from_depth(point.screen, point.depth);
         // Beyond a directional light's max view distance, or beyond a point or spot
         // light's range or cone: not traced (lit). A tile with no traced pixel gathers
         // no caster at all.
@@ -156,7 +202,7 @@ fn trace(
     // no march (and the pixel does not widen its tile's cone).
     var horizon = 1.0;
     if surface && view.size.w == 1u {
-        let n = gbuffer_normal(textureLoad(gbuffer, vec2<i32>(pixel), 0).a);
+        let n = gbuffer_normal(point.normal_word);
         horizon = horizon_visibility(n, ray.dir, ray.tan_half);
     }
     let march = surface && horizon > 0.0;
@@ -303,7 +349,7 @@ fn trace(
     if march {
         visibility = min(visibility, terrain_visibility(p, ray));
     }
-    if inside {
+    if point.store {
         var out = 1.0;
         if surface {
             out = min(finish_visibility(visibility, light.shaping), horizon);

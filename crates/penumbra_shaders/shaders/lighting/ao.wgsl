@@ -3,7 +3,7 @@
 // specular_occlusion}`.
 #define_import_path penumbra::lighting::ao
 
-#import penumbra::lighting::masks::{ambient_occlusion, penumbra_lighting}
+#import penumbra::lighting::masks::{ambient_occlusion, ao_texel, penumbra_lighting}
 
 const AO_PI: f32 = 3.14159265;
 
@@ -20,7 +20,7 @@ fn penumbra_ao(frag_xy: vec2<f32>, n: vec3<f32>) -> PenumbraAo {
     if penumbra_lighting.ao_enabled == 0u {
         return PenumbraAo(1.0, n);
     }
-    let s = textureLoad(ambient_occlusion, vec2<i32>(frag_xy), 0);
+    let s = ao_texel(frag_xy);
     var ao = select(1.0, clamp(s.x, 0.0, 1.0), s.x == s.x);
     let contrast = penumbra_lighting.ao_contrast;
     if contrast > 1e-3 {

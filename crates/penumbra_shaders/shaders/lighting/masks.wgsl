@@ -3,6 +3,8 @@
 
 #define_import_path penumbra::lighting::masks
 
+#import penumbra::lighting::msaa::msaa_sample_texel
+
 // One light whose visibility comes from a mask.
 struct PenumbraShadowedLight {
     // x: 0 directional, 1 point or spot; y: the clustered light id (point, spot);
@@ -38,6 +40,25 @@ const SHADOWED_CLUSTERED: u32 = 1u;
 // Distance-field AO at the view's size: AO, then the world-space bent normal.
 @group(2) @binding(3) var ambient_occlusion: texture_2d<f32>;
 
+#ifdef PENUMBRA_MSAA
+// Deferred MSAA: the masks and the AO of edge pixels per sample (twice the view's size,
+// `msaa_sample_texel`), 1-texel placeholders where they are not traced.
+@group(2) @binding(8) var sample_shadow_masks: texture_2d_array<f32>;
+@group(2) @binding(9) var sample_ambient_occlusion: texture_2d<f32>;
+
+// The sample being shaded when the masks and the AO hold it per sample (-1: read them
+// per pixel). Set by the per-sample lighting entry (`set_shading_sample`).
+var<private> shadow_sample: i32 = -1;
+var<private> ao_sample: i32 = -1;
+
+// Per-sample shading of sample `i`: whether the view traced its masks and its AO per
+// sample.
+fn set_shading_sample(i: u32, shadows: bool, ao: bool) {
+    shadow_sample = select(-1, i32(i), shadows);
+    ao_sample = select(-1, i32(i), ao);
+}
+#endif
+
 // The mask layer of clustered light `light_id`, or -1.
 fn clustered_light_mask(light_id: u32) -> i32 {
     for (var i = 0u; i < penumbra_lighting.shadowed_light_count; i += 1u) {
@@ -61,5 +82,22 @@ fn directional_light_mask(direction_to_light: vec3<f32>) -> i32 {
 }
 
 fn mask_visibility(layer: i32, frag_xy: vec2<f32>) -> f32 {
+#ifdef PENUMBRA_MSAA
+    if shadow_sample >= 0 {
+        let texel = msaa_sample_texel(vec2<i32>(frag_xy), u32(shadow_sample));
+        return textureLoad(sample_shadow_masks, texel, layer, 0).r;
+    }
+#endif
     return textureLoad(shadow_masks, vec2<i32>(frag_xy), layer, 0).r;
+}
+
+// The view's AO texel at `frag_xy` (AO, bent normal): the shaded sample's where it is
+// traced per sample.
+fn ao_texel(frag_xy: vec2<f32>) -> vec4<f32> {
+#ifdef PENUMBRA_MSAA
+    if ao_sample >= 0 {
+        return textureLoad(sample_ambient_occlusion, msaa_sample_texel(vec2<i32>(frag_xy), u32(ao_sample)), 0);
+    }
+#endif
+    return textureLoad(ambient_occlusion, vec2<i32>(frag_xy), 0);
 }

@@ -14,6 +14,17 @@ struct MsaaEdgeParams {
     sample_count: u32,
 }
 
+// Vulkan's (and D3D's, Metal's) standard 4× sample positions, from the pixel's corner.
+const MSAA_SAMPLE_POSITIONS: array<vec2<f32>, 4> = array(
+    vec2(0.375, 0.125), vec2(0.875, 0.375), vec2(0.125, 0.625), vec2(0.625, 0.875),
+);
+
+// The texel of sample `i` of `pixel` in a per-sample texture (twice the view's size:
+// each pixel's samples in a 2×2 block, sample i at (i & 1, i >> 1)).
+fn msaa_sample_texel(pixel: vec2<i32>, i: u32) -> vec2<i32> {
+    return 2 * pixel + vec2<i32>(i32(i & 1u), i32(i >> 1u));
+}
+
 // One G-buffer sample as the classifier reads it.
 struct MsaaSample {
     normal: vec3<f32>,

@@ -11,7 +11,7 @@
     view_transformations::{depth_ndc_to_view_z, position_ndc_to_view, frag_coord_to_ndc},
 }
 #import penumbra::lighting::masks::penumbra_lighting
-#import penumbra::lighting::msaa::{MsaaEdgeParams, MsaaSample, msaa_is_edge}
+#import penumbra::lighting::msaa::{MSAA_SAMPLE_POSITIONS, MsaaEdgeParams, MsaaSample, msaa_is_edge}
 
 struct PenumbraMsaaUniform {
     edge: MsaaEdgeParams,
@@ -20,7 +20,10 @@ struct PenumbraMsaaUniform {
     per_sample_everywhere: u32,
     // 1: per-sample pixels are tinted (the debug view of the per-sample mask).
     show_edges: u32,
-    reserved: vec2<u32>,
+    // 1: the view's distance-field shadow masks, and its AO, are traced per sample on
+    // edge pixels (`masks::set_shading_sample`).
+    sample_shadows: u32,
+    sample_ao: u32,
 }
 
 @group(2) @binding(4) var<uniform> penumbra_msaa: PenumbraMsaaUniform;
@@ -31,11 +34,6 @@ struct PenumbraMsaaUniform {
 // The pixels' classes (`msaa_pixel_class`), written by the classification pass (a
 // 1-texel placeholder while it runs).
 @group(2) @binding(7) var msaa_class: texture_2d<u32>;
-
-// Vulkan's (and D3D's, Metal's) standard 4× sample positions, from the pixel's corner.
-const MSAA_SAMPLE_POSITIONS: array<vec2<f32>, 4> = array(
-    vec2(0.375, 0.125), vec2(0.875, 0.375), vec2(0.125, 0.625), vec2(0.625, 0.875),
-);
 
 // The frame-buffer position of sample `i` of `pixel`.
 fn msaa_sample_position(pixel: vec2<i32>, i: u32) -> vec2<f32> {

@@ -14,6 +14,7 @@
 #import penumbra::lighting::lights::apply_lighting
 #import penumbra::lighting::masks::penumbra_lighting
 #ifdef PENUMBRA_MSAA
+#import penumbra::lighting::masks::set_shading_sample
 #import penumbra::lighting::msaa_view
 #endif
 
@@ -100,6 +101,8 @@ fn fragment_msaa_sample(
     let xy = msaa_view::msaa_sample_position(pixel, sample_index);
     let frag_coord = vec4(xy, prepass_utils::prepass_depth(in.position, sample_index), 0.0);
     let gbuffer = textureLoad(msaa_view::msaa_gbuffer, pixel, i32(sample_index));
+    let settings = msaa_view::penumbra_msaa;
+    set_shading_sample(sample_index, settings.sample_shadows != 0u, settings.sample_ao != 0u);
     let color = shade(pbr_input_from_deferred_gbuffer(frag_coord, gbuffer));
     if msaa_view::penumbra_msaa.show_edges != 0u {
         return vec4(mix(color.rgb, vec3(1.0, 0.0, 1.0), 0.6), color.a);
