@@ -27,6 +27,7 @@ use bevy_penumbra_df::lighting::{DeferredMsaa, DeferredMsaaShading};
 use bevy_penumbra_df::{PenumbraLighting, PenumbraLightingPlugin};
 use penumbra_reference::msaa::{FENCE_SIZE, SAMPLE_POSITIONS_4X, fence, fence_camera};
 use penumbra_reference::scene::Shape;
+use penumbra_test::supersample::{box_filter_display, display_values, mean_p99};
 use penumbra_test::{HeadlessRender, gpu_or_skip, image::RgbaImage};
 
 /// The fence at twice the model's size: the wires are 0.8 px wide.
@@ -193,63 +194,9 @@ fn scene_background(look: Look) -> Color {
     }
 }
 
-fn srgb_to_linear(c: u8) -> f32 {
-    let c = c as f32 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-fn linear_to_srgb(c: f32) -> f32 {
-    let c = c.clamp(0.0, 1.0);
-    if c <= 0.003_130_8 {
-        c * 12.92
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
-}
-
-/// `big` box-filtered `factor` × `factor` in linear light, as display values [0, 1].
-fn downsample(big: &RgbaImage, factor: u32) -> Vec<[f32; 3]> {
-    let (w, h) = (big.width() / factor, big.height() / factor);
-    let mut out = Vec::with_capacity((w * h) as usize);
-    for y in 0..h {
-        for x in 0..w {
-            let mut sum = [0.0f32; 3];
-            for j in 0..factor {
-                for i in 0..factor {
-                    let p = big.get_pixel(x * factor + i, y * factor + j);
-                    for c in 0..3 {
-                        sum[c] += srgb_to_linear(p[c]);
-                    }
-                }
-            }
-            let n = (factor * factor) as f32;
-            out.push(sum.map(|s| linear_to_srgb(s / n)));
-        }
-    }
-    out
-}
-
-fn display(img: &RgbaImage) -> Vec<[f32; 3]> {
-    img.pixels()
-        .map(|p| [0, 1, 2].map(|c| p[c] as f32 / 255.0))
-        .collect()
-}
-
 /// Object id (+1; 0 the sky) of pixel `(x, y)` of the 4×-resolution id render.
 fn id_at(ids: &RgbaImage, x: u32, y: u32) -> u32 {
     (ids.get_pixel(x, y)[0] as f32 / 16.0).round() as u32
-}
-
-/// Mean and 99th percentile of `values`.
-fn mean_p99(values: &mut [f32]) -> (f32, f32) {
-    values.sort_by(f32::total_cmp);
-    let mean = values.iter().sum::<f32>() / values.len().max(1) as f32;
-    let p99 = values[((values.len() as f32 * 0.99) as usize).min(values.len() - 1)];
-    (mean, p99)
 }
 
 #[test]
@@ -259,7 +206,7 @@ fn deferred_msaa_against_supersampling_and_forward_msaa() {
     }
     let (w, h) = (FENCE_SIZE.0 * SCALE, FENCE_SIZE.1 * SCALE);
     let (truth_big, _) = render(Renderer::Forward(Msaa::Off), Look::Lit, 4);
-    let truth = downsample(&truth_big, 4);
+    let truth = box_filter_display(&truth_big, 4);
     let (ids, _) = render(Renderer::Forward(Msaa::Off), Look::Ids, 4);
     let (mask, _) = render(
         Renderer::Penumbra(Some(DeferredMsaaShading::Classified)),
@@ -313,7 +260,7 @@ fn deferred_msaa_against_supersampling_and_forward_msaa() {
     );
     let mut stats = Vec::new();
     for ((name, _), (image, _)) in candidates.iter().zip(&images) {
-        let shown = display(image);
+        let shown = display_values(image);
         let mut errors: Vec<f32> = (0..n)
             .filter(|&i| edge[i])
             .flat_map(|i| (0..3).map(move |c| (i, c)))
@@ -345,7 +292,7 @@ fn deferred_msaa_against_supersampling_and_forward_msaa() {
         100.0 * flagged as f64 / covered_count as f64
     );
     // Every sample vs classified: equal except where the classifier missed an edge.
-    let (classified, every) = (display(&images[2].0), display(&images[3].0));
+    let (classified, every) = (display_values(&images[2].0), display_values(&images[3].0));
     let mut agree: Vec<f32> = (0..n)
         .filter(|&i| !primitive_edge[i] || per_sample[i])
         .flat_map(|i| (0..3).map(move |c| (i, c)))

@@ -23,6 +23,7 @@ use bevy_penumbra_df::{
     DistanceFieldCaster, DistanceFieldScenePlugin, DistanceFieldShadows,
     DistanceFieldShadowsPlugin, PenumbraLighting, PenumbraLightingPlugin, SdfAssetPlugin,
 };
+use penumbra_test::supersample::{box_filter_display, display_values, mean_p99};
 use penumbra_test::{HeadlessRender, gpu_or_skip, image::RgbaImage};
 
 const SIZE: (u32, u32) = (160, 96);
@@ -194,51 +195,6 @@ fn render(lighting: Lighting, renderer: Renderer) -> RgbaImage {
     harness.run(app).expect("renders").to_rgba8()
 }
 
-fn srgb_to_linear(c: u8) -> f32 {
-    let c = c as f32 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-fn linear_to_srgb(c: f32) -> f32 {
-    let c = c.clamp(0.0, 1.0);
-    if c <= 0.003_130_8 {
-        c * 12.92
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
-}
-
-/// `big` box-filtered 4 × 4 in linear light, as display values.
-fn downsample(big: &RgbaImage) -> Vec<[f32; 3]> {
-    let (w, h) = (big.width() / 4, big.height() / 4);
-    let mut out = Vec::with_capacity((w * h) as usize);
-    for y in 0..h {
-        for x in 0..w {
-            let mut sum = [0.0f32; 3];
-            for k in 0..16 {
-                let p = big.get_pixel(4 * x + k % 4, 4 * y + k / 4);
-                for (c, s) in sum.iter_mut().enumerate() {
-                    *s += srgb_to_linear(p[c]);
-                }
-            }
-            out.push(sum.map(|s| linear_to_srgb(s / 16.0)));
-        }
-    }
-    out
-}
-
-/// Mean and 99th percentile of `values`.
-fn mean_p99(values: &mut [f32]) -> (f32, f32) {
-    values.sort_by(f32::total_cmp);
-    let mean = values.iter().sum::<f32>() / values.len().max(1) as f32;
-    let p99 = values[((values.len() as f32 * 0.99) as usize).min(values.len() - 1)];
-    (mean, p99)
-}
-
 #[test]
 fn edge_samples_take_their_own_shadow_and_ao() {
     if !gpu_or_skip("edge_samples_take_their_own_shadow_and_ao") {
@@ -270,7 +226,7 @@ fn check(lighting: Lighting) {
         "{lighting:?}: slats {w}x{h}, {edges} edge pixels; truth = Penumbra no-AA at 4x, box-filtered"
     );
     {
-        let truth = downsample(&render(lighting, Renderer::NoAa(4)));
+        let truth = box_filter_display(&render(lighting, Renderer::NoAa(4)), 4);
         let mut stats = Vec::new();
         for (name, renderer) in [
             ("no AA", Renderer::NoAa(1)),
@@ -283,25 +239,17 @@ fn check(lighting: Lighting) {
                 Renderer::Msaa { per_sample: true },
             ),
         ] {
-            let image = render(lighting, renderer);
-            let mut errors: Vec<f32> = (0..(w * h) as usize)
-                .filter(|&i| edge[i])
-                .flat_map(|i| {
-                    let p = image.get_pixel(i as u32 % w, i as u32 / w);
-                    let t = truth[i];
-                    (0..3).map(move |c| (p[c] as f32 / 255.0 - t[c]).abs())
-                })
-                .collect();
-            let (mean, p99) = mean_p99(&mut errors);
-            let mut interior: Vec<f32> = (0..(w * h) as usize)
-                .filter(|&i| !edge[i])
-                .flat_map(|i| {
-                    let p = image.get_pixel(i as u32 % w, i as u32 / w);
-                    let t = truth[i];
-                    (0..3).map(move |c| (p[c] as f32 / 255.0 - t[c]).abs())
-                })
-                .collect();
-            let (interior, _) = mean_p99(&mut interior);
+            let shown = display_values(&render(lighting, renderer));
+            // Per-channel errors of the edge pixels (`true`) or the others.
+            let errors = |on_edge: bool| -> Vec<f32> {
+                (0..(w * h) as usize)
+                    .filter(|&i| edge[i] == on_edge)
+                    .flat_map(|i| (0..3).map(move |c| (i, c)))
+                    .map(|(i, c)| (shown[i][c] - truth[i][c]).abs())
+                    .collect()
+            };
+            let (mean, p99) = mean_p99(&mut errors(true));
+            let (interior, _) = mean_p99(&mut errors(false));
             println!(
                 "  {lighting:?} {name:<28} edge error mean {mean:.4} p99 {p99:.4}; elsewhere mean {interior:.4}"
             );

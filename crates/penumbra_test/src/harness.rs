@@ -146,7 +146,8 @@ impl Capture {
     }
 }
 
-fn linear_to_srgb(c: f32) -> f32 {
+/// Display (sRGB) value of linear `c`, clamped to [0, 1].
+pub(crate) fn linear_to_srgb(c: f32) -> f32 {
     let c = c.clamp(0.0, 1.0);
     if c <= 0.003_130_8 {
         12.92 * c
@@ -155,7 +156,8 @@ fn linear_to_srgb(c: f32) -> f32 {
     }
 }
 
-fn srgb_to_linear(c: f32) -> f32 {
+/// Linear value of display (sRGB) `c` in [0, 1].
+pub(crate) fn srgb_to_linear(c: f32) -> f32 {
     if c <= 0.040_45 {
         c / 12.92
     } else {

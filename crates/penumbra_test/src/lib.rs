@@ -32,6 +32,7 @@ pub mod compare;
 pub mod compute;
 pub mod gpu;
 pub mod harness;
+pub mod supersample;
 
 pub use compare::{
     Comparison, Tolerance, assert_images_match, assert_not_blank, check_golden, compare_rgba8,
