@@ -31,7 +31,10 @@ impl GpuCompute {
         let (device, queue) =
             bevy::tasks::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
                 label: Some("penumbra_test_compute"),
-                required_features: wgpu::Features::empty(),
+                // Multisampled `Rgba32Uint` (Bevy's G-buffer, as Penumbra's deferred
+                // MSAA renders it) needs the adapter's own format features.
+                required_features: adapter.features()
+                    & wgpu::Features::TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES,
                 required_limits: adapter.limits(),
                 experimental_features: wgpu::ExperimentalFeatures::disabled(),
                 memory_hints: wgpu::MemoryHints::Performance,

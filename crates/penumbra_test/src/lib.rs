@@ -24,6 +24,7 @@
 //! - [`harness`]: [`HeadlessRender`], [`Capture`].
 //! - [`compare`]: [`Tolerance`], [`compare_rgba8`], [`assert_images_match`].
 //! - [`compute`]: [`GpuCompute`], a bare wgpu device for compute-shader contract tests.
+//! - [`multisample`]: a 4× multisampled depth buffer and G-buffer filled sample by sample.
 
 pub use image;
 pub use wgpu;
@@ -32,6 +33,7 @@ pub mod compare;
 pub mod compute;
 pub mod gpu;
 pub mod harness;
+pub mod multisample;
 pub mod supersample;
 
 pub use compare::{

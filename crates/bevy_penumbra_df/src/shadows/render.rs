@@ -408,6 +408,14 @@ fn prepare_distance_field_shadows(
                 .all(|&g| pipeline_cache.get_compute_pipeline(g).is_some())
     });
     for (entity, view, lighting_view, masks, resources) in &mut views {
+        let (Some(slots), true, false) = (slots, ready, frame.0.is_empty()) else {
+            // No mask: the lights are unshadowed (their shadow maps are off). Pooled
+            // buffers are kept for when they come back.
+            commands
+                .entity(entity)
+                .remove::<(DistanceFieldShadowMasks, PenumbraLightingInputs)>();
+            continue;
+        };
         // Deferred MSAA: edge pixels traced per sample, once that pass has compiled.
         let sample_trace = match (
             lighting_view.msaa.as_ref().filter(|m| m.sample_occlusion),
@@ -421,14 +429,6 @@ fn prepare_distance_field_shadows(
         };
         let samples =
             sample_trace.is_some_and(|id| pipeline_cache.get_compute_pipeline(id).is_some());
-        let (Some(slots), true, false) = (slots, ready, frame.0.is_empty()) else {
-            // No mask: the lights are unshadowed (their shadow maps are off). Pooled
-            // buffers are kept for when they come back.
-            commands
-                .entity(entity)
-                .remove::<(DistanceFieldShadowMasks, PenumbraLightingInputs)>();
-            continue;
-        };
         let size = view.viewport.zw().max(UVec2::ONE);
         let layers = frame.0.len();
         let half = frame.0.iter().any(|l| l.settings.half_resolution);

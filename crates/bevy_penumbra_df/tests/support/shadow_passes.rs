@@ -24,6 +24,13 @@ use penumbra_shaders::flatten;
 use penumbra_test::GpuCompute;
 use penumbra_test::wgpu::{self, BufferUsages};
 
+#[path = "shadow_layouts.rs"]
+mod layouts;
+
+#[allow(unused_imports, reason = "not every test binary uses every helper")]
+pub use layouts::{SampleTrace, UNWRITTEN, sample_trace};
+use layouts::{float_entry, mask_entry, trace_layout, uniform_entry};
+
 pub const WIDTH: u32 = 124;
 pub const HEIGHT: u32 = 90;
 pub const EYE: Vec3 = Vec3::new(0.9, 2.6, 3.6);
@@ -140,6 +147,7 @@ pub fn scene(offset: Vec3) -> Scene {
 
 pub struct View {
     pub camera: CameraOrigin,
+    pub clip_from_view: Mat4,
     pub view_from_clip: Mat4,
     pub world_from_view: Mat3,
     pub frustum: Frustum,
@@ -170,54 +178,71 @@ pub fn view(scene: &Scene, offset: Vec3) -> View {
     let frustum = Frustum::from_clip_from_relative(clip_from_view * relative_view);
     let mut depth = vec![0.0f32; (WIDTH * HEIGHT) as usize];
     let mut normals = vec![0u32; (WIDTH * HEIGHT) as usize];
-    let distance = |p: Vec3| {
-        scene
-            .records
-            .iter()
-            .map(|r| object_distance(r, p, &camera, &scene.atlas))
-            .fold(f32::INFINITY, f32::min)
-    };
     for y in 0..HEIGHT {
         for x in 0..WIDTH {
-            // The pixel's ray: the far point of its NDC through the camera.
-            let uv = (Vec2::new(x as f32, y as f32) + 0.5) / Vec2::new(WIDTH as f32, HEIGHT as f32);
-            let ndc = glam::Vec4::new(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, 0.5, 1.0);
-            let v = view_from_clip * ndc;
-            let dir = (world_from_view * (v.truncate() / v.w)).normalize();
-            let mut t = 0.1;
-            for _ in 0..256 {
-                let p = dir * t;
-                let d = distance(p);
-                if d < 1e-4 {
-                    let view_p = world_from_view.transpose() * p;
-                    let clip = clip_from_view * view_p.extend(1.0);
-                    depth[(y * WIDTH + x) as usize] = clip.z / clip.w;
-                    let e = 1e-3;
-                    let g = Vec3::new(
-                        distance(p + Vec3::X * e) - distance(p - Vec3::X * e),
-                        distance(p + Vec3::Y * e) - distance(p - Vec3::Y * e),
-                        distance(p + Vec3::Z * e) - distance(p - Vec3::Z * e),
-                    )
-                    .normalize_or(-dir);
-                    let n = if g.dot(dir) > 0.0 { -g } else { g };
-                    normals[(y * WIDTH + x) as usize] = pack_gbuffer_normal(n);
-                    break;
-                }
-                t += d;
-                if t > 60.0 {
-                    break;
-                }
-            }
+            let screen = Vec2::new(x as f32, y as f32) + 0.5;
+            let (d, n) = march(scene, &camera, clip_from_view, world_from_view, screen);
+            depth[(y * WIDTH + x) as usize] = d;
+            normals[(y * WIDTH + x) as usize] = n;
         }
     }
     View {
         camera,
+        clip_from_view,
         view_from_clip,
         world_from_view,
         frustum,
         depth,
         normals,
     }
+}
+
+/// The reverse-Z depth (0 where the ray escapes) and G-buffer normal word at
+/// frame-buffer point `screen` (pixels from the top-left corner): the scene
+/// sphere-traced along the ray through it; the normal is the scene's distance gradient
+/// at the hit, facing the camera.
+pub fn march(
+    scene: &Scene,
+    camera: &CameraOrigin,
+    clip_from_view: Mat4,
+    world_from_view: Mat3,
+    screen: Vec2,
+) -> (f32, u32) {
+    let distance = |p: Vec3| {
+        scene
+            .records
+            .iter()
+            .map(|r| object_distance(r, p, camera, &scene.atlas))
+            .fold(f32::INFINITY, f32::min)
+    };
+    // The point's ray: the far point of its NDC through the camera.
+    let uv = screen / Vec2::new(WIDTH as f32, HEIGHT as f32);
+    let ndc = glam::Vec4::new(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, 0.5, 1.0);
+    let v = clip_from_view.inverse() * ndc;
+    let dir = (world_from_view * (v.truncate() / v.w)).normalize();
+    let mut t = 0.1;
+    for _ in 0..256 {
+        let p = dir * t;
+        let d = distance(p);
+        if d < 1e-4 {
+            let view_p = world_from_view.transpose() * p;
+            let clip = clip_from_view * view_p.extend(1.0);
+            let e = 1e-3;
+            let g = Vec3::new(
+                distance(p + Vec3::X * e) - distance(p - Vec3::X * e),
+                distance(p + Vec3::Y * e) - distance(p - Vec3::Y * e),
+                distance(p + Vec3::Z * e) - distance(p - Vec3::Z * e),
+            )
+            .normalize_or(-dir);
+            let n = if g.dot(dir) > 0.0 { -g } else { g };
+            return (clip.z / clip.w, pack_gbuffer_normal(n));
+        }
+        t += d;
+        if t > 60.0 {
+            break;
+        }
+    }
+    (0.0, 0)
 }
 
 pub fn reference_mask(scene: &Scene, view: &View, light: &ShadowLight) -> Vec<f32> {
@@ -266,78 +291,7 @@ pub fn passes(gpu: &GpuCompute) -> Passes {
         &flatten("#import penumbra::df::shadow_cull\n").unwrap(),
         "cull",
     );
-    use wgpu::{BindGroupLayoutEntry as E, BindingType as B, ShaderStages};
-    let storage = |binding| E {
-        binding,
-        visibility: ShaderStages::COMPUTE,
-        ty: B::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: true },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    };
-    let uniform = |binding| E {
-        binding,
-        visibility: ShaderStages::COMPUTE,
-        ty: B::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    };
-    let texture = |binding, dim| E {
-        binding,
-        visibility: ShaderStages::COMPUTE,
-        ty: B::Texture {
-            sample_type: wgpu::TextureSampleType::Float { filterable: false },
-            view_dimension: dim,
-            multisampled: false,
-        },
-        count: None,
-    };
-    let storage_texture = |binding| E {
-        binding,
-        visibility: ShaderStages::COMPUTE,
-        ty: B::StorageTexture {
-            access: wgpu::StorageTextureAccess::WriteOnly,
-            format: wgpu::TextureFormat::R32Float,
-            view_dimension: wgpu::TextureViewDimension::D2,
-        },
-        count: None,
-    };
-    let trace_layout = gpu
-        .device
-        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("shadow_trace"),
-            entries: &[
-                storage(0),
-                storage(1),
-                storage(2),
-                texture(3, wgpu::TextureViewDimension::D3),
-                texture(4, wgpu::TextureViewDimension::D2),
-                uniform(5),
-                uniform(6),
-                storage(8),
-                storage(9),
-                storage(10),
-                uniform(11),
-                storage_texture(7),
-                E {
-                    binding: 12,
-                    visibility: ShaderStages::COMPUTE,
-                    ty: B::Texture {
-                        sample_type: wgpu::TextureSampleType::Uint,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                storage(13),
-                texture(14, wgpu::TextureViewDimension::D2),
-            ],
-        });
+    let trace_layout = trace_layout(gpu, false);
     let trace = gpu.pipeline_with_layouts(
         &flatten("#import penumbra::df::shadow_trace\n").unwrap(),
         "trace",
@@ -348,10 +302,10 @@ pub fn passes(gpu: &GpuCompute) -> Passes {
         .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shadow_upsample"),
             entries: &[
-                texture(0, wgpu::TextureViewDimension::D2),
-                texture(1, wgpu::TextureViewDimension::D2),
-                uniform(2),
-                storage_texture(3),
+                float_entry(0, wgpu::TextureViewDimension::D2),
+                float_entry(1, wgpu::TextureViewDimension::D2),
+                uniform_entry(2),
+                mask_entry(3),
             ],
         });
     let upsample = gpu.pipeline_with_layouts(
@@ -379,22 +333,26 @@ pub fn passes(gpu: &GpuCompute) -> Passes {
 }
 
 /// How [`gpu_mask_at`] runs the passes.
-#[derive(Clone, Copy, Debug)]
-pub struct MaskOptions {
+#[derive(Clone, Copy)]
+pub struct MaskOptions<'a> {
     /// 1 full, 2 half resolution.
     pub stride: u32,
     /// Directional lights use the light-space grid (the plugin's way) or the plain list.
     pub use_grid: bool,
     /// Also time 5 more trace dispatches.
     pub time: bool,
+    /// Trace the samples of the pixels classed per sample instead, into a mask twice
+    /// the view's size (texels of other pixels stay [`UNWRITTEN`]).
+    pub samples: Option<&'a SampleTrace>,
 }
 
-impl Default for MaskOptions {
+impl Default for MaskOptions<'_> {
     fn default() -> Self {
         MaskOptions {
             stride: 1,
             use_grid: true,
             time: false,
+            samples: None,
         }
     }
 }
@@ -430,10 +388,12 @@ pub fn gpu_mask_at(
     scene: &Scene,
     view: &View,
     light: &ShadowLight,
-    options: MaskOptions,
+    options: MaskOptions<'_>,
 ) -> MaskRun {
     let stride = options.stride;
-    let mask_size = if stride == 2 {
+    let mask_size = if options.samples.is_some() {
+        UVec2::new(2 * WIDTH, 2 * HEIGHT)
+    } else if stride == 2 {
         penumbra_df_core::shadow::half_size(UVec2::new(WIDTH, HEIGHT))
     } else {
         UVec2::new(WIDTH, HEIGHT)
@@ -524,13 +484,19 @@ pub fn gpu_mask_at(
         depth,
         gbuffer,
     } = view_inputs(gpu, scene, view);
+    let unwritten: Vec<u8> = match options.samples {
+        Some(_) => (0..mask_size.x * mask_size.y)
+            .flat_map(|_| UNWRITTEN.to_le_bytes())
+            .collect(),
+        None => Vec::new(),
+    };
     let mask = gpu.texture(
         "mask",
         size(mask_size.x, mask_size.y, 1),
         wgpu::TextureDimension::D2,
         wgpu::TextureFormat::R32Float,
         4,
-        &[],
+        &unwritten,
     );
     let (terrain_records, heights) = terrain_inputs(gpu, &scene.terrain);
     // Bevy's G-buffer layout: the normal word in the fourth channel.
@@ -547,87 +513,61 @@ pub fn gpu_mask_at(
         )),
         BufferUsages::UNIFORM,
     );
+    let (depth, gbuffer) = match options.samples {
+        Some(t) => (&t.ms.depth, &t.ms.gbuffer),
+        None => (&depth, &gbuffer),
+    };
+    let view_of = |t: &wgpu::Texture| t.create_view(&Default::default());
     let views = [
-        atlas.create_view(&Default::default()),
-        depth.create_view(&Default::default()),
-        mask.create_view(&Default::default()),
-        gbuffer.create_view(&Default::default()),
+        view_of(&atlas),
+        view_of(depth),
+        view_of(&mask),
+        view_of(gbuffer),
     ];
+    let class = options.samples.map(|t| view_of(&t.class));
+    let texture = wgpu::BindingResource::TextureView;
+    let mut entries = vec![
+        (0, objects.as_entire_binding()),
+        (1, list.as_entire_binding()),
+        (2, count.as_entire_binding()),
+        (3, texture(&views[0])),
+        (4, texture(&views[1])),
+        (5, trace_view.as_entire_binding()),
+        (6, light_buffer.as_entire_binding()),
+        (7, texture(&views[2])),
+        (8, grid.as_entire_binding()),
+        (9, items.as_entire_binding()),
+        (10, large.as_entire_binding()),
+        (11, grid_view.as_entire_binding()),
+        (12, texture(&views[3])),
+        (13, terrain_records.as_entire_binding()),
+        (14, texture(&heights)),
+    ];
+    if let Some(class) = &class {
+        entries.push((15, texture(class)));
+    }
+    let (pipeline, layout) = match options.samples {
+        Some(t) => (&t.pipeline, &t.layout),
+        None => (&passes.trace, &passes.trace_layout),
+    };
+    let entries: Vec<_> = entries
+        .into_iter()
+        .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
+        .collect();
     let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("shadow_trace"),
-        layout: &passes.trace_layout,
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: objects.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: list.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: count.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 3,
-                resource: wgpu::BindingResource::TextureView(&views[0]),
-            },
-            wgpu::BindGroupEntry {
-                binding: 4,
-                resource: wgpu::BindingResource::TextureView(&views[1]),
-            },
-            wgpu::BindGroupEntry {
-                binding: 5,
-                resource: trace_view.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 6,
-                resource: light_buffer.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 7,
-                resource: wgpu::BindingResource::TextureView(&views[2]),
-            },
-            wgpu::BindGroupEntry {
-                binding: 8,
-                resource: grid.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 9,
-                resource: items.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 10,
-                resource: large.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 11,
-                resource: grid_view.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 12,
-                resource: wgpu::BindingResource::TextureView(&views[3]),
-            },
-            wgpu::BindGroupEntry {
-                binding: 13,
-                resource: terrain_records.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 14,
-                resource: wgpu::BindingResource::TextureView(&heights),
-            },
-        ],
+        layout,
+        entries: &entries,
     });
     let groups = [mask_size.x.div_ceil(8), mask_size.y.div_ceil(8), 1];
-    gpu.dispatch(&passes.trace, &bind, groups);
+    gpu.dispatch(pipeline, &bind, groups);
     let values = floats(&gpu.read_texture_2d(&mask));
     let mut times = Vec::new();
     if options.time {
         for _ in 0..5 {
             gpu.wait();
             let start = std::time::Instant::now();
-            gpu.dispatch(&passes.trace, &bind, groups);
+            gpu.dispatch(pipeline, &bind, groups);
             gpu.wait();
             times.push(start.elapsed().as_secs_f64() * 1e3);
         }

@@ -2,6 +2,7 @@
 //! (`shaders/df/ao_upsample.wgsl`) and what the lighting pass does with the result
 //! (`shaders/lighting/ao.wgsl`): contrast, min occlusion, specular occlusion.
 
+use crate::msaa::SAMPLE_POSITIONS_4X;
 use glam::{UVec2, Vec2, Vec3, Vec4};
 
 /// Relative depth difference at which a trace texel's upsample weight reaches zero.
@@ -9,13 +10,31 @@ pub const UPSAMPLE_DEPTH_TOLERANCE: f32 = 0.1;
 /// Exponent of the normal similarity `max(n · n_s, 0)` in the upsample weight.
 pub const UPSAMPLE_NORMAL_POWER: i32 = 8;
 
+/// Where the trace came from: `size` texels, texel `(i, j)` traced at pixel
+/// `(i, j) · divisor + jitter` of a `full_size` view whose pixel-centre distances from
+/// the camera (0 or NaN: background) and unit normals are `distance` and `normals`.
+#[derive(Clone, Copy, Debug)]
+pub struct TraceSource<'a> {
+    /// The trace: AO and bent normal per texel.
+    pub trace: &'a [Vec4],
+    /// Texels of the trace.
+    pub size: UVec2,
+    /// Pixels per trace texel along each axis.
+    pub divisor: u32,
+    /// Pixel of texel `(0, 0)`.
+    pub jitter: UVec2,
+    /// Distance from the camera at each pixel's centre.
+    pub distance: &'a [f32],
+    /// Unit normal at each pixel.
+    pub normals: &'a [Vec3],
+    /// Pixels of the view.
+    pub full_size: UVec2,
+}
+
 /// Geometry-aware upsample of a reduced-resolution trace (`trace_size` texels, texel
 /// `(i, j)` traced at pixel `(i, j) · divisor + jitter`) to `full_size`: each pixel
-/// blends the four texels around it with bilinear weights scaled by depth similarity
-/// (`max(0, 1 − |Δd| / (d · tolerance))`, `d` the distance from the camera) and normal
-/// similarity (`max(n · n_s, 0)⁸`); if every weight is zero, the texel closest in depth
-/// wins. Background pixels (`distance` 0 or NaN) get `(1, 0, 0, 0)`. The bent normal is
-/// renormalised.
+/// blends the four texels around it ([`blend`]). Background pixels (`distance` 0 or NaN)
+/// get `(1, 0, 0, 0)`.
 pub fn upsample(
     trace: &[Vec4],
     trace_size: UVec2,
@@ -25,55 +44,115 @@ pub fn upsample(
     normals: &[Vec3],
     full_size: UVec2,
 ) -> Vec<Vec4> {
-    let divisor = divisor.max(1);
-    let at = |p: UVec2| (p.y * full_size.x + p.x) as usize;
+    let source = TraceSource {
+        trace,
+        size: trace_size,
+        divisor,
+        jitter,
+        distance,
+        normals,
+        full_size,
+    };
     let mut out = Vec::with_capacity((full_size.x * full_size.y) as usize);
     for y in 0..full_size.y {
         for x in 0..full_size.x {
-            let here = UVec2::new(x, y);
-            let d = distance[at(here)];
+            let i = (y * full_size.x + x) as usize;
+            let d = distance[i];
             if d.is_nan() || d <= 0.0 {
                 out.push(Vec4::new(1.0, 0.0, 0.0, 0.0));
                 continue;
             }
-            let n = normals[at(here)];
-            let h = ((here.as_vec2() - jitter.as_vec2()) / divisor as f32).max(Vec2::ZERO);
-            let (i0, f) = (h.floor(), h - h.floor());
-            let (mut sum, mut weights) = (Vec4::ZERO, 0.0f32);
-            let (mut nearest, mut nearest_error) = (Vec4::new(1.0, n.x, n.y, n.z), f32::MAX);
-            for k in 0..4u32 {
-                let o = UVec2::new(k & 1, k >> 1);
-                let texel = (i0.as_uvec2() + o).min(trace_size - UVec2::ONE);
-                let v = trace[(texel.y * trace_size.x + texel.x) as usize];
-                let source = (texel * divisor + jitter).min(full_size - UVec2::ONE);
-                let error = (distance[at(source)] - d).abs() / d;
-                let wx = if o.x == 1 { f.x } else { 1.0 - f.x };
-                let wy = if o.y == 1 { f.y } else { 1.0 - f.y };
-                let similar = n
-                    .dot(normals[at(source)])
-                    .max(0.0)
-                    .powi(UPSAMPLE_NORMAL_POWER);
-                let w = wx * wy * (1.0 - error / UPSAMPLE_DEPTH_TOLERANCE).max(0.0) * similar;
-                sum += v * w;
-                weights += w;
-                if error < nearest_error {
-                    nearest_error = error;
-                    nearest = v;
-                }
+            let centre = Vec2::new(x as f32, y as f32) + 0.5;
+            out.push(blend(&source, centre, d, normals[i]));
+        }
+    }
+    out
+}
+
+/// The AO texel (AO, unit bent normal) of the surface seen at frame-buffer point
+/// `screen` (pixels from the top-left corner), `d` from the camera, unit normal `n`: the
+/// four trace texels around it blended with bilinear weights scaled by depth similarity
+/// (`max(0, 1 − |Δd| / (d · tolerance))`, `Δd` against the distance at the texel's
+/// traced pixel) and normal similarity (`max(n · n_s, 0)⁸`); if every weight is zero,
+/// the texel closest in depth wins. The bent normal is renormalised (`n` if it vanishes).
+pub fn blend(source: &TraceSource<'_>, screen: Vec2, d: f32, n: Vec3) -> Vec4 {
+    let TraceSource {
+        trace,
+        size,
+        jitter,
+        distance,
+        normals,
+        full_size,
+        ..
+    } = *source;
+    let divisor = source.divisor.max(1);
+    let at = |p: UVec2| (p.y * full_size.x + p.x) as usize;
+    let h = ((screen - 0.5 - jitter.as_vec2()) / divisor as f32).max(Vec2::ZERO);
+    let (i0, f) = (h.floor(), h - h.floor());
+    let (mut sum, mut weights) = (Vec4::ZERO, 0.0f32);
+    let (mut nearest, mut nearest_error) = (Vec4::new(1.0, n.x, n.y, n.z), f32::MAX);
+    for k in 0..4u32 {
+        let o = UVec2::new(k & 1, k >> 1);
+        let texel = (i0.as_uvec2() + o).min(size - UVec2::ONE);
+        let v = trace[(texel.y * size.x + texel.x) as usize];
+        let traced_at = (texel * divisor + jitter).min(full_size - UVec2::ONE);
+        let error = (distance[at(traced_at)] - d).abs() / d;
+        let wx = if o.x == 1 { f.x } else { 1.0 - f.x };
+        let wy = if o.y == 1 { f.y } else { 1.0 - f.y };
+        let similar = n
+            .dot(normals[at(traced_at)])
+            .max(0.0)
+            .powi(UPSAMPLE_NORMAL_POWER);
+        let w = wx * wy * (1.0 - error / UPSAMPLE_DEPTH_TOLERANCE).max(0.0) * similar;
+        sum += v * w;
+        weights += w;
+        if error < nearest_error {
+            nearest_error = error;
+            nearest = v;
+        }
+    }
+    let v = if weights > 1e-4 {
+        sum / weights
+    } else {
+        nearest
+    };
+    let bent = Vec3::new(v.y, v.z, v.w);
+    let len = bent.length();
+    let bent = if len > 1e-6 { bent / len } else { n };
+    Vec4::new(v.x.clamp(0.0, 1.0), bent.x, bent.y, bent.z)
+}
+
+/// Deferred MSAA's per-sample upsample (`upsample_samples` in `df/ao_upsample.wgsl`):
+/// for each pixel with `per_sample[pixel]` set, sample `s` at
+/// [`SAMPLE_POSITIONS_4X`]`[s]` with distance `sample_distance[4 · pixel + s]` and normal
+/// `sample_normals[4 · pixel + s]` gets [`blend`] at its own position (background:
+/// `(1, 0, 0, 0)`), stored at texel `2 · pixel + (s & 1, s >> 1)` of an image twice the
+/// view's size. Texels of the other pixels are `None` (never written).
+pub fn upsample_samples(
+    source: &TraceSource<'_>,
+    sample_distance: &[f32],
+    sample_normals: &[Vec3],
+    per_sample: &[bool],
+) -> Vec<Option<Vec4>> {
+    let full = source.full_size;
+    let wide = 2 * full.x;
+    let mut out = vec![None; (4 * full.x * full.y) as usize];
+    for y in 0..full.y {
+        for x in 0..full.x {
+            let pixel = (y * full.x + x) as usize;
+            if !per_sample[pixel] {
+                continue;
             }
-            let v = if weights > 1e-4 {
-                sum / weights
-            } else {
-                nearest
-            };
-            let bent = Vec3::new(v.y, v.z, v.w);
-            let len = bent.length();
-            out.push(Vec4::new(
-                v.x.clamp(0.0, 1.0),
-                if len > 1e-6 { bent.x / len } else { n.x },
-                if len > 1e-6 { bent.y / len } else { n.y },
-                if len > 1e-6 { bent.z / len } else { n.z },
-            ));
+            for (s, position) in SAMPLE_POSITIONS_4X.iter().enumerate() {
+                let d = sample_distance[4 * pixel + s];
+                let texel = UVec2::new(2 * x + (s as u32 & 1), 2 * y + (s as u32 >> 1));
+                out[(texel.y * wide + texel.x) as usize] = Some(if d.is_nan() || d <= 0.0 {
+                    Vec4::new(1.0, 0.0, 0.0, 0.0)
+                } else {
+                    let screen = Vec2::new(x as f32, y as f32) + *position;
+                    blend(source, screen, d, sample_normals[4 * pixel + s])
+                });
+            }
         }
     }
     out
@@ -222,6 +301,45 @@ mod tests {
             let want = if i % 8 < 4 { 0.2 } else { 0.9 };
             assert!((v.x - want).abs() < 1e-6, "pixel {i}: {v}");
             assert!((Vec3::new(v.y, v.z, v.w) - Vec3::Y).length() < 1e-6);
+        }
+    }
+
+    /// Per sample, each sample of a pixel that straddles the edge takes its own side's
+    /// AO; pixels not shaded per sample are left unwritten.
+    #[test]
+    fn samples_take_their_own_surface() {
+        let full = UVec2::new(8, 4);
+        let distance: Vec<f32> = (0..32)
+            .map(|i| if i % 8 < 4 { 1.0 } else { 10.0 })
+            .collect();
+        let normals = vec![Vec3::Y; 32];
+        let trace: Vec<Vec4> = (0..8)
+            .map(|i| Vec4::new(if i % 4 < 2 { 0.2 } else { 0.9 }, 0.0, 1.0, 0.0))
+            .collect();
+        let source = TraceSource {
+            trace: &trace,
+            size: UVec2::new(4, 2),
+            divisor: 2,
+            jitter: UVec2::ZERO,
+            distance: &distance,
+            normals: &normals,
+            full_size: full,
+        };
+        // Pixel (3, 1) is shaded per sample: samples 1 and 3 (its right half) see the
+        // far surface, 0 and 2 the near one.
+        let mut sample_distance = vec![1.0f32; 4 * 32];
+        let pixel = 8 + 3;
+        sample_distance[4 * pixel + 1] = 10.0;
+        sample_distance[4 * pixel + 3] = 10.0;
+        let mut per_sample = vec![false; 32];
+        per_sample[pixel] = true;
+        let out = upsample_samples(&source, &sample_distance, &vec![Vec3::Y; 128], &per_sample);
+        assert_eq!(out.iter().filter(|v| v.is_some()).count(), 4);
+        for s in 0..4u32 {
+            let texel = (2 + (s >> 1)) * 16 + 6 + (s & 1);
+            let v = out[texel as usize].expect("written");
+            let want = if s & 1 == 1 { 0.9 } else { 0.2 };
+            assert!((v.x - want).abs() < 1e-6, "sample {s}: {v}");
         }
     }
 }

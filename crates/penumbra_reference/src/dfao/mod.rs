@@ -506,6 +506,6 @@ pub use heightfield::{
 pub use temporal::{AoHistory, TemporalFrame, TemporalSteps, temporal_step};
 
 pub use apply::{
-    SpecularOcclusion, UPSAMPLE_DEPTH_TOLERANCE, UPSAMPLE_NORMAL_POWER, cone_cone_intersection,
-    finish_ao, specular_occlusion, upsample,
+    SpecularOcclusion, TraceSource, UPSAMPLE_DEPTH_TOLERANCE, UPSAMPLE_NORMAL_POWER, blend,
+    cone_cone_intersection, finish_ao, specular_occlusion, upsample, upsample_samples,
 };
