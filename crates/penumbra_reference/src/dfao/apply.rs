@@ -305,16 +305,18 @@ mod tests {
     }
 
     /// Per sample, each sample of a pixel that straddles the edge takes its own side's
-    /// AO; pixels not shaded per sample are left unwritten.
+    /// AO, and within a surface each sample blends the texels at its own position;
+    /// pixels not shaded per sample are left unwritten.
     #[test]
-    fn samples_take_their_own_surface() {
+    fn samples_take_their_own_surface_and_position() {
         let full = UVec2::new(8, 4);
         let distance: Vec<f32> = (0..32)
             .map(|i| if i % 8 < 4 { 1.0 } else { 10.0 })
             .collect();
         let normals = vec![Vec3::Y; 32];
+        // Near texels (pixels 0 and 2) AO 0.2 and 0.6; far ones 0.9.
         let trace: Vec<Vec4> = (0..8)
-            .map(|i| Vec4::new(if i % 4 < 2 { 0.2 } else { 0.9 }, 0.0, 1.0, 0.0))
+            .map(|i| Vec4::new([0.2, 0.6, 0.9, 0.9][i % 4], 0.0, 1.0, 0.0))
             .collect();
         let source = TraceSource {
             trace: &trace,
@@ -325,21 +327,26 @@ mod tests {
             normals: &normals,
             full_size: full,
         };
-        // Pixel (3, 1) is shaded per sample: samples 1 and 3 (its right half) see the
-        // far surface, 0 and 2 the near one.
+        // Pixels (1, 1) and (3, 1) are shaded per sample; samples 1 and 3 (the right
+        // half) of (3, 1) see the far surface.
         let mut sample_distance = vec![1.0f32; 4 * 32];
-        let pixel = 8 + 3;
-        sample_distance[4 * pixel + 1] = 10.0;
-        sample_distance[4 * pixel + 3] = 10.0;
+        sample_distance[4 * 11 + 1] = 10.0;
+        sample_distance[4 * 11 + 3] = 10.0;
         let mut per_sample = vec![false; 32];
-        per_sample[pixel] = true;
+        per_sample[9] = true;
+        per_sample[11] = true;
         let out = upsample_samples(&source, &sample_distance, &vec![Vec3::Y; 128], &per_sample);
-        assert_eq!(out.iter().filter(|v| v.is_some()).count(), 4);
-        for s in 0..4u32 {
-            let texel = (2 + (s >> 1)) * 16 + 6 + (s & 1);
-            let v = out[texel as usize].expect("written");
-            let want = if s & 1 == 1 { 0.9 } else { 0.2 };
-            assert!((v.x - want).abs() < 1e-6, "sample {s}: {v}");
+        assert_eq!(out.iter().filter(|v| v.is_some()).count(), 8);
+        // Pixel 1: bilinear between 0.2 (x = 0) and 0.6 (x = 2) at x + 0.375, 0.875,
+        // 0.125, 0.625.
+        let want = [(1, [0.375, 0.475, 0.325, 0.425]), (3, [0.6, 0.9, 0.6, 0.9])];
+        for (x, values) in want {
+            for (s, want) in values.into_iter().enumerate() {
+                let s = s as u32;
+                let texel = (2 + (s >> 1)) * 16 + 2 * x + (s & 1);
+                let v = out[texel as usize].expect("written");
+                assert!((v.x - want).abs() < 1e-6, "pixel {x}, sample {s}: {v}");
+            }
         }
     }
 }
