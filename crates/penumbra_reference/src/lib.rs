@@ -12,6 +12,8 @@
 //! `(x + 0.5, y + 0.5)`; normalized device coordinates have +y up.
 //!
 //! # Modules
+//! - [`bokeh`]: scatter bokeh depth of field — thin-lens circles of confusion, aperture
+//!   shapes, half-resolution sprites (1 or 4 per block), near/far layers, composite.
 //! - [`pbr`]: Bevy 0.19's `StandardMaterial` shading (Burley diffuse, GGX specular with
 //!   Bevy's multiscatter compensation, ambient light, exposure, sRGB output).
 //! - [`camera`]: perspective camera rays matching Bevy's `PerspectiveProjection`.
@@ -29,6 +31,7 @@
 //! - [`scene`]: an analytic ray-traced scene (spheres, planes, directional lights with hard
 //!   shadows) shaded with [`pbr`], the expected image of simple GPU render tests.
 
+pub mod bokeh;
 pub mod camera;
 pub mod df;
 pub mod df_shadow;
