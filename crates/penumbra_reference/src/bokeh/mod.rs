@@ -14,14 +14,19 @@
 //! - [`Aperture`]: the bokeh shape as a square coverage image (circle and hexagon built
 //!   in, any image accepted), sampled bilinearly as the GPU's sampler does.
 //! - [`scatter`]: the passes — downsample, sprites, scatter, resolve and composite.
+//! - [`truth`]: the thin lens as the mean of pinhole views across the aperture, ray
+//!   traced: the model's independent check.
 
-mod scatter;
+pub mod scatter;
 #[cfg(test)]
 mod tests;
+pub mod truth;
+#[cfg(test)]
+mod truth_tests;
 
 pub use scatter::{
-    BokehImage, HalfImage, Layers, Sprite, SpriteRule, composite, depth_of_field, downsample,
-    scatter_sprites, sprite_weight, sprites,
+    BokehImage, HALF_RES_BLUR, HalfImage, Layers, Sprite, SpriteRule, composite, depth_of_field,
+    downsample, scatter_sprites, sprite_diameter, sprite_weight, sprites,
 };
 
 use glam::Vec2;
@@ -53,11 +58,19 @@ impl Lens {
     /// pixels high, of a point `distance` metres along the view axis: negative in front
     /// of the focal plane, positive behind, clamped to `±max_coc`. Bevy's formula:
     /// `f² (z − s) / (N z (s − f))` over the sensor height.
+    ///
+    /// At infinity (the sky, unless `max_depth` is finite) it is the limit
+    /// `f² / (N (s − f))`; a distance that is NaN or not positive counts as in focus.
     pub fn coc(&self, distance: f32, height: u32) -> f32 {
         let f = self.focal_length();
         let s = self.focal_distance;
+        if distance.is_nan() || distance <= 0.0 {
+            return 0.0;
+        }
         let z = distance.min(self.max_depth);
-        let c = f * f * (z - s) / (self.f_stops * z * (s - f)) / self.sensor_height;
+        // (z − s) / z, written so that z = ∞ gives its limit 1.
+        let behind = 1.0 - s / z;
+        let c = f * f * behind / (self.f_stops * (s - f)) / self.sensor_height;
         (c * height as f32).clamp(-self.max_coc, self.max_coc)
     }
 
@@ -113,7 +126,9 @@ impl std::fmt::Display for ApertureError {
 impl std::error::Error for ApertureError {}
 
 /// The bokeh shape: a square image of transmission in `[0, 1]`, rows from the top,
-/// sampled over the sprite's quad with bilinear filtering and clamped edges.
+/// sampled over the sprite's quad with bilinear filtering and clamped edges. It is the
+/// aperture as seen from behind the camera: far highlights show it upright, near ones
+/// point-reflected (their rays cross before the focal plane).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Aperture {
     size: u32,

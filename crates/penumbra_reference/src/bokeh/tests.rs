@@ -44,6 +44,14 @@ fn coc_is_the_spread_over_the_aperture() {
         );
     }
     assert_eq!(lens.coc(3.0, height), 0.0);
+    // The sky: the limit, finite; bad distances: in focus.
+    let sky = lens.coc(f32::INFINITY, height);
+    assert!(
+        (sky - lens.coc(1e9, height)).abs() < 1e-3 && sky > 0.0,
+        "{sky}"
+    );
+    assert_eq!(lens.coc(f32::NAN, height), 0.0);
+    assert_eq!(lens.coc(-1.0, height), 0.0);
     assert_eq!(lens.coc(1e-4, height), -64.0);
 }
 
