@@ -31,6 +31,8 @@ macro_rules! shader_files {
 
 shader_files! {
     "common/math.wgsl" => Some("penumbra::math"),
+    "dof/types.wgsl" => Some("penumbra::dof::types"),
+    "dof/sprites.wgsl" => Some("penumbra::dof::sprites"),
     "df/object.wgsl" => Some("penumbra::df::object"),
     "df/apply_deltas.wgsl" => Some("penumbra::df::apply_deltas"),
     "df/cull.wgsl" => Some("penumbra::df::cull"),

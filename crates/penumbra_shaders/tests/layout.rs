@@ -361,3 +361,36 @@ fn particle_layouts_match() {
         ]
     );
 }
+
+#[test]
+fn bokeh_layouts_and_constants_match() {
+    use encase::ShaderType;
+    use penumbra_cinematic_core::dof::{BokehView, HALF_RES_BLUR};
+    let m = parse("#import penumbra::dof::types\n");
+    let (members, size) = struct_layout(&m, "BokehView");
+    assert_eq!(u64::from(size), BokehView::min_size().get());
+    let names: Vec<&str> = members.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "view_from_clip",
+            "full_size",
+            "half_size",
+            "coc_scale",
+            "focal_distance",
+            "max_coc",
+            "max_depth",
+            "min_coc",
+            "coc_tolerance",
+            "color_tolerance",
+            "depth_tolerance",
+            "merge",
+            "capacity",
+        ]
+    );
+    let (_, sprite) = struct_layout(&m, "Sprite");
+    assert_eq!(sprite, 32);
+    let (_, args) = struct_layout(&m, "DrawArgs");
+    assert_eq!(args, 16);
+    assert_eq!(constant(&m, "HALF_RES_BLUR") as f32, HALF_RES_BLUR);
+}

@@ -15,17 +15,18 @@ pub struct MsSample {
     pub gbuffer: [u32; 4],
 }
 
-/// The textures [`multisampled_gbuffer`] filled.
+/// The textures [`multisampled_gbuffer`] and [`filled_gbuffer`] filled.
 pub struct MsTextures {
-    /// `Depth32Float`, 4 samples.
+    /// `Depth32Float`.
     pub depth: wgpu::Texture,
-    /// `Rgba32Uint`, 4 samples.
+    /// `Rgba32Uint`.
     pub gbuffer: wgpu::Texture,
 }
 
 const FILL: &str = r#"
 struct Sample { depth: f32, pad: u32, pad2: u32, pad3: u32, gbuffer: vec4<u32> }
 @group(0) @binding(0) var<storage, read> samples: array<Sample>;
+// x: width; y: samples per pixel.
 @group(0) @binding(1) var<uniform> width: vec4<u32>;
 
 @vertex
@@ -39,7 +40,7 @@ struct Out { @builtin(frag_depth) depth: f32, @location(0) gbuffer: vec4<u32> }
 @fragment
 fn fragment(@builtin(position) p: vec4<f32>, @builtin(sample_index) s: u32) -> Out {
     let pixel = vec2<u32>(p.xy);
-    let v = samples[4u * (pixel.y * width.x + pixel.x) + s];
+    let v = samples[width.y * (pixel.y * width.x + pixel.x) + s];
     return Out(v.depth, v.gbuffer);
 }
 "#;
@@ -52,7 +53,21 @@ pub fn multisampled_gbuffer(
     height: u32,
     samples: &[MsSample],
 ) -> MsTextures {
-    assert_eq!(samples.len(), (4 * width * height) as usize);
+    filled_gbuffer(gpu, width, height, 4, samples)
+}
+
+/// A `width × height` depth buffer and G-buffer with `sample_count` samples per pixel
+/// (1 or 4), sample `s` of pixel `(x, y)` holding
+/// `samples[sample_count · (y · width + x) + s]`: for single-sample passes that bind a
+/// `texture_depth_2d` (depth textures take no copies either).
+pub fn filled_gbuffer(
+    gpu: &GpuCompute,
+    width: u32,
+    height: u32,
+    sample_count: u32,
+    samples: &[MsSample],
+) -> MsTextures {
+    assert_eq!(samples.len(), (sample_count * width * height) as usize);
     let device = &gpu.device;
     let texture = |label, format| {
         device.create_texture(&wgpu::TextureDescriptor {
@@ -63,7 +78,7 @@ pub fn multisampled_gbuffer(
                 depth_or_array_layers: 1,
             },
             mip_level_count: 1,
-            sample_count: 4,
+            sample_count,
             dimension: wgpu::TextureDimension::D2,
             format,
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
@@ -83,7 +98,7 @@ pub fn multisampled_gbuffer(
     let buffer = gpu.buffer("ms_samples", &bytes, wgpu::BufferUsages::empty());
     let width_uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some("ms_width"),
-        contents: &[width, 0, 0, 0]
+        contents: &[width, sample_count, 0, 0]
             .into_iter()
             .flat_map(u32::to_le_bytes)
             .collect::<Vec<_>>(),
@@ -111,7 +126,7 @@ pub fn multisampled_gbuffer(
             bias: Default::default(),
         }),
         multisample: wgpu::MultisampleState {
-            count: 4,
+            count: sample_count,
             ..Default::default()
         },
         fragment: Some(wgpu::FragmentState {

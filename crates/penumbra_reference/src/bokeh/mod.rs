@@ -25,65 +25,12 @@ pub mod truth;
 mod truth_tests;
 
 pub use scatter::{
-    BokehImage, HALF_RES_BLUR, HalfImage, Layers, Sprite, SpriteRule, composite, depth_of_field,
-    downsample, scatter_sprites, sprite_diameter, sprite_weight, sprites,
+    BokehImage, HalfImage, Layers, Sprite, composite, depth_of_field, downsample, scatter_sprites,
+    sprite_diameter, sprite_weight, sprites,
 };
 
 use glam::Vec2;
-
-/// A thin lens focused at `focal_distance`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Lens {
-    /// Distance to the plane in focus, metres.
-    pub focal_distance: f32,
-    /// Aperture as an f-number (focal length / aperture diameter).
-    pub f_stops: f32,
-    /// Height of the sensor, metres (Bevy's default 18.66 mm, Super 35).
-    pub sensor_height: f32,
-    /// Vertical field of view of the projection, radians.
-    pub fov_y: f32,
-    /// Largest circle of confusion, full-resolution pixels (diameter).
-    pub max_coc: f32,
-    /// Distances beyond this count as this far (the sky), metres.
-    pub max_depth: f32,
-}
-
-impl Lens {
-    /// The focal length that maps the sensor onto the field of view, metres.
-    pub fn focal_length(&self) -> f32 {
-        0.5 * self.sensor_height / (0.5 * self.fov_y).tan()
-    }
-
-    /// The signed diameter of the circle of confusion, in pixels of an image `height`
-    /// pixels high, of a point `distance` metres along the view axis: negative in front
-    /// of the focal plane, positive behind, clamped to `±max_coc`. Bevy's formula:
-    /// `f² (z − s) / (N z (s − f))` over the sensor height.
-    ///
-    /// At infinity (the sky, unless `max_depth` is finite) it is the limit
-    /// `f² / (N (s − f))`; a distance that is NaN or not positive counts as in focus.
-    pub fn coc(&self, distance: f32, height: u32) -> f32 {
-        let f = self.focal_length();
-        let s = self.focal_distance;
-        if distance.is_nan() || distance <= 0.0 {
-            return 0.0;
-        }
-        let z = distance.min(self.max_depth);
-        // (z − s) / z, written so that z = ∞ gives its limit 1.
-        let behind = 1.0 - s / z;
-        let c = f * f * behind / (self.f_stops * (s - f)) / self.sensor_height;
-        (c * height as f32).clamp(-self.max_coc, self.max_coc)
-    }
-
-    /// The diameter, metres, of the disc of pinhole positions (views sheared so that the
-    /// focal plane stays put) whose average image has this lens's blur: a point at `z`
-    /// moves on the focal plane by `p (z − s) / z` for a pinhole moved by `p`, so the
-    /// disc is `f s / (N (s − f))` wide.
-    pub fn aperture_diameter(&self) -> f32 {
-        let f = self.focal_length();
-        let s = self.focal_distance;
-        f * s / (self.f_stops * (s - f))
-    }
-}
+pub use penumbra_cinematic_core::dof::{HALF_RES_BLUR, Lens, SpriteRule};
 
 /// Why an aperture image was rejected.
 #[derive(Clone, Debug, PartialEq, Eq)]

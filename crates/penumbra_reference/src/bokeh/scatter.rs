@@ -6,7 +6,7 @@
 //! (negative in front of the focal plane); sprite positions and sizes are in
 //! half-resolution pixels, `(0, 0)` the top-left corner of the half image.
 
-use super::{Aperture, Lens};
+use super::{Aperture, HALF_RES_BLUR, Lens, SpriteRule};
 use glam::{UVec2, Vec2, Vec3, Vec4};
 
 /// A linear HDR image and the distance along the view axis of each pixel (metres;
@@ -30,36 +30,8 @@ pub struct HalfImage {
     pub color: Vec<Vec3>,
     /// Circle of confusion of the nearest of them (full-resolution pixels, signed).
     pub coc: Vec<f32>,
-    /// Distance of the nearest of them.
+    /// Distance of the nearest of them, at most `Lens::max_depth` and `f32::MAX`.
     pub distance: Vec<f32>,
-}
-
-/// Which pixels become sprites, and when one sprite stands for a 2×2 block.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SpriteRule {
-    /// Circles of confusion below this (full-resolution pixels) make no sprite: the
-    /// composite shows the sharp image there, blending to the layers up to this size.
-    pub min_coc: f32,
-    /// Whether agreeing blocks make one sprite (Samaritan's 1-or-4 rule).
-    pub merge: bool,
-    /// Largest spread of the block's circles of confusion, full-resolution pixels.
-    pub coc_tolerance: f32,
-    /// Largest spread of the block's luminance relative to its mean.
-    pub color_tolerance: f32,
-    /// Largest spread of the block's distances relative to its mean.
-    pub depth_tolerance: f32,
-}
-
-impl Default for SpriteRule {
-    fn default() -> Self {
-        SpriteRule {
-            min_coc: 2.0,
-            merge: true,
-            coc_tolerance: 2.0,
-            color_tolerance: 0.1,
-            depth_tolerance: 0.05,
-        }
-    }
 }
 
 /// One textured quad of the scatter pass.
@@ -111,7 +83,13 @@ pub fn downsample(image: &BokehImage, lens: &Lens) -> HalfImage {
                 let p = (UVec2::new(2 * x + (k & 1), 2 * y + (k >> 1))).min(full - UVec2::ONE);
                 let i = (p.y * full.x + p.x) as usize;
                 color += image.color[i];
+                // The sky (and NaN) at `max_depth`, finite as on the GPU.
                 let d = image.distance[i];
+                let d = if d.is_nan() {
+                    f32::MAX
+                } else {
+                    d.min(lens.max_depth).min(f32::MAX)
+                };
                 if first || d < nearest {
                     nearest = d;
                     first = false;
@@ -135,7 +113,8 @@ fn block_agrees(texels: &[(Vec3, f32, f32); 4], rule: &SpriteRule) -> bool {
         let values = texels.map(|t| f(&t));
         let lo = values.iter().copied().fold(f32::INFINITY, f32::min);
         let hi = values.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-        (lo, hi, values.iter().sum::<f32>() / 4.0)
+        // Quarters first: four `f32::MAX` skies do not overflow.
+        (lo, hi, values.iter().map(|v| v / 4.0).sum::<f32>())
     };
     let (coc_lo, coc_hi, _) = range(&|t| t.1);
     let same_side = coc_lo > 0.0 || coc_hi < 0.0;
@@ -146,11 +125,6 @@ fn block_agrees(texels: &[(Vec3, f32, f32); 4], rule: &SpriteRule) -> bool {
         && l_hi - l_lo <= rule.color_tolerance * l_mean.max(1e-4)
         && (d_hi - d_lo <= rule.depth_tolerance * d_mean || d_lo == d_hi)
 }
-
-/// The blur the half-resolution round trip adds, as the squared diameter of a disc of
-/// the same variance (full-resolution px²): the 2×2 box of the downsample (⅓ px²) and
-/// the bilinear upsample (⅔ px²) make 1 px², and a disc of diameter `D` has `D² / 16`.
-pub const HALF_RES_BLUR: f32 = 16.0;
 
 /// The half-resolution diameter of the aperture image for a circle of confusion of
 /// `coc` full-resolution pixels: below 8 px, where the half-resolution blur is a large

@@ -1,0 +1,159 @@
+//! Scatter bokeh depth of field (#19): the thin lens, the sprite rule and the uniform of
+//! the passes (`shaders/dof/`), shared by the shaders (by `encase`) and the CPU model
+//! (`penumbra_reference::bokeh`).
+
+use encase::ShaderType;
+use glam::{Mat4, UVec2};
+
+/// A thin lens focused at `focal_distance`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lens {
+    /// Distance to the plane in focus, metres.
+    pub focal_distance: f32,
+    /// Aperture as an f-number (focal length / aperture diameter).
+    pub f_stops: f32,
+    /// Height of the sensor, metres (Bevy's default 18.66 mm, Super 35).
+    pub sensor_height: f32,
+    /// Vertical field of view of the projection, radians.
+    pub fov_y: f32,
+    /// Largest circle of confusion, full-resolution pixels (diameter).
+    pub max_coc: f32,
+    /// Distances beyond this count as this far (the sky), metres.
+    pub max_depth: f32,
+}
+
+impl Lens {
+    /// The focal length that maps the sensor onto the field of view, metres.
+    pub fn focal_length(&self) -> f32 {
+        0.5 * self.sensor_height / (0.5 * self.fov_y).tan()
+    }
+
+    /// The signed diameter of the circle of confusion, in pixels of an image `height`
+    /// pixels high, of a point `distance` metres along the view axis: negative in front
+    /// of the focal plane, positive behind, clamped to `±max_coc`. Bevy's formula:
+    /// `f² (z − s) / (N z (s − f))` over the sensor height.
+    ///
+    /// At infinity (the sky, unless `max_depth` is finite) it is the limit
+    /// `f² / (N (s − f))`; a distance that is NaN or not positive counts as in focus.
+    pub fn coc(&self, distance: f32, height: u32) -> f32 {
+        if distance.is_nan() || distance <= 0.0 {
+            return 0.0;
+        }
+        let z = distance.min(self.max_depth);
+        // (z − s) / z, written so that z = ∞ gives its limit 1.
+        let behind = 1.0 - self.focal_distance / z;
+        (self.coc_scale(height) * behind).clamp(-self.max_coc, self.max_coc)
+    }
+
+    /// The circle of confusion at infinity, pixels of an image `height` high, before
+    /// clamping: `f² / (N (s − f))` over the sensor height. `coc(z)` is this times
+    /// `1 − s / z`.
+    pub fn coc_scale(&self, height: u32) -> f32 {
+        let f = self.focal_length();
+        let s = self.focal_distance;
+        f * f / (self.f_stops * (s - f)) / self.sensor_height * height as f32
+    }
+
+    /// The diameter, metres, of the disc of pinhole positions (views sheared so that the
+    /// focal plane stays put) whose average image has this lens's blur: a point at `z`
+    /// moves on the focal plane by `p (z − s) / z` for a pinhole moved by `p`, so the
+    /// disc is `f s / (N (s − f))` wide.
+    pub fn aperture_diameter(&self) -> f32 {
+        let f = self.focal_length();
+        let s = self.focal_distance;
+        f * s / (self.f_stops * (s - f))
+    }
+}
+
+/// Which pixels become sprites, and when one sprite stands for a 2×2 block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpriteRule {
+    /// Circles of confusion below this (full-resolution pixels) make no sprite: the
+    /// composite shows the sharp image there, blending to the layers up to this size.
+    pub min_coc: f32,
+    /// Whether agreeing blocks make one sprite (Samaritan's 1-or-4 rule).
+    pub merge: bool,
+    /// Largest spread of the block's circles of confusion, full-resolution pixels.
+    pub coc_tolerance: f32,
+    /// Largest spread of the block's luminance relative to its mean.
+    pub color_tolerance: f32,
+    /// Largest spread of the block's distances relative to its mean.
+    pub depth_tolerance: f32,
+}
+
+impl Default for SpriteRule {
+    fn default() -> Self {
+        SpriteRule {
+            min_coc: 2.0,
+            merge: true,
+            coc_tolerance: 2.0,
+            color_tolerance: 0.1,
+            depth_tolerance: 0.05,
+        }
+    }
+}
+
+/// The blur the half-resolution round trip adds, as the squared diameter of a disc of
+/// the same variance (full-resolution px²): the 2×2 box of the downsample (⅓ px²) and
+/// the bilinear upsample (⅔ px²) make 1 px², and a disc of diameter `D` has `D² / 16`.
+/// Sprites under 16 px are shrunk by it (`bokeh::sprite_diameter` in the CPU model).
+pub const HALF_RES_BLUR: f32 = 16.0;
+
+/// The bokeh passes' view uniform (`penumbra::dof::types::BokehView`).
+#[derive(ShaderType, Clone, Copy, Debug, PartialEq)]
+pub struct BokehView {
+    /// Inverse projection (reverse-Z clip to view space): the depth buffer to distances
+    /// along the view axis.
+    pub view_from_clip: Mat4,
+    /// The view's size, pixels.
+    pub full_size: UVec2,
+    /// The half-resolution size, `ceil(full / 2)`.
+    pub half_size: UVec2,
+    /// [`Lens::coc_scale`] at the view's height.
+    pub coc_scale: f32,
+    /// [`Lens::focal_distance`].
+    pub focal_distance: f32,
+    /// [`Lens::max_coc`].
+    pub max_coc: f32,
+    /// [`Lens::max_depth`] (`f32::MAX` for none: WGSL has no infinity).
+    pub max_depth: f32,
+    /// [`SpriteRule::min_coc`].
+    pub min_coc: f32,
+    /// [`SpriteRule::coc_tolerance`].
+    pub coc_tolerance: f32,
+    /// [`SpriteRule::color_tolerance`].
+    pub color_tolerance: f32,
+    /// [`SpriteRule::depth_tolerance`].
+    pub depth_tolerance: f32,
+    /// 1 when [`SpriteRule::merge`].
+    pub merge: u32,
+    /// Sprites the sprite buffer holds; those past it are dropped.
+    pub capacity: u32,
+}
+
+impl BokehView {
+    /// The uniform of a `full_size` view.
+    pub fn new(
+        lens: &Lens,
+        rule: &SpriteRule,
+        view_from_clip: Mat4,
+        full_size: UVec2,
+        capacity: u32,
+    ) -> Self {
+        BokehView {
+            view_from_clip,
+            full_size,
+            half_size: (full_size + UVec2::ONE) / 2,
+            coc_scale: lens.coc_scale(full_size.y),
+            focal_distance: lens.focal_distance,
+            max_coc: lens.max_coc,
+            max_depth: lens.max_depth.min(f32::MAX),
+            min_coc: rule.min_coc,
+            coc_tolerance: rule.coc_tolerance,
+            color_tolerance: rule.color_tolerance,
+            depth_tolerance: rule.depth_tolerance,
+            merge: u32::from(rule.merge),
+            capacity,
+        }
+    }
+}

@@ -1,0 +1,58 @@
+// Scatter bokeh depth of field: the passes' uniform (`penumbra_cinematic_core::dof::
+// BokehView`), the sprite record and the indirect draw's arguments, and the lens
+// functions they share. CPU model: `penumbra_reference::bokeh`.
+#define_import_path penumbra::dof::types
+
+// The half-resolution round trip's blur as a disc's squared diameter, view pixels²
+// (`penumbra_cinematic_core::dof::HALF_RES_BLUR`).
+const HALF_RES_BLUR: f32 = 16.0;
+
+struct BokehView {
+    view_from_clip: mat4x4<f32>,
+    full_size: vec2<u32>,
+    half_size: vec2<u32>,
+    coc_scale: f32,
+    focal_distance: f32,
+    max_coc: f32,
+    max_depth: f32,
+    min_coc: f32,
+    coc_tolerance: f32,
+    color_tolerance: f32,
+    depth_tolerance: f32,
+    merge: u32,
+    capacity: u32,
+}
+
+// One sprite: `shape` = (centre in half-resolution pixels, aperture diameter, weight:
+// 1 or 4 for a block); `color` = (the summed colour, 1 when in front of the focal plane).
+struct Sprite {
+    shape: vec4<f32>,
+    color: vec4<f32>,
+}
+
+// `draw_indirect`'s arguments; the sprite pass counts the instances.
+struct DrawArgs {
+    vertex_count: u32,
+    instance_count: atomic<u32>,
+    first_vertex: u32,
+    first_instance: u32,
+}
+
+// Signed circle of confusion, view pixels, of a point `distance` along the view axis
+// (`Lens::coc`).
+fn coc_of_distance(view: BokehView, distance: f32) -> f32 {
+    if !(distance > 0.0) {
+        return 0.0;
+    }
+    let z = min(distance, view.max_depth);
+    return clamp(view.coc_scale * (1.0 - view.focal_distance / z), -view.max_coc, view.max_coc);
+}
+
+// The aperture's diameter in half-resolution pixels for a circle of confusion of `coc`
+// view pixels, less the half-resolution round trip's own blur under 16 px
+// (`bokeh::sprite_diameter`).
+fn sprite_diameter(coc: f32) -> f32 {
+    let d = abs(coc);
+    let fade = clamp((16.0 - d) / 8.0, 0.0, 1.0);
+    return max(0.5 * sqrt(max(d * d - HALF_RES_BLUR * fade, 0.0)), 1.0);
+}
