@@ -33,6 +33,7 @@ shader_files! {
     "common/math.wgsl" => Some("penumbra::math"),
     "dof/types.wgsl" => Some("penumbra::dof::types"),
     "dof/sprites.wgsl" => Some("penumbra::dof::sprites"),
+    "dof/scatter.wgsl" => Some("penumbra::dof::scatter"),
     "df/object.wgsl" => Some("penumbra::df::object"),
     "df/apply_deltas.wgsl" => Some("penumbra::df::apply_deltas"),
     "df/cull.wgsl" => Some("penumbra::df::cull"),

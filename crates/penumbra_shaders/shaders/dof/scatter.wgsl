@@ -1,0 +1,84 @@
+// Scatter bokeh depth of field, second pass: one instanced quad per sprite
+// (`draw_indirect` with the sprite pass's count), drawn into two half-resolution
+// targets with additive blending — the near layer (location 0) and the far layer
+// (location 1), each texel `(Σ colour · v, Σ v)`. A fragment adds the aperture image
+// around the sprite's pixel, or around each of a block's four, normalised by the
+// aperture's area so each pixel spreads unit weight; near sprites read the aperture
+// point-reflected. CPU model: `penumbra_reference::bokeh::scatter_sprites`.
+#define_import_path penumbra::dof::scatter
+
+#import penumbra::dof::types::{BokehView, Sprite}
+
+@group(0) @binding(0) var<uniform> view: BokehView;
+@group(0) @binding(1) var<storage, read> sprites: array<Sprite>;
+@group(0) @binding(2) var aperture: texture_2d<f32>;
+@group(0) @binding(3) var aperture_sampler: sampler;
+// x: the aperture image's mean transmission (its area as a fraction of the square).
+@group(0) @binding(4) var<uniform> aperture_info: vec4<f32>;
+
+struct VertexOutput {
+    @builtin(position) position: vec4<f32>,
+    // The sprite: centre, aperture diameter, weight; colour per pixel, side.
+    @location(0) @interpolate(flat) shape: vec4<f32>,
+    @location(1) @interpolate(flat) color: vec4<f32>,
+}
+
+struct Layers {
+    @location(0) near: vec4<f32>,
+    @location(1) far: vec4<f32>,
+}
+
+@vertex
+fn vertex(@builtin(vertex_index) vertex_index: u32, @builtin(instance_index) instance: u32) -> VertexOutput {
+    var out: VertexOutput;
+    if instance >= view.capacity {
+        // Counted but not stored: nothing to draw.
+        out.position = vec4<f32>(2.0, 2.0, 2.0, 1.0);
+        return out;
+    }
+    let s = sprites[instance];
+    // Two triangles: (0, 0) (1, 0) (0, 1), (0, 1) (1, 0) (1, 1).
+    let corners = array(vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 0.0), vec2<f32>(0.0, 1.0),
+        vec2<f32>(0.0, 1.0), vec2<f32>(1.0, 0.0), vec2<f32>(1.0, 1.0));
+    let extent = s.shape.z + select(0.0, 1.0, s.shape.w > 1.0);
+    let p = s.shape.xy + (corners[vertex_index % 6u] - 0.5) * extent;
+    let ndc = p / vec2<f32>(view.half_size) * 2.0 - 1.0;
+    out.position = vec4<f32>(ndc.x, -ndc.y, 0.0, 1.0);
+    out.shape = s.shape;
+    out.color = vec4<f32>(s.color.rgb / s.shape.w, s.color.a);
+    return out;
+}
+
+// The aperture around `center`, seen from half-resolution point `p` (0 outside it).
+fn aperture_at(p: vec2<f32>, center: vec2<f32>, diameter: f32, near: bool) -> f32 {
+    var uv = (p - center) / diameter + 0.5;
+    if near {
+        uv = 1.0 - uv;
+    }
+    if any(uv < vec2<f32>(0.0)) || any(uv > vec2<f32>(1.0)) {
+        return 0.0;
+    }
+    return textureSampleLevel(aperture, aperture_sampler, uv, 0.0).r;
+}
+
+// What the sprite adds at `p` (`bokeh::sprite_weight`).
+fn sprite_weight(p: vec2<f32>, shape: vec4<f32>, near: bool) -> f32 {
+    var sum = 0.0;
+    if shape.w > 1.0 {
+        for (var k = 0u; k < 4u; k += 1u) {
+            let o = vec2<f32>(f32(k & 1u), f32(k >> 1u)) - 0.5;
+            sum += aperture_at(p, shape.xy + o, shape.z, near);
+        }
+    } else {
+        sum = aperture_at(p, shape.xy, shape.z, near);
+    }
+    return sum / (aperture_info.x * shape.z * shape.z);
+}
+
+@fragment
+fn fragment(in: VertexOutput) -> Layers {
+    let near = in.color.a > 0.5;
+    let v = sprite_weight(in.position.xy, in.shape, near);
+    let add = vec4<f32>(in.color.rgb * v, v);
+    return Layers(select(vec4<f32>(0.0), add, near), select(add, vec4<f32>(0.0), near));
+}

@@ -1,0 +1,533 @@
+//! Contract tests of scatter bokeh's passes on lavapipe.
+//!
+//! The sprite pass (`dof/sprites.wgsl`): from a
+//! colour image and a reverse-Z depth buffer (a far wall with smooth and noisy patches,
+//! the sky, a band in focus, a square in front of the focal plane, bright dots) it
+//! appends the sprites the CPU model (`penumbra_reference::bokeh::{downsample,
+//! sprites}`) makes from the same pixels — one per agreeing block, one per
+//! out-of-focus pixel elsewhere — and counts them in the indirect draw's arguments; with
+//! and without the 1-or-4 rule, and with a sprite buffer too small.
+//!
+//! The scatter pass (`dof/scatter.wgsl`): the model's sprites of the same image drawn
+//! as instanced quads (`draw_indirect`) with additive blending into the two
+//! half-resolution layers give the model's layers (`scatter_sprites`), for a hexagon and
+//! a triangle (which tells near sprites' reflection apart).
+//!
+//! (Here until `bevy_penumbra_cinematic` lands with the passes.)
+
+use bevy::math::{Mat4, UVec2, Vec2, Vec3, Vec4};
+use penumbra_cinematic_core::dof::{BokehView, Lens, SpriteRule};
+use penumbra_reference::bokeh::{
+    Aperture, BokehImage, Layers, Sprite, downsample, scatter_sprites, sprites,
+};
+use penumbra_reference::df::f16_to_f32;
+use penumbra_shaders::flatten;
+use penumbra_test::multisample::{MsSample, filled_gbuffer};
+use penumbra_test::wgpu;
+use penumbra_test::{GpuCompute, gpu_or_skip, uniform_bytes};
+
+const SIZE: UVec2 = UVec2::new(96, 64);
+const NEAR: f32 = 0.1;
+
+fn lens() -> Lens {
+    Lens {
+        focal_distance: 3.0,
+        f_stops: 0.035,
+        sensor_height: 0.01866,
+        fov_y: 0.8,
+        max_coc: 40.0,
+        max_depth: f32::INFINITY,
+    }
+}
+
+/// Colours are multiples of 1/64 (exact in f16).
+fn image() -> BokehImage {
+    let n = (SIZE.x * SIZE.y) as usize;
+    let q = |v: f32| (v * 64.0).round() / 64.0;
+    let (mut color, mut distance) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for y in 0..SIZE.y {
+        for x in 0..SIZE.x {
+            let i = y * SIZE.x + x;
+            let (c, d) = if y < 6 {
+                (Vec3::new(0.25, 0.5, 1.0), f32::INFINITY)
+            } else if (61..85).contains(&x) && (21..45).contains(&y) {
+                (Vec3::new(1.0, 0.5, 0.125), 1.5)
+            } else if (11..23).contains(&x) {
+                (Vec3::splat(((i * 7919) % 13) as f32 / 8.0), 3.0)
+            } else if x > 40 && y > 48 {
+                // Noise on the wall: no block agrees.
+                (Vec3::splat(((i * 104_729) % 17) as f32 / 8.0), 20.0)
+            } else {
+                let bright = (x % 23 == 5 && y % 17 == 9) as u32 as f32 * 40.0;
+                (
+                    Vec3::new(0.5 + x as f32 / 256.0, 0.375, 0.25) + bright,
+                    20.0 + 0.02 * y as f32,
+                )
+            };
+            color.push(Vec3::new(q(c.x), q(c.y), q(c.z)));
+            distance.push(d);
+        }
+    }
+    BokehImage {
+        size: SIZE,
+        color,
+        distance,
+    }
+}
+
+struct GpuSprites {
+    count: u32,
+    sprites: Vec<Sprite>,
+}
+
+fn run(
+    gpu: &GpuCompute,
+    image: &BokehImage,
+    lens: &Lens,
+    rule: &SpriteRule,
+    capacity: u32,
+) -> GpuSprites {
+    let clip_from_view =
+        Mat4::perspective_infinite_reverse_rh(lens.fov_y, SIZE.x as f32 / SIZE.y as f32, NEAR);
+    let view = BokehView::new(lens, rule, clip_from_view.inverse(), SIZE, capacity);
+    let depths: Vec<MsSample> = image
+        .distance
+        .iter()
+        .map(|&d| MsSample {
+            depth: if d.is_finite() { NEAR / d } else { 0.0 },
+            gbuffer: [0; 4],
+        })
+        .collect();
+    let depth = filled_gbuffer(gpu, SIZE.x, SIZE.y, 1, &depths).depth;
+    let halves = |v: f32| half_bits(v).to_le_bytes();
+    let color_bytes: Vec<u8> = image
+        .color
+        .iter()
+        .flat_map(|c| [c.x, c.y, c.z, 1.0])
+        .flat_map(halves)
+        .collect();
+    let color = gpu.texture(
+        "color",
+        wgpu::Extent3d {
+            width: SIZE.x,
+            height: SIZE.y,
+            depth_or_array_layers: 1,
+        },
+        wgpu::TextureDimension::D2,
+        wgpu::TextureFormat::Rgba16Float,
+        8,
+        &color_bytes,
+    );
+    let uniform = gpu.buffer("view", &uniform_bytes(&view), wgpu::BufferUsages::UNIFORM);
+    let args_bytes: Vec<u8> = [6u32, 0, 0, 0]
+        .into_iter()
+        .flat_map(u32::to_le_bytes)
+        .collect();
+    let args = gpu.buffer("args", &args_bytes, wgpu::BufferUsages::INDIRECT);
+    let sprites = gpu.zeroed(
+        "sprites",
+        u64::from(capacity.max(1)) * 32,
+        wgpu::BufferUsages::empty(),
+    );
+    let pipeline = gpu.pipeline(
+        &flatten("#import penumbra::dof::sprites\n").expect("flattens"),
+        "sprites_main",
+    );
+    let views = [
+        color.create_view(&Default::default()),
+        depth.create_view(&Default::default()),
+    ];
+    let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("bokeh_sprites"),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: uniform.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: wgpu::BindingResource::TextureView(&views[0]),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: wgpu::BindingResource::TextureView(&views[1]),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: args.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 4,
+                resource: sprites.as_entire_binding(),
+            },
+        ],
+    });
+    let blocks = (view.half_size + UVec2::ONE) / 2;
+    gpu.dispatch(
+        &pipeline,
+        &bind,
+        [blocks.x.div_ceil(8), blocks.y.div_ceil(8), 1],
+    );
+    let words = |bytes: Vec<u8>| -> Vec<u32> {
+        bytes
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect()
+    };
+    let a = words(gpu.read(&args, 16));
+    assert_eq!(
+        (a[0], a[2], a[3]),
+        (6, 0, 0),
+        "the other arguments are kept"
+    );
+    let stored = a[1].min(capacity);
+    let s = words(gpu.read(&sprites, u64::from(capacity.max(1)) * 32));
+    let f = |w: u32| f32::from_bits(w);
+    GpuSprites {
+        count: a[1],
+        sprites: (0..stored as usize)
+            .map(|i| {
+                let w = &s[8 * i..8 * i + 8];
+                Sprite {
+                    center: Vec2::new(f(w[0]), f(w[1])),
+                    diameter: f(w[2]),
+                    weight: f(w[3]),
+                    color: Vec3::new(f(w[4]), f(w[5]), f(w[6])),
+                    near: f(w[7]) > 0.5,
+                }
+            })
+            .collect(),
+    }
+}
+
+/// `v` (a multiple of 1/64 below 2048, or 1) as f16 bits.
+fn half_bits(v: f32) -> u16 {
+    if v == 0.0 {
+        return 0;
+    }
+    let b = v.to_bits();
+    let exponent = ((b >> 23) & 0xff) as i32 - 127 + 15;
+    (((b >> 16) & 0x8000) | ((exponent as u32) << 10) | ((b >> 13) & 0x3ff)) as u16
+}
+
+fn sorted(mut s: Vec<Sprite>) -> Vec<Sprite> {
+    s.sort_by(|a, b| {
+        (a.center.y, a.center.x, a.weight)
+            .partial_cmp(&(b.center.y, b.center.x, b.weight))
+            .expect("finite")
+    });
+    s
+}
+
+#[test]
+fn sprite_pass_matches_the_model() {
+    if !gpu_or_skip("sprite_pass_matches_the_model") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let lens = lens();
+    let image = image();
+    let half = downsample(&image, &lens);
+    // Default thresholds, no merging, and thresholds so loose that only the side of the
+    // focal plane and focus itself keep blocks apart.
+    let loose = SpriteRule {
+        coc_tolerance: 1e3,
+        color_tolerance: 1e3,
+        depth_tolerance: 1e3,
+        ..SpriteRule::default()
+    };
+    let unmerged = SpriteRule {
+        merge: false,
+        ..SpriteRule::default()
+    };
+    for (name, rule) in [
+        ("default", SpriteRule::default()),
+        ("unmerged", unmerged),
+        ("loose", loose),
+    ] {
+        let merge = rule.merge;
+        let want = sorted(sprites(&half, &rule));
+        let got = run(&gpu, &image, &lens, &rule, 4096);
+        let blocks = want.iter().filter(|s| s.weight > 1.0).count();
+        let near = want.iter().filter(|s| s.near).count();
+        eprintln!(
+            "{name}: {} sprites on the GPU, {} in the model ({blocks} blocks, {near} near)",
+            got.count,
+            want.len()
+        );
+        assert!(
+            want.len() > 300 && near >= 36 && (blocks > 100) == merge,
+            "{name}"
+        );
+        assert_eq!(got.count as usize, want.len(), "{name}: sprite count");
+        let got = sorted(got.sprites);
+        let mut worst = (0.0f32, 0.0f32);
+        for (g, w) in got.iter().zip(&want) {
+            assert_eq!((g.center, g.weight, g.near), (w.center, w.weight, w.near));
+            worst.0 = worst.0.max((g.diameter - w.diameter).abs() / w.diameter);
+            worst.1 = worst
+                .1
+                .max((g.color - w.color).abs().max_element() / w.color.max_element().max(1.0));
+        }
+        eprintln!(
+            "  largest relative difference: diameter {:.2e}, colour {:.2e}",
+            worst.0, worst.1
+        );
+        // The depth round trip (1/z through the projection) and f16 colour storage.
+        assert!(worst.0 < 1e-3 && worst.1 < 1e-3, "{name}: {worst:?}");
+    }
+    // A buffer too small: the count still counts every sprite, the buffer holds the
+    // first `capacity`, nothing is written past it.
+    let got = run(&gpu, &image, &lens, &SpriteRule::default(), 64);
+    assert!(got.count > 64 && got.sprites.len() == 64, "{}", got.count);
+}
+
+/// The scatter pass's layers for `sprites` (`(Σ colour · v, Σ v)` per texel, f16).
+fn scatter_on_gpu(
+    gpu: &GpuCompute,
+    sprites: &[Sprite],
+    aperture: &Aperture,
+    view: &BokehView,
+) -> Layers {
+    let device = &gpu.device;
+    let size = view.half_size;
+    let words: Vec<u8> = sprites
+        .iter()
+        .flat_map(|s| {
+            [
+                s.center.x, s.center.y, s.diameter, s.weight, s.color.x, s.color.y, s.color.z,
+            ]
+            .into_iter()
+            .chain([if s.near { 1.0 } else { 0.0 }])
+        })
+        .flat_map(f32::to_le_bytes)
+        .collect();
+    let sprite_buffer = gpu.buffer("sprites", &words, wgpu::BufferUsages::empty());
+    let args_bytes: Vec<u8> = [6u32, sprites.len() as u32, 0, 0]
+        .into_iter()
+        .flat_map(u32::to_le_bytes)
+        .collect();
+    let args = gpu.buffer("args", &args_bytes, wgpu::BufferUsages::INDIRECT);
+    let uniform = gpu.buffer("view", &uniform_bytes(view), wgpu::BufferUsages::UNIFORM);
+    let info: Vec<u8> = [aperture.mean(), 0.0, 0.0, 0.0]
+        .into_iter()
+        .flat_map(f32::to_le_bytes)
+        .collect();
+    let info = gpu.buffer("aperture_info", &info, wgpu::BufferUsages::UNIFORM);
+    let n = aperture.size();
+    let texels: Vec<u8> = aperture
+        .weights()
+        .iter()
+        .flat_map(|&w| half_bits(w).to_le_bytes())
+        .collect();
+    let aperture_texture = gpu.texture(
+        "aperture",
+        wgpu::Extent3d {
+            width: n,
+            height: n,
+            depth_or_array_layers: 1,
+        },
+        wgpu::TextureDimension::D2,
+        wgpu::TextureFormat::R16Float,
+        2,
+        &texels,
+    );
+    let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        ..Default::default()
+    });
+    let target = |label| {
+        device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: size.x,
+                height: size.y,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba16Float,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        })
+    };
+    let (near, far) = (target("near"), target("far"));
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("bokeh_scatter"),
+        source: wgpu::ShaderSource::Wgsl(
+            flatten("#import penumbra::dof::scatter\n")
+                .expect("flattens")
+                .into(),
+        ),
+    });
+    let additive = wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::One,
+        dst_factor: wgpu::BlendFactor::One,
+        operation: wgpu::BlendOperation::Add,
+    };
+    let layer_target = Some(wgpu::ColorTargetState {
+        format: wgpu::TextureFormat::Rgba16Float,
+        blend: Some(wgpu::BlendState {
+            color: additive,
+            alpha: additive,
+        }),
+        write_mask: wgpu::ColorWrites::ALL,
+    });
+    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("bokeh_scatter"),
+        layout: None,
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vertex"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil: None,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fragment"),
+            compilation_options: Default::default(),
+            targets: &[layer_target.clone(), layer_target],
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+    let aperture_view = aperture_texture.create_view(&Default::default());
+    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("bokeh_scatter"),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: uniform.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: sprite_buffer.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: wgpu::BindingResource::TextureView(&aperture_view),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: wgpu::BindingResource::Sampler(&sampler),
+            },
+            wgpu::BindGroupEntry {
+                binding: 4,
+                resource: info.as_entire_binding(),
+            },
+        ],
+    });
+    let views = [
+        near.create_view(&Default::default()),
+        far.create_view(&Default::default()),
+    ];
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let attachment = |view| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("bokeh_scatter"),
+            color_attachments: &[attachment(&views[0]), attachment(&views[1])],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.draw_indirect(&args, 0);
+    }
+    gpu.queue.submit([encoder.finish()]);
+    let read = |t: &wgpu::Texture| -> Vec<Vec4> {
+        gpu.read_texture_2d(t)
+            .chunks_exact(8)
+            .map(|c| {
+                let h = |i: usize| f16_to_f32(u16::from_le_bytes([c[2 * i], c[2 * i + 1]]));
+                Vec4::new(h(0), h(1), h(2), h(3))
+            })
+            .collect()
+    };
+    Layers {
+        size,
+        near: read(&near),
+        far: read(&far),
+    }
+}
+
+#[test]
+fn scatter_pass_matches_the_model() {
+    if !gpu_or_skip("scatter_pass_matches_the_model") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let lens = lens();
+    let image = image();
+    let half = downsample(&image, &lens);
+    let rule = SpriteRule::default();
+    let sprites = sprites(&half, &rule);
+    let clip_from_view =
+        Mat4::perspective_infinite_reverse_rh(lens.fov_y, SIZE.x as f32 / SIZE.y as f32, NEAR);
+    let view = BokehView::new(
+        &lens,
+        &rule,
+        clip_from_view.inverse(),
+        SIZE,
+        sprites.len() as u32,
+    );
+    for (name, aperture) in [
+        ("hexagon", Aperture::hexagon(64)),
+        (
+            "triangle",
+            Aperture::polygon(64, 3, std::f32::consts::FRAC_PI_2),
+        ),
+    ] {
+        let want = scatter_sprites(&sprites, &aperture, half.size);
+        let got = scatter_on_gpu(&gpu, &sprites, &aperture, &view);
+        for (layer, g, w) in [
+            ("near", &got.near, &want.near),
+            ("far", &got.far, &want.far),
+        ] {
+            let covered = w.iter().filter(|v| v.w > 1e-3).count();
+            let (mut worst_w, mut worst_c, mut sum_w) = (0.0f32, 0.0f32, 0.0f32);
+            for (g, w) in g.iter().zip(w) {
+                let dw = (g.w - w.w).abs() / w.w.max(0.05);
+                worst_w = worst_w.max(dw);
+                sum_w += dw;
+                if w.w > 0.05 {
+                    let dc = (g.truncate() / g.w - w.truncate() / w.w)
+                        .abs()
+                        .max_element()
+                        / (w.truncate() / w.w).max_element().max(1.0);
+                    worst_c = worst_c.max(dc);
+                }
+            }
+            let mean_w = sum_w / g.len() as f32;
+            eprintln!(
+                "{name}, {layer}: {covered} texels covered; weight max rel. Δ {worst_w:.2e} (mean {mean_w:.2e}), resolved colour max rel. Δ {worst_c:.2e}"
+            );
+            assert!(covered > 100, "{name} {layer}");
+            // f16 accumulation of tens of sprites per texel: about 2·10⁻³ relative on
+            // average.
+            assert!(
+                worst_w < 0.02 && mean_w < 4e-3 && worst_c < 0.02,
+                "{name} {layer}"
+            );
+        }
+    }
+}
