@@ -34,6 +34,7 @@ shader_files! {
     "dof/types.wgsl" => Some("penumbra::dof::types"),
     "dof/sprites.wgsl" => Some("penumbra::dof::sprites"),
     "dof/scatter.wgsl" => Some("penumbra::dof::scatter"),
+    "dof/composite.wgsl" => Some("penumbra::dof::composite"),
     "df/object.wgsl" => Some("penumbra::df::object"),
     "df/apply_deltas.wgsl" => Some("penumbra::df::apply_deltas"),
     "df/cull.wgsl" => Some("penumbra::df::cull"),
