@@ -6,7 +6,7 @@
 // CPU model: `penumbra_reference::bokeh::composite`.
 #define_import_path penumbra::dof::composite
 
-#import penumbra::dof::types::{BokehView, coc_of_distance}
+#import penumbra::dof::types::{BokehView, coc_of_distance, distance_from_depth}
 
 @group(0) @binding(0) var<uniform> view: BokehView;
 @group(0) @binding(1) var color_texture: texture_2d<f32>;
@@ -17,13 +17,7 @@
 
 // Distance along the view axis of view pixel `p` (the sky at `view.max_depth`).
 fn pixel_distance(p: vec2<u32>) -> f32 {
-    let depth = textureLoad(depth_texture, vec2<i32>(p), 0);
-    if !(depth > 0.0) {
-        return view.max_depth;
-    }
-    let uv = (vec2<f32>(p) + 0.5) / vec2<f32>(view.full_size);
-    let v = view.view_from_clip * vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
-    return min(-v.z / v.w, view.max_depth);
+    return distance_from_depth(view, p, textureLoad(depth_texture, vec2<i32>(p), 0));
 }
 
 // The bokeh of view pixel `p` over `sharp`.

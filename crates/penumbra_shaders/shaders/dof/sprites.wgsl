@@ -7,7 +7,9 @@
 // CPU model: `penumbra_reference::bokeh::{downsample, sprites}`.
 #define_import_path penumbra::dof::sprites
 
-#import penumbra::dof::types::{BokehView, DrawArgs, Sprite, coc_of_distance, sprite_diameter}
+#import penumbra::dof::types::{
+    BokehView, DrawArgs, Sprite, coc_of_distance, distance_from_depth, sprite_diameter,
+}
 
 @group(0) @binding(0) var<uniform> view: BokehView;
 @group(0) @binding(1) var color_texture: texture_2d<f32>;
@@ -25,13 +27,7 @@ struct HalfPixel {
 // Distance along the view axis of view pixel `p` (`f32::MAX`-capped; the sky at
 // `view.max_depth`).
 fn pixel_distance(p: vec2<u32>) -> f32 {
-    let depth = textureLoad(depth_texture, vec2<i32>(p), 0);
-    if !(depth > 0.0) {
-        return view.max_depth;
-    }
-    let uv = (vec2<f32>(p) + 0.5) / vec2<f32>(view.full_size);
-    let v = view.view_from_clip * vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
-    return min(-v.z / v.w, view.max_depth);
+    return distance_from_depth(view, p, textureLoad(depth_texture, vec2<i32>(p), 0));
 }
 
 fn half_pixel(h: vec2<u32>) -> HalfPixel {

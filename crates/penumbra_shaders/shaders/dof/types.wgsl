@@ -38,6 +38,17 @@ struct DrawArgs {
     first_instance: u32,
 }
 
+// Distance along the view axis of view pixel `p` whose reverse-Z depth is `depth`
+// (the sky, depth 0, at `view.max_depth`).
+fn distance_from_depth(view: BokehView, p: vec2<u32>, depth: f32) -> f32 {
+    if !(depth > 0.0) {
+        return view.max_depth;
+    }
+    let uv = (vec2<f32>(p) + 0.5) / vec2<f32>(view.full_size);
+    let v = view.view_from_clip * vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
+    return min(-v.z / v.w, view.max_depth);
+}
+
 // Signed circle of confusion, view pixels, of a point `distance` along the view axis
 // (`Lens::coc`).
 fn coc_of_distance(view: BokehView, distance: f32) -> f32 {
