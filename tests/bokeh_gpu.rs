@@ -86,6 +86,49 @@ fn image() -> BokehImage {
     }
 }
 
+/// The view uniform of the test image's camera (infinite reverse-Z, near plane `NEAR`).
+fn bokeh_view(lens: &Lens, rule: &SpriteRule, capacity: u32) -> BokehView {
+    let clip_from_view =
+        Mat4::perspective_infinite_reverse_rh(lens.fov_y, SIZE.x as f32 / SIZE.y as f32, NEAR);
+    BokehView::new(lens, rule, clip_from_view.inverse(), SIZE, capacity)
+}
+
+/// The image's distances as that camera's `Depth32Float` buffer (the sky at 0).
+fn depth_texture(gpu: &GpuCompute, image: &BokehImage) -> wgpu::Texture {
+    let depths: Vec<MsSample> = image
+        .distance
+        .iter()
+        .map(|&d| MsSample {
+            depth: if d.is_finite() { NEAR / d } else { 0.0 },
+            gbuffer: [0; 4],
+        })
+        .collect();
+    filled_gbuffer(gpu, SIZE.x, SIZE.y, 1, &depths).depth
+}
+
+/// The model's side of the scatter and composite tests: the test image's sprites under
+/// the default rule, and the uniform that holds them all.
+struct Model {
+    lens: Lens,
+    image: BokehImage,
+    rule: SpriteRule,
+    sprites: Vec<Sprite>,
+    view: BokehView,
+}
+
+fn model() -> Model {
+    let (lens, image, rule) = (lens(), image(), SpriteRule::default());
+    let sprites = sprites(&downsample(&image, &lens), &rule);
+    let view = bokeh_view(&lens, &rule, sprites.len() as u32);
+    Model {
+        lens,
+        image,
+        rule,
+        sprites,
+        view,
+    }
+}
+
 struct GpuSprites {
     count: u32,
     sprites: Vec<Sprite>,
@@ -98,18 +141,8 @@ fn run(
     rule: &SpriteRule,
     capacity: u32,
 ) -> GpuSprites {
-    let clip_from_view =
-        Mat4::perspective_infinite_reverse_rh(lens.fov_y, SIZE.x as f32 / SIZE.y as f32, NEAR);
-    let view = BokehView::new(lens, rule, clip_from_view.inverse(), SIZE, capacity);
-    let depths: Vec<MsSample> = image
-        .distance
-        .iter()
-        .map(|&d| MsSample {
-            depth: if d.is_finite() { NEAR / d } else { 0.0 },
-            gbuffer: [0; 4],
-        })
-        .collect();
-    let depth = filled_gbuffer(gpu, SIZE.x, SIZE.y, 1, &depths).depth;
+    let view = bokeh_view(lens, rule, capacity);
+    let depth = depth_texture(gpu, image);
     let halves = |v: f32| half_bits(v).to_le_bytes();
     let color_bytes: Vec<u8> = image
         .color
@@ -487,20 +520,7 @@ fn scatter_pass_matches_the_model() {
         return;
     }
     let gpu = GpuCompute::new().expect("adapter");
-    let lens = lens();
-    let image = image();
-    let half = downsample(&image, &lens);
-    let rule = SpriteRule::default();
-    let sprites = sprites(&half, &rule);
-    let clip_from_view =
-        Mat4::perspective_infinite_reverse_rh(lens.fov_y, SIZE.x as f32 / SIZE.y as f32, NEAR);
-    let view = BokehView::new(
-        &lens,
-        &rule,
-        clip_from_view.inverse(),
-        SIZE,
-        sprites.len() as u32,
-    );
+    let Model { sprites, view, .. } = model();
     for (name, aperture) in [
         ("hexagon", Aperture::hexagon(64)),
         (
@@ -508,7 +528,7 @@ fn scatter_pass_matches_the_model() {
             Aperture::polygon(64, 3, std::f32::consts::FRAC_PI_2),
         ),
     ] {
-        let want = scatter_sprites(&sprites, &aperture, half.size);
+        let want = scatter_sprites(&sprites, &aperture, view.half_size);
         let got = scatter_on_gpu(&gpu, &sprites, &aperture, &view);
         for (layer, g, w) in [
             ("near", &got.near, &want.near),
@@ -587,15 +607,7 @@ fn composite_on_gpu(
         8,
         &halves4(&layers.far),
     );
-    let depths: Vec<MsSample> = image
-        .distance
-        .iter()
-        .map(|&d| MsSample {
-            depth: if d.is_finite() { NEAR / d } else { 0.0 },
-            gbuffer: [0; 4],
-        })
-        .collect();
-    let depth = filled_gbuffer(gpu, SIZE.x, SIZE.y, 1, &depths).depth;
+    let depth = depth_texture(gpu, image);
     let uniform = gpu.buffer("view", &uniform_bytes(view), wgpu::BufferUsages::UNIFORM);
     let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
         mag_filter: wgpu::FilterMode::Linear,
@@ -720,20 +732,13 @@ fn composite_pass_matches_the_model() {
         return;
     }
     let gpu = GpuCompute::new().expect("adapter");
-    let lens = lens();
-    let image = image();
-    let half = downsample(&image, &lens);
-    let rule = SpriteRule::default();
-    let sprites = sprites(&half, &rule);
-    let clip_from_view =
-        Mat4::perspective_infinite_reverse_rh(lens.fov_y, SIZE.x as f32 / SIZE.y as f32, NEAR);
-    let view = BokehView::new(
-        &lens,
-        &rule,
-        clip_from_view.inverse(),
-        SIZE,
-        sprites.len() as u32,
-    );
+    let Model {
+        lens,
+        image,
+        rule,
+        sprites,
+        view,
+    } = model();
     // The GPU's own layers (f16 values) feed both sides.
     let layers = scatter_on_gpu(&gpu, &sprites, &Aperture::hexagon(64), &view);
     let want = composite(&image, &lens, &rule, &layers);

@@ -75,6 +75,27 @@ fn scene() -> Scene {
     }
 }
 
+/// A 128 × 80 camera 5 m from the origin and its lens, focused there, at `f_stops`.
+fn camera_and_lens(f_stops: f32) -> (PerspectiveCamera, Lens) {
+    let fov = 0.8;
+    let camera = PerspectiveCamera::looking_at(
+        Vec3::new(0.0, 1.0, 5.0),
+        Vec3::new(0.0, 1.0, 0.0),
+        fov,
+        128,
+        80,
+    );
+    let lens = Lens {
+        focal_distance: 5.0,
+        f_stops,
+        sensor_height: 0.01866,
+        fov_y: fov,
+        max_coc: 40.0,
+        max_depth: f32::INFINITY,
+    };
+    (camera, lens)
+}
+
 fn display(c: Vec3) -> Vec3 {
     let f = |v: f32| {
         let v = v.clamp(0.0, 1.0);
@@ -133,23 +154,8 @@ fn masks(coc: &[f32], size: UVec2) -> [Vec<bool>; 3] {
 /// pinhole image out of focus and on the borders; in focus it is the pinhole image.
 #[test]
 fn scatter_model_against_the_thin_lens() {
-    let size = UVec2::new(128, 80);
-    let fov = 0.8;
-    let camera = PerspectiveCamera::looking_at(
-        Vec3::new(0.0, 1.0, 5.0),
-        Vec3::new(0.0, 1.0, 0.0),
-        fov,
-        size.x,
-        size.y,
-    );
-    let lens = Lens {
-        focal_distance: 5.0,
-        f_stops: 0.06,
-        sensor_height: 0.01866,
-        fov_y: fov,
-        max_coc: 40.0,
-        max_depth: f32::INFINITY,
-    };
+    let (camera, lens) = camera_and_lens(0.06);
+    let size = UVec2::new(camera.width, camera.height);
     let scene = scene();
     let aperture = Aperture::hexagon(64);
     let input = pinhole_image(&scene, &camera);
@@ -235,23 +241,8 @@ fn vertical_balance(image: &[Vec3], size: UVec2, center: Vec2, radius: f32) -> f
 /// (Symmetric shapes such as the hexagon cannot tell.)
 #[test]
 fn bokeh_orientation_matches_the_thin_lens() {
-    let size = UVec2::new(128, 80);
-    let fov = 0.8;
-    let camera = PerspectiveCamera::looking_at(
-        Vec3::new(0.0, 1.0, 5.0),
-        Vec3::new(0.0, 1.0, 0.0),
-        fov,
-        size.x,
-        size.y,
-    );
-    let lens = Lens {
-        focal_distance: 5.0,
-        f_stops: 0.015,
-        sensor_height: 0.01866,
-        fov_y: fov,
-        max_coc: 40.0,
-        max_depth: f32::INFINITY,
-    };
+    let (camera, lens) = camera_and_lens(0.015);
+    let size = UVec2::new(camera.width, camera.height);
     let lamp = |center: Vec3, radius: f32| Object {
         shape: Shape::Sphere { center, radius },
         material: Material {
