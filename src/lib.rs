@@ -1,20 +1,18 @@
 //! # Penumbra
 //!
-//! Bevy plugins for Unreal-4-style distance-field lighting: mesh signed distance fields,
-//! an SDF atlas and GPU object buffer, ray-marched soft shadows. Distance-field ambient
-//! occlusion, a global SDF and the Samaritan demo's cinematic effects are planned (see
-//! the README), not written yet.
+//! Bevy plugins for Unreal-4-style distance-field lighting — mesh signed distance fields,
+//! an SDF atlas and GPU object buffer, ray-marched soft shadows, distance-field ambient
+//! occlusion, a global SDF in camera-centred clipmaps — and the Samaritan demo's cinematic
+//! effects: deferred shading with 4× MSAA and scatter bokeh depth of field (more are
+//! planned, see the README).
 //!
 //! Add [`PenumbraPlugins`] after Bevy's `DefaultPlugins`, then tag entities, lights and
 //! cameras with Penumbra's components. A scene pays only for what it uses: features whose
 //! components are absent run no pass and upload nothing.
 //!
-//! So far: the plugin group, the shader library every feature's WGSL imports
-//! (`#import penumbra::…`), signed distance fields as assets (`.psdf` loading, runtime
-//! baking of meshes with a disk cache), the distance-field scene (casters, SDF atlas,
-//! GPU object buffer kept in sync by deltas, GPU culling) and its debug view, Penumbra's
-//! lighting pass and distance-field soft shadows (`DistanceFieldShadows`). See
-//! `ARCHITECTURE.md`.
+//! The distance-field features are in [`df`] (`bevy_penumbra_df`), the cinematic ones in
+//! `cinematic` (`bevy_penumbra_cinematic`, feature `dof`); the shader library every
+//! feature's WGSL imports (`#import penumbra::…`) in [`shaders`]. See `ARCHITECTURE.md`.
 //!
 //! ```no_run
 //! use bevy::prelude::*;
@@ -49,6 +47,8 @@
 use bevy::app::plugin_group;
 use bevy::prelude::*;
 
+#[cfg(feature = "dof")]
+pub use bevy_penumbra_cinematic as cinematic;
 pub use bevy_penumbra_df as df;
 pub use penumbra_shaders as shaders;
 
@@ -69,6 +69,8 @@ plugin_group! {
         bevy_penumbra_df::buffer_dump:::PenumbraBufferDumpPlugin,
         bevy_penumbra_df::global_field:::GlobalDistanceFieldPlugin,
         bevy_penumbra_df::particles:::DistanceFieldParticlesPlugin,
+        #[cfg(feature = "dof")]
+        bevy_penumbra_cinematic::dof:::BokehDepthOfFieldPlugin,
     }
 }
 
@@ -89,6 +91,8 @@ impl Plugin for PenumbraCorePlugin {
 /// Common imports: `use penumbra::prelude::*;`.
 pub mod prelude {
     pub use crate::{PenumbraCorePlugin, PenumbraPlugins};
+    #[cfg(feature = "dof")]
+    pub use bevy_penumbra_cinematic::{BokehAperture, BokehDepthOfField};
     pub use bevy_penumbra_df::{
         CasterSource, DeferredMsaa, DeferredMsaaShading, DistanceFieldCaster,
         DistanceFieldHeightfield, DistanceFieldParticles, DistanceFieldQuery, DistanceFieldScene,

@@ -384,8 +384,9 @@ fn public_types_are_reflect_registered() {
         app
     };
     let registry = app.world().resource::<AppTypeRegistry>().read();
-    let components: [(TypeId, &str); 10] = [
+    let components: [(TypeId, &str); 11] = [
         (TypeId::of::<DistanceFieldCaster>(), "DistanceFieldCaster"),
+        (TypeId::of::<BokehDepthOfField>(), "BokehDepthOfField"),
         (
             TypeId::of::<DistanceFieldDebugView>(),
             "DistanceFieldDebugView",

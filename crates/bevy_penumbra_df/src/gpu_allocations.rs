@@ -74,13 +74,13 @@ impl PenumbraGpuAllocations {
     }
 
     /// Creates (and counts) a buffer.
-    pub(crate) fn buffer(&self, device: &RenderDevice, desc: &BufferDescriptor) -> Buffer {
+    pub fn buffer(&self, device: &RenderDevice, desc: &BufferDescriptor) -> Buffer {
         self.count_buffer(desc.size);
         device.create_buffer(desc)
     }
 
     /// Creates (and counts) an unmapped buffer of `size` bytes.
-    pub(crate) fn sized_buffer(
+    pub fn sized_buffer(
         &self,
         device: &RenderDevice,
         label: &'static str,
@@ -99,13 +99,13 @@ impl PenumbraGpuAllocations {
     }
 
     /// Creates (and counts) a texture.
-    pub(crate) fn texture(&self, device: &RenderDevice, desc: &TextureDescriptor) -> Texture {
+    pub fn texture(&self, device: &RenderDevice, desc: &TextureDescriptor) -> Texture {
         self.0.textures.fetch_add(1, Ordering::Relaxed);
         device.create_texture(desc)
     }
 
     /// Creates (and counts) a bind group.
-    pub(crate) fn bind_group(
+    pub fn bind_group(
         &self,
         device: &RenderDevice,
         label: &'static str,

@@ -139,7 +139,7 @@ fn every_shader_composes_and_validates() {
 }
 
 /// The variants Penumbra compiles with shader definitions (deferred MSAA's per-sample
-/// shadow trace and AO upsample) compose and validate too, and flatten (for contract
+/// shadow trace and AO upsample, the bokeh passes' multisampled depth) compose and validate too, and flatten (for contract
 /// tests) to the same branch.
 #[test]
 fn shader_def_variants_compose_and_validate() {
@@ -155,6 +155,16 @@ fn shader_def_variants_compose_and_validate() {
             "df/ao_upsample.wgsl",
             "PENUMBRA_SAMPLE_UPSAMPLE",
             "upsample_samples",
+        ),
+        (
+            "dof/sprites.wgsl",
+            "MULTISAMPLED",
+            "texture_depth_multisampled_2d",
+        ),
+        (
+            "dof/composite.wgsl",
+            "MULTISAMPLED",
+            "texture_depth_multisampled_2d",
         ),
     ] {
         let file = standalone.iter().find(|f| f.path == path).expect(path);

@@ -32,9 +32,11 @@ impl GpuCompute {
             bevy::tasks::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
                 label: Some("penumbra_test_compute"),
                 // Multisampled `Rgba32Uint` (Bevy's G-buffer, as Penumbra's deferred
-                // MSAA renders it) needs the adapter's own format features.
+                // MSAA renders it) needs the adapter's own format features; the bokeh
+                // layers blend `Rgba32Float`.
                 required_features: adapter.features()
-                    & wgpu::Features::TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES,
+                    & (wgpu::Features::TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES
+                        | wgpu::Features::FLOAT32_BLENDABLE),
                 required_limits: adapter.limits(),
                 experimental_features: wgpu::ExperimentalFeatures::disabled(),
                 memory_hints: wgpu::MemoryHints::Performance,

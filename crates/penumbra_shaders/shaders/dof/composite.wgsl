@@ -10,14 +10,35 @@
 
 @group(0) @binding(0) var<uniform> view: BokehView;
 @group(0) @binding(1) var color_texture: texture_2d<f32>;
+// A view with MSAA (`MULTISAMPLED` defined) reads its first sample's depth, as Bevy's
+// `DepthOfField` reads it.
+#ifdef MULTISAMPLED
+@group(0) @binding(2) var depth_texture: texture_depth_multisampled_2d;
+#else
 @group(0) @binding(2) var depth_texture: texture_depth_2d;
+#endif
+// The layers: `Rgba32Float` where the device blends it, else `Rgba16Float`; read
+// bilinearly by hand (32-bit floats need not be filterable).
 @group(0) @binding(3) var near_layer: texture_2d<f32>;
 @group(0) @binding(4) var far_layer: texture_2d<f32>;
-@group(0) @binding(5) var layer_sampler: sampler;
 
 // Distance along the view axis of view pixel `p` (the sky at `view.max_depth`).
 fn pixel_distance(p: vec2<u32>) -> f32 {
     return distance_from_depth(view, p, textureLoad(depth_texture, vec2<i32>(p), 0));
+}
+
+// Bilinear read of `layer` at `uv` (texel centres at `(i + ½) / size`, edges clamped), as
+// a linear, clamp-to-edge sampler reads it.
+fn layer_bilinear(layer: texture_2d<f32>, uv: vec2<f32>) -> vec4<f32> {
+    let last = vec2<i32>(view.half_size) - 1;
+    let t = uv * vec2<f32>(view.half_size) - 0.5;
+    let t0 = floor(t);
+    let f = t - t0;
+    let i0 = clamp(vec2<i32>(t0), vec2<i32>(0), last);
+    let i1 = clamp(vec2<i32>(t0) + 1, vec2<i32>(0), last);
+    let top = mix(textureLoad(layer, i0, 0), textureLoad(layer, vec2<i32>(i1.x, i0.y), 0), f.x);
+    let bottom = mix(textureLoad(layer, vec2<i32>(i0.x, i1.y), 0), textureLoad(layer, i1, 0), f.x);
+    return mix(top, bottom, f.y);
 }
 
 // The bokeh of view pixel `p` over `sharp`.
@@ -26,12 +47,12 @@ fn composite(p: vec2<u32>, sharp: vec3<f32>) -> vec3<f32> {
     // The half-resolution texel grid: view pixel centre (p + ½) lies at (p + ½) / 2.
     let uv = (vec2<f32>(p) + 0.5) * 0.5 / vec2<f32>(view.half_size);
     var c = sharp;
-    let far = textureSampleLevel(far_layer, layer_sampler, uv, 0.0);
+    let far = layer_bilinear(far_layer, uv);
     if coc > 0.5 && far.w > 1e-6 {
         let min_coc = max(view.min_coc, 0.5 + 1e-3);
         c = mix(sharp, far.rgb / far.w, clamp((coc - 0.5) / (min_coc - 0.5), 0.0, 1.0));
     }
-    let near = textureSampleLevel(near_layer, layer_sampler, uv, 0.0);
+    let near = layer_bilinear(near_layer, uv);
     if near.w > 1e-6 {
         c = mix(c, near.rgb / near.w, min(near.w, 1.0));
     }

@@ -13,7 +13,13 @@
 
 @group(0) @binding(0) var<uniform> view: BokehView;
 @group(0) @binding(1) var color_texture: texture_2d<f32>;
+// A view with MSAA (`MULTISAMPLED` defined) reads its first sample's depth, as Bevy's
+// `DepthOfField` reads it.
+#ifdef MULTISAMPLED
+@group(0) @binding(2) var depth_texture: texture_depth_multisampled_2d;
+#else
 @group(0) @binding(2) var depth_texture: texture_depth_2d;
+#endif
 @group(0) @binding(3) var<storage, read_write> args: DrawArgs;
 @group(0) @binding(4) var<storage, read_write> sprites: array<Sprite>;
 

@@ -1,7 +1,11 @@
-//! Scatter bokeh depth of field (#19): the thin lens, the sprite rule and the uniform of
-//! the passes (`shaders/dof/`), shared by the shaders (by `encase`) and the CPU model
+//! Scatter bokeh depth of field (#19): the thin lens, the aperture's shape, the sprite
+//! rule and the uniform of the passes (`shaders/dof/`), shared by the Bevy plugin
+//! (`bevy_penumbra_cinematic::dof`), the shaders (by `encase`) and the CPU model
 //! (`penumbra_reference::bokeh`).
 
+mod aperture;
+
+pub use aperture::{Aperture, ApertureError};
 use encase::ShaderType;
 use glam::{Mat4, UVec2};
 

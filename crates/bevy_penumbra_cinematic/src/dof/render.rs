@@ -1,0 +1,782 @@
+//! Render-world side of scatter bokeh: extraction, the pooled per-view buffers and
+//! half-resolution layers, the aperture textures, the bind groups and the three passes.
+
+use super::{BokehApertureShape, BokehDepthOfField};
+use bevy::camera::Projection;
+use bevy::core_pipeline::{Core3dSystems, FullscreenShader, schedule::Core3d};
+use bevy::platform::collections::{HashMap, HashSet};
+use bevy::prelude::*;
+use bevy::render::diagnostic::RecordDiagnostics;
+use bevy::render::render_resource::binding_types::{
+    sampler, storage_buffer_read_only_sized, storage_buffer_sized, texture_2d, texture_depth_2d,
+    texture_depth_2d_multisampled, uniform_buffer_sized,
+};
+use bevy::render::render_resource::encase::UniformBuffer as EncaseBuffer;
+use bevy::render::render_resource::{
+    BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, BlendComponent,
+    BlendFactor, BlendOperation, BlendState, Buffer, BufferId, BufferUsages,
+    CachedComputePipelineId, CachedRenderPipelineId, ColorTargetState, ColorWrites,
+    ComputePassDescriptor, ComputePipelineDescriptor, DownlevelFlags, Extent3d, FilterMode,
+    FragmentState, LoadOp, Operations, PipelineCache, RenderPassColorAttachment,
+    RenderPassDescriptor, RenderPipelineDescriptor, Sampler, SamplerBindingType, SamplerDescriptor,
+    ShaderStages, ShaderType, StoreOp, TextureDescriptor, TextureDimension, TextureFormat,
+    TextureSampleType, TextureUsages, TextureView, TextureViewDescriptor, TextureViewId,
+    VertexState, WgpuFeatures,
+};
+use bevy::render::renderer::{RenderAdapter, RenderContext, RenderDevice, RenderQueue, ViewQuery};
+use bevy::render::sync_component::{SyncComponent, SyncComponentPlugin};
+use bevy::render::sync_world::RenderEntity;
+use bevy::render::texture::{CachedTexture, TextureCache};
+use bevy::render::view::{ExtractedView, Msaa, ViewDepthTexture, ViewTarget};
+use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
+use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
+use penumbra_cinematic_core::dof::{Aperture, BokehView, Lens, SpriteRule};
+use std::sync::Arc;
+
+/// Bytes per sprite record (`penumbra::dof::types::Sprite`).
+const SPRITE_BYTES: u64 = 32;
+/// The half-resolution layers' format where the device blends 32-bit floats: the
+/// layers sum hundreds of small weights per texel at large circles of confusion, which
+/// `Rgba16Float` rounds by several per cent.
+const LAYER_FORMAT: TextureFormat = TextureFormat::Rgba32Float;
+/// The layers' format otherwise.
+const LAYER_FORMAT_FALLBACK: TextureFormat = TextureFormat::Rgba16Float;
+
+/// A bokeh camera's settings in the render world, resolved at extraction.
+#[derive(Component, Clone, Debug)]
+pub struct ExtractedBokeh {
+    lens: Lens,
+    rule: SpriteRule,
+    aperture: BokehApertureShape,
+}
+
+impl SyncComponent for BokehDepthOfField {
+    /// Everything the render world keeps for a bokeh camera goes with the component.
+    type Target = (
+        ExtractedBokeh,
+        ViewBokehBuffers,
+        ViewBokehTextures,
+        ViewBokehBindGroups,
+        ViewBokehPipelines,
+    );
+}
+
+/// The passes' layouts, shaders and pipelines. Pipelines vary by the view's MSAA (the
+/// depth binding) and, for the composite, the view's colour format.
+#[derive(Resource)]
+struct BokehPipelines {
+    /// Indexed by `multisampled as usize`.
+    sprites_layout: [BindGroupLayoutDescriptor; 2],
+    scatter_layout: BindGroupLayoutDescriptor,
+    composite_layout: [BindGroupLayoutDescriptor; 2],
+    sprites_shader: Handle<Shader>,
+    composite_shader: Handle<Shader>,
+    sprites: [Option<CachedComputePipelineId>; 2],
+    scatter: CachedRenderPipelineId,
+    composite: HashMap<(TextureFormat, bool), CachedRenderPipelineId>,
+    /// Linear, clamp-to-edge: the aperture.
+    sampler: Sampler,
+    /// [`LAYER_FORMAT`], or [`LAYER_FORMAT_FALLBACK`] without `FLOAT32_BLENDABLE`.
+    layer_format: TextureFormat,
+}
+
+/// A view's pipelines (ids into the pipeline cache).
+#[derive(Component, Clone, Copy)]
+pub struct ViewBokehPipelines {
+    sprites: CachedComputePipelineId,
+    composite: CachedRenderPipelineId,
+}
+
+/// An aperture's texture and its mean (the `aperture_info` uniform).
+struct ApertureTexture {
+    view: TextureView,
+    info: Buffer,
+}
+
+/// Aperture textures by [`BokehApertureShape::id`], kept while a view uses them.
+#[derive(Resource, Default)]
+struct BokehApertureTextures(HashMap<u64, ApertureTexture>);
+
+/// A view's pooled buffers: the uniform, the indirect draw's arguments, the sprites.
+#[derive(Component)]
+pub struct ViewBokehBuffers {
+    uniform: Buffer,
+    args: Buffer,
+    sprites: Buffer,
+    /// Sprites `sprites` holds: grown, never shrunk.
+    capacity: u32,
+    half_size: UVec2,
+}
+
+/// A view's half-resolution layers (from Bevy's `TextureCache`, fetched each frame).
+#[derive(Component)]
+pub struct ViewBokehTextures {
+    near: CachedTexture,
+    far: CachedTexture,
+}
+
+/// What a view's bind groups bind: the two main textures, the depth, the layers, the
+/// sprite buffer, the aperture.
+type BindKey = ([TextureViewId; 5], BufferId, u64);
+
+/// A view's bind groups, remade only when a bound resource changes. The sprite and
+/// composite passes read the view's colour, which ping-pongs between Bevy's two main
+/// textures as post-processing passes run: one group per texture, picked at dispatch.
+#[derive(Component)]
+pub struct ViewBokehBindGroups {
+    key: BindKey,
+    sprites: [(TextureViewId, BindGroup); 2],
+    scatter: BindGroup,
+    composite: [(TextureViewId, BindGroup); 2],
+}
+
+pub(super) fn build(render_app: &mut SubApp) {
+    render_app.init_resource::<BokehApertureTextures>();
+}
+
+/// Adds the passes when the device can run them: compute, storage buffers read by a
+/// vertex shader, indirect draws (not WebGL 2). Otherwise one warning, and the
+/// component does nothing.
+pub(super) fn finish(render_app: &mut SubApp) {
+    if let Some(reason) = unsupported(render_app.world()) {
+        warn!("Penumbra: BokehDepthOfField is unavailable: {reason}");
+        return;
+    }
+    render_app
+        .add_systems(RenderStartup, init_bokeh_pipelines)
+        .add_systems(ExtractSchedule, extract_bokeh_depth_of_field)
+        .add_systems(
+            Render,
+            (
+                prepare_bokeh_pipelines.in_set(RenderSystems::Prepare),
+                prepare_bokeh_textures.in_set(RenderSystems::PrepareResources),
+                prepare_bokeh_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+            ),
+        )
+        .add_systems(
+            Core3d,
+            bokeh_depth_of_field
+                .in_set(Core3dSystems::PostProcess)
+                .before(bevy::core_pipeline::tonemapping::tonemapping),
+        );
+}
+
+/// Why the passes cannot run on this device, if they cannot.
+fn unsupported(world: &World) -> Option<String> {
+    let (Some(adapter), Some(device)) = (
+        world.get_resource::<RenderAdapter>(),
+        world.get_resource::<RenderDevice>(),
+    ) else {
+        return Some("there is no renderer".into());
+    };
+    let needed = DownlevelFlags::COMPUTE_SHADERS
+        | DownlevelFlags::VERTEX_STORAGE
+        | DownlevelFlags::INDIRECT_EXECUTION;
+    let flags = adapter.get_downlevel_capabilities().flags;
+    if !flags.contains(needed) {
+        return Some(format!(
+            "the device lacks {:?}",
+            needed.difference(flags & needed)
+        ));
+    }
+    if device.limits().max_storage_buffers_per_shader_stage < 2 {
+        return Some("the device allows fewer than 2 storage buffers per stage".into());
+    }
+    None
+}
+
+fn init_bokeh_pipelines(
+    mut commands: Commands,
+    device: Res<RenderDevice>,
+    pipeline_cache: Res<PipelineCache>,
+    library: Option<Res<PenumbraShaderLibrary>>,
+) {
+    let Some(library) = library else {
+        warn!("Penumbra: the shader library is not registered; no bokeh depth of field");
+        return;
+    };
+    let view_bytes = Some(BokehView::min_size());
+    let depth = |multisampled: bool| {
+        if multisampled {
+            texture_depth_2d_multisampled()
+        } else {
+            texture_depth_2d()
+        }
+    };
+    let color = || texture_2d(TextureSampleType::Float { filterable: false });
+    let sprites_layout = [false, true].map(|ms| {
+        BindGroupLayoutDescriptor::new(
+            "penumbra_bokeh_sprites_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    uniform_buffer_sized(false, view_bytes),
+                    color(),
+                    depth(ms),
+                    storage_buffer_sized(false, None),
+                    storage_buffer_sized(false, None),
+                ),
+            ),
+        )
+    });
+    let scatter_layout = BindGroupLayoutDescriptor::new(
+        "penumbra_bokeh_scatter_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::VERTEX_FRAGMENT,
+            (
+                uniform_buffer_sized(false, view_bytes),
+                storage_buffer_read_only_sized(false, None),
+                texture_2d(TextureSampleType::Float { filterable: true }),
+                sampler(SamplerBindingType::Filtering),
+                uniform_buffer_sized(false, None),
+            ),
+        ),
+    );
+    let composite_layout = [false, true].map(|ms| {
+        BindGroupLayoutDescriptor::new(
+            "penumbra_bokeh_composite_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::FRAGMENT,
+                (
+                    uniform_buffer_sized(false, view_bytes),
+                    color(),
+                    depth(ms),
+                    color(),
+                    color(),
+                ),
+            ),
+        )
+    });
+    let layer_format = if device.features().contains(WgpuFeatures::FLOAT32_BLENDABLE) {
+        LAYER_FORMAT
+    } else {
+        warn!(
+            "Penumbra: the device cannot blend Rgba32Float; bokeh layers are Rgba16Float \
+             (energy off by a few per cent at large circles of confusion)"
+        );
+        LAYER_FORMAT_FALLBACK
+    };
+    let scatter_shader = library.handle("dof/scatter.wgsl");
+    let additive = BlendComponent {
+        src_factor: BlendFactor::One,
+        dst_factor: BlendFactor::One,
+        operation: BlendOperation::Add,
+    };
+    let layer = Some(ColorTargetState {
+        format: layer_format,
+        blend: Some(BlendState {
+            color: additive,
+            alpha: additive,
+        }),
+        write_mask: ColorWrites::ALL,
+    });
+    let scatter = pipeline_cache.queue_render_pipeline(RenderPipelineDescriptor {
+        label: Some("penumbra_bokeh_scatter".into()),
+        layout: vec![scatter_layout.clone()],
+        vertex: VertexState {
+            shader: scatter_shader.clone(),
+            entry_point: Some("vertex".into()),
+            ..default()
+        },
+        fragment: Some(FragmentState {
+            shader: scatter_shader,
+            entry_point: Some("fragment".into()),
+            targets: vec![layer.clone(), layer],
+            ..default()
+        }),
+        ..default()
+    });
+    commands.insert_resource(BokehPipelines {
+        layer_format,
+        sprites_layout,
+        scatter_layout,
+        composite_layout,
+        sprites_shader: library.handle("dof/sprites.wgsl"),
+        composite_shader: library.handle("dof/composite.wgsl"),
+        sprites: [None, None],
+        scatter,
+        composite: HashMap::default(),
+        sampler: device.create_sampler(&SamplerDescriptor {
+            label: Some("penumbra_bokeh_sampler"),
+            mag_filter: FilterMode::Linear,
+            min_filter: FilterMode::Linear,
+            ..default()
+        }),
+    });
+}
+
+/// What extraction reads of a bokeh camera.
+type BokehCamera = (
+    RenderEntity,
+    &'static BokehDepthOfField,
+    &'static Projection,
+    Option<&'static BokehApertureShape>,
+);
+
+/// Copies each perspective bokeh camera's resolved settings and aperture to the render
+/// world; anything else loses them (and its resources).
+fn extract_bokeh_depth_of_field(mut commands: Commands, cameras: Extract<Query<BokehCamera>>) {
+    for (entity, settings, projection, aperture) in &cameras {
+        let Ok(mut render) = commands.get_entity(entity) else {
+            continue;
+        };
+        // Orthographic cameras are warned about in the main world.
+        let (Projection::Perspective(perspective), Some(aperture)) = (projection, aperture) else {
+            render.remove::<<BokehDepthOfField as SyncComponent>::Target>();
+            continue;
+        };
+        let (lens, rule, _) = settings.resolve(perspective.fov);
+        render.insert(ExtractedBokeh {
+            lens,
+            rule,
+            aperture: aperture.clone(),
+        });
+    }
+}
+
+/// Queues each view's pipelines (once per variant).
+fn prepare_bokeh_pipelines(
+    mut commands: Commands,
+    views: Query<(Entity, &ViewTarget, &Msaa), With<ExtractedBokeh>>,
+    pipelines: Option<ResMut<BokehPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    fullscreen: Res<FullscreenShader>,
+) {
+    let Some(mut pipelines) = pipelines else {
+        return;
+    };
+    for (entity, target, msaa) in &views {
+        let ms = *msaa != Msaa::Off;
+        let defs = if ms {
+            vec!["MULTISAMPLED".into()]
+        } else {
+            vec![]
+        };
+        let sprites = match pipelines.sprites[ms as usize] {
+            Some(id) => id,
+            None => {
+                let id = pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
+                    label: Some("penumbra_bokeh_sprites".into()),
+                    layout: vec![pipelines.sprites_layout[ms as usize].clone()],
+                    shader: pipelines.sprites_shader.clone(),
+                    shader_defs: defs.clone(),
+                    entry_point: Some("sprites_main".into()),
+                    ..default()
+                });
+                pipelines.sprites[ms as usize] = Some(id);
+                id
+            }
+        };
+        let format = target.main_texture_format();
+        let composite = match pipelines.composite.get(&(format, ms)) {
+            Some(id) => *id,
+            None => {
+                let id = pipeline_cache.queue_render_pipeline(RenderPipelineDescriptor {
+                    label: Some("penumbra_bokeh_composite".into()),
+                    layout: vec![pipelines.composite_layout[ms as usize].clone()],
+                    vertex: fullscreen.to_vertex_state(),
+                    fragment: Some(FragmentState {
+                        shader: pipelines.composite_shader.clone(),
+                        shader_defs: defs,
+                        entry_point: Some("fragment".into()),
+                        targets: vec![Some(ColorTargetState {
+                            format,
+                            blend: None,
+                            write_mask: ColorWrites::ALL,
+                        })],
+                    }),
+                    ..default()
+                });
+                pipelines.composite.insert((format, ms), id);
+                id
+            }
+        };
+        commands
+            .entity(entity)
+            .insert(ViewBokehPipelines { sprites, composite });
+    }
+}
+
+/// Per view: the half-resolution layers, the pooled buffers (grown when the view
+/// outgrows them), this frame's uniform and reset draw arguments; the aperture
+/// textures in use.
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+fn prepare_bokeh_textures(
+    mut commands: Commands,
+    mut views: Query<(
+        Entity,
+        &ExtractedView,
+        &ViewTarget,
+        &ExtractedBokeh,
+        Option<&mut ViewBokehBuffers>,
+    )>,
+    mut texture_cache: ResMut<TextureCache>,
+    mut apertures: ResMut<BokehApertureTextures>,
+    pipelines: Option<Res<BokehPipelines>>,
+    allocations: Res<PenumbraGpuAllocations>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+) {
+    let Some(pipelines) = pipelines else {
+        return;
+    };
+    let mut used = HashSet::new();
+    for (entity, view, target, bokeh, buffers) in &mut views {
+        let size = target.main_texture().size();
+        let full = UVec2::new(size.width, size.height);
+        let half = (full + UVec2::ONE) / 2;
+        let capacity = half.x * half.y;
+        let mut entity_commands = commands.entity(entity);
+        let mut layer = |label| {
+            texture_cache.get(
+                &device,
+                TextureDescriptor {
+                    label: Some(label),
+                    size: Extent3d {
+                        width: half.x,
+                        height: half.y,
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: TextureDimension::D2,
+                    format: pipelines.layer_format,
+                    usage: TextureUsages::RENDER_ATTACHMENT | TextureUsages::TEXTURE_BINDING,
+                    view_formats: &[],
+                },
+            )
+        };
+        let textures = ViewBokehTextures {
+            near: layer("penumbra_bokeh_near"),
+            far: layer("penumbra_bokeh_far"),
+        };
+        entity_commands.insert(textures);
+        let mut fresh = None;
+        let buffers = match buffers {
+            Some(b) => b.into_inner(),
+            None => fresh.insert(ViewBokehBuffers {
+                uniform: allocations.sized_buffer(
+                    &device,
+                    "penumbra_bokeh_view",
+                    BokehView::min_size().get(),
+                    BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                ),
+                args: allocations.sized_buffer(
+                    &device,
+                    "penumbra_bokeh_draw_args",
+                    16,
+                    BufferUsages::STORAGE | BufferUsages::INDIRECT | BufferUsages::COPY_DST,
+                ),
+                sprites: allocations.sized_buffer(
+                    &device,
+                    "penumbra_bokeh_sprites",
+                    u64::from(capacity.max(1)) * SPRITE_BYTES,
+                    BufferUsages::STORAGE,
+                ),
+                capacity,
+                half_size: half,
+            }),
+        };
+        if buffers.capacity < capacity {
+            buffers.sprites = allocations.sized_buffer(
+                &device,
+                "penumbra_bokeh_sprites",
+                u64::from(capacity) * SPRITE_BYTES,
+                BufferUsages::STORAGE,
+            );
+            buffers.capacity = capacity;
+        }
+        buffers.half_size = half;
+        let uniform = BokehView::new(
+            &bokeh.lens,
+            &bokeh.rule,
+            view.clip_from_view.inverse(),
+            full,
+            buffers.capacity,
+        );
+        let mut bytes = EncaseBuffer::new(Vec::new());
+        bytes.write(&uniform).expect("the bokeh uniform encodes");
+        queue.write_buffer(&buffers.uniform, 0, bytes.as_ref());
+        // Six vertices per instance; the sprite pass counts the instances.
+        let args: Vec<u8> = [6u32, 0, 0, 0]
+            .iter()
+            .flat_map(|w| w.to_le_bytes())
+            .collect();
+        queue.write_buffer(&buffers.args, 0, &args);
+        if let Some(fresh) = fresh {
+            entity_commands.insert(fresh);
+        }
+        let shape = &bokeh.aperture;
+        used.insert(shape.id);
+        apertures
+            .0
+            .entry(shape.id)
+            .or_insert_with(|| aperture_texture(&shape.aperture, &allocations, &device, &queue));
+    }
+    apertures.0.retain(|id, _| used.contains(id));
+}
+
+/// An aperture as an `R16Float` texture and its mean as a uniform.
+fn aperture_texture(
+    aperture: &Arc<Aperture>,
+    allocations: &PenumbraGpuAllocations,
+    device: &RenderDevice,
+    queue: &RenderQueue,
+) -> ApertureTexture {
+    let n = aperture.size();
+    let texture = allocations.texture(
+        device,
+        &TextureDescriptor {
+            label: Some("penumbra_bokeh_aperture"),
+            size: Extent3d {
+                width: n,
+                height: n,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: TextureDimension::D2,
+            format: TextureFormat::R16Float,
+            usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
+            view_formats: &[],
+        },
+    );
+    let texels: Vec<u8> = aperture
+        .weights()
+        .iter()
+        .flat_map(|&w| half::f16::from_f32(w).to_le_bytes())
+        .collect();
+    queue.write_texture(
+        texture.as_image_copy(),
+        &texels,
+        bevy::render::render_resource::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(2 * n),
+            rows_per_image: None,
+        },
+        texture.size(),
+    );
+    let info = allocations.sized_buffer(
+        device,
+        "penumbra_bokeh_aperture_info",
+        16,
+        BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+    );
+    let mean: Vec<u8> = [aperture.mean(), 0.0, 0.0, 0.0]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    queue.write_buffer(&info, 0, &mean);
+    ApertureTexture {
+        view: texture.create_view(&TextureViewDescriptor::default()),
+        info,
+    }
+}
+
+/// What a view's bind groups are made of.
+type BindGroupInputs = (
+    Entity,
+    &'static ViewTarget,
+    &'static ViewDepthTexture,
+    &'static ExtractedBokeh,
+    &'static ViewBokehBuffers,
+    &'static ViewBokehTextures,
+    Option<&'static ViewBokehBindGroups>,
+);
+
+/// A view's bind groups, remade when a bound resource changes.
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+fn prepare_bokeh_bind_groups(
+    mut commands: Commands,
+    views: Query<BindGroupInputs>,
+    pipelines: Option<Res<BokehPipelines>>,
+    apertures: Res<BokehApertureTextures>,
+    pipeline_cache: Res<PipelineCache>,
+    allocations: Res<PenumbraGpuAllocations>,
+    device: Res<RenderDevice>,
+) {
+    let Some(pipelines) = pipelines else {
+        return;
+    };
+    for (entity, target, depth, bokeh, buffers, textures, groups) in &views {
+        let Some(aperture) = apertures.0.get(&bokeh.aperture.id) else {
+            continue;
+        };
+        // Which of the two is current alternates between frames: the key takes them in
+        // a fixed order.
+        let mut mains = [target.main_texture_view(), target.main_texture_other_view()];
+        mains.sort_by_key(|v| v.id());
+        let depth_view = depth.view();
+        let key = (
+            [
+                mains[0].id(),
+                mains[1].id(),
+                depth_view.id(),
+                textures.near.default_view.id(),
+                textures.far.default_view.id(),
+            ],
+            buffers.sprites.id(),
+            bokeh.aperture.id,
+        );
+        if groups.is_some_and(|g| g.key == key) {
+            continue;
+        }
+        let ms = (depth.texture.sample_count() > 1) as usize;
+        let sprites_layout = pipeline_cache.get_bind_group_layout(&pipelines.sprites_layout[ms]);
+        let composite_layout =
+            pipeline_cache.get_bind_group_layout(&pipelines.composite_layout[ms]);
+        let per_main = |main: &TextureView| {
+            let sprites = allocations.bind_group(
+                &device,
+                "penumbra_bokeh_sprites",
+                &sprites_layout,
+                &BindGroupEntries::sequential((
+                    buffers.uniform.as_entire_binding(),
+                    main,
+                    depth_view,
+                    buffers.args.as_entire_binding(),
+                    buffers.sprites.as_entire_binding(),
+                )),
+            );
+            let composite = allocations.bind_group(
+                &device,
+                "penumbra_bokeh_composite",
+                &composite_layout,
+                &BindGroupEntries::sequential((
+                    buffers.uniform.as_entire_binding(),
+                    main,
+                    depth_view,
+                    &textures.near.default_view,
+                    &textures.far.default_view,
+                )),
+            );
+            ((main.id(), sprites), (main.id(), composite))
+        };
+        let (a, b) = (per_main(mains[0]), per_main(mains[1]));
+        let scatter = allocations.bind_group(
+            &device,
+            "penumbra_bokeh_scatter",
+            &pipeline_cache.get_bind_group_layout(&pipelines.scatter_layout),
+            &BindGroupEntries::sequential((
+                buffers.uniform.as_entire_binding(),
+                buffers.sprites.as_entire_binding(),
+                &aperture.view,
+                &pipelines.sampler,
+                aperture.info.as_entire_binding(),
+            )),
+        );
+        commands.entity(entity).insert(ViewBokehBindGroups {
+            key,
+            sprites: [a.0, b.0],
+            scatter,
+            composite: [a.1, b.1],
+        });
+    }
+}
+
+/// The three passes: sprites (compute), scatter (indirect instanced quads into the
+/// layers), composite (the view's colour to its other main texture).
+fn bokeh_depth_of_field(
+    view: ViewQuery<(
+        &ViewTarget,
+        &ViewBokehBuffers,
+        &ViewBokehTextures,
+        &ViewBokehBindGroups,
+        &ViewBokehPipelines,
+    )>,
+    pipelines: Option<Res<BokehPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    let (target, buffers, textures, groups, ids) = view.into_inner();
+    let Some(pipelines) = pipelines else {
+        return;
+    };
+    // Until every pipeline has compiled the view is left as it is.
+    let (Some(sprites), Some(scatter), Some(composite)) = (
+        pipeline_cache.get_compute_pipeline(ids.sprites),
+        pipeline_cache.get_render_pipeline(pipelines.scatter),
+        pipeline_cache.get_render_pipeline(ids.composite),
+    ) else {
+        return;
+    };
+    let source = target.main_texture_view().id();
+    let pick = |pair: &'_ [(TextureViewId, BindGroup); 2]| {
+        pair.iter()
+            .find(|(id, _)| *id == source)
+            .map(|(_, g)| g.clone())
+    };
+    let (Some(sprites_group), Some(composite_group)) =
+        (pick(&groups.sprites), pick(&groups.composite))
+    else {
+        return; // the view's textures changed since the bind groups were made
+    };
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_bokeh_dof");
+    {
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor {
+                label: Some("penumbra_bokeh_sprites"),
+                timestamp_writes: None,
+            });
+        pass.set_pipeline(sprites);
+        pass.set_bind_group(0, &sprites_group, &[]);
+        let blocks = (buffers.half_size + UVec2::ONE) / 2;
+        pass.dispatch_workgroups(blocks.x.div_ceil(8), blocks.y.div_ceil(8), 1);
+    }
+    {
+        let layer = |view| {
+            Some(RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: Operations {
+                    load: LoadOp::Clear(default()),
+                    store: StoreOp::Store,
+                },
+            })
+        };
+        let mut pass = ctx
+            .command_encoder()
+            .begin_render_pass(&RenderPassDescriptor {
+                label: Some("penumbra_bokeh_scatter"),
+                color_attachments: &[
+                    layer(&textures.near.default_view),
+                    layer(&textures.far.default_view),
+                ],
+                ..default()
+            });
+        pass.set_pipeline(scatter);
+        pass.set_bind_group(0, &groups.scatter, &[]);
+        pass.draw_indirect(&buffers.args, 0);
+    }
+    let post = target.post_process_write();
+    {
+        let mut pass = ctx
+            .command_encoder()
+            .begin_render_pass(&RenderPassDescriptor {
+                label: Some("penumbra_bokeh_composite"),
+                color_attachments: &[Some(RenderPassColorAttachment {
+                    view: post.destination,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: Operations {
+                        load: LoadOp::Clear(default()),
+                        store: StoreOp::Store,
+                    },
+                })],
+                ..default()
+            });
+        pass.set_pipeline(composite);
+        pass.set_bind_group(0, &composite_group, &[]);
+        pass.draw(0..3, 0..1);
+    }
+    time_span.end(ctx.command_encoder());
+}
+
+/// Registers the component's render-world cleanup.
+pub(super) fn sync_plugin() -> SyncComponentPlugin<BokehDepthOfField> {
+    SyncComponentPlugin::default()
+}

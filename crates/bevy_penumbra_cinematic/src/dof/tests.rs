@@ -1,0 +1,137 @@
+use super::*;
+use bevy::asset::RenderAssetUsages;
+use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+
+const FOV: f32 = std::f32::consts::FRAC_PI_4;
+
+#[test]
+fn defaults_are_in_range_and_match_bevy() {
+    let settings = BokehDepthOfField::default();
+    let (lens, rule, problems) = settings.resolve(FOV);
+    assert!(problems.is_empty(), "{problems:?}");
+    assert_eq!(lens.focal_distance, 10.0);
+    assert_eq!(lens.max_coc, 64.0);
+    assert_eq!(lens.max_depth, f32::INFINITY);
+    assert_eq!(rule, SpriteRule::default());
+    // Bevy's `DepthOfField` focal length: ½ sensor / tan(½ fov).
+    let f = 0.5 * settings.sensor_height / (0.5 * FOV).tan();
+    assert!((lens.focal_length() - f).abs() < 1e-7);
+}
+
+#[test]
+fn bad_settings_are_clamped_and_named() {
+    let bad = BokehDepthOfField {
+        focal_distance: f32::NAN,
+        aperture_f_stops: -2.0,
+        sensor_height: 0.0,
+        max_circle_of_confusion_diameter: 1000.0,
+        max_depth: f32::NAN,
+        min_circle_of_confusion: -1.0,
+        merge_coc_tolerance: f32::INFINITY,
+        aperture: BokehAperture::Polygon {
+            sides: 2,
+            rotation: f32::NAN,
+        },
+        ..default()
+    };
+    let (lens, rule, problems) = bad.resolve(FOV);
+    assert_eq!(problems.len(), 9, "{problems:#?}");
+    for name in [
+        "focal_distance",
+        "aperture_f_stops",
+        "sensor_height",
+        "max_circle_of_confusion_diameter",
+        "max_depth",
+        "min_circle_of_confusion",
+        "merge_coc_tolerance",
+        "sides",
+        "rotation",
+    ] {
+        assert!(
+            problems.iter().any(|p| p.contains(name)),
+            "{name}: {problems:?}"
+        );
+    }
+    assert_eq!(lens.focal_distance, 10.0);
+    assert_eq!(lens.f_stops, 1.0);
+    assert_eq!(lens.sensor_height, 0.01866);
+    assert_eq!(lens.max_coc, 256.0);
+    assert_eq!(lens.max_depth, f32::INFINITY);
+    assert_eq!(rule.min_coc, 0.0);
+    assert_eq!(rule.coc_tolerance, 2.0);
+    assert!(lens.coc(1.0, 1080).is_finite());
+    // A focal plane inside the focal length has no image: twice the focal length.
+    let close = BokehDepthOfField {
+        focal_distance: 0.001,
+        ..default()
+    };
+    let (lens, _, problems) = close.resolve(FOV);
+    assert_eq!(problems.len(), 1, "{problems:?}");
+    assert_eq!(lens.focal_distance, 10.0);
+    let negative = BokehDepthOfField {
+        focal_distance: -3.0,
+        ..default()
+    };
+    assert_eq!(negative.resolve(FOV).0.focal_distance, 10.0);
+}
+
+fn image(width: u32, height: u32, texel: impl Fn(u32, u32) -> [u8; 4]) -> Image {
+    let mut data = Vec::new();
+    for y in 0..height {
+        for x in 0..width {
+            data.extend(texel(x, y));
+        }
+    }
+    Image::new(
+        Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        TextureDimension::D2,
+        data,
+        TextureFormat::Rgba8UnormSrgb,
+        RenderAssetUsages::default(),
+    )
+}
+
+#[test]
+fn aperture_images_are_read_and_bad_ones_rejected() {
+    // A white disc on black and an opaque disc on transparency: the same shape.
+    let n = 32;
+    let inside = |x: u32, y: u32| {
+        let d = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) / n as f32 * 2.0 - 1.0;
+        d.length() <= 1.0
+    };
+    let white = image(n, n, |x, y| {
+        let v = if inside(x, y) { 255 } else { 0 };
+        [v, v, v, 255]
+    });
+    let alpha = image(n, n, |x, y| {
+        [255, 255, 255, if inside(x, y) { 255 } else { 0 }]
+    });
+    let a = aperture_from_image(&white).expect("a disc");
+    let b = aperture_from_image(&alpha).expect("a disc");
+    assert_eq!(a.weights(), b.weights());
+    assert!(
+        (a.mean() - std::f32::consts::FRAC_PI_4).abs() < 0.02,
+        "{}",
+        a.mean()
+    );
+    // Half grey: linear luminance, not the sRGB value.
+    let grey = aperture_from_image(&image(4, 4, |_, _| [128, 128, 128, 255])).unwrap();
+    assert!((grey.mean() - 0.2158).abs() < 1e-3, "{}", grey.mean());
+
+    let empty = aperture_from_image(&image(0, 0, |_, _| [255; 4])).unwrap_err();
+    assert!(empty.contains("empty"), "{empty}");
+    let not_square = aperture_from_image(&image(8, 4, |_, _| [255; 4])).unwrap_err();
+    assert!(not_square.contains("not square"), "{not_square}");
+    let blank = aperture_from_image(&image(8, 8, |_, _| [0, 0, 0, 255])).unwrap_err();
+    assert!(blank.contains("blank"), "{blank}");
+    let huge = aperture_from_image(&image(1025, 1025, |_, _| [255; 4])).unwrap_err();
+    assert!(huge.contains("larger"), "{huge}");
+    let mut gpu_only = image(8, 8, |_, _| [255; 4]);
+    gpu_only.data = None;
+    let gpu_only = aperture_from_image(&gpu_only).unwrap_err();
+    assert!(gpu_only.contains("CPU copy"), "{gpu_only}");
+}

@@ -1,0 +1,12 @@
+//! Penumbra's cinematic effects for Bevy, after Epic's Samaritan demo (Mittring and
+//! Dudash, GDC 2011). Each effect is opt-in per camera: a camera without its component
+//! renders exactly as before, and no pass, texture or buffer exists for it.
+//!
+//! - [`dof`]: scatter bokeh depth of field ([`BokehDepthOfField`]).
+//!
+//! The algorithms and their shared GPU layouts live in the Bevy-free
+//! `penumbra_cinematic_core`; their CPU reference models in `penumbra_reference`.
+
+pub mod dof;
+
+pub use dof::{BokehAperture, BokehDepthOfField, BokehDepthOfFieldPlugin};
