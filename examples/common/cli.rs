@@ -19,7 +19,10 @@
 //! `GlobalDistanceField` on the camera, the cones' far part traced through it, and a
 //! fountain of particles colliding with it), `--msaa off|4|every|edges`
 //! (`deferred_msaa`: MSAA off, deferred 4× classified — the default —, every sample
-//! shaded, or the per-sample mask's debug view).
+//! shaded, or the per-sample mask's debug view), `--dof penumbra|circle|bevy-bokeh|
+//! bevy-gaussian|off` (`bokeh_dof`: Penumbra's scatter bokeh, hexagonal or circular, Bevy's
+//! `DepthOfField` in either mode, or none), `--assets DIR` (the asset folder; default
+//! Bevy's `assets`, or the example's own).
 //!
 //! Windowed runs take keyboard toggles (`controls.rs`: `Space` distance-field shadows,
 //! `H` half resolution, `D` debug view), shown in the window title.
@@ -73,6 +76,25 @@ pub struct Options {
     pub no_dfao: Option<NoDfao>,
     /// `--msaa`: the deferred MSAA mode of examples that show it (`deferred_msaa`).
     pub msaa: Option<MsaaMode>,
+    /// `--dof`: the depth of field of examples that compare them (`bokeh_dof`).
+    pub dof: Option<DofMode>,
+    /// `--assets`: the asset folder (`AssetPlugin::file_path`).
+    pub assets: Option<PathBuf>,
+}
+
+/// What `--dof` asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DofMode {
+    /// Penumbra's `BokehDepthOfField`, hexagonal aperture.
+    Penumbra,
+    /// Penumbra's `BokehDepthOfField`, circular aperture.
+    PenumbraCircle,
+    /// Bevy's `DepthOfField`, bokeh mode.
+    BevyBokeh,
+    /// Bevy's `DepthOfField`, Gaussian mode.
+    BevyGaussian,
+    /// No depth of field.
+    Off,
 }
 
 /// What `--msaa` asks for.
@@ -98,7 +120,8 @@ pub enum NoDfao {
 }
 
 const USAGE: &str = "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N] [--glass] \
-     [--plain] [--ao-view ao|bent|tiles] [--casters N] [--global-field] [--no-dfao component|plugin] [--msaa off|4|every|edges]";
+     [--plain] [--ao-view ao|bent|tiles] [--casters N] [--global-field] [--no-dfao component|plugin] [--msaa off|4|every|edges] \
+     [--dof penumbra|circle|bevy-bokeh|bevy-gaussian|off] [--assets DIR]";
 
 impl Options {
     /// Parses `std::env::args()`-style arguments (without the program name).
@@ -116,6 +139,8 @@ impl Options {
             global_field: false,
             no_dfao: None,
             msaa: None,
+            dof: None,
+            assets: None,
         };
         let mut args = args.into_iter();
         while let Some(arg) = args.next() {
@@ -148,6 +173,21 @@ impl Options {
                         v => return Err(format!("--msaa: off, 4, every or edges, got {v:?}")),
                     });
                 }
+                "--dof" => {
+                    o.dof = Some(match value("--dof")?.as_str() {
+                        "penumbra" => DofMode::Penumbra,
+                        "circle" => DofMode::PenumbraCircle,
+                        "bevy-bokeh" => DofMode::BevyBokeh,
+                        "bevy-gaussian" => DofMode::BevyGaussian,
+                        "off" => DofMode::Off,
+                        v => {
+                            return Err(format!(
+                                "--dof: penumbra, circle, bevy-bokeh, bevy-gaussian or off, got {v:?}"
+                            ));
+                        }
+                    });
+                }
+                "--assets" => o.assets = Some(PathBuf::from(value("--assets")?)),
                 "--ao-view" => {
                     use penumbra::prelude::DistanceFieldAoDebugView as View;
                     o.ao_view = Some(match value("--ao-view")?.as_str() {
@@ -209,13 +249,36 @@ pub fn main(
     scene: fn(&mut App),
     ready: Option<fn(&mut World) -> bool>,
 ) -> std::process::ExitCode {
-    let options = match Options::parse(std::env::args().skip(1)) {
+    main_in(name, scene, ready, None)
+}
+
+/// [`main`] for an example whose assets are in `assets` unless `--assets` says otherwise.
+#[allow(dead_code, reason = "only some examples have their own asset folder")]
+pub fn main_with_assets(
+    name: &str,
+    scene: fn(&mut App),
+    ready: Option<fn(&mut World) -> bool>,
+    assets: PathBuf,
+) -> std::process::ExitCode {
+    main_in(name, scene, ready, Some(assets))
+}
+
+fn main_in(
+    name: &str,
+    scene: fn(&mut App),
+    ready: Option<fn(&mut World) -> bool>,
+    assets: Option<PathBuf>,
+) -> std::process::ExitCode {
+    let mut options = match Options::parse(std::env::args().skip(1)) {
         Ok(o) => o,
         Err(e) => {
             eprintln!("{e}");
             return std::process::ExitCode::from(2);
         }
     };
+    if options.assets.is_none() {
+        options.assets = assets;
+    }
     let headless = options.headless || !display_available();
     if headless && !options.headless {
         println!("{name}: no display (DISPLAY/WAYLAND_DISPLAY unset); rendering headless");
@@ -260,6 +323,7 @@ pub fn run_headless(
         .unwrap_or_else(|| PathBuf::from(format!("{name}.png")));
     let mut render = HeadlessRender::new(size.x, size.y).frames(frames);
     render.warm_up = ready;
+    render.asset_root = options.assets.clone();
     let mut app = render.app();
     app.insert_resource(options.clone())
         .add_systems(PostStartup, apply_options)
@@ -438,14 +502,22 @@ fn apply_options(
 fn run_windowed(name: &str, options: &Options, scene: fn(&mut App)) {
     let size = options.size.unwrap_or(UVec2::new(1280, 720));
     let mut app = App::new();
-    app.add_plugins(DefaultPlugins.set(WindowPlugin {
-        primary_window: Some(Window {
-            title: format!("Penumbra {name}"),
-            resolution: WindowResolution::new(size.x, size.y),
-            ..default()
-        }),
-        ..default()
-    }));
+    let mut assets = AssetPlugin::default();
+    if let Some(dir) = &options.assets {
+        assets.file_path = dir.to_string_lossy().into_owned();
+    }
+    app.add_plugins(
+        DefaultPlugins
+            .set(WindowPlugin {
+                primary_window: Some(Window {
+                    title: format!("Penumbra {name}"),
+                    resolution: WindowResolution::new(size.x, size.y),
+                    ..default()
+                }),
+                ..default()
+            })
+            .set(assets),
+    );
     app.insert_resource(options.clone())
         .add_systems(PostStartup, apply_options);
     scene(&mut app);
