@@ -355,11 +355,12 @@ fn scatter_on_gpu(
         .collect();
     let args = gpu.buffer("args", &args_bytes, wgpu::BufferUsages::INDIRECT);
     let uniform = gpu.buffer("view", &uniform_bytes(view), wgpu::BufferUsages::UNIFORM);
-    let info: Vec<u8> = [aperture.mean(), 0.0, 0.0, 0.0]
+    let norm: Vec<u8> = aperture
+        .norm_words()
         .into_iter()
         .flat_map(f32::to_le_bytes)
         .collect();
-    let info = gpu.buffer("aperture_info", &info, wgpu::BufferUsages::UNIFORM);
+    let info = gpu.buffer("aperture_norm", &norm, wgpu::BufferUsages::empty());
     let n = aperture.size();
     let texels: Vec<u8> = aperture
         .weights()

@@ -365,7 +365,9 @@ fn particle_layouts_match() {
 #[test]
 fn bokeh_layouts_and_constants_match() {
     use encase::ShaderType;
-    use penumbra_cinematic_core::dof::{BokehView, HALF_RES_BLUR};
+    use penumbra_cinematic_core::dof::{
+        BokehView, HALF_RES_BLUR, NORM_INTERVALS, NORM_TABLE_MAX, NORM_TABLE_STEPS,
+    };
     let m = parse("#import penumbra::dof::types\n");
     let (members, size) = struct_layout(&m, "BokehView");
     assert_eq!(u64::from(size), BokehView::min_size().get());
@@ -393,4 +395,14 @@ fn bokeh_layouts_and_constants_match() {
     let (_, args) = struct_layout(&m, "DrawArgs");
     assert_eq!(args, 16);
     assert_eq!(constant(&m, "HALF_RES_BLUR") as f32, HALF_RES_BLUR);
+    let scatter = parse("#import penumbra::dof::scatter\n");
+    assert_eq!(constant(&scatter, "NORM_TABLE_MAX") as f32, NORM_TABLE_MAX);
+    assert_eq!(
+        constant(&scatter, "NORM_TABLE_STEPS") as f32,
+        NORM_TABLE_STEPS as f32
+    );
+    assert_eq!(
+        constant(&scatter, "NORM_INTERVALS") as usize,
+        NORM_INTERVALS
+    );
 }

@@ -87,7 +87,7 @@ pub struct ViewBokehPipelines {
     composite: CachedRenderPipelineId,
 }
 
-/// An aperture's texture and its mean (the `aperture_info` uniform).
+/// An aperture's texture and its normalisation table (`aperture_norm`).
 struct ApertureTexture {
     view: TextureView,
     info: Buffer,
@@ -228,7 +228,7 @@ fn init_bokeh_pipelines(
                 storage_buffer_read_only_sized(false, None),
                 texture_2d(TextureSampleType::Float { filterable: true }),
                 sampler(SamplerBindingType::Filtering),
-                uniform_buffer_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
             ),
         ),
     );
@@ -516,7 +516,7 @@ fn prepare_bokeh_textures(
     apertures.0.retain(|id, _| used.contains(id));
 }
 
-/// An aperture as an `R16Float` texture and its mean as a uniform.
+/// An aperture as an `R16Float` texture and its normalisation table.
 fn aperture_texture(
     aperture: &Arc<Aperture>,
     allocations: &PenumbraGpuAllocations,
@@ -556,17 +556,18 @@ fn aperture_texture(
         },
         texture.size(),
     );
-    let info = allocations.sized_buffer(
-        device,
-        "penumbra_bokeh_aperture_info",
-        16,
-        BufferUsages::UNIFORM | BufferUsages::COPY_DST,
-    );
-    let mean: Vec<u8> = [aperture.mean(), 0.0, 0.0, 0.0]
+    let words: Vec<u8> = aperture
+        .norm_words()
         .iter()
         .flat_map(|v| v.to_le_bytes())
         .collect();
-    queue.write_buffer(&info, 0, &mean);
+    let info = allocations.sized_buffer(
+        device,
+        "penumbra_bokeh_aperture_norm",
+        words.len() as u64,
+        BufferUsages::STORAGE | BufferUsages::COPY_DST,
+    );
+    queue.write_buffer(&info, 0, &words);
     ApertureTexture {
         view: texture.create_view(&TextureViewDescriptor::default()),
         info,

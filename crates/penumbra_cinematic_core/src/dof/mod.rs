@@ -5,7 +5,7 @@
 
 mod aperture;
 
-pub use aperture::{Aperture, ApertureError};
+pub use aperture::{Aperture, ApertureError, NORM_INTERVALS, NORM_TABLE_MAX, NORM_TABLE_STEPS};
 use encase::ShaderType;
 use glam::{Mat4, UVec2};
 

@@ -29,4 +29,6 @@ pub use scatter::{
     sprite_diameter, sprite_weight, sprites,
 };
 
-pub use penumbra_cinematic_core::dof::{Aperture, ApertureError, HALF_RES_BLUR, Lens, SpriteRule};
+pub use penumbra_cinematic_core::dof::{
+    Aperture, ApertureError, HALF_RES_BLUR, Lens, NORM_TABLE_MAX, SpriteRule,
+};

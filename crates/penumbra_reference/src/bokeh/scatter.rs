@@ -232,20 +232,11 @@ pub fn scatter_sprites(sprites: &[Sprite], aperture: &Aperture, size: UVec2) -> 
 
 /// What sprite `s` adds at half-resolution point `p` (a texel centre it covers): the
 /// aperture around its pixel, or around each of its block's four, normalised so that
-/// each pixel's sum over the plane is 1.
+/// each pixel's sum over the texel centres is 1 (`Aperture::normalisation`).
 pub fn sprite_weight(s: &Sprite, aperture: &Aperture, p: Vec2) -> f32 {
-    let scale = 1.0 / (aperture.mean() * s.diameter * s.diameter);
-    let at = |center: Vec2| {
-        let uv = (p - center) / s.diameter + 0.5;
-        // Near highlights show the aperture point-reflected.
-        let uv = if s.near { Vec2::ONE - uv } else { uv };
-        if uv.cmpge(Vec2::ZERO).all() && uv.cmple(Vec2::ONE).all() {
-            aperture.sample(uv)
-        } else {
-            0.0
-        }
-    };
-    let sum = if s.weight > 1.0 {
+    // Near highlights show the aperture point-reflected.
+    let at = |center: Vec2| aperture.sprite_sample(p - center, s.diameter, s.near);
+    let sum: f32 = if s.weight > 1.0 {
         [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)]
             .into_iter()
             .map(|(x, y)| at(s.center + Vec2::new(x, y)))
@@ -253,7 +244,7 @@ pub fn sprite_weight(s: &Sprite, aperture: &Aperture, p: Vec2) -> f32 {
     } else {
         at(s.center)
     };
-    sum * scale
+    sum / aperture.normalisation(s.diameter)
 }
 
 /// Bilinear sample of a half-resolution layer at full-resolution pixel `p`'s centre.

@@ -305,3 +305,74 @@ fn a_blurred_foreground_covers_and_fringes() {
         "{interior} {fringe} {beyond}"
     );
 }
+
+/// Every sprite spreads unit weight over the texel centres its quad covers, at every
+/// size, single or block, far or near (so a near region's interior is opaque and
+/// sprites of different sizes mix by their energy): summed here texel by texel, not
+/// through the table. The analytic area (`mean · d²`) is off by up to a half for the
+/// small sprites that most of a lightly blurred image is made of.
+#[test]
+fn sprites_spread_unit_weight_at_every_size() {
+    for (name, aperture) in [
+        ("circle", Aperture::circle(64)),
+        ("hexagon", Aperture::hexagon(64)),
+        (
+            "triangle",
+            Aperture::polygon(64, 3, std::f32::consts::FRAC_PI_2),
+        ),
+    ] {
+        // Worst under NORM_TABLE_MAX (the table), above it (the area), and with the area
+        // everywhere.
+        let (mut worst, mut worst_large, mut worst_area) =
+            ((0.0f32, 0.0f32), (0.0f32, 0.0f32), (0.0f32, 0.0f32));
+        for k in 0..=800 {
+            let diameter = 1.0 + 0.1 * k as f32;
+            for (weight, center) in [(1.0, Vec2::splat(40.5)), (4.0, Vec2::splat(40.0))] {
+                for near in [false, true] {
+                    let s = Sprite {
+                        center,
+                        diameter,
+                        color: Vec3::ONE,
+                        weight,
+                        near,
+                    };
+                    let reach = 0.5 * (diameter + weight.sqrt() - 1.0);
+                    let mut sum = 0.0;
+                    let n = reach.ceil() as i32 + 1;
+                    for y in -n..=n {
+                        for x in -n..=n {
+                            let p = center.floor() + Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                            let o = p - center;
+                            // The quad: left and top edges inclusive.
+                            if o.x >= -reach && o.x < reach && o.y >= -reach && o.y < reach {
+                                sum += sprite_weight(&s, &aperture, p);
+                            }
+                        }
+                    }
+                    let error = (sum / weight - 1.0).abs();
+                    let w = if diameter < NORM_TABLE_MAX {
+                        &mut worst
+                    } else {
+                        &mut worst_large
+                    };
+                    if error > w.0 {
+                        *w = (error, diameter);
+                    }
+                    let area = aperture.mean() * diameter * diameter;
+                    let error =
+                        (sum / weight * aperture.normalisation(diameter) / area - 1.0).abs();
+                    if error > worst_area.0 {
+                        worst_area = (error, diameter);
+                    }
+                }
+            }
+        }
+        eprintln!(
+            "{name}: worst |Σ weight − 1| {:.4} (d = {:.2}) under {NORM_TABLE_MAX} px, {:.4} \
+             (d = {:.1}) above; normalised by the area everywhere it was {:.3} (d = {:.1})",
+            worst.0, worst.1, worst_large.0, worst_large.1, worst_area.0, worst_area.1
+        );
+        assert!(worst.0 < 0.01, "{name}: {worst:?}");
+        assert!(worst_large.0 < 0.01, "{name}: {worst_large:?}");
+    }
+}

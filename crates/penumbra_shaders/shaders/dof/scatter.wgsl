@@ -2,9 +2,9 @@
 // (`draw_indirect` with the sprite pass's count), drawn into two half-resolution
 // targets with additive blending — the near layer (location 0) and the far layer
 // (location 1), each texel `(Σ colour · v, Σ v)`. A fragment adds the aperture image
-// around the sprite's pixel, or around each of a block's four, normalised by the
-// aperture's area so each pixel spreads unit weight; near sprites read the aperture
-// point-reflected. CPU model: `penumbra_reference::bokeh::scatter_sprites`.
+// around the sprite's pixel, or around each of a block's four, normalised by what the
+// aperture sums to over the texels it covers, so each pixel spreads unit weight; near
+// sprites read the aperture point-reflected. CPU model: `penumbra_reference::bokeh::scatter_sprites`.
 #define_import_path penumbra::dof::scatter
 
 #import penumbra::dof::types::{BokehView, Sprite}
@@ -13,14 +13,23 @@
 @group(0) @binding(1) var<storage, read> sprites: array<Sprite>;
 @group(0) @binding(2) var aperture: texture_2d<f32>;
 @group(0) @binding(3) var aperture_sampler: sampler;
-// x: the aperture image's mean transmission (its area as a fraction of the square).
-@group(0) @binding(4) var<uniform> aperture_info: vec4<f32>;
+// The aperture's mean transmission (its area as a fraction of the square), then per
+// interval of its normalisation table (`Aperture::norm_words`): the lattice sum at the
+// start, its continuous part at the end, the jump and the diameter it comes past.
+@group(0) @binding(4) var<storage, read> aperture_norm: array<f32>;
+
+// `penumbra_cinematic_core::dof::{NORM_TABLE_MAX, NORM_TABLE_STEPS, NORM_INTERVALS}`.
+const NORM_TABLE_MAX: f32 = 64.0;
+const NORM_TABLE_STEPS: f32 = 128.0;
+const NORM_INTERVALS: u32 = 768u;
 
 struct VertexOutput {
     @builtin(position) position: vec4<f32>,
     // The sprite: centre, aperture diameter, weight; colour per pixel, side.
     @location(0) @interpolate(flat) shape: vec4<f32>,
     @location(1) @interpolate(flat) color: vec4<f32>,
+    // What the sprite's aperture sums to over the texels it covers.
+    @location(2) @interpolate(flat) norm: f32,
 }
 
 struct Layers {
@@ -46,22 +55,45 @@ fn vertex(@builtin(vertex_index) vertex_index: u32, @builtin(instance_index) ins
     out.position = vec4<f32>(ndc.x, -ndc.y, 0.0, 1.0);
     out.shape = s.shape;
     out.color = vec4<f32>(s.color.rgb / s.shape.w, s.color.a);
+    out.norm = normalisation(s.shape.z);
     return out;
 }
 
-// The aperture around `center`, seen from half-resolution point `p` (0 outside it).
+// What a sprite of diameter `d` (half-resolution pixels) sums to over the texel centres
+// it covers, far or near (the covered offsets are symmetric): the table under
+// NORM_TABLE_MAX, the analytic area above (`Aperture::normalisation`).
+fn normalisation(diameter: f32) -> f32 {
+    let d = max(diameter, 1.0);
+    let area = aperture_norm[0] * d * d;
+    if d >= NORM_TABLE_MAX {
+        return area;
+    }
+    let t = log2(d) * NORM_TABLE_STEPS;
+    let k = min(u32(t), NORM_INTERVALS - 1u);
+    let f = t - f32(k);
+    let i = 1u + 4u * k;
+    var sum = aperture_norm[i] * (1.0 - f) + aperture_norm[i + 1u] * f;
+    if d > aperture_norm[i + 3u] {
+        sum += aperture_norm[i + 2u];
+    }
+    return max(sum, area / 16.0);
+}
+
+// The aperture around `center`, seen from half-resolution point `p`: 0 unless the
+// offset is strictly within half the diameter on each axis (`Aperture::sprite_sample`).
 fn aperture_at(p: vec2<f32>, center: vec2<f32>, diameter: f32, near: bool) -> f32 {
-    var uv = (p - center) / diameter + 0.5;
+    let o = p - center;
+    if any(abs(o) >= vec2<f32>(0.5 * diameter)) {
+        return 0.0;
+    }
+    var uv = o / diameter + 0.5;
     if near {
         uv = 1.0 - uv;
-    }
-    if any(uv < vec2<f32>(0.0)) || any(uv > vec2<f32>(1.0)) {
-        return 0.0;
     }
     return textureSampleLevel(aperture, aperture_sampler, uv, 0.0).r;
 }
 
-// What the sprite adds at `p` (`bokeh::sprite_weight`).
+// What the sprite adds at `p`, before normalisation (`bokeh::sprite_weight`).
 fn sprite_weight(p: vec2<f32>, shape: vec4<f32>, near: bool) -> f32 {
     var sum = 0.0;
     if shape.w > 1.0 {
@@ -72,13 +104,13 @@ fn sprite_weight(p: vec2<f32>, shape: vec4<f32>, near: bool) -> f32 {
     } else {
         sum = aperture_at(p, shape.xy, shape.z, near);
     }
-    return sum / (aperture_info.x * shape.z * shape.z);
+    return sum;
 }
 
 @fragment
 fn fragment(in: VertexOutput) -> Layers {
     let near = in.color.a > 0.5;
-    let v = sprite_weight(in.position.xy, in.shape, near);
+    let v = sprite_weight(in.position.xy, in.shape, near) / in.norm;
     let add = vec4<f32>(in.color.rgb * v, v);
     return Layers(select(vec4<f32>(0.0), add, near), select(add, vec4<f32>(0.0), near));
 }
