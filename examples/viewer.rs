@@ -15,7 +15,8 @@
 //! `--angle`), `--point` lights and the scene's own `KHR_lights_punctual` lights (unless
 //! `--no-scene-lights`) get `DistanceFieldShadows`; `--ao-max-distance M` puts
 //! `DistanceFieldAmbientOcclusion` (max occlusion distance M, defaults otherwise) on the
-//! camera. The shadow settings given in metres
+//! camera, `--bokeh N` scatter bokeh depth of field at f/N focused on the framed scene's
+//! centre (`BokehDepthOfField`). The shadow settings given in metres
 //! (ray length, view distance, bias) are scaled with the scene's size when it is larger
 //! than 10 m, so scenes in centimetres or millimetres work as they are.
 //!
@@ -341,6 +342,13 @@ fn frame_scene(
         commands
             .entity(camera)
             .insert(bevy::pbr::ScreenSpaceAmbientOcclusion::default());
+    }
+    if let Some(aperture_f_stops) = args.bokeh {
+        commands.entity(camera).insert(BokehDepthOfField {
+            focal_distance: framing.eye.distance(framing.target),
+            aperture_f_stops,
+            ..default()
+        });
     }
     if !args.plain {
         commands.entity(camera).insert(PenumbraLighting);

@@ -67,6 +67,11 @@ pub struct Args {
     /// Plain Bevy: no Penumbra on the camera or the lights (shadow maps), to compare.
     #[arg(long)]
     pub plain: bool,
+    /// Scatter bokeh depth of field (`BokehDepthOfField`, hexagonal aperture) at this
+    /// f-number, > 0, focused on the framed scene's centre; its other settings are the
+    /// defaults.
+    #[arg(long, value_parser = parse_f_stops, allow_hyphen_values = true)]
+    pub bokeh: Option<f32>,
 }
 
 impl Args {
@@ -197,6 +202,14 @@ fn parse_distance(s: &str) -> Result<f32, String> {
     let v = parse_number(s)?;
     if v <= 0.0 {
         return Err(format!("must be > 0 metres, got {v}"));
+    }
+    Ok(v)
+}
+
+fn parse_f_stops(s: &str) -> Result<f32, String> {
+    let v = parse_number(s)?;
+    if v <= 0.0 {
+        return Err(format!("must be a positive f-number, got {v}"));
     }
     Ok(v)
 }

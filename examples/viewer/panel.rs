@@ -1,7 +1,8 @@
 //! The viewer's egui panel (`bevy_egui`): every public Penumbra setting, live — the
 //! camera's `PenumbraLighting` (off: plain Bevy with shadow maps) and
-//! `DistanceFieldDebugView`, each light's `DistanceFieldShadows`, the scene's
-//! `DistanceFieldSceneCasters` — and Penumbra's diagnostics and pass times.
+//! `DistanceFieldDebugView`, its `BokehDepthOfField`, each light's
+//! `DistanceFieldShadows`, the scene's `DistanceFieldSceneCasters` — and Penumbra's
+//! diagnostics and pass times.
 
 use super::ViewerCamera;
 use super::camera::UiHasInput;
@@ -35,6 +36,7 @@ fn panel(
             Entity,
             Has<PenumbraLighting>,
             Option<&mut DistanceFieldDebugView>,
+            Option<&mut BokehDepthOfField>,
         ),
         With<ViewerCamera>,
     >,
@@ -53,7 +55,7 @@ fn panel(
     diagnostics: Res<DiagnosticsStore>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
-    let (camera, lit, debug) = camera.into_inner();
+    let (camera, lit, debug, bokeh) = camera.into_inner();
     egui::Window::new("Penumbra")
         .default_width(340.0)
         .show(ctx, |ui| {
@@ -71,6 +73,7 @@ fn panel(
                     }
                 }
                 debug_view(ui, &mut commands, camera, debug);
+                bokeh_ui(ui, &mut commands, camera, bokeh);
                 ui.separator();
                 ui.heading("Lights");
                 for (entity, name, shadows, stash, directional) in &mut lights {
@@ -139,6 +142,44 @@ fn debug_view(
                 .logarithmic(true)
                 .text("max distance (m)"),
         );
+    }
+}
+
+/// Scatter bokeh depth of field: on/off, focus, aperture and its shape.
+fn bokeh_ui(
+    ui: &mut egui::Ui,
+    commands: &mut Commands,
+    camera: Entity,
+    bokeh: Option<Mut<BokehDepthOfField>>,
+) {
+    let mut on = bokeh.is_some();
+    if ui.checkbox(&mut on, "Bokeh depth of field").changed() {
+        if on {
+            commands.entity(camera).insert(BokehDepthOfField::default());
+        } else {
+            commands.entity(camera).remove::<BokehDepthOfField>();
+        }
+    }
+    if let Some(mut b) = bokeh {
+        ui.add(
+            egui::Slider::new(&mut b.focal_distance, 0.1..=1_000.0)
+                .logarithmic(true)
+                .text("focal distance (m)"),
+        );
+        ui.add(
+            egui::Slider::new(&mut b.aperture_f_stops, 0.01..=22.0)
+                .logarithmic(true)
+                .text("f-stops"),
+        );
+        ui.add(
+            egui::Slider::new(&mut b.max_circle_of_confusion_diameter, 1.0..=256.0)
+                .text("max CoC (px)"),
+        );
+        ui.horizontal(|ui| {
+            ui.radio_value(&mut b.aperture, BokehAperture::Hexagon, "hexagon");
+            ui.radio_value(&mut b.aperture, BokehAperture::Circle, "circle");
+        });
+        ui.checkbox(&mut b.merge_blocks, "1-or-4 sprites per block");
     }
 }
 
