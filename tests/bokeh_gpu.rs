@@ -3,13 +3,14 @@
 //! The sprite pass (`dof/sprites.wgsl`): from a
 //! colour image and a reverse-Z depth buffer (a far wall with smooth and noisy patches,
 //! the sky, a band in focus, a square in front of the focal plane, bright dots) it
-//! appends the sprites the CPU model (`penumbra_reference::bokeh::{downsample,
+//! writes the sprites the CPU model (`penumbra_reference::bokeh::{downsample,
 //! sprites}`) makes from the same pixels — one per agreeing block, one per
-//! out-of-focus pixel elsewhere — and counts them in the indirect draw's arguments; with
-//! and without the 1-or-4 rule, and with a sprite buffer too small.
+//! out-of-focus pixel elsewhere — in the model's order (each block's four slots, empty
+//! ones marked), and counts them; with and without the 1-or-4 rule, and with a sprite
+//! buffer too small.
 //!
 //! The scatter pass (`dof/scatter.wgsl`): the model's sprites of the same image drawn
-//! as instanced quads (`draw_indirect`) with additive blending into the two
+//! as instanced quads with additive blending into the two
 //! half-resolution `Rgba32Float` layers give the model's layers (`scatter_sprites`), for
 //! a hexagon and a triangle (which tells near sprites' reflection apart).
 //!
@@ -164,11 +165,7 @@ fn run(
         &color_bytes,
     );
     let uniform = gpu.buffer("view", &uniform_bytes(&view), wgpu::BufferUsages::UNIFORM);
-    let args_bytes: Vec<u8> = [6u32, 0, 0, 0]
-        .into_iter()
-        .flat_map(u32::to_le_bytes)
-        .collect();
-    let args = gpu.buffer("args", &args_bytes, wgpu::BufferUsages::INDIRECT);
+    let count = gpu.buffer("count", &0u32.to_le_bytes(), wgpu::BufferUsages::empty());
     let sprites = gpu.zeroed(
         "sprites",
         u64::from(capacity.max(1)) * 32,
@@ -200,7 +197,7 @@ fn run(
             },
             wgpu::BindGroupEntry {
                 binding: 3,
-                resource: args.as_entire_binding(),
+                resource: count.as_entire_binding(),
             },
             wgpu::BindGroupEntry {
                 binding: 4,
@@ -220,18 +217,13 @@ fn run(
             .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
             .collect()
     };
-    let a = words(gpu.read(&args, 16));
-    assert_eq!(
-        (a[0], a[2], a[3]),
-        (6, 0, 0),
-        "the other arguments are kept"
-    );
-    let stored = a[1].min(capacity);
+    let count = words(gpu.read(&count, 4))[0];
     let s = words(gpu.read(&sprites, u64::from(capacity.max(1)) * 32));
     let f = |w: u32| f32::from_bits(w);
+    // Slot order (block by block), empty slots left out.
     GpuSprites {
-        count: a[1],
-        sprites: (0..stored as usize)
+        count,
+        sprites: (0..capacity as usize)
             .map(|i| {
                 let w = &s[8 * i..8 * i + 8];
                 Sprite {
@@ -242,6 +234,7 @@ fn run(
                     near: f(w[7]) > 0.5,
                 }
             })
+            .filter(|s| s.weight > 0.0)
             .collect(),
     }
 }
@@ -254,15 +247,6 @@ fn half_bits(v: f32) -> u16 {
     let b = v.to_bits();
     let exponent = ((b >> 23) & 0xff) as i32 - 127 + 15;
     (((b >> 16) & 0x8000) | ((exponent as u32) << 10) | ((b >> 13) & 0x3ff)) as u16
-}
-
-fn sorted(mut s: Vec<Sprite>) -> Vec<Sprite> {
-    s.sort_by(|a, b| {
-        (a.center.y, a.center.x, a.weight)
-            .partial_cmp(&(b.center.y, b.center.x, b.weight))
-            .expect("finite")
-    });
-    s
 }
 
 #[test]
@@ -292,7 +276,7 @@ fn sprite_pass_matches_the_model() {
         ("loose", loose),
     ] {
         let merge = rule.merge;
-        let want = sorted(sprites(&half, &rule));
+        let want = sprites(&half, &rule);
         let got = run(&gpu, &image, &lens, &rule, 4096);
         let blocks = want.iter().filter(|s| s.weight > 1.0).count();
         let near = want.iter().filter(|s| s.near).count();
@@ -306,7 +290,9 @@ fn sprite_pass_matches_the_model() {
             "{name}"
         );
         assert_eq!(got.count as usize, want.len(), "{name}: sprite count");
-        let got = sorted(got.sprites);
+        // In slot order: the same order as the model's, whatever the threads' timing.
+        let got = got.sprites;
+        assert_eq!(got.len(), want.len(), "{name}: sprites stored");
         let mut worst = (0.0f32, 0.0f32);
         for (g, w) in got.iter().zip(&want) {
             assert_eq!((g.center, g.weight, g.near), (w.center, w.weight, w.near));
@@ -323,9 +309,15 @@ fn sprite_pass_matches_the_model() {
         assert!(worst.0 < 1e-3 && worst.1 < 1e-3, "{name}: {worst:?}");
     }
     // A buffer too small: the count still counts every sprite, the buffer holds the
-    // first `capacity`, nothing is written past it.
+    // first blocks' slots, nothing is written past it.
+    let want = sprites(&half, &SpriteRule::default());
     let got = run(&gpu, &image, &lens, &SpriteRule::default(), 64);
-    assert!(got.count > 64 && got.sprites.len() == 64, "{}", got.count);
+    assert_eq!(got.count as usize, want.len());
+    let n = got.sprites.len();
+    assert!(n > 0 && n <= 64, "{n}");
+    for (g, w) in got.sprites.iter().zip(&want[..n]) {
+        assert_eq!((g.center, g.weight, g.near), (w.center, w.weight, w.near));
+    }
 }
 
 /// The scatter pass's layers for `sprites` (`(Σ colour · v, Σ v)` per texel, f32).
@@ -349,11 +341,6 @@ fn scatter_on_gpu(
         .flat_map(f32::to_le_bytes)
         .collect();
     let sprite_buffer = gpu.buffer("sprites", &words, wgpu::BufferUsages::empty());
-    let args_bytes: Vec<u8> = [6u32, sprites.len() as u32, 0, 0]
-        .into_iter()
-        .flat_map(u32::to_le_bytes)
-        .collect();
-    let args = gpu.buffer("args", &args_bytes, wgpu::BufferUsages::INDIRECT);
     let uniform = gpu.buffer("view", &uniform_bytes(view), wgpu::BufferUsages::UNIFORM);
     let norm: Vec<u8> = aperture
         .norm_words()
@@ -497,7 +484,7 @@ fn scatter_on_gpu(
         });
         pass.set_pipeline(&pipeline);
         pass.set_bind_group(0, &bind, &[]);
-        pass.draw_indirect(&args, 0);
+        pass.draw(0..6, 0..sprites.len() as u32);
     }
     gpu.queue.submit([encoder.finish()]);
     let read = |t: &wgpu::Texture| -> Vec<Vec4> {

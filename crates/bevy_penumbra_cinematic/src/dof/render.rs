@@ -30,10 +30,10 @@ use bevy::render::texture::{CachedTexture, TextureCache};
 use bevy::render::view::{ExtractedView, Msaa, ViewDepthTexture, ViewTarget};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
-use penumbra_cinematic_core::dof::{Aperture, BokehView, Lens, SpriteRule};
+use penumbra_cinematic_core::dof::{Aperture, BokehView, Lens, SpriteRule, sprite_slots};
 use std::sync::Arc;
 
-/// Bytes per sprite record (`penumbra::dof::types::Sprite`).
+/// Bytes per sprite slot (`penumbra::dof::types::Sprite`).
 const SPRITE_BYTES: u64 = 32;
 /// The half-resolution layers' format where the device blends 32-bit floats: the
 /// layers sum hundreds of small weights per texel at large circles of confusion, which
@@ -97,14 +97,16 @@ struct ApertureTexture {
 #[derive(Resource, Default)]
 struct BokehApertureTextures(HashMap<u64, ApertureTexture>);
 
-/// A view's pooled buffers: the uniform, the indirect draw's arguments, the sprites.
+/// A view's pooled buffers: the uniform, the sprite count, the sprite slots.
 #[derive(Component)]
 pub struct ViewBokehBuffers {
     uniform: Buffer,
-    args: Buffer,
+    count: Buffer,
     sprites: Buffer,
-    /// Sprites `sprites` holds: grown, never shrunk.
+    /// Slots `sprites` holds: grown, never shrunk.
     capacity: u32,
+    /// Slots this frame's view uses (all written each frame), drawn in order.
+    slots: u32,
     half_size: UVec2,
 }
 
@@ -135,7 +137,7 @@ pub(super) fn build(render_app: &mut SubApp) {
 }
 
 /// Adds the passes when the device can run them: compute, storage buffers read by a
-/// vertex shader, indirect draws (not WebGL 2). Otherwise one warning, and the
+/// vertex shader (not WebGL 2). Otherwise one warning, and the
 /// component does nothing.
 pub(super) fn finish(render_app: &mut SubApp) {
     if let Some(reason) = unsupported(render_app.world()) {
@@ -169,9 +171,7 @@ fn unsupported(world: &World) -> Option<String> {
     ) else {
         return Some("there is no renderer".into());
     };
-    let needed = DownlevelFlags::COMPUTE_SHADERS
-        | DownlevelFlags::VERTEX_STORAGE
-        | DownlevelFlags::INDIRECT_EXECUTION;
+    let needed = DownlevelFlags::COMPUTE_SHADERS | DownlevelFlags::VERTEX_STORAGE;
     let flags = adapter.get_downlevel_capabilities().flags;
     if !flags.contains(needed) {
         return Some(format!(
@@ -398,8 +398,8 @@ fn prepare_bokeh_pipelines(
 }
 
 /// Per view: the half-resolution layers, the pooled buffers (grown when the view
-/// outgrows them), this frame's uniform and reset draw arguments; the aperture
-/// textures in use.
+/// outgrows them), this frame's uniform and reset sprite count; the aperture textures
+/// in use.
 #[allow(clippy::too_many_arguments, reason = "a Bevy system")]
 fn prepare_bokeh_textures(
     mut commands: Commands,
@@ -425,7 +425,7 @@ fn prepare_bokeh_textures(
         let size = target.main_texture().size();
         let full = UVec2::new(size.width, size.height);
         let half = (full + UVec2::ONE) / 2;
-        let capacity = half.x * half.y;
+        let capacity = sprite_slots(full);
         let mut entity_commands = commands.entity(entity);
         let mut layer = |label| {
             texture_cache.get(
@@ -461,11 +461,11 @@ fn prepare_bokeh_textures(
                     BokehView::min_size().get(),
                     BufferUsages::UNIFORM | BufferUsages::COPY_DST,
                 ),
-                args: allocations.sized_buffer(
+                count: allocations.sized_buffer(
                     &device,
-                    "penumbra_bokeh_draw_args",
-                    16,
-                    BufferUsages::STORAGE | BufferUsages::INDIRECT | BufferUsages::COPY_DST,
+                    "penumbra_bokeh_sprite_count",
+                    4,
+                    BufferUsages::STORAGE | BufferUsages::COPY_DST,
                 ),
                 sprites: allocations.sized_buffer(
                     &device,
@@ -474,6 +474,7 @@ fn prepare_bokeh_textures(
                     BufferUsages::STORAGE,
                 ),
                 capacity,
+                slots: capacity,
                 half_size: half,
             }),
         };
@@ -487,22 +488,18 @@ fn prepare_bokeh_textures(
             buffers.capacity = capacity;
         }
         buffers.half_size = half;
+        buffers.slots = capacity;
         let uniform = BokehView::new(
             &bokeh.lens,
             &bokeh.rule,
             view.clip_from_view.inverse(),
             full,
-            buffers.capacity,
+            capacity,
         );
         let mut bytes = EncaseBuffer::new(Vec::new());
         bytes.write(&uniform).expect("the bokeh uniform encodes");
         queue.write_buffer(&buffers.uniform, 0, bytes.as_ref());
-        // Six vertices per instance; the sprite pass counts the instances.
-        let args: Vec<u8> = [6u32, 0, 0, 0]
-            .iter()
-            .flat_map(|w| w.to_le_bytes())
-            .collect();
-        queue.write_buffer(&buffers.args, 0, &args);
+        queue.write_buffer(&buffers.count, 0, &0u32.to_le_bytes());
         if let Some(fresh) = fresh {
             entity_commands.insert(fresh);
         }
@@ -635,7 +632,7 @@ fn prepare_bokeh_bind_groups(
                     buffers.uniform.as_entire_binding(),
                     main,
                     depth_view,
-                    buffers.args.as_entire_binding(),
+                    buffers.count.as_entire_binding(),
                     buffers.sprites.as_entire_binding(),
                 )),
             );
@@ -675,8 +672,8 @@ fn prepare_bokeh_bind_groups(
     }
 }
 
-/// The three passes: sprites (compute), scatter (indirect instanced quads into the
-/// layers), composite (the view's colour to its other main texture).
+/// The three passes: sprites (compute), scatter (instanced quads into the layers),
+/// composite (the view's colour to its other main texture).
 fn bokeh_depth_of_field(
     view: ViewQuery<(
         &ViewTarget,
@@ -751,7 +748,9 @@ fn bokeh_depth_of_field(
             });
         pass.set_pipeline(scatter);
         pass.set_bind_group(0, &groups.scatter, &[]);
-        pass.draw_indirect(&buffers.args, 0);
+        // Every slot in order (empty ones collapse in the vertex shader): the layers'
+        // sums do not depend on thread timing.
+        pass.draw(0..6, 0..buffers.slots);
     }
     let post = target.post_process_write();
     {

@@ -131,8 +131,17 @@ pub struct BokehView {
     pub depth_tolerance: f32,
     /// 1 when [`SpriteRule::merge`].
     pub merge: u32,
-    /// Sprites the sprite buffer holds; those past it are dropped.
+    /// Sprite slots the sprite buffer holds, 4 per 2×2 block of half-resolution pixels
+    /// ([`sprite_slots`]); sprites past it are dropped.
     pub capacity: u32,
+}
+
+/// The sprite slots a view of `full_size` pixels needs: 4 per 2×2 block of its
+/// half-resolution image (block `b`, row-major, owns slots `4b..4b + 4`).
+pub fn sprite_slots(full_size: UVec2) -> u32 {
+    let half = (full_size + UVec2::ONE) / 2;
+    let blocks = (half + UVec2::ONE) / 2;
+    4 * blocks.x * blocks.y
 }
 
 impl BokehView {

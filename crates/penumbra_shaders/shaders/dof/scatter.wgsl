@@ -1,6 +1,6 @@
-// Scatter bokeh depth of field, second pass: one instanced quad per sprite
-// (`draw_indirect` with the sprite pass's count), drawn into two half-resolution
-// targets with additive blending — the near layer (location 0) and the far layer
+// Scatter bokeh depth of field, second pass: one instanced quad per sprite slot (empty
+// slots collapse to nothing in the vertex shader), drawn in slot order into two
+// half-resolution targets with additive blending — the near layer (location 0) and the far layer
 // (location 1), each texel `(Σ colour · v, Σ v)`. A fragment adds the aperture image
 // around the sprite's pixel, or around each of a block's four, normalised by what the
 // aperture sums to over the texels it covers, so each pixel spreads unit weight; near
@@ -41,11 +41,15 @@ struct Layers {
 fn vertex(@builtin(vertex_index) vertex_index: u32, @builtin(instance_index) instance: u32) -> VertexOutput {
     var out: VertexOutput;
     if instance >= view.capacity {
-        // Counted but not stored: nothing to draw.
         out.position = vec4<f32>(2.0, 2.0, 2.0, 1.0);
         return out;
     }
     let s = sprites[instance];
+    if s.shape.w == 0.0 {
+        // An empty slot: nothing to draw.
+        out.position = vec4<f32>(2.0, 2.0, 2.0, 1.0);
+        return out;
+    }
     // Two triangles: (0, 0) (1, 0) (0, 1), (0, 1) (1, 0) (1, 1).
     let corners = array(vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 0.0), vec2<f32>(0.0, 1.0),
         vec2<f32>(0.0, 1.0), vec2<f32>(1.0, 0.0), vec2<f32>(1.0, 1.0));

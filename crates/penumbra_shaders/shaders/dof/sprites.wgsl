@@ -8,7 +8,7 @@
 #define_import_path penumbra::dof::sprites
 
 #import penumbra::dof::types::{
-    BokehView, DrawArgs, Sprite, coc_of_distance, distance_from_depth, sprite_diameter,
+    BokehView, Sprite, coc_of_distance, distance_from_depth, sprite_diameter,
 }
 
 @group(0) @binding(0) var<uniform> view: BokehView;
@@ -20,7 +20,7 @@
 #else
 @group(0) @binding(2) var depth_texture: texture_depth_2d;
 #endif
-@group(0) @binding(3) var<storage, read_write> args: DrawArgs;
+@group(0) @binding(3) var<storage, read_write> count: atomic<u32>;
 @group(0) @binding(4) var<storage, read_write> sprites: array<Sprite>;
 
 // A half-resolution pixel: mean colour, circle of confusion, distance.
@@ -80,13 +80,18 @@ fn block_agrees(b: array<HalfPixel, 4>) -> bool {
         && (d_hi - d_lo <= view.depth_tolerance * d_mean || d_lo == d_hi);
 }
 
-fn append(center: vec2<f32>, coc: f32, color: vec3<f32>, weight: f32) {
-    let i = atomicAdd(&args.instance_count, 1u);
-    if i < view.capacity {
-        sprites[i] = Sprite(
+// Slot `slot` holds a sprite (counted), or nothing when `weight` is 0.
+fn write(slot: u32, center: vec2<f32>, coc: f32, color: vec3<f32>, weight: f32) {
+    var sprite = Sprite(vec4<f32>(0.0), vec4<f32>(0.0));
+    if weight > 0.0 {
+        atomicAdd(&count, 1u);
+        sprite = Sprite(
             vec4<f32>(center, sprite_diameter(coc), weight),
             vec4<f32>(color, select(0.0, 1.0, coc < 0.0)),
         );
+    }
+    if slot < view.capacity {
+        sprites[slot] = sprite;
     }
 }
 
@@ -103,16 +108,19 @@ fn sprites_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         inside = inside && all(h < view.half_size);
         b[k] = half_pixel(min(h, view.half_size - vec2<u32>(1u)));
     }
+    let base = 4u * (block.y * ((view.half_size.x + 1u) / 2u) + block.x);
     if view.merge == 1u && inside && block_agrees(b) {
         let coc = (b[0].coc + b[1].coc + b[2].coc + b[3].coc) / 4.0;
         let color = b[0].color + b[1].color + b[2].color + b[3].color;
-        append(2.0 * vec2<f32>(block) + 1.0, coc, color, 4.0);
+        write(base, 2.0 * vec2<f32>(block) + 1.0, coc, color, 4.0);
+        for (var k = 1u; k < 4u; k += 1u) {
+            write(base + k, vec2<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
+        }
         return;
     }
     for (var k = 0u; k < 4u; k += 1u) {
         let h = 2u * block + vec2<u32>(k & 1u, k >> 1u);
-        if all(h < view.half_size) && abs(b[k].coc) >= max(view.min_coc, 1e-3) {
-            append(vec2<f32>(h) + 0.5, b[k].coc, b[k].color, 1.0);
-        }
+        let emits = all(h < view.half_size) && abs(b[k].coc) >= max(view.min_coc, 1e-3);
+        write(base + k, vec2<f32>(h) + 0.5, b[k].coc, b[k].color, select(0.0, 1.0, emits));
     }
 }

@@ -1,6 +1,5 @@
 // Scatter bokeh depth of field: the passes' uniform (`penumbra_cinematic_core::dof::
-// BokehView`), the sprite record and the indirect draw's arguments, and the lens
-// functions they share. CPU model: `penumbra_reference::bokeh`.
+// BokehView`), the sprite record and the lens functions they share. CPU model: `penumbra_reference::bokeh`.
 #define_import_path penumbra::dof::types
 
 // The half-resolution round trip's blur as a disc's squared diameter, view pixels²
@@ -24,18 +23,11 @@ struct BokehView {
 }
 
 // One sprite: `shape` = (centre in half-resolution pixels, aperture diameter, weight:
-// 1 or 4 for a block); `color` = (the summed colour, 1 when in front of the focal plane).
+// 1 or 4 for a block, 0 for an empty slot); `color` = (the summed colour, 1 when in front
+// of the focal plane). Block `b` (row-major) owns slots `4b` to `4b + 3`.
 struct Sprite {
     shape: vec4<f32>,
     color: vec4<f32>,
-}
-
-// `draw_indirect`'s arguments; the sprite pass counts the instances.
-struct DrawArgs {
-    vertex_count: u32,
-    instance_count: atomic<u32>,
-    first_vertex: u32,
-    first_instance: u32,
 }
 
 // Distance along the view axis of view pixel `p` whose reverse-Z depth is `depth`
