@@ -8,7 +8,8 @@
 //! Samaritan's scatter bokeh (Mittring and Dudash, "The Technology Behind the Unreal
 //! Engine 4 Elemental Demo" / "Samaritan", GDC 2011), with the sprites built in compute
 //! and drawn as instanced quads, as Blender EEVEE's scatter pass and the Xbox ATG Bokeh
-//! sample do (wgpu has no geometry shaders):
+//! sample do (wgpu has no geometry shaders; they draw an appended list, this draws fixed
+//! slots — below):
 //!
 //! 1. **Sprites** (compute, one thread per 2×2 block of the half-resolution image): each
 //!    half-resolution pixel takes the mean colour of its 2×2 view pixels and the circle of
