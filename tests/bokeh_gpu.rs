@@ -165,12 +165,16 @@ fn run(
         &color_bytes,
     );
     let uniform = gpu.buffer("view", &uniform_bytes(&view), wgpu::BufferUsages::UNIFORM);
-    let count = gpu.buffer("count", &0u32.to_le_bytes(), wgpu::BufferUsages::empty());
-    let sprites = gpu.zeroed(
-        "sprites",
-        u64::from(capacity.max(1)) * 32,
+    let blocks = (view.half_size + UVec2::ONE) / 2;
+    let slot_bytes = u64::from(capacity.max(1)) * 32;
+    let block_counts = gpu.zeroed(
+        "block_counts",
+        u64::from(blocks.x * blocks.y) * 4,
         wgpu::BufferUsages::empty(),
     );
+    let slots = gpu.zeroed("slots", slot_bytes, wgpu::BufferUsages::empty());
+    let list = gpu.zeroed("sprites", slot_bytes, wgpu::BufferUsages::empty());
+    let args = gpu.zeroed("args", 16, wgpu::BufferUsages::INDIRECT);
     let pipeline = gpu.pipeline(
         &flatten("#import penumbra::dof::sprites\n").expect("flattens"),
         "sprites_main",
@@ -179,51 +183,61 @@ fn run(
         color.create_view(&Default::default()),
         depth.create_view(&Default::default()),
     ];
+    let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
     let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("bokeh_sprites"),
         layout: &pipeline.get_bind_group_layout(0),
         entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: uniform.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: wgpu::BindingResource::TextureView(&views[0]),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: wgpu::BindingResource::TextureView(&views[1]),
-            },
-            wgpu::BindGroupEntry {
-                binding: 3,
-                resource: count.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 4,
-                resource: sprites.as_entire_binding(),
-            },
+            entry(0, uniform.as_entire_binding()),
+            entry(1, wgpu::BindingResource::TextureView(&views[0])),
+            entry(2, wgpu::BindingResource::TextureView(&views[1])),
+            entry(3, block_counts.as_entire_binding()),
+            entry(4, slots.as_entire_binding()),
         ],
     });
-    let blocks = (view.half_size + UVec2::ONE) / 2;
     gpu.dispatch(
         &pipeline,
         &bind,
         [blocks.x.div_ceil(8), blocks.y.div_ceil(8), 1],
     );
+    // The compaction: the scan, then the copy.
+    let compact = flatten("#import penumbra::dof::compact\n").expect("flattens");
+    let scan = gpu.pipeline(&compact, "scan_main");
+    let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("bokeh_scan"),
+        layout: &scan.get_bind_group_layout(0),
+        entries: &[
+            entry(0, uniform.as_entire_binding()),
+            entry(1, block_counts.as_entire_binding()),
+            entry(4, args.as_entire_binding()),
+        ],
+    });
+    gpu.dispatch(&scan, &bind, [1, 1, 1]);
+    let copy = gpu.pipeline(&compact, "compact_main");
+    let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("bokeh_compact"),
+        layout: &copy.get_bind_group_layout(0),
+        entries: &[
+            entry(0, uniform.as_entire_binding()),
+            entry(1, block_counts.as_entire_binding()),
+            entry(2, slots.as_entire_binding()),
+            entry(3, list.as_entire_binding()),
+        ],
+    });
+    gpu.dispatch(&copy, &bind, [(blocks.x * blocks.y).div_ceil(64), 1, 1]);
     let words = |bytes: Vec<u8>| -> Vec<u32> {
         bytes
             .chunks_exact(4)
             .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
             .collect()
     };
-    let count = words(gpu.read(&count, 4))[0];
-    let s = words(gpu.read(&sprites, u64::from(capacity.max(1)) * 32));
+    let a = words(gpu.read(&args, 16));
+    assert_eq!((a[0], a[2], a[3]), (6, 0, 0), "the draw's other arguments");
+    let s = words(gpu.read(&list, slot_bytes));
     let f = |w: u32| f32::from_bits(w);
-    // Slot order (block by block), empty slots left out.
     GpuSprites {
-        count,
-        sprites: (0..capacity as usize)
+        count: a[1],
+        sprites: (0..a[1] as usize)
             .map(|i| {
                 let w = &s[8 * i..8 * i + 8];
                 Sprite {
@@ -234,7 +248,6 @@ fn run(
                     near: f(w[7]) > 0.5,
                 }
             })
-            .filter(|s| s.weight > 0.0)
             .collect(),
     }
 }
@@ -308,15 +321,27 @@ fn sprite_pass_matches_the_model() {
         // The depth round trip (1/z through the projection) and f16 colour storage.
         assert!(worst.0 < 1e-3 && worst.1 < 1e-3, "{name}: {worst:?}");
     }
-    // A buffer too small: the count still counts every sprite, the buffer holds the
-    // first blocks' slots, nothing is written past it.
+    // Buffers too small (64 slots, 16 blocks): the draw is capped at 64, the first 16
+    // blocks' sprites are listed as the model's, nothing is written past the buffers
+    // (later blocks' places stay empty).
     let want = sprites(&half, &SpriteRule::default());
     let got = run(&gpu, &image, &lens, &SpriteRule::default(), 64);
-    assert_eq!(got.count as usize, want.len());
-    let n = got.sprites.len();
-    assert!(n > 0 && n <= 64, "{n}");
-    for (g, w) in got.sprites.iter().zip(&want[..n]) {
-        assert_eq!((g.center, g.weight, g.near), (w.center, w.weight, w.near));
+    assert_eq!(got.count as usize, want.len().min(64));
+    let blocks_x = half.size.x.div_ceil(2);
+    let stored = want
+        .iter()
+        .take_while(|s| {
+            let b = (s.center / 2.0).floor();
+            (b.y as u32) * blocks_x + (b.x as u32) < 16
+        })
+        .count();
+    assert!(stored > 0, "the first blocks hold sprites");
+    for (i, (g, w)) in got.sprites.iter().zip(&want).enumerate() {
+        if i < stored {
+            assert_eq!((g.center, g.weight, g.near), (w.center, w.weight, w.near));
+        } else {
+            assert_eq!(g.weight, 0.0, "{i}: past the stored blocks");
+        }
     }
 }
 

@@ -35,6 +35,7 @@ shader_files! {
     "dof/sprites.wgsl" => Some("penumbra::dof::sprites"),
     "dof/scatter.wgsl" => Some("penumbra::dof::scatter"),
     "dof/composite.wgsl" => Some("penumbra::dof::composite"),
+    "dof/compact.wgsl" => Some("penumbra::dof::compact"),
     "df/object.wgsl" => Some("penumbra::df::object"),
     "df/apply_deltas.wgsl" => Some("penumbra::df::apply_deltas"),
     "df/cull.wgsl" => Some("penumbra::df::cull"),

@@ -393,6 +393,9 @@ fn bokeh_layouts_and_constants_match() {
     let (_, sprite) = struct_layout(&m, "Sprite");
     assert_eq!(sprite, 32);
     assert_eq!(constant(&m, "HALF_RES_BLUR") as f32, HALF_RES_BLUR);
+    let compact = parse("#import penumbra::dof::compact\n");
+    let (_, args) = struct_layout(&compact, "DrawArgs");
+    assert_eq!(args, 16);
     let scatter = parse("#import penumbra::dof::scatter\n");
     assert_eq!(constant(&scatter, "NORM_TABLE_MAX") as f32, NORM_TABLE_MAX);
     assert_eq!(

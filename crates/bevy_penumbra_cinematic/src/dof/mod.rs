@@ -7,9 +7,9 @@
 //!
 //! Samaritan's scatter bokeh (Mittring and Dudash, "The Technology Behind the Unreal
 //! Engine 4 Elemental Demo" / "Samaritan", GDC 2011), with the sprites built in compute
-//! and drawn as instanced quads, as Blender EEVEE's scatter pass and the Xbox ATG Bokeh
-//! sample do (wgpu has no geometry shaders; they draw an appended list, this draws fixed
-//! slots — below):
+//! and drawn indirectly as instanced quads, as Blender EEVEE's scatter pass and the Xbox
+//! ATG Bokeh sample do (wgpu has no geometry shaders), the list compacted in a fixed
+//! order rather than appended:
 //!
 //! 1. **Sprites** (compute, one thread per 2×2 block of the half-resolution image): each
 //!    half-resolution pixel takes the mean colour of its 2×2 view pixels and the circle of
@@ -19,10 +19,12 @@
 //!    of the focal plane. A block whose four pixels are out of focus on one side of the
 //!    focal plane and agree in circle of confusion, luminance and depth becomes **one** sprite, otherwise
 //!    each out-of-focus pixel becomes one (the 1-or-4 rule). Each block writes its own
-//!    four slots of the sprite buffer (unused ones empty), so the sprites' order — and
-//!    the layers' floating-point sums — never depend on the order threads finish: the
-//!    output is the same bit for bit on every run (an appending atomic counter made 261
-//!    of 12,065 pixels differ between two runs on lavapipe).
+//!    four slots and its count; an exclusive prefix sum of the counts (one workgroup)
+//!    and a copy list the sprites in block order with no gaps and set the indirect
+//!    draw's instance count. The order — and the layers' floating-point sums — never
+//!    depend on which thread ran first: the output is the same bit for bit on every run
+//!    (appending through an atomic counter made 261 of 12,065 pixels differ between two
+//!    runs on lavapipe).
 //! 2. **Scatter** (render, half resolution): one quad per sprite, as wide as its circle of confusion and
 //!    textured with the aperture, adds `(colour · w, w)` into a **near** or a **far**
 //!    layer (additive blending), `w` normalised by what the aperture sums to over the
@@ -57,8 +59,8 @@
 //!   Gaussian `DepthOfField` has 0.129 relative error where the blur is 3–6 px, this
 //!   0.175 (fine textures alias through the half-resolution image); this wins on
 //!   occlusion borders (0.097 against 0.127) and on the bokeh's shape.
-//! - Cost grows with the out-of-focus area times the squared circle of confusion (every sprite's quad is
-//!   rasterised): a fully blurred view at the 64 px default fills about
+//! - Cost grows with the out-of-focus area times the squared circle of confusion (every
+//!   sprite's quad is rasterised): a fully blurred view at the 64 px default fills about
 //!   `(w h / 4) · 32² / 4` half-resolution fragments before the 1-or-4 rule merges
 //!   agreeing blocks (about a quarter of the sprites on smooth regions).
 //! - No opt-out per material: everything drawn before post-processing is blurred
@@ -68,15 +70,15 @@
 //!
 //! Cost: nothing without the component. Per camera: two half-resolution layers
 //! (`Rgba32Float`, 32 bytes per half pixel for both; `Rgba16Float`, 16, on devices that
-//! cannot blend 32-bit floats), a sprite slot of 32 bytes per half pixel (33 MB of layers
-//! and slots at 1080p), the three passes — the scatter draws one instance of 6 vertices
-//! per slot, empty ones collapsing before rasterisation, then each sprite's quad. On
-//! lavapipe at 384 × 288 the passes add 16–21 ms to a 22 ms frame (Bevy's Gaussian
-//! 7–9 ms, its bokeh 10–12 ms; `tests/bokeh_truth.rs`), of which about 5 ms is drawing
-//! the empty slots (an appending counter drew only the sprites, but not
-//! deterministically).
-//! Diagnostics: the time span `penumbra_bokeh_dof`.
+//! cannot blend 32-bit floats), the sprites' slots and their compacted list (32 bytes
+//! each per half pixel) and a count per block: 50 MB at 1080p. The passes: the sprite
+//! pass, the scan (one workgroup of 256 threads, each summing a run of blocks), the copy,
+//! one quad per sprite, the composite. On lavapipe at 384 × 288 (`tests/bokeh_truth.rs`,
+//! f/0.05) frames take 41–46 ms with it, 31–34 ms with Bevy's Gaussian `DepthOfField`,
+//! 35–37 ms with its bokeh and 24–31 ms with none (3 runs). Diagnostics: the time span
+//! `penumbra_bokeh_dof`.
 
+mod pipelines;
 mod render;
 
 use bevy::asset::AssetEvent;

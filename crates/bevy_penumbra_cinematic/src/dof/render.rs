@@ -1,46 +1,34 @@
 //! Render-world side of scatter bokeh: extraction, the pooled per-view buffers and
 //! half-resolution layers, the aperture textures, the bind groups and the three passes.
 
+use super::pipelines::{
+    BokehPipelines, ViewBokehPipelines, init_bokeh_pipelines, prepare_bokeh_pipelines, unsupported,
+};
 use super::{BokehApertureShape, BokehDepthOfField};
 use bevy::camera::Projection;
-use bevy::core_pipeline::{Core3dSystems, FullscreenShader, schedule::Core3d};
+use bevy::core_pipeline::{Core3dSystems, schedule::Core3d};
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
-use bevy::render::render_resource::binding_types::{
-    sampler, storage_buffer_read_only_sized, storage_buffer_sized, texture_2d, texture_depth_2d,
-    texture_depth_2d_multisampled, uniform_buffer_sized,
-};
 use bevy::render::render_resource::encase::UniformBuffer as EncaseBuffer;
 use bevy::render::render_resource::{
-    BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, BlendComponent,
-    BlendFactor, BlendOperation, BlendState, Buffer, BufferId, BufferUsages,
-    CachedComputePipelineId, CachedRenderPipelineId, ColorTargetState, ColorWrites,
-    ComputePassDescriptor, ComputePipelineDescriptor, DownlevelFlags, Extent3d, FilterMode,
-    FragmentState, LoadOp, Operations, PipelineCache, RenderPassColorAttachment,
-    RenderPassDescriptor, RenderPipelineDescriptor, Sampler, SamplerBindingType, SamplerDescriptor,
-    ShaderStages, ShaderType, StoreOp, TextureDescriptor, TextureDimension, TextureFormat,
-    TextureSampleType, TextureUsages, TextureView, TextureViewDescriptor, TextureViewId,
-    VertexState, WgpuFeatures,
+    BindGroup, BindGroupEntries, Buffer, BufferId, BufferUsages, ComputePassDescriptor, Extent3d,
+    LoadOp, Operations, PipelineCache, RenderPassColorAttachment, RenderPassDescriptor, ShaderType,
+    StoreOp, TextureDescriptor, TextureDimension, TextureFormat, TextureUsages, TextureView,
+    TextureViewDescriptor, TextureViewId,
 };
-use bevy::render::renderer::{RenderAdapter, RenderContext, RenderDevice, RenderQueue, ViewQuery};
+use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::sync_component::{SyncComponent, SyncComponentPlugin};
 use bevy::render::sync_world::RenderEntity;
 use bevy::render::texture::{CachedTexture, TextureCache};
-use bevy::render::view::{ExtractedView, Msaa, ViewDepthTexture, ViewTarget};
+use bevy::render::view::{ExtractedView, ViewDepthTexture, ViewTarget};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
-use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
+use bevy_penumbra_df::PenumbraGpuAllocations;
 use penumbra_cinematic_core::dof::{Aperture, BokehView, Lens, SpriteRule, sprite_slots};
 use std::sync::Arc;
 
 /// Bytes per sprite slot (`penumbra::dof::types::Sprite`).
 const SPRITE_BYTES: u64 = 32;
-/// The half-resolution layers' format where the device blends 32-bit floats: the
-/// layers sum hundreds of small weights per texel at large circles of confusion, which
-/// `Rgba16Float` rounds by several per cent.
-const LAYER_FORMAT: TextureFormat = TextureFormat::Rgba32Float;
-/// The layers' format otherwise.
-const LAYER_FORMAT_FALLBACK: TextureFormat = TextureFormat::Rgba16Float;
 
 /// A bokeh camera's settings in the render world, resolved at extraction.
 #[derive(Component, Clone, Debug)]
@@ -61,32 +49,6 @@ impl SyncComponent for BokehDepthOfField {
     );
 }
 
-/// The passes' layouts, shaders and pipelines. Pipelines vary by the view's MSAA (the
-/// depth binding) and, for the composite, the view's colour format.
-#[derive(Resource)]
-struct BokehPipelines {
-    /// Indexed by `multisampled as usize`.
-    sprites_layout: [BindGroupLayoutDescriptor; 2],
-    scatter_layout: BindGroupLayoutDescriptor,
-    composite_layout: [BindGroupLayoutDescriptor; 2],
-    sprites_shader: Handle<Shader>,
-    composite_shader: Handle<Shader>,
-    sprites: [Option<CachedComputePipelineId>; 2],
-    scatter: CachedRenderPipelineId,
-    composite: HashMap<(TextureFormat, bool), CachedRenderPipelineId>,
-    /// Linear, clamp-to-edge: the aperture.
-    sampler: Sampler,
-    /// [`LAYER_FORMAT`], or [`LAYER_FORMAT_FALLBACK`] without `FLOAT32_BLENDABLE`.
-    layer_format: TextureFormat,
-}
-
-/// A view's pipelines (ids into the pipeline cache).
-#[derive(Component, Clone, Copy)]
-pub struct ViewBokehPipelines {
-    sprites: CachedComputePipelineId,
-    composite: CachedRenderPipelineId,
-}
-
 /// An aperture's texture and its normalisation table (`aperture_norm`).
 struct ApertureTexture {
     view: TextureView,
@@ -97,16 +59,19 @@ struct ApertureTexture {
 #[derive(Resource, Default)]
 struct BokehApertureTextures(HashMap<u64, ApertureTexture>);
 
-/// A view's pooled buffers: the uniform, the sprite count, the sprite slots.
+/// A view's pooled buffers: the uniform; the sprite pass's slots and per-block counts;
+/// the compacted list and its draw's arguments.
 #[derive(Component)]
 pub struct ViewBokehBuffers {
     uniform: Buffer,
-    count: Buffer,
+    block_counts: Buffer,
+    slots: Buffer,
     sprites: Buffer,
-    /// Slots `sprites` holds: grown, never shrunk.
+    args: Buffer,
+    /// Sprites `slots` and `sprites` hold (4 per block): grown, never shrunk.
     capacity: u32,
-    /// Slots this frame's view uses (all written each frame), drawn in order.
-    slots: u32,
+    /// Blocks of this frame's view.
+    blocks: u32,
     half_size: UVec2,
 }
 
@@ -128,6 +93,7 @@ type BindKey = ([TextureViewId; 5], BufferId, u64);
 pub struct ViewBokehBindGroups {
     key: BindKey,
     sprites: [(TextureViewId, BindGroup); 2],
+    compact: BindGroup,
     scatter: BindGroup,
     composite: [(TextureViewId, BindGroup); 2],
 }
@@ -137,7 +103,7 @@ pub(super) fn build(render_app: &mut SubApp) {
 }
 
 /// Adds the passes when the device can run them: compute, storage buffers read by a
-/// vertex shader (not WebGL 2). Otherwise one warning, and the
+/// vertex shader, indirect draws (not WebGL 2). Otherwise one warning, and the
 /// component does nothing.
 pub(super) fn finish(render_app: &mut SubApp) {
     if let Some(reason) = unsupported(render_app.world()) {
@@ -161,148 +127,6 @@ pub(super) fn finish(render_app: &mut SubApp) {
                 .in_set(Core3dSystems::PostProcess)
                 .before(bevy::core_pipeline::tonemapping::tonemapping),
         );
-}
-
-/// Why the passes cannot run on this device, if they cannot.
-fn unsupported(world: &World) -> Option<String> {
-    let (Some(adapter), Some(device)) = (
-        world.get_resource::<RenderAdapter>(),
-        world.get_resource::<RenderDevice>(),
-    ) else {
-        return Some("there is no renderer".into());
-    };
-    let needed = DownlevelFlags::COMPUTE_SHADERS | DownlevelFlags::VERTEX_STORAGE;
-    let flags = adapter.get_downlevel_capabilities().flags;
-    if !flags.contains(needed) {
-        return Some(format!(
-            "the device lacks {:?}",
-            needed.difference(flags & needed)
-        ));
-    }
-    if device.limits().max_storage_buffers_per_shader_stage < 2 {
-        return Some("the device allows fewer than 2 storage buffers per stage".into());
-    }
-    None
-}
-
-fn init_bokeh_pipelines(
-    mut commands: Commands,
-    device: Res<RenderDevice>,
-    pipeline_cache: Res<PipelineCache>,
-    library: Option<Res<PenumbraShaderLibrary>>,
-) {
-    let Some(library) = library else {
-        warn!("Penumbra: the shader library is not registered; no bokeh depth of field");
-        return;
-    };
-    let view_bytes = Some(BokehView::min_size());
-    let depth = |multisampled: bool| {
-        if multisampled {
-            texture_depth_2d_multisampled()
-        } else {
-            texture_depth_2d()
-        }
-    };
-    let color = || texture_2d(TextureSampleType::Float { filterable: false });
-    let sprites_layout = [false, true].map(|ms| {
-        BindGroupLayoutDescriptor::new(
-            "penumbra_bokeh_sprites_layout",
-            &BindGroupLayoutEntries::sequential(
-                ShaderStages::COMPUTE,
-                (
-                    uniform_buffer_sized(false, view_bytes),
-                    color(),
-                    depth(ms),
-                    storage_buffer_sized(false, None),
-                    storage_buffer_sized(false, None),
-                ),
-            ),
-        )
-    });
-    let scatter_layout = BindGroupLayoutDescriptor::new(
-        "penumbra_bokeh_scatter_layout",
-        &BindGroupLayoutEntries::sequential(
-            ShaderStages::VERTEX_FRAGMENT,
-            (
-                uniform_buffer_sized(false, view_bytes),
-                storage_buffer_read_only_sized(false, None),
-                texture_2d(TextureSampleType::Float { filterable: true }),
-                sampler(SamplerBindingType::Filtering),
-                storage_buffer_read_only_sized(false, None),
-            ),
-        ),
-    );
-    let composite_layout = [false, true].map(|ms| {
-        BindGroupLayoutDescriptor::new(
-            "penumbra_bokeh_composite_layout",
-            &BindGroupLayoutEntries::sequential(
-                ShaderStages::FRAGMENT,
-                (
-                    uniform_buffer_sized(false, view_bytes),
-                    color(),
-                    depth(ms),
-                    color(),
-                    color(),
-                ),
-            ),
-        )
-    });
-    let layer_format = if device.features().contains(WgpuFeatures::FLOAT32_BLENDABLE) {
-        LAYER_FORMAT
-    } else {
-        warn!(
-            "Penumbra: the device cannot blend Rgba32Float; bokeh layers are Rgba16Float \
-             (energy off by a few per cent at large circles of confusion)"
-        );
-        LAYER_FORMAT_FALLBACK
-    };
-    let scatter_shader = library.handle("dof/scatter.wgsl");
-    let additive = BlendComponent {
-        src_factor: BlendFactor::One,
-        dst_factor: BlendFactor::One,
-        operation: BlendOperation::Add,
-    };
-    let layer = Some(ColorTargetState {
-        format: layer_format,
-        blend: Some(BlendState {
-            color: additive,
-            alpha: additive,
-        }),
-        write_mask: ColorWrites::ALL,
-    });
-    let scatter = pipeline_cache.queue_render_pipeline(RenderPipelineDescriptor {
-        label: Some("penumbra_bokeh_scatter".into()),
-        layout: vec![scatter_layout.clone()],
-        vertex: VertexState {
-            shader: scatter_shader.clone(),
-            entry_point: Some("vertex".into()),
-            ..default()
-        },
-        fragment: Some(FragmentState {
-            shader: scatter_shader,
-            entry_point: Some("fragment".into()),
-            targets: vec![layer.clone(), layer],
-            ..default()
-        }),
-        ..default()
-    });
-    commands.insert_resource(BokehPipelines {
-        layer_format,
-        sprites_layout,
-        scatter_layout,
-        composite_layout,
-        sprites_shader: library.handle("dof/sprites.wgsl"),
-        composite_shader: library.handle("dof/composite.wgsl"),
-        sprites: [None, None],
-        scatter,
-        composite: HashMap::default(),
-        sampler: device.create_sampler(&SamplerDescriptor {
-            label: Some("penumbra_bokeh_sampler"),
-            mag_filter: FilterMode::Linear,
-            min_filter: FilterMode::Linear,
-            ..default()
-        }),
-    });
 }
 
 /// What extraction reads of a bokeh camera.
@@ -331,69 +155,6 @@ fn extract_bokeh_depth_of_field(mut commands: Commands, cameras: Extract<Query<B
             rule,
             aperture: aperture.clone(),
         });
-    }
-}
-
-/// Queues each view's pipelines (once per variant).
-fn prepare_bokeh_pipelines(
-    mut commands: Commands,
-    views: Query<(Entity, &ViewTarget, &Msaa), With<ExtractedBokeh>>,
-    pipelines: Option<ResMut<BokehPipelines>>,
-    pipeline_cache: Res<PipelineCache>,
-    fullscreen: Res<FullscreenShader>,
-) {
-    let Some(mut pipelines) = pipelines else {
-        return;
-    };
-    for (entity, target, msaa) in &views {
-        let ms = *msaa != Msaa::Off;
-        let defs = if ms {
-            vec!["MULTISAMPLED".into()]
-        } else {
-            vec![]
-        };
-        let sprites = match pipelines.sprites[ms as usize] {
-            Some(id) => id,
-            None => {
-                let id = pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
-                    label: Some("penumbra_bokeh_sprites".into()),
-                    layout: vec![pipelines.sprites_layout[ms as usize].clone()],
-                    shader: pipelines.sprites_shader.clone(),
-                    shader_defs: defs.clone(),
-                    entry_point: Some("sprites_main".into()),
-                    ..default()
-                });
-                pipelines.sprites[ms as usize] = Some(id);
-                id
-            }
-        };
-        let format = target.main_texture_format();
-        let composite = match pipelines.composite.get(&(format, ms)) {
-            Some(id) => *id,
-            None => {
-                let id = pipeline_cache.queue_render_pipeline(RenderPipelineDescriptor {
-                    label: Some("penumbra_bokeh_composite".into()),
-                    layout: vec![pipelines.composite_layout[ms as usize].clone()],
-                    vertex: fullscreen.to_vertex_state(),
-                    fragment: Some(FragmentState {
-                        shader: pipelines.composite_shader.clone(),
-                        shader_defs: defs,
-                        entry_point: Some("fragment".into()),
-                        targets: vec![Some(ColorTargetState {
-                            format,
-                            blend: None,
-                            write_mask: ColorWrites::ALL,
-                        })],
-                    }),
-                    ..default()
-                });
-                pipelines.composite.insert((format, ms), id);
-                id
-            }
-        };
-        commands
-            .entity(entity)
-            .insert(ViewBokehPipelines { sprites, composite });
     }
 }
 
@@ -451,6 +212,11 @@ fn prepare_bokeh_textures(
             far: layer("penumbra_bokeh_far"),
         };
         entity_commands.insert(textures);
+        let blocks = capacity / 4;
+        let storage = |label, bytes: u64, extra| {
+            allocations.sized_buffer(&device, label, bytes, BufferUsages::STORAGE | extra)
+        };
+        let sprite_bytes = |n: u32| u64::from(n.max(1)) * SPRITE_BYTES;
         let mut fresh = None;
         let buffers = match buffers {
             Some(b) => b.into_inner(),
@@ -461,34 +227,47 @@ fn prepare_bokeh_textures(
                     BokehView::min_size().get(),
                     BufferUsages::UNIFORM | BufferUsages::COPY_DST,
                 ),
-                count: allocations.sized_buffer(
-                    &device,
-                    "penumbra_bokeh_sprite_count",
-                    4,
-                    BufferUsages::STORAGE | BufferUsages::COPY_DST,
+                block_counts: storage(
+                    "penumbra_bokeh_block_counts",
+                    u64::from(blocks.max(1)) * 4,
+                    BufferUsages::empty(),
                 ),
-                sprites: allocations.sized_buffer(
-                    &device,
+                slots: storage(
+                    "penumbra_bokeh_slots",
+                    sprite_bytes(capacity),
+                    BufferUsages::empty(),
+                ),
+                sprites: storage(
                     "penumbra_bokeh_sprites",
-                    u64::from(capacity.max(1)) * SPRITE_BYTES,
-                    BufferUsages::STORAGE,
+                    sprite_bytes(capacity),
+                    BufferUsages::empty(),
                 ),
+                args: storage("penumbra_bokeh_draw_args", 16, BufferUsages::INDIRECT),
                 capacity,
-                slots: capacity,
+                blocks,
                 half_size: half,
             }),
         };
         if buffers.capacity < capacity {
-            buffers.sprites = allocations.sized_buffer(
-                &device,
+            buffers.block_counts = storage(
+                "penumbra_bokeh_block_counts",
+                u64::from(blocks) * 4,
+                BufferUsages::empty(),
+            );
+            buffers.slots = storage(
+                "penumbra_bokeh_slots",
+                sprite_bytes(capacity),
+                BufferUsages::empty(),
+            );
+            buffers.sprites = storage(
                 "penumbra_bokeh_sprites",
-                u64::from(capacity) * SPRITE_BYTES,
-                BufferUsages::STORAGE,
+                sprite_bytes(capacity),
+                BufferUsages::empty(),
             );
             buffers.capacity = capacity;
         }
+        buffers.blocks = blocks;
         buffers.half_size = half;
-        buffers.slots = capacity;
         let uniform = BokehView::new(
             &bokeh.lens,
             &bokeh.rule,
@@ -499,7 +278,6 @@ fn prepare_bokeh_textures(
         let mut bytes = EncaseBuffer::new(Vec::new());
         bytes.write(&uniform).expect("the bokeh uniform encodes");
         queue.write_buffer(&buffers.uniform, 0, bytes.as_ref());
-        queue.write_buffer(&buffers.count, 0, &0u32.to_le_bytes());
         if let Some(fresh) = fresh {
             entity_commands.insert(fresh);
         }
@@ -632,8 +410,8 @@ fn prepare_bokeh_bind_groups(
                     buffers.uniform.as_entire_binding(),
                     main,
                     depth_view,
-                    buffers.count.as_entire_binding(),
-                    buffers.sprites.as_entire_binding(),
+                    buffers.block_counts.as_entire_binding(),
+                    buffers.slots.as_entire_binding(),
                 )),
             );
             let composite = allocations.bind_group(
@@ -651,6 +429,18 @@ fn prepare_bokeh_bind_groups(
             ((main.id(), sprites), (main.id(), composite))
         };
         let (a, b) = (per_main(mains[0]), per_main(mains[1]));
+        let compact = allocations.bind_group(
+            &device,
+            "penumbra_bokeh_compact",
+            &pipeline_cache.get_bind_group_layout(&pipelines.compact_layout),
+            &BindGroupEntries::sequential((
+                buffers.uniform.as_entire_binding(),
+                buffers.block_counts.as_entire_binding(),
+                buffers.slots.as_entire_binding(),
+                buffers.sprites.as_entire_binding(),
+                buffers.args.as_entire_binding(),
+            )),
+        );
         let scatter = allocations.bind_group(
             &device,
             "penumbra_bokeh_scatter",
@@ -666,6 +456,7 @@ fn prepare_bokeh_bind_groups(
         commands.entity(entity).insert(ViewBokehBindGroups {
             key,
             sprites: [a.0, b.0],
+            compact,
             scatter,
             composite: [a.1, b.1],
         });
@@ -691,8 +482,10 @@ fn bokeh_depth_of_field(
         return;
     };
     // Until every pipeline has compiled the view is left as it is.
-    let (Some(sprites), Some(scatter), Some(composite)) = (
+    let (Some(sprites), Some(scan), Some(compact), Some(scatter), Some(composite)) = (
         pipeline_cache.get_compute_pipeline(ids.sprites),
+        pipeline_cache.get_compute_pipeline(pipelines.scan),
+        pipeline_cache.get_compute_pipeline(pipelines.compact),
         pipeline_cache.get_render_pipeline(pipelines.scatter),
         pipeline_cache.get_render_pipeline(ids.composite),
     ) else {
@@ -724,6 +517,26 @@ fn bokeh_depth_of_field(
         let blocks = (buffers.half_size + UVec2::ONE) / 2;
         pass.dispatch_workgroups(blocks.x.div_ceil(8), blocks.y.div_ceil(8), 1);
     }
+    // The list in block order: a scan of the blocks' counts, then the copy (each in its
+    // own pass: the next reads what the last wrote).
+    for (label, pipeline, workgroups) in [
+        ("penumbra_bokeh_scan", scan, 1),
+        (
+            "penumbra_bokeh_compact",
+            compact,
+            buffers.blocks.div_ceil(64),
+        ),
+    ] {
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor {
+                label: Some(label),
+                timestamp_writes: None,
+            });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &groups.compact, &[]);
+        pass.dispatch_workgroups(workgroups, 1, 1);
+    }
     {
         let layer = |view| {
             Some(RenderPassColorAttachment {
@@ -748,9 +561,7 @@ fn bokeh_depth_of_field(
             });
         pass.set_pipeline(scatter);
         pass.set_bind_group(0, &groups.scatter, &[]);
-        // Every slot in order (empty ones collapse in the vertex shader): the layers'
-        // sums do not depend on thread timing.
-        pass.draw(0..6, 0..buffers.slots);
+        pass.draw_indirect(&buffers.args, 0);
     }
     let post = target.post_process_write();
     {

@@ -1,5 +1,5 @@
-// Scatter bokeh depth of field, second pass: one instanced quad per sprite slot (empty
-// slots collapse to nothing in the vertex shader), drawn in slot order into two
+// Scatter bokeh depth of field, second pass: one instanced quad per sprite of the
+// compacted list (`draw_indirect` with its count), drawn in list order into two
 // half-resolution targets with additive blending — the near layer (location 0) and the far layer
 // (location 1), each texel `(Σ colour · v, Σ v)`. A fragment adds the aperture image
 // around the sprite's pixel, or around each of a block's four, normalised by what the
@@ -46,7 +46,7 @@ fn vertex(@builtin(vertex_index) vertex_index: u32, @builtin(instance_index) ins
     }
     let s = sprites[instance];
     if s.shape.w == 0.0 {
-        // An empty slot: nothing to draw.
+        // A place left empty (buffers too small for the view): nothing to draw.
         out.position = vec4<f32>(2.0, 2.0, 2.0, 1.0);
         return out;
     }

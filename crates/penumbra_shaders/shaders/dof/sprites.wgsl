@@ -20,8 +20,9 @@
 #else
 @group(0) @binding(2) var depth_texture: texture_depth_2d;
 #endif
-@group(0) @binding(3) var<storage, read_write> count: atomic<u32>;
-@group(0) @binding(4) var<storage, read_write> sprites: array<Sprite>;
+// Per block, its sprites (0 to 4): the compaction's input.
+@group(0) @binding(3) var<storage, read_write> block_counts: array<u32>;
+@group(0) @binding(4) var<storage, read_write> slots: array<Sprite>;
 
 // A half-resolution pixel: mean colour, circle of confusion, distance.
 struct HalfPixel {
@@ -80,19 +81,19 @@ fn block_agrees(b: array<HalfPixel, 4>) -> bool {
         && (d_hi - d_lo <= view.depth_tolerance * d_mean || d_lo == d_hi);
 }
 
-// Slot `slot` holds a sprite (counted), or nothing when `weight` is 0.
-fn write(slot: u32, center: vec2<f32>, coc: f32, color: vec3<f32>, weight: f32) {
+// Slot `slot` holds a sprite, or nothing when `weight` is 0; 1 when it holds one.
+fn write(slot: u32, center: vec2<f32>, coc: f32, color: vec3<f32>, weight: f32) -> u32 {
     var sprite = Sprite(vec4<f32>(0.0), vec4<f32>(0.0));
     if weight > 0.0 {
-        atomicAdd(&count, 1u);
         sprite = Sprite(
             vec4<f32>(center, sprite_diameter(coc), weight),
             vec4<f32>(color, select(0.0, 1.0, coc < 0.0)),
         );
     }
     if slot < view.capacity {
-        sprites[slot] = sprite;
+        slots[slot] = sprite;
     }
+    return select(0u, 1u, weight > 0.0);
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -108,19 +109,22 @@ fn sprites_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         inside = inside && all(h < view.half_size);
         b[k] = half_pixel(min(h, view.half_size - vec2<u32>(1u)));
     }
-    let base = 4u * (block.y * ((view.half_size.x + 1u) / 2u) + block.x);
+    let index = block.y * ((view.half_size.x + 1u) / 2u) + block.x;
+    let base = 4u * index;
+    var count = 0u;
     if view.merge == 1u && inside && block_agrees(b) {
         let coc = (b[0].coc + b[1].coc + b[2].coc + b[3].coc) / 4.0;
         let color = b[0].color + b[1].color + b[2].color + b[3].color;
-        write(base, 2.0 * vec2<f32>(block) + 1.0, coc, color, 4.0);
+        count = write(base, 2.0 * vec2<f32>(block) + 1.0, coc, color, 4.0);
         for (var k = 1u; k < 4u; k += 1u) {
             write(base + k, vec2<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
         }
-        return;
+    } else {
+        for (var k = 0u; k < 4u; k += 1u) {
+            let h = 2u * block + vec2<u32>(k & 1u, k >> 1u);
+            let emits = all(h < view.half_size) && abs(b[k].coc) >= max(view.min_coc, 1e-3);
+            count += write(base + k, vec2<f32>(h) + 0.5, b[k].coc, b[k].color, select(0.0, 1.0, emits));
+        }
     }
-    for (var k = 0u; k < 4u; k += 1u) {
-        let h = 2u * block + vec2<u32>(k & 1u, k >> 1u);
-        let emits = all(h < view.half_size) && abs(b[k].coc) >= max(view.min_coc, 1e-3);
-        write(base + k, vec2<f32>(h) + 0.5, b[k].coc, b[k].color, select(0.0, 1.0, emits));
-    }
+    block_counts[index] = count;
 }

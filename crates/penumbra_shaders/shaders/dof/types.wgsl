@@ -24,7 +24,8 @@ struct BokehView {
 
 // One sprite: `shape` = (centre in half-resolution pixels, aperture diameter, weight:
 // 1 or 4 for a block, 0 for an empty slot); `color` = (the summed colour, 1 when in front
-// of the focal plane). Block `b` (row-major) owns slots `4b` to `4b + 3`.
+// of the focal plane). In the sprite pass's slots block `b` (row-major) owns `4b` to
+// `4b + 3`; the compacted list has no gaps.
 struct Sprite {
     shape: vec4<f32>,
     color: vec4<f32>,
