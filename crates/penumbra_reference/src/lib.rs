@@ -43,5 +43,6 @@ pub mod particles;
 pub mod pbr;
 pub mod scene;
 pub mod shadow_mask;
+pub mod sss;
 #[cfg(test)]
 mod test_terrain;
