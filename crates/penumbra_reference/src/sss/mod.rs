@@ -8,10 +8,16 @@
 //! profile). The independent check is [`convolve`]: the profile integrated against the
 //! irradiance on a fine polar grid, no sampling.
 //!
-//! The profile and its sampling: `penumbra_cinematic_core::sss`.
+//! [`screen`]: the pass over a screen's pixels (depth- and profile-aware), checked against
+//! a convolution over the surface itself. The profile and its sampling:
+//! `penumbra_cinematic_core::sss`.
 
 use glam::{Vec2, Vec3};
 pub use penumbra_cinematic_core::sss::{ScatterProfile, cdf, profile, sample_radius};
+
+pub mod screen;
+#[cfg(test)]
+mod screen_tests;
 
 /// The golden angle, radians: successive samples' angles, so any `n` of them cover the
 /// circle evenly.

@@ -1,0 +1,149 @@
+//! The screen-space pass against world-space truth: a lit sphere (a terminator across a
+//! curved surface, a silhouette against the sky) and a shadow edge on a plane.
+
+use super::screen::{ScatterInput, scatter_screen, sphere_surface, surface_convolution};
+use super::{ScatterProfile, convolve};
+use crate::camera::PerspectiveCamera;
+use glam::{Vec2, Vec3};
+
+const SIZE: u32 = 128;
+
+fn skin() -> ScatterProfile {
+    ScatterProfile::new(Vec3::new(1.0, 0.4, 0.25), 0.003)
+}
+
+/// What a deferred renderer sees of one analytic surface: `hit` gives (position, normal)
+/// for a pixel's ray.
+fn input(
+    camera: &PerspectiveCamera,
+    hit: impl Fn(crate::camera::Ray) -> Option<(Vec3, Vec3)>,
+    irradiance: impl Fn(Vec3, Vec3) -> Vec3,
+) -> ScatterInput {
+    let mut g = ScatterInput {
+        width: SIZE,
+        height: SIZE,
+        ..Default::default()
+    };
+    for y in 0..SIZE {
+        for x in 0..SIZE {
+            let ray = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+            match hit(ray) {
+                Some((p, n)) => {
+                    g.position.push(Some(p));
+                    g.normal.push(n);
+                    g.irradiance.push(irradiance(p, n));
+                    g.profile.push(Some(0));
+                }
+                None => {
+                    g.position.push(None);
+                    g.normal.push(Vec3::Z);
+                    g.irradiance.push(Vec3::splat(0.25));
+                    g.profile.push(None);
+                }
+            }
+        }
+    }
+    g
+}
+
+/// The pass averaged over `frames` frames (its per-frame noise is what temporal
+/// accumulation removes).
+fn averaged(g: &ScatterInput, camera: &PerspectiveCamera, n: u32, frames: u32) -> Vec<Vec3> {
+    let mut sum = vec![Vec3::ZERO; g.irradiance.len()];
+    for f in 0..frames {
+        for (s, v) in sum
+            .iter_mut()
+            .zip(scatter_screen(g, camera, &[skin()], n, f))
+        {
+            *s += v / frames as f32;
+        }
+    }
+    sum
+}
+
+/// A 5 cm sphere 30 cm away lit from the side: the scattered terminator against the
+/// convolution over the sphere's surface; the sky untouched.
+#[test]
+fn a_lit_sphere_matches_the_surface_convolution() {
+    let camera =
+        PerspectiveCamera::looking_at(Vec3::new(0.0, 0.0, 0.3), Vec3::ZERO, 0.8, SIZE, SIZE);
+    let (center, radius) = (Vec3::ZERO, 0.05);
+    let light = Vec3::new(1.0, 0.2, 0.3).normalize();
+    let lambert = move |n: Vec3| Vec3::splat(n.dot(light).max(0.0));
+    let sphere = move |ray: crate::camera::Ray| {
+        let oc = ray.origin - center;
+        let b = oc.dot(ray.dir);
+        let c = oc.length_squared() - radius * radius;
+        let disc = b * b - c;
+        (disc >= 0.0).then(|| {
+            let p = ray.at(-b - disc.sqrt());
+            (p, (p - center) / radius)
+        })
+    };
+    let g = input(&camera, sphere, |_, n| lambert(n));
+    let surface = sphere_surface(center, radius, 600);
+    let reach = 12.0 * skin().d.max_element();
+    let got = averaged(&g, &camera, 16, 32);
+    let (mut err, mut before, mut count, mut worst) = (0.0f64, 0.0f64, 0usize, 0.0f32);
+    for (i, p) in g.position.iter().enumerate() {
+        let Some(p) = *p else {
+            assert_eq!(got[i], g.irradiance[i], "the sky is untouched");
+            continue;
+        };
+        let near: Vec<(Vec3, f32)> = surface
+            .iter()
+            .copied()
+            .filter(|(y, _)| (*y - p).length() < reach)
+            .collect();
+        let truth = surface_convolution(&near, |y| lambert((y - center) / radius), p, &skin());
+        let e = (got[i] - truth).abs().element_sum() / 3.0;
+        err += f64::from(e);
+        before += f64::from((g.irradiance[i] - truth).abs().element_sum() / 3.0);
+        worst = worst.max(e);
+        count += 1;
+    }
+    let (mean, mean_before) = (err / count as f64, before / count as f64);
+    eprintln!(
+        "sphere: {count} px, mean |scattered − truth| {mean:.4} (unscattered {mean_before:.4}), worst {worst:.4}"
+    );
+    assert!(count > 1500);
+    assert!(mean < 0.35 * mean_before, "{mean} vs {mean_before}");
+}
+
+/// A shadow edge across a plane facing the camera: the scattered edge against the
+/// plane convolution.
+#[test]
+fn a_shadow_edge_matches_the_plane_convolution() {
+    let camera =
+        PerspectiveCamera::looking_at(Vec3::new(0.0, 0.0, 0.1), Vec3::ZERO, 0.8, SIZE, SIZE);
+    let plane = |ray: crate::camera::Ray| {
+        let t = -ray.origin.z / ray.dir.z;
+        (t > 0.0).then(|| (ray.at(t), Vec3::Z))
+    };
+    let lit = |p: Vec3| if p.x < 0.0 { Vec3::ONE } else { Vec3::ZERO };
+    let g = input(&camera, plane, |p, _| lit(p));
+    let got = averaged(&g, &camera, 16, 32);
+    let (mut err, mut before, mut count) = (0.0f64, 0.0f64, 0usize);
+    for (i, p) in g.position.iter().enumerate() {
+        let p = p.expect("the plane fills the view");
+        if p.x.abs() > 0.01 {
+            continue;
+        }
+        let truth = convolve(
+            |q| lit(q.extend(0.0)),
+            Vec2::new(p.x, p.y),
+            &skin(),
+            400,
+            64,
+        );
+        err += f64::from((got[i] - truth).abs().element_sum() / 3.0);
+        before += f64::from((g.irradiance[i] - truth).abs().element_sum() / 3.0);
+        count += 1;
+    }
+    let (mean, mean_before) = (err / count as f64, before / count as f64);
+    eprintln!(
+        "shadow edge: {count} px within 1 cm, mean |scattered − truth| {mean:.4} (unscattered {mean_before:.4})"
+    );
+    assert!(count > 1000);
+    assert!(mean < 0.2 * mean_before, "{mean} vs {mean_before}");
+}
