@@ -147,3 +147,64 @@ fn a_shadow_edge_matches_the_plane_convolution() {
     assert!(count > 1000);
     assert!(mean < 0.2 * mean_before, "{mean} vs {mean_before}");
 }
+
+/// A lit scattering sphere 10 cm in front of a dark scattering wall: light must not
+/// cross the gap (3 mm profiles, a 10 cm step), though the sphere's disc samples land on
+/// the wall beside its silhouette. The truth is exact: each surface keeps its own uniform
+/// irradiance. Leak: what the wall gains beside the silhouette, what the sphere's rim
+/// loses.
+#[test]
+fn light_does_not_leak_across_a_silhouette() {
+    let camera =
+        PerspectiveCamera::looking_at(Vec3::new(0.0, 0.0, 0.3), Vec3::ZERO, 0.8, SIZE, SIZE);
+    let (center, radius) = (Vec3::ZERO, 0.05);
+    let scene = move |ray: crate::camera::Ray| {
+        let oc = ray.origin - center;
+        let b = oc.dot(ray.dir);
+        let disc = b * b - (oc.length_squared() - radius * radius);
+        if disc >= 0.0 {
+            let p = ray.at(-b - disc.sqrt());
+            return Some((p, (p - center) / radius));
+        }
+        let t = (-0.1 - ray.origin.z) / ray.dir.z;
+        (t > 0.0).then(|| (ray.at(t), Vec3::Z))
+    };
+    let on_sphere = move |p: Vec3| (p - center).length() < radius + 1e-4;
+    let g = input(&camera, scene, |p, _| {
+        if on_sphere(p) { Vec3::ONE } else { Vec3::ZERO }
+    });
+    let got = averaged(&g, &camera, 16, 32);
+    // Pixels within 3 px of the silhouette, on either side.
+    let is_sphere: Vec<bool> = g
+        .position
+        .iter()
+        .map(|p| p.is_some_and(on_sphere))
+        .collect();
+    let near_edge = |i: usize| {
+        let (x, y) = ((i as u32 % SIZE) as i32, (i as u32 / SIZE) as i32);
+        (-3..=3).any(|dy: i32| {
+            (-3..=3).any(|dx: i32| {
+                let (qx, qy) = (x + dx, y + dy);
+                (0..SIZE as i32).contains(&qx)
+                    && (0..SIZE as i32).contains(&qy)
+                    && is_sphere[(qy * SIZE as i32 + qx) as usize] != is_sphere[i]
+            })
+        })
+    };
+    let (mut wall, mut rim, mut nw, mut nr) = (0.0f32, 0.0f32, 0, 0);
+    for i in (0..got.len()).filter(|&i| near_edge(i)) {
+        if is_sphere[i] {
+            rim += 1.0 - got[i].x;
+            nr += 1;
+        } else {
+            wall += got[i].x;
+            nw += 1;
+        }
+    }
+    let (wall, rim) = (wall / nw as f32, rim / nr as f32);
+    eprintln!(
+        "silhouette: the wall gains {wall:.4} ({nw} px), the rim loses {rim:.4} ({nr} px) of 1"
+    );
+    assert!(nw > 100 && nr > 100);
+    assert!(wall < 0.005 && rim < 0.005, "{wall} {rim}");
+}
