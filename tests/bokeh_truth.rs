@@ -43,6 +43,7 @@ use bevy::render::render_resource::{TextureFormat, TextureUsages};
 use bevy::world_serialization::{WorldAsset, WorldAssetRoot};
 use penumbra::prelude::*;
 use penumbra_cinematic_core::dof::Lens;
+use penumbra_reference::camera::PerspectiveCamera;
 use penumbra_reference::df::f16_to_f32;
 use penumbra_test::{HeadlessRender, gpu_or_skip};
 use std::collections::HashMap;
@@ -560,15 +561,18 @@ fn bokeh_against_the_thin_lens_truth() {
     }
 }
 
-/// Pixel position of a point in front of the identity camera.
+/// Pixel position of a point in front of the camera at the origin looking down −Z:
+/// `penumbra_reference`'s camera with Bevy's default field of view.
 fn project(p: Vec3) -> Vec2 {
-    let t = (0.5 * PerspectiveProjection::default().fov).tan();
-    let aspect = WIDTH as f32 / HEIGHT as f32;
-    let ndc = Vec2::new(p.x / (-p.z * t * aspect), p.y / (-p.z * t));
-    Vec2::new(
-        (ndc.x + 1.0) * 0.5 * WIDTH as f32,
-        (1.0 - ndc.y) * 0.5 * HEIGHT as f32,
-    )
+    let camera = PerspectiveCamera::looking_at(
+        Vec3::ZERO,
+        Vec3::NEG_Z,
+        PerspectiveProjection::default().fov,
+        WIDTH,
+        HEIGHT,
+    );
+    let (x, y) = camera.project(p).expect("in front of the camera");
+    Vec2::new(x, y)
 }
 
 /// The thin lens's image of the light, analytically: the aperture (a hexagon, vertex up,

@@ -15,6 +15,7 @@ use bevy::prelude::*;
 use bevy_penumbra_cinematic::{BokehAperture, BokehDepthOfField, BokehDepthOfFieldPlugin};
 use bevy_penumbra_df::PenumbraGpuAllocations;
 use penumbra_cinematic_core::dof::Lens;
+use penumbra_reference::camera::PerspectiveCamera;
 use penumbra_test::{CaptureFormat, HeadlessRender, KeptApp, gpu_or_skip};
 
 const WIDTH: u32 = 127;
@@ -126,15 +127,18 @@ fn lens() -> Lens {
     settings().resolve(PerspectiveProjection::default().fov).0
 }
 
-/// Pixel position of a point in front of the identity camera.
+/// Pixel position of a point in front of the camera at the origin looking down −Z:
+/// `penumbra_reference`'s camera with Bevy's default field of view.
 fn project(p: Vec3) -> Vec2 {
-    let t = (0.5 * PerspectiveProjection::default().fov).tan();
-    let aspect = WIDTH as f32 / HEIGHT as f32;
-    let ndc = Vec2::new(p.x / (-p.z * t * aspect), p.y / (-p.z * t));
-    Vec2::new(
-        (ndc.x + 1.0) * 0.5 * WIDTH as f32,
-        (1.0 - ndc.y) * 0.5 * HEIGHT as f32,
-    )
+    let camera = PerspectiveCamera::looking_at(
+        Vec3::ZERO,
+        Vec3::NEG_Z,
+        PerspectiveProjection::default().fov,
+        WIDTH,
+        HEIGHT,
+    );
+    let (x, y) = camera.project(p).expect("in front of the camera");
+    Vec2::new(x, y)
 }
 
 fn at(image: &[[f32; 4]], x: u32, y: u32) -> [f32; 4] {
