@@ -3,15 +3,15 @@
 //! Bevy plugins for Unreal-4-style distance-field lighting — mesh signed distance fields,
 //! an SDF atlas and GPU object buffer, ray-marched soft shadows, distance-field ambient
 //! occlusion, a global SDF in camera-centred clipmaps — and the Samaritan demo's cinematic
-//! effects: deferred shading with 4× MSAA and scatter bokeh depth of field (more are
-//! planned, see the README).
+//! effects: deferred shading with 4× MSAA, scatter bokeh depth of field and screen-space
+//! subsurface scattering (more are planned, see the README).
 //!
 //! Add [`PenumbraPlugins`] after Bevy's `DefaultPlugins`, then tag entities, lights and
 //! cameras with Penumbra's components. A scene pays only for what it uses: features whose
 //! components are absent run no pass and upload nothing.
 //!
 //! The distance-field features are in [`df`] (`bevy_penumbra_df`), the cinematic ones in
-//! `cinematic` (`bevy_penumbra_cinematic`, feature `dof`); the shader library every
+//! `cinematic` (`bevy_penumbra_cinematic`, features `dof` and `sss`); the shader library every
 //! feature's WGSL imports (`#import penumbra::…`) in [`shaders`]. See `ARCHITECTURE.md`.
 //!
 //! ```no_run
@@ -47,7 +47,7 @@
 use bevy::app::plugin_group;
 use bevy::prelude::*;
 
-#[cfg(feature = "dof")]
+#[cfg(any(feature = "dof", feature = "sss"))]
 pub use bevy_penumbra_cinematic as cinematic;
 pub use bevy_penumbra_df as df;
 pub use penumbra_shaders as shaders;
@@ -71,6 +71,8 @@ plugin_group! {
         bevy_penumbra_df::particles:::DistanceFieldParticlesPlugin,
         #[cfg(feature = "dof")]
         bevy_penumbra_cinematic::dof:::BokehDepthOfFieldPlugin,
+        #[cfg(feature = "sss")]
+        bevy_penumbra_cinematic::sss:::SubsurfaceScatteringPlugin,
     }
 }
 
@@ -93,6 +95,10 @@ pub mod prelude {
     pub use crate::{PenumbraCorePlugin, PenumbraPlugins};
     #[cfg(feature = "dof")]
     pub use bevy_penumbra_cinematic::{BokehAperture, BokehDepthOfField};
+    #[cfg(feature = "sss")]
+    pub use bevy_penumbra_cinematic::{
+        SubsurfaceProfile, SubsurfaceProfiles, SubsurfaceScattering,
+    };
     pub use bevy_penumbra_df::{
         CasterSource, DeferredMsaa, DeferredMsaaShading, DistanceFieldCaster,
         DistanceFieldHeightfield, DistanceFieldParticles, DistanceFieldQuery, DistanceFieldScene,

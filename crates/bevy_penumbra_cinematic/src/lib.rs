@@ -3,10 +3,17 @@
 //! renders exactly as before, and no pass, texture or buffer exists for it.
 //!
 //! - [`dof`]: scatter bokeh depth of field ([`BokehDepthOfField`]).
+//! - [`sss`]: screen-space subsurface scattering ([`SubsurfaceScattering`], profiles in
+//!   [`SubsurfaceProfiles`]).
 //!
 //! The algorithms and their shared GPU layouts live in the Bevy-free
 //! `penumbra_cinematic_core`; their CPU reference models in `penumbra_reference`.
 
 pub mod dof;
+pub mod sss;
 
 pub use dof::{BokehAperture, BokehDepthOfField, BokehDepthOfFieldPlugin};
+pub use sss::{
+    SubsurfaceDebugView, SubsurfaceProfile, SubsurfaceProfileId, SubsurfaceProfiles,
+    SubsurfaceScattering, SubsurfaceScatteringPlugin,
+};

@@ -14,7 +14,46 @@
 //! ([`sample_radius`]). The artist's inputs are a scatter colour and a world-space radius:
 //! channel `c` scatters with `d_c = radius · colour_c` ([`ScatterProfile`]).
 
-use glam::Vec3;
+use encase::ShaderType;
+use glam::{Vec3, Vec4};
+
+/// The first deferred lighting pass id of a scattering material: a `StandardMaterial`
+/// whose `deferred_lighting_pass_id` is `FIRST_LIGHTING_ID + k` scatters with profile `k`
+/// (the G-buffer's 8-bit lighting id is the profile index, as Unreal's G-buffer carries
+/// a subsurface profile id).
+pub const FIRST_LIGHTING_ID: u8 = 192;
+
+/// Profiles the lighting ids can name (`FIRST_LIGHTING_ID..=255`).
+pub const MAX_PROFILES: usize = 256 - FIRST_LIGHTING_ID as usize;
+
+/// The scatter pass's uniform (`penumbra::sss::scatter::SubsurfaceUniform`).
+#[derive(ShaderType, Clone, Copy, Debug, PartialEq)]
+pub struct SubsurfaceUniform {
+    /// Disc samples per pixel.
+    pub samples: u32,
+    /// The frame the disc's rotation and jitter are hashed with (0 every frame when
+    /// temporal randomisation is off).
+    pub frame: u32,
+    /// [`FIRST_LIGHTING_ID`].
+    pub first_id: u32,
+    /// 0 shading; 1 the diffuse irradiance before scattering, 2 after (alpha `2 + k` on
+    /// pixels of profile `k`).
+    pub debug_view: u32,
+    /// Per profile: `d` per channel (metres; 0 for unused slots), `w` unused.
+    pub profiles: [Vec4; MAX_PROFILES],
+}
+
+impl Default for SubsurfaceUniform {
+    fn default() -> Self {
+        SubsurfaceUniform {
+            samples: 0,
+            frame: 0,
+            first_id: u32::from(FIRST_LIGHTING_ID),
+            debug_view: 0,
+            profiles: [Vec4::ZERO; MAX_PROFILES],
+        }
+    }
+}
 
 /// Burley's normalized diffusion profile at distance `r` (metres) for shape distance `d`
 /// (metres), per unit area: integrates to 1 over the plane. Infinite at `r = 0` (an

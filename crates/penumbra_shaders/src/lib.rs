@@ -37,6 +37,7 @@ shader_files! {
     "dof/composite.wgsl" => Some("penumbra::dof::composite"),
     "dof/compact.wgsl" => Some("penumbra::dof::compact"),
     "sss/profile.wgsl" => Some("penumbra::sss::profile"),
+    "sss/scatter.wgsl" => None,
     "df/object.wgsl" => Some("penumbra::df::object"),
     "df/apply_deltas.wgsl" => Some("penumbra::df::apply_deltas"),
     "df/cull.wgsl" => Some("penumbra::df::cull"),

@@ -130,7 +130,7 @@ pub(super) fn build(render_app: &mut SubApp) {
             Core3d,
             distance_field_ambient_occlusion
                 .in_set(Core3dSystems::MainPass)
-                .before(crate::lighting::render::penumbra_lighting),
+                .in_set(crate::lighting::render::PenumbraLightingSystems::Inputs),
         );
 }
 

@@ -63,7 +63,10 @@ use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::sync_component::SyncComponent;
 
 pub use msaa::{DeferredMsaa, DeferredMsaaShading};
-pub use render::PenumbraAoInput;
+pub use render::{
+    PenumbraAoInput, PenumbraLightingBindGroup, PenumbraLightingPipeline, PenumbraLightingSystems,
+    set_lighting_bind_groups,
+};
 #[cfg_attr(
     not(feature = "shadows"),
     allow(

@@ -38,6 +38,18 @@ use std::num::NonZeroU64;
 /// Bevy's (crate-private) `IRRADIANCE_VOLUMES_ARE_USABLE`: off on the web, where they
 /// overflow the texture bindings of deferred rendering.
 const IRRADIANCE_VOLUMES_ARE_USABLE: bool = cfg!(not(target_arch = "wasm32"));
+/// Penumbra's systems in `Core3d`'s main pass, in order.
+#[derive(bevy::ecs::schedule::SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PenumbraLightingSystems {
+    /// Passes that make the lighting pass's inputs: distance-field shadow masks, AO.
+    Inputs,
+    /// Other draws shading G-buffer samples from those inputs, before the lighting pass
+    /// (which discards the lighting-id depth they test against): subsurface scattering.
+    Shading,
+    /// Penumbra's lighting pass.
+    Lighting,
+}
+
 /// Bytes of one `PenumbraShadowedLight` (`lighting/masks.wgsl`).
 const SHADOWED_LIGHT_BYTES: u64 = 32;
 
@@ -165,7 +177,7 @@ pub struct PenumbraLightingPipelineId {
 /// A view's group 2 and the buffers behind it (reused across frames; the bind groups
 /// are made again only when the textures they bind change).
 #[derive(Component)]
-pub(crate) struct PenumbraLightingBindGroup {
+pub struct PenumbraLightingBindGroup {
     uniform: Buffer,
     lights: Buffer,
     light_capacity: u64,
@@ -176,6 +188,11 @@ pub(crate) struct PenumbraLightingBindGroup {
 }
 
 impl PenumbraLightingBindGroup {
+    /// The single-sample lighting draw's group 2 (shadow masks, AO), once made.
+    pub fn bind_group(&self) -> Option<&BindGroup> {
+        self.bind_group.as_ref().map(|(group, _)| group)
+    }
+
     pub(crate) fn classify_bind_group(&self) -> Option<&BindGroup> {
         self.classify_bind_group.as_ref()
     }
@@ -196,13 +213,20 @@ pub(super) fn build(render_app: &mut SubApp) {
             msaa_render::prepare_deferred_msaa_textures
                 .in_set(RenderSystems::PrepareResourcesFlush),
         )
+        .configure_sets(
+            Core3d,
+            (
+                PenumbraLightingSystems::Inputs,
+                PenumbraLightingSystems::Shading.after(bevy::pbr::deferred::deferred_lighting),
+                PenumbraLightingSystems::Lighting.before(main_opaque_pass_3d),
+            )
+                .chain()
+                .in_set(Core3dSystems::MainPass),
+        )
         .add_systems(
             Core3d,
             (
-                penumbra_lighting
-                    .after(bevy::pbr::deferred::deferred_lighting)
-                    .before(main_opaque_pass_3d)
-                    .in_set(Core3dSystems::MainPass),
+                penumbra_lighting.in_set(PenumbraLightingSystems::Lighting),
                 msaa_render::swap_in_msaa_gbuffer.before(Core3dSystems::Prepass),
                 (
                     msaa_render::swap_out_msaa_gbuffer,
@@ -311,6 +335,28 @@ fn init_penumbra_lighting_pipeline(
         no_ao,
         no_class,
     });
+}
+
+impl PenumbraLightingPipeline {
+    /// The single-sample lighting pipeline of a view (`key`: the view's
+    /// `MeshPipelineKey`, from Bevy's `ViewKeyCache`): Bevy's view bind groups 0 and 1,
+    /// Penumbra's group 2 ([`Self::layout`]), `lighting/pass.wgsl`'s `fragment` into the
+    /// view's target, depth-tested for equality against Bevy's lighting-id texture.
+    /// Passes that shade G-buffer samples another way (subsurface scattering's split
+    /// lighting) start from it and change the entry point, targets or depth test.
+    pub fn view_descriptor(&self, key: MeshPipelineKey) -> RenderPipelineDescriptor {
+        self.specialize((key, LightingVariant::Single))
+    }
+
+    /// Group 2 of single-sample lighting draws.
+    pub fn layout(&self) -> &BindGroupLayoutDescriptor {
+        &self.layout
+    }
+
+    /// `lighting/pass.wgsl`.
+    pub fn shader(&self) -> &Handle<Shader> {
+        &self.shader
+    }
 }
 
 impl SpecializedRenderPipeline for PenumbraLightingPipeline {
@@ -682,7 +728,7 @@ pub(crate) fn encode_shadowed_lights(lights: &[PenumbraShadowedLight]) -> Vec<u8
 }
 
 /// Binds the lighting pass's groups: Bevy's view (0, 1) and Penumbra's (2).
-pub(crate) fn set_lighting_bind_groups<'a>(
+pub fn set_lighting_bind_groups<'a>(
     pass: &mut bevy::render::render_phase::TrackedRenderPass<'a>,
     mesh_view: &'a MeshViewBindGroup,
     group: &'a BindGroup,

@@ -97,7 +97,8 @@ pub fn scatter_screen(
                 if kq != k {
                     continue;
                 }
-                let disc = o.length();
+                // (Never 0: the profile's 1/r would make the weight ∞/∞.)
+                let disc = o.length().max(1e-6 * d_max);
                 let sampled = profile(disc, d_max);
                 if sampled <= 0.0 {
                     continue;

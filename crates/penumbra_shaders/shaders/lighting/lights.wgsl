@@ -134,7 +134,17 @@ fn directional_visibility(in: pbr_types::PbrInput, i: u32, view_z: f32) -> f32 {
 // Direct and indirect lighting of a lit G-buffer sample, exposure applied, emissive
 // added: what `bevy_pbr::pbr_functions::apply_pbr_lighting` returns for it.
 fn apply_lighting(in: pbr_types::PbrInput) -> vec4<f32> {
+    return apply_lighting_with_diffuse_color(in, lighting_input(in).diffuse_color);
+}
+
+// `apply_lighting` with the diffuse colour (Bevy's albedo × (1 − metallic)) replaced.
+// Every term is affine in it, so shading with 0 and with 1 splits a sample into what
+// does not scale with the albedo (specular, emissive, the ambient's Fresnel part) and
+// the diffuse irradiance: `apply_lighting = f(0) + diffuse_color · (f(1) − f(0))`
+// (`split_diffuse` in `lighting/pass.wgsl`, for subsurface scattering).
+fn apply_lighting_with_diffuse_color(in: pbr_types::PbrInput, diffuse_color: vec3<f32>) -> vec4<f32> {
     var input = lighting_input(in);
+    input.diffuse_color = diffuse_color;
     let view_z = dot(vec4<f32>(
         view_bindings::view.view_from_world[0].z,
         view_bindings::view.view_from_world[1].z,

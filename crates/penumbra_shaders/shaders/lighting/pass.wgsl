@@ -11,7 +11,7 @@
     lighting,
     mesh_view_bindings::deferred_prepass_texture,
 }
-#import penumbra::lighting::lights::apply_lighting
+#import penumbra::lighting::lights::{apply_lighting, apply_lighting_with_diffuse_color}
 #import penumbra::lighting::masks::penumbra_lighting
 #ifdef PENUMBRA_MSAA
 #import penumbra::lighting::masks::set_shading_sample
@@ -32,25 +32,48 @@ struct FullscreenVertexOutput {
 fn vertex(@builtin(vertex_index) vertex_index: u32) -> FullscreenVertexOutput {
     let uv = vec2<f32>(f32(vertex_index >> 1u), f32(vertex_index & 1u)) * 2.0;
     // The lighting-id depth texture stores the material's pass id as unorm depth.
+#ifdef PENUMBRA_LIGHTING_IDS_FROM
+    // Every id from PENUMBRA_LIGHTING_IDS_FROM up (with the depth test `Less`).
+    let depth = (f32(#{PENUMBRA_LIGHTING_IDS_FROM}) - 0.5) / 255.0;
+#else
     let depth = f32(penumbra_lighting.depth_id) / 255.0;
+#endif
     return FullscreenVertexOutput(vec4(uv * vec2(2.0, -2.0) + vec2(-1.0, 1.0), depth, 1.0), uv);
 }
 
 @fragment
 fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
-    var frag_coord = vec4(in.position.xy, 0.0, 0.0);
+    return shade(gbuffer_input(in.position));
+}
+
+// The G-buffer sample under a fragment (single-sample views).
+fn gbuffer_input(position: vec4<f32>) -> pbr_types::PbrInput {
+    var frag_coord = vec4(position.xy, 0.0, 0.0);
     let gbuffer = textureLoad(deferred_prepass_texture, vec2<i32>(frag_coord.xy), 0);
 #ifdef DEPTH_PREPASS
-    frag_coord.z = prepass_utils::prepass_depth(in.position, 0u);
+    frag_coord.z = prepass_utils::prepass_depth(position, 0u);
 #endif
-    return shade(pbr_input_from_deferred_gbuffer(frag_coord, gbuffer));
+    return pbr_input_from_deferred_gbuffer(frag_coord, gbuffer);
 }
 
 // Shades one G-buffer sample.
 fn shade(input: pbr_types::PbrInput) -> vec4<f32> {
-    var pbr_input = input;
+    let pbr_input = with_screen_space_occlusion(input);
     var color = pbr_input.material.base_color;
-    if (pbr_input.material.flags & STANDARD_MATERIAL_FLAGS_UNLIT_BIT) == 0u {
+    if is_lit(pbr_input) {
+        color = apply_lighting(pbr_input);
+    }
+    return pbr_functions::main_pass_post_lighting_processing(pbr_input, color);
+}
+
+fn is_lit(in: pbr_types::PbrInput) -> bool {
+    return (in.material.flags & STANDARD_MATERIAL_FLAGS_UNLIT_BIT) == 0u;
+}
+
+// The sample's occlusion with Bevy's SSAO folded in (when the view has it).
+fn with_screen_space_occlusion(input: pbr_types::PbrInput) -> pbr_types::PbrInput {
+    var pbr_input = input;
+    if is_lit(pbr_input) {
 #ifdef SCREEN_SPACE_AMBIENT_OCCLUSION
         let ssao = textureLoad(screen_space_ambient_occlusion_texture, vec2<i32>(pbr_input.frag_coord.xy), 0i).r;
         pbr_input.diffuse_occlusion = min(pbr_input.diffuse_occlusion, ssao_multibounce(ssao, pbr_input.material.base_color.rgb));
@@ -59,10 +82,32 @@ fn shade(input: pbr_types::PbrInput) -> vec4<f32> {
         let roughness = lighting::perceptualRoughnessToRoughness(pbr_input.material.perceptual_roughness);
         pbr_input.specular_occlusion = saturate(pow(NdotV + ssao, exp2(-16.0 * roughness - 1.0)) - 1.0 + ssao);
 #endif
-        color = apply_lighting(pbr_input);
     }
-    return pbr_functions::main_pass_post_lighting_processing(pbr_input, color);
+    return pbr_input;
 }
+
+#ifdef PENUMBRA_SPLIT_DIFFUSE
+// The split lighting pass (subsurface scattering: `bevy_penumbra_cinematic::sss`): each
+// sample's light in two targets, before fog and tonemapping — everything that does not
+// scale with the albedo (specular, emissive, the ambient's Fresnel part), and the diffuse
+// irradiance (exposed, before the diffuse colour), so that a later pass can filter the
+// irradiance and apply the diffuse colour after (`apply_lighting_with_diffuse_color`).
+struct SplitDiffuse {
+    @location(0) rest: vec4<f32>,
+    @location(1) diffuse: vec4<f32>,
+}
+
+@fragment
+fn split_diffuse(in: FullscreenVertexOutput) -> SplitDiffuse {
+    let pbr_input = with_screen_space_occlusion(gbuffer_input(in.position));
+    if !is_lit(pbr_input) {
+        return SplitDiffuse(pbr_input.material.base_color, vec4(0.0, 0.0, 0.0, 1.0));
+    }
+    let rest = apply_lighting_with_diffuse_color(pbr_input, vec3(0.0));
+    let white = apply_lighting_with_diffuse_color(pbr_input, vec3(1.0));
+    return SplitDiffuse(rest, vec4(white.rgb - rest.rgb, 1.0));
+}
+#endif
 
 #ifdef PENUMBRA_MSAA
 // Deferred 4× MSAA (`lighting/msaa_view.wgsl`): the stencil marks each pixel 1 (its

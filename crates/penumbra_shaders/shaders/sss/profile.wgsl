@@ -60,3 +60,45 @@ fn disc_offset(i: u32, n: u32, rotation: f32, jitter: f32, d: f32) -> vec2<f32> 
     let a = f32(i) * GOLDEN_ANGLE + rotation;
     return vec2<f32>(cos(a), sin(a)) * r;
 }
+
+// One step of the pixel hash (`penumbra_reference::sss::pixel_noise`).
+fn mix_hash(h: u32) -> u32 {
+    var x = h;
+    x ^= x >> 16u;
+    x *= 0x7feb352du;
+    x ^= x >> 15u;
+    x *= 0x846ca68bu;
+    x ^= x >> 16u;
+    return x;
+}
+
+// A per-pixel, per-frame pair in [0, 1) (the disc's rotation and jitter).
+fn pixel_noise(pixel: vec2<u32>, frame: u32) -> vec2<f32> {
+    let h0 = (pixel.x * 0x8da6b343u) ^ (pixel.y * 0xd8163841u) ^ (frame * 0xcb1ab31fu);
+    let h1 = mix_hash(h0);
+    let h2 = mix_hash(h1);
+    return vec2<f32>(f32(h1 >> 8u), f32(h2 >> 8u)) / 16777216.0;
+}
+
+// Two unit tangents completing the unit normal n (Duff et al. 2017).
+fn tangent_frame(n: vec3<f32>) -> mat2x3<f32> {
+    // copysign(1, n.z), −0 included.
+    let s = select(1.0, -1.0, (bitcast<u32>(n.z) & 0x80000000u) != 0u);
+    let a = -1.0 / (s + n.z);
+    let b = n.x * n.y * a;
+    return mat2x3<f32>(
+        vec3<f32>(1.0 + s * n.x * n.x * a, s * b, -s * n.x),
+        vec3<f32>(b, s + n.y * n.y * a, -n.y),
+    );
+}
+
+// A sample's weight per channel: the profile of each channel's `d` at the distance `r`
+// between the two surface points, over the density the sample was drawn with (the
+// widest channel's profile at its disc radius `disc`).
+fn sample_weight(r: f32, disc: f32, d: vec3<f32>, d_max: f32) -> vec3<f32> {
+    let sampled = burley_profile(disc, d_max);
+    if !(sampled > 0.0) {
+        return vec3<f32>(0.0);
+    }
+    return vec3<f32>(burley_profile(r, d.x), burley_profile(r, d.y), burley_profile(r, d.z)) / sampled;
+}

@@ -1,0 +1,562 @@
+//! Render-world side of subsurface scattering: which views see a scattering material,
+//! their pipelines (from Penumbra's lighting pipeline), textures, bind groups and draws.
+
+use super::{SubsurfaceDebugView, SubsurfaceProfiles, SubsurfaceScattering};
+use bevy::core_pipeline::deferred::copy_lighting_id::DeferredLightingIdDepthTexture;
+use bevy::core_pipeline::prepass::ViewPrepassTextures;
+use bevy::core_pipeline::schedule::Core3d;
+use bevy::pbr::{MeshPipelineKey, MeshViewBindGroup, ViewKeyCache};
+use bevy::platform::collections::{HashMap, HashSet};
+use bevy::prelude::*;
+use bevy::render::diagnostic::RecordDiagnostics;
+use bevy::render::render_resource::binding_types::{texture_2d, uniform_buffer_sized};
+use bevy::render::render_resource::encase::UniformBuffer as EncaseBuffer;
+use bevy::render::render_resource::{
+    BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
+    BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites, CompareFunction, Extent3d,
+    LoadOp, Operations, PipelineCache, RenderPassColorAttachment, RenderPassDepthStencilAttachment,
+    RenderPassDescriptor, RenderPipelineDescriptor, ShaderStages, ShaderType, StoreOp,
+    TextureDescriptor, TextureDimension, TextureFormat, TextureSampleType, TextureUsages,
+    TextureViewId,
+};
+use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
+use bevy::render::sync_component::{SyncComponent, SyncComponentPlugin};
+use bevy::render::sync_world::{MainEntity, RenderEntity};
+use bevy::render::texture::{CachedTexture, TextureCache};
+use bevy::render::view::{ExtractedView, RenderVisibleEntities, ViewTarget};
+use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
+use bevy::shader::ShaderDefVal;
+use bevy_penumbra_df::lighting::{
+    PenumbraLightingBindGroup, PenumbraLightingPipeline, PenumbraLightingSystems,
+    PenumbraLightingView, set_lighting_bind_groups,
+};
+use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraLighting, PenumbraShaderLibrary};
+use penumbra_cinematic_core::sss::{FIRST_LIGHTING_ID, SubsurfaceUniform};
+
+/// The split lighting pass's targets (HDR light before post-processing).
+const SPLIT_FORMAT: TextureFormat = TextureFormat::Rgba16Float;
+
+/// Main world: the meshes whose `StandardMaterial` names a subsurface profile (empty
+/// while no profile is registered).
+#[derive(Resource, Default, PartialEq)]
+pub(super) struct ScatteringMeshes(HashSet<Entity>);
+
+/// Finds the meshes with a scattering material: one material lookup per
+/// `StandardMaterial` mesh per frame, only while a profile exists and a Penumbra camera
+/// could shade it.
+pub(super) fn find_scattering_meshes(
+    profiles: Res<SubsurfaceProfiles>,
+    cameras: Query<(), With<PenumbraLighting>>,
+    materials: Res<Assets<StandardMaterial>>,
+    meshes: Query<(Entity, &MeshMaterial3d<StandardMaterial>)>,
+    mut found: ResMut<ScatteringMeshes>,
+) {
+    if profiles.is_empty() || cameras.is_empty() {
+        if !found.0.is_empty() {
+            found.0.clear();
+        }
+        return;
+    }
+    let now: HashSet<Entity> = meshes
+        .iter()
+        .filter(|(_, material)| {
+            materials
+                .get(&material.0)
+                .is_some_and(|m| m.deferred_lighting_pass_id >= FIRST_LIGHTING_ID)
+        })
+        .map(|(entity, _)| entity)
+        .collect();
+    if now != found.0 {
+        found.0 = now;
+    }
+}
+
+/// Render world: the scattering meshes and the profiles' uniform data.
+#[derive(Resource, Default)]
+struct SubsurfaceScene {
+    meshes: HashSet<MainEntity>,
+    uniform: SubsurfaceUniform,
+}
+
+/// A scattering camera's settings in the render world.
+#[derive(Component, Clone, Debug)]
+pub struct ExtractedSubsurface {
+    samples: u32,
+    temporal: bool,
+    debug_view: SubsurfaceDebugView,
+}
+
+impl SyncComponent for SubsurfaceScattering {
+    type Target = (ExtractedSubsurface, ViewSubsurfaceBindGroup);
+}
+
+pub(super) fn sync_plugin() -> SyncComponentPlugin<SubsurfaceScattering> {
+    SyncComponentPlugin::default()
+}
+
+/// What a Penumbra view draws for scattering pixels this frame (absent: it sees none).
+#[derive(Component)]
+#[allow(clippy::large_enum_variant, reason = "one per view")]
+pub enum ViewSubsurface {
+    /// Split lighting, then the scatter draw.
+    Scatter {
+        split: CachedRenderPipelineId,
+        scatter: CachedRenderPipelineId,
+        rest: CachedTexture,
+        diffuse: CachedTexture,
+    },
+    /// No `SubsurfaceScattering`: Penumbra's lighting, unscattered.
+    Plain(CachedRenderPipelineId),
+}
+
+/// A scattering view's uniform and group 2 (remade when a bound texture changes).
+#[derive(Component)]
+pub struct ViewSubsurfaceBindGroup {
+    uniform: Buffer,
+    group: Option<(BindGroup, [TextureViewId; 3])>,
+}
+
+/// Which draw a pipeline is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Draw {
+    Split,
+    Scatter,
+    Plain,
+}
+
+/// The scatter draw's group 2 and shader, and the pipelines queued per view key.
+#[derive(Resource)]
+struct SubsurfacePipelines {
+    layout: BindGroupLayoutDescriptor,
+    scatter_shader: Handle<Shader>,
+    queued: HashMap<(MeshPipelineKey, Draw), CachedRenderPipelineId>,
+}
+
+pub(super) fn build(render_app: &mut SubApp) {
+    render_app
+        .init_resource::<SubsurfaceScene>()
+        .add_systems(RenderStartup, init_subsurface_pipelines)
+        .add_systems(
+            ExtractSchedule,
+            (extract_subsurface_scene, extract_subsurface_cameras),
+        )
+        .add_systems(
+            Render,
+            (
+                prepare_subsurface_views.in_set(RenderSystems::PrepareResources),
+                prepare_subsurface_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+            ),
+        )
+        .add_systems(
+            Core3d,
+            subsurface_scattering.in_set(PenumbraLightingSystems::Shading),
+        );
+}
+
+pub(super) fn finish(_render_app: &mut SubApp) {}
+
+fn init_subsurface_pipelines(mut commands: Commands, library: Option<Res<PenumbraShaderLibrary>>) {
+    let Some(library) = library else {
+        warn!("Penumbra: the shader library is not registered; no subsurface scattering");
+        return;
+    };
+    let float = || texture_2d(TextureSampleType::Float { filterable: false });
+    let layout = BindGroupLayoutDescriptor::new(
+        "penumbra_sss_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::VERTEX_FRAGMENT,
+            (
+                uniform_buffer_sized(false, Some(SubsurfaceUniform::min_size())),
+                float(),
+                float(),
+                texture_2d(TextureSampleType::Uint),
+            ),
+        ),
+    );
+    commands.insert_resource(SubsurfacePipelines {
+        layout,
+        scatter_shader: library.handle("sss/scatter.wgsl"),
+        queued: HashMap::default(),
+    });
+}
+
+fn extract_subsurface_scene(
+    mut scene: ResMut<SubsurfaceScene>,
+    meshes: Extract<Res<ScatteringMeshes>>,
+    profiles: Extract<Res<SubsurfaceProfiles>>,
+) {
+    if meshes.is_changed() {
+        scene.meshes = meshes.0.iter().map(|&e| MainEntity::from(e)).collect();
+    }
+    if profiles.is_changed() {
+        let resolved: Vec<Vec4> = profiles
+            .iter()
+            .map(|(_, p)| p.resolve().0.d.extend(0.0))
+            .collect();
+        for (k, slot) in scene.uniform.profiles.iter_mut().enumerate() {
+            *slot = resolved.get(k).copied().unwrap_or(Vec4::ZERO);
+        }
+    }
+}
+
+fn extract_subsurface_cameras(
+    mut commands: Commands,
+    cameras: Extract<Query<(RenderEntity, &SubsurfaceScattering)>>,
+) {
+    for (entity, settings) in &cameras {
+        if let Ok(mut render) = commands.get_entity(entity) {
+            render.insert(ExtractedSubsurface {
+                samples: settings.resolve().0,
+                temporal: settings.temporal,
+                debug_view: settings.debug_view,
+            });
+        }
+    }
+}
+
+/// Whether a view shows a mesh with a scattering material.
+fn sees_scattering(visible: Option<&RenderVisibleEntities>, meshes: &HashSet<MainEntity>) -> bool {
+    let Some(visible) = visible.and_then(|v| v.get::<Mesh3d>()) else {
+        return false;
+    };
+    let cpu_culled = visible.entities_cpu_culling.iter().map(|(_, main)| *main);
+    let gpu_culled = visible.entities_gpu_culling.keys().copied();
+    cpu_culled.chain(gpu_culled).any(|e| meshes.contains(&e))
+}
+
+impl SubsurfacePipelines {
+    /// The pipeline of one draw for a view key, queued on first use.
+    fn get(
+        &mut self,
+        cache: &PipelineCache,
+        lighting: &PenumbraLightingPipeline,
+        key: MeshPipelineKey,
+        draw: Draw,
+    ) -> CachedRenderPipelineId {
+        *self.queued.entry((key, draw)).or_insert_with(|| {
+            cache.queue_render_pipeline(descriptor(
+                lighting,
+                key,
+                draw,
+                &self.layout,
+                &self.scatter_shader,
+            ))
+        })
+    }
+}
+
+/// Penumbra's lighting pipeline turned to the scattering ids (`Less` against the
+/// lighting-id depth: ids from `FIRST_LIGHTING_ID` up) and to one draw.
+fn descriptor(
+    lighting: &PenumbraLightingPipeline,
+    key: MeshPipelineKey,
+    draw: Draw,
+    layout: &BindGroupLayoutDescriptor,
+    scatter_shader: &Handle<Shader>,
+) -> RenderPipelineDescriptor {
+    let mut desc = lighting.view_descriptor(key);
+    let ids_from = ShaderDefVal::UInt(
+        "PENUMBRA_LIGHTING_IDS_FROM".into(),
+        u32::from(FIRST_LIGHTING_ID),
+    );
+    desc.vertex.shader_defs.push(ids_from.clone());
+    let depth = desc
+        .depth_stencil
+        .as_mut()
+        .expect("the lighting pass has one");
+    depth.depth_compare = Some(CompareFunction::Less);
+    let fragment = desc.fragment.as_mut().expect("the lighting pass has one");
+    fragment.shader_defs.push(ids_from);
+    match draw {
+        Draw::Plain => desc.label = Some("penumbra_sss_plain_pipeline".into()),
+        Draw::Split => {
+            desc.label = Some("penumbra_sss_split_pipeline".into());
+            fragment.shader_defs.push("PENUMBRA_SPLIT_DIFFUSE".into());
+            fragment.entry_point = Some("split_diffuse".into());
+            let target = Some(ColorTargetState {
+                format: SPLIT_FORMAT,
+                blend: None,
+                write_mask: ColorWrites::ALL,
+            });
+            fragment.targets = vec![target.clone(), target];
+        }
+        Draw::Scatter => {
+            desc.label = Some("penumbra_sss_scatter_pipeline".into());
+            fragment.shader = scatter_shader.clone();
+            fragment.entry_point = Some("scatter".into());
+            desc.vertex.shader = scatter_shader.clone();
+            desc.layout[2] = layout.clone();
+        }
+    }
+    desc
+}
+
+/// Per Penumbra view: whether it sees a scattering material, and then its draw's
+/// pipelines and (scattering views) this frame's split-lighting textures.
+#[allow(
+    clippy::too_many_arguments,
+    clippy::type_complexity,
+    reason = "a Bevy system"
+)]
+fn prepare_subsurface_views(
+    mut commands: Commands,
+    views: Query<(
+        Entity,
+        &ExtractedView,
+        &PenumbraLightingView,
+        &ViewTarget,
+        Option<&RenderVisibleEntities>,
+        Has<ExtractedSubsurface>,
+    )>,
+    scene: Res<SubsurfaceScene>,
+    view_key_cache: Res<ViewKeyCache>,
+    lighting: Option<Res<PenumbraLightingPipeline>>,
+    pipelines: Option<ResMut<SubsurfacePipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    mut texture_cache: ResMut<TextureCache>,
+    device: Res<RenderDevice>,
+) {
+    let (Some(lighting), Some(mut pipelines)) = (lighting, pipelines) else {
+        return;
+    };
+    for (entity, view, lighting_view, target, visible, scatters) in &views {
+        let key = view_key_cache.get(&view.retained_view_entity);
+        // Deferred MSAA views are warned about in the main world.
+        let (Some(key), None, true) = (
+            key,
+            &lighting_view.msaa,
+            !scene.meshes.is_empty() && sees_scattering(visible, &scene.meshes),
+        ) else {
+            commands.entity(entity).remove::<ViewSubsurface>();
+            continue;
+        };
+        let mut pipeline = |draw| pipelines.get(&pipeline_cache, &lighting, *key, draw);
+        let draw = if scatters {
+            let size = target.main_texture().size();
+            let mut texture = |label| {
+                texture_cache.get(
+                    &device,
+                    TextureDescriptor {
+                        label: Some(label),
+                        size: Extent3d {
+                            depth_or_array_layers: 1,
+                            ..size
+                        },
+                        mip_level_count: 1,
+                        sample_count: 1,
+                        dimension: TextureDimension::D2,
+                        format: SPLIT_FORMAT,
+                        usage: TextureUsages::RENDER_ATTACHMENT | TextureUsages::TEXTURE_BINDING,
+                        view_formats: &[],
+                    },
+                )
+            };
+            ViewSubsurface::Scatter {
+                split: pipeline(Draw::Split),
+                scatter: pipeline(Draw::Scatter),
+                rest: texture("penumbra_sss_rest_light"),
+                diffuse: texture("penumbra_sss_diffuse_irradiance"),
+            }
+        } else {
+            ViewSubsurface::Plain(pipeline(Draw::Plain))
+        };
+        commands.entity(entity).insert(draw);
+    }
+}
+
+/// Writes each scattering view's uniform; remakes its group 2 when a texture changed.
+#[allow(
+    clippy::too_many_arguments,
+    clippy::type_complexity,
+    reason = "a Bevy system"
+)]
+fn prepare_subsurface_bind_groups(
+    mut views: Query<(
+        &ViewSubsurface,
+        &ExtractedSubsurface,
+        &ViewPrepassTextures,
+        &mut ViewSubsurfaceBindGroup,
+    )>,
+    mut fresh: Query<
+        (Entity, Has<ViewSubsurface>),
+        (With<ExtractedSubsurface>, Without<ViewSubsurfaceBindGroup>),
+    >,
+    mut commands: Commands,
+    scene: Res<SubsurfaceScene>,
+    pipelines: Option<Res<SubsurfacePipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    frame: Res<bevy::diagnostic::FrameCount>,
+    allocations: Res<PenumbraGpuAllocations>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+) {
+    let Some(pipelines) = pipelines else {
+        return;
+    };
+    // A new scattering view's uniform buffer (its first frame draws from the next).
+    for (entity, sees) in &mut fresh {
+        if sees {
+            commands.entity(entity).insert(ViewSubsurfaceBindGroup {
+                uniform: allocations.sized_buffer(
+                    &device,
+                    "penumbra_sss_uniform",
+                    SubsurfaceUniform::min_size().get(),
+                    BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                ),
+                group: None,
+            });
+        }
+    }
+    for (draw, settings, prepass, mut group) in &mut views {
+        let ViewSubsurface::Scatter { rest, diffuse, .. } = draw else {
+            continue;
+        };
+        let Some(ids) = &prepass.deferred_lighting_pass_id else {
+            continue;
+        };
+        let uniform = SubsurfaceUniform {
+            samples: settings.samples,
+            frame: if settings.temporal { frame.0 } else { 0 },
+            debug_view: match settings.debug_view {
+                SubsurfaceDebugView::None => 0,
+                SubsurfaceDebugView::Irradiance => 1,
+                SubsurfaceDebugView::Scattered => 2,
+            },
+            ..scene.uniform
+        };
+        let mut bytes = EncaseBuffer::new(Vec::new());
+        bytes
+            .write(&uniform)
+            .expect("the subsurface uniform encodes");
+        queue.write_buffer(&group.uniform, 0, bytes.as_ref());
+        let ids_view = &ids.texture.default_view;
+        let key = [
+            rest.default_view.id(),
+            diffuse.default_view.id(),
+            ids_view.id(),
+        ];
+        if group.group.as_ref().map(|(_, k)| k) != Some(&key) {
+            let bind_group = allocations.bind_group(
+                &device,
+                "penumbra_sss_bind_group",
+                &pipeline_cache.get_bind_group_layout(&pipelines.layout),
+                &BindGroupEntries::sequential((
+                    group.uniform.as_entire_binding(),
+                    &rest.default_view,
+                    &diffuse.default_view,
+                    ids_view,
+                )),
+            );
+            group.group = Some((bind_group, key));
+        }
+    }
+}
+
+/// The scattering pixels' draws, before Penumbra's lighting pass (which discards the
+/// lighting-id depth it tests against): split lighting into the two textures, then the
+/// scatter draw into the view's target — or, on a view without the component,
+/// Penumbra's lighting of those pixels.
+#[allow(clippy::type_complexity, reason = "a Bevy system")]
+pub fn subsurface_scattering(
+    view: ViewQuery<(
+        &ViewSubsurface,
+        &MeshViewBindGroup,
+        &ViewTarget,
+        &DeferredLightingIdDepthTexture,
+        &PenumbraLightingBindGroup,
+        Option<&ViewSubsurfaceBindGroup>,
+    )>,
+    pipeline_cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    let (draw, mesh_view, target, ids, lighting, group) = view.into_inner();
+    let Some(lighting_group) = lighting.bind_group() else {
+        return;
+    };
+    let depth = || {
+        Some(RenderPassDepthStencilAttachment {
+            view: &ids.texture.default_view,
+            depth_ops: Some(Operations {
+                load: LoadOp::Load,
+                store: StoreOp::Store,
+            }),
+            stencil_ops: None,
+        })
+    };
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    match draw {
+        ViewSubsurface::Plain(id) => {
+            let Some(pipeline) = pipeline_cache.get_render_pipeline(*id) else {
+                return;
+            };
+            let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
+                label: Some("penumbra_sss_plain"),
+                color_attachments: &[Some(target.get_color_attachment())],
+                depth_stencil_attachment: depth(),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_render_pipeline(pipeline);
+            set_lighting_bind_groups(&mut pass, mesh_view, lighting_group);
+            pass.draw(0..3, 0..1);
+        }
+        ViewSubsurface::Scatter {
+            split,
+            scatter,
+            rest,
+            diffuse,
+        } => {
+            let (Some(split), Some(scatter), Some((group, _))) = (
+                pipeline_cache.get_render_pipeline(*split),
+                pipeline_cache.get_render_pipeline(*scatter),
+                group.and_then(|g| g.group.as_ref()),
+            ) else {
+                return; // compiling, or the first frame
+            };
+            let time_span =
+                diagnostics.time_span(ctx.command_encoder(), "penumbra_subsurface_scattering");
+            let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
+                label: Some("penumbra_sss_split"),
+                color_attachments: &[cleared(rest), cleared(diffuse)],
+                depth_stencil_attachment: depth(),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_render_pipeline(split);
+            set_lighting_bind_groups(&mut pass, mesh_view, lighting_group);
+            pass.draw(0..3, 0..1);
+            drop(pass);
+            let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
+                label: Some("penumbra_sss_scatter"),
+                color_attachments: &[Some(target.get_color_attachment())],
+                depth_stencil_attachment: depth(),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_render_pipeline(scatter);
+            pass.set_bind_group(0, &mesh_view.main, &mesh_view.main_offsets);
+            pass.set_bind_group(1, &mesh_view.binding_array, &[]);
+            pass.set_bind_group(2, group, &[]);
+            pass.draw(0..3, 0..1);
+            drop(pass);
+            time_span.end(ctx.command_encoder());
+        }
+    }
+}
+
+/// A colour attachment cleared to 0 and stored.
+fn cleared(texture: &CachedTexture) -> Option<RenderPassColorAttachment<'_>> {
+    Some(RenderPassColorAttachment {
+        view: &texture.default_view,
+        depth_slice: None,
+        resolve_target: None,
+        ops: Operations {
+            load: LoadOp::Clear(default()),
+            store: StoreOp::Store,
+        },
+    })
+}
