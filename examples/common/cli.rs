@@ -21,8 +21,9 @@
 //! (`deferred_msaa`: MSAA off, deferred 4× classified — the default —, every sample
 //! shaded, or the per-sample mask's debug view), `--dof penumbra|circle|bevy-bokeh|
 //! bevy-gaussian|off` (`bokeh_dof`: Penumbra's scatter bokeh, hexagonal or circular, Bevy's
-//! `DepthOfField` in either mode, or none), `--assets DIR` (the asset folder; default
-//! Bevy's `assets`, or the example's own).
+//! `DepthOfField` in either mode, or none), `--no-sss` (`subsurface`: without
+//! `SubsurfaceScattering`, the skin lit as an ordinary material), `--assets DIR` (the asset
+//! folder; default Bevy's `assets`, or the example's own).
 //!
 //! Windowed runs take keyboard toggles (`controls.rs`: `Space` distance-field shadows,
 //! `H` half resolution, `D` debug view), shown in the window title.
@@ -78,6 +79,8 @@ pub struct Options {
     pub msaa: Option<MsaaMode>,
     /// `--dof`: the depth of field of examples that compare them (`bokeh_dof`).
     pub dof: Option<DofMode>,
+    /// `--no-sss`: remove every `SubsurfaceScattering` after the scene spawns.
+    pub no_sss: bool,
     /// `--assets`: the asset folder (`AssetPlugin::file_path`).
     pub assets: Option<PathBuf>,
 }
@@ -121,7 +124,7 @@ pub enum NoDfao {
 
 const USAGE: &str = "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N] [--glass] \
      [--plain] [--ao-view ao|bent|tiles] [--casters N] [--global-field] [--no-dfao component|plugin] [--msaa off|4|every|edges] \
-     [--dof penumbra|circle|bevy-bokeh|bevy-gaussian|off] [--assets DIR]";
+     [--dof penumbra|circle|bevy-bokeh|bevy-gaussian|off] [--no-sss] [--assets DIR]";
 
 impl Options {
     /// Parses `std::env::args()`-style arguments (without the program name).
@@ -140,6 +143,7 @@ impl Options {
             no_dfao: None,
             msaa: None,
             dof: None,
+            no_sss: false,
             assets: None,
         };
         let mut args = args.into_iter();
@@ -149,6 +153,7 @@ impl Options {
                 "--headless" => o.headless = true,
                 "--glass" => o.glass = true,
                 "--plain" => o.plain = true,
+                "--no-sss" => o.no_sss = true,
                 "--global-field" => o.global_field = true,
                 "--casters" => {
                     let v = value("--casters")?;
