@@ -113,3 +113,101 @@ fn profile_functions_match_the_core() {
     eprintln!("disc offsets: worst relative difference {worst_disc:.1e}");
     assert!(worst_disc < 1e-4, "{worst_disc}");
 }
+
+const FRAME_SHADER: &str = "#import penumbra::sss::profile::{pixel_noise, tangent_frame}
+
+@group(0) @binding(0) var<storage, read> normals: array<vec4<f32>>;
+@group(0) @binding(1) var<storage, read_write> frames: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read_write> noise: array<vec2<f32>>;
+
+@compute @workgroup_size(64, 1, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i < arrayLength(&normals) {
+        let t = tangent_frame(normals[i].xyz);
+        frames[2u * i] = vec4<f32>(t[0], 0.0);
+        frames[2u * i + 1u] = vec4<f32>(t[1], 0.0);
+    }
+    if i < 64u {
+        noise[i] = pixel_noise(vec2<u32>(i * 37u, i * 11u + 5u), i / 8u);
+    }
+}
+";
+
+/// The per-pixel hash and the tangent frame (both signs of `n.z`, −0 included) equal
+/// `penumbra_reference::sss::screen`'s — the scene-level contract test's plane faces the
+/// camera, so it never takes the negative branch.
+#[test]
+fn noise_and_tangent_frames_match_the_model() {
+    use penumbra_reference::sss::screen::{pixel_noise, tangents};
+    if !gpu_or_skip("noise_and_tangent_frames_match_the_model") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let normals: Vec<Vec3> = [
+        Vec3::Z,
+        Vec3::NEG_Z,
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(0.6, 0.8, -0.0),
+        Vec3::new(0.3, -0.5, -0.81),
+        Vec3::new(-0.6, 0.2, 0.77),
+        Vec3::new(0.1, 0.99, -0.05),
+    ]
+    .into_iter()
+    .map(|n| {
+        if n == Vec3::new(0.0, 1.0, -0.0) {
+            n
+        } else {
+            n.normalize()
+        }
+    })
+    .collect();
+    let bytes: Vec<u8> = normals
+        .iter()
+        .flat_map(|n| [n.x, n.y, n.z, 0.0])
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let input = gpu.buffer("normals", &bytes, wgpu::BufferUsages::empty());
+    let frames = gpu.zeroed(
+        "frames",
+        (normals.len() * 32) as u64,
+        wgpu::BufferUsages::empty(),
+    );
+    let noise = gpu.zeroed("noise", 64 * 8, wgpu::BufferUsages::empty());
+    let pipeline = gpu.pipeline(&flatten(FRAME_SHADER).expect("flattens"), "main");
+    let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
+    let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("sss_frames"),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            entry(0, input.as_entire_binding()),
+            entry(1, frames.as_entire_binding()),
+            entry(2, noise.as_entire_binding()),
+        ],
+    });
+    gpu.dispatch(&pipeline, &bind, [1, 1, 1]);
+    let floats = |bytes: Vec<u8>| -> Vec<f32> {
+        bytes
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect()
+    };
+    let got = floats(gpu.read(&frames, (normals.len() * 32) as u64));
+    let mut worst = 0.0f32;
+    for (i, n) in normals.iter().enumerate() {
+        let (t, b) = tangents(*n);
+        let g = |k: usize| Vec3::from_slice(&got[8 * i + 4 * k..8 * i + 4 * k + 3]);
+        worst = worst.max((g(0) - t).length()).max((g(1) - b).length());
+    }
+    let got_noise = floats(gpu.read(&noise, 64 * 8));
+    for i in 0..64u32 {
+        let want = pixel_noise(i * 37, i * 11 + 5, i / 8);
+        assert_eq!(
+            (got_noise[2 * i as usize], got_noise[2 * i as usize + 1]),
+            want,
+            "pixel noise {i}"
+        );
+    }
+    eprintln!("tangent frames: worst difference {worst:.1e}; pixel noise equal for 64 pixels");
+    assert!(worst < 1e-6, "{worst}");
+}

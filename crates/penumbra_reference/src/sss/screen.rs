@@ -48,7 +48,7 @@ pub fn pixel_noise(x: u32, y: u32, frame: u32) -> (f32, f32) {
 }
 
 /// Two unit tangents completing `n` (Duff et al. 2017).
-fn tangents(n: Vec3) -> (Vec3, Vec3) {
+pub fn tangents(n: Vec3) -> (Vec3, Vec3) {
     let sign = 1.0f32.copysign(n.z);
     let a = -1.0 / (sign + n.z);
     let b = n.x * n.y * a;
