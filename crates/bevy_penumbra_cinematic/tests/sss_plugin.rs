@@ -63,6 +63,8 @@ struct Setup {
     square: bool,
     /// `SubsurfaceScattering::samples`.
     samples: u32,
+    /// `SubsurfaceScattering::temporal`.
+    temporal: bool,
 }
 
 #[allow(clippy::type_complexity, reason = "a Bevy system's parameters")]
@@ -150,16 +152,20 @@ fn scene(
             camera.insert(SubsurfaceScattering {
                 debug_view,
                 samples: setup.samples,
-                ..default()
+                temporal: setup.temporal,
             });
         }
     }
 }
 
 fn render(setup: Setup) -> (Vec<[f32; 4]>, KeptApp) {
+    render_frames(setup, 5)
+}
+
+fn render_frames(setup: Setup, frames: u32) -> (Vec<[f32; 4]>, KeptApp) {
     let harness = HeadlessRender::new(WIDTH, HEIGHT)
         .format(CaptureFormat::LinearF16)
-        .frames(5);
+        .frames(frames);
     let (capture, app) = render_with(setup, &harness);
     (capture.to_linear(), app)
 }
@@ -232,6 +238,7 @@ fn scatters_diffuse_light_only_on_scattering_pixels() {
             sss: None,
             square: true,
             samples: 16,
+            temporal: false,
         })
         .0
     };
@@ -241,6 +248,7 @@ fn scatters_diffuse_light_only_on_scattering_pixels() {
             sss: Some(SubsurfaceDebugView::None),
             square: true,
             samples: 16,
+            temporal: false,
         })
         .0
     };
@@ -252,6 +260,7 @@ fn scatters_diffuse_light_only_on_scattering_pixels() {
         sss: Some(SubsurfaceDebugView::Irradiance),
         square: true,
         samples: 16,
+        temporal: false,
     })
     .0;
     save("sss_plugin_reference", &reference);
@@ -323,6 +332,7 @@ fn a_uniformly_lit_plane_keeps_its_light() {
         sss,
         square: false,
         samples: 16,
+        temporal: false,
     };
     let (unscattered, _) = render(setup(None));
     let (with_sss, _) = render(setup(Some(SubsurfaceDebugView::None)));
@@ -359,12 +369,14 @@ fn specular_light_is_not_scattered() {
         sss: None,
         square: true,
         samples: 16,
+        temporal: false,
     });
     let (with_sss, _) = render(Setup {
         plane: Plane::ScatteringMetal,
         sss: Some(SubsurfaceDebugView::None),
         square: true,
         samples: 16,
+        temporal: false,
     });
     let worst = unscattered
         .iter()
@@ -392,6 +404,7 @@ fn nothing_scattering_in_view_costs_nothing() {
         sss: None,
         square: true,
         samples: 16,
+        temporal: false,
     });
     let counts_without = app.world().resource::<PenumbraGpuAllocations>().counts();
     drop(app);
@@ -400,6 +413,7 @@ fn nothing_scattering_in_view_costs_nothing() {
         sss: Some(SubsurfaceDebugView::None),
         square: true,
         samples: 16,
+        temporal: false,
     });
     let allocations = app.world().resource::<PenumbraGpuAllocations>().clone();
     assert_eq!(without, with, "the image changed");
@@ -452,6 +466,7 @@ fn the_scatter_draw_equals_the_cpu_model() {
         sss: Some(debug),
         square: true,
         samples: 16,
+        temporal: false,
     };
     let (irradiance, mut app) = render(setup(SubsurfaceDebugView::Irradiance));
     let buffers = dump(&mut app);
@@ -511,6 +526,34 @@ fn the_scatter_draw_equals_the_cpu_model() {
     );
 }
 
+/// The disc's noise is fixed per pixel without `temporal` (a later frame is the same
+/// image bit for bit) and changes every frame with it.
+#[test]
+fn temporal_randomisation_changes_the_noise_per_frame() {
+    if !gpu_or_skip("temporal_randomisation_changes_the_noise_per_frame") {
+        return;
+    }
+    let setup = |temporal| Setup {
+        plane: Plane::Scattering,
+        sss: Some(SubsurfaceDebugView::Scattered),
+        square: true,
+        samples: 16,
+        temporal,
+    };
+    let differ = |temporal| {
+        let (a, _) = render_frames(setup(temporal), 5);
+        let (b, _) = render_frames(setup(temporal), 6);
+        a.iter().zip(&b).filter(|(a, b)| a != b).count()
+    };
+    let (fixed, temporal) = (differ(false), differ(true));
+    println!("pixels changed a frame later: {fixed} fixed, {temporal} temporal");
+    assert_eq!(fixed, 0, "the noise moved without temporal randomisation");
+    assert!(
+        temporal > 1000,
+        "the noise did not move with temporal randomisation: {temporal} pixels"
+    );
+}
+
 /// Samples per pixel against lavapipe's frame time (a measurement): 384 × 288, the
 /// scattering plane over 70 % of the view, the median of 10 frames after 4, 3 runs.
 /// `cargo test -p bevy_penumbra_cinematic --test sss_plugin samples_against_time -- --ignored --nocapture`
@@ -535,6 +578,7 @@ fn samples_against_time() {
         sss,
         square: true,
         samples,
+        temporal: false,
     };
     for run in 0..3 {
         let mut line = format!("run {run}: none {:.1} ms", median(setup(None, 16)));

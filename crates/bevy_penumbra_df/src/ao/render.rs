@@ -9,7 +9,7 @@ use crate::lighting::{PenumbraAoInput, PenumbraLightingView};
 use crate::scene::{DistanceFieldGpu, GpuHeightfields};
 use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::prepass::{MotionVectorPrepass, ViewPrepassTextures};
-use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
+use bevy::core_pipeline::schedule::Core3d;
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::binding_types::{
@@ -129,7 +129,6 @@ pub(super) fn build(render_app: &mut SubApp) {
         .add_systems(
             Core3d,
             distance_field_ambient_occlusion
-                .in_set(Core3dSystems::MainPass)
                 .in_set(crate::lighting::render::PenumbraLightingSystems::Inputs),
         );
 }

@@ -15,7 +15,7 @@ use crate::lighting::{
 use crate::scene::{DistanceFieldGpu, GpuHeightfields};
 use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
-use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
+use bevy::core_pipeline::schedule::Core3d;
 use bevy::pbr::{
     ExtractedDirectionalLight, ExtractedPointLight, GlobalClusterableObjectMeta, prepare_lights,
 };
@@ -177,9 +177,7 @@ pub(super) fn build(render_app: &mut SubApp) {
         )
         .add_systems(
             Core3d,
-            distance_field_shadows
-                .in_set(Core3dSystems::MainPass)
-                .in_set(crate::lighting::render::PenumbraLightingSystems::Inputs),
+            distance_field_shadows.in_set(crate::lighting::render::PenumbraLightingSystems::Inputs),
         );
 }
 
