@@ -3,8 +3,8 @@
 //!
 //! - [`dof`]: scatter bokeh depth of field — the thin lens ([`dof::Lens`]), the aperture's
 //!   shape ([`dof::Aperture`]) and the passes' uniform ([`dof::BokehView`]).
-//! - [`sss`]: screen-space subsurface scattering — Burley's normalized diffusion profile
-//!   and its importance sampling (started; the pass is to come).
+//! - [`sss`]: screen-space subsurface scattering — Burley's normalized diffusion profile,
+//!   its importance sampling and the scatter draw's uniform.
 
 pub mod dof;
 pub mod sss;
