@@ -41,6 +41,7 @@ pub mod global_sdf;
 pub mod msaa;
 pub mod particles;
 pub mod pbr;
+pub mod reflections;
 pub mod scene;
 pub mod shadow_mask;
 pub mod sss;
