@@ -329,7 +329,8 @@ impl Plugin for SubsurfaceScatteringPlugin {
                 (
                     warn_bad_subsurface_settings,
                     warn_msaa_cameras,
-                    render::find_scattering_meshes,
+                    // After the frame's material edits become events.
+                    render::find_scattering_meshes.after(bevy::asset::AssetEventSystems),
                 ),
             );
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
@@ -370,6 +371,52 @@ mod tests {
         );
         let material = first.apply(StandardMaterial::default());
         assert_eq!(material.deferred_lighting_pass_id, 192);
+    }
+
+    /// The main world's list of scattering meshes follows material handles, despawns
+    /// and material edits, and is empty while no Penumbra camera exists.
+    #[test]
+    fn scattering_meshes_follow_materials() {
+        let mut app = App::new();
+        app.add_plugins((MinimalPlugins, AssetPlugin::default()))
+            .init_asset::<StandardMaterial>()
+            .init_resource::<SubsurfaceProfiles>()
+            .init_resource::<render::ScatteringMeshes>()
+            .add_systems(
+                PostUpdate,
+                render::find_scattering_meshes.after(bevy::asset::AssetEventSystems),
+            );
+        let world = app.world_mut();
+        let skin = world
+            .resource_mut::<SubsurfaceProfiles>()
+            .add(SubsurfaceProfile::default())
+            .unwrap();
+        let mut assets = world.resource_mut::<Assets<StandardMaterial>>();
+        let plain = assets.add(StandardMaterial::default());
+        let scattering = assets.add(skin.apply(StandardMaterial::default()));
+        let a = world.spawn(MeshMaterial3d(plain)).id();
+        let b = world.spawn(MeshMaterial3d(scattering.clone())).id();
+        let meshes = |app: &mut App| {
+            app.update();
+            app.world().resource::<render::ScatteringMeshes>().sorted()
+        };
+        assert_eq!(meshes(&mut app), [], "no Penumbra camera");
+        app.world_mut().spawn(PenumbraLighting);
+        assert_eq!(meshes(&mut app), [b]);
+        app.world_mut()
+            .entity_mut(a)
+            .insert(MeshMaterial3d(scattering.clone()));
+        let mut both = vec![a, b];
+        both.sort();
+        assert_eq!(meshes(&mut app), both, "a material handle changed");
+        app.world_mut().entity_mut(b).despawn();
+        assert_eq!(meshes(&mut app), [a], "despawned");
+        app.world_mut()
+            .resource_mut::<Assets<StandardMaterial>>()
+            .get_mut(&scattering)
+            .unwrap()
+            .deferred_lighting_pass_id = 1;
+        assert_eq!(meshes(&mut app), [], "the material lost its profile");
     }
 
     #[test]

@@ -41,33 +41,82 @@ const SPLIT_FORMAT: TextureFormat = TextureFormat::Rgba16Float;
 #[derive(Resource, Default, PartialEq)]
 pub(super) struct ScatteringMeshes(HashSet<Entity>);
 
-/// Finds the meshes with a scattering material: one material lookup per
-/// `StandardMaterial` mesh per frame, only while a profile exists and a Penumbra camera
-/// could shade it.
+impl ScatteringMeshes {
+    /// The meshes, sorted (for tests).
+    #[cfg(test)]
+    pub(super) fn sorted(&self) -> Vec<Entity> {
+        let mut v: Vec<Entity> = self.0.iter().copied().collect();
+        v.sort();
+        v
+    }
+}
+
+/// Whether a material names a subsurface profile.
+fn scatters(
+    materials: &Assets<StandardMaterial>,
+    material: &MeshMaterial3d<StandardMaterial>,
+) -> bool {
+    materials
+        .get(&material.0)
+        .is_some_and(|m| m.deferred_lighting_pass_id >= FIRST_LIGHTING_ID)
+}
+
+/// Keeps the set of meshes with a scattering material, while a profile exists and a
+/// Penumbra camera could shade it: a full scan when that starts or a `StandardMaterial`
+/// changes (its lighting id may have), else only the meshes whose material handle
+/// changed or went away.
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
 pub(super) fn find_scattering_meshes(
     profiles: Res<SubsurfaceProfiles>,
     cameras: Query<(), With<PenumbraLighting>>,
     materials: Res<Assets<StandardMaterial>>,
+    mut material_events: MessageReader<AssetEvent<StandardMaterial>>,
     meshes: Query<(Entity, &MeshMaterial3d<StandardMaterial>)>,
+    changed: Query<
+        (Entity, &MeshMaterial3d<StandardMaterial>),
+        Changed<MeshMaterial3d<StandardMaterial>>,
+    >,
+    mut removed: RemovedComponents<MeshMaterial3d<StandardMaterial>>,
     mut found: ResMut<ScatteringMeshes>,
+    mut active: Local<bool>,
 ) {
+    let materials_changed = material_events.read().count() > 0;
     if profiles.is_empty() || cameras.is_empty() {
+        removed.clear();
+        *active = false;
         if !found.0.is_empty() {
             found.0.clear();
         }
         return;
     }
-    let now: HashSet<Entity> = meshes
-        .iter()
-        .filter(|(_, material)| {
-            materials
-                .get(&material.0)
-                .is_some_and(|m| m.deferred_lighting_pass_id >= FIRST_LIGHTING_ID)
-        })
-        .map(|(entity, _)| entity)
-        .collect();
-    if now != found.0 {
-        found.0 = now;
+    let set = &mut found.bypass_change_detection().0;
+    let mut modified = false;
+    if !*active || materials_changed {
+        *active = true;
+        removed.clear();
+        let now: HashSet<Entity> = meshes
+            .iter()
+            .filter(|(_, material)| scatters(&materials, material))
+            .map(|(entity, _)| entity)
+            .collect();
+        if now != *set {
+            *set = now;
+            modified = true;
+        }
+    } else {
+        for entity in removed.read() {
+            modified |= set.remove(&entity);
+        }
+        for (entity, material) in &changed {
+            modified |= if scatters(&materials, material) {
+                set.insert(entity)
+            } else {
+                set.remove(&entity)
+            };
+        }
+    }
+    if modified {
+        found.set_changed();
     }
 }
 
