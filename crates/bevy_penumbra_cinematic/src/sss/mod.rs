@@ -60,13 +60,20 @@
 //!   scatter in, and thin parts do not transmit light from behind (no transmission).
 //! - The normalisation is per pixel over the samples kept: near a silhouette the profile
 //!   is renormalised over the visible surface, as Jimenez's and Unreal's are.
+//! - Noise: each pixel's disc is rotated and jittered by a hash, so a single frame shows
+//!   speckle where the profile's long tail reaches from light into shade (at 16 samples,
+//!   mean error 0.0244 of the lit level across a shadow edge against a world-space
+//!   convolution; 0.0094 averaged over 8 frames). With `temporal`, a temporal
+//!   anti-aliasing filter averages it.
 //! - Not on [`DeferredMsaa`](bevy_penumbra_df::DeferredMsaa) cameras (one warning):
 //!   their scattering materials are not lit.
 //!
 //! Cost: nothing without the component or with no scattering material in the view. Per
 //! camera with both: two `Rgba16Float` view-sized textures (16 bytes per pixel, 33 MB at
 //! 1080p); the light loop twice on scattering pixels, and `samples` texture reads of
-//! depth, lighting id and irradiance per scattering pixel. Diagnostics: the time span
+//! depth, lighting id and irradiance per scattering pixel. On lavapipe at 384 × 288 with
+//! the material over 70 % of the view, frames take 58–60 ms at 16 samples (4: 44, 64:
+//! 111–115) against 25–28 ms without scattering. Diagnostics: the time span
 //! `penumbra_subsurface_scattering`.
 
 mod render;
