@@ -28,7 +28,7 @@ use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystem
 use bevy::shader::ShaderDefVal;
 use bevy_penumbra_df::lighting::{
     PenumbraLightingBindGroup, PenumbraLightingPipeline, PenumbraLightingSystems,
-    PenumbraLightingView, set_lighting_bind_groups,
+    PenumbraLightingView, set_lighting_bind_groups, visible_meshes,
 };
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraLighting, PenumbraShaderLibrary};
 use penumbra_cinematic_core::sss::{FIRST_LIGHTING_ID, SubsurfaceUniform};
@@ -265,12 +265,7 @@ fn extract_subsurface_cameras(
 
 /// Whether a view shows a mesh with a scattering material.
 fn sees_scattering(visible: Option<&RenderVisibleEntities>, meshes: &HashSet<MainEntity>) -> bool {
-    let Some(visible) = visible.and_then(|v| v.get::<Mesh3d>()) else {
-        return false;
-    };
-    let cpu_culled = visible.entities_cpu_culling.iter().map(|(_, main)| *main);
-    let gpu_culled = visible.entities_gpu_culling.keys().copied();
-    cpu_culled.chain(gpu_culled).any(|e| meshes.contains(&e))
+    visible.is_some_and(|v| visible_meshes(v).any(|e| meshes.contains(&e)))
 }
 
 impl SubsurfacePipelines {
@@ -356,6 +351,7 @@ fn prepare_subsurface_views(
         &ViewTarget,
         Option<&RenderVisibleEntities>,
         Has<ExtractedSubsurface>,
+        Has<ViewSubsurface>,
     )>,
     scene: Res<SubsurfaceScene>,
     view_key_cache: Res<ViewKeyCache>,
@@ -368,7 +364,7 @@ fn prepare_subsurface_views(
     let (Some(lighting), Some(mut pipelines)) = (lighting, pipelines) else {
         return;
     };
-    for (entity, view, lighting_view, target, visible, scatters) in &views {
+    for (entity, view, lighting_view, target, visible, scatters, drawn) in &views {
         let key = view_key_cache.get(&view.retained_view_entity);
         // Deferred MSAA views are warned about in the main world.
         let (Some(key), None, true) = (
@@ -376,7 +372,9 @@ fn prepare_subsurface_views(
             &lighting_view.msaa,
             !scene.meshes.is_empty() && sees_scattering(visible, &scene.meshes),
         ) else {
-            commands.entity(entity).remove::<ViewSubsurface>();
+            if drawn {
+                commands.entity(entity).remove::<ViewSubsurface>();
+            }
             continue;
         };
         let mut pipeline = |draw| pipelines.get(&pipeline_cache, &lighting, *key, draw);

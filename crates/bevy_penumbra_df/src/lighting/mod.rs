@@ -199,6 +199,18 @@ impl Plugin for PenumbraLightingPlugin {
     }
 }
 
+/// The main-world entities of the meshes a render-world view sees, whether Bevy culled
+/// them on the CPU or leaves them to the GPU (for deciding per view what its visible
+/// materials need: shadow maps, subsurface scattering).
+pub fn visible_meshes(
+    visible: &bevy::render::view::RenderVisibleEntities,
+) -> impl Iterator<Item = bevy::render::sync_world::MainEntity> + '_ {
+    visible.get::<Mesh3d>().into_iter().flat_map(|meshes| {
+        let cpu_culled = meshes.entities_cpu_culling.iter().map(|(_, main)| *main);
+        cpu_culled.chain(meshes.entities_gpu_culling.keys().copied())
+    })
+}
+
 /// Whether the default opaque render method is deferred (the field is private: read
 /// through reflection).
 fn is_deferred(method: &DefaultOpaqueRendererMethod) -> bool {

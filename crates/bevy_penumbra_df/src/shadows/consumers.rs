@@ -101,12 +101,7 @@ fn sees_forward_material(
     materials: &ErasedRenderAssets<PreparedMaterial>,
     readers: &NoShadowMapReaders,
 ) -> bool {
-    let Some(meshes) = visible.get::<Mesh3d>() else {
-        return false;
-    };
-    let cpu_culled = meshes.entities_cpu_culling.iter().map(|(_, main)| *main);
-    let gpu_culled = meshes.entities_gpu_culling.keys().copied();
-    cpu_culled.chain(gpu_culled).any(|entity: MainEntity| {
+    crate::lighting::visible_meshes(visible).any(|entity: MainEntity| {
         !readers.0.contains(&entity)
             && material_instances
                 .instances

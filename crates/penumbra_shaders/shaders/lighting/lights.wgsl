@@ -134,7 +134,7 @@ fn directional_visibility(in: pbr_types::PbrInput, i: u32, view_z: f32) -> f32 {
 // Direct and indirect lighting of a lit G-buffer sample, exposure applied, emissive
 // added: what `bevy_pbr::pbr_functions::apply_pbr_lighting` returns for it.
 fn apply_lighting(in: pbr_types::PbrInput) -> vec4<f32> {
-    return apply_lighting_with_diffuse_color(in, lighting_input(in).diffuse_color);
+    return apply_lighting_with_input(in, lighting_input(in));
 }
 
 // `apply_lighting` with the diffuse colour (Bevy's albedo × (1 − metallic)) replaced.
@@ -145,6 +145,12 @@ fn apply_lighting(in: pbr_types::PbrInput) -> vec4<f32> {
 fn apply_lighting_with_diffuse_color(in: pbr_types::PbrInput, diffuse_color: vec3<f32>) -> vec4<f32> {
     var input = lighting_input(in);
     input.diffuse_color = diffuse_color;
+    return apply_lighting_with_input(in, input);
+}
+
+// `apply_lighting` with the BRDF inputs given.
+fn apply_lighting_with_input(in: pbr_types::PbrInput, brdf_input: lighting::LightingInput) -> vec4<f32> {
+    var input = brdf_input;
     let view_z = dot(vec4<f32>(
         view_bindings::view.view_from_world[0].z,
         view_bindings::view.view_from_world[1].z,
