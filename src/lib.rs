@@ -4,14 +4,14 @@
 //! an SDF atlas and GPU object buffer, ray-marched soft shadows, distance-field ambient
 //! occlusion, a global SDF in camera-centred clipmaps — and the Samaritan demo's cinematic
 //! effects: deferred shading with 4× MSAA, scatter bokeh depth of field and screen-space
-//! subsurface scattering (more are planned, see the README).
+//! subsurface scattering and billboard reflections (more are planned, see the README).
 //!
 //! Add [`PenumbraPlugins`] after Bevy's `DefaultPlugins`, then tag entities, lights and
 //! cameras with Penumbra's components. A scene pays only for what it uses: features whose
 //! components are absent run no pass and upload nothing.
 //!
 //! The distance-field features are in [`df`] (`bevy_penumbra_df`), the cinematic ones in
-//! `cinematic` (`bevy_penumbra_cinematic`, features `dof` and `sss`); the shader library every
+//! `cinematic` (`bevy_penumbra_cinematic`, features `dof`, `sss` and `reflections`); the shader library every
 //! feature's WGSL imports (`#import penumbra::…`) in [`shaders`]. See `ARCHITECTURE.md`.
 //!
 //! ```no_run
@@ -47,7 +47,7 @@
 use bevy::app::plugin_group;
 use bevy::prelude::*;
 
-#[cfg(any(feature = "dof", feature = "sss"))]
+#[cfg(any(feature = "dof", feature = "sss", feature = "reflections"))]
 pub use bevy_penumbra_cinematic as cinematic;
 pub use bevy_penumbra_df as df;
 pub use penumbra_shaders as shaders;
@@ -73,6 +73,8 @@ plugin_group! {
         bevy_penumbra_cinematic::dof:::BokehDepthOfFieldPlugin,
         #[cfg(feature = "sss")]
         bevy_penumbra_cinematic::sss:::SubsurfaceScatteringPlugin,
+        #[cfg(feature = "reflections")]
+        bevy_penumbra_cinematic::reflections:::BillboardReflectionsPlugin,
     }
 }
 
@@ -93,6 +95,8 @@ impl Plugin for PenumbraCorePlugin {
 /// Common imports: `use penumbra::prelude::*;`.
 pub mod prelude {
     pub use crate::{PenumbraCorePlugin, PenumbraPlugins};
+    #[cfg(feature = "reflections")]
+    pub use bevy_penumbra_cinematic::{BillboardReflections, ReflectionBillboard};
     #[cfg(feature = "dof")]
     pub use bevy_penumbra_cinematic::{BokehAperture, BokehDepthOfField};
     #[cfg(feature = "sss")]

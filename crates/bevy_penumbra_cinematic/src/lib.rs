@@ -5,14 +5,20 @@
 //! - [`dof`]: scatter bokeh depth of field ([`BokehDepthOfField`]).
 //! - [`sss`]: screen-space subsurface scattering ([`SubsurfaceScattering`], profiles in
 //!   [`SubsurfaceProfiles`]).
+//! - [`reflections`]: billboard reflections ([`BillboardReflections`] on cameras,
+//!   [`ReflectionBillboard`] on quads).
 //!
 //! The algorithms and their shared GPU layouts live in the Bevy-free
 //! `penumbra_cinematic_core`; their CPU reference models in `penumbra_reference`.
 
 pub mod dof;
+pub mod reflections;
 pub mod sss;
 
 pub use dof::{BokehAperture, BokehDepthOfField, BokehDepthOfFieldPlugin};
+pub use reflections::{
+    BillboardReflections, BillboardReflectionsPlugin, ReflectionBillboard, ReflectionDebugView,
+};
 pub use sss::{
     SubsurfaceDebugView, SubsurfaceProfile, SubsurfaceProfileId, SubsurfaceProfiles,
     SubsurfaceScattering, SubsurfaceScatteringPlugin,

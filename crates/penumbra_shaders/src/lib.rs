@@ -38,6 +38,7 @@ shader_files! {
     "dof/compact.wgsl" => Some("penumbra::dof::compact"),
     "sss/profile.wgsl" => Some("penumbra::sss::profile"),
     "sss/scatter.wgsl" => None,
+    "reflections/trace.wgsl" => None,
     "df/object.wgsl" => Some("penumbra::df::object"),
     "df/apply_deltas.wgsl" => Some("penumbra::df::apply_deltas"),
     "df/cull.wgsl" => Some("penumbra::df::cull"),

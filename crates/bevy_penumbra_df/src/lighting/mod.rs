@@ -108,6 +108,30 @@ struct LightingPluginSettings {
 #[require(Camera3d, DeferredPrepass, DepthPrepass, Msaa::Off)]
 pub struct PenumbraLighting;
 
+/// A view's specular layer, inserted on the render-world view by a feature that traces
+/// reflections of its own (billboard reflections): the lighting pass adds it as
+/// specular light, weighted by Bevy's environment BRDF, over the environment map's
+/// specular, which it covers by its coverage (`alpha`). Single-sample views only.
+#[derive(Component, Clone)]
+pub struct PenumbraSpecularLayer {
+    /// `Rgba16Float`: premultiplied reflected radiance (cd/m², before exposure) and
+    /// coverage in `[0, 1]`.
+    pub texture: bevy::render::render_resource::TextureView,
+    /// The texture is half the view's size, each texel holding the top-left pixel of
+    /// its 2 × 2 block: the lighting pass upsamples it with depth weights.
+    pub half_resolution: bool,
+    /// Show the layer (radiance and coverage as the lighting pass reads it, unexposed)
+    /// instead of the lighting.
+    pub debug_view: bool,
+}
+
+impl PenumbraSpecularLayer {
+    /// `PenumbraLightingUniform::specular_layer`.
+    fn mode(&self) -> u32 {
+        (if self.half_resolution { 2 } else { 1 }) + if self.debug_view { 4 } else { 0 }
+    }
+}
+
 /// Render-world marker of a camera served by Penumbra's lighting pass, with the
 /// G-buffer's material pass id.
 #[derive(Component, Reflect, Clone, Debug)]

@@ -1,8 +1,8 @@
 //! Render-world side of Penumbra's lighting pass.
 
-use super::PenumbraLightingView;
 use super::msaa::DeferredMsaaShading;
 use super::msaa_render::{self, DeferredMsaaTextures, LightingVariant, MSAA_VARIANTS};
+use super::{PenumbraLightingView, PenumbraSpecularLayer};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::shader_library::PenumbraShaderLibrary;
 use bevy::core_pipeline::core_3d::main_opaque_pass_3d;
@@ -133,7 +133,8 @@ struct PenumbraLightingUniform {
     ao_contrast: f32,
     ao_min_occlusion: f32,
     ao_debug_view: u32,
-    reserved: u32,
+    /// `PenumbraSpecularLayer`: 0 none, 1 full resolution, 2 half; +4 debug view.
+    specular_layer: u32,
 }
 
 /// `PenumbraMsaaUniform` (`lighting/msaa_view.wgsl`).
@@ -264,7 +265,10 @@ fn init_penumbra_lighting_pipeline(
     );
     let layout = BindGroupLayoutDescriptor::new(
         "penumbra_lighting_layout",
-        &BindGroupLayoutEntries::sequential(ShaderStages::VERTEX_FRAGMENT, common),
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::VERTEX_FRAGMENT,
+            (common.0, common.1, common.2, common.3, common.3),
+        ),
     );
     let msaa_layout = BindGroupLayoutDescriptor::new(
         "penumbra_lighting_msaa_layout",
@@ -280,6 +284,7 @@ fn init_penumbra_lighting_pipeline(
                 texture_2d_multisampled(TextureSampleType::Uint),
                 texture_2d(TextureSampleType::Uint),
                 common.2,
+                common.3,
                 common.3,
             ),
         ),
@@ -562,6 +567,7 @@ fn prepare_penumbra_lighting_bind_groups(
         &PenumbraLightingView,
         Option<&PenumbraLightingInputs>,
         Option<&PenumbraAoInput>,
+        Option<&PenumbraSpecularLayer>,
         Option<&DeferredMsaaTextures>,
         Option<&mut PenumbraLightingBindGroup>,
     )>,
@@ -569,8 +575,10 @@ fn prepare_penumbra_lighting_bind_groups(
     let Some(pipeline) = pipeline else {
         return;
     };
-    for (entity, view, inputs, ao, msaa_textures, bind_group) in &mut views {
+    for (entity, view, inputs, ao, layer, msaa_textures, bind_group) in &mut views {
         let msaa = view.msaa.as_ref().zip(msaa_textures);
+        // Deferred MSAA views take no specular layer (its features warn).
+        let layer = layer.filter(|_| msaa.is_none());
         let lights = inputs.map_or(&[][..], |i| i.lights.as_slice());
         let needed = (lights.len() as u64).max(1);
         let mut fresh = None;
@@ -608,7 +616,7 @@ fn prepare_penumbra_lighting_bind_groups(
             ao_contrast: ao.map_or(0.0, |a| a.contrast),
             ao_min_occlusion: ao.map_or(0.0, |a| a.min_occlusion),
             ao_debug_view: ao.map_or(0, |a| a.debug_view),
-            reserved: 0,
+            specular_layer: layer.map_or(0, PenumbraSpecularLayer::mode),
         };
         let mut bytes = bevy::render::render_resource::encase::UniformBuffer::new(Vec::new());
         bytes.write(&uniform).expect("fixed-size uniform");
@@ -618,7 +626,8 @@ fn prepare_penumbra_lighting_bind_groups(
         }
         let masks = inputs.map_or(&pipeline.no_masks, |i| &i.masks);
         let ao_texture = ao.map_or(&pipeline.no_ao, |a| &a.texture);
-        let mut key = vec![masks.id(), ao_texture.id()];
+        let layer_texture = layer.map_or(&pipeline.no_ao, |l| &l.texture);
+        let mut key = vec![masks.id(), ao_texture.id(), layer_texture.id()];
         let sample_masks = inputs.and_then(|i| i.sample_masks.as_ref());
         let sample_ao = ao.and_then(|a| a.samples.as_ref());
         let Some((settings, textures)) = msaa else {
@@ -632,6 +641,7 @@ fn prepare_penumbra_lighting_bind_groups(
                         group.lights.as_entire_binding(),
                         masks,
                         ao_texture,
+                        layer_texture,
                     )),
                 );
                 group.bind_group = Some((bind_group, key));
@@ -690,6 +700,7 @@ fn prepare_penumbra_lighting_bind_groups(
                         class,
                         sample_masks,
                         sample_ao,
+                        layer_texture,
                     )),
                 )
             };

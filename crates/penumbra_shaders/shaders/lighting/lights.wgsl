@@ -23,7 +23,9 @@
 }
 #import penumbra::lighting::masks::{
     clustered_light_mask, directional_light_mask, mask_visibility, penumbra_lighting,
+    specular_layer,
 }
+#import bevy_pbr::view_transformations::depth_ndc_to_view_z
 #import penumbra::lighting::ao::{penumbra_ao, penumbra_ao_specular, penumbra_ao_tile_heat}
 
 #ifdef IRRADIANCE_VOLUME
@@ -197,6 +199,7 @@ fn apply_lighting_with_input(in: pbr_types::PbrInput, brdf_input: lighting::Ligh
         in.specular_occlusion,
         penumbra_ao_specular(dfao, in.N, in.V, input.layers[LAYER_BASE].roughness),
     );
+    let layer = specular_layer_at(vec2<i32>(in.frag_coord.xy), view_z);
     var indirect_input = input;
     indirect_input.layers[LAYER_BASE].N = dfao.bent_normal;
     var indirect = vec3(0.0);
@@ -216,9 +219,16 @@ fn apply_lighting_with_input(in: pbr_types::PbrInput, brdf_input: lighting::Ligh
     let environment = environment_map::environment_map_light(&indirect_input, &ranges, found_diffuse_indirect);
     indirect += environment.diffuse * diffuse_occlusion;
     if !use_ssr {
-        indirect += environment.specular * specular_occlusion;
+        // What a specular layer covers, it replaces.
+        indirect += environment.specular * specular_occlusion * (1.0 - layer.a);
     }
 #endif
+    // The specular layer (billboard reflections): its radiance under the environment
+    // BRDF (Bevy's single-scattering `FssEss`), its own occlusion already applied.
+    indirect += layer.rgb * environment_brdf(&input);
+    if (penumbra_lighting.specular_layer & 4u) != 0u {
+        return layer;
+    }
     let NdotV = input.layers[LAYER_BASE].NdotV;
     let F0 = pbr_functions::calculate_F0(in.material.base_color.rgb, in.material.metallic, in.material.reflectance);
     indirect += ambient::ambient_light(
@@ -249,4 +259,69 @@ fn apply_lighting_with_input(in: pbr_types::PbrInput, brdf_input: lighting::Ligh
     emissive_light *= mix(1.0, view_bindings::view.exposure, emissive.a);
 
     return vec4(view_bindings::view.exposure * (direct + indirect) + emissive_light, in.material.base_color.a);
+}
+
+// Bevy's environment BRDF of a sample (`compute_multiscatter`'s `FssEss`, dielectric
+// and metallic mixed by metallic, with the same pre-baked specular occlusion).
+fn environment_brdf(input: ptr<function, lighting::LightingInput>) -> vec3<f32> {
+    let F_ab = (*input).F_ab;
+    let F0_dielectric = (*input).F0_dielectric;
+    let F0_metallic = (*input).F0_metallic;
+    let occlusion = saturate(dot(mix(F0_dielectric, F0_metallic, (*input).metallic), vec3(50.0 * 0.33)));
+    let dielectric = F0_dielectric * F_ab.x + F_ab.y;
+    let metallic = F0_metallic * F_ab.x + F_ab.y;
+    return mix(dielectric, metallic, (*input).metallic) * occlusion;
+}
+
+// The specular layer at a pixel of view depth `view_z` (0 where there is none). At half
+// resolution, texel `i` holds full-resolution pixel `2i`: a pixel reads the (up to) four
+// texels around it, bilinearly weighted, keeping those whose depth is within 10 % of its
+// own (the nearest in depth when none is). CPU model:
+// `penumbra_cinematic_core::reflections::upsample::upsample`.
+fn specular_layer_at(pixel: vec2<i32>, view_z: f32) -> vec4<f32> {
+    let mode = penumbra_lighting.specular_layer & 3u;
+    if mode == 0u {
+        return vec4(0.0);
+    }
+    if mode == 1u {
+        return textureLoad(specular_layer, pixel, 0);
+    }
+    let base = pixel / 2;
+    let odd = vec2<f32>(pixel - base * 2) * 0.5;
+    let size = vec2<i32>(textureDimensions(specular_layer)) - 1;
+    var sum = vec4(0.0);
+    var weight = 0.0;
+    var nearest = vec4(0.0);
+    var nearest_gap = 3.4e38;
+    for (var k = 0; k < 4; k += 1) {
+        let offset = vec2<i32>(k & 1, k >> 1);
+        let texel = min(base + offset, size);
+        let bilinear = mix(1.0 - odd.x, odd.x, f32(offset.x)) * mix(1.0 - odd.y, odd.y, f32(offset.y));
+        if bilinear == 0.0 {
+            continue;
+        }
+        let value = textureLoad(specular_layer, texel, 0);
+        let gap = abs(layer_view_z(texel * 2) - view_z);
+        if gap <= 0.1 * abs(view_z) {
+            sum += value * bilinear;
+            weight += bilinear;
+        }
+        if gap < nearest_gap {
+            nearest_gap = gap;
+            nearest = value;
+        }
+    }
+    if weight > 0.0 {
+        return sum / weight;
+    }
+    return nearest;
+}
+
+// The view depth of full-resolution pixel `pixel` (the depth prepass).
+fn layer_view_z(pixel: vec2<i32>) -> f32 {
+#ifdef DEPTH_PREPASS
+    return depth_ndc_to_view_z(textureLoad(view_bindings::depth_prepass_texture, pixel, 0));
+#else
+    return 0.0;
+#endif
 }

@@ -28,7 +28,9 @@ struct PenumbraLightingUniform {
     ao_contrast: f32,
     ao_min_occlusion: f32,
     ao_debug_view: u32,
-    reserved: u32,
+    // A specular layer (`PenumbraSpecularLayer`): 0 none, 1 full resolution, 2 half;
+    // +4: show it instead of the lighting.
+    specular_layer: u32,
 }
 
 const SHADOWED_DIRECTIONAL: u32 = 0u;
@@ -39,6 +41,13 @@ const SHADOWED_CLUSTERED: u32 = 1u;
 @group(2) @binding(2) var shadow_masks: texture_2d_array<f32>;
 // Distance-field AO at the view's size: AO, then the world-space bent normal.
 @group(2) @binding(3) var ambient_occlusion: texture_2d<f32>;
+
+// The specular layer: premultiplied reflected radiance (before exposure) and coverage.
+#ifdef PENUMBRA_MSAA
+@group(2) @binding(10) var specular_layer: texture_2d<f32>;
+#else
+@group(2) @binding(4) var specular_layer: texture_2d<f32>;
+#endif
 
 #ifdef PENUMBRA_MSAA
 // Deferred MSAA: the masks and the AO of edge pixels per sample (twice the view's size,

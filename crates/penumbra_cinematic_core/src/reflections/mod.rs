@@ -1,4 +1,5 @@
-//! Billboard reflections (#21, started): the geometry the pass and its CPU model share.
+//! Billboard reflections (#21, started): the geometry, images and per-pixel pass that
+//! the shader and its CPU model share.
 //!
 //! Samaritan's billboard reflections (Mittring and Dudash, GDC 2011): textured quads —
 //! lit signs, windows — placed like any object; each shaded point's reflected eye ray is
@@ -12,8 +13,14 @@
 
 use glam::{Mat4, Vec2, Vec3};
 
+pub mod pass;
+pub mod texture;
+
 /// The layers a reflection composites by default (Samaritan's 3).
 pub const DEFAULT_LAYERS: usize = 3;
+
+/// The most layers a reflection composites (the shader's registers).
+pub const MAX_LAYERS: usize = 4;
 
 /// One reflection billboard: a one-sided quad, `center ± half_x ± half_y`, facing
 /// `half_x × half_y`.

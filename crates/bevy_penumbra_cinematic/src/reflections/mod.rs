@@ -1,0 +1,234 @@
+//! Billboard reflections (Samaritan; Mittring and Dudash, GDC 2011): textured quads —
+//! lit signs, windows — reflected on every deferred surface, glossy and anisotropic,
+//! composited up to [`BillboardReflections::max_layers`] deep.
+//!
+//! # Technique
+//!
+//! Each G-buffer pixel's mirror ray (from its normal and the view vector) is intersected
+//! with every [`ReflectionBillboard`]: one-sided quads, exactly. The nearest hits within
+//! [`BillboardReflections::max_distance`] whose footprint overlaps the image are sampled
+//! over the GGX lobe's footprint at the hit distance — a mip level from the lobe's width
+//! and taps along its long axis, which grows toward grazing angles (the streaks of wet
+//! streets) and with [`BillboardReflections::anisotropy`] — and composited front to back
+//! (premultiplied alpha). The result is the view's specular layer
+//! (`bevy_penumbra_df::lighting::PenumbraSpecularLayer`): Penumbra's lighting pass adds
+//! it under Bevy's environment BRDF and lets it cover the environment map's specular by
+//! its coverage, so energy is not added twice. The model, shared arithmetic and its
+//! derivation: `penumbra_cinematic_core::reflections::pass`.
+//!
+//! # Images: one texture array
+//!
+//! The billboards' images live in one `Rgba16Float` texture array with a full mip chain
+//! built on the CPU (premultiplied, 2 × 2 box filter) when an image is added or changes.
+//! **Every image must have the same size**; any format Bevy can read texel by texel
+//! (`Image::get_color_at`: 8-bit sRGB or linear, 16- and 32-bit float, …) is converted.
+//! The array takes the size most billboards' images share (ties: the larger); a
+//! billboard whose image has another size is skipped with one warning, as is one whose
+//! image format cannot be read. An image still loading is skipped silently.
+//!
+//! The component reflects a quad; it draws nothing. Show the sign itself with a mesh on
+//! the same entity (a `Rectangle` of the same size with an emissive material), or not.
+//!
+//! # Limits
+//!
+//! - Only the billboards reflect: other geometry is not in the reflection (screen-space
+//!   reflections or environment maps serve it); it does not occlude the billboards yet
+//!   (distance-field reflection shadows are to come).
+//! - Single-sample cameras: a camera with `DeferredMsaa` gets no reflections (one
+//!   warning). The clearcoat layer does not reflect billboards.
+//! - Cost: per shaded pixel, one ray–quad test per billboard, then up to `max_layers`
+//!   footprints of up to 8 trilinear taps; half resolution quarters it. Memory: the
+//!   array (4/3 × 8 bytes per texel per image), 32 bytes per billboard, and the layer
+//!   texture (8 bytes per pixel, a quarter at half resolution).
+
+mod collect;
+mod render;
+
+use bevy::prelude::*;
+use bevy::render::RenderApp;
+use bevy_penumbra_df::PenumbraLighting;
+
+pub use penumbra_cinematic_core::reflections::{DEFAULT_LAYERS, MAX_LAYERS};
+
+/// Adds billboard reflections: [`ReflectionBillboard`] and [`BillboardReflections`].
+/// Needs `PenumbraLightingPlugin`. Part of `PenumbraPlugins` (feature `reflections`).
+#[derive(Default)]
+pub struct BillboardReflectionsPlugin;
+
+/// A quad reflected by [`BillboardReflections`] cameras: the `size` rectangle in the
+/// entity's local XY plane, facing local +Z (Bevy's `Rectangle`), placed by its
+/// `GlobalTransform` (scale included). One-sided: it reflects only toward the side it
+/// faces. Hidden entities do not reflect.
+#[derive(Component, Reflect, Clone, Debug)]
+#[reflect(Component, Clone, Default)]
+#[require(Transform, Visibility)]
+pub struct ReflectionBillboard {
+    /// The image: linear or sRGB colour with straight alpha (0 transparent); every
+    /// billboard image must have the same size (module docs). Default: none (skipped).
+    pub image: Handle<Image>,
+    /// Size of the quad before the transform's scale, metres. Default 1 × 1. A zero or
+    /// non-finite size (or transform) is skipped with one warning.
+    pub size: Vec2,
+    /// The luminance of an image texel of 1, cd/m² (the units of Bevy's emissive
+    /// colours and environment map intensity). Default 1000 (a lit sign). No cost.
+    pub emissive: f32,
+}
+
+impl Default for ReflectionBillboard {
+    fn default() -> Self {
+        ReflectionBillboard {
+            image: Handle::default(),
+            size: Vec2::ONE,
+            emissive: 1000.0,
+        }
+    }
+}
+
+/// What a camera's lighting pass shows of its reflections.
+#[derive(Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ReflectionDebugView {
+    /// Shading.
+    #[default]
+    None,
+    /// The specular layer itself, unexposed: premultiplied reflected radiance (cd/m²)
+    /// and coverage in alpha.
+    Layer,
+}
+
+/// Billboard reflections on a [`PenumbraLighting`] camera (module docs).
+#[derive(Component, Reflect, Clone, Debug)]
+#[reflect(Component, Clone, Default)]
+#[require(PenumbraLighting)]
+pub struct BillboardReflections {
+    /// Hits composited per pixel, nearest first, 1..=[`MAX_LAYERS`]. Default
+    /// [`DEFAULT_LAYERS`] (3, Samaritan's). Cost: a footprint sample per layer hit.
+    pub max_layers: u32,
+    /// Billboards farther along the reflected ray than this are not reflected, metres.
+    /// Default 100. No cost beyond the hits it keeps.
+    pub max_distance: f32,
+    /// Trace at half resolution (each 2 × 2 block's top-left pixel) and upsample with
+    /// depth weights in the lighting pass. Default false. A quarter of the trace's cost.
+    pub half_resolution: bool,
+    /// Stretches the reflection along the plane of incidence (wet-street streaks):
+    /// GGX `α_t = α (1 + a)`, `α_b = α (1 − a)` with the tangent toward the viewer,
+    /// `[0, 0.95]`. Default 0. Cost: more taps along the footprint (at most 8).
+    pub anisotropy: f32,
+    /// Debug view. Default none.
+    pub debug_view: ReflectionDebugView,
+}
+
+impl Default for BillboardReflections {
+    fn default() -> Self {
+        BillboardReflections {
+            max_layers: DEFAULT_LAYERS as u32,
+            max_distance: 100.0,
+            half_resolution: false,
+            anisotropy: 0.0,
+            debug_view: ReflectionDebugView::None,
+        }
+    }
+}
+
+impl BillboardReflections {
+    /// The settings clamped to their ranges, and what was out of range.
+    pub fn resolve(&self) -> (BillboardReflections, Vec<String>) {
+        let mut problems = Vec::new();
+        let mut out = self.clone();
+        if !(1..=MAX_LAYERS as u32).contains(&self.max_layers) {
+            problems.push(format!(
+                "max_layers {} not in 1..={MAX_LAYERS}",
+                self.max_layers
+            ));
+            out.max_layers = self.max_layers.clamp(1, MAX_LAYERS as u32);
+        }
+        if self.max_distance.is_nan() || self.max_distance <= 0.0 {
+            problems.push(format!(
+                "max_distance {} is not positive",
+                self.max_distance
+            ));
+            out.max_distance = 0.0;
+        }
+        let max = penumbra_cinematic_core::reflections::pass::MAX_ANISOTROPY;
+        if !(0.0..=max).contains(&self.anisotropy) {
+            problems.push(format!("anisotropy {} not in [0, {max}]", self.anisotropy));
+            out.anisotropy = if self.anisotropy.is_nan() {
+                0.0
+            } else {
+                self.anisotropy.clamp(0.0, max)
+            };
+        }
+        (out, problems)
+    }
+}
+
+/// Warns once per change when a camera's settings are out of range or it has deferred
+/// MSAA (unsupported).
+#[allow(clippy::type_complexity, reason = "a Bevy system")]
+fn warn_bad_reflection_settings(
+    cameras: Query<
+        (Entity, &BillboardReflections, Option<&Msaa>),
+        Or<(Changed<BillboardReflections>, Changed<Msaa>)>,
+    >,
+) {
+    for (entity, settings, msaa) in &cameras {
+        let (_, problems) = settings.resolve();
+        if !problems.is_empty() {
+            warn!(
+                "Penumbra: BillboardReflections on {entity}: {}; clamped",
+                problems.join(", ")
+            );
+        }
+        if msaa.is_some_and(|m| *m != Msaa::Off) {
+            warn!(
+                "Penumbra: BillboardReflections on {entity} is not supported with MSAA: \
+                 no reflections (set `Msaa::Off`)"
+            );
+        }
+    }
+}
+
+impl Plugin for BillboardReflectionsPlugin {
+    fn build(&self, app: &mut App) {
+        bevy_penumbra_df::register_shader_library(app);
+        app.register_type::<ReflectionBillboard>()
+            .register_type::<BillboardReflections>()
+            .init_resource::<collect::ReflectionScene>()
+            .add_plugins(render::sync_plugin())
+            .add_systems(
+                PostUpdate,
+                (
+                    warn_bad_reflection_settings,
+                    collect::collect_reflection_billboards
+                        .after(TransformSystems::Propagate)
+                        .after(bevy::asset::AssetEventSystems)
+                        .after(bevy::camera::visibility::VisibilitySystems::VisibilityPropagate),
+                ),
+            );
+        if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
+            render::build(render_app);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_settings_are_clamped_and_named() {
+        let (good, problems) = BillboardReflections::default().resolve();
+        assert!(problems.is_empty());
+        assert_eq!(good.max_layers, 3);
+        let (bad, problems) = BillboardReflections {
+            max_layers: 0,
+            max_distance: f32::NAN,
+            anisotropy: 2.0,
+            ..default()
+        }
+        .resolve();
+        assert_eq!(problems.len(), 3, "{problems:?}");
+        assert_eq!(bad.max_layers, 1);
+        assert_eq!(bad.max_distance, 0.0);
+        assert_eq!(bad.anisotropy, 0.95);
+    }
+}

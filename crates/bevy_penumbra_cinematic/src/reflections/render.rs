@@ -1,0 +1,503 @@
+//! Render-world side of billboard reflections: the billboards' buffer and texture array
+//! (uploaded when they change), each reflecting view's layer texture, pipeline and bind
+//! group, and the trace draw before Penumbra's lighting pass.
+
+use super::collect::{ImageArray, ReflectionScene};
+use super::{BillboardReflections, ReflectionDebugView};
+use bevy::core_pipeline::schedule::Core3d;
+use bevy::pbr::{MeshPipelineKey, MeshViewBindGroup, ViewKeyCache};
+use bevy::platform::collections::HashMap;
+use bevy::prelude::*;
+use bevy::render::diagnostic::RecordDiagnostics;
+use bevy::render::render_resource::binding_types::{
+    sampler, storage_buffer_read_only_sized, texture_2d_array, uniform_buffer_sized,
+};
+use bevy::render::render_resource::encase::{StorageBuffer, UniformBuffer as EncaseBuffer};
+use bevy::render::render_resource::{
+    AddressMode, BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries,
+    Buffer, BufferId, BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites,
+    Extent3d, FilterMode, LoadOp, MipmapFilterMode, Operations, Origin3d, PipelineCache,
+    RenderPassColorAttachment, RenderPassDescriptor, RenderPipelineDescriptor, Sampler,
+    SamplerBindingType, SamplerDescriptor, ShaderStages, ShaderType, StoreOp,
+    TexelCopyBufferLayout, TexelCopyTextureInfo, TextureAspect, TextureDescriptor,
+    TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
+    TextureViewDescriptor, TextureViewDimension, TextureViewId,
+};
+use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
+use bevy::render::sync_component::{SyncComponent, SyncComponentPlugin};
+use bevy::render::sync_world::RenderEntity;
+use bevy::render::texture::{CachedTexture, TextureCache};
+use bevy::render::view::{ExtractedView, ViewTarget};
+use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
+use bevy_penumbra_df::lighting::{
+    PenumbraLightingPipeline, PenumbraLightingSystems, PenumbraLightingView, PenumbraSpecularLayer,
+};
+use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
+use penumbra_cinematic_core::reflections::pass::{GpuBillboard, ReflectionUniform};
+use std::sync::Arc;
+
+/// The layer texture's format.
+const LAYER_FORMAT: TextureFormat = TextureFormat::Rgba16Float;
+
+/// A reflecting camera's settings in the render world (clamped).
+#[derive(Component, Clone, Debug)]
+pub struct ExtractedBillboardReflections(BillboardReflections);
+
+impl SyncComponent for BillboardReflections {
+    type Target = (
+        ExtractedBillboardReflections,
+        ViewReflections,
+        ViewReflectionsBindGroup,
+        PenumbraSpecularLayer,
+    );
+}
+
+pub(super) fn sync_plugin() -> SyncComponentPlugin<BillboardReflections> {
+    SyncComponentPlugin::default()
+}
+
+/// The billboards and images on the GPU.
+#[derive(Resource, Default)]
+struct ReflectionGpuScene {
+    billboards: Vec<GpuBillboard>,
+    images: Option<Arc<ImageArray>>,
+    /// Storage buffer and its capacity in billboards.
+    buffer: Option<(Buffer, usize)>,
+    array: Option<TextureView>,
+    mip_count: u32,
+}
+
+/// A reflecting view's draw this frame (absent: none).
+#[derive(Component)]
+pub struct ViewReflections {
+    pipeline: CachedRenderPipelineId,
+    layer: CachedTexture,
+}
+
+/// A reflecting view's uniform and group 2 (remade when a bound resource changes).
+#[derive(Component)]
+pub struct ViewReflectionsBindGroup {
+    uniform: Buffer,
+    group: Option<(BindGroup, (BufferId, BufferId, TextureViewId))>,
+}
+
+/// The trace's group 2, shader and sampler, and its pipelines per view key.
+#[derive(Resource)]
+struct ReflectionPipelines {
+    layout: BindGroupLayoutDescriptor,
+    shader: Handle<Shader>,
+    sampler: Sampler,
+    queued: HashMap<MeshPipelineKey, CachedRenderPipelineId>,
+}
+
+pub(super) fn build(render_app: &mut SubApp) {
+    render_app
+        .init_resource::<ReflectionGpuScene>()
+        .add_systems(RenderStartup, init_reflection_pipelines)
+        .add_systems(
+            ExtractSchedule,
+            (extract_reflection_scene, extract_reflection_cameras),
+        )
+        .add_systems(
+            Render,
+            (
+                prepare_reflection_scene.in_set(RenderSystems::PrepareResources),
+                prepare_reflection_views.in_set(RenderSystems::PrepareResources),
+                prepare_reflection_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+            ),
+        )
+        .add_systems(
+            Core3d,
+            billboard_reflections.in_set(PenumbraLightingSystems::Shading),
+        );
+}
+
+fn init_reflection_pipelines(
+    mut commands: Commands,
+    library: Option<Res<PenumbraShaderLibrary>>,
+    device: Res<RenderDevice>,
+) {
+    let Some(library) = library else {
+        warn!("Penumbra: the shader library is not registered; no billboard reflections");
+        return;
+    };
+    let layout = BindGroupLayoutDescriptor::new(
+        "penumbra_reflections_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::FRAGMENT,
+            (
+                uniform_buffer_sized(false, Some(ReflectionUniform::min_size())),
+                storage_buffer_read_only_sized(false, Some(GpuBillboard::min_size())),
+                texture_2d_array(TextureSampleType::Float { filterable: true }),
+                sampler(SamplerBindingType::Filtering),
+            ),
+        ),
+    );
+    let sampler = device.create_sampler(&SamplerDescriptor {
+        label: Some("penumbra_reflections_sampler"),
+        address_mode_u: AddressMode::ClampToEdge,
+        address_mode_v: AddressMode::ClampToEdge,
+        mag_filter: FilterMode::Linear,
+        min_filter: FilterMode::Linear,
+        mipmap_filter: MipmapFilterMode::Linear,
+        ..default()
+    });
+    commands.insert_resource(ReflectionPipelines {
+        layout,
+        shader: library.handle("reflections/trace.wgsl"),
+        sampler,
+        queued: HashMap::default(),
+    });
+}
+
+fn extract_reflection_scene(
+    mut gpu: ResMut<ReflectionGpuScene>,
+    scene: Extract<Res<ReflectionScene>>,
+) {
+    if scene.is_changed() {
+        gpu.billboards.clone_from(&scene.billboards);
+        gpu.images.clone_from(&scene.images);
+    }
+}
+
+fn extract_reflection_cameras(
+    mut commands: Commands,
+    cameras: Extract<Query<(RenderEntity, &BillboardReflections)>>,
+) {
+    for (entity, settings) in &cameras {
+        if let Ok(mut render) = commands.get_entity(entity) {
+            render.insert(ExtractedBillboardReflections(settings.resolve().0));
+        }
+    }
+}
+
+/// Uploads the billboards when they change (the buffer grows by powers of two) and the
+/// texture array when its images do.
+fn prepare_reflection_scene(
+    mut gpu: ResMut<ReflectionGpuScene>,
+    allocations: Res<PenumbraGpuAllocations>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    mut uploaded: Local<Option<Arc<ImageArray>>>,
+) {
+    let gpu = &mut *gpu;
+    if gpu.images.is_none() || gpu.billboards.is_empty() {
+        return;
+    }
+    let needed = gpu.billboards.len();
+    if gpu.buffer.as_ref().is_none_or(|(_, cap)| *cap < needed) {
+        let capacity = needed.next_power_of_two();
+        let buffer = allocations.sized_buffer(
+            &device,
+            "penumbra_reflection_billboards",
+            capacity as u64 * GpuBillboard::min_size().get(),
+            BufferUsages::STORAGE | BufferUsages::COPY_DST,
+        );
+        gpu.buffer = Some((buffer, capacity));
+    }
+    let mut bytes = StorageBuffer::new(Vec::new());
+    bytes.write(&gpu.billboards).expect("billboards encode");
+    let (buffer, _) = gpu.buffer.as_ref().expect("just made");
+    queue.write_buffer(buffer, 0, bytes.as_ref());
+    let images = gpu.images.clone().expect("checked");
+    if uploaded.as_ref().is_some_and(|u| Arc::ptr_eq(u, &images)) {
+        return;
+    }
+    let first = &images.layers[0];
+    let mip_count = first.levels.len() as u32;
+    let texture = allocations.texture(
+        &device,
+        &TextureDescriptor {
+            label: Some("penumbra_reflection_images"),
+            size: Extent3d {
+                width: images.size.x,
+                height: images.size.y,
+                depth_or_array_layers: images.layers.len() as u32,
+            },
+            mip_level_count: mip_count,
+            sample_count: 1,
+            dimension: TextureDimension::D2,
+            format: TextureFormat::Rgba16Float,
+            usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
+            view_formats: &[],
+        },
+    );
+    for (layer, chain) in images.layers.iter().enumerate() {
+        for (level, texels) in chain.levels.iter().enumerate() {
+            let (w, h) = chain.level_size(level);
+            let bits: Vec<u8> = texels
+                .iter()
+                .flat_map(|t| t.to_array())
+                .flat_map(|x| half::f16::from_f32(x).to_le_bytes())
+                .collect();
+            queue.write_texture(
+                TexelCopyTextureInfo {
+                    texture: &texture,
+                    mip_level: level as u32,
+                    origin: Origin3d {
+                        x: 0,
+                        y: 0,
+                        z: layer as u32,
+                    },
+                    aspect: TextureAspect::All,
+                },
+                &bits,
+                TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(w * 8),
+                    rows_per_image: Some(h),
+                },
+                Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+            );
+        }
+    }
+    gpu.array = Some(texture.create_view(&TextureViewDescriptor {
+        dimension: Some(TextureViewDimension::D2Array),
+        ..default()
+    }));
+    gpu.mip_count = mip_count;
+    *uploaded = Some(images);
+}
+
+impl ReflectionPipelines {
+    /// The trace pipeline of a view key, queued on first use: Penumbra's lighting
+    /// pipeline (Bevy's view bind groups for the key) with the trace's shader, group 2
+    /// and target, and no depth test.
+    fn get(
+        &mut self,
+        cache: &PipelineCache,
+        lighting: &PenumbraLightingPipeline,
+        key: MeshPipelineKey,
+    ) -> CachedRenderPipelineId {
+        *self.queued.entry(key).or_insert_with(|| {
+            let mut desc: RenderPipelineDescriptor = lighting.view_descriptor(key);
+            desc.label = Some("penumbra_reflections_pipeline".into());
+            desc.layout[2] = self.layout.clone();
+            desc.depth_stencil = None;
+            desc.vertex.shader = self.shader.clone();
+            let fragment = desc.fragment.as_mut().expect("the lighting pass has one");
+            fragment.shader = self.shader.clone();
+            fragment.entry_point = Some("fragment".into());
+            fragment.targets = vec![Some(ColorTargetState {
+                format: LAYER_FORMAT,
+                blend: None,
+                write_mask: ColorWrites::ALL,
+            })];
+            cache.queue_render_pipeline(desc)
+        })
+    }
+}
+
+/// Per Penumbra view with [`BillboardReflections`]: while billboards exist, its layer
+/// texture (full or half size, from the `TextureCache`) and pipeline, and the
+/// `PenumbraSpecularLayer` the lighting pass reads.
+#[allow(
+    clippy::too_many_arguments,
+    clippy::type_complexity,
+    reason = "a Bevy system"
+)]
+fn prepare_reflection_views(
+    mut commands: Commands,
+    views: Query<(
+        Entity,
+        &ExtractedView,
+        &PenumbraLightingView,
+        &ViewTarget,
+        Option<&ExtractedBillboardReflections>,
+        Option<&ViewReflectionsBindGroup>,
+        Has<ViewReflections>,
+    )>,
+    gpu: Res<ReflectionGpuScene>,
+    view_key_cache: Res<ViewKeyCache>,
+    lighting: Option<Res<PenumbraLightingPipeline>>,
+    pipelines: Option<ResMut<ReflectionPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    mut texture_cache: ResMut<TextureCache>,
+    device: Res<RenderDevice>,
+) {
+    let (Some(lighting), Some(mut pipelines)) = (lighting, pipelines) else {
+        return;
+    };
+    let scene_ready = !gpu.billboards.is_empty() && gpu.array.is_some();
+    for (entity, view, lighting_view, target, settings, group, drawn) in &views {
+        let key = view_key_cache.get(&view.retained_view_entity);
+        let (Some(key), Some(settings), None, true) =
+            (key, settings, &lighting_view.msaa, scene_ready)
+        else {
+            if drawn {
+                commands
+                    .entity(entity)
+                    .remove::<(ViewReflections, PenumbraSpecularLayer)>();
+            }
+            continue;
+        };
+        let settings = &settings.0;
+        let size = target.main_texture().size();
+        let (width, height) = if settings.half_resolution {
+            (size.width.div_ceil(2), size.height.div_ceil(2))
+        } else {
+            (size.width, size.height)
+        };
+        let layer = texture_cache.get(
+            &device,
+            TextureDescriptor {
+                label: Some("penumbra_reflection_layer"),
+                size: Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: TextureDimension::D2,
+                format: LAYER_FORMAT,
+                usage: TextureUsages::RENDER_ATTACHMENT | TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            },
+        );
+        let pipeline = pipelines.get(&pipeline_cache, &lighting, *key);
+        // The lighting pass reads the layer only once the trace can write it: its
+        // pipeline compiled and its group 2 made (from the view's second frame).
+        let traced = pipeline_cache.get_render_pipeline(pipeline).is_some()
+            && group.is_some_and(|g| g.group.is_some());
+        let mut view = commands.entity(entity);
+        if traced {
+            view.insert(PenumbraSpecularLayer {
+                texture: layer.default_view.clone(),
+                half_resolution: settings.half_resolution,
+                debug_view: settings.debug_view == ReflectionDebugView::Layer,
+            });
+        } else {
+            view.remove::<PenumbraSpecularLayer>();
+        }
+        view.insert(ViewReflections { pipeline, layer });
+    }
+}
+
+/// Writes each reflecting view's uniform; remakes its group 2 when the billboards'
+/// buffer or the array changed.
+#[allow(
+    clippy::too_many_arguments,
+    clippy::type_complexity,
+    reason = "a Bevy system"
+)]
+fn prepare_reflection_bind_groups(
+    mut commands: Commands,
+    mut views: Query<
+        (
+            Entity,
+            &ExtractedBillboardReflections,
+            Option<&mut ViewReflectionsBindGroup>,
+        ),
+        With<ViewReflections>,
+    >,
+    gpu: Res<ReflectionGpuScene>,
+    pipelines: Option<Res<ReflectionPipelines>>,
+    pipeline_cache: Res<PipelineCache>,
+    allocations: Res<PenumbraGpuAllocations>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+) {
+    let (Some(pipelines), Some((buffer, _)), Some(array), Some(images)) =
+        (pipelines, &gpu.buffer, &gpu.array, &gpu.images)
+    else {
+        return;
+    };
+    for (entity, settings, group) in &mut views {
+        let mut fresh = None;
+        let group = match group {
+            Some(group) => group.into_inner(),
+            None => fresh.insert(ViewReflectionsBindGroup {
+                uniform: allocations.sized_buffer(
+                    &device,
+                    "penumbra_reflections_uniform",
+                    ReflectionUniform::min_size().get(),
+                    BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                ),
+                group: None,
+            }),
+        };
+        let s = &settings.0;
+        let uniform = ReflectionUniform {
+            billboard_count: gpu.billboards.len() as u32,
+            max_layers: s.max_layers,
+            max_distance: s.max_distance,
+            anisotropy: s.anisotropy,
+            texture_size: images.size,
+            mip_count: gpu.mip_count,
+            half_resolution: u32::from(s.half_resolution),
+        };
+        let mut bytes = EncaseBuffer::new(Vec::new());
+        bytes
+            .write(&uniform)
+            .expect("the reflection uniform encodes");
+        queue.write_buffer(&group.uniform, 0, bytes.as_ref());
+        let key = (group.uniform.id(), buffer.id(), array.id());
+        if group.group.as_ref().map(|(_, k)| k) != Some(&key) {
+            let bind_group = allocations.bind_group(
+                &device,
+                "penumbra_reflections_bind_group",
+                &pipeline_cache.get_bind_group_layout(&pipelines.layout),
+                &BindGroupEntries::sequential((
+                    group.uniform.as_entire_binding(),
+                    buffer.as_entire_binding(),
+                    array,
+                    &pipelines.sampler,
+                )),
+            );
+            group.group = Some((bind_group, key));
+        }
+        if let Some(fresh) = fresh {
+            commands.entity(entity).insert(fresh);
+        }
+    }
+}
+
+/// The trace: one fullscreen draw into the view's layer texture, before Penumbra's
+/// lighting pass reads it.
+pub fn billboard_reflections(
+    view: ViewQuery<(
+        &ViewReflections,
+        &MeshViewBindGroup,
+        Option<&ViewReflectionsBindGroup>,
+    )>,
+    pipeline_cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    let (draw, mesh_view, group) = view.into_inner();
+    let (Some(pipeline), Some((group, _))) = (
+        pipeline_cache.get_render_pipeline(draw.pipeline),
+        group.and_then(|g| g.group.as_ref()),
+    ) else {
+        return; // compiling, or the first frame
+    };
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
+        label: Some("penumbra_billboard_reflections"),
+        color_attachments: &[Some(RenderPassColorAttachment {
+            view: &draw.layer.default_view,
+            depth_slice: None,
+            resolve_target: None,
+            ops: Operations {
+                load: LoadOp::Clear(default()),
+                store: StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    let span = diagnostics.pass_span(&mut pass, "penumbra_billboard_reflections");
+    pass.set_render_pipeline(pipeline);
+    pass.set_bind_group(0, &mesh_view.main, &mesh_view.main_offsets);
+    pass.set_bind_group(1, &mesh_view.binding_array, &[]);
+    pass.set_bind_group(2, group, &[]);
+    pass.draw(0..3, 0..1);
+    span.end(&mut pass);
+}

@@ -1,0 +1,380 @@
+//! The reflection pass of one pixel, as the shader (`reflections/trace.wgsl`) computes
+//! it: the mirror ray, the nearest billboard hits, each sampled over the GGX lobe's
+//! footprint, composited front to back.
+//!
+//! **Footprint.** Tilting the microfacet normal by a small slope `δ` along the tangent
+//! `t` (the view's direction projected on the surface) turns the reflected ray by `2δ`
+//! in the plane of incidence; along the bitangent `b`, by `2 (n·v) δ` — why reflections
+//! on wet ground stretch toward the viewer. GGX's marginal slope density
+//! `∝ (1 + δ²/α²)^(−3/2)` falls to half at `δ = 0.766 α`; the footprint at distance `s`
+//! is the box of half-widths `2 · 0.766 α_t · s` and `2 · 0.766 α_b (n·v) · s` across the
+//! ray ([`FOOTPRINT_SLOPE`]), projected along the ray onto the billboard and taken to the
+//! image's texels. Its long axis is covered by `⌈long / short⌉` taps (at most
+//! [`MAX_TAPS`]), each a trilinear sample at the level whose texel spans the tap's width
+//! — an explicit anisotropic filter whose result every device computes alike — weighted
+//! by the fraction of its box inside the image (soft edges as the lobe widens).
+//!
+//! **Anisotropy** (`ReflectionUniform::anisotropy`, `a ∈ [0, 0.95]`) stretches the lobe
+//! along `t` as Bevy's anisotropic `StandardMaterial` does: `α_t = α (1 + a)`,
+//! `α_b = α (1 − a)`.
+
+use encase::ShaderType;
+use glam::{UVec2, Vec2, Vec3, Vec4};
+
+use super::Billboard;
+use super::texture::MipChain;
+
+/// Half the reflected directions' spread per unit of roughness, `2 · 0.766`: the
+/// half-maximum slope of GGX's marginal slope density, doubled by reflection.
+pub const FOOTPRINT_SLOPE: f32 = 2.0 * 0.766;
+
+/// The most taps along a footprint's long axis.
+pub const MAX_TAPS: u32 = 8;
+
+/// Most anisotropy.
+pub const MAX_ANISOTROPY: f32 = 0.95;
+
+/// One billboard as the shader reads it (`penumbra::reflections::trace::GpuBillboard`).
+#[derive(ShaderType, Clone, Copy, Debug, PartialEq)]
+pub struct GpuBillboard {
+    /// [`Billboard::center`].
+    pub center: Vec3,
+    /// Texture array layer of its image.
+    pub layer: u32,
+    /// [`Billboard::half_x`].
+    pub half_x: Vec3,
+    /// Multiplies the image's colour: cd/m² for a texel of 1.
+    pub emissive: f32,
+    /// [`Billboard::half_y`].
+    pub half_y: Vec3,
+    /// Unused.
+    pub reserved: u32,
+}
+
+impl GpuBillboard {
+    /// The quad.
+    pub fn billboard(&self) -> Billboard {
+        Billboard {
+            center: self.center,
+            half_x: self.half_x,
+            half_y: self.half_y,
+        }
+    }
+}
+
+/// The reflection pass's settings (`penumbra::reflections::trace::ReflectionUniform`).
+#[derive(ShaderType, Clone, Copy, Debug, PartialEq)]
+pub struct ReflectionUniform {
+    /// Billboards in the list.
+    pub billboard_count: u32,
+    /// Hits composited per pixel, 1..=[`super::MAX_LAYERS`].
+    pub max_layers: u32,
+    /// Hits farther than this are ignored, metres.
+    pub max_distance: f32,
+    /// `[0, MAX_ANISOTROPY]`.
+    pub anisotropy: f32,
+    /// The images' size, texels.
+    pub texture_size: UVec2,
+    /// Levels in the texture array.
+    pub mip_count: u32,
+    /// 1: the pass runs at half resolution (each texel shades the top-left pixel of its
+    /// 2 × 2 block).
+    pub half_resolution: u32,
+}
+
+/// A G-buffer sample as the pass sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surface {
+    /// World position, metres.
+    pub position: Vec3,
+    /// Unit world normal.
+    pub normal: Vec3,
+    /// Unit vector from the surface toward the eye.
+    pub view: Vec3,
+    /// Bevy's perceptual roughness.
+    pub perceptual_roughness: f32,
+}
+
+/// Bevy's roughness from perceptual roughness (`perceptualRoughnessToRoughness`: clamped
+/// to at least 0.089 first).
+pub fn roughness(perceptual_roughness: f32) -> f32 {
+    let p = perceptual_roughness.clamp(0.089, 1.0);
+    p * p
+}
+
+/// The mirror ray and the lobe's footprint axes per metre travelled.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lobe {
+    /// The mirror direction.
+    pub dir: Vec3,
+    /// Across the ray in the plane of incidence, scaled to the footprint's half-width
+    /// per metre.
+    pub major: Vec3,
+    /// Across the ray along the bitangent, scaled likewise.
+    pub minor: Vec3,
+}
+
+/// The lobe of a surface sample under `anisotropy`.
+pub fn lobe(s: &Surface, anisotropy: f32) -> Lobe {
+    let n = s.normal;
+    let n_dot_v = n.dot(s.view).max(1e-4);
+    let dir = 2.0 * n_dot_v * n - s.view;
+    let along = s.view - n * n.dot(s.view);
+    // Straight down the normal: any tangent (the footprint is round there).
+    let t = if along.length_squared() > 1e-8 {
+        along.normalize()
+    } else {
+        any_perpendicular(n)
+    };
+    let b = n.cross(t);
+    let e1 = n_dot_v * t + s.view.dot(t) * n;
+    let alpha = roughness(s.perceptual_roughness);
+    let a = anisotropy.clamp(0.0, MAX_ANISOTROPY);
+    Lobe {
+        dir,
+        major: e1 * (FOOTPRINT_SLOPE * alpha * (1.0 + a)),
+        minor: b * (FOOTPRINT_SLOPE * alpha * (1.0 - a) * n_dot_v),
+    }
+}
+
+/// A unit vector perpendicular to unit `n` (Duff et al.'s branchless basis).
+pub fn any_perpendicular(n: Vec3) -> Vec3 {
+    let sign = 1.0f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x)
+}
+
+/// One accepted hit: where, and the footprint's axes in image coordinates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FootprintHit {
+    /// Distance along the ray, metres.
+    pub t: f32,
+    /// The billboard's index.
+    pub index: u32,
+    /// Image coordinates of the mirror hit (may lie outside `[0, 1]` by the footprint).
+    pub uv: Vec2,
+    /// The footprint's half-axes in image coordinates.
+    pub axis_a: Vec2,
+    /// The other half-axis.
+    pub axis_b: Vec2,
+}
+
+/// The hit of `lobe` from `origin` on `b` (front side, `0 < t ≤ max_distance`) whose
+/// footprint overlaps the image.
+pub fn footprint_hit(
+    b: &Billboard,
+    index: u32,
+    origin: Vec3,
+    lobe: &Lobe,
+    max_distance: f32,
+) -> Option<FootprintHit> {
+    let n = b.half_x.cross(b.half_y);
+    let facing = lobe.dir.dot(n);
+    if facing.is_nan() || facing >= 0.0 {
+        return None;
+    }
+    let t = (b.center - origin).dot(n) / facing;
+    if t.is_nan() || t <= 0.0 || t > max_distance {
+        return None;
+    }
+    let n2 = n.length_squared();
+    let du = b.half_y.cross(n) * (0.5 / n2);
+    let dv = n.cross(b.half_x) * (-0.5 / n2);
+    let to_uv = |p: Vec3| Vec2::new(p.dot(du), p.dot(dv));
+    // Offsets across the ray, projected along it onto the plane.
+    let project = |o: Vec3| o - lobe.dir * (o.dot(n) / facing);
+    let p = origin + lobe.dir * t - b.center;
+    let uv = to_uv(p) + 0.5;
+    let axis_a = to_uv(project(lobe.major * t));
+    let axis_b = to_uv(project(lobe.minor * t));
+    let reach = axis_a.abs() + axis_b.abs();
+    let inside = uv.cmpge(-reach).all() && uv.cmple(Vec2::ONE + reach).all();
+    inside.then_some(FootprintHit {
+        t,
+        index,
+        uv,
+        axis_a,
+        axis_b,
+    })
+}
+
+/// The fraction of the box `[c − e, c + e]` inside `[0, 1]` (1 for a point inside).
+pub fn box_coverage(c: f32, e: f32) -> f32 {
+    if e <= 1e-7 {
+        return if (0.0..=1.0).contains(&c) { 1.0 } else { 0.0 };
+    }
+    (((c + e).clamp(0.0, 1.0) - (c - e).clamp(0.0, 1.0)) / (2.0 * e)).min(1.0)
+}
+
+/// The premultiplied image over a hit's footprint: taps along the long axis.
+pub fn sample_footprint(image: &MipChain, hit: &FootprintHit) -> Vec4 {
+    let size = Vec2::new(image.width as f32, image.height as f32);
+    let (ta, tb) = (hit.axis_a * size, hit.axis_b * size);
+    let (long, short, long_uv, short_uv) = if ta.length() >= tb.length() {
+        (ta.length(), tb.length(), hit.axis_a, hit.axis_b)
+    } else {
+        (tb.length(), ta.length(), hit.axis_b, hit.axis_a)
+    };
+    let taps = taps(long, short);
+    let n = taps as f32;
+    // Each tap spans 2·long/n along the long axis and 2·short across.
+    let width = 2.0 * short.max(long / n);
+    let lod = width.max(1.0).log2();
+    let reach = short_uv.abs() + long_uv.abs() / n;
+    let mut sum = Vec4::ZERO;
+    for k in 0..taps {
+        let uv = hit.uv + long_uv * ((2.0 * k as f32 + 1.0) / n - 1.0);
+        let cover = box_coverage(uv.x, reach.x) * box_coverage(uv.y, reach.y);
+        if cover > 0.0 {
+            sum += image.sample(uv, lod) * cover;
+        }
+    }
+    sum / n
+}
+
+/// Taps along a footprint of half-axes `long ≥ short` (texels).
+pub fn taps(long: f32, short: f32) -> u32 {
+    let ratio = long / short.max(1e-6);
+    (ratio.ceil().clamp(1.0, MAX_TAPS as f32)) as u32
+}
+
+/// The billboards' reflection in one pixel: premultiplied radiance (cd/m², the
+/// billboards' emissive applied) and coverage, `1 −` what is left of the light behind.
+/// `images[layer]` is each layer's chain.
+pub fn reflect_pixel(
+    s: &Surface,
+    billboards: &[GpuBillboard],
+    images: &[MipChain],
+    settings: &ReflectionUniform,
+) -> Vec4 {
+    let lobe = lobe(s, settings.anisotropy);
+    let k = settings.max_layers.clamp(1, super::MAX_LAYERS as u32) as usize;
+    let mut hits: Vec<FootprintHit> = Vec::with_capacity(k + 1);
+    for (index, gpu) in billboards.iter().enumerate() {
+        let Some(hit) = footprint_hit(
+            &gpu.billboard(),
+            index as u32,
+            s.position,
+            &lobe,
+            settings.max_distance,
+        ) else {
+            continue;
+        };
+        let at = hits
+            .iter()
+            .position(|h| (hit.t, hit.index) < (h.t, h.index))
+            .unwrap_or(hits.len());
+        if at < k {
+            hits.insert(at, hit);
+            hits.truncate(k);
+        }
+    }
+    let (mut colour, mut transmittance) = (Vec3::ZERO, 1.0f32);
+    for hit in &hits {
+        let gpu = &billboards[hit.index as usize];
+        let texel = sample_footprint(&images[gpu.layer as usize], hit);
+        colour += transmittance * texel.truncate() * gpu.emissive;
+        transmittance *= 1.0 - texel.w.clamp(0.0, 1.0);
+    }
+    colour.extend(1.0 - transmittance)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Mat4;
+
+    fn surface(view: Vec3, perceptual_roughness: f32) -> Surface {
+        Surface {
+            position: Vec3::ZERO,
+            normal: Vec3::Y,
+            view: view.normalize(),
+            perceptual_roughness,
+        }
+    }
+
+    #[test]
+    fn the_lobe_stretches_toward_grazing() {
+        // 60° from the normal: the in-plane half-width is 1/cos 60° = 2× the other.
+        let s = surface(Vec3::new(0.0, 0.5, 3f32.sqrt() / 2.0), 0.5);
+        let l = lobe(&s, 0.0);
+        assert!((l.dir - Vec3::new(0.0, 0.5, -(3f32.sqrt()) / 2.0)).length() < 1e-6);
+        assert!(l.major.dot(l.dir).abs() < 1e-6 && l.minor.dot(l.dir).abs() < 1e-6);
+        assert!((l.major.length() / l.minor.length() - 2.0).abs() < 1e-5);
+        assert!((l.major.length() - FOOTPRINT_SLOPE * 0.25).abs() < 1e-6);
+        // Anisotropy widens the in-plane axis and narrows the other.
+        let a = lobe(&s, 0.5);
+        assert!((a.major.length() / l.major.length() - 1.5).abs() < 1e-5);
+        assert!((a.minor.length() / l.minor.length() - 0.5).abs() < 1e-5);
+        // Straight down the normal: round.
+        let top = lobe(&surface(Vec3::Y, 0.5), 0.0);
+        assert!((top.major.length() - top.minor.length()).abs() < 1e-6);
+    }
+
+    #[test]
+    fn coverage_of_a_box() {
+        assert_eq!(box_coverage(0.5, 0.1), 1.0);
+        assert!((box_coverage(0.0, 0.1) - 0.5).abs() < 1e-6);
+        assert!((box_coverage(1.05, 0.1) - 0.25).abs() < 1e-6);
+        assert_eq!(box_coverage(-0.2, 0.1), 0.0);
+        assert_eq!(box_coverage(0.3, 0.0), 1.0);
+        assert_eq!(box_coverage(1.3, 0.0), 0.0);
+        assert!((box_coverage(0.5, 1.0) - 0.5).abs() < 1e-6);
+    }
+
+    /// A smooth floor under a billboard: the mirror hit reads the texel the reflected
+    /// ray meets; rougher floors spread the same texel over more of the image.
+    #[test]
+    fn a_mirror_reads_the_texel_it_meets() {
+        // 8×8 image: a white texel at (5, 2) on transparent black.
+        let mut texels = vec![Vec4::ZERO; 64];
+        texels[2 * 8 + 5] = Vec4::ONE;
+        let image = MipChain::from_straight_alpha(8, 8, &texels);
+        // The quad 2 m ahead (−Z), 2 m across, facing +Z, centred 1 m up.
+        let quad = Billboard::from_transform(
+            Mat4::from_translation(Vec3::new(0.0, 1.0, -2.0)),
+            Vec2::splat(2.0),
+        )
+        .unwrap();
+        let gpu = GpuBillboard {
+            center: quad.center,
+            layer: 0,
+            half_x: quad.half_x,
+            emissive: 3.0,
+            half_y: quad.half_y,
+            reserved: 0,
+        };
+        let settings = ReflectionUniform {
+            billboard_count: 1,
+            max_layers: 3,
+            max_distance: 100.0,
+            anisotropy: 0.0,
+            texture_size: UVec2::splat(8),
+            mip_count: 4,
+            half_resolution: 0,
+        };
+        // The texel's centre: u = 5.5/8, v = 2.5/8 → x = −1 + 2u, y = 2 − 2v.
+        let target = Vec3::new(-1.0 + 2.0 * 5.5 / 8.0, 2.0 - 2.0 * 2.5 / 8.0, -2.0);
+        // The eye at the mirror image of a ray from the floor point (0, 0, −1): the
+        // reflected ray from there goes to the target.
+        let p = Vec3::new(0.0, 0.0, -1.0);
+        let mirrored_target = target * Vec3::new(1.0, -1.0, 1.0);
+        let view = (p - mirrored_target).normalize();
+        let mut s = surface(view, 0.0);
+        s.position = p;
+        let sharp = reflect_pixel(&s, &[gpu], std::slice::from_ref(&image), &settings);
+        // Perceptual roughness is clamped to 0.089: a slight blur, most light kept.
+        assert!(sharp.x > 1.5 && sharp.w > 0.5, "{sharp}");
+        s.perceptual_roughness = 0.6;
+        let rough = reflect_pixel(&s, &[gpu], &[image], &settings);
+        assert!(
+            rough.x < 0.5 * sharp.x && rough.x > 0.0,
+            "{rough} vs {sharp}"
+        );
+        // From behind the quad: nothing.
+        s.position = Vec3::new(0.0, 0.0, -3.0);
+        s.view = (s.position - mirrored_target).normalize();
+        assert_eq!(reflect_pixel(&s, &[gpu], &[], &settings), Vec4::ZERO);
+    }
+}
