@@ -25,7 +25,7 @@ use bevy_penumbra_cinematic::{
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraLighting, PenumbraLightingPlugin};
 use penumbra_cinematic_core::reflections::Billboard;
 use penumbra_cinematic_core::reflections::pass::{
-    GpuBillboard, ReflectionUniform, Surface, reflect_pixel,
+    GpuBillboard, ReflectionUniform, Surface, reflect_pixel, upsample_half,
 };
 use penumbra_cinematic_core::reflections::texture::MipChain;
 use penumbra_reference::camera::PerspectiveCamera;
@@ -35,6 +35,12 @@ const WIDTH: u32 = 128;
 const HEIGHT: u32 = 96;
 const EYE: Vec3 = Vec3::new(0.0, 1.2, 3.0);
 const TARGET: Vec3 = Vec3::new(0.0, 0.2, -2.0);
+/// A box standing on the floor in front of the reflections (its faces reflect too; its
+/// silhouette is a depth edge for the half-resolution upsample).
+const BOX_CENTER: Vec3 = Vec3::new(-0.2, 0.25, -0.9);
+const BOX_HALF: f32 = 0.25;
+/// The floor's half size.
+const FLOOR_HALF: f32 = 20.0;
 /// The images' size.
 const IMAGE: UVec2 = UVec2::new(16, 8);
 /// cd/m² of a texel of 1 (small: the layer is compared unexposed in f16).
@@ -140,12 +146,27 @@ fn scene(
 {
     move |mut commands, mut meshes, mut materials, mut images| {
         commands.spawn((
-            Mesh3d(meshes.add(Plane3d::default().mesh().size(40.0, 40.0))),
+            Mesh3d(
+                meshes.add(
+                    Plane3d::default()
+                        .mesh()
+                        .size(2.0 * FLOOR_HALF, 2.0 * FLOOR_HALF),
+                ),
+            ),
             MeshMaterial3d(materials.add(StandardMaterial {
                 base_color: Color::linear_rgb(0.1, 0.1, 0.1),
                 perceptual_roughness: setup.perceptual_roughness,
                 ..default()
             })),
+        ));
+        commands.spawn((
+            Mesh3d(meshes.add(Cuboid::from_length(2.0 * BOX_HALF))),
+            MeshMaterial3d(materials.add(StandardMaterial {
+                base_color: Color::linear_rgb(0.1, 0.1, 0.1),
+                perceptual_roughness: setup.perceptual_roughness,
+                ..default()
+            })),
+            Transform::from_translation(BOX_CENTER),
         ));
         if setup.billboards {
             for (transform, size, texels) in billboards() {
@@ -206,16 +227,45 @@ fn render(setup: Setup) -> (Vec<[f32; 4]>, KeptApp) {
     (capture.to_linear(), app)
 }
 
-/// The layer the model predicts at every pixel (the floor's analytic G-buffer; `None`
-/// where the pixel sees the sky).
-fn model(setup: Setup) -> Vec<Option<Vec4>> {
-    let camera = PerspectiveCamera::looking_at(
+fn test_camera() -> PerspectiveCamera {
+    PerspectiveCamera::looking_at(
         EYE,
         TARGET,
         PerspectiveProjection::default().fov,
         WIDTH,
         HEIGHT,
-    );
+    )
+}
+
+/// What pixel `p` sees, analytically: the box or the floor (position, unit normal, view
+/// depth, the unit ray), or `None` for the sky.
+fn analytic_surface(p: IVec2) -> Option<(Vec3, Vec3, f32, Vec3)> {
+    let ray = test_camera().ray(p.x as f32 + 0.5, p.y as f32 + 0.5);
+    let forward = (TARGET - EYE).normalize();
+    // The box (slabs), then the floor.
+    let inv = ray.dir.recip();
+    let lo = (BOX_CENTER - BOX_HALF - ray.origin) * inv;
+    let hi = (BOX_CENTER + BOX_HALF - ray.origin) * inv;
+    let (near, far) = (lo.min(hi), lo.max(hi));
+    let t_box = near.max_element();
+    let hit = if t_box <= far.min_element() && t_box > 0.0 {
+        let axis = near.max_position();
+        let mut n = Vec3::ZERO;
+        n[axis] = -ray.dir[axis].signum();
+        Some((t_box, n))
+    } else if ray.dir.y < 0.0 {
+        let t = -ray.origin.y / ray.dir.y;
+        let q = ray.at(t);
+        (q.x.abs() <= FLOOR_HALF && q.z.abs() <= FLOOR_HALF).then_some((t, Vec3::Y))
+    } else {
+        None
+    };
+    hit.map(|(t, n)| (ray.at(t), n, -t * ray.dir.dot(forward), ray.dir))
+}
+
+/// The layer the model predicts at every pixel (the floor's analytic G-buffer; `None`
+/// where the pixel sees the sky).
+fn model(setup: Setup) -> Vec<Option<Vec4>> {
     let mut gpu = Vec::new();
     let mut images = Vec::new();
     for (transform, size, texels) in billboards() {
@@ -241,18 +291,19 @@ fn model(setup: Setup) -> Vec<Option<Vec4>> {
     };
     (0..WIDTH * HEIGHT)
         .map(|i| {
-            let ray = camera.ray((i % WIDTH) as f32 + 0.5, (i / WIDTH) as f32 + 0.5);
-            if ray.dir.y >= -1e-4 {
+            let pixel = IVec2::new((i % WIDTH) as i32, (i / WIDTH) as i32);
+            let (position, normal, _, dir) = analytic_surface(pixel)?;
+            // Pixels on the silhouette's edge may see either surface: skipped.
+            let edge = [IVec2::X, IVec2::NEG_X, IVec2::Y, IVec2::NEG_Y]
+                .iter()
+                .any(|o| analytic_surface(pixel + *o).map(|s| s.1) != Some(normal));
+            if edge {
                 return None;
             }
-            let t = -ray.origin.y / ray.dir.y;
-            if t > 19.0 {
-                return None; // near the floor's far edge
-            }
             let surface = Surface {
-                position: ray.at(t),
-                normal: Vec3::Y,
-                view: -ray.dir,
+                position,
+                normal,
+                view: -dir,
                 perceptual_roughness: setup.perceptual_roughness,
             };
             Some(reflect_pixel(&surface, &gpu, &images, &settings))
@@ -376,13 +427,6 @@ fn the_layer_is_added_as_specular_only_where_it_reflects() {
         ..setup
     });
     save("reflections_shaded", &shaded);
-    let camera = PerspectiveCamera::looking_at(
-        EYE,
-        TARGET,
-        PerspectiveProjection::default().fov,
-        WIDTH,
-        HEIGHT,
-    );
     let exposure = 1.0 / 1.2;
     // Reflectance 0.5: F0 = 0.04; its pre-baked specular occlusion is 1.
     let f0 = 0.04;
@@ -399,11 +443,11 @@ fn the_layer_is_added_as_specular_only_where_it_reflects() {
         if l.truncate().min_element() < 0.2 {
             continue; // too faint to compare through f16
         }
-        let ray = camera.ray(
-            (i as u32 % WIDTH) as f32 + 0.5,
-            (i as u32 / WIDTH) as f32 + 0.5,
-        );
-        let n_dot_v = (-ray.dir.y).max(1e-4);
+        let pixel = IVec2::new((i as u32 % WIDTH) as i32, (i as u32 / WIDTH) as i32);
+        let Some((_, normal, _, dir)) = analytic_surface(pixel) else {
+            continue;
+        };
+        let n_dot_v = (-dir.dot(normal)).max(1e-4);
         let ab = f_ab(setup.perceptual_roughness, n_dot_v);
         let brdf = f0 * ab.x + ab.y;
         for c in 0..3 {
@@ -456,6 +500,32 @@ fn half_resolution_upsamples_the_full_trace() {
         }
     }
     let relative = sum_diff / sum_full;
+    // Every pixel against the model of the upsample, from the GPU's own texels (the
+    // even pixels) and the scene's analytic view depth.
+    let view_z = |p: IVec2| analytic_surface(p).map_or(f32::NEG_INFINITY, |s| s.2);
+    let texel = |t: IVec2| Vec4::from_array(half[(2 * t.y * WIDTH as i32 + 2 * t.x) as usize]);
+    let half_size = IVec2::new(WIDTH as i32 / 2, HEIGHT as i32 / 2);
+    let mut worst = 0.0f32;
+    for y in 0..HEIGHT as i32 {
+        for x in 0..WIDTH as i32 {
+            let z = view_z(IVec2::new(x, y));
+            if z == f32::NEG_INFINITY {
+                continue; // no lighting pass there
+            }
+            let want = upsample_half(texel, view_z, half_size, IVec2::new(x, y), z);
+            let got = Vec4::from_array(half[(y * WIDTH as i32 + x) as usize]);
+            worst = worst.max(
+                ((got - want) / Vec4::new(EMISSIVE, EMISSIVE, EMISSIVE, 1.0))
+                    .abs()
+                    .max_element(),
+            );
+        }
+    }
+    println!("half resolution: upsample against its model: worst {worst:.2e}");
+    assert!(
+        worst < 2e-3,
+        "the upsample differs from its model by {worst}"
+    );
     println!(
         "half resolution: {differ_even} even pixels differ; mean |half − full| / mean |full| {relative:.4}"
     );

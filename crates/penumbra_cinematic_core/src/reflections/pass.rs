@@ -19,7 +19,7 @@
 //! `α_b = α (1 − a)`.
 
 use encase::ShaderType;
-use glam::{UVec2, Vec2, Vec3, Vec4};
+use glam::{IVec2, UVec2, Vec2, Vec3, Vec4};
 
 use super::Billboard;
 use super::texture::MipChain;
@@ -278,6 +278,45 @@ pub fn reflect_pixel(
         transmittance *= 1.0 - texel.w.clamp(0.0, 1.0);
     }
     colour.extend(1.0 - transmittance)
+}
+
+/// The lighting pass's read of a half-resolution layer at full-resolution `pixel` of
+/// view depth `view_z` (`lighting/lights.wgsl`'s `specular_layer_at`): texel `i` holds
+/// pixel `2i`; the (up to) four texels around the pixel, bilinearly weighted, keep those
+/// whose pixel's view depth (`texel_view_z`) is within 10 % of the pixel's; the nearest
+/// in depth when none is. `half_size`: the layer's size.
+pub fn upsample_half(
+    texel: impl Fn(IVec2) -> Vec4,
+    texel_view_z: impl Fn(IVec2) -> f32,
+    half_size: IVec2,
+    pixel: IVec2,
+    view_z: f32,
+) -> Vec4 {
+    let base = pixel / 2;
+    let odd = (pixel - base * 2).as_vec2() * 0.5;
+    let (mut sum, mut weight) = (Vec4::ZERO, 0.0f32);
+    let (mut nearest, mut nearest_gap) = (Vec4::ZERO, f32::MAX);
+    for k in 0..4 {
+        let offset = IVec2::new(k & 1, k >> 1);
+        let at = (base + offset).min(half_size - 1);
+        let bx = if offset.x == 0 { 1.0 - odd.x } else { odd.x };
+        let by = if offset.y == 0 { 1.0 - odd.y } else { odd.y };
+        let bilinear = bx * by;
+        if bilinear == 0.0 {
+            continue;
+        }
+        let value = texel(at);
+        let gap = (texel_view_z(at * 2) - view_z).abs();
+        if gap <= 0.1 * view_z.abs() {
+            sum += value * bilinear;
+            weight += bilinear;
+        }
+        if gap < nearest_gap {
+            nearest_gap = gap;
+            nearest = value;
+        }
+    }
+    if weight > 0.0 { sum / weight } else { nearest }
 }
 
 #[cfg(test)]

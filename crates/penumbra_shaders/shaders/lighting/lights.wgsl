@@ -277,7 +277,7 @@ fn environment_brdf(input: ptr<function, lighting::LightingInput>) -> vec3<f32> 
 // resolution, texel `i` holds full-resolution pixel `2i`: a pixel reads the (up to) four
 // texels around it, bilinearly weighted, keeping those whose depth is within 10 % of its
 // own (the nearest in depth when none is). CPU model:
-// `penumbra_cinematic_core::reflections::upsample::upsample`.
+// `penumbra_cinematic_core::reflections::pass::upsample_half`.
 fn specular_layer_at(pixel: vec2<i32>, view_z: f32) -> vec4<f32> {
     let mode = penumbra_lighting.specular_layer & 3u;
     if mode == 0u {
