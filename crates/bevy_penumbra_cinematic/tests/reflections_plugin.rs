@@ -288,6 +288,7 @@ fn model(setup: Setup) -> Vec<Option<Vec4>> {
         texture_size: IMAGE,
         mip_count: images[0].levels.len() as u32,
         half_resolution: 0,
+        footprint_slope: penumbra_cinematic_core::reflections::pass::FOOTPRINT_SLOPE,
     };
     (0..WIDTH * HEIGHT)
         .map(|i| {

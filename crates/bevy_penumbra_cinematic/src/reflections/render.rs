@@ -33,7 +33,9 @@ use bevy_penumbra_df::lighting::{
     PenumbraLightingPipeline, PenumbraLightingSystems, PenumbraLightingView, PenumbraSpecularLayer,
 };
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
-use penumbra_cinematic_core::reflections::pass::{GpuBillboard, ReflectionUniform};
+use penumbra_cinematic_core::reflections::pass::{
+    FOOTPRINT_SLOPE, GpuBillboard, ReflectionUniform,
+};
 use std::sync::Arc;
 
 /// The layer texture's format.
@@ -430,6 +432,7 @@ fn prepare_reflection_bind_groups(
             texture_size: images.size,
             mip_count: gpu.mip_count,
             half_resolution: u32::from(s.half_resolution),
+            footprint_slope: FOOTPRINT_SLOPE,
         };
         let mut bytes = EncaseBuffer::new(Vec::new());
         bytes

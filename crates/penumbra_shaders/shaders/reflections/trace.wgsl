@@ -12,7 +12,6 @@
     mesh_view_bindings::{deferred_prepass_texture, depth_prepass_texture},
 }
 
-const FOOTPRINT_SLOPE: f32 = 1.532;
 const MAX_TAPS: u32 = 8u;
 const MAX_LAYERS: u32 = 4u;
 const MAX_ANISOTROPY: f32 = 0.95;
@@ -36,6 +35,7 @@ struct ReflectionUniform {
     texture_size: vec2<u32>,
     mip_count: u32,
     half_resolution: u32,
+    footprint_slope: f32,
 }
 
 @group(2) @binding(0) var<uniform> settings: ReflectionUniform;
@@ -107,8 +107,8 @@ fn surface_lobe(n: vec3<f32>, v: vec3<f32>, perceptual_roughness: f32) -> Lobe {
     let a = clamp(settings.anisotropy, 0.0, MAX_ANISOTROPY);
     return Lobe(
         dir,
-        e1 * (FOOTPRINT_SLOPE * alpha * (1.0 + a)),
-        b * (FOOTPRINT_SLOPE * alpha * (1.0 - a) * n_dot_v),
+        e1 * (settings.footprint_slope * alpha * (1.0 + a)),
+        b * (settings.footprint_slope * alpha * (1.0 - a) * n_dot_v),
     );
 }
 
