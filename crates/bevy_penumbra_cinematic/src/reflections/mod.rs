@@ -213,6 +213,91 @@ impl Plugin for BillboardReflectionsPlugin {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use bevy::asset::RenderAssetUsages;
+    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+
+    fn image(width: u32, height: u32, format: TextureFormat, texel: &[u8]) -> Image {
+        Image::new_fill(
+            Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            TextureDimension::D2,
+            texel,
+            format,
+            RenderAssetUsages::default(),
+        )
+    }
+
+    /// The main world's list: valid billboards in entity order sharing layers by image;
+    /// zero-size, non-finite, odd-sized and unreadable ones skipped; nothing without a
+    /// reflecting camera.
+    #[test]
+    fn billboards_are_collected_and_bad_ones_skipped() {
+        let mut app = App::new();
+        app.add_plugins((MinimalPlugins, AssetPlugin::default()))
+            .init_asset::<Image>()
+            .init_resource::<collect::ReflectionScene>()
+            .add_systems(PostUpdate, collect::collect_reflection_billboards);
+        let world = app.world_mut();
+        let mut images = world.resource_mut::<Assets<Image>>();
+        let srgb = TextureFormat::Rgba8UnormSrgb;
+        let red = images.add(image(16, 8, srgb, &[255, 0, 0, 255]));
+        let blue = images.add(image(16, 8, srgb, &[0, 0, 255, 128]));
+        let small = images.add(image(8, 8, srgb, &[0, 255, 0, 255]));
+        let unreadable = images.add(image(16, 8, TextureFormat::Rgb10a2Unorm, &[7, 7, 7, 7]));
+        let mut spawn = |image: &Handle<Image>, size: Vec2, transform: Transform| {
+            world
+                .spawn((
+                    ReflectionBillboard {
+                        image: image.clone(),
+                        size,
+                        ..default()
+                    },
+                    GlobalTransform::from(transform),
+                    InheritedVisibility::VISIBLE,
+                ))
+                .id()
+        };
+        let at = |x: f32| Transform::from_xyz(x, 1.0, -3.0);
+        let a = spawn(&red, Vec2::ONE, at(0.0));
+        let b = spawn(&blue, Vec2::new(2.0, 1.0), at(1.0));
+        let c = spawn(&red, Vec2::ONE, at(2.0));
+        spawn(&small, Vec2::ONE, at(3.0));
+        spawn(&red, Vec2::new(0.0, 1.0), at(4.0));
+        spawn(&red, Vec2::ONE, Transform::from_xyz(f32::NAN, 0.0, 0.0));
+        spawn(&unreadable, Vec2::ONE, at(5.0));
+        app.update();
+        let scene = app.world().resource::<collect::ReflectionScene>();
+        assert!(scene.billboards.is_empty() && scene.images.is_none(), "no camera");
+        app.world_mut().spawn(BillboardReflections::default());
+        app.update();
+        let scene = app.world().resource::<collect::ReflectionScene>();
+        let mut kept = [a, b, c];
+        kept.sort();
+        let xs: Vec<f32> = scene.billboards.iter().map(|g| g.center.x).collect();
+        let want: Vec<f32> = kept
+            .iter()
+            .map(|e| app.world().get::<GlobalTransform>(*e).unwrap().translation().x)
+            .collect();
+        assert_eq!(xs, want, "the valid billboards, in entity order");
+        let images = scene.images.as_ref().expect("an array");
+        assert_eq!(images.size, UVec2::new(16, 8));
+        assert_eq!(images.layers.len(), 2, "red and blue: one layer each");
+        let layer_of = |x: f32| scene.billboards.iter().find(|g| g.center.x == x).unwrap().layer;
+        assert_eq!(layer_of(0.0), layer_of(2.0), "one image, one layer");
+        assert_ne!(layer_of(0.0), layer_of(1.0));
+        // Blue's straight alpha 0.5 (sRGB 0 0 255, alpha 128/255), premultiplied.
+        let blue_layer = &images.layers[layer_of(1.0) as usize];
+        let texel = blue_layer.levels[0][0];
+        assert!((texel.w - 128.0 / 255.0).abs() < 1e-3 && (texel.z - texel.w).abs() < 1e-3);
+        // A steady frame keeps the same array (no upload).
+        let before = images.clone();
+        app.update();
+        let scene = app.world().resource::<collect::ReflectionScene>();
+        assert!(std::sync::Arc::ptr_eq(&before, scene.images.as_ref().unwrap()));
+    }
 
     #[test]
     fn bad_settings_are_clamped_and_named() {
