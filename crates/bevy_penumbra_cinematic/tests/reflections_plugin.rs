@@ -22,10 +22,13 @@ use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use bevy_penumbra_cinematic::{
     BillboardReflections, BillboardReflectionsPlugin, ReflectionBillboard, ReflectionDebugView,
 };
-use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraLighting, PenumbraLightingPlugin};
+use bevy_penumbra_df::{
+    CasterSource, DistanceFieldCaster, DistanceFieldScenePlugin, PenumbraGpuAllocations,
+    PenumbraLighting, PenumbraLightingPlugin, SdfAssetPlugin,
+};
 use penumbra_cinematic_core::reflections::Billboard;
 use penumbra_cinematic_core::reflections::pass::{
-    GpuBillboard, ReflectionUniform, Surface, reflect_pixel, upsample_half,
+    GpuBillboard, ReflectionUniform, Surface, reflect_pixel_shadowed, upsample_half,
 };
 use penumbra_cinematic_core::reflections::texture::MipChain;
 use penumbra_reference::camera::PerspectiveCamera;
@@ -39,6 +42,10 @@ const TARGET: Vec3 = Vec3::new(0.0, 0.2, -2.0);
 /// silhouette is a depth edge for the half-resolution upsample).
 const BOX_CENTER: Vec3 = Vec3::new(-0.2, 0.25, -0.9);
 const BOX_HALF: f32 = 0.25;
+/// A wall between the striped sign and the floor before it (a distance-field caster
+/// when the setup asks for it): reflection shadows.
+const WALL_CENTER: Vec3 = Vec3::new(-0.7, 0.3, -1.9);
+const WALL_HALF: Vec3 = Vec3::new(0.5, 0.3, 0.05);
 /// The floor's half size.
 const FLOOR_HALF: f32 = 20.0;
 /// The images' size.
@@ -57,6 +64,8 @@ struct Setup {
     perceptual_roughness: f32,
     anisotropy: f32,
     half_resolution: bool,
+    /// The wall (a distance-field caster: reflection shadows).
+    wall: bool,
 }
 
 impl Default for Setup {
@@ -68,6 +77,7 @@ impl Default for Setup {
             perceptual_roughness: 0.2,
             anisotropy: 0.0,
             half_resolution: false,
+            wall: false,
         }
     }
 }
@@ -168,6 +178,23 @@ fn scene(
             })),
             Transform::from_translation(BOX_CENTER),
         ));
+        if setup.wall {
+            commands.spawn((
+                Mesh3d(meshes.add(Cuboid::from_size(2.0 * WALL_HALF))),
+                MeshMaterial3d(materials.add(StandardMaterial {
+                    base_color: Color::linear_rgb(0.1, 0.1, 0.1),
+                    perceptual_roughness: setup.perceptual_roughness,
+                    ..default()
+                })),
+                Transform::from_translation(WALL_CENTER),
+                DistanceFieldCaster {
+                    source: CasterSource::Cuboid {
+                        half_size: WALL_HALF,
+                    },
+                    ..default()
+                },
+            ));
+        }
         if setup.billboards {
             for (transform, size, texels) in billboards() {
                 commands.spawn((
@@ -213,7 +240,11 @@ fn render(setup: Setup) -> (Vec<[f32; 4]>, KeptApp) {
         .format(CaptureFormat::LinearF16)
         .frames(5);
     let mut app = harness.app();
-    app.add_plugins(PenumbraLightingPlugin::default());
+    app.add_plugins((
+        SdfAssetPlugin,
+        DistanceFieldScenePlugin,
+        PenumbraLightingPlugin::default(),
+    ));
     if setup.plugin {
         app.add_plugins(BillboardReflectionsPlugin);
     }
@@ -237,35 +268,58 @@ fn test_camera() -> PerspectiveCamera {
     )
 }
 
-/// What pixel `p` sees, analytically: the box or the floor (position, unit normal, view
+/// The boxes in the scene (centre, half size): the box, and the wall when asked for.
+fn boxes(wall: bool) -> Vec<(Vec3, Vec3)> {
+    let mut v = vec![(BOX_CENTER, Vec3::splat(BOX_HALF))];
+    if wall {
+        v.push((WALL_CENTER, WALL_HALF));
+    }
+    v
+}
+
+/// What pixel `p` sees, analytically: a box or the floor (position, unit normal, view
 /// depth, the unit ray), or `None` for the sky.
-fn analytic_surface(p: IVec2) -> Option<(Vec3, Vec3, f32, Vec3)> {
+fn analytic_surface(p: IVec2, wall: bool) -> Option<(Vec3, Vec3, f32, Vec3)> {
     let ray = test_camera().ray(p.x as f32 + 0.5, p.y as f32 + 0.5);
     let forward = (TARGET - EYE).normalize();
-    // The box (slabs), then the floor.
     let inv = ray.dir.recip();
-    let lo = (BOX_CENTER - BOX_HALF - ray.origin) * inv;
-    let hi = (BOX_CENTER + BOX_HALF - ray.origin) * inv;
-    let (near, far) = (lo.min(hi), lo.max(hi));
-    let t_box = near.max_element();
-    let hit = if t_box <= far.min_element() && t_box > 0.0 {
-        let axis = near.max_position();
-        let mut n = Vec3::ZERO;
-        n[axis] = -ray.dir[axis].signum();
-        Some((t_box, n))
-    } else if ray.dir.y < 0.0 {
+    // The nearest box (slabs), else the floor.
+    let mut hit: Option<(f32, Vec3)> = None;
+    for (center, half) in boxes(wall) {
+        let lo = (center - half - ray.origin) * inv;
+        let hi = (center + half - ray.origin) * inv;
+        let (near, far) = (lo.min(hi), lo.max(hi));
+        let t = near.max_element();
+        if t <= far.min_element() && t > 0.0 && hit.is_none_or(|(h, _)| t < h) {
+            let axis = near.max_position();
+            let mut n = Vec3::ZERO;
+            n[axis] = -ray.dir[axis].signum();
+            hit = Some((t, n));
+        }
+    }
+    let hit = hit.or_else(|| {
         let t = -ray.origin.y / ray.dir.y;
         let q = ray.at(t);
-        (q.x.abs() <= FLOOR_HALF && q.z.abs() <= FLOOR_HALF).then_some((t, Vec3::Y))
-    } else {
-        None
-    };
+        (ray.dir.y < 0.0 && q.x.abs() <= FLOOR_HALF && q.z.abs() <= FLOOR_HALF)
+            .then_some((t, Vec3::Y))
+    });
     hit.map(|(t, n)| (ray.at(t), n, -t * ray.dir.dot(forward), ray.dir))
+}
+
+/// The wall's exact distance (the distance-field caster's cuboid), metres.
+fn wall_distance(p: Vec3) -> f32 {
+    let q = (p - WALL_CENTER).abs() - WALL_HALF;
+    q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
 }
 
 /// The layer the model predicts at every pixel (the floor's analytic G-buffer; `None`
 /// where the pixel sees the sky).
 fn model(setup: Setup) -> Vec<Option<Vec4>> {
+    model_with(setup, setup.wall)
+}
+
+/// [`model`], with or without reflection shadows.
+fn model_with(setup: Setup, shadows: bool) -> Vec<Option<Vec4>> {
     let mut gpu = Vec::new();
     let mut images = Vec::new();
     for (transform, size, texels) in billboards() {
@@ -280,24 +334,21 @@ fn model(setup: Setup) -> Vec<Option<Vec4>> {
         });
         images.push(MipChain::from_straight_alpha(IMAGE.x, IMAGE.y, &texels));
     }
-    let settings = ReflectionUniform {
-        billboard_count: gpu.len() as u32,
-        max_layers: 3,
-        max_distance: 100.0,
-        anisotropy: setup.anisotropy,
-        texture_size: IMAGE,
-        mip_count: images[0].levels.len() as u32,
-        half_resolution: 0,
-        footprint_slope: penumbra_cinematic_core::reflections::pass::FOOTPRINT_SLOPE,
-    };
+    let mut settings =
+        ReflectionUniform::new(gpu.len() as u32, IMAGE, images[0].levels.len() as u32);
+    settings.anisotropy = setup.anisotropy;
+    if shadows {
+        settings.shadow_steps = 32;
+        settings.object_count = 1;
+    }
     (0..WIDTH * HEIGHT)
         .map(|i| {
             let pixel = IVec2::new((i % WIDTH) as i32, (i / WIDTH) as i32);
-            let (position, normal, _, dir) = analytic_surface(pixel)?;
+            let (position, normal, _, dir) = analytic_surface(pixel, setup.wall)?;
             // Pixels on the silhouette's edge may see either surface: skipped.
             let edge = [IVec2::X, IVec2::NEG_X, IVec2::Y, IVec2::NEG_Y]
                 .iter()
-                .any(|o| analytic_surface(pixel + *o).map(|s| s.1) != Some(normal));
+                .any(|o| analytic_surface(pixel + *o, setup.wall).map(|s| s.1) != Some(normal));
             if edge {
                 return None;
             }
@@ -307,7 +358,13 @@ fn model(setup: Setup) -> Vec<Option<Vec4>> {
                 view: -dir,
                 perceptual_roughness: setup.perceptual_roughness,
             };
-            Some(reflect_pixel(&surface, &gpu, &images, &settings))
+            Some(reflect_pixel_shadowed(
+                &surface,
+                &gpu,
+                &images,
+                &settings,
+                wall_distance,
+            ))
         })
         .collect()
 }
@@ -365,12 +422,18 @@ fn the_layer_matches_the_model() {
             anisotropy: 0.8,
             ..default()
         },
+        Setup {
+            wall: true,
+            ..default()
+        },
     ] {
         let (gpu, _app) = render(setup);
         let model = model(setup);
         let name = format!(
-            "reflections_layer_r{}_a{}",
-            setup.perceptual_roughness, setup.anisotropy
+            "reflections_layer_r{}_a{}{}",
+            setup.perceptual_roughness,
+            setup.anisotropy,
+            if setup.wall { "_wall" } else { "" }
         );
         save(&name, &gpu);
         let model_image: Vec<[f32; 4]> = model
@@ -383,6 +446,20 @@ fn the_layer_matches_the_model() {
             "{setup:?}: {n} floor pixels, {lit} reflecting; |GPU − model| mean {mean:.2e}, worst {worst:.2e}"
         );
         assert!(lit > 800, "{lit} pixels reflect a billboard");
+        if setup.wall {
+            // The wall shadows a good part of the striped sign's reflection.
+            let unshadowed = model_with(setup, false);
+            let shadowed = model
+                .iter()
+                .zip(&unshadowed)
+                .filter(|(s, u)| match (s, u) {
+                    (Some(s), Some(u)) => u.x > 0.2 * EMISSIVE && s.x < 0.5 * u.x,
+                    _ => false,
+                })
+                .count();
+            println!("  {shadowed} pixels lose more than half their reflection to the wall");
+            assert!(shadowed > 100, "{shadowed} shadowed pixels");
+        }
         assert!(mean < 2e-3 && worst < 0.05, "mean {mean}, worst {worst}");
     }
 }
@@ -445,7 +522,7 @@ fn the_layer_is_added_as_specular_only_where_it_reflects() {
             continue; // too faint to compare through f16
         }
         let pixel = IVec2::new((i as u32 % WIDTH) as i32, (i as u32 / WIDTH) as i32);
-        let Some((_, normal, _, dir)) = analytic_surface(pixel) else {
+        let Some((_, normal, _, dir)) = analytic_surface(pixel, false) else {
             continue;
         };
         let n_dot_v = (-dir.dot(normal)).max(1e-4);
@@ -503,7 +580,7 @@ fn half_resolution_upsamples_the_full_trace() {
     let relative = sum_diff / sum_full;
     // Every pixel against the model of the upsample, from the GPU's own texels (the
     // even pixels) and the scene's analytic view depth.
-    let view_z = |p: IVec2| analytic_surface(p).map_or(f32::NEG_INFINITY, |s| s.2);
+    let view_z = |p: IVec2| analytic_surface(p, false).map_or(f32::NEG_INFINITY, |s| s.2);
     let texel = |t: IVec2| Vec4::from_array(half[(2 * t.y * WIDTH as i32 + 2 * t.x) as usize]);
     let half_size = IVec2::new(WIDTH as i32 / 2, HEIGHT as i32 / 2);
     let mut worst = 0.0f32;

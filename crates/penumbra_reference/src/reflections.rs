@@ -412,16 +412,10 @@ mod tests {
         }
 
         pub fn settings(anisotropy: f32, footprint_slope: f32) -> ReflectionUniform {
-            ReflectionUniform {
-                billboard_count: 2,
-                max_layers: 3,
-                max_distance: 100.0,
-                anisotropy,
-                texture_size: IMAGE,
-                mip_count: 5,
-                half_resolution: 0,
-                footprint_slope,
-            }
+            let mut s = ReflectionUniform::new(2, IMAGE, 5);
+            s.anisotropy = anisotropy;
+            s.footprint_slope = footprint_slope;
+            s
         }
 
         /// The floor points a `w × h` camera sees (1.2 m up, looking 1 m down over 5 m).
@@ -529,6 +523,35 @@ mod tests {
         (pass_err / n_f, sharp_err / n_f, coverage_err / n_f, n)
     }
 
+    pub(super) const EMISSIVE: f32 = scene::EMISSIVE;
+
+    pub(super) fn scene_billboards() -> (Vec<GpuBillboard>, Vec<MipChain>) {
+        scene::billboards()
+    }
+
+    pub(super) fn scene_settings() -> penumbra_cinematic_core::reflections::pass::ReflectionUniform
+    {
+        scene::settings(
+            0.0,
+            penumbra_cinematic_core::reflections::pass::FOOTPRINT_SLOPE,
+        )
+    }
+
+    pub(super) fn scene_floor(
+        w: u32,
+        h: u32,
+        r: f32,
+    ) -> Vec<penumbra_cinematic_core::reflections::pass::Surface> {
+        scene::floor(w, h, r)
+    }
+
+    pub(super) fn scene_lobe(
+        s: &penumbra_cinematic_core::reflections::pass::Surface,
+        a: f32,
+    ) -> (Frame, Lobe) {
+        scene::truth_lobe(s, a)
+    }
+
     pub(super) fn pass_against_truth_pub(r: f32, a: f32, slope: f32) -> (f32, f32, f32, usize) {
         pass_against_truth(r, a, slope, 1024, (48, 36))
     }
@@ -570,6 +593,114 @@ mod tests {
                     "roughness {roughness}, anisotropy {anisotropy}: pass {pass}, sharp {sharp}"
                 );
             }
+        }
+    }
+}
+
+/// Reflection shadows against exact visibility: a wall between the striped sign and the
+/// floor before it, as triangles for the truth and as its exact distance for the pass's
+/// march. Mean |pass − truth| over the points whose truth or pass reflects something, with
+/// the march's steps swept, and without shadows.
+#[cfg(test)]
+fn shadows_against_truth(perceptual_roughness: f32, steps: u32) -> (f32, usize) {
+    use penumbra_cinematic_core::reflections::pass::reflect_pixel_shadowed;
+    let (center, half) = (Vec3::new(-0.7, 0.3, -1.9), Vec3::new(0.5, 0.3, 0.05));
+    let corner = |i: u32| {
+        center
+            + half
+                * Vec3::new(
+                    if i & 1 == 0 { -1.0 } else { 1.0 },
+                    if i & 2 == 0 { -1.0 } else { 1.0 },
+                    if i & 4 == 0 { -1.0 } else { 1.0 },
+                )
+    };
+    // Two triangles per face of the box.
+    let faces = [
+        [0, 1, 3, 2],
+        [4, 6, 7, 5],
+        [0, 4, 5, 1],
+        [2, 3, 7, 6],
+        [0, 2, 6, 4],
+        [1, 5, 7, 3],
+    ];
+    let triangles: Vec<[Vec3; 3]> = faces
+        .iter()
+        .flat_map(|f| {
+            [
+                [corner(f[0]), corner(f[1]), corner(f[2])],
+                [corner(f[0]), corner(f[2]), corner(f[3])],
+            ]
+        })
+        .collect();
+    let occluder = TriangleOccluder::new(&triangles);
+    let distance = |p: Vec3| {
+        let q = (p - center).abs() - half;
+        q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+    };
+    let (billboards, images) = tests::scene_billboards();
+    let truth = BillboardTruth {
+        billboards: &billboards,
+        images: &images,
+        occluders: Some(&occluder),
+    };
+    let mut settings = tests::scene_settings();
+    settings.shadow_steps = steps;
+    settings.object_count = 1;
+    let norm = 1.0 / tests::EMISSIVE;
+    let (mut err, mut n) = (0.0f32, 0usize);
+    for (k, s) in tests::scene_floor(48, 36, perceptual_roughness)
+        .iter()
+        .enumerate()
+    {
+        // Points under the wall's footprint are inside it: skipped.
+        if distance(s.position) <= 0.0 {
+            continue;
+        }
+        let (frame, lobe) = tests::scene_lobe(s, 0.0);
+        let want = lobe_mean(frame, s.view, lobe, 1024, 0x5eed + k as u64, |l| {
+            truth.radiance(s.position, l)
+        });
+        let got = reflect_pixel_shadowed(s, &billboards, &images, &settings, distance);
+        if want.w < 0.01 && got.w < 0.01 {
+            continue;
+        }
+        err += (got - want).truncate().abs().max_element() * norm;
+        n += 1;
+    }
+    (err / n.max(1) as f32, n)
+}
+
+/// Reflection shadows follow exact visibility: with the march, a near-mirror floor's
+/// error against the truth (a wall hiding part of a sign) falls to a quarter of the
+/// error without shadows — about the pass's error where nothing is hidden.
+#[cfg(test)]
+#[test]
+fn reflection_shadows_follow_exact_visibility() {
+    let (unshadowed, _) = shadows_against_truth(0.0, 0);
+    let (shadowed, n) = shadows_against_truth(0.0, 32);
+    eprintln!(
+        "reflection shadows: {n} points; mean |pass − truth| {shadowed:.4} with, {unshadowed:.4} without"
+    );
+    // Measured 0.0227 with, 0.1002 without (0.019 on the scene without the wall).
+    assert!(
+        shadowed < 0.03 && shadowed < 0.3 * unshadowed,
+        "{shadowed} with, {unshadowed} without"
+    );
+}
+
+/// Reflection shadows against exact visibility, with the march's steps swept
+/// (`cargo test -p penumbra_reference --lib reflection_shadow_steps -- --ignored
+/// --nocapture`).
+#[cfg(test)]
+#[test]
+#[ignore = "a measurement: reflection shadows' steps against error"]
+fn reflection_shadow_steps() {
+    for roughness in [0.0f32, 0.3] {
+        for steps in [0u32, 4, 8, 16, 32, 64] {
+            let (err, n) = shadows_against_truth(roughness, steps);
+            eprintln!(
+                "perceptual roughness {roughness}, steps {steps:>2}: {n} points, mean |pass − truth| {err:.4}"
+            );
         }
     }
 }

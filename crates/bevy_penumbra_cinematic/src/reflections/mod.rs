@@ -32,8 +32,9 @@
 //! # Limits
 //!
 //! - Only the billboards reflect: other geometry is not in the reflection (screen-space
-//!   reflections or environment maps serve it); it does not occlude the billboards yet
-//!   (distance-field reflection shadows are to come).
+//!   reflections or environment maps serve it). It occludes them through the
+//!   distance-field scene ([`BillboardReflections::reflection_shadows`]): geometry
+//!   without a `DistanceFieldCaster` does not.
 //! - Single-sample cameras: a camera with `DeferredMsaa` gets no reflections (one
 //!   warning). The clearcoat layer does not reflect billboards.
 //! - Cost: per shaded pixel, one ray–quad test per billboard, then up to `max_layers`
@@ -113,6 +114,18 @@ pub struct BillboardReflections {
     /// GGX `α_t = α (1 + a)`, `α_b = α (1 − a)` with the tangent toward the viewer,
     /// `[0, 0.95]`. Default 0. Cost: more taps along the footprint (at most 8).
     pub anisotropy: f32,
+    /// Reflection shadows: each hit dimmed by a soft march along the mirror ray through
+    /// the distance-field scene's shadow-casting objects (`DistanceFieldCaster`s), so a
+    /// building between a sign and the street hides its reflection. Default true. Cost:
+    /// up to `shadow_steps` distance evaluations of every object per reflecting pixel;
+    /// nothing while the scene has no caster.
+    pub reflection_shadows: bool,
+    /// The march's steps, `1..=256`. Default 32.
+    pub shadow_steps: u32,
+    /// The narrowest shadow cone (tangent of its half-angle; rough surfaces widen it
+    /// with their lobe): softness of a mirror's reflection shadows, `[0.001, 1]`.
+    /// Default 0.02. No cost.
+    pub shadow_softness: f32,
     /// Debug view. Default none.
     pub debug_view: ReflectionDebugView,
 }
@@ -124,6 +137,9 @@ impl Default for BillboardReflections {
             max_distance: 100.0,
             half_resolution: false,
             anisotropy: 0.0,
+            reflection_shadows: true,
+            shadow_steps: 32,
+            shadow_softness: penumbra_cinematic_core::reflections::pass::DEFAULT_SHADOW_SOFTNESS,
             debug_view: ReflectionDebugView::None,
         }
     }
@@ -155,6 +171,21 @@ impl BillboardReflections {
                 0.0
             } else {
                 self.anisotropy.clamp(0.0, max)
+            };
+        }
+        if !(1..=256).contains(&self.shadow_steps) {
+            problems.push(format!("shadow_steps {} not in 1..=256", self.shadow_steps));
+            out.shadow_steps = self.shadow_steps.clamp(1, 256);
+        }
+        if !(0.001..=1.0).contains(&self.shadow_softness) {
+            problems.push(format!(
+                "shadow_softness {} not in [0.001, 1]",
+                self.shadow_softness
+            ));
+            out.shadow_softness = if self.shadow_softness.is_nan() {
+                penumbra_cinematic_core::reflections::pass::DEFAULT_SHADOW_SOFTNESS
+            } else {
+                self.shadow_softness.clamp(0.001, 1.0)
             };
         }
         (out, problems)
@@ -270,7 +301,10 @@ mod tests {
         spawn(&unreadable, Vec2::ONE, at(5.0));
         app.update();
         let scene = app.world().resource::<collect::ReflectionScene>();
-        assert!(scene.billboards.is_empty() && scene.images.is_none(), "no camera");
+        assert!(
+            scene.billboards.is_empty() && scene.images.is_none(),
+            "no camera"
+        );
         app.world_mut().spawn(BillboardReflections::default());
         app.update();
         let scene = app.world().resource::<collect::ReflectionScene>();
@@ -279,13 +313,26 @@ mod tests {
         let xs: Vec<f32> = scene.billboards.iter().map(|g| g.center.x).collect();
         let want: Vec<f32> = kept
             .iter()
-            .map(|e| app.world().get::<GlobalTransform>(*e).unwrap().translation().x)
+            .map(|e| {
+                app.world()
+                    .get::<GlobalTransform>(*e)
+                    .unwrap()
+                    .translation()
+                    .x
+            })
             .collect();
         assert_eq!(xs, want, "the valid billboards, in entity order");
         let images = scene.images.as_ref().expect("an array");
         assert_eq!(images.size, UVec2::new(16, 8));
         assert_eq!(images.layers.len(), 2, "red and blue: one layer each");
-        let layer_of = |x: f32| scene.billboards.iter().find(|g| g.center.x == x).unwrap().layer;
+        let layer_of = |x: f32| {
+            scene
+                .billboards
+                .iter()
+                .find(|g| g.center.x == x)
+                .unwrap()
+                .layer
+        };
         assert_eq!(layer_of(0.0), layer_of(2.0), "one image, one layer");
         assert_ne!(layer_of(0.0), layer_of(1.0));
         // Blue's straight alpha 0.5 (sRGB 0 0 255, alpha 128/255), premultiplied.
@@ -296,7 +343,10 @@ mod tests {
         let before = images.clone();
         app.update();
         let scene = app.world().resource::<collect::ReflectionScene>();
-        assert!(std::sync::Arc::ptr_eq(&before, scene.images.as_ref().unwrap()));
+        assert!(std::sync::Arc::ptr_eq(
+            &before,
+            scene.images.as_ref().unwrap()
+        ));
     }
 
     #[test]

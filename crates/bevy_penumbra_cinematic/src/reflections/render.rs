@@ -10,15 +10,15 @@ use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::binding_types::{
-    sampler, storage_buffer_read_only_sized, texture_2d_array, uniform_buffer_sized,
+    sampler, storage_buffer_read_only_sized, texture_2d_array, texture_3d, uniform_buffer_sized,
 };
 use bevy::render::render_resource::encase::{StorageBuffer, UniformBuffer as EncaseBuffer};
 use bevy::render::render_resource::{
     AddressMode, BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries,
-    Buffer, BufferId, BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites,
-    Extent3d, FilterMode, LoadOp, MipmapFilterMode, Operations, Origin3d, PipelineCache,
-    RenderPassColorAttachment, RenderPassDescriptor, RenderPipelineDescriptor, Sampler,
-    SamplerBindingType, SamplerDescriptor, ShaderStages, ShaderType, StoreOp,
+    Buffer, BufferDescriptor, BufferId, BufferUsages, CachedRenderPipelineId, ColorTargetState,
+    ColorWrites, Extent3d, FilterMode, LoadOp, MipmapFilterMode, Operations, Origin3d,
+    PipelineCache, RenderPassColorAttachment, RenderPassDescriptor, RenderPipelineDescriptor,
+    Sampler, SamplerBindingType, SamplerDescriptor, ShaderStages, ShaderType, StoreOp,
     TexelCopyBufferLayout, TexelCopyTextureInfo, TextureAspect, TextureDescriptor,
     TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
     TextureViewDescriptor, TextureViewDimension, TextureViewId,
@@ -32,10 +32,11 @@ use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystem
 use bevy_penumbra_df::lighting::{
     PenumbraLightingPipeline, PenumbraLightingSystems, PenumbraLightingView, PenumbraSpecularLayer,
 };
+use bevy_penumbra_df::scene::DistanceFieldGpu;
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
-use penumbra_cinematic_core::reflections::pass::{
-    FOOTPRINT_SLOPE, GpuBillboard, ReflectionUniform,
-};
+use penumbra_cinematic_core::reflections::pass::{GpuBillboard, ReflectionUniform};
+use penumbra_df_core::cull::CameraOrigin;
+use std::num::NonZeroU64;
 use std::sync::Arc;
 
 /// The layer texture's format.
@@ -76,12 +77,18 @@ pub struct ViewReflections {
     layer: CachedTexture,
 }
 
+/// What a group 2 binds: the uniform, billboard and object buffers; the array and atlas.
+type BoundResources = ([BufferId; 3], [TextureViewId; 2]);
+
 /// A reflecting view's uniform and group 2 (remade when a bound resource changes).
 #[derive(Component)]
 pub struct ViewReflectionsBindGroup {
     uniform: Buffer,
-    group: Option<(BindGroup, (BufferId, BufferId, TextureViewId))>,
+    group: Option<(BindGroup, BoundResources)>,
 }
+
+/// Bytes of one distance-field object record.
+const OBJECT_BYTES: u64 = 128;
 
 /// The trace's group 2, shader and sampler, and its pipelines per view key.
 #[derive(Resource)]
@@ -89,6 +96,9 @@ struct ReflectionPipelines {
     layout: BindGroupLayoutDescriptor,
     shader: Handle<Shader>,
     sampler: Sampler,
+    /// Bound while the scene has no distance-field objects: one free record, one voxel.
+    no_objects: Buffer,
+    no_atlas: TextureView,
     queued: HashMap<MeshPipelineKey, CachedRenderPipelineId>,
 }
 
@@ -132,6 +142,8 @@ fn init_reflection_pipelines(
                 storage_buffer_read_only_sized(false, Some(GpuBillboard::min_size())),
                 texture_2d_array(TextureSampleType::Float { filterable: true }),
                 sampler(SamplerBindingType::Filtering),
+                storage_buffer_read_only_sized(false, NonZeroU64::new(OBJECT_BYTES)),
+                texture_3d(TextureSampleType::Float { filterable: false }),
             ),
         ),
     );
@@ -144,10 +156,34 @@ fn init_reflection_pipelines(
         mipmap_filter: MipmapFilterMode::Linear,
         ..default()
     });
+    let no_objects = device.create_buffer(&BufferDescriptor {
+        label: Some("penumbra_reflections_no_objects"),
+        size: OBJECT_BYTES,
+        usage: BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    let no_atlas = device
+        .create_texture(&TextureDescriptor {
+            label: Some("penumbra_reflections_no_atlas"),
+            size: Extent3d {
+                width: 1,
+                height: 1,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: TextureDimension::D3,
+            format: TextureFormat::R16Float,
+            usage: TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        })
+        .create_view(&TextureViewDescriptor::default());
     commands.insert_resource(ReflectionPipelines {
         layout,
         shader: library.handle("reflections/trace.wgsl"),
         sampler,
+        no_objects,
+        no_atlas,
         queued: HashMap::default(),
     });
 }
@@ -392,12 +428,14 @@ fn prepare_reflection_bind_groups(
     mut views: Query<
         (
             Entity,
+            &ExtractedView,
             &ExtractedBillboardReflections,
             Option<&mut ViewReflectionsBindGroup>,
         ),
         With<ViewReflections>,
     >,
     gpu: Res<ReflectionGpuScene>,
+    df: Option<Res<DistanceFieldGpu>>,
     pipelines: Option<Res<ReflectionPipelines>>,
     pipeline_cache: Res<PipelineCache>,
     allocations: Res<PenumbraGpuAllocations>,
@@ -409,7 +447,23 @@ fn prepare_reflection_bind_groups(
     else {
         return;
     };
-    for (entity, settings, group) in &mut views {
+    // The distance-field scene, or placeholders (no reflection shadows).
+    let (objects, object_count, df_atlas) = match df.as_deref() {
+        Some(DistanceFieldGpu {
+            objects: Some(objects),
+            slot_count,
+            atlas,
+            ..
+        }) => (
+            objects,
+            *slot_count,
+            atlas
+                .as_ref()
+                .map_or(&pipelines.no_atlas, |(_, view, _)| view),
+        ),
+        _ => (&pipelines.no_objects, 0, &pipelines.no_atlas),
+    };
+    for (entity, view, settings, group) in &mut views {
         let mut fresh = None;
         let group = match group {
             Some(group) => group.into_inner(),
@@ -424,22 +478,33 @@ fn prepare_reflection_bind_groups(
             }),
         };
         let s = &settings.0;
+        let origin = CameraOrigin::at(view.world_from_view.translation());
         let uniform = ReflectionUniform {
-            billboard_count: gpu.billboards.len() as u32,
             max_layers: s.max_layers,
             max_distance: s.max_distance,
             anisotropy: s.anisotropy,
-            texture_size: images.size,
-            mip_count: gpu.mip_count,
             half_resolution: u32::from(s.half_resolution),
-            footprint_slope: FOOTPRINT_SLOPE,
+            camera_tile: origin.map_or(IVec3::ZERO, |o| IVec3::from_array(o.tile)),
+            camera_offset: origin.map_or(Vec3::ZERO, |o| o.offset),
+            // Far from the tile range (or a NaN camera): no shadows.
+            object_count: if origin.is_some() { object_count } else { 0 },
+            shadow_steps: if s.reflection_shadows {
+                s.shadow_steps
+            } else {
+                0
+            },
+            shadow_softness: s.shadow_softness,
+            ..ReflectionUniform::new(gpu.billboards.len() as u32, images.size, gpu.mip_count)
         };
         let mut bytes = EncaseBuffer::new(Vec::new());
         bytes
             .write(&uniform)
             .expect("the reflection uniform encodes");
         queue.write_buffer(&group.uniform, 0, bytes.as_ref());
-        let key = (group.uniform.id(), buffer.id(), array.id());
+        let key = (
+            [group.uniform.id(), buffer.id(), objects.id()],
+            [array.id(), df_atlas.id()],
+        );
         if group.group.as_ref().map(|(_, k)| k) != Some(&key) {
             let bind_group = allocations.bind_group(
                 &device,
@@ -450,6 +515,8 @@ fn prepare_reflection_bind_groups(
                     buffer.as_entire_binding(),
                     array,
                     &pipelines.sampler,
+                    objects.as_entire_binding(),
+                    df_atlas,
                 )),
             );
             group.group = Some((bind_group, key));

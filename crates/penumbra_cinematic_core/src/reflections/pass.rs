@@ -18,7 +18,7 @@
 //! `α_b = α (1 − a)`.
 
 use encase::ShaderType;
-use glam::{IVec2, UVec2, Vec2, Vec3, Vec4};
+use glam::{IVec2, IVec3, UVec2, Vec2, Vec3, Vec4};
 
 use super::Billboard;
 use super::texture::MipChain;
@@ -83,9 +83,53 @@ pub struct ReflectionUniform {
     /// 1: the pass runs at half resolution (each texel shades the top-left pixel of its
     /// 2 × 2 block).
     pub half_resolution: u32,
+    /// The camera's tile (the distance-field scene's camera-relative frame).
+    pub camera_tile: IVec3,
+    /// Slots of the distance-field object buffer to march (0: no reflection shadows).
+    pub object_count: u32,
+    /// The camera's position within its tile, metres.
+    pub camera_offset: Vec3,
     /// The footprint's half-width per unit of roughness per metre ([`FOOTPRINT_SLOPE`]).
     pub footprint_slope: f32,
+    /// Reflection shadows' march steps (0: off).
+    pub shadow_steps: u32,
+    /// Where the march starts along the ray, metres.
+    pub shadow_bias: f32,
+    /// The narrowest shadow cone's half-angle tangent (a mirror's shadows stay this soft).
+    pub shadow_softness: f32,
+    /// Unused.
+    pub reserved: u32,
 }
+
+impl ReflectionUniform {
+    /// The settings with no reflection shadows, the camera at the origin.
+    pub fn new(billboard_count: u32, texture_size: UVec2, mip_count: u32) -> Self {
+        ReflectionUniform {
+            billboard_count,
+            max_layers: super::DEFAULT_LAYERS as u32,
+            max_distance: 100.0,
+            anisotropy: 0.0,
+            texture_size,
+            mip_count,
+            half_resolution: 0,
+            camera_tile: IVec3::ZERO,
+            object_count: 0,
+            camera_offset: Vec3::ZERO,
+            footprint_slope: FOOTPRINT_SLOPE,
+            shadow_steps: 0,
+            shadow_bias: DEFAULT_SHADOW_BIAS,
+            shadow_softness: DEFAULT_SHADOW_SOFTNESS,
+            reserved: 0,
+        }
+    }
+}
+
+/// Where reflection shadows' march starts by default, metres.
+pub const DEFAULT_SHADOW_BIAS: f32 = 0.02;
+/// The narrowest shadow cone by default (tangent of its half-angle).
+pub const DEFAULT_SHADOW_SOFTNESS: f32 = 0.02;
+/// The shortest march step, metres.
+pub const MIN_SHADOW_STEP: f32 = 0.01;
 
 /// A G-buffer sample as the pass sees it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -247,12 +291,25 @@ pub fn taps(long: f32, short: f32) -> u32 {
 
 /// The billboards' reflection in one pixel: premultiplied radiance (cd/m², the
 /// billboards' emissive applied) and coverage, `1 −` what is left of the light behind.
-/// `images[layer]` is each layer's chain.
+/// `images[layer]` is each layer's chain. No reflection shadows.
 pub fn reflect_pixel(
     s: &Surface,
     billboards: &[GpuBillboard],
     images: &[MipChain],
     settings: &ReflectionUniform,
+) -> Vec4 {
+    reflect_pixel_shadowed(s, billboards, images, settings, |_| f32::MAX)
+}
+
+/// [`reflect_pixel`] with reflection shadows (when `settings.shadow_steps > 0`): each
+/// hit's radiance scaled by its visibility along the mirror ray ([`shadow_march`]) in the
+/// scene whose distance at a world point `scene_distance` gives (metres).
+pub fn reflect_pixel_shadowed(
+    s: &Surface,
+    billboards: &[GpuBillboard],
+    images: &[MipChain],
+    settings: &ReflectionUniform,
+    scene_distance: impl Fn(Vec3) -> f32,
 ) -> Vec4 {
     let lobe = lobe(s, settings.anisotropy, settings.footprint_slope);
     let k = settings.max_layers.clamp(1, super::MAX_LAYERS as u32) as usize;
@@ -276,14 +333,62 @@ pub fn reflect_pixel(
             hits.truncate(k);
         }
     }
+    let distances: Vec<f32> = hits.iter().map(|h| h.t).collect();
+    let cone = lobe.major.length().max(settings.shadow_softness);
+    let visibility = shadow_march(
+        s.position,
+        lobe.dir,
+        &distances,
+        cone,
+        settings,
+        scene_distance,
+    );
     let (mut colour, mut transmittance) = (Vec3::ZERO, 1.0f32);
-    for hit in &hits {
+    for (hit, v) in hits.iter().zip(visibility) {
         let gpu = &billboards[hit.index as usize];
         let texel = sample_footprint(&images[gpu.layer as usize], hit);
-        colour += transmittance * texel.truncate() * gpu.emissive;
+        colour += transmittance * texel.truncate() * (gpu.emissive * v);
         transmittance *= 1.0 - texel.w.clamp(0.0, 1.0);
     }
     colour.extend(1.0 - transmittance)
+}
+
+/// Reflection shadows: the visibility of each distance in `hits` (ascending) along the
+/// ray `origin + t dir`, from one sphere-traced march through the scene's distance field
+/// — from `shadow_bias` on, steps of `max(d, MIN_SHADOW_STEP)`, at most `shadow_steps` —
+/// keeping the running minimum of `d / (cone · t)` (a cone of half-angle tangent `cone`:
+/// shadows soften with the distance travelled). A distance the march does not reach in
+/// its steps keeps the visibility found so far. All 1 when `shadow_steps` is 0.
+pub fn shadow_march(
+    origin: Vec3,
+    dir: Vec3,
+    hits: &[f32],
+    cone: f32,
+    settings: &ReflectionUniform,
+    scene_distance: impl Fn(Vec3) -> f32,
+) -> [f32; super::MAX_LAYERS] {
+    let mut out = [1.0f32; super::MAX_LAYERS];
+    if settings.shadow_steps == 0 || settings.object_count == 0 {
+        return out;
+    }
+    let (mut t, mut v, mut j) = (settings.shadow_bias, 1.0f32, 0usize);
+    let n = hits.len().min(super::MAX_LAYERS);
+    for _ in 0..settings.shadow_steps {
+        while j < n && t >= hits[j] {
+            out[j] = v;
+            j += 1;
+        }
+        if j >= n || v <= 0.0 {
+            break;
+        }
+        let d = scene_distance(origin + dir * t);
+        v = v.min((d / (cone * t)).clamp(0.0, 1.0));
+        t += d.max(MIN_SHADOW_STEP);
+    }
+    for slot in out.iter_mut().take(n).skip(j) {
+        *slot = v;
+    }
+    out
 }
 
 /// The lighting pass's read of a half-resolution layer at full-resolution `pixel` of
@@ -390,16 +495,7 @@ mod tests {
             half_y: quad.half_y,
             reserved: 0,
         };
-        let settings = ReflectionUniform {
-            billboard_count: 1,
-            max_layers: 3,
-            max_distance: 100.0,
-            anisotropy: 0.0,
-            texture_size: UVec2::splat(8),
-            mip_count: 4,
-            half_resolution: 0,
-            footprint_slope: FOOTPRINT_SLOPE,
-        };
+        let settings = ReflectionUniform::new(1, UVec2::splat(8), 4);
         // The texel's centre: u = 5.5/8, v = 2.5/8 → x = −1 + 2u, y = 2 − 2v.
         let target = Vec3::new(-1.0 + 2.0 * 5.5 / 8.0, 2.0 - 2.0 * 2.5 / 8.0, -2.0);
         // The eye at the mirror image of a ray from the floor point (0, 0, −1): the
@@ -422,5 +518,44 @@ mod tests {
         s.position = Vec3::new(0.0, 0.0, -3.0);
         s.view = (s.position - mirrored_target).normalize();
         assert_eq!(reflect_pixel(&s, &[gpu], &[], &settings), Vec4::ZERO);
+    }
+
+    /// A wall across the ray hides the hits behind it, not those before it; beside the
+    /// ray it dims them by `d / (cone t)`; with no steps nothing is shadowed.
+    #[test]
+    fn the_shadow_march_sees_walls() {
+        let mut settings = ReflectionUniform::new(1, UVec2::ONE, 1);
+        settings.shadow_steps = 64;
+        settings.object_count = 1;
+        // A box wall at z ∈ [1.9, 2.1], x ∈ [x0, x1], tall.
+        let wall = |x0: f32, x1: f32| {
+            move |p: Vec3| {
+                let c = Vec3::new(0.5 * (x0 + x1), 0.0, 2.0);
+                let h = Vec3::new(0.5 * (x1 - x0), 10.0, 0.1);
+                let q = (p - c).abs() - h;
+                q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+            }
+        };
+        let march = |cone: f32, scene: &dyn Fn(Vec3) -> f32, settings: &ReflectionUniform| {
+            shadow_march(Vec3::ZERO, Vec3::Z, &[1.0, 4.0], cone, settings, scene)
+        };
+        let across = wall(-1.0, 1.0);
+        let v = march(0.05, &across, &settings);
+        assert_eq!(&v[..2], &[1.0, 0.0], "{v:?}");
+        // Beside the ray, 0.3 m off at 2 m: visibility 0.3 / (cone · ~2).
+        let beside = wall(0.3, 2.0);
+        let v = march(0.3, &beside, &settings);
+        assert_eq!(v[0], 1.0);
+        assert!((v[1] - 0.3 / (0.3 * 1.9)).abs() < 0.05, "{v:?}");
+        assert_eq!(
+            march(0.05, &beside, &settings)[1],
+            1.0,
+            "a narrow cone passes"
+        );
+        settings.shadow_steps = 0;
+        assert_eq!(
+            march(0.05, &across, &settings),
+            [1.0; crate::reflections::MAX_LAYERS]
+        );
     }
 }

@@ -3,7 +3,9 @@
 // view vector is intersected with every billboard; the nearest `max_layers` hits whose
 // GGX footprint overlaps the image are sampled over that footprint and composited front
 // to back into premultiplied radiance (cd/m²) and coverage — the specular layer that
-// Penumbra's lighting pass adds under Bevy's environment BRDF.
+// Penumbra's lighting pass adds under Bevy's environment BRDF. Reflection shadows: one
+// soft march along the mirror ray through the distance-field scene's objects dims each
+// hit by its visibility.
 // CPU model: `penumbra_cinematic_core::reflections::pass::reflect_pixel`.
 
 #import bevy_pbr::{
@@ -11,10 +13,13 @@
     pbr_deferred_functions::pbr_input_from_deferred_gbuffer,
     mesh_view_bindings::{deferred_prepass_texture, depth_prepass_texture},
 }
+#import penumbra::df::object::{DistanceFieldObject, FLAG_CASTS_SHADOWS, FLAG_LIVE, TILE_SIZE}
+#import penumbra::df::distance::object_distance
 
 const MAX_TAPS: u32 = 8u;
 const MAX_LAYERS: u32 = 4u;
 const MAX_ANISOTROPY: f32 = 0.95;
+const MIN_SHADOW_STEP: f32 = 0.01;
 
 // `penumbra_cinematic_core::reflections::pass::GpuBillboard`.
 struct GpuBillboard {
@@ -35,13 +40,23 @@ struct ReflectionUniform {
     texture_size: vec2<u32>,
     mip_count: u32,
     half_resolution: u32,
+    camera_tile: vec3<i32>,
+    object_count: u32,
+    camera_offset: vec3<f32>,
     footprint_slope: f32,
+    shadow_steps: u32,
+    shadow_bias: f32,
+    shadow_softness: f32,
+    reserved: u32,
 }
 
 @group(2) @binding(0) var<uniform> settings: ReflectionUniform;
 @group(2) @binding(1) var<storage, read> billboards: array<GpuBillboard>;
 @group(2) @binding(2) var images: texture_2d_array<f32>;
 @group(2) @binding(3) var images_sampler: sampler;
+// The distance-field scene (reflection shadows): its objects and atlas.
+@group(2) @binding(4) var<storage, read> objects: array<DistanceFieldObject>;
+@group(2) @binding(5) var atlas: texture_3d<f32>;
 
 struct Lobe {
     dir: vec3<f32>,
@@ -211,13 +226,65 @@ fn reflect_billboards(origin: vec3<f32>, lobe: Lobe) -> vec4<f32> {
         hits[at] = hit;
         count = min(count + 1u, k);
     }
+    let cone = max(length(lobe.major), settings.shadow_softness);
+    let visibility = shadow_march(origin, lobe.dir, &hits, count, cone);
     var colour = vec3(0.0);
     var transmittance = 1.0;
     for (var j = 0u; j < count; j += 1u) {
         let b = billboards[hits[j].index];
         let texel = sample_footprint(b.layer, hits[j]);
-        colour += transmittance * texel.rgb * b.emissive;
+        colour += transmittance * texel.rgb * (b.emissive * visibility[j]);
         transmittance *= 1.0 - clamp(texel.a, 0.0, 1.0);
     }
     return vec4(colour, 1.0 - transmittance);
+}
+
+// The distance (metres) from world point `p` to the nearest live shadow-casting object.
+fn scene_distance(p: vec3<f32>) -> f32 {
+    let camera = vec3<f32>(settings.camera_tile) * TILE_SIZE + settings.camera_offset;
+    let relative = p - camera;
+    var d = 3.4e38;
+    for (var i = 0u; i < settings.object_count; i += 1u) {
+        let o = objects[i];
+        let needed = FLAG_LIVE | FLAG_CASTS_SHADOWS;
+        if (o.flags & needed) != needed {
+            continue;
+        }
+        d = min(d, object_distance(o, relative, settings.camera_tile, settings.camera_offset, atlas));
+    }
+    return d;
+}
+
+// Reflection shadows: each hit's visibility from one soft march along the ray
+// (`penumbra_cinematic_core::reflections::pass::shadow_march`).
+fn shadow_march(
+    origin: vec3<f32>,
+    dir: vec3<f32>,
+    hits: ptr<function, array<FootprintHit, MAX_LAYERS>>,
+    count: u32,
+    cone: f32,
+) -> array<f32, MAX_LAYERS> {
+    var out = array<f32, MAX_LAYERS>(1.0, 1.0, 1.0, 1.0);
+    if settings.shadow_steps == 0u || settings.object_count == 0u {
+        return out;
+    }
+    var t = settings.shadow_bias;
+    var v = 1.0;
+    var j = 0u;
+    for (var step = 0u; step < settings.shadow_steps; step += 1u) {
+        while j < count && t >= (*hits)[j].t {
+            out[j] = v;
+            j += 1u;
+        }
+        if j >= count || v <= 0.0 {
+            break;
+        }
+        let d = scene_distance(origin + dir * t);
+        v = min(v, clamp(d / (cone * t), 0.0, 1.0));
+        t += max(d, MIN_SHADOW_STEP);
+    }
+    for (; j < count; j += 1u) {
+        out[j] = v;
+    }
+    return out;
 }
