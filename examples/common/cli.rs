@@ -22,7 +22,8 @@
 //! shaded, or the per-sample mask's debug view), `--dof penumbra|circle|bevy-bokeh|
 //! bevy-gaussian|off` (`bokeh_dof`: Penumbra's scatter bokeh, hexagonal or circular, Bevy's
 //! `DepthOfField` in either mode, or none), `--no-sss` (`subsurface`: without
-//! `SubsurfaceScattering`, the skin lit as an ordinary material), `--assets DIR` (the asset
+//! `SubsurfaceScattering`, the skin lit as an ordinary material), `--no-reflections`
+//! (`reflections`: without `BillboardReflections`), `--assets DIR` (the asset
 //! folder; default Bevy's `assets`, or the example's own).
 //!
 //! Windowed runs take keyboard toggles (`controls.rs`: `Space` distance-field shadows,
@@ -81,6 +82,9 @@ pub struct Options {
     pub dof: Option<DofMode>,
     /// `--no-sss`: remove every `SubsurfaceScattering` after the scene spawns.
     pub no_sss: bool,
+    /// `--no-reflections`: the `reflections` example's camera without
+    /// `BillboardReflections`.
+    pub no_reflections: bool,
     /// `--assets`: the asset folder (`AssetPlugin::file_path`).
     pub assets: Option<PathBuf>,
 }
@@ -124,7 +128,7 @@ pub enum NoDfao {
 
 const USAGE: &str = "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N] [--glass] \
      [--plain] [--ao-view ao|bent|tiles] [--casters N] [--global-field] [--no-dfao component|plugin] [--msaa off|4|every|edges] \
-     [--dof penumbra|circle|bevy-bokeh|bevy-gaussian|off] [--no-sss] [--assets DIR]";
+     [--dof penumbra|circle|bevy-bokeh|bevy-gaussian|off] [--no-sss] [--no-reflections] [--assets DIR]";
 
 impl Options {
     /// Parses `std::env::args()`-style arguments (without the program name).
@@ -144,6 +148,7 @@ impl Options {
             msaa: None,
             dof: None,
             no_sss: false,
+            no_reflections: false,
             assets: None,
         };
         let mut args = args.into_iter();
@@ -154,6 +159,7 @@ impl Options {
                 "--glass" => o.glass = true,
                 "--plain" => o.plain = true,
                 "--no-sss" => o.no_sss = true,
+                "--no-reflections" => o.no_reflections = true,
                 "--global-field" => o.global_field = true,
                 "--casters" => {
                     let v = value("--casters")?;

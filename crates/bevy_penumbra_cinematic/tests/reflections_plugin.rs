@@ -66,6 +66,10 @@ struct Setup {
     half_resolution: bool,
     /// The wall (a distance-field caster: reflection shadows).
     wall: bool,
+    /// Billboards added behind the scene's (timing).
+    extra_billboards: u32,
+    /// `BillboardReflections::max_layers`.
+    max_layers: u32,
 }
 
 impl Default for Setup {
@@ -78,6 +82,8 @@ impl Default for Setup {
             anisotropy: 0.0,
             half_resolution: false,
             wall: false,
+            extra_billboards: 0,
+            max_layers: 3,
         }
     }
 }
@@ -196,14 +202,33 @@ fn scene(
             ));
         }
         if setup.billboards {
+            let mut handles = Vec::new();
             for (transform, size, texels) in billboards() {
+                let image = images.add(image_of(&texels));
+                handles.push(image.clone());
                 commands.spawn((
                     ReflectionBillboard {
-                        image: images.add(image_of(&texels)),
+                        image,
                         size,
                         emissive: EMISSIVE,
                     },
                     transform,
+                ));
+            }
+            // More signs behind, facing the camera (a deterministic scatter).
+            for k in 0..setup.extra_billboards {
+                let h = |m: u32| ((k.wrapping_mul(m).wrapping_add(0x9e37)) % 1000) as f32 / 1000.0;
+                commands.spawn((
+                    ReflectionBillboard {
+                        image: handles[(k % 2) as usize].clone(),
+                        size: Vec2::new(0.6, 0.4),
+                        emissive: EMISSIVE,
+                    },
+                    Transform::from_xyz(
+                        -6.0 + 12.0 * h(7919),
+                        0.4 + 2.5 * h(104_729),
+                        -3.0 - 12.0 * h(1_299_709),
+                    ),
                 ));
             }
         }
@@ -229,6 +254,7 @@ fn scene(
                 debug_view,
                 anisotropy: setup.anisotropy,
                 half_resolution: setup.half_resolution,
+                max_layers: setup.max_layers,
                 ..default()
             });
         }
@@ -239,6 +265,11 @@ fn render(setup: Setup) -> (Vec<[f32; 4]>, KeptApp) {
     let harness = HeadlessRender::new(WIDTH, HEIGHT)
         .format(CaptureFormat::LinearF16)
         .frames(5);
+    let (capture, app) = render_with(setup, &harness);
+    (capture.to_linear(), app)
+}
+
+fn render_with(setup: Setup, harness: &HeadlessRender) -> (penumbra_test::Capture, KeptApp) {
     let mut app = harness.app();
     app.add_plugins((
         SdfAssetPlugin,
@@ -254,8 +285,7 @@ fn render(setup: Setup) -> (Vec<[f32; 4]>, KeptApp) {
             ..default()
         })
         .add_systems(Startup, scene(setup));
-    let (capture, app) = harness.run_keeping_app(app).expect("renders");
-    (capture.to_linear(), app)
+    harness.run_keeping_app(app).expect("renders")
 }
 
 fn test_camera() -> PerspectiveCamera {
@@ -655,4 +685,95 @@ fn nothing_to_reflect_costs_nothing() {
         app.update();
     }
     assert_eq!(allocations.counts(), before, "steady frames allocated");
+}
+
+/// Lavapipe's frame time against the billboard count and the settings (a measurement):
+/// 384 × 288, the median of 10 frames after 4, 3 runs. `cargo test -p
+/// bevy_penumbra_cinematic --test reflections_plugin reflections_against_time --
+/// --ignored --nocapture`
+#[test]
+#[ignore = "a measurement (~2 min)"]
+fn reflections_against_time() {
+    if !gpu_or_skip("reflections_against_time") {
+        return;
+    }
+    let harness = HeadlessRender::new(384, 288).frames(14);
+    let median = |setup| {
+        let (capture, _) = render_with(setup, &harness);
+        let mut ms: Vec<f64> = capture.frame_times[4..]
+            .iter()
+            .map(|t| t.as_secs_f64() * 1e3)
+            .collect();
+        ms.sort_by(f64::total_cmp);
+        ms[ms.len() / 2]
+    };
+    let shaded = Setup {
+        reflections: Some(ReflectionDebugView::None),
+        ..default()
+    };
+    for run in 0..3 {
+        let mut line = format!(
+            "run {run}: no component {:.1} ms",
+            median(Setup {
+                reflections: None,
+                ..shaded
+            })
+        );
+        for (name, setup) in [
+            ("3 billboards", shaded),
+            (
+                "1 layer",
+                Setup {
+                    max_layers: 1,
+                    ..shaded
+                },
+            ),
+            (
+                "half res",
+                Setup {
+                    half_resolution: true,
+                    ..shaded
+                },
+            ),
+            (
+                "wall + shadows",
+                Setup {
+                    wall: true,
+                    ..shaded
+                },
+            ),
+            (
+                "10",
+                Setup {
+                    extra_billboards: 8,
+                    ..shaded
+                },
+            ),
+            (
+                "100",
+                Setup {
+                    extra_billboards: 98,
+                    ..shaded
+                },
+            ),
+            (
+                "1000",
+                Setup {
+                    extra_billboards: 998,
+                    ..shaded
+                },
+            ),
+            (
+                "1000 half res",
+                Setup {
+                    extra_billboards: 998,
+                    half_resolution: true,
+                    ..shaded
+                },
+            ),
+        ] {
+            line += &format!(", {name}: {:.1}", median(setup));
+        }
+        println!("{line}");
+    }
 }

@@ -8,10 +8,10 @@
 //! on wet ground stretch toward the viewer. The footprint at distance `s` is the box of
 //! half-widths `k α_t s` and `k α_b (n·v) s` across the
 //! ray (`k` = [`FOOTPRINT_SLOPE`]), projected along the ray onto the billboard and taken to the
-//! image's texels. Its long axis is covered by `⌈long / short⌉` taps (at most
-//! [`MAX_TAPS`]), each a trilinear sample at the level whose texel spans the tap's width
-//! — an explicit anisotropic filter whose result every device computes alike — weighted
-//! by the fraction of its box inside the image (soft edges as the lobe widens).
+//! image's texels. Its long axis is covered by a few taps ([`sample_footprint`]), each a
+//! trilinear sample at the level whose texel spans the tap's width — an explicit
+//! anisotropic filter whose result every device computes alike — weighted by the
+//! fraction of its box inside the image (soft edges as the lobe widens).
 //!
 //! **Anisotropy** (`ReflectionUniform::anisotropy`, `a ∈ [0, 0.95]`) stretches the lobe
 //! along `t` as Bevy's anisotropic `StandardMaterial` does: `α_t = α (1 + a)`,
@@ -28,11 +28,14 @@ use super::texture::MipChain;
 /// box matching the lobe's half-maximum (`2 · 0.766`) is too narrow: 3 is the slope whose
 /// box filter is nearest the Monte Carlo truth over perceptual roughness 0–0.5,
 /// anisotropic lobes included (`penumbra_reference::reflections`, `footprint_slope_sweep`:
-/// summed mean error 0.21 at 3, 0.22 at 2.5 and 3.5, 0.32 at 1.53, 0.41 at 6).
+/// summed mean error 0.21 at 3, 0.22–0.23 at 2.5 and 3.5, 0.33 at 1.53, 0.38 at 6).
 pub const FOOTPRINT_SLOPE: f32 = 3.0;
 
 /// The most taps along a footprint's long axis.
 pub const MAX_TAPS: u32 = 8;
+
+/// Taps along an elongated footprint by default.
+pub const DEFAULT_TAPS: u32 = 4;
 
 /// Most anisotropy.
 pub const MAX_ANISOTROPY: f32 = 0.95;
@@ -97,8 +100,8 @@ pub struct ReflectionUniform {
     pub shadow_bias: f32,
     /// The narrowest shadow cone's half-angle tangent (a mirror's shadows stay this soft).
     pub shadow_softness: f32,
-    /// Unused.
-    pub reserved: u32,
+    /// Taps along an elongated footprint, 1..=[`MAX_TAPS`] ([`sample_footprint`]).
+    pub taps: u32,
 }
 
 impl ReflectionUniform {
@@ -119,7 +122,7 @@ impl ReflectionUniform {
             shadow_steps: 0,
             shadow_bias: DEFAULT_SHADOW_BIAS,
             shadow_softness: DEFAULT_SHADOW_SOFTNESS,
-            reserved: 0,
+            taps: DEFAULT_TAPS,
         }
     }
 }
@@ -257,8 +260,13 @@ pub fn box_coverage(c: f32, e: f32) -> f32 {
     (((c + e).clamp(0.0, 1.0) - (c - e).clamp(0.0, 1.0)) / (2.0 * e)).min(1.0)
 }
 
-/// The premultiplied image over a hit's footprint: taps along the long axis.
-pub fn sample_footprint(image: &MipChain, hit: &FootprintHit) -> Vec4 {
+/// The premultiplied image over a hit's footprint: `taps` trilinear samples (at most
+/// [`MAX_TAPS`]) along its long axis — one where the footprint is round — each of
+/// half-length `h = max(short, long / taps)` at the level whose texel spans `2h`, their
+/// centres spread evenly over `±(long − h)`. Everything varies continuously with the
+/// footprint's shape (a tap count chosen per pixel from its elongation would jump, and
+/// draw contour lines across a glossy streak).
+pub fn sample_footprint(image: &MipChain, hit: &FootprintHit, taps: u32) -> Vec4 {
     let size = Vec2::new(image.width as f32, image.height as f32);
     let (ta, tb) = (hit.axis_a * size, hit.axis_b * size);
     let (long, short, long_uv, short_uv) = if ta.length() >= tb.length() {
@@ -266,27 +274,31 @@ pub fn sample_footprint(image: &MipChain, hit: &FootprintHit) -> Vec4 {
     } else {
         (tb.length(), ta.length(), hit.axis_b, hit.axis_a)
     };
-    let taps = taps(long, short);
+    let taps = if long > short * 1.0001 {
+        taps.clamp(1, MAX_TAPS)
+    } else {
+        1
+    };
     let n = taps as f32;
-    // Each tap spans 2·long/n along the long axis and 2·short across.
-    let width = 2.0 * short.max(long / n);
-    let lod = width.max(1.0).log2();
-    let reach = short_uv.abs() + long_uv.abs() / n;
+    let half = short.max(long / n);
+    let lod = (2.0 * half).max(1.0).log2();
+    // The share of the long axis one tap covers, and the spread of the tap centres.
+    let share = if long > 0.0 { half / long } else { 1.0 };
+    let reach = short_uv.abs() + long_uv.abs() * share;
     let mut sum = Vec4::ZERO;
     for k in 0..taps {
-        let uv = hit.uv + long_uv * ((2.0 * k as f32 + 1.0) / n - 1.0);
+        let at = if taps > 1 {
+            2.0 * k as f32 / (n - 1.0) - 1.0
+        } else {
+            0.0
+        };
+        let uv = hit.uv + long_uv * ((1.0 - share) * at);
         let cover = box_coverage(uv.x, reach.x) * box_coverage(uv.y, reach.y);
         if cover > 0.0 {
             sum += image.sample(uv, lod) * cover;
         }
     }
     sum / n
-}
-
-/// Taps along a footprint of half-axes `long ≥ short` (texels).
-pub fn taps(long: f32, short: f32) -> u32 {
-    let ratio = long / short.max(1e-6);
-    (ratio.ceil().clamp(1.0, MAX_TAPS as f32)) as u32
 }
 
 /// The billboards' reflection in one pixel: premultiplied radiance (cd/m², the
@@ -333,12 +345,21 @@ pub fn reflect_pixel_shadowed(
             hits.truncate(k);
         }
     }
-    let distances: Vec<f32> = hits.iter().map(|h| h.t).collect();
+    let targets: Vec<ShadowTarget> = hits
+        .iter()
+        .map(|h| ShadowTarget {
+            t: h.t,
+            facing: lobe
+                .dir
+                .dot(billboards[h.index as usize].billboard().normal())
+                .abs(),
+        })
+        .collect();
     let cone = lobe.major.length().max(settings.shadow_softness);
     let visibility = shadow_march(
         s.position,
         lobe.dir,
-        &distances,
+        &targets,
         cone,
         settings,
         scene_distance,
@@ -346,23 +367,37 @@ pub fn reflect_pixel_shadowed(
     let (mut colour, mut transmittance) = (Vec3::ZERO, 1.0f32);
     for (hit, v) in hits.iter().zip(visibility) {
         let gpu = &billboards[hit.index as usize];
-        let texel = sample_footprint(&images[gpu.layer as usize], hit);
+        let texel = sample_footprint(&images[gpu.layer as usize], hit, settings.taps);
         colour += transmittance * texel.truncate() * (gpu.emissive * v);
         transmittance *= 1.0 - texel.w.clamp(0.0, 1.0);
     }
     colour.extend(1.0 - transmittance)
 }
 
-/// Reflection shadows: the visibility of each distance in `hits` (ascending) along the
-/// ray `origin + t dir`, from one sphere-traced march through the scene's distance field
-/// — from `shadow_bias` on, steps of `max(d, MIN_SHADOW_STEP)`, at most `shadow_steps` —
+/// Where a reflected ray meets a billboard, as the shadow march sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowTarget {
+    /// Distance along the ray, metres.
+    pub t: f32,
+    /// `|dir · n|`, the ray against the billboard's unit normal: a point at `s` along
+    /// the ray is `(t − s) · facing` from the billboard's plane.
+    pub facing: f32,
+}
+
+/// Reflection shadows: the visibility of each target in `hits` (ascending) along the ray
+/// `origin + t dir`, from one sphere-traced march through the scene's distance field —
+/// from `shadow_bias` on, steps of `max(d, MIN_SHADOW_STEP)`, at most `shadow_steps` —
 /// keeping the running minimum of `d / (cone · t)` (a cone of half-angle tangent `cone`:
-/// shadows soften with the distance travelled). A distance the march does not reach in
-/// its steps keeps the visibility found so far. All 1 when `shadow_steps` is 0.
+/// shadows soften with the distance travelled). A sample counts only when `d` is less
+/// than its distance to the next target's plane: then the surface it found lies in
+/// front of that billboard, between it and the reflecting point; otherwise it may lie
+/// behind the billboard (the wall a sign hangs on), which hides nothing. A target the
+/// march does not reach in its steps keeps the visibility found so far. All 1 when
+/// `shadow_steps` is 0.
 pub fn shadow_march(
     origin: Vec3,
     dir: Vec3,
-    hits: &[f32],
+    hits: &[ShadowTarget],
     cone: f32,
     settings: &ReflectionUniform,
     scene_distance: impl Fn(Vec3) -> f32,
@@ -374,7 +409,7 @@ pub fn shadow_march(
     let (mut t, mut v, mut j) = (settings.shadow_bias, 1.0f32, 0usize);
     let n = hits.len().min(super::MAX_LAYERS);
     for _ in 0..settings.shadow_steps {
-        while j < n && t >= hits[j] {
+        while j < n && t >= hits[j].t {
             out[j] = v;
             j += 1;
         }
@@ -382,7 +417,9 @@ pub fn shadow_march(
             break;
         }
         let d = scene_distance(origin + dir * t);
-        v = v.min((d / (cone * t)).clamp(0.0, 1.0));
+        if d < (hits[j].t - t) * hits[j].facing {
+            v = v.min((d / (cone * t)).clamp(0.0, 1.0));
+        }
         t += d.max(MIN_SHADOW_STEP);
     }
     for slot in out.iter_mut().take(n).skip(j) {
@@ -537,7 +574,8 @@ mod tests {
             }
         };
         let march = |cone: f32, scene: &dyn Fn(Vec3) -> f32, settings: &ReflectionUniform| {
-            shadow_march(Vec3::ZERO, Vec3::Z, &[1.0, 4.0], cone, settings, scene)
+            let targets = [1.0, 4.0].map(|t| ShadowTarget { t, facing: 1.0 });
+            shadow_march(Vec3::ZERO, Vec3::Z, &targets, cone, settings, scene)
         };
         let across = wall(-1.0, 1.0);
         let v = march(0.05, &across, &settings);

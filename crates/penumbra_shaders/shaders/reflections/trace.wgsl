@@ -47,7 +47,7 @@ struct ReflectionUniform {
     shadow_steps: u32,
     shadow_bias: f32,
     shadow_softness: f32,
-    reserved: u32,
+    taps: u32,
 }
 
 @group(2) @binding(0) var<uniform> settings: ReflectionUniform;
@@ -166,7 +166,9 @@ fn box_coverage(c: f32, e: f32) -> f32 {
     return min((clamp(c + e, 0.0, 1.0) - clamp(c - e, 0.0, 1.0)) / (2.0 * e), 1.0);
 }
 
-// The premultiplied image over a hit's footprint: taps along its long axis.
+// The premultiplied image over a hit's footprint: taps along its long axis, spread so
+// that the result varies continuously with the footprint's shape
+// (`penumbra_cinematic_core::reflections::pass::sample_footprint`).
 fn sample_footprint(layer: u32, hit: FootprintHit) -> vec4<f32> {
     let size = vec2<f32>(settings.texture_size);
     let ta = hit.axis_a * size;
@@ -181,14 +183,25 @@ fn sample_footprint(layer: u32, hit: FootprintHit) -> vec4<f32> {
         long_uv = hit.axis_a;
         short_uv = hit.axis_b;
     }
-    let taps = u32(clamp(ceil(long / max(short, 1e-6)), 1.0, f32(MAX_TAPS)));
+    var taps = 1u;
+    if long > short * 1.0001 {
+        taps = clamp(settings.taps, 1u, MAX_TAPS);
+    }
     let n = f32(taps);
-    let width = 2.0 * max(short, long / n);
-    let lod = log2(max(width, 1.0));
-    let reach = abs(short_uv) + abs(long_uv) / n;
+    let half = max(short, long / n);
+    let lod = log2(max(2.0 * half, 1.0));
+    var share = 1.0;
+    if long > 0.0 {
+        share = half / long;
+    }
+    let reach = abs(short_uv) + abs(long_uv) * share;
     var sum = vec4(0.0);
     for (var k = 0u; k < taps; k += 1u) {
-        let uv = hit.uv + long_uv * ((2.0 * f32(k) + 1.0) / n - 1.0);
+        var at = 0.0;
+        if taps > 1u {
+            at = 2.0 * f32(k) / (n - 1.0) - 1.0;
+        }
+        let uv = hit.uv + long_uv * ((1.0 - share) * at);
         let cover = box_coverage(uv.x, reach.x) * box_coverage(uv.y, reach.y);
         if cover > 0.0 {
             sum += textureSampleLevel(images, images_sampler, uv, layer, lod) * cover;
@@ -227,7 +240,12 @@ fn reflect_billboards(origin: vec3<f32>, lobe: Lobe) -> vec4<f32> {
         count = min(count + 1u, k);
     }
     let cone = max(length(lobe.major), settings.shadow_softness);
-    let visibility = shadow_march(origin, lobe.dir, &hits, count, cone);
+    var facing: array<f32, MAX_LAYERS>;
+    for (var j = 0u; j < count; j += 1u) {
+        let b = billboards[hits[j].index];
+        facing[j] = abs(dot(lobe.dir, normalize(cross(b.half_x, b.half_y))));
+    }
+    let visibility = shadow_march(origin, lobe.dir, &hits, &facing, count, cone);
     var colour = vec3(0.0);
     var transmittance = 1.0;
     for (var j = 0u; j < count; j += 1u) {
@@ -255,12 +273,14 @@ fn scene_distance(p: vec3<f32>) -> f32 {
     return d;
 }
 
-// Reflection shadows: each hit's visibility from one soft march along the ray
+// Reflection shadows: each hit's visibility from one soft march along the ray, counting
+// only surfaces in front of the next billboard's plane
 // (`penumbra_cinematic_core::reflections::pass::shadow_march`).
 fn shadow_march(
     origin: vec3<f32>,
     dir: vec3<f32>,
     hits: ptr<function, array<FootprintHit, MAX_LAYERS>>,
+    facing: ptr<function, array<f32, MAX_LAYERS>>,
     count: u32,
     cone: f32,
 ) -> array<f32, MAX_LAYERS> {
@@ -280,7 +300,10 @@ fn shadow_march(
             break;
         }
         let d = scene_distance(origin + dir * t);
-        v = min(v, clamp(d / (cone * t), 0.0, 1.0));
+        // Only surfaces surely in front of the next billboard's plane occlude it.
+        if d < ((*hits)[j].t - t) * (*facing)[j] {
+            v = min(v, clamp(d / (cone * t), 0.0, 1.0));
+        }
         t += max(d, MIN_SHADOW_STEP);
     }
     for (; j < count; j += 1u) {
