@@ -38,7 +38,9 @@ shader_files! {
     "dof/compact.wgsl" => Some("penumbra::dof::compact"),
     "sss/profile.wgsl" => Some("penumbra::sss::profile"),
     "sss/scatter.wgsl" => None,
+    "reflections/common.wgsl" => Some("penumbra::reflections::common"),
     "reflections/trace.wgsl" => None,
+    "reflections/cull.wgsl" => None,
     "df/object.wgsl" => Some("penumbra::df::object"),
     "df/apply_deltas.wgsl" => Some("penumbra::df::apply_deltas"),
     "df/cull.wgsl" => Some("penumbra::df::cull"),
@@ -71,13 +73,22 @@ shader_files! {
 }
 
 impl ShaderFile {
-    /// Whether the file imports Bevy's shader modules (`bevy_pbr::…`): those compose
-    /// only inside Bevy, with its shader definitions, so they are checked by the
-    /// renderer tests on lavapipe rather than by this crate's composition test.
+    /// Whether the file imports Bevy's shader modules (`bevy_pbr::…`), directly or
+    /// through a Penumbra module that does: those compose only inside Bevy, with its
+    /// shader definitions, so they are checked by the renderer tests on lavapipe rather
+    /// than by this crate's composition test.
     pub fn imports_bevy(&self) -> bool {
-        self.source
-            .lines()
-            .any(|l| l.trim_start().starts_with("#import bevy_"))
+        self.source.lines().any(|l| {
+            let l = l.trim_start();
+            l.starts_with("#import bevy_")
+                || l.strip_prefix("#import ").is_some_and(|path| {
+                    SHADERS.iter().any(|f| {
+                        f.path != self.path
+                            && f.import_path.is_some_and(|p| path.starts_with(p))
+                            && f.imports_bevy()
+                    })
+                })
+        })
     }
 }
 

@@ -126,6 +126,11 @@ pub struct BillboardReflections {
     /// with their lobe): softness of a mirror's reflection shadows, `[0.001, 1]`.
     /// Default 0.02. No cost.
     pub shadow_softness: f32,
+    /// Cull the billboards per 16 × 16-pixel tile of the trace (a small pass listing
+    /// those some pixel of the tile could reflect) instead of testing every billboard at
+    /// every pixel. Changes no pixel. Default true; off only to compare. Memory: up to
+    /// 129 words per tile.
+    pub tile_culling: bool,
     /// Debug view. Default none.
     pub debug_view: ReflectionDebugView,
 }
@@ -140,6 +145,7 @@ impl Default for BillboardReflections {
             reflection_shadows: true,
             shadow_steps: 32,
             shadow_softness: penumbra_cinematic_core::reflections::pass::DEFAULT_SHADOW_SOFTNESS,
+            tile_culling: true,
             debug_view: ReflectionDebugView::None,
         }
     }

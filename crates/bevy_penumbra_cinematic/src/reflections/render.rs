@@ -10,7 +10,8 @@ use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::binding_types::{
-    sampler, storage_buffer_read_only_sized, texture_2d_array, texture_3d, uniform_buffer_sized,
+    sampler, storage_buffer_read_only_sized, storage_buffer_sized, texture_2d_array, texture_3d,
+    uniform_buffer_sized,
 };
 use bevy::render::render_resource::encase::{StorageBuffer, UniformBuffer as EncaseBuffer};
 use bevy::render::render_resource::{
@@ -34,6 +35,7 @@ use bevy_penumbra_df::lighting::{
 };
 use bevy_penumbra_df::scene::DistanceFieldGpu;
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
+use penumbra_cinematic_core::reflections::cull::TILE;
 use penumbra_cinematic_core::reflections::pass::{GpuBillboard, ReflectionUniform};
 use penumbra_df_core::cull::CameraOrigin;
 use std::num::NonZeroU64;
@@ -41,6 +43,10 @@ use std::sync::Arc;
 
 /// The layer texture's format.
 const LAYER_FORMAT: TextureFormat = TextureFormat::Rgba16Float;
+/// The tile cull's target (one texel per tile; the lists are its output).
+const CULL_FORMAT: TextureFormat = TextureFormat::R8Unorm;
+/// Most billboards one tile's list holds (more: the tile tests every billboard).
+const MAX_TILE_CAPACITY: u32 = 128;
 
 /// A reflecting camera's settings in the render world (clamped).
 #[derive(Component, Clone, Debug)]
@@ -70,20 +76,27 @@ struct ReflectionGpuScene {
     mip_count: u32,
 }
 
-/// A reflecting view's draw this frame (absent: none).
+/// A reflecting view's draws this frame (absent: none).
 #[derive(Component)]
 pub struct ViewReflections {
     pipeline: CachedRenderPipelineId,
     layer: CachedTexture,
+    /// The tile cull's pipeline and target (`None`: no tile culling).
+    cull: Option<(CachedRenderPipelineId, CachedTexture)>,
+    /// The trace's image size, pixels.
+    trace_size: UVec2,
 }
 
 /// What a group 2 binds: the uniform, billboard and object buffers; the array and atlas.
-type BoundResources = ([BufferId; 3], [TextureViewId; 2]);
+type BoundResources = ([BufferId; 4], [TextureViewId; 2]);
 
 /// A reflecting view's uniform and group 2 (remade when a bound resource changes).
 #[derive(Component)]
 pub struct ViewReflectionsBindGroup {
     uniform: Buffer,
+    /// The tiles' billboard lists and their size in words.
+    tile_lists: Buffer,
+    tile_words: u64,
     group: Option<(BindGroup, BoundResources)>,
 }
 
@@ -95,11 +108,12 @@ const OBJECT_BYTES: u64 = 128;
 struct ReflectionPipelines {
     layout: BindGroupLayoutDescriptor,
     shader: Handle<Shader>,
+    cull_shader: Handle<Shader>,
     sampler: Sampler,
     /// Bound while the scene has no distance-field objects: one free record, one voxel.
     no_objects: Buffer,
     no_atlas: TextureView,
-    queued: HashMap<MeshPipelineKey, CachedRenderPipelineId>,
+    queued: HashMap<(MeshPipelineKey, bool), CachedRenderPipelineId>,
 }
 
 pub(super) fn build(render_app: &mut SubApp) {
@@ -144,6 +158,7 @@ fn init_reflection_pipelines(
                 sampler(SamplerBindingType::Filtering),
                 storage_buffer_read_only_sized(false, NonZeroU64::new(OBJECT_BYTES)),
                 texture_3d(TextureSampleType::Float { filterable: false }),
+                storage_buffer_sized(false, NonZeroU64::new(4)),
             ),
         ),
     );
@@ -181,6 +196,7 @@ fn init_reflection_pipelines(
     commands.insert_resource(ReflectionPipelines {
         layout,
         shader: library.handle("reflections/trace.wgsl"),
+        cull_shader: library.handle("reflections/cull.wgsl"),
         sampler,
         no_objects,
         no_atlas,
@@ -302,26 +318,42 @@ fn prepare_reflection_scene(
 }
 
 impl ReflectionPipelines {
-    /// The trace pipeline of a view key, queued on first use: Penumbra's lighting
-    /// pipeline (Bevy's view bind groups for the key) with the trace's shader, group 2
-    /// and target, and no depth test.
+    /// The trace (or, with `cull`, the tile cull) pipeline of a view key, queued on
+    /// first use: Penumbra's lighting pipeline (Bevy's view bind groups for the key) with
+    /// the pass's shader, group 2 and target, and no depth test.
     fn get(
         &mut self,
         cache: &PipelineCache,
         lighting: &PenumbraLightingPipeline,
         key: MeshPipelineKey,
+        cull: bool,
     ) -> CachedRenderPipelineId {
-        *self.queued.entry(key).or_insert_with(|| {
+        *self.queued.entry((key, cull)).or_insert_with(|| {
+            let (label, shader, entry, format) = if cull {
+                (
+                    "penumbra_reflections_cull_pipeline",
+                    &self.cull_shader,
+                    "cull",
+                    CULL_FORMAT,
+                )
+            } else {
+                (
+                    "penumbra_reflections_pipeline",
+                    &self.shader,
+                    "fragment",
+                    LAYER_FORMAT,
+                )
+            };
             let mut desc: RenderPipelineDescriptor = lighting.view_descriptor(key);
-            desc.label = Some("penumbra_reflections_pipeline".into());
+            desc.label = Some(label.into());
             desc.layout[2] = self.layout.clone();
             desc.depth_stencil = None;
-            desc.vertex.shader = self.shader.clone();
+            desc.vertex.shader = shader.clone();
             let fragment = desc.fragment.as_mut().expect("the lighting pass has one");
-            fragment.shader = self.shader.clone();
-            fragment.entry_point = Some("fragment".into());
+            fragment.shader = shader.clone();
+            fragment.entry_point = Some(entry.into());
             fragment.targets = vec![Some(ColorTargetState {
-                format: LAYER_FORMAT,
+                format,
                 blend: None,
                 write_mask: ColorWrites::ALL,
             })];
@@ -397,10 +429,37 @@ fn prepare_reflection_views(
                 view_formats: &[],
             },
         );
-        let pipeline = pipelines.get(&pipeline_cache, &lighting, *key);
+        let pipeline = pipelines.get(&pipeline_cache, &lighting, *key, false);
+        let tiles = UVec2::new(width.div_ceil(TILE), height.div_ceil(TILE));
+        let cull = settings.tile_culling.then(|| {
+            let target = texture_cache.get(
+                &device,
+                TextureDescriptor {
+                    label: Some("penumbra_reflection_tiles"),
+                    size: Extent3d {
+                        width: tiles.x,
+                        height: tiles.y,
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: TextureDimension::D2,
+                    format: CULL_FORMAT,
+                    usage: TextureUsages::RENDER_ATTACHMENT,
+                    view_formats: &[],
+                },
+            );
+            (
+                pipelines.get(&pipeline_cache, &lighting, *key, true),
+                target,
+            )
+        });
         // The lighting pass reads the layer only once the trace can write it: its
         // pipeline compiled and its group 2 made (from the view's second frame).
         let traced = pipeline_cache.get_render_pipeline(pipeline).is_some()
+            && cull
+                .as_ref()
+                .is_none_or(|(id, _)| pipeline_cache.get_render_pipeline(*id).is_some())
             && group.is_some_and(|g| g.group.is_some());
         let mut view = commands.entity(entity);
         if traced {
@@ -412,7 +471,12 @@ fn prepare_reflection_views(
         } else {
             view.remove::<PenumbraSpecularLayer>();
         }
-        view.insert(ViewReflections { pipeline, layer });
+        view.insert(ViewReflections {
+            pipeline,
+            layer,
+            cull,
+            trace_size: UVec2::new(width, height),
+        });
     }
 }
 
@@ -425,15 +489,13 @@ fn prepare_reflection_views(
 )]
 fn prepare_reflection_bind_groups(
     mut commands: Commands,
-    mut views: Query<
-        (
-            Entity,
-            &ExtractedView,
-            &ExtractedBillboardReflections,
-            Option<&mut ViewReflectionsBindGroup>,
-        ),
-        With<ViewReflections>,
-    >,
+    mut views: Query<(
+        Entity,
+        &ExtractedView,
+        &ExtractedBillboardReflections,
+        &ViewReflections,
+        Option<&mut ViewReflectionsBindGroup>,
+    )>,
     gpu: Res<ReflectionGpuScene>,
     df: Option<Res<DistanceFieldGpu>>,
     pipelines: Option<Res<ReflectionPipelines>>,
@@ -463,7 +525,28 @@ fn prepare_reflection_bind_groups(
         ),
         _ => (&pipelines.no_objects, 0, &pipelines.no_atlas),
     };
-    for (entity, view, settings, group) in &mut views {
+    let count = gpu.billboards.len() as u32;
+    for (entity, view, settings, draw, group) in &mut views {
+        let s = &settings.0;
+        // Tile lists: a count and `capacity` indices per tile.
+        let tiles = UVec2::new(
+            draw.trace_size.x.div_ceil(TILE),
+            draw.trace_size.y.div_ceil(TILE),
+        );
+        let capacity = if draw.cull.is_some() {
+            count.min(MAX_TILE_CAPACITY)
+        } else {
+            0
+        };
+        let words = u64::from(tiles.x * tiles.y) * u64::from(capacity + 1);
+        let lists = |words: u64| {
+            allocations.sized_buffer(
+                &device,
+                "penumbra_reflection_tile_lists",
+                words.next_power_of_two().max(4) * 4,
+                BufferUsages::STORAGE,
+            )
+        };
         let mut fresh = None;
         let group = match group {
             Some(group) => group.into_inner(),
@@ -474,10 +557,15 @@ fn prepare_reflection_bind_groups(
                     ReflectionUniform::min_size().get(),
                     BufferUsages::UNIFORM | BufferUsages::COPY_DST,
                 ),
+                tile_lists: lists(words),
+                tile_words: words.next_power_of_two().max(4),
                 group: None,
             }),
         };
-        let s = &settings.0;
+        if group.tile_words < words {
+            group.tile_lists = lists(words);
+            group.tile_words = words.next_power_of_two().max(4);
+        }
         let origin = CameraOrigin::at(view.world_from_view.translation());
         let uniform = ReflectionUniform {
             max_layers: s.max_layers,
@@ -494,7 +582,10 @@ fn prepare_reflection_bind_groups(
                 0
             },
             shadow_softness: s.shadow_softness,
-            ..ReflectionUniform::new(gpu.billboards.len() as u32, images.size, gpu.mip_count)
+            tiles_x: tiles.x,
+            tile_capacity: capacity,
+            trace_size: draw.trace_size,
+            ..ReflectionUniform::new(count, images.size, gpu.mip_count)
         };
         let mut bytes = EncaseBuffer::new(Vec::new());
         bytes
@@ -502,7 +593,12 @@ fn prepare_reflection_bind_groups(
             .expect("the reflection uniform encodes");
         queue.write_buffer(&group.uniform, 0, bytes.as_ref());
         let key = (
-            [group.uniform.id(), buffer.id(), objects.id()],
+            [
+                group.uniform.id(),
+                buffer.id(),
+                objects.id(),
+                group.tile_lists.id(),
+            ],
             [array.id(), df_atlas.id()],
         );
         if group.group.as_ref().map(|(_, k)| k) != Some(&key) {
@@ -517,6 +613,7 @@ fn prepare_reflection_bind_groups(
                     &pipelines.sampler,
                     objects.as_entire_binding(),
                     df_atlas,
+                    group.tile_lists.as_entire_binding(),
                 )),
             );
             group.group = Some((bind_group, key));
@@ -527,8 +624,9 @@ fn prepare_reflection_bind_groups(
     }
 }
 
-/// The trace: one fullscreen draw into the view's layer texture, before Penumbra's
-/// lighting pass reads it.
+/// The tile cull (one fragment per tile writes its billboard list), then the trace
+/// (one fullscreen draw into the view's layer texture), before Penumbra's lighting pass
+/// reads it.
 pub fn billboard_reflections(
     view: ViewQuery<(
         &ViewReflections,
@@ -545,8 +643,39 @@ pub fn billboard_reflections(
     ) else {
         return; // compiling, or the first frame
     };
+    let cull = match &draw.cull {
+        Some((id, target)) => match pipeline_cache.get_render_pipeline(*id) {
+            Some(cull) => Some((cull, target)),
+            None => return, // compiling
+        },
+        None => None,
+    };
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
+    let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_billboard_reflections");
+    if let Some((cull, target)) = cull {
+        let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
+            label: Some("penumbra_reflection_tile_cull"),
+            color_attachments: &[Some(RenderPassColorAttachment {
+                view: &target.default_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: Operations {
+                    load: LoadOp::Clear(default()),
+                    store: StoreOp::Discard,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_render_pipeline(cull);
+        pass.set_bind_group(0, &mesh_view.main, &mesh_view.main_offsets);
+        pass.set_bind_group(1, &mesh_view.binding_array, &[]);
+        pass.set_bind_group(2, group, &[]);
+        pass.draw(0..3, 0..1);
+    }
     let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
         label: Some("penumbra_billboard_reflections"),
         color_attachments: &[Some(RenderPassColorAttachment {
@@ -563,11 +692,11 @@ pub fn billboard_reflections(
         occlusion_query_set: None,
         multiview_mask: None,
     });
-    let span = diagnostics.pass_span(&mut pass, "penumbra_billboard_reflections");
     pass.set_render_pipeline(pipeline);
     pass.set_bind_group(0, &mesh_view.main, &mesh_view.main_offsets);
     pass.set_bind_group(1, &mesh_view.binding_array, &[]);
     pass.set_bind_group(2, group, &[]);
     pass.draw(0..3, 0..1);
-    span.end(&mut pass);
+    drop(pass);
+    time_span.end(ctx.command_encoder());
 }

@@ -13,6 +13,7 @@
 
 use glam::{Mat4, Vec2, Vec3};
 
+pub mod cull;
 pub mod pass;
 pub mod texture;
 

@@ -102,6 +102,13 @@ pub struct ReflectionUniform {
     pub shadow_softness: f32,
     /// Taps along an elongated footprint, 1..=[`MAX_TAPS`] ([`sample_footprint`]).
     pub taps: u32,
+    /// Tiles ([`super::cull::TILE`] pixels square) per row of the trace's image.
+    pub tiles_x: u32,
+    /// Billboards a tile's list holds (0: no tile lists; the trace tests every
+    /// billboard).
+    pub tile_capacity: u32,
+    /// The trace's image size, pixels.
+    pub trace_size: UVec2,
 }
 
 impl ReflectionUniform {
@@ -123,6 +130,9 @@ impl ReflectionUniform {
             shadow_bias: DEFAULT_SHADOW_BIAS,
             shadow_softness: DEFAULT_SHADOW_SOFTNESS,
             taps: DEFAULT_TAPS,
+            tiles_x: 0,
+            tile_capacity: 0,
+            trace_size: UVec2::ZERO,
         }
     }
 }

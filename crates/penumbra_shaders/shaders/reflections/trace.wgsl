@@ -6,63 +6,15 @@
 // Penumbra's lighting pass adds under Bevy's environment BRDF. Reflection shadows: one
 // soft march along the mirror ray through the distance-field scene's objects dims each
 // hit by its visibility.
-// CPU model: `penumbra_cinematic_core::reflections::pass::reflect_pixel`.
+// Each pixel tests only its tile's billboards (`reflections/cull.wgsl`), which changes
+// no result. CPU model: `penumbra_cinematic_core::reflections::pass::reflect_pixel`.
 
-#import bevy_pbr::{
-    pbr_types::STANDARD_MATERIAL_FLAGS_UNLIT_BIT,
-    pbr_deferred_functions::pbr_input_from_deferred_gbuffer,
-    mesh_view_bindings::{deferred_prepass_texture, depth_prepass_texture},
+#import penumbra::reflections::common::{
+    GpuBillboard, Lobe, MAX_LAYERS, MAX_TAPS, MIN_SHADOW_STEP, TILE, atlas, billboards,
+    images, images_sampler, objects, settings, surface_sample, tile_lists,
 }
-#import penumbra::df::object::{DistanceFieldObject, FLAG_CASTS_SHADOWS, FLAG_LIVE, TILE_SIZE}
+#import penumbra::df::object::{FLAG_CASTS_SHADOWS, FLAG_LIVE, TILE_SIZE}
 #import penumbra::df::distance::object_distance
-
-const MAX_TAPS: u32 = 8u;
-const MAX_LAYERS: u32 = 4u;
-const MAX_ANISOTROPY: f32 = 0.95;
-const MIN_SHADOW_STEP: f32 = 0.01;
-
-// `penumbra_cinematic_core::reflections::pass::GpuBillboard`.
-struct GpuBillboard {
-    center: vec3<f32>,
-    layer: u32,
-    half_x: vec3<f32>,
-    emissive: f32,
-    half_y: vec3<f32>,
-    reserved: u32,
-}
-
-// `penumbra_cinematic_core::reflections::pass::ReflectionUniform`.
-struct ReflectionUniform {
-    billboard_count: u32,
-    max_layers: u32,
-    max_distance: f32,
-    anisotropy: f32,
-    texture_size: vec2<u32>,
-    mip_count: u32,
-    half_resolution: u32,
-    camera_tile: vec3<i32>,
-    object_count: u32,
-    camera_offset: vec3<f32>,
-    footprint_slope: f32,
-    shadow_steps: u32,
-    shadow_bias: f32,
-    shadow_softness: f32,
-    taps: u32,
-}
-
-@group(2) @binding(0) var<uniform> settings: ReflectionUniform;
-@group(2) @binding(1) var<storage, read> billboards: array<GpuBillboard>;
-@group(2) @binding(2) var images: texture_2d_array<f32>;
-@group(2) @binding(3) var images_sampler: sampler;
-// The distance-field scene (reflection shadows): its objects and atlas.
-@group(2) @binding(4) var<storage, read> objects: array<DistanceFieldObject>;
-@group(2) @binding(5) var atlas: texture_3d<f32>;
-
-struct Lobe {
-    dir: vec3<f32>,
-    major: vec3<f32>,
-    minor: vec3<f32>,
-}
 
 struct FootprintHit {
     t: f32,
@@ -82,49 +34,15 @@ fn vertex(@builtin(vertex_index) vertex_index: u32) -> FullscreenVertexOutput {
     return FullscreenVertexOutput(vec4(uv * vec2(2.0, -2.0) + vec2(-1.0, 1.0), 0.0, 1.0));
 }
 
+
 @fragment
 fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
-    let pixel = vec2<i32>(in.position.xy) * select(1, 2, settings.half_resolution != 0u);
-    let depth = textureLoad(depth_prepass_texture, pixel, 0);
-    if depth == 0.0 {
-        return vec4(0.0); // the sky
-    }
-    let frag_coord = vec4(vec2<f32>(pixel) + 0.5, depth, 0.0);
-    let in_gbuffer = pbr_input_from_deferred_gbuffer(frag_coord, textureLoad(deferred_prepass_texture, pixel, 0));
-    if (in_gbuffer.material.flags & STANDARD_MATERIAL_FLAGS_UNLIT_BIT) != 0u {
+    let trace_pixel = vec2<i32>(in.position.xy);
+    let surface = surface_sample(trace_pixel);
+    if !surface.valid {
         return vec4(0.0);
     }
-    let lobe = surface_lobe(in_gbuffer.N, in_gbuffer.V, in_gbuffer.material.perceptual_roughness);
-    return reflect_billboards(in_gbuffer.world_position.xyz, lobe);
-}
-
-// A unit vector perpendicular to unit `n` (Duff et al.).
-fn any_perpendicular(n: vec3<f32>) -> vec3<f32> {
-    let sign = select(1.0, -1.0, (bitcast<u32>(n.z) >> 31u) != 0u); // copysign(1, n.z)
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    return vec3(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
-}
-
-// The mirror ray and the lobe's footprint half-axes per metre (module docs of the model).
-fn surface_lobe(n: vec3<f32>, v: vec3<f32>, perceptual_roughness: f32) -> Lobe {
-    let n_dot_v = max(dot(n, v), 1e-4);
-    let dir = 2.0 * n_dot_v * n - v;
-    let along = v - n * dot(n, v);
-    var t = any_perpendicular(n);
-    if dot(along, along) > 1e-8 {
-        t = normalize(along);
-    }
-    let b = cross(n, t);
-    let e1 = n_dot_v * t + dot(v, t) * n;
-    let p = clamp(perceptual_roughness, 0.089, 1.0);
-    let alpha = p * p;
-    let a = clamp(settings.anisotropy, 0.0, MAX_ANISOTROPY);
-    return Lobe(
-        dir,
-        e1 * (settings.footprint_slope * alpha * (1.0 + a)),
-        b * (settings.footprint_slope * alpha * (1.0 - a) * n_dot_v),
-    );
+    return reflect_billboards(vec2<u32>(trace_pixel), surface.position, surface.lobe);
 }
 
 // The hit of the lobe on billboard `index`; `t = -1` when it misses.
@@ -211,11 +129,28 @@ fn sample_footprint(layer: u32, hit: FootprintHit) -> vec4<f32> {
 }
 
 // The nearest hits composited front to back: premultiplied radiance and coverage.
-fn reflect_billboards(origin: vec3<f32>, lobe: Lobe) -> vec4<f32> {
+fn reflect_billboards(trace_pixel: vec2<u32>, origin: vec3<f32>, lobe: Lobe) -> vec4<f32> {
     let k = clamp(settings.max_layers, 1u, MAX_LAYERS);
     var hits: array<FootprintHit, MAX_LAYERS>;
     var count = 0u;
-    for (var i = 0u; i < settings.billboard_count; i += 1u) {
+    // The tile's list of billboards, or every billboard.
+    var listed = settings.billboard_count;
+    var list_start = 0u;
+    var use_list = false;
+    if settings.tile_capacity > 0u {
+        let tile = trace_pixel / TILE;
+        let base = (tile.y * settings.tiles_x + tile.x) * (settings.tile_capacity + 1u);
+        if tile_lists[base] <= settings.tile_capacity {
+            listed = tile_lists[base];
+            list_start = base + 1u;
+            use_list = true;
+        }
+    }
+    for (var m = 0u; m < listed; m += 1u) {
+        var i = m;
+        if use_list {
+            i = tile_lists[list_start + m];
+        }
         let hit = footprint_hit(i, origin, lobe);
         if hit.t < 0.0 {
             continue;

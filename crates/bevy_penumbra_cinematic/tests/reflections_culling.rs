@@ -1,0 +1,165 @@
+//! Billboard reflections' tile culling changes no pixel (on the scene of
+//! `reflections_scene`), and lavapipe's frame time against the billboard count and the
+//! settings (an ignored measurement).
+
+mod reflections_scene;
+use reflections_scene::*;
+
+use bevy::prelude::*;
+use bevy_penumbra_cinematic::ReflectionDebugView;
+use penumbra_test::{HeadlessRender, gpu_or_skip};
+
+/// Tile culling changes no pixel: the layer with it equals the layer testing every
+/// billboard at every pixel, bit for bit — glossy, anisotropic, at half resolution, with
+/// a hundred billboards more (lists of many lengths).
+#[test]
+fn tile_culling_changes_no_pixel() {
+    if !gpu_or_skip("tile_culling_changes_no_pixel") {
+        return;
+    }
+    for setup in [
+        Setup {
+            extra_billboards: 100,
+            ..default()
+        },
+        Setup {
+            perceptual_roughness: 0.6,
+            extra_billboards: 100,
+            ..default()
+        },
+        Setup {
+            anisotropy: 0.9,
+            half_resolution: true,
+            extra_billboards: 100,
+            ..default()
+        },
+    ] {
+        let (culled, app) = render(setup);
+        drop(app);
+        let (every, _app) = render(Setup {
+            tile_culling: false,
+            ..setup
+        });
+        let reflecting = every.iter().filter(|p| p[3] > 0.0).count();
+        let differ = culled.iter().zip(&every).filter(|(a, b)| a != b).count();
+        println!("tile culling, {setup:?}: {reflecting} reflecting pixels, {differ} differ");
+        assert!(reflecting > 1000, "{reflecting} reflecting pixels");
+        assert_eq!(differ, 0, "tile culling changed {differ} pixels");
+    }
+}
+
+/// Lavapipe's frame time against the billboard count and the settings (a measurement):
+/// 384 × 288, the median of 10 frames after 4, 3 runs. `cargo test -p
+/// bevy_penumbra_cinematic --test reflections_plugin reflections_against_time --
+/// --ignored --nocapture`
+#[test]
+#[ignore = "a measurement (~5 min)"]
+fn reflections_against_time() {
+    if !gpu_or_skip("reflections_against_time") {
+        return;
+    }
+    let harness = HeadlessRender::new(384, 288).frames(14);
+    let median = |setup| {
+        let (capture, _) = render_with(setup, &harness);
+        let mut ms: Vec<f64> = capture.frame_times[4..]
+            .iter()
+            .map(|t| t.as_secs_f64() * 1e3)
+            .collect();
+        ms.sort_by(f64::total_cmp);
+        ms[ms.len() / 2]
+    };
+    let shaded = Setup {
+        reflections: Some(ReflectionDebugView::None),
+        ..default()
+    };
+    for run in 0..3 {
+        let mut line = format!(
+            "run {run}: no component {:.1} ms",
+            median(Setup {
+                reflections: None,
+                ..shaded
+            })
+        );
+        for (name, setup) in [
+            ("3 billboards", shaded),
+            (
+                "1 layer",
+                Setup {
+                    max_layers: 1,
+                    ..shaded
+                },
+            ),
+            (
+                "half res",
+                Setup {
+                    half_resolution: true,
+                    ..shaded
+                },
+            ),
+            (
+                "wall + shadows",
+                Setup {
+                    wall: true,
+                    ..shaded
+                },
+            ),
+            (
+                "10",
+                Setup {
+                    extra_billboards: 8,
+                    ..shaded
+                },
+            ),
+            (
+                "100",
+                Setup {
+                    extra_billboards: 98,
+                    ..shaded
+                },
+            ),
+            (
+                "1000",
+                Setup {
+                    extra_billboards: 998,
+                    ..shaded
+                },
+            ),
+            (
+                "1000 half res",
+                Setup {
+                    extra_billboards: 998,
+                    half_resolution: true,
+                    ..shaded
+                },
+            ),
+            (
+                "1000 unculled",
+                Setup {
+                    extra_billboards: 998,
+                    tile_culling: false,
+                    ..shaded
+                },
+            ),
+            (
+                "1000 mirror",
+                Setup {
+                    extra_billboards: 998,
+                    perceptual_roughness: 0.0,
+                    ..shaded
+                },
+            ),
+            (
+                "1000 mirror unculled",
+                Setup {
+                    extra_billboards: 998,
+                    perceptual_roughness: 0.0,
+                    tile_culling: false,
+                    ..shaded
+                },
+            ),
+        ] {
+            line += &format!(", {name}: {:.1}", median(setup));
+        }
+        println!("{line}");
+    }
+}

@@ -1,0 +1,131 @@
+// Billboard reflections' shared declarations (`bevy_penumbra_cinematic::reflections`):
+// the uniform, the billboards, images and distance-field scene, the tiles' billboard
+// lists, and a G-buffer pixel's mirror ray and lobe. Used by the tile cull
+// (`reflections/cull.wgsl`) and the trace (`reflections/trace.wgsl`).
+#define_import_path penumbra::reflections::common
+
+#import bevy_pbr::{
+    pbr_types::STANDARD_MATERIAL_FLAGS_UNLIT_BIT,
+    pbr_deferred_functions::pbr_input_from_deferred_gbuffer,
+    mesh_view_bindings::{deferred_prepass_texture, depth_prepass_texture},
+}
+#import penumbra::df::object::DistanceFieldObject
+
+const MAX_TAPS: u32 = 8u;
+const MAX_LAYERS: u32 = 4u;
+const MAX_ANISOTROPY: f32 = 0.95;
+const MIN_SHADOW_STEP: f32 = 0.01;
+
+// `penumbra_cinematic_core::reflections::pass::GpuBillboard`.
+struct GpuBillboard {
+    center: vec3<f32>,
+    layer: u32,
+    half_x: vec3<f32>,
+    emissive: f32,
+    half_y: vec3<f32>,
+    reserved: u32,
+}
+
+// `penumbra_cinematic_core::reflections::pass::ReflectionUniform`.
+struct ReflectionUniform {
+    billboard_count: u32,
+    max_layers: u32,
+    max_distance: f32,
+    anisotropy: f32,
+    texture_size: vec2<u32>,
+    mip_count: u32,
+    half_resolution: u32,
+    camera_tile: vec3<i32>,
+    object_count: u32,
+    camera_offset: vec3<f32>,
+    footprint_slope: f32,
+    shadow_steps: u32,
+    shadow_bias: f32,
+    shadow_softness: f32,
+    taps: u32,
+    // Tiles per row of the trace's image; billboards a tile's list holds (0: no lists,
+    // the trace tests every billboard).
+    tiles_x: u32,
+    tile_capacity: u32,
+    // The trace's image size, pixels.
+    trace_size: vec2<u32>,
+}
+
+// Trace pixels per tile side.
+const TILE: u32 = 16u;
+
+@group(2) @binding(0) var<uniform> settings: ReflectionUniform;
+@group(2) @binding(1) var<storage, read> billboards: array<GpuBillboard>;
+@group(2) @binding(2) var images: texture_2d_array<f32>;
+@group(2) @binding(3) var images_sampler: sampler;
+// The distance-field scene (reflection shadows): its objects and atlas.
+@group(2) @binding(4) var<storage, read> objects: array<DistanceFieldObject>;
+@group(2) @binding(5) var atlas: texture_3d<f32>;
+// Per tile: the count of billboards kept, then their indices (`tile_capacity` slots); a
+// count over the capacity means "every billboard".
+@group(2) @binding(6) var<storage, read_write> tile_lists: array<u32>;
+
+struct Lobe {
+    dir: vec3<f32>,
+    major: vec3<f32>,
+    minor: vec3<f32>,
+}
+
+// A unit vector perpendicular to unit `n` (Duff et al.).
+fn any_perpendicular(n: vec3<f32>) -> vec3<f32> {
+    let sign = select(1.0, -1.0, (bitcast<u32>(n.z) >> 31u) != 0u); // copysign(1, n.z)
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    return vec3(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+}
+
+// The mirror ray and the lobe's footprint half-axes per metre (module docs of the model).
+fn surface_lobe(n: vec3<f32>, v: vec3<f32>, perceptual_roughness: f32) -> Lobe {
+    let n_dot_v = max(dot(n, v), 1e-4);
+    let dir = 2.0 * n_dot_v * n - v;
+    let along = v - n * dot(n, v);
+    var t = any_perpendicular(n);
+    if dot(along, along) > 1e-8 {
+        t = normalize(along);
+    }
+    let b = cross(n, t);
+    let e1 = n_dot_v * t + dot(v, t) * n;
+    let p = clamp(perceptual_roughness, 0.089, 1.0);
+    let alpha = p * p;
+    let a = clamp(settings.anisotropy, 0.0, MAX_ANISOTROPY);
+    return Lobe(
+        dir,
+        e1 * (settings.footprint_slope * alpha * (1.0 + a)),
+        b * (settings.footprint_slope * alpha * (1.0 - a) * n_dot_v),
+    );
+}
+
+
+// A trace pixel's surface: world position and lobe; `valid` false for the sky and unlit
+// materials (no reflection).
+struct SurfaceSample {
+    position: vec3<f32>,
+    lobe: Lobe,
+    valid: bool,
+}
+
+// The G-buffer under trace pixel `trace_pixel` (the top-left pixel of its 2 × 2 block at
+// half resolution).
+fn surface_sample(trace_pixel: vec2<i32>) -> SurfaceSample {
+    var out: SurfaceSample;
+    out.valid = false;
+    let pixel = trace_pixel * select(1, 2, settings.half_resolution != 0u);
+    let depth = textureLoad(depth_prepass_texture, pixel, 0);
+    if depth == 0.0 {
+        return out; // the sky
+    }
+    let frag_coord = vec4(vec2<f32>(pixel) + 0.5, depth, 0.0);
+    let in = pbr_input_from_deferred_gbuffer(frag_coord, textureLoad(deferred_prepass_texture, pixel, 0));
+    if (in.material.flags & STANDARD_MATERIAL_FLAGS_UNLIT_BIT) != 0u {
+        return out;
+    }
+    out.position = in.world_position.xyz;
+    out.lobe = surface_lobe(in.N, in.V, in.material.perceptual_roughness);
+    out.valid = true;
+    return out;
+}
