@@ -161,6 +161,35 @@ fn the_layer_is_added_as_specular_only_where_it_reflects() {
     assert!(worst < 0.01, "worst relative error {worst}");
 }
 
+/// The composite does not depend on the order the billboards were spawned in (their
+/// list order and texture array layers): bit for bit, with a hundred more billboards.
+#[test]
+fn the_composite_does_not_depend_on_the_order() {
+    if !gpu_or_skip("the_composite_does_not_depend_on_the_order") {
+        return;
+    }
+    let setup = Setup {
+        extra_billboards: 100,
+        perceptual_roughness: 0.4,
+        ..default()
+    };
+    let (forward, app) = render(setup);
+    drop(app);
+    let (reversed, _app) = render(Setup {
+        reversed: true,
+        ..setup
+    });
+    let reflecting = forward.iter().filter(|p| p[3] > 0.0).count();
+    let differ = forward
+        .iter()
+        .zip(&reversed)
+        .filter(|(a, b)| a != b)
+        .count();
+    println!("order: {reflecting} reflecting pixels, {differ} differ when spawned in reverse");
+    assert!(reflecting > 1000);
+    assert_eq!(differ, 0, "the spawn order changed {differ} pixels");
+}
+
 /// Half resolution: each texel shades the top-left pixel of its 2 × 2 block, so those
 /// pixels equal the full-resolution layer bit for bit; the others are interpolated
 /// within the depth bounds, close to the full-resolution layer on average.

@@ -69,6 +69,9 @@ pub struct Setup {
     pub max_layers: u32,
     /// `BillboardReflections::tile_culling`.
     pub tile_culling: bool,
+    /// Spawn the billboards in reverse order (other entities, other list order, other
+    /// texture array layers).
+    pub reversed: bool,
 }
 
 impl Default for Setup {
@@ -84,6 +87,7 @@ impl Default for Setup {
             extra_billboards: 0,
             max_layers: 3,
             tile_culling: true,
+            reversed: false,
         }
     }
 }
@@ -203,7 +207,11 @@ pub fn scene(
         }
         if setup.billboards {
             let mut handles = Vec::new();
-            for (transform, size, texels) in billboards() {
+            let mut list = billboards();
+            if setup.reversed {
+                list.reverse();
+            }
+            for (transform, size, texels) in list {
                 let image = images.add(image_of(&texels));
                 handles.push(image.clone());
                 commands.spawn((
@@ -214,6 +222,9 @@ pub fn scene(
                     },
                     transform,
                 ));
+            }
+            if setup.reversed {
+                handles.reverse(); // the same images for the signs below
             }
             // More signs behind, facing the camera (a deterministic scatter).
             for k in 0..setup.extra_billboards {
