@@ -5,12 +5,16 @@
 //! # Technique
 //!
 //! Each G-buffer pixel's mirror ray (from its normal and the view vector) is intersected
-//! with every [`ReflectionBillboard`]: one-sided quads, exactly. The nearest hits within
+//! with the [`ReflectionBillboard`]s its screen tile can reach (a small pass lists them
+//! per 16 × 16 tile, conservatively: [`BillboardReflections::tile_culling`]): one-sided
+//! quads, exactly. The nearest hits within
 //! [`BillboardReflections::max_distance`] whose footprint overlaps the image are sampled
 //! over the GGX lobe's footprint at the hit distance — a mip level from the lobe's width
 //! and taps along its long axis, which grows toward grazing angles (the streaks of wet
 //! streets) and with [`BillboardReflections::anisotropy`] — and composited front to back
-//! (premultiplied alpha). The result is the view's specular layer
+//! (premultiplied alpha), each dimmed by its reflection shadow — a soft march along the
+//! mirror ray through the distance-field scene, as Samaritan's reflection shadows ray-cast
+//! the distance field. The result is the view's specular layer
 //! (`bevy_penumbra_df::lighting::PenumbraSpecularLayer`): Penumbra's lighting pass adds
 //! it under Bevy's environment BRDF and lets it cover the environment map's specular by
 //! its coverage, so energy is not added twice. The model, shared arithmetic and its
@@ -37,10 +41,19 @@
 //!   without a `DistanceFieldCaster` does not.
 //! - Single-sample cameras: a camera with `DeferredMsaa` gets no reflections (one
 //!   warning). The clearcoat layer does not reflect billboards.
-//! - Cost: per shaded pixel, one ray–quad test per billboard, then up to `max_layers`
-//!   footprints of up to 8 trilinear taps; half resolution quarters it. Memory: the
-//!   array (4/3 × 8 bytes per texel per image), 32 bytes per billboard, and the layer
-//!   texture (8 bytes per pixel, a quarter at half resolution).
+//! - The footprint is a box filter (mip levels and taps); GGX's long tail is not: against
+//!   the Monte Carlo truth the mean error is 2–7 % of the signs' luminance
+//!   (`penumbra_reference::reflections`), mostly at the images' edges.
+//! - Reflection shadows see distance-field casters only, with the soft cone of the
+//!   lobe; a surface behind the billboard's plane (the wall a sign hangs on) hides
+//!   nothing.
+//! - Cost: per shaded pixel, one ray–quad test per billboard of its tile (every billboard
+//!   when more than 128 reach the tile), then up to `max_layers` footprints of 4
+//!   trilinear taps, and the shadow march (`shadow_steps` × the distance-field objects);
+//!   half resolution quarters it. On lavapipe at 384 × 288: 15–20 ms for a few signs,
+//!   ~90 ms for 100, ~850 ms for 1,000 (250 ms at half resolution). Memory: the array
+//!   (4/3 × 8 bytes per texel per image), 32 bytes per billboard, the layer texture (8
+//!   bytes per pixel, a quarter at half resolution) and up to 129 words per tile.
 
 mod collect;
 mod render;

@@ -43,6 +43,10 @@ pub const BOX_HALF: f32 = 0.25;
 /// when the setup asks for it): reflection shadows.
 pub const WALL_CENTER: Vec3 = Vec3::new(-0.7, 0.3, -1.9);
 pub const WALL_HALF: Vec3 = Vec3::new(0.5, 0.3, 0.05);
+/// With the wall, a board 7 cm behind the striped sign (a caster too): it must hide
+/// nothing (it lies behind the sign's plane).
+pub const BOARD_CENTER: Vec3 = Vec3::new(-0.5, 0.9, -2.62);
+pub const BOARD_HALF: Vec3 = Vec3::new(0.9, 0.6, 0.05);
 /// The floor's half size.
 pub const FLOOR_HALF: f32 = 20.0;
 /// The images' size.
@@ -189,21 +193,21 @@ pub fn scene(
             Transform::from_translation(BOX_CENTER),
         ));
         if setup.wall {
-            commands.spawn((
-                Mesh3d(meshes.add(Cuboid::from_size(2.0 * WALL_HALF))),
-                MeshMaterial3d(materials.add(StandardMaterial {
-                    base_color: Color::linear_rgb(0.1, 0.1, 0.1),
-                    perceptual_roughness: setup.perceptual_roughness,
-                    ..default()
-                })),
-                Transform::from_translation(WALL_CENTER),
-                DistanceFieldCaster {
-                    source: CasterSource::Cuboid {
-                        half_size: WALL_HALF,
+            for (center, half) in [(WALL_CENTER, WALL_HALF), (BOARD_CENTER, BOARD_HALF)] {
+                commands.spawn((
+                    Mesh3d(meshes.add(Cuboid::from_size(2.0 * half))),
+                    MeshMaterial3d(materials.add(StandardMaterial {
+                        base_color: Color::linear_rgb(0.1, 0.1, 0.1),
+                        perceptual_roughness: setup.perceptual_roughness,
+                        ..default()
+                    })),
+                    Transform::from_translation(center),
+                    DistanceFieldCaster {
+                        source: CasterSource::Cuboid { half_size: half },
+                        ..default()
                     },
-                    ..default()
-                },
-            ));
+                ));
+            }
         }
         if setup.billboards {
             let mut handles = Vec::new();
@@ -315,6 +319,7 @@ pub fn boxes(wall: bool) -> Vec<(Vec3, Vec3)> {
     let mut v = vec![(BOX_CENTER, Vec3::splat(BOX_HALF))];
     if wall {
         v.push((WALL_CENTER, WALL_HALF));
+        v.push((BOARD_CENTER, BOARD_HALF));
     }
     v
 }
@@ -348,10 +353,13 @@ pub fn analytic_surface(p: IVec2, wall: bool) -> Option<(Vec3, Vec3, f32, Vec3)>
     hit.map(|(t, n)| (ray.at(t), n, -t * ray.dir.dot(forward), ray.dir))
 }
 
-/// The wall's exact distance (the distance-field caster's cuboid), metres.
+/// The wall's and the board's exact distance (the casters' cuboids), metres.
 pub fn wall_distance(p: Vec3) -> f32 {
-    let q = (p - WALL_CENTER).abs() - WALL_HALF;
-    q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+    let cuboid = |center: Vec3, half: Vec3| {
+        let q = (p - center).abs() - half;
+        q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+    };
+    cuboid(WALL_CENTER, WALL_HALF).min(cuboid(BOARD_CENTER, BOARD_HALF))
 }
 
 /// The layer the model predicts at every pixel (the floor's analytic G-buffer; `None`
@@ -381,7 +389,7 @@ pub fn model_with(setup: Setup, shadows: bool) -> Vec<Option<Vec4>> {
     settings.anisotropy = setup.anisotropy;
     if shadows {
         settings.shadow_steps = 32;
-        settings.object_count = 1;
+        settings.object_count = 2;
     }
     (0..WIDTH * HEIGHT)
         .map(|i| {

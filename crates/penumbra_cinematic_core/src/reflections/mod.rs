@@ -1,5 +1,5 @@
-//! Billboard reflections (#21, started): the geometry, images and per-pixel pass that
-//! the shader and its CPU model share.
+//! Billboard reflections: the geometry, images, per-pixel pass and tile cull that the
+//! shaders (`shaders/reflections/`) and their CPU model share.
 //!
 //! Samaritan's billboard reflections (Mittring and Dudash, GDC 2011): textured quads —
 //! lit signs, windows — placed like any object; each shaded point's reflected eye ray is
@@ -10,6 +10,12 @@
 //! coordinates in its own — possibly sheared — axes); [`nearest_hits`] keeps the `k`
 //! nearest, ordered by distance with ties broken by index, so the composite
 //! ([`composite`]) does not depend on the order billboards are listed in.
+//!
+//! - [`texture`]: the images' mip chains as the texture array holds them, and the
+//!   trilinear filter.
+//! - [`pass`]: one pixel of the pass — the GGX footprint, its taps, the composite, the
+//!   reflection-shadow march, the half-resolution upsample — and the uniform.
+//! - [`cull`]: the conservative per-tile billboard test.
 
 use glam::{Mat4, Vec2, Vec3};
 
