@@ -525,3 +525,113 @@ fn footprint_slope_sweep() {
         eprintln!("{line}  sum {total:.4}");
     }
 }
+
+/// Layers and half resolution against error (`cargo test -p penumbra_reference --lib
+/// layers_and_half_resolution -- --ignored --nocapture`): a 64 × 48 view of the floor
+/// (perceptual roughness 0.2), mean error against the truth over the pixels reflecting
+/// something, with 1 to 4 layers at full resolution and 3 at half resolution (traced at
+/// even pixels, upsampled by the lighting pass's model).
+#[test]
+#[ignore = "a measurement: layers and half resolution against error"]
+fn layers_and_half_resolution_against_error() {
+    use crate::camera::PerspectiveCamera;
+    use glam::IVec2;
+    use penumbra_cinematic_core::reflections::pass::{Surface, reflect_pixel, upsample_half};
+    let (w, h) = (64i32, 48i32);
+    let eye = Vec3::new(0.0, 1.2, 3.0);
+    let target = Vec3::new(0.0, 0.2, -2.0);
+    let camera =
+        PerspectiveCamera::looking_at(eye, target, std::f32::consts::FRAC_PI_4, w as u32, h as u32);
+    let forward = (target - eye).normalize();
+    let surface = |p: IVec2| {
+        let ray = camera.ray(p.x as f32 + 0.5, p.y as f32 + 0.5);
+        (ray.dir.y < -1e-3).then(|| {
+            let t = -ray.origin.y / ray.dir.y;
+            (
+                Surface {
+                    position: ray.at(t),
+                    normal: Vec3::Y,
+                    view: -ray.dir,
+                    perceptual_roughness: 0.2,
+                },
+                -t * ray.dir.dot(forward),
+            )
+        })
+    };
+    let (billboards, images) = scene::billboards();
+    let truth = BillboardTruth {
+        billboards: &billboards,
+        images: &images,
+        occluders: None,
+    };
+    let pixels: Vec<IVec2> = (0..w * h).map(|i| IVec2::new(i % w, i / w)).collect();
+    let want: Vec<Option<Vec4>> = pixels
+        .iter()
+        .map(|&p| {
+            surface(p).map(|(s, _)| {
+                let (frame, lobe) = scene::truth_lobe(&s, 0.0);
+                lobe_mean(
+                    frame,
+                    s.view,
+                    lobe,
+                    1024,
+                    0x1a + (p.y * w + p.x) as u64,
+                    |l| truth.radiance(s.position, l),
+                )
+            })
+        })
+        .collect();
+    let error = |got: &dyn Fn(IVec2) -> Vec4| {
+        let (mut sum, mut n) = (0.0f32, 0usize);
+        for (k, &p) in pixels.iter().enumerate() {
+            let Some(want) = want[k] else { continue };
+            let got = got(p);
+            if want.w < 0.01 && got.w < 0.01 {
+                continue;
+            }
+            sum += ((got - want) / scene::EMISSIVE)
+                .truncate()
+                .abs()
+                .max_element();
+            n += 1;
+        }
+        (sum / n.max(1) as f32, n)
+    };
+    for layers in 1..=4u32 {
+        let mut settings = scene::settings(
+            0.0,
+            penumbra_cinematic_core::reflections::pass::FOOTPRINT_SLOPE,
+        );
+        settings.max_layers = layers;
+        let (e, n) = error(&|p| {
+            surface(p).map_or(Vec4::ZERO, |(s, _)| {
+                reflect_pixel(&s, &billboards, &images, &settings)
+            })
+        });
+        eprintln!("{layers} layer(s), full resolution: {n} pixels, mean |pass − truth| {e:.4}");
+    }
+    let settings = scene::settings(
+        0.0,
+        penumbra_cinematic_core::reflections::pass::FOOTPRINT_SLOPE,
+    );
+    let half = IVec2::new(w / 2, h / 2);
+    let traced: Vec<Vec4> = (0..half.x * half.y)
+        .map(|i| {
+            let p = IVec2::new(i % half.x, i / half.x) * 2;
+            surface(p).map_or(Vec4::ZERO, |(s, _)| {
+                reflect_pixel(&s, &billboards, &images, &settings)
+            })
+        })
+        .collect();
+    let view_z = |p: IVec2| surface(p).map_or(f32::NEG_INFINITY, |s| s.1);
+    let (e, n) = error(&|p| {
+        upsample_half(
+            |t| traced[(t.y * half.x + t.x) as usize],
+            view_z,
+            half,
+            p,
+            view_z(p),
+        )
+    });
+    eprintln!("3 layers, half resolution: {n} pixels, mean |pass − truth| {e:.4}");
+}
