@@ -50,6 +50,7 @@ fn sign_image() -> Image {
     )
 }
 
+#[allow(clippy::type_complexity, reason = "a Bevy system's parameters")]
 fn scene(
     reflections: Reflections,
     signs: Signs,
