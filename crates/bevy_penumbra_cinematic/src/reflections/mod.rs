@@ -44,9 +44,10 @@
 //! - The footprint is a box filter (mip levels and taps); GGX's long tail is not: against
 //!   the Monte Carlo truth the mean error is 2–7 % of the signs' luminance
 //!   (`penumbra_reference::reflections`), mostly at the images' edges.
-//! - Reflection shadows see distance-field casters only, with the soft cone of the
-//!   lobe; a surface behind the billboard's plane (the wall a sign hangs on) hides
-//!   nothing.
+//! - Reflection shadows see distance-field casters only. Their cone (an eighth of the
+//!   lobe's footprint, calibrated against exact visibility) takes the nearest surface as
+//!   covering it whole: thin occluders in rough reflections come out too dark. A surface
+//!   behind the billboard's plane (the wall a sign hangs on) hides nothing.
 //! - Cost: per shaded pixel, one ray–quad test per billboard of its tile (every billboard
 //!   when more than 128 reach the tile), then up to `max_layers` footprints of 4
 //!   trilinear taps, and the shadow march (`shadow_steps` × the distance-field objects);

@@ -109,6 +109,9 @@ pub struct ReflectionUniform {
     pub tile_capacity: u32,
     /// The trace's image size, pixels.
     pub trace_size: UVec2,
+    /// The shadow cone's half-width as a share of the footprint's long half-axis
+    /// ([`SHADOW_CONE`]).
+    pub shadow_cone: f32,
 }
 
 impl ReflectionUniform {
@@ -133,6 +136,7 @@ impl ReflectionUniform {
             tiles_x: 0,
             tile_capacity: 0,
             trace_size: UVec2::ZERO,
+            shadow_cone: SHADOW_CONE,
         }
     }
 }
@@ -141,6 +145,14 @@ impl ReflectionUniform {
 pub const DEFAULT_SHADOW_BIAS: f32 = 0.02;
 /// The narrowest shadow cone by default (tangent of its half-angle).
 pub const DEFAULT_SHADOW_SOFTNESS: f32 = 0.02;
+/// The reflection-shadow cone's half-width as a share of the footprint's long
+/// half-axis. The cone test (`d / (cone t)`) takes the nearest surface as covering the
+/// whole cone, too dark for thin occluders in wide lobes: against exact visibility
+/// (`penumbra_reference::reflections` figures, `shadow_cone_sweep`: a wall and a row of
+/// posts, perceptual roughness 0, 0.3, 0.5) the summed mean error is 0.278 at 1/8, 0.280
+/// at 1/4, 0.291 at 1/2 and 0.324 at the full footprint.
+pub const SHADOW_CONE: f32 = 0.125;
+
 /// The shortest march step, metres.
 pub const MIN_SHADOW_STEP: f32 = 0.01;
 
@@ -365,7 +377,7 @@ pub fn reflect_pixel_shadowed(
                 .abs(),
         })
         .collect();
-    let cone = lobe.major.length().max(settings.shadow_softness);
+    let cone = (lobe.major.length() * settings.shadow_cone).max(settings.shadow_softness);
     let visibility = shadow_march(
         s.position,
         lobe.dir,

@@ -270,18 +270,41 @@ fn the_pass_follows_the_truth() {
 /// march. Mean |pass − truth| over the points whose truth or pass reflects something, with
 /// the march's steps swept, and without shadows.
 fn shadows_against_truth(perceptual_roughness: f32, steps: u32) -> (f32, usize) {
+    shadows_against_truth_among(
+        &wall(),
+        perceptual_roughness,
+        steps,
+        penumbra_cinematic_core::reflections::pass::SHADOW_CONE,
+    )
+}
+
+/// A wall between the striped sign and the floor before it (box: centre, half size).
+fn wall() -> Vec<(Vec3, Vec3)> {
+    vec![(Vec3::new(-0.7, 0.3, -1.9), Vec3::new(0.5, 0.3, 0.05))]
+}
+
+/// A row of posts between the signs and the floor (boxes: centre, half size): many
+/// small occluders for the march to pass.
+fn posts() -> Vec<(Vec3, Vec3)> {
+    (0..8)
+        .map(|k| {
+            (
+                Vec3::new(-1.4 + 0.4 * k as f32, 0.45, -1.6 - 0.1 * (k % 3) as f32),
+                Vec3::new(0.04, 0.45, 0.04),
+            )
+        })
+        .collect()
+}
+
+/// [`shadows_against_truth`] among any boxes.
+fn shadows_against_truth_among(
+    boxes: &[(Vec3, Vec3)],
+    perceptual_roughness: f32,
+    steps: u32,
+    cone: f32,
+) -> (f32, usize) {
     use penumbra_cinematic_core::reflections::pass::reflect_pixel_shadowed;
-    let (center, half) = (Vec3::new(-0.7, 0.3, -1.9), Vec3::new(0.5, 0.3, 0.05));
-    let corner = |i: u32| {
-        center
-            + half
-                * Vec3::new(
-                    if i & 1 == 0 { -1.0 } else { 1.0 },
-                    if i & 2 == 0 { -1.0 } else { 1.0 },
-                    if i & 4 == 0 { -1.0 } else { 1.0 },
-                )
-    };
-    // Two triangles per face of the box.
+    // Two triangles per face of each box.
     let faces = [
         [0, 1, 3, 2],
         [4, 6, 7, 5],
@@ -290,19 +313,35 @@ fn shadows_against_truth(perceptual_roughness: f32, steps: u32) -> (f32, usize) 
         [0, 2, 6, 4],
         [1, 5, 7, 3],
     ];
-    let triangles: Vec<[Vec3; 3]> = faces
+    let triangles: Vec<[Vec3; 3]> = boxes
         .iter()
-        .flat_map(|f| {
-            [
-                [corner(f[0]), corner(f[1]), corner(f[2])],
-                [corner(f[0]), corner(f[2]), corner(f[3])],
-            ]
+        .flat_map(|&(center, half)| {
+            let corner = move |i: u32| {
+                center
+                    + half
+                        * Vec3::new(
+                            if i & 1 == 0 { -1.0 } else { 1.0 },
+                            if i & 2 == 0 { -1.0 } else { 1.0 },
+                            if i & 4 == 0 { -1.0 } else { 1.0 },
+                        )
+            };
+            faces.iter().flat_map(move |f| {
+                [
+                    [corner(f[0]), corner(f[1]), corner(f[2])],
+                    [corner(f[0]), corner(f[2]), corner(f[3])],
+                ]
+            })
         })
         .collect();
     let occluder = TriangleOccluder::new(&triangles);
     let distance = |p: Vec3| {
-        let q = (p - center).abs() - half;
-        q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+        boxes
+            .iter()
+            .map(|&(center, half)| {
+                let q = (p - center).abs() - half;
+                q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+            })
+            .fold(f32::MAX, f32::min)
     };
     let (billboards, images) = scene_billboards();
     let truth = BillboardTruth {
@@ -312,7 +351,8 @@ fn shadows_against_truth(perceptual_roughness: f32, steps: u32) -> (f32, usize) 
     };
     let mut settings = scene_settings();
     settings.shadow_steps = steps;
-    settings.object_count = 1;
+    settings.object_count = boxes.len() as u32;
+    settings.shadow_cone = cone;
     let norm = 1.0 / EMISSIVE;
     let (mut err, mut n) = (0.0f32, 0usize);
     for (k, s) in scene_floor(48, 36, perceptual_roughness).iter().enumerate() {
@@ -493,10 +533,16 @@ fn footprint_taps_sweep() {
 #[ignore = "a measurement: reflection shadows' steps against error"]
 fn reflection_shadow_steps() {
     for roughness in [0.0f32, 0.3] {
-        for steps in [0u32, 4, 8, 16, 32, 64] {
+        for steps in [0u32, 2, 4, 8, 16, 32, 64] {
             let (err, n) = shadows_against_truth(roughness, steps);
+            let (posts_err, posts_n) = shadows_against_truth_among(
+                &posts(),
+                roughness,
+                steps,
+                penumbra_cinematic_core::reflections::pass::SHADOW_CONE,
+            );
             eprintln!(
-                "perceptual roughness {roughness}, steps {steps:>2}: {n} points, mean |pass − truth| {err:.4}"
+                "perceptual roughness {roughness}, steps {steps:>2}: a wall {err:.4} ({n} points), eight posts {posts_err:.4} ({posts_n} points)"
             );
         }
     }
@@ -634,4 +680,24 @@ fn layers_and_half_resolution_against_error() {
         )
     });
     eprintln!("3 layers, half resolution: {n} pixels, mean |pass − truth| {e:.4}");
+}
+
+/// The reflection-shadow cone's width against the truth (`cargo test -p
+/// penumbra_reference --lib shadow_cone_sweep -- --ignored --nocapture`): mean error on
+/// the wall and the posts, mirror and rough floors, 32 steps.
+#[test]
+#[ignore = "a measurement: the shadow cone's calibration"]
+fn shadow_cone_sweep() {
+    for cone in [0.0f32, 0.0625, 0.125, 0.25, 0.5, 1.0] {
+        let mut line = format!("cone {cone:>5}:");
+        let mut total = 0.0;
+        for roughness in [0.0f32, 0.3, 0.5] {
+            for (name, boxes) in [("wall", wall()), ("posts", posts())] {
+                let (e, _) = shadows_against_truth_among(&boxes, roughness, 32, cone);
+                line += &format!("  r{roughness} {name} {e:.4}");
+                total += e;
+            }
+        }
+        eprintln!("{line}  sum {total:.4}");
+    }
 }

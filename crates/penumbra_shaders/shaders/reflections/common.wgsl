@@ -49,6 +49,8 @@ struct ReflectionUniform {
     tile_capacity: u32,
     // The trace's image size, pixels.
     trace_size: vec2<u32>,
+    // The shadow cone's half-width as a share of the footprint's long half-axis.
+    shadow_cone: f32,
 }
 
 // Trace pixels per tile side.

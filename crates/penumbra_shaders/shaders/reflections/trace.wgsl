@@ -174,7 +174,7 @@ fn reflect_billboards(trace_pixel: vec2<u32>, origin: vec3<f32>, lobe: Lobe) -> 
         hits[at] = hit;
         count = min(count + 1u, k);
     }
-    let cone = max(length(lobe.major), settings.shadow_softness);
+    let cone = max(length(lobe.major) * settings.shadow_cone, settings.shadow_softness);
     var facing: array<f32, MAX_LAYERS>;
     for (var j = 0u; j < count; j += 1u) {
         let b = billboards[hits[j].index];
