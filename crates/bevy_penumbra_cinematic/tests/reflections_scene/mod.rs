@@ -43,9 +43,9 @@ pub const BOX_HALF: f32 = 0.25;
 /// when the setup asks for it): reflection shadows.
 pub const WALL_CENTER: Vec3 = Vec3::new(-0.7, 0.3, -1.9);
 pub const WALL_HALF: Vec3 = Vec3::new(0.5, 0.3, 0.05);
-/// With the wall, a board 7 cm behind the striped sign (a caster too): it must hide
+/// With the wall, a board 2 cm behind the striped sign (a caster too): it must hide
 /// nothing (it lies behind the sign's plane).
-pub const BOARD_CENTER: Vec3 = Vec3::new(-0.5, 0.9, -2.62);
+pub const BOARD_CENTER: Vec3 = Vec3::new(-0.5, 0.9, -2.57);
 pub const BOARD_HALF: Vec3 = Vec3::new(0.9, 0.6, 0.05);
 /// The floor's half size.
 pub const FLOOR_HALF: f32 = 20.0;
