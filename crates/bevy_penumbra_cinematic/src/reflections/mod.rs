@@ -40,7 +40,8 @@
 //!   distance-field scene ([`BillboardReflections::reflection_shadows`]): geometry
 //!   without a `DistanceFieldCaster` does not.
 //! - Single-sample cameras: a camera with `DeferredMsaa` gets no reflections (one
-//!   warning). The clearcoat layer does not reflect billboards.
+//!   warning). The clearcoat layer does not reflect billboards, and SSAO's or DFAO's
+//!   specular occlusion does not dim them (their reflection shadows do).
 //! - The footprint is a box filter (mip levels and taps); GGX's long tail is not: against
 //!   the Monte Carlo truth the mean error is 2–7 % of the signs' luminance
 //!   (`penumbra_reference::reflections`), mostly at the images' edges.
