@@ -9,6 +9,13 @@ use penumbra_cinematic_core::reflections::pass::GpuBillboard;
 use penumbra_cinematic_core::reflections::texture::MipChain;
 use std::sync::Arc;
 
+/// The most images the texture array holds (WebGPU's guaranteed array layers).
+const MAX_LAYERS: usize = 256;
+/// The largest image side (WebGPU's guaranteed 2D texture size).
+const MAX_IMAGE_SIDE: u32 = 8192;
+/// The most memory the texture array may take, bytes.
+const MAX_ARRAY_BYTES: u64 = 256 << 20;
+
 /// The images of the texture array: one layer each, all `size`.
 #[derive(Debug)]
 pub(super) struct ImageArray {
@@ -47,7 +54,8 @@ pub(super) struct Warned {
 
 /// Builds [`ReflectionScene`]: every visible, valid billboard in entity order, its image
 /// a layer of the array. Skips (one warning each) zero-size or non-finite quads, images
-/// of another size than the array's and unreadable formats.
+/// of another size than the array's, unreadable or oversized images and images beyond
+/// the array's 256 layers.
 #[allow(clippy::too_many_arguments, reason = "a Bevy system")]
 pub(super) fn collect_reflection_billboards(
     cameras: Query<(), With<BillboardReflections>>,
@@ -105,7 +113,9 @@ pub(super) fn collect_reflection_billboards(
         };
         let chain = chains.entry(id).or_insert_with(|| {
             linear_texels(image)
-                .filter(|(size, _)| size.x > 0 && size.y > 0)
+                .filter(|(size, _)| {
+                    (1..=MAX_IMAGE_SIDE).contains(&size.x) && (1..=MAX_IMAGE_SIDE).contains(&size.y)
+                })
                 .map(|(size, texels)| {
                     Arc::new(MipChain::from_straight_alpha(size.x, size.y, &texels))
                 })
@@ -114,7 +124,8 @@ pub(super) fn collect_reflection_billboards(
             if warned.images.insert(id) {
                 warn!(
                     "Penumbra: ReflectionBillboard image {id:?} ({:?}) cannot be read texel by \
-                     texel; its billboards are skipped",
+                     texel (its format, no data in the main world, or over {MAX_IMAGE_SIDE} \
+                     texels a side); its billboards are skipped",
                     image.texture_descriptor.format
                 );
             }
@@ -132,6 +143,8 @@ pub(super) fn collect_reflection_billboards(
         .iter()
         .max_by_key(|(size, n)| (**n, size.x * size.y, size.x))
         .map(|(size, _)| *size);
+    // One layer's bytes: `Rgba16Float` and its mip chain (at most 4/3 of level 0).
+    let layer_bytes = size.map_or(0, |s| u64::from(s.x) * u64::from(s.y) * 8 * 4 / 3);
     let mut layers: Vec<AssetId<Image>> = Vec::new();
     let mut gpu = Vec::with_capacity(valid.len());
     for (entity, quad, id, emissive) in valid {
@@ -149,11 +162,26 @@ pub(super) fn collect_reflection_billboards(
             }
             continue;
         }
+        let layer = match layers.iter().position(|l| *l == id) {
+            Some(layer) => layer,
+            None if layers.len() < MAX_LAYERS
+                && (layers.len() as u64 + 1) * layer_bytes <= MAX_ARRAY_BYTES =>
+            {
+                layers.push(id);
+                layers.len() - 1
+            }
+            None => {
+                if warned.entities.insert(entity) {
+                    warn!(
+                        "Penumbra: ReflectionBillboard on {entity}: its image would be beyond \
+                         the reflection array's {MAX_LAYERS} layers or {} MiB; skipped",
+                        MAX_ARRAY_BYTES >> 20
+                    );
+                }
+                continue;
+            }
+        };
         warned.entities.remove(&entity);
-        let layer = layers.iter().position(|l| *l == id).unwrap_or_else(|| {
-            layers.push(id);
-            layers.len() - 1
-        });
         gpu.push(GpuBillboard {
             center: quad.center,
             layer: layer as u32,

@@ -28,7 +28,9 @@
 //! (`Image::get_color_at`: 8-bit sRGB or linear, 16- and 32-bit float, …) is converted.
 //! The array takes the size most billboards' images share (ties: the larger); a
 //! billboard whose image has another size is skipped with one warning, as is one whose
-//! image format cannot be read. An image still loading is skipped silently.
+//! image cannot be read (its format, or its data not kept in the main world), is over
+//! 8,192 texels a side, or would be the array's 257th. An image still loading is
+//! skipped silently.
 //!
 //! The component reflects a quad; it draws nothing. Show the sign itself with a mesh on
 //! the same entity (a `Rectangle` of the same size with an emissive material), or not.
@@ -368,6 +370,35 @@ mod tests {
             &before,
             scene.images.as_ref().unwrap()
         ));
+    }
+
+    /// More distinct images than the array's layers: the billboards beyond are skipped.
+    #[test]
+    fn the_array_holds_at_most_256_images() {
+        let mut app = App::new();
+        app.add_plugins((MinimalPlugins, AssetPlugin::default()))
+            .init_asset::<Image>()
+            .init_resource::<collect::ReflectionScene>()
+            .add_systems(PostUpdate, collect::collect_reflection_billboards);
+        let world = app.world_mut();
+        world.spawn(BillboardReflections::default());
+        for k in 0..260u32 {
+            let image = world.resource_mut::<Assets<Image>>().add(image(
+                1,
+                1,
+                TextureFormat::Rgba8Unorm,
+                &[(k % 256) as u8, (k / 256) as u8, 0, 255],
+            ));
+            world.spawn((
+                ReflectionBillboard { image, ..default() },
+                GlobalTransform::from_xyz(k as f32, 1.0, -3.0),
+                InheritedVisibility::VISIBLE,
+            ));
+        }
+        app.update();
+        let scene = app.world().resource::<collect::ReflectionScene>();
+        assert_eq!(scene.images.as_ref().unwrap().layers.len(), 256);
+        assert_eq!(scene.billboards.len(), 256);
     }
 
     #[test]

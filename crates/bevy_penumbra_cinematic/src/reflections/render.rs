@@ -74,6 +74,8 @@ struct ReflectionGpuScene {
     buffer: Option<(Buffer, usize)>,
     array: Option<TextureView>,
     mip_count: u32,
+    /// The billboards changed since their last upload.
+    dirty: bool,
 }
 
 /// A reflecting view's draws this frame (absent: none).
@@ -211,6 +213,7 @@ fn extract_reflection_scene(
     if scene.is_changed() {
         gpu.billboards.clone_from(&scene.billboards);
         gpu.images.clone_from(&scene.images);
+        gpu.dirty = true;
     }
 }
 
@@ -226,7 +229,7 @@ fn extract_reflection_cameras(
 }
 
 /// Uploads the billboards when they change (the buffer grows by powers of two) and the
-/// texture array when its images do.
+/// texture array when its images do; nothing on frames where neither did.
 fn prepare_reflection_scene(
     mut gpu: ResMut<ReflectionGpuScene>,
     allocations: Res<PenumbraGpuAllocations>,
@@ -248,11 +251,15 @@ fn prepare_reflection_scene(
             BufferUsages::STORAGE | BufferUsages::COPY_DST,
         );
         gpu.buffer = Some((buffer, capacity));
+        gpu.dirty = true;
     }
-    let mut bytes = StorageBuffer::new(Vec::new());
-    bytes.write(&gpu.billboards).expect("billboards encode");
-    let (buffer, _) = gpu.buffer.as_ref().expect("just made");
-    queue.write_buffer(buffer, 0, bytes.as_ref());
+    if gpu.dirty {
+        let mut bytes = StorageBuffer::new(Vec::new());
+        bytes.write(&gpu.billboards).expect("billboards encode");
+        let (buffer, _) = gpu.buffer.as_ref().expect("just made");
+        queue.write_buffer(buffer, 0, bytes.as_ref());
+        gpu.dirty = false;
+    }
     let images = gpu.images.clone().expect("checked");
     if uploaded.as_ref().is_some_and(|u| Arc::ptr_eq(u, &images)) {
         return;
