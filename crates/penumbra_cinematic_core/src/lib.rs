@@ -6,8 +6,11 @@
 //! - [`sss`]: screen-space subsurface scattering — Burley's normalized diffusion profile,
 //!   its importance sampling and the scatter draw's uniform.
 //! - [`reflections`]: billboard reflections — the quads, their exact ray intersection,
-//!   the nearest hits and the front-to-back composite (started).
+//!   the images' mip chains, the per-pixel pass and the tile cull.
+//! - [`hair`]: hair strips (started) — a strip's 4× MSAA coverage with an alpha test per
+//!   sample, and its exact area.
 
 pub mod dof;
+pub mod hair;
 pub mod reflections;
 pub mod sss;
