@@ -13,9 +13,12 @@
 //! ([`sample_thresholds`]) so that a faded strand keeps that share of its samples.
 //!
 //! Checked against the exact area of the rectangle inside each pixel
-//! ([`exact_coverage`], polygon clipping in `f64`).
+//! ([`exact_coverage`], polygon clipping in `f64`). The strands themselves, their text
+//! format and their checks: [`strands`].
 
 use glam::{DVec2, IVec2, Vec2};
+
+pub mod strands;
 
 /// The standard 4× MSAA sample positions within a pixel (Vulkan's and Direct3D's),
 /// `(0, 0)` its top-left corner.
