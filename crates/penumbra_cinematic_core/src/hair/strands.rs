@@ -108,7 +108,7 @@ pub fn parse_hair(text: &str) -> Result<Vec<Strand>, ParseError> {
             .map(|w| w.parse::<f32>())
             .collect::<Result<_, _>>()
             .map_err(|_| error(line, "a coordinate is not a number"))?;
-        if numbers.len() % 3 != 0 {
+        if !numbers.len().is_multiple_of(3) {
             return Err(error(line, "the coordinates are not whole points (x y z)"));
         }
         strands.push(Strand {
