@@ -87,7 +87,8 @@ pub fn coverage_mask(segment: &ScreenSegment, pixel: IVec2, alpha: impl Fn(Vec2)
 pub fn strip_uv(segment: &ScreenSegment, p: Vec2) -> Option<Vec2> {
     let ab = segment.b - segment.a;
     let length = ab.length();
-    if !(length.is_finite() && length > 0.0 && segment.half_width > 0.0) {
+    let valid = |x: f32| x.is_finite() && x > 0.0;
+    if !valid(length) || !valid(segment.half_width) {
         return None;
     }
     let d = ab / length;
@@ -164,23 +165,10 @@ pub fn coverage_mask_with(
     alpha: impl Fn(Vec2) -> f32,
     thresholds: [f32; 4],
 ) -> u8 {
-    let ab = segment.b - segment.a;
-    let length = ab.length();
-    let valid = |x: f32| x.is_finite() && x > 0.0;
-    if !valid(length) || !valid(segment.half_width) {
-        return 0;
-    }
-    let d = ab / length;
-    let n = Vec2::new(-d.y, d.x);
     let mut mask = 0u8;
     for (i, offset) in SAMPLE_POSITIONS_4X.iter().enumerate() {
-        let p = pixel.as_vec2() + *offset - segment.a;
-        let (s, t) = (p.dot(d), p.dot(n));
-        if s < 0.0 || s > length || t.abs() > segment.half_width {
-            continue;
-        }
-        let uv = Vec2::new(s / length, 0.5 + 0.5 * t / segment.half_width);
-        if alpha(uv) >= thresholds[i] {
+        if strip_uv(segment, pixel.as_vec2() + *offset).is_some_and(|uv| alpha(uv) >= thresholds[i])
+        {
             mask |= 1 << i;
         }
     }
