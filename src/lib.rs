@@ -4,14 +4,14 @@
 //! an SDF atlas and GPU object buffer, ray-marched soft shadows, distance-field ambient
 //! occlusion, a global SDF in camera-centred clipmaps — and the Samaritan demo's cinematic
 //! effects: deferred shading with 4× MSAA, scatter bokeh depth of field and screen-space
-//! subsurface scattering and billboard reflections (more are planned, see the README).
+//! subsurface scattering, billboard reflections and hair strips (more are planned, see the README).
 //!
 //! Add [`PenumbraPlugins`] after Bevy's `DefaultPlugins`, then tag entities, lights and
 //! cameras with Penumbra's components. A scene pays only for what it uses: features whose
 //! components are absent run no pass and upload nothing.
 //!
 //! The distance-field features are in [`df`] (`bevy_penumbra_df`), the cinematic ones in
-//! `cinematic` (`bevy_penumbra_cinematic`, features `dof`, `sss` and `reflections`); the shader library every
+//! `cinematic` (`bevy_penumbra_cinematic`, features `dof`, `sss`, `reflections` and `hair`); the shader library every
 //! feature's WGSL imports (`#import penumbra::…`) in [`shaders`]. See `ARCHITECTURE.md`.
 //!
 //! ```no_run
@@ -47,7 +47,12 @@
 use bevy::app::plugin_group;
 use bevy::prelude::*;
 
-#[cfg(any(feature = "dof", feature = "sss", feature = "reflections"))]
+#[cfg(any(
+    feature = "dof",
+    feature = "sss",
+    feature = "reflections",
+    feature = "hair"
+))]
 pub use bevy_penumbra_cinematic as cinematic;
 pub use bevy_penumbra_df as df;
 pub use penumbra_shaders as shaders;
@@ -75,6 +80,8 @@ plugin_group! {
         bevy_penumbra_cinematic::sss:::SubsurfaceScatteringPlugin,
         #[cfg(feature = "reflections")]
         bevy_penumbra_cinematic::reflections:::BillboardReflectionsPlugin,
+        #[cfg(feature = "hair")]
+        bevy_penumbra_cinematic::hair:::HairPlugin,
     }
 }
 
@@ -99,6 +106,8 @@ pub mod prelude {
     pub use bevy_penumbra_cinematic::{BillboardReflections, ReflectionBillboard};
     #[cfg(feature = "dof")]
     pub use bevy_penumbra_cinematic::{BokehAperture, BokehDepthOfField};
+    #[cfg(feature = "hair")]
+    pub use bevy_penumbra_cinematic::{Hair, HairCoverage, HairStrands};
     #[cfg(feature = "sss")]
     pub use bevy_penumbra_cinematic::{
         SubsurfaceProfile, SubsurfaceProfiles, SubsurfaceScattering,

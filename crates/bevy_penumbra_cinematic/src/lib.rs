@@ -7,15 +7,19 @@
 //!   [`SubsurfaceProfiles`]).
 //! - [`reflections`]: billboard reflections ([`BillboardReflections`] on cameras,
 //!   [`ReflectionBillboard`] on quads).
+//! - [`hair`]: hair and beards as camera-facing strips with an alpha test per MSAA
+//!   sample ([`Hair`] on entities, strands in [`HairStrands`]).
 //!
 //! The algorithms and their shared GPU layouts live in the Bevy-free
 //! `penumbra_cinematic_core`; their CPU reference models in `penumbra_reference`.
 
 pub mod dof;
+pub mod hair;
 pub mod reflections;
 pub mod sss;
 
 pub use dof::{BokehAperture, BokehDepthOfField, BokehDepthOfFieldPlugin};
+pub use hair::{Hair, HairCoverage, HairPlugin, HairStrands};
 pub use reflections::{
     BillboardReflections, BillboardReflectionsPlugin, ReflectionBillboard, ReflectionDebugView,
 };

@@ -123,6 +123,91 @@ pub fn parse_hair(text: &str) -> Result<Vec<Strand>, ParseError> {
     Ok(strands)
 }
 
+/// Strands from a mesh of ribbons, as artists author hair cards (Samaritan's pipeline: a
+/// glTF mesh of strips): each connected piece of the triangle list is one strand; its
+/// vertices are grouped into cross-sections by their `uv.y` (along the hair, root at the
+/// smallest), each section's centre is a point of the strand and its extent across a
+/// width (the strand takes their mean); the atlas slot is the piece's mean `uv.x` times
+/// `slots`. Pieces with fewer than two sections come back with fewer than two points,
+/// for [`check_strands`] to drop. Indices out of range are skipped.
+pub fn strands_from_ribbons(
+    positions: &[Vec3],
+    uvs: &[glam::Vec2],
+    indices: &[u32],
+    slots: u32,
+) -> Vec<Strand> {
+    let n = positions.len().min(uvs.len());
+    // Union-find over the vertices the triangles join.
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let mut used = vec![false; n];
+    for tri in indices.chunks_exact(3) {
+        let [a, b, c] = [tri[0] as usize, tri[1] as usize, tri[2] as usize];
+        if a >= n || b >= n || c >= n {
+            continue;
+        }
+        for (x, y) in [(a, b), (b, c)] {
+            let (rx, ry) = (root(&mut parent, x), root(&mut parent, y));
+            parent[rx.max(ry)] = rx.min(ry);
+        }
+        used[a] = true;
+        used[b] = true;
+        used[c] = true;
+    }
+    // Pieces in order of their first vertex (deterministic).
+    let mut pieces: Vec<Vec<usize>> = Vec::new();
+    let mut piece_of = std::collections::HashMap::new();
+    for i in (0..n).filter(|&i| used[i]) {
+        let r = root(&mut parent, i);
+        let k = *piece_of.entry(r).or_insert_with(|| {
+            pieces.push(Vec::new());
+            pieces.len() - 1
+        });
+        pieces[k].push(i);
+    }
+    pieces
+        .into_iter()
+        .map(|mut piece| {
+            piece.sort_by(|&a, &b| uvs[a].y.total_cmp(&uvs[b].y).then(a.cmp(&b)));
+            let mut points = Vec::new();
+            let mut widths = Vec::new();
+            let mut start = 0;
+            while start < piece.len() {
+                let v = uvs[piece[start]].y;
+                let end = start
+                    + piece[start..]
+                        .iter()
+                        .take_while(|&&i| (uvs[i].y - v).abs() <= 1e-5)
+                        .count();
+                let section = &piece[start..end];
+                let centre =
+                    section.iter().map(|&i| positions[i]).sum::<Vec3>() / section.len() as f32;
+                let mut width = 0.0f32;
+                for &a in section {
+                    for &b in section {
+                        width = width.max(positions[a].distance(positions[b]));
+                    }
+                }
+                points.push(centre);
+                widths.push(width);
+                start = end;
+            }
+            let u = piece.iter().map(|&i| uvs[i].x).sum::<f32>() / piece.len() as f32;
+            Strand {
+                points,
+                width: widths.iter().sum::<f32>() / widths.len().max(1) as f32,
+                slot: ((u * slots as f32).floor().max(0.0) as u32).min(slots.saturating_sub(1)),
+            }
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -150,6 +235,69 @@ mod tests {
             let e = parse_hair(bad).unwrap_err();
             assert_eq!(e.line, line, "{bad:?}: {e}");
         }
+    }
+
+    #[test]
+    fn ribbons_give_back_the_strands_they_were_built_from() {
+        // Two strands as ribbons (a vertex pair per point, ± half the width across), the
+        // second's vertices listed in reverse, with a lone triangle that has one section.
+        let strands = [
+            (
+                vec![
+                    Vec3::ZERO,
+                    Vec3::new(0.0, -0.1, 0.02),
+                    Vec3::new(0.0, -0.2, 0.05),
+                ],
+                0.004,
+                1,
+            ),
+            (
+                vec![Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.3)],
+                0.01,
+                3,
+            ),
+        ];
+        let (mut positions, mut uvs, mut indices) = (Vec::new(), Vec::new(), Vec::new());
+        for (s, (points, width, slot)) in strands.iter().enumerate() {
+            let base = positions.len() as u32;
+            let mut verts = Vec::new();
+            for (k, p) in points.iter().enumerate() {
+                let v = k as f32 / (points.len() - 1) as f32;
+                let u = (*slot as f32 + 0.5) / 4.0;
+                verts.push((*p - Vec3::X * width / 2.0, glam::Vec2::new(u - 0.1, v)));
+                verts.push((*p + Vec3::X * width / 2.0, glam::Vec2::new(u + 0.1, v)));
+            }
+            let order: Vec<usize> = if s == 1 {
+                (0..verts.len()).rev().collect()
+            } else {
+                (0..verts.len()).collect()
+            };
+            let index_of = |k: usize| base + order.iter().position(|&o| o == k).unwrap() as u32;
+            for &o in &order {
+                positions.push(verts[o].0);
+                uvs.push(verts[o].1);
+            }
+            for k in 0..points.len() - 1 {
+                let [a, b, c, d] = [2 * k, 2 * k + 1, 2 * k + 2, 2 * k + 3].map(index_of);
+                indices.extend([a, b, c, b, d, c]);
+            }
+        }
+        let base = positions.len() as u32;
+        positions.extend([Vec3::ZERO, Vec3::X, Vec3::Y]);
+        uvs.extend([glam::Vec2::ZERO; 3]);
+        indices.extend([base, base + 1, base + 2, 0, 1, 99]);
+        let found = strands_from_ribbons(&positions, &uvs, &indices, 4);
+        assert_eq!(found.len(), 3);
+        for (got, (points, width, slot)) in found.iter().zip(&strands) {
+            assert_eq!(got.slot, *slot);
+            assert!((got.width - width).abs() < 1e-6, "{} vs {width}", got.width);
+            assert_eq!(got.points.len(), points.len());
+            for (a, b) in got.points.iter().zip(points) {
+                assert!(a.distance(*b) < 1e-6, "{a} vs {b}");
+            }
+        }
+        let (kept, dropped) = check_strands(found);
+        assert_eq!((kept.len(), dropped.len()), (2, 1));
     }
 
     #[test]

@@ -1,0 +1,479 @@
+//! Hair and beards as camera-facing strips with an alpha test at every MSAA sample
+//! (Samaritan's "short hair / beard", Mittring and Dudash, GDC 2011; Lottes, "Alpha-Test
+//! and MSAA").
+//!
+//! # Technique
+//!
+//! A [`HairStrands`] asset holds strands: polylines with a width and a slot of the hair
+//! texture atlas. The plugin turns a [`Hair`] entity's strands into a strip mesh (two
+//! vertices per point, two triangles per segment) drawn with a forward material: the
+//! vertex shader moves each vertex across the strand's direction *on screen* by half its
+//! width in pixels, so every strip faces the camera (the light, in a shadow map). The
+//! fragment shader tests the strand's alpha — the atlas's alpha times the width fade —
+//! at each of the pixel's four MSAA samples, extrapolating the strip coordinates from
+//! the pixel centre by their derivatives, and writes the passing samples as the
+//! fragment's `sample_mask`: a supersampled alpha test shaded once per pixel. Each
+//! sample's threshold is a quarter `(k + ½)/4`, permuted per pixel, so an alpha of α keeps
+//! about `4α` samples. Strips write depth (prepass and main pass, the same mask: depth of
+//! field, fog and SSAO see the hair) and need no sorting. Shadows cast into Bevy's shadow
+//! maps with the same strips, facing the light.
+//!
+//! **Minimum width.** Strands narrower than [`MIN_WIDTH_PX`] (half a pixel, one sample
+//! spacing) are drawn at it with their alpha scaled by `width / MIN_WIDTH_PX`: the
+//! expected coverage stays the strand's area and thin strands thin out instead of
+//! breaking into dashes between samples.
+//!
+//! **Shading** is Kajiya-Kay's strand model with Scheuermann's two tangent-shifted
+//! specular lobes (the second tinted by the hair's colour): diffuse `colour · sin(T, L)/π`,
+//! lobes `strength · (n + 2)/2π · sin(T', H)ⁿ`, evaluated on the strand's centre line for
+//! every Bevy light (directional, point, spot) times its shadow map, plus Bevy's ambient
+//! light; exposure, fog and in-shader tonemapping as Bevy's forward materials do them.
+//!
+//! # Inputs
+//!
+//! - Strands from code ([`HairStrands::new`]), from a `.hair` file (the text format of
+//!   `penumbra_cinematic_core::hair::strands`: `penumbra-hair 1`, then one
+//!   `strand <width> <slot> <x y z>...` line per strand), or from a mesh of ribbons as
+//!   artists author hair cards, e.g. a glTF mesh ([`HairStrands::from_ribbon_mesh`]).
+//! - Attach hair to a rigid part by parenting the [`Hair`] entity to it; to a skinned
+//!   mesh by binding the strands to its skin ([`HairStrands::bind_to_skin`]: each strand
+//!   follows its root's nearest vertex's joints) and giving the [`Hair`] entity the mesh's
+//!   `SkinnedMesh`.
+//! - Bad strands (fewer than two points, non-finite points, widths not positive and
+//!   finite) are skipped with one warning per asset; an atlas that fails to load is
+//!   dropped with one warning (the hair is drawn untextured).
+//!
+//! # Limits
+//!
+//! - Without MSAA (`Msaa::Off`) the test is per pixel against a dithered threshold (one
+//!   warning per camera): hair aliases and shimmers as any alpha test does.
+//! - Distance-field shadows do not reach hair: lights shadow it with their shadow maps,
+//!   which a light with `DistanceFieldShadows` keeps while hair is in view.
+//! - Widths scale with the entity's transform assuming a uniform scale; strips are flat
+//!   (no thickness in depth), lit on their centre line; no self-shadowing beyond the
+//!   shadow maps' resolution, no multiple scattering (Marschner's TRT/TT are not modelled).
+
+mod material;
+mod mesh;
+
+pub use material::{
+    ATTRIBUTE_HAIR_STRIP, ATTRIBUTE_HAIR_TANGENT, HAIR_FLAG_ATLAS, HAIR_FLAG_DEBUG_COVERAGE,
+    HairMaterial, HairParams,
+};
+pub use mesh::{StrandJoints, joints_from_skin, strip_mesh};
+pub use penumbra_cinematic_core::hair::MIN_WIDTH_PX;
+pub use penumbra_cinematic_core::hair::strands::{Strand, StrandProblem};
+
+use bevy::asset::io::Reader;
+use bevy::asset::{AssetLoader, LoadContext, LoadState};
+use bevy::mesh::VertexAttributeValues;
+use bevy::platform::collections::HashSet;
+use bevy::prelude::*;
+use penumbra_cinematic_core::hair::strands::{check_strands, parse_hair, strands_from_ribbons};
+
+/// Strands of hair: polylines with a width and an atlas slot, in the hair entity's space.
+#[derive(Asset, TypePath, Clone, Debug, Default)]
+pub struct HairStrands {
+    /// The strands, root first.
+    pub strands: Vec<Strand>,
+    /// Each strand's skin joints ([`HairStrands::bind_to_skin`]).
+    pub joints: Option<StrandJoints>,
+}
+
+/// Why a mesh of ribbons gave no strands.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum HairMeshError {
+    /// The mesh has no `Float32x3` positions.
+    NoPositions,
+    /// The mesh has no `Float32x2` UVs (along the hair: `uv.y`).
+    NoUvs,
+    /// The mesh is not an indexed triangle list.
+    NotTriangles,
+}
+
+impl std::fmt::Display for HairMeshError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::NoPositions => "the hair mesh has no positions",
+            Self::NoUvs => "the hair mesh has no UVs (uv.y runs along each strip)",
+            Self::NotTriangles => "the hair mesh is not an indexed triangle list",
+        })
+    }
+}
+
+impl std::error::Error for HairMeshError {}
+
+impl HairStrands {
+    /// Strands built in code.
+    pub fn new(strands: Vec<Strand>) -> Self {
+        Self {
+            strands,
+            joints: None,
+        }
+    }
+
+    /// Strands from a mesh of ribbons (hair cards, e.g. loaded from glTF): each connected
+    /// piece is a strand, its cross-sections the vertices of equal `uv.y` (root at the
+    /// smallest), its width their mean extent, its slot `⌊mean uv.x · slots⌋`.
+    pub fn from_ribbon_mesh(mesh: &Mesh, slots: u32) -> Result<Self, HairMeshError> {
+        let Some(VertexAttributeValues::Float32x3(positions)) =
+            mesh.attribute(Mesh::ATTRIBUTE_POSITION)
+        else {
+            return Err(HairMeshError::NoPositions);
+        };
+        let Some(VertexAttributeValues::Float32x2(uvs)) = mesh.attribute(Mesh::ATTRIBUTE_UV_0)
+        else {
+            return Err(HairMeshError::NoUvs);
+        };
+        let (Some(indices), bevy::mesh::PrimitiveTopology::TriangleList) =
+            (mesh.indices(), mesh.primitive_topology())
+        else {
+            return Err(HairMeshError::NotTriangles);
+        };
+        let positions: Vec<Vec3> = positions.iter().map(|p| Vec3::from_array(*p)).collect();
+        let uvs: Vec<Vec2> = uvs.iter().map(|p| Vec2::from_array(*p)).collect();
+        let indices: Vec<u32> = indices.iter().map(|i| i as u32).collect();
+        Ok(Self::new(strands_from_ribbons(
+            &positions, &uvs, &indices, slots,
+        )))
+    }
+
+    /// Binds each strand to the joints of the nearest vertex of `skin` to its root (a
+    /// skinned mesh in the hair's space); `false` when `skin` has no positions, joint
+    /// indices (`Uint16x4`) and weights.
+    pub fn bind_to_skin(&mut self, skin: &Mesh) -> bool {
+        self.joints = joints_from_skin(&self.strands, skin);
+        self.joints.is_some()
+    }
+
+    /// The number of triangles drawn (two per segment of every drawable strand).
+    pub fn triangle_count(&self) -> usize {
+        self.strands
+            .iter()
+            .map(|s| 2 * s.points.len().saturating_sub(1))
+            .sum()
+    }
+}
+
+/// Loads `.hair` files.
+#[derive(Default, TypePath)]
+pub struct HairStrandsLoader;
+
+/// Why a `.hair` file failed to load.
+#[derive(Debug)]
+pub enum HairLoadError {
+    /// Reading failed.
+    Io(std::io::Error),
+    /// Not UTF-8.
+    NotText,
+    /// A malformed line.
+    Parse(penumbra_cinematic_core::hair::strands::ParseError),
+}
+
+impl std::fmt::Display for HairLoadError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Io(e) => write!(f, "reading the hair file: {e}"),
+            Self::NotText => f.write_str("the hair file is not UTF-8 text"),
+            Self::Parse(e) => write!(f, "hair file {e}"),
+        }
+    }
+}
+
+impl std::error::Error for HairLoadError {}
+
+impl AssetLoader for HairStrandsLoader {
+    type Asset = HairStrands;
+    type Settings = ();
+    type Error = HairLoadError;
+
+    async fn load(
+        &self,
+        reader: &mut dyn Reader,
+        _settings: &(),
+        _load_context: &mut LoadContext<'_>,
+    ) -> Result<HairStrands, HairLoadError> {
+        let mut bytes = Vec::new();
+        reader
+            .read_to_end(&mut bytes)
+            .await
+            .map_err(HairLoadError::Io)?;
+        let text = String::from_utf8(bytes).map_err(|_| HairLoadError::NotText)?;
+        Ok(HairStrands::new(
+            parse_hair(&text).map_err(HairLoadError::Parse)?,
+        ))
+    }
+
+    fn extensions(&self) -> &[&str] {
+        &["hair"]
+    }
+}
+
+/// How a strip's coverage of a pixel's samples is decided. The default is the point of
+/// the technique; the others exist to measure it against (`tests/hair_*.rs`).
+#[derive(Reflect, Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[reflect(Clone, Default, PartialEq)]
+#[repr(u8)]
+pub enum HairCoverage {
+    /// The alpha tested at each of the four samples, written as the sample mask; shaded
+    /// once per pixel.
+    #[default]
+    PerSample,
+    /// Shaded and tested once per sample (`@interpolate(sample)`): the same coverage at
+    /// up to four times the shading.
+    SampleShading,
+    /// The centre's alpha turned into samples by the GPU's alpha-to-coverage.
+    AlphaToCoverage,
+    /// The centre's alpha tested against 0.5 (the geometry's samples kept or dropped
+    /// together): aliases and loses sub-pixel strands.
+    PerPixel,
+}
+
+/// Draws an entity's hair: [`HairStrands`] as camera-facing strips, shaded as hair.
+/// Needs the [`HairPlugin`]; the strands are in the entity's space (parent it to a bone,
+/// or give it a `SkinnedMesh` with strands bound by [`HairStrands::bind_to_skin`]).
+#[derive(Component, Reflect, Clone, Debug)]
+#[reflect(Component, Clone, Default)]
+#[require(Transform, Visibility)]
+pub struct Hair {
+    /// The strands.
+    pub strands: Handle<HairStrands>,
+    /// Multiplies every strand's width. Default 1.
+    pub width_scale: f32,
+    /// The atlas of individual hairs: [`Hair::atlas_slots`] columns, each one hair with
+    /// its root at the top; alpha is the hair's coverage across it, colour tints it.
+    /// Linear filtering; leave transparent texels between columns. Default none (a
+    /// solid strip).
+    pub atlas: Option<Handle<Image>>,
+    /// Columns of the atlas. Default 1.
+    pub atlas_slots: u32,
+    /// Colour at the root (linear albedo). Default a dark brown.
+    pub root_color: Color,
+    /// Colour at the tip. Default a lighter brown.
+    pub tip_color: Color,
+    /// Primary (white) highlight's strength (0–1). Default 0.2.
+    pub specular: f32,
+    /// Primary highlight's Kajiya-Kay exponent (sharper when larger). Default 80.
+    pub specular_exponent: f32,
+    /// Secondary (tinted) highlight's strength. Default 0.3.
+    pub secondary_specular: f32,
+    /// Secondary highlight's exponent. Default 12.
+    pub secondary_exponent: f32,
+    /// Primary highlight's shift along the strand towards the tip, as a tangent tilt
+    /// (cuticle scales; Scheuermann: about −0.1…0.1). Default 0.05.
+    pub primary_shift: f32,
+    /// Secondary highlight's shift. Default −0.1.
+    pub secondary_shift: f32,
+    /// How coverage is decided. Default [`HairCoverage::PerSample`]. Costs, lavapipe
+    /// 512² (`tests/hair_cost.rs`): see the crate's CHANGELOG entry.
+    pub coverage: HairCoverage,
+    /// Draws coverage only (white, unlit): the debug and contract view.
+    pub debug_coverage: bool,
+}
+
+impl Default for Hair {
+    fn default() -> Self {
+        Self {
+            strands: Handle::default(),
+            width_scale: 1.0,
+            atlas: None,
+            atlas_slots: 1,
+            root_color: Color::linear_rgb(0.05, 0.025, 0.012),
+            tip_color: Color::linear_rgb(0.16, 0.09, 0.05),
+            specular: 0.2,
+            specular_exponent: 80.0,
+            secondary_specular: 0.3,
+            secondary_exponent: 12.0,
+            primary_shift: 0.05,
+            secondary_shift: -0.1,
+            coverage: HairCoverage::PerSample,
+            debug_coverage: false,
+        }
+    }
+}
+
+impl Hair {
+    /// The material parameters (atlas flag as given).
+    fn params(&self, atlas: bool) -> HairParams {
+        let c = |c: Color| c.to_linear().to_vec4();
+        let finite = |x: f32, d: f32| if x.is_finite() { x } else { d };
+        HairParams {
+            root_color: c(self.root_color),
+            tip_color: c(self.tip_color),
+            specular: Vec4::new(
+                finite(self.specular, 0.0).max(0.0),
+                finite(self.specular_exponent, 1.0).max(1.0),
+                finite(self.secondary_specular, 0.0).max(0.0),
+                finite(self.secondary_exponent, 1.0).max(1.0),
+            ),
+            primary_shift: finite(self.primary_shift, 0.0),
+            secondary_shift: finite(self.secondary_shift, 0.0),
+            width_scale: finite(self.width_scale, 1.0).max(0.0),
+            atlas_slots: self.atlas_slots.max(1),
+            flags: if atlas { HAIR_FLAG_ATLAS } else { 0 }
+                | if self.debug_coverage {
+                    HAIR_FLAG_DEBUG_COVERAGE
+                } else {
+                    0
+                },
+        }
+    }
+}
+
+/// Adds [`Hair`]: the strands asset and its `.hair` loader, the material and the
+/// systems that keep each entity's strip mesh and material up to date. No [`Hair`]
+/// entity: no mesh, no pipeline, no draw.
+#[derive(Default)]
+pub struct HairPlugin;
+
+impl Plugin for HairPlugin {
+    fn build(&self, app: &mut App) {
+        bevy_penumbra_df::register_shader_library(app);
+        app.register_type::<Hair>()
+            .init_asset::<HairStrands>()
+            .init_asset_loader::<HairStrandsLoader>()
+            .add_systems(
+                PostUpdate,
+                (build_hair, warn_hair_without_msaa).after(bevy::asset::AssetEventSystems),
+            );
+        if app.get_sub_app(bevy::render::RenderApp).is_none() {
+            return;
+        }
+        if let Some(mut shaders) = app.world_mut().get_resource_mut::<Assets<Shader>>() {
+            for (handle, path) in [
+                (material::DRAW_SHADER, "hair/draw.wgsl"),
+                (material::PREPASS_SHADER, "hair/prepass.wgsl"),
+            ] {
+                let source = penumbra_shaders::SHADERS
+                    .iter()
+                    .find(|s| s.path == path)
+                    .expect("the hair shaders are in the library")
+                    .source;
+                let _ = shaders.insert(
+                    handle.id(),
+                    Shader::from_wgsl(source, format!("penumbra/{path}")),
+                );
+            }
+        }
+        app.add_plugins(MaterialPlugin::<HairMaterial>::default());
+    }
+}
+
+/// What the plugin made for a [`Hair`] entity.
+#[derive(Component, Debug)]
+pub struct HairBuilt {
+    strands: AssetId<HairStrands>,
+    material: Handle<HairMaterial>,
+    atlas_failed: bool,
+}
+
+/// Builds a [`Hair`] entity's strip mesh when it or its strands change (skipping bad
+/// strands with one warning per asset version), and keeps its material in step.
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+fn build_hair(
+    mut commands: Commands,
+    mut hairs: Query<(Entity, Ref<Hair>, Option<&mut HairBuilt>)>,
+    mut events: MessageReader<AssetEvent<HairStrands>>,
+    strands: Res<Assets<HairStrands>>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<HairMaterial>>,
+    asset_server: Res<AssetServer>,
+) {
+    let changed: HashSet<AssetId<HairStrands>> = events
+        .read()
+        .filter_map(|e| match e {
+            AssetEvent::Added { id } | AssetEvent::Modified { id } => Some(*id),
+            _ => None,
+        })
+        .collect();
+    for (entity, hair, built) in &mut hairs {
+        let id = hair.strands.id();
+        let atlas_failed = hair
+            .atlas
+            .as_ref()
+            .is_some_and(|a| matches!(asset_server.get_load_state(a), Some(LoadState::Failed(_))));
+        let stale = built.as_ref().is_none_or(|b| b.strands != id) || changed.contains(&id);
+        if stale {
+            let Some(asset) = strands.get(id) else {
+                continue;
+            };
+            let (kept, dropped) = check_strands(asset.strands.clone());
+            if let Some((index, problem)) = dropped.first() {
+                warn!(
+                    "Penumbra: hair on {entity}: {} of {} strands skipped (strand {index}: {problem:?}{})",
+                    dropped.len(),
+                    asset.strands.len(),
+                    if dropped.len() > 1 { ", …" } else { "" }
+                );
+            }
+            let joints = asset.joints.as_ref().map(|joints| {
+                let skipped: HashSet<usize> = dropped.iter().map(|(i, _)| *i).collect();
+                joints
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| !skipped.contains(i))
+                    .map(|(_, j)| *j)
+                    .collect::<StrandJoints>()
+            });
+            let Some(mesh) = strip_mesh(&kept, joints.as_ref()) else {
+                warn!("Penumbra: hair on {entity} has no drawable strand; nothing is drawn");
+                commands.entity(entity).remove::<Mesh3d>();
+                commands.entity(entity).insert(HairBuilt {
+                    strands: id,
+                    material: Handle::default(),
+                    atlas_failed,
+                });
+                continue;
+            };
+            let material = materials.add(material_of(&hair, atlas_failed));
+            commands.entity(entity).insert((
+                Mesh3d(meshes.add(mesh)),
+                MeshMaterial3d(material.clone()),
+                HairBuilt {
+                    strands: id,
+                    material,
+                    atlas_failed,
+                },
+            ));
+            continue;
+        }
+        let Some(mut built) = built else { continue };
+        if atlas_failed && !built.atlas_failed {
+            warn!("Penumbra: hair on {entity}: its atlas failed to load; drawn without it");
+        }
+        if hair.is_changed() || atlas_failed != built.atlas_failed {
+            if let Some(mut material) = materials.get_mut(&built.material) {
+                *material = material_of(&hair, atlas_failed);
+            }
+            built.atlas_failed = atlas_failed;
+        }
+    }
+}
+
+fn material_of(hair: &Hair, atlas_failed: bool) -> HairMaterial {
+    let atlas = hair.atlas.clone().filter(|_| !atlas_failed);
+    HairMaterial {
+        params: hair.params(atlas.is_some()),
+        atlas,
+        coverage: hair.coverage,
+    }
+}
+
+/// One warning per camera without MSAA while hair exists: the per-pixel fallback.
+fn warn_hair_without_msaa(
+    hairs: Query<(), With<Hair>>,
+    cameras: Query<(Entity, &Msaa), With<Camera3d>>,
+    mut warned: Local<HashSet<Entity>>,
+) {
+    if hairs.is_empty() {
+        return;
+    }
+    for (camera, msaa) in &cameras {
+        if *msaa == Msaa::Off && warned.insert(camera) {
+            warn!(
+                "Penumbra: camera {camera} has MSAA off: hair falls back to a per-pixel alpha test \
+                 (aliased; no alpha-to-coverage). Use Msaa::Sample4 for anti-aliased hair."
+            );
+        }
+    }
+}

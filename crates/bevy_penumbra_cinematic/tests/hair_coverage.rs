@@ -1,0 +1,251 @@
+//! Hair strips' coverage on lavapipe against the CPU model
+//! (`penumbra_cinematic_core::hair`), under 4× MSAA with an orthographic camera of one
+//! world unit per pixel: straight strands of known width, angle and sub-pixel offset,
+//! one per 16 × 16 cell, drawn white (`Hair::debug_coverage`), so a pixel's resolved
+//! value is its covered samples' share.
+//!
+//! - Contract: with an atlas whose alpha falls off across the hair, every pixel's count
+//!   of covered samples equals the model's (`coverage_mask`: the strip's rectangle, the
+//!   atlas's bilinear alpha times the width fade, tested at the standard 4× positions
+//!   against the per-pixel permuted thresholds). The same model with the alpha tested at
+//!   other positions (the pattern mirrored) disagrees on many samples: a shader whose
+//!   sample positions are wrong fails.
+//! - Against the truth: without an atlas, each strand's summed coverage over its cell
+//!   divided by its length is its width (the exact area is width × length).
+
+use bevy::camera::{Hdr, ScalingMode};
+use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::prelude::*;
+use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+use bevy_penumbra_cinematic::hair::{Hair, HairPlugin, HairStrands, Strand};
+use penumbra_cinematic_core::hair::{
+    SAMPLE_POSITIONS_4X, ScreenSegment, clamp_width, sample_thresholds, strip_uv,
+};
+use penumbra_test::{CaptureFormat, HeadlessRender, gpu_or_skip};
+
+const WIDTH: u32 = 128;
+const HEIGHT: u32 = 64;
+const CELL: i32 = 16;
+/// The atlas: one hair, `ATLAS_W` texels across, 4 along.
+const ATLAS_W: usize = 16;
+
+/// The atlas's alpha across the hair (texel i of `ATLAS_W`): a rounded bump, opaque in
+/// the middle, clear at the edges.
+fn atlas_alpha(i: usize) -> u8 {
+    let x = (i as f32 + 0.5) / ATLAS_W as f32 * 2.0 - 1.0;
+    ((1.0 - x * x).max(0.0).sqrt() * 255.0).round() as u8
+}
+
+/// Bilinear alpha of the atlas at strip point `uv` (clamp to edge; the atlas is constant
+/// along the hair).
+fn atlas_sample(uv: Vec2) -> f32 {
+    let x = uv.y.clamp(0.0, 1.0) * ATLAS_W as f32 - 0.5;
+    let i = x.floor();
+    let t = x - i;
+    let at = |k: f32| atlas_alpha(k.clamp(0.0, ATLAS_W as f32 - 1.0) as usize) as f32 / 255.0;
+    at(i) * (1.0 - t) + at(i + 1.0) * t
+}
+
+/// The strands of cell `k` of a half: a segment through the cell's centre (plus a
+/// sub-pixel offset), at an angle and width that vary over the cells. Pixel coordinates
+/// (y down) and the width in pixels.
+fn cell_segment(k: i32, x0: i32) -> (Vec2, Vec2, f32) {
+    let (cx, cy) = (k % 4, k / 4);
+    let centre = Vec2::new(
+        (x0 + cx * CELL) as f32 + 8.0 + 0.37 * k as f32 % 1.0,
+        (cy * CELL) as f32 + 8.0 + 0.61 * k as f32 % 1.0,
+    );
+    let angle = 0.23 + k as f32 * 0.41;
+    let widths = [0.15, 0.3, 0.45, 0.7, 1.0, 1.4, 2.1, 3.3];
+    let d = Vec2::new(angle.cos(), angle.sin()) * 5.0;
+    (centre - d, centre + d, widths[k as usize % widths.len()])
+}
+
+fn to_world(p: Vec2) -> Vec3 {
+    Vec3::new(p.x, HEIGHT as f32 - p.y, 0.0)
+}
+
+fn strands(x0: i32) -> Vec<Strand> {
+    (0..16)
+        .map(|k| {
+            let (a, b, w) = cell_segment(k, x0);
+            Strand {
+                points: vec![to_world(a), to_world(b)],
+                width: w,
+                slot: 0,
+            }
+        })
+        .collect()
+}
+
+fn scene(
+    mut commands: Commands,
+    mut images: ResMut<Assets<Image>>,
+    mut strand_assets: ResMut<Assets<HairStrands>>,
+) {
+    let mut texels = Vec::new();
+    for _ in 0..4 {
+        for i in 0..ATLAS_W {
+            texels.extend([255, 255, 255, atlas_alpha(i)]);
+        }
+    }
+    let atlas = images.add(Image::new(
+        Extent3d {
+            width: ATLAS_W as u32,
+            height: 4,
+            depth_or_array_layers: 1,
+        },
+        TextureDimension::D2,
+        texels,
+        TextureFormat::Rgba8Unorm,
+        bevy::asset::RenderAssetUsages::RENDER_WORLD,
+    ));
+    commands.spawn(Hair {
+        strands: strand_assets.add(HairStrands::new(strands(0))),
+        atlas: Some(atlas),
+        debug_coverage: true,
+        ..default()
+    });
+    commands.spawn(Hair {
+        strands: strand_assets.add(HairStrands::new(strands(64))),
+        debug_coverage: true,
+        ..default()
+    });
+    commands.spawn((
+        Camera3d::default(),
+        Hdr,
+        Tonemapping::None,
+        Msaa::Sample4,
+        Camera {
+            clear_color: ClearColorConfig::Custom(Color::BLACK),
+            ..default()
+        },
+        Projection::Orthographic(OrthographicProjection {
+            scaling_mode: ScalingMode::Fixed {
+                width: WIDTH as f32,
+                height: HEIGHT as f32,
+            },
+            ..OrthographicProjection::default_3d()
+        }),
+        Transform::from_xyz(WIDTH as f32 / 2.0, HEIGHT as f32 / 2.0, 10.0).looking_at(
+            Vec3::new(WIDTH as f32 / 2.0, HEIGHT as f32 / 2.0, 0.0),
+            Vec3::Y,
+        ),
+    ));
+}
+
+/// The model's count of covered samples at `pixel`, the alpha tested at `positions`
+/// (the geometry always at the standard ones: the rasterizer's).
+fn model_count(
+    segment: &ScreenSegment,
+    fade: f32,
+    atlas: bool,
+    pixel: IVec2,
+    positions: [Vec2; 4],
+) -> u32 {
+    let thresholds = sample_thresholds(pixel);
+    let alpha = |uv: Vec2| if atlas { atlas_sample(uv) * fade } else { fade };
+    (0..4)
+        .filter(|&i| {
+            let inside = strip_uv(segment, pixel.as_vec2() + SAMPLE_POSITIONS_4X[i]).is_some();
+            // The shader extrapolates the coordinates to the sample: affine, so the
+            // (unclamped) strip coordinates at the position, valid outside the strip.
+            let p = pixel.as_vec2() + positions[i];
+            let ab = segment.b - segment.a;
+            let d = ab / ab.length();
+            let n = Vec2::new(-d.y, d.x);
+            let q = p - segment.a;
+            let uv = Vec2::new(
+                q.dot(d) / ab.length(),
+                0.5 + 0.5 * q.dot(n) / segment.half_width,
+            );
+            inside && alpha(uv) >= thresholds[i]
+        })
+        .count() as u32
+}
+
+#[test]
+fn strips_cover_the_samples_the_model_covers() {
+    if !gpu_or_skip("strips_cover_the_samples_the_model_covers") {
+        return;
+    }
+    let harness = HeadlessRender::new(WIDTH, HEIGHT)
+        .format(CaptureFormat::LinearF16)
+        .frames(4);
+    let mut app = harness.app();
+    app.add_plugins(HairPlugin).add_systems(Startup, scene);
+    let capture = harness.run(app).expect("renders");
+    let gpu = capture.to_linear();
+    save(&gpu);
+    let count = |p: IVec2| (gpu[(p.y * WIDTH as i32 + p.x) as usize][0] * 4.0).round() as u32;
+
+    let mirrored = SAMPLE_POSITIONS_4X.map(|p| Vec2::new(1.0 - p.x, p.y));
+    let (mut covered, mut differ, mut differ_mutated) = (0u32, 0u32, 0u32);
+    let mut width_errors = Vec::new();
+    for half in [0, 64] {
+        let atlas = half == 0;
+        for k in 0..16 {
+            let (a, b, w) = cell_segment(k, half);
+            let (drawn, fade) = clamp_width(w);
+            let segment = ScreenSegment {
+                a,
+                b,
+                half_width: drawn / 2.0,
+            };
+            let (cx, cy) = (half + (k % 4) * CELL, (k / 4) * CELL);
+            let mut sum = 0.0;
+            for y in cy..cy + CELL {
+                for x in cx..cx + CELL {
+                    let p = IVec2::new(x, y);
+                    let g = count(p);
+                    let m = model_count(&segment, fade, atlas, p, SAMPLE_POSITIONS_4X);
+                    let mm = model_count(&segment, fade, atlas, p, mirrored);
+                    covered += m;
+                    differ += g.abs_diff(m);
+                    differ_mutated += g.abs_diff(mm);
+                    sum += g as f32 / 4.0;
+                }
+            }
+            if !atlas {
+                width_errors.push(sum / a.distance(b) - w);
+            }
+        }
+    }
+    let mean_width_error =
+        width_errors.iter().map(|e| e.abs()).sum::<f32>() / width_errors.len() as f32;
+    println!(
+        "{covered} samples covered by the model; GPU differs on {differ} ({:.2} %); \
+         with the alpha tested at mirrored positions, on {differ_mutated} ({:.2} %)",
+        100.0 * differ as f32 / covered as f32,
+        100.0 * differ_mutated as f32 / covered as f32
+    );
+    println!(
+        "solid strands' width from the GPU's coverage: mean |error| {mean_width_error:.3} px, {width_errors:.3?}"
+    );
+    assert!(covered > 1000, "{covered}");
+    assert!(
+        differ * 200 < covered,
+        "{differ} of {covered} samples differ"
+    );
+    assert!(
+        differ_mutated * 20 > covered,
+        "the mutation is not seen: {differ_mutated}"
+    );
+    assert!(mean_width_error < 0.125, "{mean_width_error}");
+}
+
+fn save(image: &[[f32; 4]]) {
+    let dir = penumbra_test::output_dir();
+    std::fs::create_dir_all(&dir).unwrap();
+    let bytes: Vec<u8> = image
+        .iter()
+        .flat_map(|p| {
+            let v = (p[0].clamp(0.0, 1.0) * 255.0) as u8;
+            [v, v, v, 255]
+        })
+        .collect();
+    penumbra_test::image::RgbaImage::from_raw(WIDTH, HEIGHT, bytes)
+        .unwrap()
+        .save(dir.join("hair_coverage.png"))
+        .unwrap();
+}

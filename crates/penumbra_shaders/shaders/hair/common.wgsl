@@ -1,0 +1,212 @@
+// Hair strips (`bevy_penumbra_cinematic::hair`): what the main pass (`hair/draw.wgsl`)
+// and the prepass / shadow pass (`hair/prepass.wgsl`) share — the material's bindings,
+// the camera-facing expansion of a strand's centre line in screen space, the minimum
+// width with its alpha fade, and the coverage of a pixel's four samples with an alpha
+// test at each. The CPU model is `penumbra_cinematic_core::hair` (same sample positions,
+// same thresholds, same strip coordinates).
+
+#define_import_path penumbra::hair::common
+
+#import bevy_pbr::{
+    mesh_functions,
+    skinning,
+    mesh_view_bindings::view,
+    view_transformations::position_world_to_clip,
+}
+
+struct HairParams {
+    // Linear RGB at the root and at the tip (alpha unused).
+    root_color: vec4<f32>,
+    tip_color: vec4<f32>,
+    // Primary lobe: strength, exponent; secondary lobe (tinted by the hair): strength, exponent.
+    specular: vec4<f32>,
+    // Tangent shifts of the two lobes (Scheuermann), and the width scale.
+    primary_shift: f32,
+    secondary_shift: f32,
+    width_scale: f32,
+    atlas_slots: u32,
+    flags: u32,
+}
+
+const HAIR_FLAG_ATLAS: u32 = 1u;
+const HAIR_FLAG_DEBUG_COVERAGE: u32 = 2u;
+
+@group(#{MATERIAL_BIND_GROUP}) @binding(0) var<uniform> hair: HairParams;
+@group(#{MATERIAL_BIND_GROUP}) @binding(1) var hair_atlas: texture_2d<f32>;
+@group(#{MATERIAL_BIND_GROUP}) @binding(2) var hair_sampler: sampler;
+
+// The narrowest strand drawn, pixels (`hair::MIN_WIDTH_PX`).
+const MIN_WIDTH_PX: f32 = 0.5;
+
+// The standard 4× pattern (`hair::SAMPLE_POSITIONS_4X`), relative to the pixel's centre.
+const SAMPLE_OFFSETS: array<vec2<f32>, 4> = array<vec2<f32>, 4>(
+    vec2<f32>(-0.125, -0.375),
+    vec2<f32>(0.375, -0.125),
+    vec2<f32>(-0.375, 0.125),
+    vec2<f32>(0.125, 0.375),
+);
+
+struct HairVertex {
+    @builtin(instance_index) instance_index: u32,
+    // A point of the strand's centre line, hair space.
+    @location(0) position: vec3<f32>,
+    // The strand's direction there.
+    @location(1) tangent: vec3<f32>,
+    // Side (−1, +1), u along the strand (0 root, 1 tip), width (metres), atlas slot.
+    @location(2) strip: vec4<f32>,
+#ifdef SKINNED
+    @location(3) joint_indices: vec4<u32>,
+    @location(4) joint_weights: vec4<f32>,
+#endif
+}
+
+struct HairVaryings {
+    @builtin(position) position: vec4<f32>,
+    // The centre line's point (lighting and shadows are evaluated on it).
+    @location(0) world_position: vec4<f32>,
+    @location(1) world_tangent: vec3<f32>,
+    // u along the strand, v across (0 and 1 at the edges).
+#ifdef HAIR_SAMPLE_SHADING
+    @location(2) @interpolate(perspective, sample) uv: vec2<f32>,
+#else
+    @location(2) uv: vec2<f32>,
+#endif
+    // The alpha fade of strands narrower than the minimum width.
+    @location(3) fade: f32,
+    @location(4) @interpolate(flat) slot: u32,
+#ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
+    @location(5) unclipped_depth: f32,
+#endif
+#ifdef MOTION_VECTOR_PREPASS
+    @location(6) previous_world_position: vec4<f32>,
+#endif
+}
+
+fn hair_world_from_local(vertex: HairVertex) -> mat4x4<f32> {
+#ifdef SKINNED
+    return skinning::skin_model(vertex.joint_indices, vertex.joint_weights, vertex.instance_index);
+#else
+    return mesh_functions::get_world_from_local(vertex.instance_index);
+#endif
+}
+
+// A strand's drawn width (pixels) and alpha fade (`hair::clamp_width`).
+fn clamp_width(width_px: f32) -> vec2<f32> {
+    if !(width_px > 0.0) {
+        return vec2(MIN_WIDTH_PX, 0.0);
+    }
+    if width_px < MIN_WIDTH_PX {
+        return vec2(MIN_WIDTH_PX, width_px / MIN_WIDTH_PX);
+    }
+    return vec2(width_px, 1.0);
+}
+
+// The strand's direction on screen at a clip-space point (pixels, y down): the
+// derivative of the projected point along the world tangent.
+fn screen_direction(clip: vec4<f32>, world_tangent: vec3<f32>, half_size: vec2<f32>) -> vec2<f32> {
+    let clip_t = view.clip_from_world * vec4(world_tangent, 0.0);
+    let along = (clip_t.xy * clip.w - clip.xy * clip_t.w) * half_size * vec2(1.0, -1.0);
+    if !(dot(along, along) > 0.0) {
+        return vec2(1.0, 0.0);
+    }
+    return normalize(along);
+}
+
+// The vertex on the strip's edge: the centre line's point moved across the strand's
+// screen direction by half the drawn width (pixels), so the strip faces the camera.
+fn hair_vertex(vertex: HairVertex) -> HairVaryings {
+    var out: HairVaryings;
+    let world_from_local = hair_world_from_local(vertex);
+    out.world_position = world_from_local * vec4(vertex.position, 1.0);
+    let tangent = (world_from_local * vec4(vertex.tangent, 0.0)).xyz;
+    out.world_tangent = tangent / max(length(tangent), 1e-20);
+    // Widths scale with the transform (uniform scale assumed: its x axis).
+    let scale = length(world_from_local[0].xyz);
+    let clip = position_world_to_clip(out.world_position.xyz);
+    let half_size = 0.5 * view.viewport.zw;
+    let width_px = vertex.strip.z * hair.width_scale * scale * view.clip_from_view[1][1] * half_size.y / clip.w;
+    let drawn = clamp_width(width_px);
+    let d = screen_direction(clip, out.world_tangent, half_size);
+    let offset_px = vec2(-d.y, d.x) * (0.5 * drawn.x * vertex.strip.x);
+    out.position = clip + vec4(offset_px / half_size * vec2(1.0, -1.0) * clip.w, 0.0, 0.0);
+    out.uv = vec2(vertex.strip.y, 0.5 + 0.5 * vertex.strip.x);
+    out.fade = drawn.y;
+    out.slot = u32(max(vertex.strip.w, 0.0));
+#ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
+    out.unclipped_depth = out.position.z;
+    out.position.z = min(out.position.z, 1.0);
+#endif
+#ifdef MOTION_VECTOR_PREPASS
+    out.previous_world_position = mesh_functions::get_previous_world_from_local(vertex.instance_index)
+        * vec4(vertex.position, 1.0);
+#endif
+    return out;
+}
+
+// The atlas texel of a strip point: slot `slot`'s column, across the hair (v) along x,
+// along it (u) down y.
+fn atlas_coordinates(uv: vec2<f32>, slot: u32) -> vec2<f32> {
+    return vec2((f32(slot) + clamp(uv.y, 0.0, 1.0)) / f32(max(hair.atlas_slots, 1u)), uv.x);
+}
+
+// The strand's alpha at strip point `uv` (the atlas's alpha, if any, times the fade).
+fn strand_alpha(uv: vec2<f32>, slot: u32, fade: f32, ddx: vec2<f32>, ddy: vec2<f32>) -> f32 {
+    if (hair.flags & HAIR_FLAG_ATLAS) == 0u {
+        return fade;
+    }
+    let s = vec2(1.0 / f32(max(hair.atlas_slots, 1u)), 1.0);
+    let texel = textureSampleGrad(
+        hair_atlas, hair_sampler, atlas_coordinates(uv, slot), ddx.yx * s, ddy.yx * s
+    );
+    return texel.a * fade;
+}
+
+// The four samples' alpha thresholds at a pixel (`hair::sample_thresholds`): the
+// quarters (k + ½) / 4 permuted per pixel by a hash.
+fn sample_thresholds(pixel: vec2<i32>) -> vec4<f32> {
+    var h = (bitcast<u32>(pixel.x) * 0x8da6b343u) ^ (bitcast<u32>(pixel.y) * 0xd8163841u);
+    h ^= h >> 13u;
+    h *= 0x2c1b3c6du;
+    h ^= h >> 16u;
+    var order = array<u32, 4>(0u, 1u, 2u, 3u);
+    var code = h % 24u;
+    for (var i = 0u; i < 3u; i += 1u) {
+        let j = i + code % (4u - i);
+        code /= 4u - i;
+        let t = order[i];
+        order[i] = order[j];
+        order[j] = t;
+    }
+    return (vec4(f32(order[0]), f32(order[1]), f32(order[2]), f32(order[3])) + 0.5) / 4.0;
+}
+
+// The coverage mask of a fragment (bit i for sample i; the rasterizer keeps only the
+// samples inside the strip). Under 4× MSAA the alpha is tested at each sample, its strip
+// coordinates extrapolated from the pixel centre's by the derivatives (exact: they are
+// affine in the pixel); otherwise once at the centre, against 0.5 (`HAIR_CENTRE_TEST`,
+// the per-pixel comparison) or the pixel's dithered threshold (the MSAA-off fallback).
+fn hair_coverage(in: HairVaryings) -> u32 {
+    let ddx = dpdx(in.uv);
+    let ddy = dpdy(in.uv);
+    let pixel = vec2<i32>(floor(in.position.xy));
+    let thresholds = sample_thresholds(pixel);
+#ifdef HAIR_PER_SAMPLE
+    var mask = 0u;
+    for (var i = 0u; i < 4u; i += 1u) {
+        let o = SAMPLE_OFFSETS[i];
+        let alpha = strand_alpha(in.uv + ddx * o.x + ddy * o.y, in.slot, in.fade, ddx, ddy);
+        if alpha >= thresholds[i] {
+            mask |= 1u << i;
+        }
+    }
+    return mask;
+#else
+#ifdef HAIR_CENTRE_TEST
+    let threshold = 0.5;
+#else
+    let threshold = thresholds[0];
+#endif
+    let centre = clamp(in.uv, vec2(0.0), vec2(1.0));
+    return select(0u, 0xffffffffu, strand_alpha(centre, in.slot, in.fade, ddx, ddy) >= threshold);
+#endif
+}
