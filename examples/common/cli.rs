@@ -85,6 +85,8 @@ pub struct Options {
     /// `--no-reflections`: the `reflections` example's camera without
     /// `BillboardReflections`.
     pub no_reflections: bool,
+    /// `--hair`: how the `hair` example's strands decide coverage.
+    pub hair: Option<HairMode>,
     /// `--assets`: the asset folder (`AssetPlugin::file_path`).
     pub assets: Option<PathBuf>,
 }
@@ -117,6 +119,21 @@ pub enum MsaaMode {
     Edges,
 }
 
+/// What `--hair` asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HairMode {
+    /// The alpha tested at each MSAA sample (the default).
+    PerSample,
+    /// Shaded and tested per sample.
+    SampleShading,
+    /// Alpha-to-coverage.
+    AlphaToCoverage,
+    /// One alpha test per pixel.
+    PerPixel,
+    /// No hair.
+    Off,
+}
+
 /// What `--no-dfao` leaves out.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum NoDfao {
@@ -128,7 +145,8 @@ pub enum NoDfao {
 
 const USAGE: &str = "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N] [--glass] \
      [--plain] [--ao-view ao|bent|tiles] [--casters N] [--global-field] [--no-dfao component|plugin] [--msaa off|4|every|edges] \
-     [--dof penumbra|circle|bevy-bokeh|bevy-gaussian|off] [--no-sss] [--no-reflections] [--assets DIR]";
+     [--dof penumbra|circle|bevy-bokeh|bevy-gaussian|off] [--no-sss] [--no-reflections] \
+     [--hair per-sample|sample-shading|alpha-to-coverage|per-pixel|off] [--assets DIR]";
 
 impl Options {
     /// Parses `std::env::args()`-style arguments (without the program name).
@@ -149,6 +167,7 @@ impl Options {
             dof: None,
             no_sss: false,
             no_reflections: false,
+            hair: None,
             assets: None,
         };
         let mut args = args.into_iter();
@@ -182,6 +201,20 @@ impl Options {
                         "every" => MsaaMode::EverySample,
                         "edges" => MsaaMode::Edges,
                         v => return Err(format!("--msaa: off, 4, every or edges, got {v:?}")),
+                    });
+                }
+                "--hair" => {
+                    o.hair = Some(match value("--hair")?.as_str() {
+                        "per-sample" => HairMode::PerSample,
+                        "sample-shading" => HairMode::SampleShading,
+                        "alpha-to-coverage" => HairMode::AlphaToCoverage,
+                        "per-pixel" => HairMode::PerPixel,
+                        "off" => HairMode::Off,
+                        v => {
+                            return Err(format!(
+                                "--hair: per-sample, sample-shading, alpha-to-coverage, per-pixel or off, got {v:?}"
+                            ));
+                        }
                     });
                 }
                 "--dof" => {

@@ -251,7 +251,9 @@ pub struct Hair {
     pub root_color: Color,
     /// Colour at the tip. Default a lighter brown.
     pub tip_color: Color,
-    /// Primary (white) highlight's strength (0–1). Default 0.2.
+    /// Primary (white) highlight's strength: its lobe's peak is `strength · (n + 2)/2π`
+    /// (0.08 at the defaults, near Marschner's R lobe: Fresnel's 0.05 over a ~7° wide
+    /// longitudinal lobe). Default 0.006.
     pub specular: f32,
     /// Primary highlight's Kajiya-Kay exponent (sharper when larger). Default 80.
     pub specular_exponent: f32,
@@ -280,9 +282,9 @@ impl Default for Hair {
             atlas_slots: 1,
             root_color: Color::linear_rgb(0.05, 0.025, 0.012),
             tip_color: Color::linear_rgb(0.16, 0.09, 0.05),
-            specular: 0.2,
+            specular: 0.006,
             specular_exponent: 80.0,
-            secondary_specular: 0.3,
+            secondary_specular: 0.1,
             secondary_exponent: 12.0,
             primary_shift: 0.05,
             secondary_shift: -0.1,
