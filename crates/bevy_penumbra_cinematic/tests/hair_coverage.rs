@@ -6,45 +6,26 @@
 //!
 //! - Contract: with an atlas whose alpha falls off across the hair, every pixel's count
 //!   of covered samples equals the model's (`coverage_mask`: the strip's rectangle, the
-//!   atlas's bilinear alpha times the width fade, tested at the standard 4× positions
+//!   atlas's bilinear alpha tested against ½ at the standard 4× positions, the width fade
 //!   against the per-pixel permuted thresholds). The same model with the alpha tested at
 //!   other positions (the pattern mirrored) disagrees on many samples: a shader whose
 //!   sample positions are wrong fails.
 //! - Against the truth: without an atlas, each strand's summed coverage over its cell
 //!   divided by its length is its width (the exact area is width × length).
 
-use bevy::camera::{Hdr, ScalingMode};
-use bevy::core_pipeline::tonemapping::Tonemapping;
+mod hair_scene;
+use hair_scene::*;
+
 use bevy::prelude::*;
-use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use bevy_penumbra_cinematic::hair::{Hair, HairPlugin, HairStrands, Strand};
 use penumbra_cinematic_core::hair::{
-    SAMPLE_POSITIONS_4X, ScreenSegment, clamp_width, sample_thresholds, strip_uv,
+    ALPHA_CUTOFF, SAMPLE_POSITIONS_4X, ScreenSegment, clamp_width, sample_thresholds, strip_uv,
 };
 use penumbra_test::{CaptureFormat, HeadlessRender, gpu_or_skip};
 
 const WIDTH: u32 = 128;
 const HEIGHT: u32 = 64;
 const CELL: i32 = 16;
-/// The atlas: one hair, `ATLAS_W` texels across, 4 along.
-const ATLAS_W: usize = 16;
-
-/// The atlas's alpha across the hair (texel i of `ATLAS_W`): a rounded bump, opaque in
-/// the middle, clear at the edges.
-fn atlas_alpha(i: usize) -> u8 {
-    let x = (i as f32 + 0.5) / ATLAS_W as f32 * 2.0 - 1.0;
-    ((1.0 - x * x).max(0.0).sqrt() * 255.0).round() as u8
-}
-
-/// Bilinear alpha of the atlas at strip point `uv` (clamp to edge; the atlas is constant
-/// along the hair).
-fn atlas_sample(uv: Vec2) -> f32 {
-    let x = uv.y.clamp(0.0, 1.0) * ATLAS_W as f32 - 0.5;
-    let i = x.floor();
-    let t = x - i;
-    let at = |k: f32| atlas_alpha(k.clamp(0.0, ATLAS_W as f32 - 1.0) as usize) as f32 / 255.0;
-    at(i) * (1.0 - t) + at(i + 1.0) * t
-}
 
 /// The strands of cell `k` of a half: a segment through the cell's centre (plus a
 /// sub-pixel offset), at an angle and width that vary over the cells. Pixel coordinates
@@ -61,19 +42,11 @@ fn cell_segment(k: i32, x0: i32) -> (Vec2, Vec2, f32) {
     (centre - d, centre + d, widths[k as usize % widths.len()])
 }
 
-fn to_world(p: Vec2) -> Vec3 {
-    Vec3::new(p.x, HEIGHT as f32 - p.y, 0.0)
-}
-
 fn strands(x0: i32) -> Vec<Strand> {
     (0..16)
         .map(|k| {
             let (a, b, w) = cell_segment(k, x0);
-            Strand {
-                points: vec![to_world(a), to_world(b)],
-                width: w,
-                slot: 0,
-            }
+            pixel_strand(a, b, w, HEIGHT)
         })
         .collect()
 }
@@ -83,26 +56,9 @@ fn scene(
     mut images: ResMut<Assets<Image>>,
     mut strand_assets: ResMut<Assets<HairStrands>>,
 ) {
-    let mut texels = Vec::new();
-    for _ in 0..4 {
-        for i in 0..ATLAS_W {
-            texels.extend([255, 255, 255, atlas_alpha(i)]);
-        }
-    }
-    let atlas = images.add(Image::new(
-        Extent3d {
-            width: ATLAS_W as u32,
-            height: 4,
-            depth_or_array_layers: 1,
-        },
-        TextureDimension::D2,
-        texels,
-        TextureFormat::Rgba8Unorm,
-        bevy::asset::RenderAssetUsages::RENDER_WORLD,
-    ));
     commands.spawn(Hair {
         strands: strand_assets.add(HairStrands::new(strands(0))),
-        atlas: Some(atlas),
+        atlas: Some(images.add(atlas_image())),
         debug_coverage: true,
         ..default()
     });
@@ -111,27 +67,7 @@ fn scene(
         debug_coverage: true,
         ..default()
     });
-    commands.spawn((
-        Camera3d::default(),
-        Hdr,
-        Tonemapping::None,
-        Msaa::Sample4,
-        Camera {
-            clear_color: ClearColorConfig::Custom(Color::BLACK),
-            ..default()
-        },
-        Projection::Orthographic(OrthographicProjection {
-            scaling_mode: ScalingMode::Fixed {
-                width: WIDTH as f32,
-                height: HEIGHT as f32,
-            },
-            ..OrthographicProjection::default_3d()
-        }),
-        Transform::from_xyz(WIDTH as f32 / 2.0, HEIGHT as f32 / 2.0, 10.0).looking_at(
-            Vec3::new(WIDTH as f32 / 2.0, HEIGHT as f32 / 2.0, 0.0),
-            Vec3::Y,
-        ),
-    ));
+    commands.spawn(pixel_camera(WIDTH, HEIGHT));
 }
 
 /// The model's count of covered samples at `pixel`, the alpha tested at `positions`
@@ -144,7 +80,7 @@ fn model_count(
     positions: [Vec2; 4],
 ) -> u32 {
     let thresholds = sample_thresholds(pixel);
-    let alpha = |uv: Vec2| if atlas { atlas_sample(uv) * fade } else { fade };
+    let alpha = |uv: Vec2| if atlas { atlas_sample(uv) } else { 1.0 };
     (0..4)
         .filter(|&i| {
             let inside = strip_uv(segment, pixel.as_vec2() + SAMPLE_POSITIONS_4X[i]).is_some();
@@ -159,7 +95,7 @@ fn model_count(
                 q.dot(d) / ab.length(),
                 0.5 + 0.5 * q.dot(n) / segment.half_width,
             );
-            inside && alpha(uv) >= thresholds[i]
+            inside && alpha(uv) >= ALPHA_CUTOFF && fade >= thresholds[i]
         })
         .count() as u32
 }
@@ -176,7 +112,7 @@ fn strips_cover_the_samples_the_model_covers() {
     app.add_plugins(HairPlugin).add_systems(Startup, scene);
     let capture = harness.run(app).expect("renders");
     let gpu = capture.to_linear();
-    save(&gpu);
+    save_coverage("hair_coverage", &gpu, WIDTH, HEIGHT);
     let count = |p: IVec2| (gpu[(p.y * WIDTH as i32 + p.x) as usize][0] * 4.0).round() as u32;
 
     let mirrored = SAMPLE_POSITIONS_4X.map(|p| Vec2::new(1.0 - p.x, p.y));
@@ -232,20 +168,4 @@ fn strips_cover_the_samples_the_model_covers() {
         "the mutation is not seen: {differ_mutated}"
     );
     assert!(mean_width_error < 0.125, "{mean_width_error}");
-}
-
-fn save(image: &[[f32; 4]]) {
-    let dir = penumbra_test::output_dir();
-    std::fs::create_dir_all(&dir).unwrap();
-    let bytes: Vec<u8> = image
-        .iter()
-        .flat_map(|p| {
-            let v = (p[0].clamp(0.0, 1.0) * 255.0) as u8;
-            [v, v, v, 255]
-        })
-        .collect();
-    penumbra_test::image::RgbaImage::from_raw(WIDTH, HEIGHT, bytes)
-        .unwrap()
-        .save(dir.join("hair_coverage.png"))
-        .unwrap();
 }

@@ -138,7 +138,7 @@ impl Material for HairMaterial {
         let mut entry = None;
         if multisampled {
             match coverage {
-                HairCoverage::PerPixel => defs.push("HAIR_CENTRE_TEST".into()),
+                HairCoverage::PerPixel => {}
                 HairCoverage::AlphaToCoverage if !prepass => {
                     entry = Some("fragment_alpha_to_coverage");
                     descriptor.multisample.alpha_to_coverage_enabled = true;

@@ -16,7 +16,9 @@
 //! sample's threshold is a quarter `(k + ½)/4`, permuted per pixel, so an alpha of α keeps
 //! about `4α` samples. Strips write depth (prepass and main pass, the same mask: depth of
 //! field, fog and SSAO see the hair) and need no sorting. Shadows cast into Bevy's shadow
-//! maps with the same strips, facing the light.
+//! maps with the same strips, facing the light. It is a forward material, so it draws
+//! the same on forward cameras and on `PenumbraLighting` cameras with `DeferredMsaa`
+//! (after the deferred lighting, into the same 4× targets).
 //!
 //! **Minimum width.** Strands narrower than [`MIN_WIDTH_PX`] (half a pixel, one sample
 //! spacing) are drawn at it with their alpha scaled by `width / MIN_WIDTH_PX`: the
@@ -266,8 +268,9 @@ pub struct Hair {
     pub primary_shift: f32,
     /// Secondary highlight's shift. Default −0.1.
     pub secondary_shift: f32,
-    /// How coverage is decided. Default [`HairCoverage::PerSample`]. Costs, lavapipe
-    /// 512² (`tests/hair_cost.rs`): see the crate's CHANGELOG entry.
+    /// How coverage is decided. Default [`HairCoverage::PerSample`]. Shading per sample
+    /// costs about 3.5× the default's fragment time; the others about as much as the
+    /// default (`tests/hair_modes.rs`, `hair_cost_against_time`).
     pub coverage: HairCoverage,
     /// Draws coverage only (white, unlit): the debug and contract view.
     pub debug_coverage: bool,
@@ -361,7 +364,8 @@ impl Plugin for HairPlugin {
     }
 }
 
-/// What the plugin made for a [`Hair`] entity.
+/// What the plugin made for a [`Hair`] entity (present once its strands were built,
+/// also when none was drawable).
 #[derive(Component, Debug)]
 pub struct HairBuilt {
     strands: AssetId<HairStrands>,

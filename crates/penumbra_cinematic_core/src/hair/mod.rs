@@ -1,16 +1,19 @@
-//! Hair strips (#22, started): the coverage of a camera-facing strip under 4× MSAA with
-//! an alpha test at every sample (Samaritan's "short hair / beard"; Lottes, "Alpha-Test
-//! and MSAA"), which the GPU pass will compute and this module models.
+//! Hair strips: the coverage of a camera-facing strip under 4× MSAA with an alpha test
+//! at every sample (Samaritan's "short hair / beard"; Lottes, "Alpha-Test and MSAA"),
+//! which `bevy_penumbra_cinematic::hair`'s shader computes (`hair/common.wgsl`) and this
+//! module models.
 //!
 //! A strand segment from `a` to `b` (pixel coordinates) of half-width `h` pixels is the
 //! rectangle `a + s d + t n`, `0 ≤ s ≤ |b − a|`, `|t| ≤ h` (`d` along, `n` across). Each of
 //! a pixel's four samples (the standard 4× pattern, [`SAMPLE_POSITIONS_4X`]) is kept when
-//! it lies in the rectangle and the strand's alpha there passes the sample's threshold;
-//! the resolved coverage is the kept samples' share. Strands thinner than
-//! [`MIN_WIDTH_PX`] are widened to it and their alpha scaled by `width / MIN_WIDTH_PX`
-//! ([`clamp_width`]): the expected coverage stays the strand's area, and the strand does
-//! not vanish between samples. Thresholds are dithered per pixel
-//! ([`sample_thresholds`]) so that a faded strand keeps that share of its samples.
+//! it lies in the rectangle and the strand's texture alpha there reaches ½ (an alpha test
+//! at every sample: a supersampled alpha test); the resolved coverage is the kept
+//! samples' share. Strands thinner than
+//! [`MIN_WIDTH_PX`] are widened to it and faded by `width / MIN_WIDTH_PX`
+//! ([`clamp_width`]): each sample is kept only where the fade reaches its threshold, a
+//! quarter permuted per pixel ([`sample_thresholds`]), so a faded strand keeps that share
+//! of its samples, its expected coverage stays its area, and it does not vanish between
+//! samples.
 //!
 //! Checked against the exact area of the rectangle inside each pixel
 //! ([`exact_coverage`], polygon clipping in `f64`). The strands themselves, their text
@@ -76,11 +79,31 @@ pub fn sample_thresholds(pixel: IVec2) -> [f32; 4] {
     order.map(|k| (k as f32 + 0.5) / 4.0)
 }
 
+/// The alpha a sample's texture alpha must reach: the alpha test's cutoff.
+pub const ALPHA_CUTOFF: f32 = 0.5;
+
 /// The 4× coverage mask of `segment` at `pixel` (bit `i` for sample `i`): samples inside
-/// the rectangle whose `alpha(u, v)` — `u` along the strand in `[0, 1]`, `v` across in
-/// `[0, 1]` — reaches their threshold ([`sample_thresholds`]).
-pub fn coverage_mask(segment: &ScreenSegment, pixel: IVec2, alpha: impl Fn(Vec2) -> f32) -> u8 {
-    coverage_mask_with(segment, pixel, alpha, sample_thresholds(pixel))
+/// the rectangle where the texture's `alpha(u, v)` — `u` along the strand in `[0, 1]`,
+/// `v` across in `[0, 1]` — reaches [`ALPHA_CUTOFF`] (a supersampled alpha test) and
+/// the width fade reaches the sample's threshold ([`sample_thresholds`]: a strand faded
+/// to `f` keeps about `4 f` of its samples).
+pub fn coverage_mask(
+    segment: &ScreenSegment,
+    pixel: IVec2,
+    fade: f32,
+    alpha: impl Fn(Vec2) -> f32,
+) -> u8 {
+    let thresholds = sample_thresholds(pixel);
+    let mut mask = 0u8;
+    for (i, offset) in SAMPLE_POSITIONS_4X.iter().enumerate() {
+        if fade >= thresholds[i]
+            && strip_uv(segment, pixel.as_vec2() + *offset)
+                .is_some_and(|uv| alpha(uv) >= ALPHA_CUTOFF)
+        {
+            mask |= 1 << i;
+        }
+    }
+    mask
 }
 
 /// The strip's coordinates `(u, v)` at a screen point, if it lies on the strip.
@@ -293,7 +316,7 @@ mod tests {
                     };
                     let (mut got, mut want) = (0.0f64, 0.0f64);
                     for p in pixels(&s) {
-                        let c = f64::from(resolved(coverage_mask(&s, p, |_| 1.0)));
+                        let c = f64::from(resolved(coverage_mask(&s, p, 1.0, |_| 1.0)));
                         let e = exact_coverage(&s, p);
                         got += c;
                         want += e;
@@ -342,7 +365,7 @@ mod tests {
             half_width: 0.5 * width,
         };
         let total: f32 = pixels(&s)
-            .map(|p| resolved(coverage_mask(&s, p, |_| fade)))
+            .map(|p| resolved(coverage_mask(&s, p, fade, |_| 1.0)))
             .sum();
         let area = (s.b - s.a).length() * 0.1;
         println!("a 0.1 px strand: coverage {total:.2} against its area {area:.2}");
@@ -384,7 +407,7 @@ mod tests {
                         let methods = [
                             resolved(centre_alpha_mask(&s, p, hair_alpha, false)),
                             resolved(centre_alpha_mask(&s, p, hair_alpha, true)),
-                            resolved(coverage_mask_with(&s, p, hair_alpha, [0.5; 4])),
+                            resolved(coverage_mask(&s, p, 1.0, hair_alpha)),
                         ];
                         if reference > 0.0 || methods.iter().any(|m| *m > 0.0) {
                             for (k, m) in methods.iter().enumerate() {

@@ -149,16 +149,18 @@ fn atlas_coordinates(uv: vec2<f32>, slot: u32) -> vec2<f32> {
     return vec2((f32(slot) + clamp(uv.y, 0.0, 1.0)) / f32(max(hair.atlas_slots, 1u)), uv.x);
 }
 
-// The strand's alpha at strip point `uv` (the atlas's alpha, if any, times the fade).
-fn strand_alpha(uv: vec2<f32>, slot: u32, fade: f32, ddx: vec2<f32>, ddy: vec2<f32>) -> f32 {
+// The alpha test's cutoff (`hair::ALPHA_CUTOFF`).
+const ALPHA_CUTOFF: f32 = 0.5;
+
+// The atlas's alpha at strip point `uv` (1 without an atlas).
+fn atlas_alpha(uv: vec2<f32>, slot: u32, ddx: vec2<f32>, ddy: vec2<f32>) -> f32 {
     if (hair.flags & HAIR_FLAG_ATLAS) == 0u {
-        return fade;
+        return 1.0;
     }
     let s = vec2(1.0 / f32(max(hair.atlas_slots, 1u)), 1.0);
-    let texel = textureSampleGrad(
+    return textureSampleGrad(
         hair_atlas, hair_sampler, atlas_coordinates(uv, slot), ddx.yx * s, ddy.yx * s
-    );
-    return texel.a * fade;
+    ).a;
 }
 
 // The four samples' alpha thresholds at a pixel (`hair::sample_thresholds`): the
@@ -181,32 +183,28 @@ fn sample_thresholds(pixel: vec2<i32>) -> vec4<f32> {
 }
 
 // The coverage mask of a fragment (bit i for sample i; the rasterizer keeps only the
-// samples inside the strip). Under 4× MSAA the alpha is tested at each sample, its strip
-// coordinates extrapolated from the pixel centre's by the derivatives (exact: they are
-// affine in the pixel); otherwise once at the centre, against 0.5 (`HAIR_CENTRE_TEST`,
-// the per-pixel comparison) or the pixel's dithered threshold (the MSAA-off fallback).
+// samples inside the strip): sample i passes where the atlas's alpha reaches the cutoff
+// and the width fade reaches its threshold (`hair::coverage_mask`). Under 4× MSAA the
+// alpha is tested at each sample, its strip coordinates extrapolated from the pixel
+// centre's by the derivatives (exact: they are affine in the pixel); otherwise
+// (`Msaa::Off`, or the per-pixel comparison) once at the centre, with the pixel's first
+// threshold.
 fn hair_coverage(in: HairVaryings) -> u32 {
     let ddx = dpdx(in.uv);
     let ddy = dpdy(in.uv);
-    let pixel = vec2<i32>(floor(in.position.xy));
-    let thresholds = sample_thresholds(pixel);
+    let thresholds = sample_thresholds(vec2<i32>(floor(in.position.xy)));
 #ifdef HAIR_PER_SAMPLE
     var mask = 0u;
     for (var i = 0u; i < 4u; i += 1u) {
         let o = SAMPLE_OFFSETS[i];
-        let alpha = strand_alpha(in.uv + ddx * o.x + ddy * o.y, in.slot, in.fade, ddx, ddy);
-        if alpha >= thresholds[i] {
+        let alpha = atlas_alpha(in.uv + ddx * o.x + ddy * o.y, in.slot, ddx, ddy);
+        if alpha >= ALPHA_CUTOFF && in.fade >= thresholds[i] {
             mask |= 1u << i;
         }
     }
     return mask;
 #else
-#ifdef HAIR_CENTRE_TEST
-    let threshold = 0.5;
-#else
-    let threshold = thresholds[0];
-#endif
-    let centre = clamp(in.uv, vec2(0.0), vec2(1.0));
-    return select(0u, 0xffffffffu, strand_alpha(centre, in.slot, in.fade, ddx, ddy) >= threshold);
+    let alpha = atlas_alpha(clamp(in.uv, vec2(0.0), vec2(1.0)), in.slot, ddx, ddy);
+    return select(0u, 0xffffffffu, alpha >= ALPHA_CUTOFF && in.fade >= thresholds[0]);
 #endif
 }

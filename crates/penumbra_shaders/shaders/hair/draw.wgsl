@@ -16,7 +16,8 @@
     pbr_functions,
 }
 #import penumbra::hair::common::{
-    HairVertex, HairVaryings, hair, hair_vertex, hair_coverage, strand_alpha, atlas_coordinates,
+    HairVertex, HairVaryings, hair, hair_vertex, hair_coverage, atlas_alpha, atlas_coordinates,
+    ALPHA_CUTOFF,
     hair_atlas, hair_sampler, sample_thresholds, HAIR_FLAG_ATLAS, HAIR_FLAG_DEBUG_COVERAGE,
 }
 
@@ -185,7 +186,7 @@ fn fragment(in: HairVaryings) -> HairOutput {
 fn fragment_alpha_to_coverage(in: HairVaryings) -> @location(0) vec4<f32> {
     let ddx = dpdx(in.uv);
     let ddy = dpdy(in.uv);
-    let alpha = strand_alpha(clamp(in.uv, vec2(0.0), vec2(1.0)), in.slot, in.fade, ddx, ddy);
+    let alpha = atlas_alpha(clamp(in.uv, vec2(0.0), vec2(1.0)), in.slot, ddx, ddy) * in.fade;
     return vec4(shade(in).rgb, alpha);
 }
 
@@ -195,8 +196,8 @@ fn fragment_alpha_to_coverage(in: HairVaryings) -> @location(0) vec4<f32> {
 fn fragment_sample_shading(in: HairVaryings, @builtin(sample_index) sample_index: u32) -> @location(0) vec4<f32> {
     let color = shade(in);
     let thresholds = sample_thresholds(vec2<i32>(floor(in.position.xy)));
-    let alpha = strand_alpha(in.uv, in.slot, in.fade, vec2(0.0), vec2(0.0));
-    if alpha < thresholds[sample_index & 3u] {
+    let alpha = atlas_alpha(in.uv, in.slot, vec2(0.0), vec2(0.0));
+    if alpha < ALPHA_CUTOFF || in.fade < thresholds[sample_index & 3u] {
         discard;
     }
     return color;
