@@ -10,7 +10,9 @@
 //! - Shimmer: each kind's total coverage over the sweep's offsets, its standard deviation
 //!   over its mean (a strand that flickers as it moves scores high).
 //! - Cost (`#[ignore]`d, `hair_cost_against_time`): lavapipe frame times at 512² with 16,000
-//!   and 160,000 hair triangles, per method.
+//!   and 160,000 hair triangles, per method (measured: 450 / 4,469 ms per sample, 1,568 /
+//!   15,462 shading per sample, 418 / 4,108 alpha-to-coverage, 421 / 4,098 per pixel,
+//!   over an empty frame's 11 ms).
 
 mod hair_scene;
 use hair_scene::*;
@@ -162,7 +164,10 @@ fn per_sample_coverage_is_closest_to_supersampling_and_shimmers_least() {
     // 0.140, 0.50, 0.061; the truth's shimmer 0.007).
     assert!(per_sample.1 < 0.08, "{per_sample:?}");
     assert!(per_sample.1 * 1.3 < a2c.1, "{per_sample:?} vs {a2c:?}");
-    assert!(per_sample.1 * 1.8 < per_pixel.1, "{per_sample:?} vs {per_pixel:?}");
+    assert!(
+        per_sample.1 * 1.8 < per_pixel.1,
+        "{per_sample:?} vs {per_pixel:?}"
+    );
     assert!(per_sample.2 < a2c.2 && per_sample.2 < per_pixel.2, "p99");
     assert!(
         per_sample.3 < 0.8 * a2c.3 && per_sample.3 < 0.5 * per_pixel.3,
@@ -224,7 +229,7 @@ fn cost_scene(
 }
 
 #[test]
-#[ignore = "a measurement: lavapipe frame times, ~2 minutes"]
+#[ignore = "a measurement: lavapipe frame times, ~16 minutes"]
 fn hair_cost_against_time() {
     if !gpu_or_skip("hair_cost_against_time") {
         return;

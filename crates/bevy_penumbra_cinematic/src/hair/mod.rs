@@ -268,9 +268,9 @@ pub struct Hair {
     pub primary_shift: f32,
     /// Secondary highlight's shift. Default −0.1.
     pub secondary_shift: f32,
-    /// How coverage is decided. Default [`HairCoverage::PerSample`]. Shading per sample
-    /// costs about 3.5× the default's fragment time; the others about as much as the
-    /// default (`tests/hair_modes.rs`, `hair_cost_against_time`).
+    /// How coverage is decided. Default [`HairCoverage::PerSample`]. On lavapipe at 512²
+    /// the default costs 8–9 % more than one test per pixel or alpha-to-coverage, shading
+    /// per sample 3.5–3.8 × as much (`tests/hair_modes.rs`, `hair_cost_against_time`).
     pub coverage: HairCoverage,
     /// Draws coverage only (white, unlit): the debug and contract view.
     pub debug_coverage: bool,
@@ -398,11 +398,16 @@ fn build_hair(
             .atlas
             .as_ref()
             .is_some_and(|a| matches!(asset_server.get_load_state(a), Some(LoadState::Failed(_))));
+        // Once per entity: when first built with a failed atlas, or when it fails later.
+        let newly_failed = atlas_failed && !built.as_ref().is_some_and(|b| b.atlas_failed);
         let stale = built.as_ref().is_none_or(|b| b.strands != id) || changed.contains(&id);
         if stale {
             let Some(asset) = strands.get(id) else {
                 continue;
             };
+            if newly_failed {
+                warn_atlas_failed(entity);
+            }
             let (kept, dropped) = check_strands(asset.strands.clone());
             if let Some((index, problem)) = dropped.first() {
                 warn!(
@@ -444,8 +449,8 @@ fn build_hair(
             continue;
         }
         let Some(mut built) = built else { continue };
-        if atlas_failed && !built.atlas_failed {
-            warn!("Penumbra: hair on {entity}: its atlas failed to load; drawn without it");
+        if newly_failed {
+            warn_atlas_failed(entity);
         }
         if hair.is_changed() || atlas_failed != built.atlas_failed {
             if let Some(mut material) = materials.get_mut(&built.material) {
@@ -454,6 +459,10 @@ fn build_hair(
             built.atlas_failed = atlas_failed;
         }
     }
+}
+
+fn warn_atlas_failed(entity: Entity) {
+    warn!("Penumbra: hair on {entity}: its atlas failed to load; drawn without it");
 }
 
 fn material_of(hair: &Hair, atlas_failed: bool) -> HairMaterial {
@@ -481,5 +490,58 @@ fn warn_hair_without_msaa(
                  (aliased; no alpha-to-coverage). Use Msaa::Sample4 for anti-aliased hair."
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bevy::asset::RenderAssetUsages;
+    use bevy::mesh::{Indices, PrimitiveTopology};
+
+    /// A hair card as a glTF loader gives it: one ribbon of three cross-sections, its
+    /// UVs running along the hair in `y`; slot from `x` over a 2-slot atlas.
+    #[test]
+    fn a_ribbon_mesh_gives_its_strand() {
+        let positions = vec![
+            [-0.001f32, 0.0, 0.0],
+            [0.001, 0.0, 0.0],
+            [-0.001, -0.05, 0.0],
+            [0.001, -0.05, 0.0],
+            [-0.001, -0.1, 0.01],
+            [0.001, -0.1, 0.01],
+        ];
+        let uvs = vec![
+            [0.5f32, 0.0],
+            [1.0, 0.0],
+            [0.5, 0.5],
+            [1.0, 0.5],
+            [0.5, 1.0],
+            [1.0, 1.0],
+        ];
+        let mesh = Mesh::new(
+            PrimitiveTopology::TriangleList,
+            RenderAssetUsages::MAIN_WORLD,
+        )
+        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions)
+        .with_inserted_attribute(Mesh::ATTRIBUTE_UV_0, uvs)
+        .with_inserted_indices(Indices::U16(vec![0, 1, 2, 1, 3, 2, 2, 3, 4, 3, 5, 4]));
+        let hair = HairStrands::from_ribbon_mesh(&mesh, 2).unwrap();
+        assert_eq!(hair.strands.len(), 1);
+        let strand = &hair.strands[0];
+        assert_eq!(strand.slot, 1);
+        assert!((strand.width - 0.002).abs() < 1e-6);
+        assert_eq!(strand.points.len(), 3);
+        assert!(strand.points[2].distance(Vec3::new(0.0, -0.1, 0.01)) < 1e-6);
+        assert_eq!(hair.triangle_count(), 4);
+        let no_uvs = Mesh::new(
+            PrimitiveTopology::TriangleList,
+            RenderAssetUsages::MAIN_WORLD,
+        )
+        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0f32; 3]; 3]);
+        assert_eq!(
+            HairStrands::from_ribbon_mesh(&no_uvs, 1).unwrap_err(),
+            HairMeshError::NoUvs
+        );
     }
 }
