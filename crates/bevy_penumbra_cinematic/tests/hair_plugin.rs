@@ -1,4 +1,5 @@
-//! `HairPlugin` in a Bevy app on lavapipe: bad input and the MSAA-off fallback.
+//! `HairPlugin` in a Bevy app on lavapipe: bad input, the MSAA-off fallback, a deferred
+//! MSAA camera, skinning, and hair cards from a glTF file.
 //!
 //! - Bad strands (no points, one point, a NaN point, zero and NaN widths) are skipped and
 //!   the good ones drawn; an asset with no good strand gets no mesh; an atlas that fails
@@ -6,6 +7,10 @@
 //!   a malformed one fails with its line number.
 //! - `Msaa::Off`: the per-pixel test with a dithered threshold — every pixel fully
 //!   covered or not, thin strands thinned out rather than lost.
+//! - A `PenumbraLighting` camera with `DeferredMsaa`: strands resolve over the deferred
+//!   floor with their widths' coverage.
+//! - Strands bound to a skin follow its joint.
+//! - A glTF hair card (a ribbon; Bevy's loader un-indexes it) becomes its strand.
 
 mod hair_scene;
 use hair_scene::*;
@@ -362,4 +367,99 @@ fn skinned_hair_follows_its_joint() {
     );
     assert!(at_bind_pose < 1.0, "{at_bind_pose}");
     assert!((moved - 112.0).abs() < 6.0, "{moved}");
+}
+
+/// A glTF file of one hair card — a ribbon of three cross-sections, 2 px wide, along
+/// row 50 — written into `dir`.
+fn write_card_gltf(dir: &std::path::Path) {
+    let y = (HEIGHT - 50) as f32;
+    let mut positions = Vec::new();
+    let mut uvs = Vec::new();
+    for (k, x) in [4.0f32, 32.0, 60.0].iter().enumerate() {
+        for side in [-1.0f32, 1.0] {
+            positions.extend([*x, y + side, 0.0]);
+            uvs.extend([0.5 + 0.5 * side, k as f32 / 2.0]);
+        }
+    }
+    let indices: [u16; 12] = [0, 1, 2, 1, 3, 2, 2, 3, 4, 3, 5, 4];
+    let mut bin = Vec::new();
+    for v in positions.iter().chain(&uvs) {
+        bin.extend(v.to_le_bytes());
+    }
+    for i in indices {
+        bin.extend(i.to_le_bytes());
+    }
+    std::fs::write(dir.join("cards.bin"), &bin).unwrap();
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},
+"buffers":[{{"uri":"cards.bin","byteLength":{len}}}],
+"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":72}},{{"buffer":0,"byteOffset":72,"byteLength":48}},{{"buffer":0,"byteOffset":120,"byteLength":24}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":6,"type":"VEC3","min":[4,{lo},0],"max":[60,{hi},0]}},
+{{"bufferView":1,"componentType":5126,"count":6,"type":"VEC2"}},
+{{"bufferView":2,"componentType":5123,"count":12,"type":"SCALAR"}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2}}]}}]}}"#,
+        len = bin.len(),
+        lo = y - 1.0,
+        hi = y + 1.0
+    );
+    std::fs::write(dir.join("cards.gltf"), json).unwrap();
+}
+
+#[derive(Resource)]
+struct Card(Handle<Mesh>);
+
+fn card_scene(mut commands: Commands, asset_server: Res<AssetServer>) {
+    commands.insert_resource(Card(asset_server.load("cards.gltf#Mesh0/Primitive0")));
+    commands.spawn(pixel_camera(WIDTH, HEIGHT));
+}
+
+/// Once the card's mesh has loaded: its strands, drawn.
+fn hair_from_card(
+    mut commands: Commands,
+    card: Res<Card>,
+    meshes: Res<Assets<Mesh>>,
+    mut strand_assets: ResMut<Assets<HairStrands>>,
+    mut done: Local<bool>,
+) {
+    let Some(mesh) = meshes.get(&card.0).filter(|_| !*done) else {
+        return;
+    };
+    *done = true;
+    let strands = HairStrands::from_ribbon_mesh(mesh, 1).expect("a ribbon mesh");
+    commands.spawn(Hair {
+        strands: strand_assets.add(strands),
+        debug_coverage: true,
+        ..default()
+    });
+}
+
+#[test]
+fn hair_cards_load_from_gltf() {
+    if !gpu_or_skip("hair_cards_load_from_gltf") {
+        return;
+    }
+    let assets = std::env::temp_dir().join(format!("penumbra_hair_gltf_{}", std::process::id()));
+    std::fs::create_dir_all(&assets).unwrap();
+    write_card_gltf(&assets);
+    let mut harness = HeadlessRender::new(WIDTH, HEIGHT)
+        .format(CaptureFormat::LinearF16)
+        .frames(4);
+    harness.asset_root = Some(assets.clone());
+    harness.warm_up = Some(|world: &mut World| {
+        let mut hairs = world.query::<&HairBuilt>();
+        hairs.iter(world).next().is_some()
+    });
+    let mut app = harness.app();
+    app.add_plugins(HairPlugin)
+        .add_systems(Startup, card_scene)
+        .add_systems(Update, hair_from_card);
+    let image = harness.run(app).expect("renders").to_linear();
+    save_coverage("hair_gltf_card", &image, WIDTH, HEIGHT);
+    // The card's centre line along row 50, 2 px wide over 56 px.
+    let drawn = coverage_in_rows(&image, 47..54);
+    let total = coverage_in_rows(&image, 0..HEIGHT);
+    println!("glTF card: coverage {drawn} on its rows, {total} in all (its area: 112)");
+    assert!((drawn - 112.0).abs() < 6.0, "{drawn}");
+    assert_eq!(drawn, total);
+    let _ = std::fs::remove_dir_all(&assets);
 }

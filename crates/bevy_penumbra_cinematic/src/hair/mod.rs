@@ -69,7 +69,7 @@ pub use penumbra_cinematic_core::hair::strands::{Strand, StrandProblem};
 use bevy::asset::io::Reader;
 use bevy::asset::{AssetLoader, LoadContext, LoadState};
 use bevy::mesh::VertexAttributeValues;
-use bevy::platform::collections::HashSet;
+use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use penumbra_cinematic_core::hair::strands::{check_strands, parse_hair, strands_from_ribbons};
 
@@ -89,7 +89,7 @@ pub enum HairMeshError {
     NoPositions,
     /// The mesh has no `Float32x2` UVs (along the hair: `uv.y`).
     NoUvs,
-    /// The mesh is not an indexed triangle list.
+    /// The mesh is not a triangle list.
     NotTriangles,
 }
 
@@ -98,7 +98,7 @@ impl std::fmt::Display for HairMeshError {
         f.write_str(match self {
             Self::NoPositions => "the hair mesh has no positions",
             Self::NoUvs => "the hair mesh has no UVs (uv.y runs along each strip)",
-            Self::NotTriangles => "the hair mesh is not an indexed triangle list",
+            Self::NotTriangles => "the hair mesh is not a triangle list",
         })
     }
 }
@@ -114,8 +114,8 @@ impl HairStrands {
         }
     }
 
-    /// Strands from a mesh of ribbons (hair cards, e.g. loaded from glTF): each connected
-    /// piece is a strand, its cross-sections the vertices of equal `uv.y` (root at the
+    /// Strands from a mesh of ribbons (hair cards, e.g. loaded from glTF; vertices of
+    /// equal position and UV are welded first): each connected piece is a strand, its cross-sections the vertices of equal `uv.y` (root at the
     /// smallest), its width their mean extent, its slot `⌊mean uv.x · slots⌋`.
     pub fn from_ribbon_mesh(mesh: &Mesh, slots: u32) -> Result<Self, HairMeshError> {
         let Some(VertexAttributeValues::Float32x3(positions)) =
@@ -127,14 +127,34 @@ impl HairStrands {
         else {
             return Err(HairMeshError::NoUvs);
         };
-        let (Some(indices), bevy::mesh::PrimitiveTopology::TriangleList) =
-            (mesh.indices(), mesh.primitive_topology())
-        else {
+        if mesh.primitive_topology() != bevy::mesh::PrimitiveTopology::TriangleList {
             return Err(HairMeshError::NotTriangles);
+        }
+        // Vertices with equal position and UV are one (loaders split them: Bevy's glTF
+        // loader un-indexes meshes without normals to compute flat ones).
+        let mut welded = HashMap::new();
+        let mut positions_out = Vec::new();
+        let mut uvs_out = Vec::new();
+        let remap: Vec<u32> = positions
+            .iter()
+            .zip(uvs)
+            .map(|(p, uv)| {
+                let key = (p.map(f32::to_bits), uv.map(f32::to_bits));
+                *welded.entry(key).or_insert_with(|| {
+                    positions_out.push(Vec3::from_array(*p));
+                    uvs_out.push(Vec2::from_array(*uv));
+                    positions_out.len() as u32 - 1
+                })
+            })
+            .collect();
+        let indices: Vec<u32> = match mesh.indices() {
+            Some(indices) => indices
+                .iter()
+                .map(|i| remap.get(i).copied().unwrap_or(u32::MAX))
+                .collect(),
+            None => remap,
         };
-        let positions: Vec<Vec3> = positions.iter().map(|p| Vec3::from_array(*p)).collect();
-        let uvs: Vec<Vec2> = uvs.iter().map(|p| Vec2::from_array(*p)).collect();
-        let indices: Vec<u32> = indices.iter().map(|i| i as u32).collect();
+        let (positions, uvs) = (positions_out, uvs_out);
         Ok(Self::new(strands_from_ribbons(
             &positions, &uvs, &indices, slots,
         )))
