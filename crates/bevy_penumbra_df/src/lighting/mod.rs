@@ -63,6 +63,7 @@ use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::sync_component::SyncComponent;
 
 pub use msaa::{DeferredMsaa, DeferredMsaaShading};
+pub use render::ShadowedLightKind;
 pub use render::{
     PenumbraAoInput, PenumbraLightingBindGroup, PenumbraLightingPipeline, PenumbraLightingSystems,
     set_lighting_bind_groups,
@@ -74,7 +75,7 @@ pub use render::{
         reason = "only distance-field shadows make masks so far"
     )
 )]
-pub(crate) use render::{PenumbraLightingInputs, PenumbraShadowedLight, ShadowedLightKind};
+pub(crate) use render::{PenumbraLightingInputs, PenumbraShadowedLight};
 
 /// Adds [`PenumbraLighting`]. Part of `PenumbraPlugins`. Changes no global setting.
 #[derive(Clone, Debug)]

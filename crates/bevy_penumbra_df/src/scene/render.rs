@@ -98,6 +98,9 @@ pub enum DistanceFieldRenderSystems {
     /// (`RenderSystems::PrepareResources`): passes sizing buffers by
     /// `DistanceFieldGpu::slot_count` prepare after it.
     PrepareGpu,
+    /// The frame's object writes applied on the GPU (`RenderGraph` schedule, before the
+    /// cameras): view-independent passes reading the object buffer run after it.
+    ApplyDeltas,
 }
 
 pub(super) fn build(render_app: &mut SubApp) {
@@ -120,7 +123,9 @@ pub(super) fn build(render_app: &mut SubApp) {
         )
         .add_systems(
             RenderGraph,
-            apply_distance_field_deltas.before(camera_driver),
+            apply_distance_field_deltas
+                .in_set(DistanceFieldRenderSystems::ApplyDeltas)
+                .before(camera_driver),
         );
 }
 

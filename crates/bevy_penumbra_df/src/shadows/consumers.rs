@@ -11,8 +11,8 @@
 //!   alpha-blended or transmissive, or opaque / alpha-masked with the forward method;
 //! - the light is volumetric (`VolumetricLight`: Bevy's fog samples the map).
 //!
-//! A forward mesh marked [`ReadsNoShadowMaps`] (an unlit effect: Penumbra's particle
-//! discs carry it) does not count.
+//! A forward mesh marked [`ReadsNoShadowMaps`] (an unlit effect, Penumbra's particle
+//! discs; hair, which marches those lights' visibility itself) does not count.
 //!
 //! Cost: one hash lookup per visible mesh of each Penumbra camera per frame, stopping at
 //! the first forward material; nothing for apps without DF-shadowed lights.
@@ -31,9 +31,10 @@ use bevy::render::sync_world::MainEntity;
 use bevy::render::view::{ExtractedView, RenderVisibleEntities};
 
 /// Put on a mesh whose material Bevy draws in a forward phase (blended, transmissive or
-/// forward) but which reads no shadow map — unlit effects, like
-/// `DistanceFieldParticles`' discs: it does not keep distance-field-shadowed lights'
-/// shadow maps alive. Cost: one set entry per marked entity per frame.
+/// forward) but which reads no distance-field-shadowed light's shadow map — unlit
+/// effects, like `DistanceFieldParticles`' discs, or hair, which takes those lights'
+/// visibility from the distance fields: it does not keep their shadow maps alive. Cost:
+/// one set entry per marked entity per frame.
 #[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[reflect(Component, Clone, Default)]
 pub struct ReadsNoShadowMaps;

@@ -83,6 +83,7 @@ mod render;
 mod resources;
 
 pub use consumers::{ReadsNoShadowMaps, ShadowMapConsumers};
+pub use render::{DistanceFieldShadowedLight, DistanceFieldShadowedLights};
 
 use bevy::prelude::*;
 use bevy::render::RenderApp;

@@ -45,7 +45,7 @@ use std::num::NonZeroU64;
 
 /// One distance-field-shadowed light this frame (render world).
 #[derive(Clone, Debug)]
-pub(super) struct FrameLight {
+pub struct DistanceFieldShadowedLight {
     kind: FrameLightKind,
     /// The light's main-world entity.
     light: MainEntity,
@@ -67,14 +67,36 @@ enum FrameLightKind {
     },
 }
 
-impl FrameLight {
+impl DistanceFieldShadowedLight {
     /// Whether it is a directional light.
     pub(super) fn is_directional(&self) -> bool {
         matches!(self.kind, FrameLightKind::Directional(_))
     }
 
-    /// The light as the passes see it from a camera at `camera`.
-    pub(super) fn shadow_light(&self, camera: &CameraOrigin) -> Option<ShadowLight> {
+    /// Which light it is, as Bevy's shaders name it: a directional light by its
+    /// direction, a point or spot light by its clustered id.
+    pub fn kind(&self) -> ShadowedLightKind {
+        match self.kind {
+            FrameLightKind::Directional(direction) => ShadowedLightKind::Directional { direction },
+            FrameLightKind::Positional { light_id, .. } => {
+                ShadowedLightKind::Clustered { light_id }
+            }
+        }
+    }
+
+    /// Point and spot lights: world position and range (the farthest point they light).
+    pub fn reach(&self) -> Option<(Vec3, f32)> {
+        match self.kind {
+            FrameLightKind::Directional(_) => None,
+            FrameLightKind::Positional {
+                position, range, ..
+            } => Some((position, range)),
+        }
+    }
+
+    /// The light as the passes see it from a camera (or any origin) at `camera`;
+    /// `None` for a light beyond the tile range.
+    pub fn shadow_light(&self, camera: &CameraOrigin) -> Option<ShadowLight> {
         let s = &self.settings;
         let (kind, source, range, spot) = match self.kind {
             FrameLightKind::Directional(d) => (
@@ -114,9 +136,19 @@ impl FrameLight {
     }
 }
 
-/// This frame's shadowed lights, in mask-layer order.
+/// This frame's distance-field-shadowed lights (render world, filled in
+/// `RenderSystems::PrepareResources`), in mask-layer order: point and spot lights only
+/// while Bevy clusters them (visible). Other features that take these lights'
+/// visibility from the distance fields (hair) read it.
 #[derive(Resource, Default)]
-struct FrameLights(Vec<FrameLight>);
+pub struct DistanceFieldShadowedLights(Vec<DistanceFieldShadowedLight>);
+
+impl DistanceFieldShadowedLights {
+    /// The lights, in mask-layer order.
+    pub fn lights(&self) -> &[DistanceFieldShadowedLight] {
+        &self.0
+    }
+}
 
 /// A view's mask texture: one `R32Float` layer per shadowed light.
 #[derive(Component)]
@@ -156,7 +188,7 @@ pub(super) struct ShadowPipelines {
 
 pub(super) fn build(render_app: &mut SubApp) {
     render_app
-        .init_resource::<FrameLights>()
+        .init_resource::<DistanceFieldShadowedLights>()
         .init_resource::<super::consumers::ShadowMapConsumers>()
         .init_resource::<super::consumers::NoShadowMapReaders>()
         .add_systems(
@@ -348,7 +380,7 @@ fn prepare_distance_field_shadows(
     allocations: Res<PenumbraGpuAllocations>,
     gpu: Option<Res<DistanceFieldGpu>>,
     clustered: Option<Res<GlobalClusterableObjectMeta>>,
-    mut frame: ResMut<FrameLights>,
+    mut frame: ResMut<DistanceFieldShadowedLights>,
     lights: Query<(
         Entity,
         &MainEntity,
@@ -391,7 +423,7 @@ fn prepare_distance_field_shadows(
         } else {
             continue; // not a light Penumbra shadows
         };
-        frame.0.push(FrameLight {
+        frame.0.push(DistanceFieldShadowedLight {
             kind,
             light,
             settings: settings.clone(),
@@ -502,7 +534,7 @@ fn prepare_distance_field_shadow_bind_groups(
     terrains: Option<Res<GpuHeightfields>>,
     pipelines: Option<Res<ShadowPipelines>>,
     pipeline_cache: Res<PipelineCache>,
-    frame: Res<FrameLights>,
+    frame: Res<DistanceFieldShadowedLights>,
     mut views: Query<(
         &ExtractedView,
         &DistanceFieldShadowMasks,

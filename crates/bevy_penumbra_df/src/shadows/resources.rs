@@ -4,7 +4,7 @@
 //! on the GPU, and bind groups are rebuilt only when a resource they bind changes.
 
 use super::msaa::SampleTraceInputs;
-use super::render::{FrameLight, ShadowPipelines};
+use super::render::{DistanceFieldShadowedLight, ShadowPipelines};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use bevy::prelude::*;
 use bevy::render::render_resource::{
@@ -267,7 +267,7 @@ impl DistanceFieldShadowResources {
         &mut self,
         allocations: &PenumbraGpuAllocations,
         device: &RenderDevice,
-        frame: &[FrameLight],
+        frame: &[DistanceFieldShadowedLight],
         slots: u32,
     ) {
         self.lights.truncate(frame.len());
@@ -298,7 +298,7 @@ impl DistanceFieldShadowResources {
         pipelines: &ShadowPipelines,
         pipeline_cache: &PipelineCache,
         view: &ShadowViewParams,
-        frame: &[FrameLight],
+        frame: &[DistanceFieldShadowedLight],
         textures: &ViewTextures,
     ) {
         let (_, groups_x) = grid_64(view.slots);
