@@ -44,6 +44,8 @@ shader_files! {
     "hair/common.wgsl" => Some("penumbra::hair::common"),
     "hair/draw.wgsl" => None,
     "hair/prepass.wgsl" => None,
+    "hair/shadows.wgsl" => Some("penumbra::hair::shadows"),
+    "hair/df_visibility.wgsl" => Some("penumbra::hair::df_visibility"),
     "df/object.wgsl" => Some("penumbra::df::object"),
     "df/apply_deltas.wgsl" => Some("penumbra::df::apply_deltas"),
     "df/cull.wgsl" => Some("penumbra::df::cull"),

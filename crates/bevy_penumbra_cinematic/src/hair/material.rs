@@ -9,6 +9,7 @@ use bevy::prelude::*;
 use bevy::render::render_resource::{
     AsBindGroup, RenderPipelineDescriptor, ShaderType, SpecializedMeshPipelineError,
 };
+use bevy::render::storage::ShaderBuffer;
 use bevy::shader::{ShaderDefVal, ShaderRef};
 
 use super::HairCoverage;
@@ -51,6 +52,14 @@ pub struct HairParams {
     pub flags: u32,
 }
 
+/// Lights one hair entity takes from the distance fields (`penumbra::hair::shadows`'s
+/// `MAX_HAIR_SHADOW_LIGHTS`); others keep their shadow maps.
+pub const MAX_HAIR_SHADOW_LIGHTS: usize = 4;
+
+/// Bytes of `penumbra::hair::shadows`'s `HairShadows` before its points: the counts and
+/// four lights.
+pub const HAIR_SHADOWS_HEADER_BYTES: usize = 16 + 32 * MAX_HAIR_SHADOW_LIGHTS;
+
 /// Flag: an atlas is bound.
 pub const HAIR_FLAG_ATLAS: u32 = 1;
 /// Flag: draw coverage only (white).
@@ -68,6 +77,11 @@ pub struct HairMaterial {
     #[texture(1)]
     #[sampler(2)]
     pub atlas: Option<Handle<Image>>,
+    /// The strands' distance-field visibility (`penumbra::hair::shadows`'s
+    /// `HairShadows`): the entity's own buffer while distance-field-shadowed lights
+    /// exist, otherwise the plugin's shared placeholder with no light.
+    #[storage(3, read_only, visibility(vertex, fragment))]
+    pub shadows: Handle<ShaderBuffer>,
     /// How coverage is computed.
     pub coverage: HairCoverage,
 }

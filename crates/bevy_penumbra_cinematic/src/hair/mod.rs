@@ -31,6 +31,14 @@
 //! every Bevy light (directional, point, spot) times its shadow map, plus Bevy's ambient
 //! light; exposure, fog and in-shader tonemapping as Bevy's forward materials do them.
 //!
+//! **Distance-field shadows** (`shadows` feature). A light with `DistanceFieldShadows`
+//! shadows hair through the distance fields, on every camera: each strand point's
+//! visibility is marched once per frame in a compute pass (the mask pass's march, from
+//! the point, without a surface's own-shadow term) and interpolated along the strand;
+//! the light's shadow map is not read for the hair (`ReadsNoShadowMaps`). Up to
+//! [`MAX_HAIR_SHADOW_LIGHTS`] such lights per hair entity; skinned hair keeps their
+//! shadow maps (one warning). Details and cost: `shadows.rs`.
+//!
 //! # Inputs
 //!
 //! - Strands from code ([`HairStrands::new`]), from a `.hair` file (the text format of
@@ -42,35 +50,41 @@
 //!   follows its root's nearest vertex's joints) and giving the [`Hair`] entity the mesh's
 //!   `SkinnedMesh`.
 //! - Bad strands (fewer than two points, non-finite points, widths not positive and
-//!   finite) are skipped with one warning per asset; an atlas that fails to load is
+//!   finite) are skipped with one warning per entity and asset version; an atlas that fails to load is
 //!   dropped with one warning (the hair is drawn untextured).
 //!
 //! # Limits
 //!
 //! - Without MSAA (`Msaa::Off`) the test is per pixel against a dithered threshold (one
 //!   warning per camera): hair aliases and shimmers as any alpha test does.
-//! - Distance-field shadows do not reach hair: lights shadow it with their shadow maps,
-//!   which a light with `DistanceFieldShadows` keeps while hair is in view.
+//! - Hair casts no distance-field shadow (it is no caster): under a light with
+//!   `DistanceFieldShadows` neither the hair itself nor the surfaces below get its
+//!   shadow.
 //! - Widths scale with the entity's transform assuming a uniform scale; strips are flat
 //!   (no thickness in depth), lit on their centre line; no self-shadowing beyond the
 //!   shadow maps' resolution, no multiple scattering (Marschner's TRT/TT are not modelled).
 
 mod material;
 mod mesh;
+#[cfg(feature = "shadows")]
+mod shadows;
 
 pub use material::{
     ATTRIBUTE_HAIR_STRIP, ATTRIBUTE_HAIR_TANGENT, HAIR_FLAG_ATLAS, HAIR_FLAG_DEBUG_COVERAGE,
-    HairMaterial, HairParams,
+    HAIR_SHADOWS_HEADER_BYTES, HairMaterial, HairParams, MAX_HAIR_SHADOW_LIGHTS,
 };
 pub use mesh::{StrandJoints, joints_from_skin, strip_mesh};
 pub use penumbra_cinematic_core::hair::MIN_WIDTH_PX;
 pub use penumbra_cinematic_core::hair::strands::{Strand, StrandProblem};
+#[cfg(feature = "shadows")]
+pub use shadows::{ExtractedHairShadows, GpuHairShadows};
 
 use bevy::asset::io::Reader;
 use bevy::asset::{AssetLoader, LoadContext, LoadState};
 use bevy::mesh::VertexAttributeValues;
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
+use bevy::render::storage::ShaderBuffer;
 use penumbra_cinematic_core::hair::strands::{check_strands, parse_hair, strands_from_ribbons};
 
 /// Strands of hair: polylines with a width and an atlas slot, in the hair entity's space.
@@ -359,10 +373,20 @@ impl Plugin for HairPlugin {
             .init_asset_loader::<HairStrandsLoader>()
             .add_systems(
                 PostUpdate,
-                (build_hair, warn_hair_without_msaa).after(bevy::asset::AssetEventSystems),
+                (remove_hair, build_hair, warn_hair_without_msaa)
+                    .chain()
+                    .after(bevy::asset::AssetEventSystems),
             );
         if app.get_sub_app(bevy::render::RenderApp).is_none() {
             return;
+        }
+        if let Some(mut buffers) = app.world_mut().get_resource_mut::<Assets<ShaderBuffer>>() {
+            // Counts of zero: no light's visibility comes from the distance fields.
+            let placeholder = buffers.add(ShaderBuffer::with_size(
+                HAIR_SHADOWS_HEADER_BYTES + 16,
+                bevy::asset::RenderAssetUsages::RENDER_WORLD,
+            ));
+            app.insert_resource(HairShadowPlaceholder(placeholder));
         }
         if let Some(mut shaders) = app.world_mut().get_resource_mut::<Assets<Shader>>() {
             for (handle, path) in [
@@ -381,7 +405,37 @@ impl Plugin for HairPlugin {
             }
         }
         app.add_plugins(MaterialPlugin::<HairMaterial>::default());
+        #[cfg(feature = "shadows")]
+        shadows::build(app);
     }
+
+    fn finish(&self, _app: &mut App) {
+        #[cfg(feature = "shadows")]
+        shadows::finish(_app);
+    }
+}
+
+/// The visibility buffer of hair that takes no light from the distance fields.
+#[derive(Resource, Clone, Debug)]
+struct HairShadowPlaceholder(Handle<ShaderBuffer>);
+
+/// A [`Hair`] entity's distance-field visibility buffers (made by the plugin while a
+/// light has `DistanceFieldShadows`; `shadows` feature): its strands' centre-line
+/// points and the `HairShadows` the compute pass writes and the strips read.
+#[derive(Component, Clone, Debug)]
+pub struct HairShadowBuffers {
+    /// The points, hair space (`vec4`s, the strip mesh's order).
+    pub points: Handle<ShaderBuffer>,
+    /// The lights and each point's visibility of them.
+    pub shadows: Handle<ShaderBuffer>,
+    /// Points in `points`.
+    pub point_count: u32,
+    /// The points' bounding sphere, hair space.
+    pub center: Vec3,
+    /// Its radius.
+    pub radius: f32,
+    /// The strip mesh they were made for.
+    mesh: AssetId<Mesh>,
 }
 
 /// What the plugin made for a [`Hair`] entity (present once its strands were built,
@@ -393,12 +447,42 @@ pub struct HairBuilt {
     atlas_failed: bool,
 }
 
+/// Takes the strips off entities that lost their [`Hair`].
+fn remove_hair(
+    mut commands: Commands,
+    mut removed: RemovedComponents<Hair>,
+    hairs: Query<(), With<Hair>>,
+) {
+    for entity in removed.read() {
+        if hairs.contains(entity) {
+            continue;
+        }
+        if let Ok(mut entity) = commands.get_entity(entity) {
+            entity.remove::<(
+                Mesh3d,
+                MeshMaterial3d<HairMaterial>,
+                HairBuilt,
+                HairShadowBuffers,
+            )>();
+            #[cfg(feature = "shadows")]
+            entity.remove::<bevy_penumbra_df::ReadsNoShadowMaps>();
+        }
+    }
+}
+
 /// Builds a [`Hair`] entity's strip mesh when it or its strands change (skipping bad
-/// strands with one warning per asset version), and keeps its material in step.
+/// strands with one warning per entity and asset version), and keeps its material in
+/// step.
 #[allow(clippy::too_many_arguments, reason = "a Bevy system")]
 fn build_hair(
     mut commands: Commands,
-    mut hairs: Query<(Entity, Ref<Hair>, Option<&mut HairBuilt>)>,
+    mut hairs: Query<(
+        Entity,
+        Ref<Hair>,
+        Option<&mut HairBuilt>,
+        Option<&HairShadowBuffers>,
+    )>,
+    placeholder: Option<Res<HairShadowPlaceholder>>,
     mut events: MessageReader<AssetEvent<HairStrands>>,
     strands: Res<Assets<HairStrands>>,
     mut meshes: ResMut<Assets<Mesh>>,
@@ -412,7 +496,8 @@ fn build_hair(
             _ => None,
         })
         .collect();
-    for (entity, hair, built) in &mut hairs {
+    let placeholder = placeholder.map(|p| p.0.clone()).unwrap_or_default();
+    for (entity, hair, built, shadow_buffers) in &mut hairs {
         let id = hair.strands.id();
         let atlas_failed = hair
             .atlas
@@ -456,7 +541,8 @@ fn build_hair(
                 });
                 continue;
             };
-            let material = materials.add(material_of(&hair, atlas_failed));
+            // New strips: their visibility buffers come next (`shadows`).
+            let material = materials.add(material_of(&hair, atlas_failed, placeholder.clone()));
             commands.entity(entity).insert((
                 Mesh3d(meshes.add(mesh)),
                 MeshMaterial3d(material.clone()),
@@ -474,7 +560,9 @@ fn build_hair(
         }
         if hair.is_changed() || atlas_failed != built.atlas_failed {
             if let Some(mut material) = materials.get_mut(&built.material) {
-                *material = material_of(&hair, atlas_failed);
+                let shadows =
+                    shadow_buffers.map_or_else(|| placeholder.clone(), |b| b.shadows.clone());
+                *material = material_of(&hair, atlas_failed, shadows);
             }
             built.atlas_failed = atlas_failed;
         }
@@ -485,11 +573,12 @@ fn warn_atlas_failed(entity: Entity) {
     warn!("Penumbra: hair on {entity}: its atlas failed to load; drawn without it");
 }
 
-fn material_of(hair: &Hair, atlas_failed: bool) -> HairMaterial {
+fn material_of(hair: &Hair, atlas_failed: bool, shadows: Handle<ShaderBuffer>) -> HairMaterial {
     let atlas = hair.atlas.clone().filter(|_| !atlas_failed);
     HairMaterial {
         params: hair.params(atlas.is_some()),
         atlas,
+        shadows,
         coverage: hair.coverage,
     }
 }
@@ -563,5 +652,32 @@ mod tests {
             HairStrands::from_ribbon_mesh(&no_uvs, 1).unwrap_err(),
             HairMeshError::NoUvs
         );
+    }
+
+    /// Removing `Hair` takes the strips away (the mesh would draw on otherwise).
+    #[test]
+    fn removing_hair_removes_its_strips() {
+        let mut app = App::new();
+        app.add_systems(Update, remove_hair);
+        let entity = app
+            .world_mut()
+            .spawn((
+                Hair::default(),
+                Mesh3d(Handle::default()),
+                MeshMaterial3d::<HairMaterial>(Handle::default()),
+                HairBuilt {
+                    strands: AssetId::default(),
+                    material: Handle::default(),
+                    atlas_failed: false,
+                },
+            ))
+            .id();
+        app.update();
+        assert!(app.world().get::<Mesh3d>(entity).is_some());
+        app.world_mut().entity_mut(entity).remove::<Hair>();
+        app.update();
+        assert!(app.world().get::<Mesh3d>(entity).is_none());
+        assert!(app.world().get::<HairBuilt>(entity).is_none());
+        assert!(app.world().get::<Transform>(entity).is_some());
     }
 }

@@ -48,6 +48,9 @@ const SAMPLE_OFFSETS: array<vec2<f32>, 4> = array<vec2<f32>, 4>(
 
 struct HairVertex {
     @builtin(instance_index) instance_index: u32,
+    // Two vertices per centre-line point (`hair::strip_mesh`): the point is
+    // `(vertex_index − first_vertex_index) / 2`.
+    @builtin(vertex_index) vertex_index: u32,
     // A point of the strand's centre line, hair space.
     @location(0) position: vec3<f32>,
     // The strand's direction there.
@@ -79,6 +82,11 @@ struct HairVaryings {
 #endif
 #ifdef MOTION_VECTOR_PREPASS
     @location(6) previous_world_position: vec4<f32>,
+#endif
+#ifndef PREPASS_PIPELINE
+    // The centre line's visibility of up to four distance-field-shadowed lights
+    // (`penumbra::hair::shadows`; 1 without).
+    @location(7) df_visibility: vec4<f32>,
 #endif
 }
 

@@ -2,11 +2,14 @@
 // per-sample coverage of `penumbra::hair::common` written as the fragment's sample mask,
 // shaded once per pixel with Kajiya-Kay's strand model (diffuse ∝ sin(T, L); the
 // specular of Scheuermann's two tangent-shifted lobes, the second tinted by the hair)
-// under Bevy's lights, each dimmed by its shadow map. Evaluated on the strand's centre
+// under Bevy's lights, each dimmed by its shadow map — or, for a distance-field-shadowed
+// light, by the strand's visibility through the distance fields
+// (`penumbra::hair::shadows`, interpolated along the strand from its points). Evaluated on the strand's centre
 // line; ambient from Bevy's ambient light; fog and in-shader tonemapping as Bevy's
 // forward materials do them.
 
 #import bevy_pbr::{
+    mesh_bindings::mesh,
     mesh_view_bindings as view_bindings,
     mesh_view_types,
     clustered_forward as clustering,
@@ -20,12 +23,54 @@
     ALPHA_CUTOFF,
     hair_atlas, hair_sampler, sample_thresholds, HAIR_FLAG_ATLAS, HAIR_FLAG_DEBUG_COVERAGE,
 }
+#import penumbra::hair::shadows::{
+    HairShadows, HAIR_SHADOW_CLUSTERED, HAIR_SHADOW_DIRECTIONAL, MAX_HAIR_SHADOW_LIGHTS,
+    slot_visibility,
+}
+
+// The strands' distance-field visibility (a placeholder with no light where the scene
+// has no distance-field-shadowed light).
+@group(#{MATERIAL_BIND_GROUP}) @binding(3) var<storage, read> hair_shadows: HairShadows;
 
 const PI: f32 = 3.141592653589793;
 
 @vertex
 fn vertex(vertex: HairVertex) -> HairVaryings {
-    return hair_vertex(vertex);
+    var out = hair_vertex(vertex);
+    out.df_visibility = point_df_visibility(vertex);
+    return out;
+}
+
+// The visibility of the vertex's centre-line point (1 where it has none).
+fn point_df_visibility(vertex: HairVertex) -> vec4<f32> {
+    let point = (vertex.vertex_index - mesh[vertex.instance_index].first_vertex_index) / 2u;
+    if hair_shadows.counts.x == 0u || point >= hair_shadows.counts.y {
+        return vec4(1.0);
+    }
+    return hair_shadows.points[point];
+}
+
+// The distance-field slot of clustered light `light_id`, or -1.
+fn clustered_slot(light_id: u32) -> i32 {
+    for (var i = 0u; i < min(hair_shadows.counts.x, MAX_HAIR_SHADOW_LIGHTS); i += 1u) {
+        let ids = hair_shadows.lights[i].ids;
+        if ids.x == HAIR_SHADOW_CLUSTERED && ids.y == light_id {
+            return i32(ids.z);
+        }
+    }
+    return -1;
+}
+
+// The distance-field slot of the directional light shining from `direction_to_light`,
+// or -1 (matched by direction, as Penumbra's lighting pass does).
+fn directional_slot(direction_to_light: vec3<f32>) -> i32 {
+    for (var i = 0u; i < min(hair_shadows.counts.x, MAX_HAIR_SHADOW_LIGHTS); i += 1u) {
+        let light = hair_shadows.lights[i];
+        if light.ids.x == HAIR_SHADOW_DIRECTIONAL && dot(light.direction.xyz, direction_to_light) > 0.99999 {
+            return i32(light.ids.z);
+        }
+    }
+    return -1;
 }
 
 struct HairOutput {
@@ -61,6 +106,8 @@ struct StrandPoint {
     N: vec3<f32>,
     V: vec3<f32>,
     frag_coord: vec4<f32>,
+    // Visibility of the distance-field-shadowed lights' slots.
+    df_visibility: vec4<f32>,
 }
 
 // The normal the shadow maps' bias uses: across the strand, towards the light.
@@ -89,7 +136,10 @@ fn clustered_light(p: StrandPoint, light_id: u32, spot: bool, color: vec3<f32>) 
         return vec3(0.0);
     }
     var visibility = 1.0;
-    if ((*light).flags & mesh_view_types::POINT_LIGHT_FLAGS_SHADOWS_ENABLED_BIT) != 0u {
+    let slot = clustered_slot(light_id);
+    if slot >= 0 {
+        visibility = slot_visibility(p.df_visibility, slot);
+    } else if ((*light).flags & mesh_view_types::POINT_LIGHT_FLAGS_SHADOWS_ENABLED_BIT) != 0u {
         let n = shadow_normal(p, L);
         if spot {
             visibility = shadows::fetch_spot_shadow(light_id, p.P, n, (*light).shadow_map_near_z, p.frag_coord.xy);
@@ -104,7 +154,10 @@ fn directional_light(p: StrandPoint, i: u32, view_z: f32, color: vec3<f32>) -> v
     let light = &view_bindings::lights.directional_lights[i];
     let L = (*light).direction_to_light;
     var visibility = 1.0;
-    if ((*light).flags & mesh_view_types::DIRECTIONAL_LIGHT_FLAGS_SHADOWS_ENABLED_BIT) != 0u {
+    let slot = directional_slot(L);
+    if slot >= 0 {
+        visibility = slot_visibility(p.df_visibility, slot);
+    } else if ((*light).flags & mesh_view_types::DIRECTIONAL_LIGHT_FLAGS_SHADOWS_ENABLED_BIT) != 0u {
         visibility = shadows::fetch_directional_shadow(i, p.P, shadow_normal(p, L), view_z, p.frag_coord.xy);
     }
     return (*light).color.rgb * visibility * strand_brdf(p.T, p.N, p.V, L, color);
@@ -147,6 +200,7 @@ fn strand_point(in: HairVaryings) -> StrandPoint {
     let n = p.V - p.T * dot(p.T, p.V);
     p.N = select(p.V, normalize(n), dot(n, n) > 1e-8);
     p.frag_coord = in.position;
+    p.df_visibility = in.df_visibility;
     return p;
 }
 

@@ -1,0 +1,545 @@
+//! Hair under distance-field-shadowed lights (`shadows` feature): each strand point's
+//! visibility through the distance fields, traced once per frame for all cameras.
+//!
+//! Penumbra's masks shade deferred pixels only; hair is forward, and a material's bind
+//! group cannot hold a view's textures. So the visibility is computed where the strands
+//! are, not where the pixels are: while [`DistanceFieldShadows`] lights exist, a hair
+//! entity gets two buffers — its centre-line points (hair space, the strip mesh's
+//! order) and `penumbra::hair::shadows`'s `HairShadows` (up to
+//! [`MAX_HAIR_SHADOW_LIGHTS`] lights, matched to Bevy's by clustered id or direction, and
+//! one visibility per light per point). A compute pass (`hair/df_visibility.wgsl`,
+//! `RenderGraph` schedule after the object deltas, before the cameras) marches every
+//! point toward each light through every shadow-casting object whose bounding sphere
+//! meets its cone — the mask pass's march, relative to the hair's own origin, without
+//! the surface's own-shadow term (a strand has no tangent plane). The vertex shader
+//! reads its point's visibility; along a strand it is interpolated between points. The
+//! lights' shadow maps are not read for those lights: the hair carries
+//! [`ReadsNoShadowMaps`], so a light that only hair kept mapped renders no shadow map.
+//!
+//! Limits: hair casts no distance-field shadow (it is no caster) — under such a light
+//! neither the hair itself nor other surfaces get its shadow; skinned hair keeps the
+//! lights' shadow maps (one warning); terrains (`DistanceFieldHeightfield`) do not
+//! shadow hair; a light beyond the fourth reaching a hair keeps its shadow map; along a
+//! segment the shadow is linear between the points.
+//!
+//! Cost: nothing while no light has [`DistanceFieldShadows`]. Per hair entity, 16 bytes
+//! per point twice (points, visibility) and one dispatch per frame while it is visible:
+//! per point and light, one cone test per object slot and a march of those in the cone.
+
+use super::material::{HAIR_SHADOWS_HEADER_BYTES, MAX_HAIR_SHADOW_LIGHTS};
+use super::{Hair, HairBuilt, HairMaterial, HairShadowBuffers, HairStrands};
+use bevy::asset::RenderAssetUsages;
+use bevy::core_pipeline::schedule::camera_driver;
+use bevy::prelude::*;
+use bevy::render::diagnostic::RecordDiagnostics;
+use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
+use bevy::render::render_asset::RenderAssets;
+use bevy::render::render_resource::binding_types::{
+    storage_buffer_read_only_sized, storage_buffer_sized, texture_3d, uniform_buffer_sized,
+};
+use bevy::render::render_resource::encase::UniformBuffer;
+use bevy::render::render_resource::{
+    BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
+    BufferId, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d,
+    PipelineCache, ShaderStages, ShaderType, TextureDescriptor, TextureDimension, TextureFormat,
+    TextureSampleType, TextureUsages, TextureView, TextureViewDescriptor, TextureViewId,
+};
+use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
+use bevy::render::storage::{GpuShaderBuffer, ShaderBuffer};
+use bevy::render::sync_component::SyncComponent;
+use bevy::render::{Render, RenderApp, RenderStartup, RenderSystems};
+use bevy_penumbra_df::lighting::ShadowedLightKind;
+use bevy_penumbra_df::scene::{DistanceFieldGpu, DistanceFieldRenderSystems};
+use bevy_penumbra_df::shadows::DistanceFieldShadowedLights;
+use bevy_penumbra_df::{
+    DistanceFieldShadows, PenumbraGpuAllocations, PenumbraShaderLibrary, ReadsNoShadowMaps,
+};
+use penumbra_cinematic_core::hair::strands::check_strands;
+use penumbra_df_core::cull::CameraOrigin;
+use penumbra_df_core::object::TILE_SIZE;
+use penumbra_df_core::shadow::{SHADOW_LIGHT_BYTES, words_to_bytes};
+use std::num::NonZeroU64;
+
+/// A light's slot when nothing was traced (`HAIR_SHADOW_UNTRACED`): lit.
+const UNTRACED: u32 = 4;
+
+/// `hair/df_visibility.wgsl`'s `HairShadowParams`.
+#[derive(ShaderType, Clone, Copy, Debug, Default, PartialEq)]
+struct HairShadowParams {
+    origin_from_local: Mat4,
+    origin_tile: IVec4,
+    origin_offset: Vec4,
+    point_count: u32,
+    light_count: u32,
+    object_count: u32,
+    reserved: u32,
+}
+
+pub(super) fn build(app: &mut App) {
+    app.add_systems(
+        PostUpdate,
+        build_hair_shadows
+            .after(super::build_hair)
+            .after(bevy::asset::AssetEventSystems),
+    )
+    .add_plugins(ExtractComponentPlugin::<HairShadowBuffers>::default());
+    let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
+        return;
+    };
+    render_app
+        .add_systems(
+            Render,
+            prepare_hair_shadows.in_set(RenderSystems::PrepareBindGroups),
+        )
+        .add_systems(
+            RenderGraph,
+            trace_hair_shadows
+                .after(DistanceFieldRenderSystems::ApplyDeltas)
+                .before(camera_driver),
+        );
+}
+
+pub(super) fn finish(app: &mut App) {
+    if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
+        render_app.add_systems(RenderStartup, init_hair_shadow_pipeline);
+    }
+}
+
+/// The centre-line points of `strands` (drawable ones, the strip mesh's order), as
+/// `vec4`s, and their bounding sphere.
+fn centre_line_points(strands: &HairStrands) -> (Vec<u8>, u32, Vec3, f32) {
+    let (kept, _) = check_strands(strands.strands.clone());
+    let points: Vec<Vec3> = kept.iter().flat_map(|s| s.points.iter().copied()).collect();
+    let (lo, hi) = points.iter().fold(
+        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    let center = if points.is_empty() {
+        Vec3::ZERO
+    } else {
+        0.5 * (lo + hi)
+    };
+    let radius = points
+        .iter()
+        .map(|p| p.distance(center))
+        .fold(0.0, f32::max);
+    let bytes = points
+        .iter()
+        .flat_map(|p| p.extend(1.0).to_array())
+        .flat_map(f32::to_le_bytes)
+        .collect();
+    (bytes, points.len() as u32, center, radius)
+}
+
+/// While distance-field-shadowed lights exist, gives each drawn [`Hair`] entity its
+/// points and visibility buffers (again when its strip mesh is rebuilt) and points its
+/// material at them; marks it [`ReadsNoShadowMaps`] while it takes every such light
+/// from the distance fields.
+#[allow(clippy::type_complexity, reason = "a Bevy query")]
+fn build_hair_shadows(
+    mut commands: Commands,
+    lights: Query<(), With<DistanceFieldShadows>>,
+    hairs: Query<(
+        Entity,
+        &Hair,
+        &HairBuilt,
+        Option<&Mesh3d>,
+        Option<&HairShadowBuffers>,
+        Has<ReadsNoShadowMaps>,
+    )>,
+    strands: Res<Assets<HairStrands>>,
+    buffers: Option<ResMut<Assets<ShaderBuffer>>>,
+    mut materials: ResMut<Assets<HairMaterial>>,
+    mut warned: Local<bevy::platform::collections::HashSet<Entity>>,
+) {
+    let Some(mut buffers) = buffers else {
+        return; // no renderer
+    };
+    let light_count = lights.iter().count();
+    for (entity, hair, built, mesh, shadow_buffers, reads_none) in &hairs {
+        let current = shadow_buffers.filter(|b| mesh.is_some_and(|m| m.id() == b.mesh));
+        let wants_none = current.is_some() && light_count <= MAX_HAIR_SHADOW_LIGHTS;
+        if wants_none != reads_none {
+            if wants_none {
+                commands.entity(entity).insert(ReadsNoShadowMaps);
+            } else {
+                commands.entity(entity).remove::<ReadsNoShadowMaps>();
+            }
+        }
+        if light_count == 0 || current.is_some() {
+            continue;
+        }
+        let (Some(mesh), Some(asset)) = (mesh, strands.get(&hair.strands)) else {
+            continue;
+        };
+        if asset.joints.is_some() {
+            if warned.insert(entity) {
+                warn!(
+                    "Penumbra: hair on {entity} is skinned: distance-field-shadowed lights \
+                     shadow it with their shadow maps"
+                );
+            }
+            continue;
+        }
+        let (points, count, center, radius) = centre_line_points(asset);
+        let shadows = buffers.add(ShaderBuffer::with_size(
+            HAIR_SHADOWS_HEADER_BYTES + 16 * count.max(1) as usize,
+            RenderAssetUsages::RENDER_WORLD,
+        ));
+        let points = buffers.add(ShaderBuffer::new(&points, RenderAssetUsages::RENDER_WORLD));
+        if let Some(mut material) = materials.get_mut(&built.material) {
+            material.shadows = shadows.clone();
+        }
+        commands.entity(entity).insert(HairShadowBuffers {
+            points,
+            shadows,
+            point_count: count,
+            center,
+            radius,
+            mesh: mesh.id(),
+        });
+    }
+}
+
+/// A hair entity's frame as extracted.
+#[derive(Component, Clone, Debug)]
+pub struct ExtractedHairShadows {
+    points: AssetId<ShaderBuffer>,
+    shadows: AssetId<ShaderBuffer>,
+    point_count: u32,
+    world_from_local: Mat4,
+    /// World-space bounding sphere of the points.
+    sphere: (Vec3, f32),
+    visible: bool,
+}
+
+impl SyncComponent for HairShadowBuffers {
+    type Target = (ExtractedHairShadows, GpuHairShadows);
+}
+
+impl ExtractComponent for HairShadowBuffers {
+    type QueryData = (
+        &'static HairShadowBuffers,
+        &'static GlobalTransform,
+        &'static ViewVisibility,
+    );
+    type QueryFilter = ();
+    type Out = ExtractedHairShadows;
+
+    fn extract_component(
+        (buffers, transform, visibility): (&HairShadowBuffers, &GlobalTransform, &ViewVisibility),
+    ) -> Option<ExtractedHairShadows> {
+        let world_from_local = transform.to_matrix();
+        let scale = transform.scale().abs().max_element();
+        Some(ExtractedHairShadows {
+            points: buffers.points.id(),
+            shadows: buffers.shadows.id(),
+            point_count: buffers.point_count,
+            world_from_local,
+            sphere: (
+                world_from_local.transform_point3(buffers.center),
+                buffers.radius * scale,
+            ),
+            visible: visibility.get(),
+        })
+    }
+}
+
+/// What a bind group binds: objects, atlas, points, visibility.
+type BoundIds = (BufferId, TextureViewId, BufferId, BufferId);
+
+/// A hair entity's pooled GPU state.
+#[derive(Component)]
+pub struct GpuHairShadows {
+    params: Buffer,
+    lights: Buffer,
+    /// The header last written into its `HairShadows`.
+    header: Vec<u8>,
+    /// The bind group and the ids of what it binds.
+    group: Option<(BindGroup, BoundIds)>,
+    /// This frame's workgroups (0: not traced).
+    dispatch: u32,
+}
+
+#[derive(Resource)]
+struct HairShadowPipeline {
+    layout: BindGroupLayoutDescriptor,
+    trace: CachedComputePipelineId,
+    /// Bound while the scene has no SDF volume (analytic casters only).
+    no_atlas: TextureView,
+}
+
+fn init_hair_shadow_pipeline(
+    mut commands: Commands,
+    pipeline_cache: Res<PipelineCache>,
+    device: Res<RenderDevice>,
+    library: Option<Res<PenumbraShaderLibrary>>,
+) {
+    let Some(library) = library else {
+        return;
+    };
+    let layout = BindGroupLayoutDescriptor::new(
+        "penumbra_hair_df_visibility_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                storage_buffer_read_only_sized(false, None),
+                texture_3d(TextureSampleType::Float { filterable: false }),
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_sized(false, None),
+                uniform_buffer_sized(false, Some(HairShadowParams::min_size())),
+                uniform_buffer_sized(
+                    false,
+                    NonZeroU64::new((SHADOW_LIGHT_BYTES * MAX_HAIR_SHADOW_LIGHTS) as u64),
+                ),
+            ),
+        ),
+    );
+    let trace = library.queue_compute_layouts(
+        &pipeline_cache,
+        "penumbra_hair_df_visibility",
+        std::slice::from_ref(&layout),
+        "hair/df_visibility.wgsl",
+        "hair_df_visibility",
+    );
+    let no_atlas = device
+        .create_texture(&TextureDescriptor {
+            label: Some("penumbra_hair_no_atlas"),
+            size: Extent3d::default(),
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: TextureDimension::D3,
+            format: TextureFormat::R16Float,
+            usage: TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        })
+        .create_view(&TextureViewDescriptor::default());
+    commands.insert_resource(HairShadowPipeline {
+        layout,
+        trace,
+        no_atlas,
+    });
+}
+
+/// `HairShadows`' header: the lights (kind, id, slot; direction), traced or not.
+fn header_bytes(lights: &[(ShadowedLightKind, u32)], point_count: u32) -> Vec<u8> {
+    let mut words: Vec<u32> = vec![lights.len() as u32, point_count, 0, 0];
+    for i in 0..MAX_HAIR_SHADOW_LIGHTS {
+        let (kind, id, slot, direction) = match lights.get(i) {
+            Some((ShadowedLightKind::Directional { direction }, slot)) => (0, 0, *slot, *direction),
+            Some((ShadowedLightKind::Clustered { light_id }, slot)) => {
+                (1, *light_id, *slot, Vec3::ZERO)
+            }
+            None => (0, 0, UNTRACED, Vec3::ZERO),
+        };
+        words.extend([kind, id, slot, 0]);
+        words.extend(direction.extend(0.0).to_array().map(f32::to_bits));
+    }
+    words_to_bytes(&words)
+}
+
+/// Per hair entity: picks the distance-field-shadowed lights that reach it (at most
+/// four), writes its header when it changes, its uniforms, and (re)makes its bind
+/// group when a bound resource changes. Hair out of every view is not traced.
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+fn prepare_hair_shadows(
+    mut commands: Commands,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    allocations: Res<PenumbraGpuAllocations>,
+    pipeline_cache: Res<PipelineCache>,
+    pipeline: Option<Res<HairShadowPipeline>>,
+    buffers: Res<RenderAssets<GpuShaderBuffer>>,
+    df: Option<Res<DistanceFieldGpu>>,
+    lights: Option<Res<DistanceFieldShadowedLights>>,
+    mut hairs: Query<(Entity, &ExtractedHairShadows, Option<&mut GpuHairShadows>)>,
+) {
+    let Some(pipeline) = pipeline else {
+        return;
+    };
+    let ready = pipeline_cache
+        .get_compute_pipeline(pipeline.trace)
+        .is_some();
+    let scene = df.as_deref().and_then(|df| {
+        let objects = df.objects.as_ref()?;
+        let atlas = df
+            .atlas
+            .as_ref()
+            .map_or(&pipeline.no_atlas, |(_, view, _)| view);
+        Some((objects, atlas, df.slot_count))
+    });
+    let all_lights = lights.as_deref().map_or(&[][..], |l| l.lights());
+    for (entity, hair, gpu) in &mut hairs {
+        let (Some(points), Some(shadows)) = (buffers.get(hair.points), buffers.get(hair.shadows))
+        else {
+            continue; // not uploaded yet
+        };
+        let mut fresh = None;
+        let gpu = match gpu {
+            Some(gpu) => gpu.into_inner(),
+            None => fresh.insert(GpuHairShadows {
+                params: allocations.sized_buffer(
+                    &device,
+                    "penumbra_hair_df_params",
+                    HairShadowParams::min_size().get(),
+                    BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                ),
+                lights: allocations.sized_buffer(
+                    &device,
+                    "penumbra_hair_df_lights",
+                    (SHADOW_LIGHT_BYTES * MAX_HAIR_SHADOW_LIGHTS) as u64,
+                    BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                ),
+                header: Vec::new(),
+                group: None,
+                dispatch: 0,
+            }),
+        };
+        let translation = hair.world_from_local.w_axis.truncate();
+        let origin = CameraOrigin::at(translation);
+        // The lights that reach the hair's sphere, as the march sees them.
+        let (center, radius) = hair.sphere;
+        let reaching: Vec<_> = all_lights
+            .iter()
+            .filter(|l| {
+                l.reach()
+                    .is_none_or(|(at, range)| at.distance(center) <= range + radius)
+            })
+            .filter_map(|l| Some((l.kind(), l.shadow_light(&origin?)?)))
+            .take(MAX_HAIR_SHADOW_LIGHTS)
+            .collect();
+        let traced = ready && hair.visible && scene.is_some() && origin.is_some();
+        let slots: Vec<_> = reaching
+            .iter()
+            .enumerate()
+            .map(|(i, (kind, _))| (*kind, if traced { i as u32 } else { UNTRACED }))
+            .collect();
+        let header = header_bytes(&slots, hair.point_count);
+        if header != gpu.header {
+            queue.write_buffer(&shadows.buffer, 0, &header);
+            gpu.header = header;
+        }
+        gpu.dispatch = 0;
+        if let (true, Some(origin), Some((objects, atlas, slot_count))) = (traced, origin, scene) {
+            let origin_world = IVec3::from_array(origin.tile).as_dvec3() * f64::from(TILE_SIZE)
+                + origin.offset.as_dvec3();
+            let mut origin_from_local = hair.world_from_local;
+            origin_from_local.w_axis = (translation.as_dvec3() - origin_world)
+                .as_vec3()
+                .extend(1.0);
+            let params = HairShadowParams {
+                origin_from_local,
+                origin_tile: IVec3::from_array(origin.tile).extend(0),
+                origin_offset: origin.offset.extend(0.0),
+                point_count: hair.point_count,
+                light_count: reaching.len() as u32,
+                object_count: slot_count,
+                reserved: 0,
+            };
+            let mut bytes = UniformBuffer::new(Vec::new());
+            bytes.write(&params).expect("encodes");
+            queue.write_buffer(&gpu.params, 0, bytes.as_ref());
+            let mut words = Vec::with_capacity(SHADOW_LIGHT_BYTES / 4 * MAX_HAIR_SHADOW_LIGHTS);
+            for (_, light) in &reaching {
+                words.extend(light.to_words());
+            }
+            words.resize(SHADOW_LIGHT_BYTES / 4 * MAX_HAIR_SHADOW_LIGHTS, 0);
+            queue.write_buffer(&gpu.lights, 0, &words_to_bytes(&words));
+            let ids = (
+                objects.id(),
+                atlas.id(),
+                points.buffer.id(),
+                shadows.buffer.id(),
+            );
+            if gpu.group.as_ref().is_none_or(|(_, bound)| *bound != ids) {
+                let group = allocations.bind_group(
+                    &device,
+                    "penumbra_hair_df_visibility",
+                    &pipeline_cache.get_bind_group_layout(&pipeline.layout),
+                    &BindGroupEntries::sequential((
+                        objects.as_entire_binding(),
+                        atlas,
+                        points.buffer.as_entire_binding(),
+                        shadows.buffer.as_entire_binding(),
+                        gpu.params.as_entire_binding(),
+                        gpu.lights.as_entire_binding(),
+                    )),
+                );
+                gpu.group = Some((group, ids));
+            }
+            gpu.dispatch = if reaching.is_empty() {
+                0
+            } else {
+                hair.point_count.div_ceil(64)
+            };
+        }
+        if let Some(fresh) = fresh {
+            commands.entity(entity).insert(fresh);
+        }
+    }
+}
+
+/// The trace: one dispatch per visible hair entity with lights. Dispatches only.
+fn trace_hair_shadows(
+    mut ctx: RenderContext,
+    hairs: Query<&GpuHairShadows>,
+    pipeline: Option<Res<HairShadowPipeline>>,
+    pipeline_cache: Res<PipelineCache>,
+) {
+    let Some(pipeline) = pipeline else {
+        return;
+    };
+    if hairs.iter().all(|h| h.dispatch == 0) {
+        return;
+    }
+    let Some(trace) = pipeline_cache.get_compute_pipeline(pipeline.trace) else {
+        return;
+    };
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_hair_df_visibility");
+    let mut pass = ctx
+        .command_encoder()
+        .begin_compute_pass(&ComputePassDescriptor {
+            label: Some("penumbra_hair_df_visibility"),
+            timestamp_writes: None,
+        });
+    pass.set_pipeline(trace);
+    for hair in &hairs {
+        let Some((group, _)) = &hair.group else {
+            continue;
+        };
+        if hair.dispatch == 0 {
+            continue;
+        }
+        pass.set_bind_group(0, group, &[]);
+        pass.dispatch_workgroups(hair.dispatch, 1, 1);
+    }
+    drop(pass);
+    time_span.end(ctx.command_encoder());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The header the shaders read: counts, then per light its kind, id and slot and
+    /// (directional) its direction; unused entries untraced.
+    #[test]
+    fn header_layout() {
+        let bytes = header_bytes(
+            &[
+                (ShadowedLightKind::Directional { direction: Vec3::Y }, 0),
+                (ShadowedLightKind::Clustered { light_id: 7 }, 1),
+            ],
+            10,
+        );
+        assert_eq!(bytes.len(), HAIR_SHADOWS_HEADER_BYTES);
+        let word = |i: usize| u32::from_le_bytes(bytes[4 * i..4 * i + 4].try_into().unwrap());
+        assert_eq!([word(0), word(1)], [2, 10]);
+        assert_eq!([word(4), word(5), word(6)], [0, 0, 0]);
+        assert_eq!(f32::from_bits(word(9)), 1.0);
+        assert_eq!([word(12), word(13), word(14)], [1, 7, 1]);
+        assert_eq!(word(22), UNTRACED);
+    }
+}
