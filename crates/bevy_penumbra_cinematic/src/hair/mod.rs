@@ -473,7 +473,11 @@ fn remove_hair(
 /// Builds a [`Hair`] entity's strip mesh when it or its strands change (skipping bad
 /// strands with one warning per entity and asset version), and keeps its material in
 /// step.
-#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+#[allow(
+    clippy::too_many_arguments,
+    clippy::type_complexity,
+    reason = "a Bevy system"
+)]
 fn build_hair(
     mut commands: Commands,
     mut hairs: Query<(

@@ -20,7 +20,9 @@
 //! neither the hair itself nor other surfaces get its shadow; skinned hair keeps the
 //! lights' shadow maps (one warning); terrains (`DistanceFieldHeightfield`) do not
 //! shadow hair; a light beyond the fourth reaching a hair keeps its shadow map; along a
-//! segment the shadow is linear between the points.
+//! segment the shadow is linear between the points; the trace is view-independent, so
+//! a directional light's `max_view_distance` counts from the hair's origin, not from a
+//! camera.
 //!
 //! Cost: nothing while no light has [`DistanceFieldShadows`]. Per hair entity, 16 bytes
 //! per point twice (points, visibility) and one dispatch per frame while it is visible:
