@@ -435,6 +435,10 @@ pub struct HairShadowBuffers {
     /// Its radius.
     pub radius: f32,
     /// The strip mesh they were made for.
+    #[cfg_attr(
+        not(feature = "shadows"),
+        allow(dead_code, reason = "made only with the `shadows` feature")
+    )]
     mesh: AssetId<Mesh>,
 }
 
