@@ -42,9 +42,8 @@ use bevy::render::render_resource::binding_types::{
 use bevy::render::render_resource::encase::UniformBuffer;
 use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
-    BufferId, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, Extent3d,
-    PipelineCache, ShaderStages, ShaderType, TextureDescriptor, TextureDimension, TextureFormat,
-    TextureSampleType, TextureUsages, TextureView, TextureViewDescriptor, TextureViewId,
+    BufferId, BufferUsages, CachedComputePipelineId, ComputePassDescriptor, PipelineCache,
+    ShaderStages, ShaderType, TextureSampleType, TextureView, TextureViewId,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
 use bevy::render::storage::{GpuShaderBuffer, ShaderBuffer};
@@ -304,18 +303,7 @@ fn init_hair_shadow_pipeline(
         "hair/df_visibility.wgsl",
         "hair_df_visibility",
     );
-    let no_atlas = device
-        .create_texture(&TextureDescriptor {
-            label: Some("penumbra_hair_no_atlas"),
-            size: Extent3d::default(),
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: TextureDimension::D3,
-            format: TextureFormat::R16Float,
-            usage: TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        })
-        .create_view(&TextureViewDescriptor::default());
+    let no_atlas = bevy_penumbra_df::shader_library::empty_atlas(&device);
     commands.insert_resource(HairShadowPipeline {
         layout,
         trace,
