@@ -256,6 +256,8 @@ pub struct GpuHairShadows {
     lights: Buffer,
     /// The header last written into its `HairShadows`.
     header: Vec<u8>,
+    /// The uniforms last written (params, lights): a static scene uploads nothing.
+    uniforms: (Vec<u8>, Vec<u8>),
     /// The bind group and the ids of what it binds.
     group: Option<(BindGroup, BoundIds)>,
     /// This frame's workgroups (0: not traced).
@@ -381,6 +383,7 @@ fn prepare_hair_shadows(
                     BufferUsages::UNIFORM | BufferUsages::COPY_DST,
                 ),
                 header: Vec::new(),
+                uniforms: (Vec::new(), Vec::new()),
                 group: None,
                 dispatch: 0,
             }),
@@ -428,13 +431,21 @@ fn prepare_hair_shadows(
             };
             let mut bytes = UniformBuffer::new(Vec::new());
             bytes.write(&params).expect("encodes");
-            queue.write_buffer(&gpu.params, 0, bytes.as_ref());
+            let params = bytes.into_inner();
+            if params != gpu.uniforms.0 {
+                queue.write_buffer(&gpu.params, 0, &params);
+                gpu.uniforms.0 = params;
+            }
             let mut words = Vec::with_capacity(SHADOW_LIGHT_BYTES / 4 * MAX_HAIR_SHADOW_LIGHTS);
             for (_, light) in &reaching {
                 words.extend(light.to_words());
             }
             words.resize(SHADOW_LIGHT_BYTES / 4 * MAX_HAIR_SHADOW_LIGHTS, 0);
-            queue.write_buffer(&gpu.lights, 0, &words_to_bytes(&words));
+            let lights = words_to_bytes(&words);
+            if lights != gpu.uniforms.1 {
+                queue.write_buffer(&gpu.lights, 0, &lights);
+                gpu.uniforms.1 = lights;
+            }
             let ids = (
                 objects.id(),
                 atlas.id(),
