@@ -50,8 +50,8 @@
 //!   follows its root's nearest vertex's joints) and giving the [`Hair`] entity the mesh's
 //!   `SkinnedMesh`.
 //! - Bad strands (fewer than two points, non-finite points, widths not positive and
-//!   finite) are skipped with one warning per entity and asset version; an atlas that fails to load is
-//!   dropped with one warning (the hair is drawn untextured).
+//!   finite) are skipped with one warning per entity and asset version; an atlas that
+//!   fails to load is dropped with one warning (the hair is drawn untextured).
 //!
 //! # Limits
 //!

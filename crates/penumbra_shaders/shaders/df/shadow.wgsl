@@ -260,6 +260,15 @@ fn light_reaches(light: ShadowLight, p: vec3<f32>) -> bool {
     return true;
 }
 
+// Whether the light is traced from camera-relative `p` at all: within a directional
+// light's `max_view_distance` of the camera, and reached by a point or spot light
+// (`light_reaches`); elsewhere the visibility is 1. CPU model: the first checks of
+// `shadow_mask::pixel_visibility_with_terrain`.
+fn traces_point(light: ShadowLight, p: vec3<f32>) -> bool {
+    return (!is_directional(light) || dot(p, p) <= light.max_view_distance * light.max_view_distance)
+        && light_reaches(light, p);
+}
+
 // Shaping and clamping; never NaN.
 fn finish_visibility(v: f32, shaping: f32) -> f32 {
     let x = min(pow(clamp(v, 0.0, 1.0), shaping), 1.0);

@@ -13,8 +13,8 @@
 #import penumbra::df::heightfield::{HeightfieldRecord, heightfield_distance}
 #import penumbra::df::shadow::{
     ShadowLight, ShadowRay, bounding_sphere, casts_shadows, cull_slack, finish_visibility, gbuffer_normal,
-    horizon_visibility, is_directional, light_reaches, march_object, object_in_cone,
-    round_cone_distance, shadow_ray,
+    horizon_visibility, is_directional, march_object, object_in_cone,
+    round_cone_distance, shadow_ray, traces_point,
 }
 #import penumbra::lighting::msaa::MSAA_SAMPLE_POSITIONS
 #import penumbra::df::shadow_grid::{
@@ -193,9 +193,7 @@ fn trace(
         // Beyond a directional light's max view distance, or beyond a point or spot
         // light's range or cone: not traced (lit). A tile with no traced pixel gathers
         // no caster at all.
-        surface = (!is_directional(light)
-            || dot(p, p) <= light.max_view_distance * light.max_view_distance)
-            && light_reaches(light, p);
+        surface = traces_point(light, p);
     }
     let ray = shadow_ray(p, light);
     // The surface's own shadow, from its G-buffer normal; where it hides the whole light,

@@ -9,8 +9,8 @@
 
 #import penumbra::df::object::DistanceFieldObject
 #import penumbra::df::shadow::{
-    ShadowLight, bounding_sphere, casts_shadows, finish_visibility, is_directional,
-    light_reaches, march_object, object_in_cone, shadow_ray,
+    ShadowLight, bounding_sphere, casts_shadows, finish_visibility, march_object,
+    object_in_cone, shadow_ray, traces_point,
 }
 #import penumbra::hair::shadows::{HairShadows, MAX_HAIR_SHADOW_LIGHTS}
 
@@ -40,8 +40,7 @@ struct HairShadowParams {
 // The light's visibility from origin-relative `p` (the mask pass's, without the
 // surface's own shadow).
 fn point_visibility(p: vec3<f32>, light: ShadowLight) -> f32 {
-    let near = !is_directional(light) || dot(p, p) <= light.max_view_distance * light.max_view_distance;
-    if !near || !light_reaches(light, p) {
+    if !traces_point(light, p) {
         return 1.0;
     }
     let ray = shadow_ray(p, light);

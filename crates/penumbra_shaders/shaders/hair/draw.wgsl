@@ -4,9 +4,9 @@
 // specular of Scheuermann's two tangent-shifted lobes, the second tinted by the hair)
 // under Bevy's lights, each dimmed by its shadow map — or, for a distance-field-shadowed
 // light, by the strand's visibility through the distance fields
-// (`penumbra::hair::shadows`, interpolated along the strand from its points). Evaluated on the strand's centre
-// line; ambient from Bevy's ambient light; fog and in-shader tonemapping as Bevy's
-// forward materials do them.
+// (`penumbra::hair::shadows`, interpolated along the strand from its points).
+// Evaluated on the strand's centre line; ambient from Bevy's ambient light; fog and
+// in-shader tonemapping as Bevy's forward materials do them.
 
 #import bevy_pbr::{
     mesh_bindings::mesh,
