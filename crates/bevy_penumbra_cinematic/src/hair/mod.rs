@@ -380,14 +380,6 @@ impl Plugin for HairPlugin {
         if app.get_sub_app(bevy::render::RenderApp).is_none() {
             return;
         }
-        if let Some(mut buffers) = app.world_mut().get_resource_mut::<Assets<ShaderBuffer>>() {
-            // Counts of zero: no light's visibility comes from the distance fields.
-            let placeholder = buffers.add(ShaderBuffer::with_size(
-                HAIR_SHADOWS_HEADER_BYTES + 16,
-                bevy::asset::RenderAssetUsages::RENDER_WORLD,
-            ));
-            app.insert_resource(HairShadowPlaceholder(placeholder));
-        }
         if let Some(mut shaders) = app.world_mut().get_resource_mut::<Assets<Shader>>() {
             for (handle, path) in [
                 (material::DRAW_SHADER, "hair/draw.wgsl"),
@@ -414,10 +406,6 @@ impl Plugin for HairPlugin {
         shadows::finish(_app);
     }
 }
-
-/// The visibility buffer of hair that takes no light from the distance fields.
-#[derive(Resource, Clone, Debug)]
-struct HairShadowPlaceholder(Handle<ShaderBuffer>);
 
 /// A [`Hair`] entity's distance-field visibility buffers (made by the plugin while a
 /// light has `DistanceFieldShadows`; `shadows` feature): its strands' centre-line
@@ -490,7 +478,10 @@ fn build_hair(
         Option<&mut HairBuilt>,
         Option<&HairShadowBuffers>,
     )>,
-    placeholder: Option<Res<HairShadowPlaceholder>>,
+    buffers: Option<ResMut<Assets<ShaderBuffer>>>,
+    // The visibility buffer of hair that takes no light from the distance fields (made
+    // with the first hair).
+    mut placeholder: Local<Option<Handle<ShaderBuffer>>>,
     mut events: MessageReader<AssetEvent<HairStrands>>,
     strands: Res<Assets<HairStrands>>,
     mut meshes: ResMut<Assets<Mesh>>,
@@ -504,7 +495,20 @@ fn build_hair(
             _ => None,
         })
         .collect();
-    let placeholder = placeholder.map(|p| p.0.clone()).unwrap_or_default();
+    if hairs.is_empty() {
+        return;
+    }
+    let placeholder = match (&*placeholder, buffers) {
+        (Some(handle), _) => handle.clone(),
+        (None, Some(mut buffers)) => placeholder
+            .insert(buffers.add(ShaderBuffer::with_size(
+                // Counts of zero: no light's visibility comes from the distance fields.
+                HAIR_SHADOWS_HEADER_BYTES + 16,
+                bevy::asset::RenderAssetUsages::RENDER_WORLD,
+            )))
+            .clone(),
+        (None, None) => Handle::default(), // no renderer
+    };
     for (entity, hair, built, shadow_buffers) in &mut hairs {
         let id = hair.strands.id();
         let atlas_failed = hair
