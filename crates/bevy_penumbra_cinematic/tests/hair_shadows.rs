@@ -307,3 +307,128 @@ fn hair_takes_distance_field_shadows() {
     // points for the second's, is off by up to 1.
     assert!(mean < 2e-3 && diffs[n - 1] < 0.02, "mean {mean}");
 }
+
+/// The cost measurement's scene: `strands` strands of 9 points (16 triangles) scattered
+/// over a 512² view, `casters` spheres on a grid above them, the sun with or without
+/// `DistanceFieldShadows`.
+#[derive(Resource, Clone, Copy)]
+struct CostSetup {
+    strands: u32,
+    casters: u32,
+    df: bool,
+}
+
+fn cost_scene(
+    setup: Res<CostSetup>,
+    mut commands: Commands,
+    mut strand_assets: ResMut<Assets<HairStrands>>,
+) {
+    const VIEW: u32 = 512;
+    let hash = |i: u32, k: u32| {
+        let mut h = i.wrapping_mul(0x9e37_79b9) ^ k.wrapping_mul(0x85eb_ca6b);
+        h ^= h >> 15;
+        h = h.wrapping_mul(0x2c1b_3c6d);
+        h ^= h >> 12;
+        (h & 0xffff) as f32 / 65535.0
+    };
+    let strands = (0..setup.strands)
+        .map(|i| {
+            let a = Vec2::new(hash(i, 0), hash(i, 1)) * (VIEW as f32 - 80.0) + 40.0;
+            let angle = hash(i, 2) * std::f32::consts::TAU;
+            let step = Vec2::from_angle(angle) * 8.0;
+            Strand {
+                points: (0..9)
+                    .map(|k| to_world(a + step * (k as f32 - 4.0), VIEW))
+                    .collect(),
+                width: 1.0,
+                slot: 0,
+            }
+        })
+        .collect();
+    commands.spawn(Hair {
+        strands: strand_assets.add(HairStrands::new(strands)),
+        ..default()
+    });
+    let mut sun = commands.spawn((
+        DirectionalLight {
+            illuminance: 10_000.0,
+            shadow_maps_enabled: false,
+            ..default()
+        },
+        Transform::from_xyz(0.0, 0.0, 1.0).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    if setup.df {
+        sun.insert(DistanceFieldShadows {
+            angular_diameter: 5f32.to_radians(),
+            ..default()
+        });
+    }
+    let side = (setup.casters as f32).sqrt().ceil() as u32;
+    for c in 0..setup.casters {
+        let at = (Vec2::new((c % side) as f32, (c / side) as f32) + 0.5) / side as f32;
+        commands.spawn((
+            DistanceFieldCaster {
+                source: CasterSource::Sphere { radius: 16.0 },
+                ..default()
+            },
+            Transform::from_translation((at * VIEW as f32).extend(40.0)),
+        ));
+    }
+    commands.spawn(pixel_camera(VIEW, VIEW));
+}
+
+#[test]
+#[ignore = "a measurement: lavapipe frame times, ~8 minutes"]
+fn hair_shadow_trace_cost() {
+    if !gpu_or_skip("hair_shadow_trace_cost") {
+        return;
+    }
+    let time = |setup: CostSetup| {
+        let mut medians = Vec::new();
+        for _ in 0..3 {
+            let harness = HeadlessRender::new(512, 512).frames(8);
+            let mut app = harness.app();
+            app.add_plugins((
+                SdfAssetPlugin,
+                DistanceFieldScenePlugin,
+                PenumbraLightingPlugin::default(),
+                DistanceFieldShadowsPlugin,
+                HairPlugin,
+            ))
+            .insert_resource(setup)
+            .add_systems(Startup, cost_scene);
+            let capture = harness.run(app).expect("renders");
+            let mut t: Vec<f64> = capture.frame_times[2..]
+                .iter()
+                .map(|d| d.as_secs_f64() * 1e3)
+                .collect();
+            t.sort_by(f64::total_cmp);
+            medians.push(t[t.len() / 2]);
+        }
+        medians.sort_by(f64::total_cmp);
+        medians[1]
+    };
+    for strands in [2_000, 20_000] {
+        let plain = time(CostSetup {
+            strands,
+            casters: 16,
+            df: false,
+        });
+        println!(
+            "{strands} strands ({} points, {} triangles), shadow maps off: {plain:.1} ms",
+            strands * 9,
+            strands * 16
+        );
+        for casters in [1, 16, 64] {
+            let t = time(CostSetup {
+                strands,
+                casters,
+                df: true,
+            });
+            println!(
+                "  DF sun, {casters} casters: {t:.1} ms, {:+.1} ms",
+                t - plain
+            );
+        }
+    }
+}
