@@ -7,6 +7,9 @@
 //!   its importance sampling and the scatter draw's uniform.
 //! - [`reflections`]: billboard reflections — the quads, their exact ray intersection,
 //!   the images' mip chains, the per-pixel pass and the tile cull.
+//! - [`tessellation`]: compute tessellation — the per-mesh preprocessing (12-index
+//!   patches, dominant vertices), the factors, PN-AEN and displacement, and a CPU
+//!   reference tessellator.
 //! - [`hair`]: hair strips (started) — a strip's 4× MSAA coverage with an alpha test per
 //!   sample, and its exact area.
 
@@ -14,3 +17,4 @@ pub mod dof;
 pub mod hair;
 pub mod reflections;
 pub mod sss;
+pub mod tessellation;
