@@ -51,7 +51,8 @@ use bevy::prelude::*;
     feature = "dof",
     feature = "sss",
     feature = "reflections",
-    feature = "hair"
+    feature = "hair",
+    feature = "tessellation"
 ))]
 pub use bevy_penumbra_cinematic as cinematic;
 pub use bevy_penumbra_df as df;
@@ -82,6 +83,8 @@ plugin_group! {
         bevy_penumbra_cinematic::reflections:::BillboardReflectionsPlugin,
         #[cfg(feature = "hair")]
         bevy_penumbra_cinematic::hair:::HairPlugin,
+        #[cfg(feature = "tessellation")]
+        bevy_penumbra_cinematic::tessellation:::TessellationPlugin,
     }
 }
 
@@ -111,6 +114,10 @@ pub mod prelude {
     #[cfg(feature = "sss")]
     pub use bevy_penumbra_cinematic::{
         SubsurfaceProfile, SubsurfaceProfiles, SubsurfaceScattering,
+    };
+    #[cfg(feature = "tessellation")]
+    pub use bevy_penumbra_cinematic::{
+        Tessellated, TessellationCamera, TessellationMode, TessellationPartitioning,
     };
     pub use bevy_penumbra_df::{
         CasterSource, DeferredMsaa, DeferredMsaaShading, DistanceFieldCaster,

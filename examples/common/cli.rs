@@ -87,8 +87,21 @@ pub struct Options {
     pub no_reflections: bool,
     /// `--hair`: how the `hair` example's strands decide coverage.
     pub hair: Option<HairMode>,
+    /// `--tessellation`: the `tessellation` example's surface.
+    pub tessellation: Option<TessellationChoice>,
     /// `--assets`: the asset folder (`AssetPlugin::file_path`).
     pub assets: Option<PathBuf>,
+}
+
+/// What `--tessellation` asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TessellationChoice {
+    /// The input mesh, untessellated.
+    Off,
+    /// Flat patches, displaced.
+    Flat,
+    /// PN-AEN patches, displaced (the default).
+    PnAen,
 }
 
 /// What `--dof` asks for.
@@ -146,7 +159,7 @@ pub enum NoDfao {
 const USAGE: &str = "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N] [--glass] \
      [--plain] [--ao-view ao|bent|tiles] [--casters N] [--global-field] [--no-dfao component|plugin] [--msaa off|4|every|edges] \
      [--dof penumbra|circle|bevy-bokeh|bevy-gaussian|off] [--no-sss] [--no-reflections] \
-     [--hair per-sample|sample-shading|alpha-to-coverage|per-pixel|off] [--assets DIR]";
+     [--hair per-sample|sample-shading|alpha-to-coverage|per-pixel|off] [--tessellation off|flat|pn-aen] [--assets DIR]";
 
 impl Options {
     /// Parses `std::env::args()`-style arguments (without the program name).
@@ -168,6 +181,7 @@ impl Options {
             no_sss: false,
             no_reflections: false,
             hair: None,
+            tessellation: None,
             assets: None,
         };
         let mut args = args.into_iter();
@@ -215,6 +229,14 @@ impl Options {
                                 "--hair: per-sample, sample-shading, alpha-to-coverage, per-pixel or off, got {v:?}"
                             ));
                         }
+                    });
+                }
+                "--tessellation" => {
+                    o.tessellation = Some(match value("--tessellation")?.as_str() {
+                        "off" => TessellationChoice::Off,
+                        "flat" => TessellationChoice::Flat,
+                        "pn-aen" => TessellationChoice::PnAen,
+                        v => return Err(format!("--tessellation: off, flat or pn-aen, got {v:?}")),
                     });
                 }
                 "--dof" => {

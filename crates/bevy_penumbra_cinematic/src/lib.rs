@@ -9,6 +9,8 @@
 //!   [`ReflectionBillboard`] on quads).
 //! - [`hair`]: hair and beards as camera-facing strips with an alpha test per MSAA
 //!   sample ([`Hair`] on entities, strands in [`HairStrands`]).
+//! - [`tessellation`]: compute tessellation with PN-AEN and crack-free displacement
+//!   ([`Tessellated`] on mesh entities).
 //!
 //! The algorithms and their shared GPU layouts live in the Bevy-free
 //! `penumbra_cinematic_core`; their CPU reference models in `penumbra_reference`.
@@ -17,6 +19,7 @@ pub mod dof;
 pub mod hair;
 pub mod reflections;
 pub mod sss;
+pub mod tessellation;
 
 pub use dof::{BokehAperture, BokehDepthOfField, BokehDepthOfFieldPlugin};
 pub use hair::{Hair, HairCoverage, HairPlugin, HairStrands};
@@ -26,4 +29,7 @@ pub use reflections::{
 pub use sss::{
     SubsurfaceDebugView, SubsurfaceProfile, SubsurfaceProfileId, SubsurfaceProfiles,
     SubsurfaceScattering, SubsurfaceScatteringPlugin,
+};
+pub use tessellation::{
+    Tessellated, TessellationCamera, TessellationMode, TessellationPartitioning, TessellationPlugin,
 };

@@ -38,6 +38,8 @@ shader_files! {
     "dof/compact.wgsl" => Some("penumbra::dof::compact"),
     "sss/profile.wgsl" => Some("penumbra::sss::profile"),
     "sss/scatter.wgsl" => None,
+    "tessellation/patch.wgsl" => Some("penumbra::tessellation::patch"),
+    "tessellation/tessellate.wgsl" => Some("penumbra::tessellation::tessellate"),
     "reflections/common.wgsl" => Some("penumbra::reflections::common"),
     "reflections/trace.wgsl" => None,
     "reflections/cull.wgsl" => None,

@@ -54,6 +54,7 @@ pub mod patch;
 pub mod preprocess;
 pub mod reference;
 pub mod shapes;
+pub mod uniform;
 
 pub use factors::{TessellationView, edge_factor, level_of};
 pub use patch::DisplacementMap;

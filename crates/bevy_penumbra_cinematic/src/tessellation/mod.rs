@@ -1,0 +1,667 @@
+//! Compute tessellation (Samaritan's "Tessellation", Mittring and Dudash, GDC 2011): a
+//! [`Tessellated`] mesh is cut finer where the camera sees it large, smoothed with
+//! PN triangles with adjacent edge normals (PN-AEN) and displaced by a height map, on the
+//! GPU, then drawn by Bevy's own material path — shadows, prepass, deferred G-buffer and
+//! Penumbra's lighting see the tessellated triangles.
+//!
+//! # Technique
+//!
+//! wgpu has no hull or domain shaders, so tessellation is three compute passes per
+//! entity (`shaders/tessellation/tessellate.wgsl`, `RenderGraph` schedule, before the
+//! cameras): per-patch factors from each edge's bounding sphere projected to the
+//! screen (a long thin triangle's short edges stay coarse; an edge seen end-on is not
+//! under-tessellated); one workgroup that picks the least *bias* (all factors halved)
+//! whose output fits the entity's pool and places every patch's output by a prefix sum
+//! (the output's order is the patches', deterministic); one workgroup per patch writing
+//! its vertices and triangles. The pool is then copied into the buffers Bevy's mesh
+//! allocator holds for the entity's output mesh. A patch of level `L` is the regular
+//! grid of `2^L` segments per edge; an edge's vertices are a function of the edge alone
+//! (its canonical direction, its own level, the dominant edge's UVs, the position-
+//! averaged normal), so both triangles of an edge produce the same bits: no cracks, also
+//! where normals or UVs split. Details, the algorithm's limits and its CPU model:
+//! `penumbra_cinematic_core::tessellation`.
+//!
+//! The preprocessing — welding positions, dominant vertices, each edge's opposite pair
+//! (meshoptimizer's 12-index patches), averaged normals — runs once per mesh version
+//! on the CPU and is shared by every entity using the mesh.
+//!
+//! **When it runs.** Only in a frame where the tessellation camera (a [`TessellationCamera`],
+//! else the active 3D camera of highest order), the entity's transform, its settings or
+//! its mesh changed: a still scene costs nothing. Every camera and shadow view draws the
+//! same triangles (shadows match the geometry, no self-shadowing acne from mismatched
+//! levels).
+//!
+//! # Use
+//!
+//! Add [`Tessellated`] to an entity with a `Mesh3d` (a triangle list with positions;
+//! normals and UVs are computed or zero when missing) and any material. The plugin
+//! replaces the entity's `Mesh3d` by its output mesh while the component is present and
+//! restores the original when it is removed. Bevy's `Wireframe` shows the tessellation.
+//!
+//! # Limits
+//!
+//! - The output pool is sized for [`Tessellated::max_triangles`] (at least the input's
+//!   triangle count); a view that asks for more gets coarser factors (one warning).
+//! - The output mesh has positions, normals, UV 0 and (when the input has them)
+//!   tangents; other attributes (colours, a second UV set, joints) are dropped, and
+//!   skinned or morphed meshes are not supported (one warning, left untessellated).
+//! - Displacement reads the red channel of an uncompressed image (8- or 16-bit unorm,
+//!   16- or 32-bit float); other formats are ignored with one warning. The displaced
+//!   normal bends the shading normal by the height's slope; a material normal map is
+//!   applied on top.
+//! - Cost: the vertex and index pools twice (the compute pool and Bevy's mesh buffers):
+//!   `(max_triangles + 2·patches)·(32 or 48) + 12·max_triangles` bytes each.
+
+mod render;
+
+use bevy::asset::RenderAssetUsages;
+use bevy::camera::primitives::Aabb;
+use bevy::camera::visibility::NoAutoAabb;
+use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
+use bevy::platform::collections::{HashMap, HashSet};
+use bevy::prelude::*;
+use bevy::render::extract_component::ExtractComponentPlugin;
+use bevy::render::render_resource::TextureFormat;
+use bevy::render::storage::ShaderBuffer;
+use penumbra_cinematic_core::tessellation::factors::{choose_bias, demand};
+use penumbra_cinematic_core::tessellation::reference::{Frame, patch_edge_factors, patch_lod};
+use penumbra_cinematic_core::tessellation::uniform::{
+    PATCH_STATE_BYTES, TOTALS_BYTES, TessellationUniform,
+};
+use penumbra_cinematic_core::tessellation::{
+    DisplacementMap, MAX_LEVEL, Partitioning, Settings, SourceMesh, SurfaceMode, TessellationInput,
+    TessellationView,
+};
+use std::sync::Arc;
+
+pub use render::GpuTessellation;
+
+/// The surface a [`Tessellated`] mesh evaluates.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]
+pub enum TessellationMode {
+    /// The input's flat triangles (displacement still adds detail).
+    Flat,
+    /// PN triangles with adjacent edge normals: a smooth surface through the vertices
+    /// and their normals, one curve per edge even where normals split.
+    #[default]
+    PnAen,
+}
+
+/// How factors become levels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]
+pub enum TessellationPartitioning {
+    /// Power-of-two levels switched whole (a small pop: the displacement mip follows).
+    #[default]
+    Integer,
+    /// The edges' new vertices geomorph from their coarse midpoints.
+    Fractional,
+}
+
+/// Tessellates the entity's `Mesh3d` every frame its view changes (see the module docs).
+#[derive(Component, Reflect, Clone, Debug)]
+#[reflect(Component, Clone, Default)]
+pub struct Tessellated {
+    /// Target length, in pixels, of a tessellated edge (its bounding sphere's projected
+    /// diameter). Default 16. Halving it quadruples the triangles. Not finite or ≤ 0:
+    /// the default, one warning.
+    pub pixels_per_triangle: f32,
+    /// Highest level: at most `2^max_level` segments per input edge. Default 5 (32
+    /// segments, 1,024 triangles per input triangle); clamped to 6.
+    pub max_level: u32,
+    /// Height map (red channel, 0–1) displacing along the averaged normal; `None`: no
+    /// displacement. Default `None`.
+    pub displacement: Option<Handle<Image>>,
+    /// Local units a height of 1 moves above the midlevel. Default 0.05.
+    pub displacement_scale: f32,
+    /// The height that is the surface itself. Default 0.5.
+    pub displacement_midlevel: f32,
+    /// The surface. Default [`TessellationMode::PnAen`].
+    pub mode: TessellationMode,
+    /// Level switching. Default [`TessellationPartitioning::Integer`].
+    pub partitioning: TessellationPartitioning,
+    /// Triangles the output pool holds (raised to the input's count). Default 262,144:
+    /// about 12.6 MB of pool twice without tangents.
+    pub max_triangles: u32,
+}
+
+impl Default for Tessellated {
+    fn default() -> Self {
+        Self {
+            pixels_per_triangle: 16.0,
+            max_level: 5,
+            displacement: None,
+            displacement_scale: 0.05,
+            displacement_midlevel: 0.5,
+            mode: TessellationMode::PnAen,
+            partitioning: TessellationPartitioning::Integer,
+            max_triangles: 262_144,
+        }
+    }
+}
+
+/// Marks the camera whose view drives the tessellation factors (default: the active 3D
+/// camera of highest order).
+#[derive(Component, Reflect, Clone, Copy, Debug, Default)]
+#[reflect(Component, Clone, Default)]
+pub struct TessellationCamera;
+
+/// Adds [`Tessellated`]. No such entity: no buffer, no pipeline dispatch.
+#[derive(Default)]
+pub struct TessellationPlugin;
+
+impl Plugin for TessellationPlugin {
+    fn build(&self, app: &mut App) {
+        bevy_penumbra_df::register_shader_library(app);
+        app.register_type::<Tessellated>()
+            .register_type::<TessellationCamera>()
+            .init_resource::<TessellationCache>()
+            .add_plugins(ExtractComponentPlugin::<TessellationState>::default())
+            .add_systems(
+                PostUpdate,
+                (restore_untessellated, prepare_tessellated)
+                    .chain()
+                    .after(bevy::transform::TransformSystems::Propagate)
+                    .after(bevy::asset::AssetEventSystems)
+                    .before(bevy::camera::visibility::VisibilitySystems::CalculateBounds),
+            );
+        render::build(app);
+    }
+
+    fn finish(&self, app: &mut App) {
+        render::finish(app);
+    }
+}
+
+/// A mesh's preprocessing and its GPU copies, shared by the entities that use it.
+#[derive(Clone)]
+struct CachedInput {
+    input: Arc<TessellationInput>,
+    vertices: Handle<ShaderBuffer>,
+    patches: Handle<ShaderBuffer>,
+}
+
+/// Preprocessed meshes and displacement maps, by asset; what was warned about.
+#[derive(Resource, Default)]
+struct TessellationCache {
+    inputs: HashMap<AssetId<Mesh>, Option<CachedInput>>,
+    maps: HashMap<AssetId<Image>, Option<(Arc<DisplacementMap>, Handle<ShaderBuffer>)>>,
+    no_map: Option<Handle<ShaderBuffer>>,
+    warned: HashSet<(Entity, &'static str)>,
+}
+
+impl TessellationCache {
+    fn warn_once(&mut self, entity: Entity, what: &'static str, message: impl FnOnce() -> String) {
+        if self.warned.insert((entity, what)) {
+            warn!("Penumbra: tessellation of {entity}: {}", message());
+        }
+    }
+}
+
+/// What the plugin made for a [`Tessellated`] entity; extracted to the render world.
+#[derive(Component, Clone)]
+pub struct TessellationState {
+    source: Handle<Mesh>,
+    output: Handle<Mesh>,
+    input: CachedInput,
+    texels: Handle<ShaderBuffer>,
+    map: Option<Arc<DisplacementMap>>,
+    states: Handle<ShaderBuffer>,
+    totals: Handle<ShaderBuffer>,
+    out_vertices: Handle<ShaderBuffer>,
+    out_indices: Handle<ShaderBuffer>,
+    vertex_budget: u32,
+    index_budget: u32,
+    has_tangents: bool,
+    uniform: Option<TessellationUniform>,
+    /// Bumped whenever the uniform changes: the render world re-tessellates.
+    generation: u64,
+    checks: u32,
+}
+
+impl TessellationState {
+    /// The output mesh drawn in place of the source.
+    pub fn output(&self) -> &Handle<Mesh> {
+        &self.output
+    }
+
+    /// The original mesh.
+    pub fn source(&self) -> &Handle<Mesh> {
+        &self.source
+    }
+
+    /// The output pools (interleaved vertices, `u32` indices), the per-patch states and
+    /// the totals (bias, vertices, indices, patches) the passes write: for read-back.
+    pub fn buffers(&self) -> [&Handle<ShaderBuffer>; 4] {
+        [
+            &self.out_vertices,
+            &self.out_indices,
+            &self.states,
+            &self.totals,
+        ]
+    }
+
+    /// The preprocessed input.
+    pub fn input(&self) -> &Arc<TessellationInput> {
+        &self.input.input
+    }
+
+    /// The displacement map in use.
+    pub fn map(&self) -> Option<&Arc<DisplacementMap>> {
+        self.map.as_ref()
+    }
+
+    /// The last uniform written (the frame and settings the output is for).
+    pub fn uniform(&self) -> Option<&TessellationUniform> {
+        self.uniform.as_ref()
+    }
+
+    /// Pool sizes: vertices, indices.
+    pub fn budget(&self) -> (u32, u32) {
+        (self.vertex_budget, self.index_budget)
+    }
+}
+
+/// The core settings of a component, with bad values replaced (one warning each).
+fn settings_of(entity: Entity, t: &Tessellated, cache: &mut TessellationCache) -> Settings {
+    let mut ppt = t.pixels_per_triangle;
+    if !(ppt.is_finite() && ppt > 0.0) {
+        cache.warn_once(entity, "ppt", || {
+            format!("pixels_per_triangle {ppt} is not positive; using 16")
+        });
+        ppt = 16.0;
+    }
+    if t.max_level > MAX_LEVEL {
+        cache.warn_once(entity, "level", || {
+            format!("max_level {} is above {MAX_LEVEL}; clamped", t.max_level)
+        });
+    }
+    let finite = |x: f32, default: f32| if x.is_finite() { x } else { default };
+    Settings {
+        pixels_per_triangle: ppt,
+        max_level: t.max_level.min(MAX_LEVEL),
+        mode: match t.mode {
+            TessellationMode::Flat => SurfaceMode::Flat,
+            TessellationMode::PnAen => SurfaceMode::PnAen,
+        },
+        partitioning: match t.partitioning {
+            TessellationPartitioning::Integer => Partitioning::Integer,
+            TessellationPartitioning::Fractional => Partitioning::Fractional,
+        },
+        displacement_scale: finite(t.displacement_scale, 0.0),
+        displacement_midlevel: finite(t.displacement_midlevel, 0.5),
+        crack_fixes: true,
+    }
+}
+
+fn f32x3(mesh: &Mesh, attribute: bevy::mesh::MeshVertexAttribute) -> Option<Vec<Vec3>> {
+    match mesh.attribute(attribute)? {
+        VertexAttributeValues::Float32x3(v) => {
+            Some(v.iter().map(|&a| Vec3::from_array(a)).collect())
+        }
+        _ => None,
+    }
+}
+
+/// Preprocesses `mesh` (an error message when it cannot be tessellated).
+fn preprocess(mesh: &Mesh) -> Result<TessellationInput, String> {
+    if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
+        return Err(format!(
+            "its mesh is a {:?}, not a triangle list",
+            mesh.primitive_topology()
+        ));
+    }
+    if mesh.attribute(Mesh::ATTRIBUTE_JOINT_INDEX).is_some() || mesh.morph_targets().is_some() {
+        return Err("skinned and morphed meshes are not supported".into());
+    }
+    let positions =
+        f32x3(mesh, Mesh::ATTRIBUTE_POSITION).ok_or("its mesh has no Float32x3 positions")?;
+    let normals = f32x3(mesh, Mesh::ATTRIBUTE_NORMAL);
+    let uvs = match mesh.attribute(Mesh::ATTRIBUTE_UV_0) {
+        Some(VertexAttributeValues::Float32x2(v)) => {
+            Some(v.iter().map(|&a| Vec2::from_array(a)).collect::<Vec<_>>())
+        }
+        _ => None,
+    };
+    let tangents = match mesh.attribute(Mesh::ATTRIBUTE_TANGENT) {
+        Some(VertexAttributeValues::Float32x4(v)) => {
+            Some(v.iter().map(|&a| Vec4::from_array(a)).collect::<Vec<_>>())
+        }
+        _ => None,
+    };
+    let indices: Vec<u32> = match mesh.indices() {
+        Some(i) => i.iter().map(|i| i as u32).collect(),
+        None => (0..positions.len() as u32).collect(),
+    };
+    TessellationInput::new(SourceMesh {
+        positions: &positions,
+        normals: normals.as_deref(),
+        uvs: uvs.as_deref(),
+        tangents: tangents.as_deref(),
+        indices: &indices,
+    })
+    .map_err(|e| format!("its mesh cannot be tessellated: {e}"))
+}
+
+/// The heights of an image's red channel, or why not.
+fn heights(image: &Image) -> Result<DisplacementMap, String> {
+    let size = image.size();
+    let data = image
+        .data
+        .as_ref()
+        .ok_or("its displacement image has no CPU data")?;
+    let texels = (size.x * size.y) as usize;
+    let read = |stride: usize, f: &dyn Fn(&[u8]) -> f32| -> Vec<f32> {
+        data.chunks_exact(stride).take(texels).map(f).collect()
+    };
+    let r16 = |b: &[u8]| u16::from_le_bytes([b[0], b[1]]);
+    let values = match image.texture_descriptor.format {
+        TextureFormat::R8Unorm | TextureFormat::Rgba8Unorm | TextureFormat::Rgba8UnormSrgb => {
+            let stride = if image.texture_descriptor.format == TextureFormat::R8Unorm {
+                1
+            } else {
+                4
+            };
+            read(stride, &|b| f32::from(b[0]) / 255.0)
+        }
+        TextureFormat::R16Unorm => read(2, &|b| f32::from(r16(b)) / 65535.0),
+        TextureFormat::Rgba16Unorm => read(8, &|b| f32::from(r16(b)) / 65535.0),
+        TextureFormat::R16Float => read(2, &|b| half::f16::from_bits(r16(b)).to_f32()),
+        TextureFormat::Rgba16Float => read(8, &|b| half::f16::from_bits(r16(b)).to_f32()),
+        TextureFormat::R32Float => read(4, &|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        TextureFormat::Rgba32Float => read(16, &|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        other => {
+            return Err(format!(
+                "its displacement image's format {other:?} is not supported (8/16-bit unorm or 16/32-bit float)"
+            ));
+        }
+    };
+    DisplacementMap::new(size.x, size.y, values)
+        .ok_or_else(|| "its displacement image is empty, mis-sized or not finite".into())
+}
+
+/// The view the factors are computed for.
+fn tessellation_view(
+    cameras: &Query<(&Camera, &GlobalTransform, Has<TessellationCamera>), With<Camera3d>>,
+) -> Option<TessellationView> {
+    let (camera, transform, _) = cameras
+        .iter()
+        .filter(|(c, _, _)| c.is_active)
+        .max_by_key(|(c, _, marked)| (*marked, c.order))?;
+    let height = camera.physical_viewport_size()?.y as f32;
+    Some(TessellationView::new(
+        transform.to_matrix(),
+        camera.clip_from_view(),
+        height,
+    ))
+}
+
+/// Restores the source mesh of entities that lost [`Tessellated`].
+fn restore_untessellated(
+    mut commands: Commands,
+    mut removed: RemovedComponents<Tessellated>,
+    states: Query<&TessellationState>,
+) {
+    for entity in removed.read() {
+        if let Ok(state) = states.get(entity) {
+            commands
+                .entity(entity)
+                .insert(Mesh3d(state.source.clone()))
+                .remove::<(TessellationState, NoAutoAabb, Aabb)>();
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+fn prepare_tessellated(
+    mut commands: Commands,
+    mut cache: ResMut<TessellationCache>,
+    mut mesh_events: MessageReader<AssetEvent<Mesh>>,
+    mut image_events: MessageReader<AssetEvent<Image>>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    images: Res<Assets<Image>>,
+    mut buffers: ResMut<Assets<ShaderBuffer>>,
+    cameras: Query<(&Camera, &GlobalTransform, Has<TessellationCamera>), With<Camera3d>>,
+    mut entities: Query<(
+        Entity,
+        &Tessellated,
+        &Mesh3d,
+        &GlobalTransform,
+        Option<&mut TessellationState>,
+    )>,
+) {
+    for event in mesh_events.read() {
+        if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
+            cache.inputs.remove(id);
+        }
+    }
+    for event in image_events.read() {
+        if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
+            cache.maps.remove(id);
+        }
+    }
+    let view = tessellation_view(&cameras);
+    for (entity, tessellated, mesh3d, transform, state) in &mut entities {
+        let source = match &state {
+            Some(s) if mesh3d.0 == s.output => s.source.clone(),
+            _ => mesh3d.0.clone(),
+        };
+        let settings = settings_of(entity, tessellated, &mut cache);
+        // The preprocessed input (once per mesh version).
+        let input = match cache.inputs.get(&source.id()) {
+            Some(input) => input.clone(),
+            None => {
+                let Some(mesh) = meshes.get(&source) else {
+                    continue; // not loaded yet
+                };
+                let input = match preprocess(mesh) {
+                    Ok(input) => {
+                        if input.non_manifold_edges > 0 {
+                            let n = input.non_manifold_edges;
+                            cache.warn_once(entity, "manifold", || format!("{n} edges are shared by more than two triangles: they may crack where normals or UVs split"));
+                        }
+                        let input = Arc::new(input);
+                        let vertices = encase_vec(&input.vertices);
+                        let patches: Vec<u8> = input
+                            .patch_words()
+                            .iter()
+                            .flat_map(|w| w.to_le_bytes())
+                            .collect();
+                        Some(CachedInput {
+                            vertices: buffers.add(ShaderBuffer::new(
+                                &vertices,
+                                RenderAssetUsages::RENDER_WORLD,
+                            )),
+                            patches: buffers
+                                .add(ShaderBuffer::new(&patches, RenderAssetUsages::RENDER_WORLD)),
+                            input,
+                        })
+                    }
+                    Err(message) => {
+                        cache.warn_once(entity, "mesh", || {
+                            format!("{message}; it is drawn untessellated")
+                        });
+                        None
+                    }
+                };
+                cache.inputs.insert(source.id(), input.clone());
+                input
+            }
+        };
+        let Some(input) = input else {
+            continue;
+        };
+        // The displacement map.
+        let map = match &tessellated.displacement {
+            None => None,
+            Some(_) if !input.input.has_uvs => {
+                cache.warn_once(entity, "uvs", || {
+                    "its mesh has no UVs: displacement is off".into()
+                });
+                None
+            }
+            Some(handle) => match cache.maps.get(&handle.id()) {
+                Some(map) => map.clone(),
+                None => {
+                    let Some(image) = images.get(handle) else {
+                        continue; // not loaded yet
+                    };
+                    let map = match heights(image) {
+                        Ok(map) => {
+                            let bytes: Vec<u8> =
+                                map.texels.iter().flat_map(|t| t.to_le_bytes()).collect();
+                            Some((
+                                Arc::new(map),
+                                buffers.add(ShaderBuffer::new(
+                                    &bytes,
+                                    RenderAssetUsages::RENDER_WORLD,
+                                )),
+                            ))
+                        }
+                        Err(message) => {
+                            cache.warn_once(entity, "map", || {
+                                format!("{message}; displacement is off")
+                            });
+                            None
+                        }
+                    };
+                    cache.maps.insert(handle.id(), map.clone());
+                    map
+                }
+            },
+        };
+        let patch_count = input.input.patches.len() as u32;
+        let triangles = tessellated.max_triangles.max(patch_count);
+        let (vertex_budget, index_budget) = (
+            triangles.saturating_add(2 * patch_count),
+            triangles.saturating_mul(3),
+        );
+        let has_tangents = input.input.has_tangents;
+        let rebuild = state.as_ref().is_none_or(|s| {
+            s.source != source
+                || !Arc::ptr_eq(&s.input.input, &input.input)
+                || (s.vertex_budget, s.index_budget, s.has_tangents)
+                    != (vertex_budget, index_budget, has_tangents)
+                || mesh3d.0 != s.output
+        });
+        let texels = match &map {
+            Some((_, texels)) => texels.clone(),
+            None => cache
+                .no_map
+                .get_or_insert_with(|| {
+                    buffers.add(ShaderBuffer::new(&[0; 4], RenderAssetUsages::RENDER_WORLD))
+                })
+                .clone(),
+        };
+        let map_data = map.as_ref().map(|(m, _)| m.clone());
+        let mut fresh = None;
+        let state = match state {
+            Some(state) if !rebuild => state.into_inner(),
+            _ => {
+                let output = meshes.add(output_mesh(vertex_budget, index_budget, has_tangents));
+                let words = if has_tangents { 12 } else { 8 };
+                let storage = |bytes: u64| {
+                    ShaderBuffer::with_size(bytes as usize, RenderAssetUsages::RENDER_WORLD)
+                };
+                let new = TessellationState {
+                    source: source.clone(),
+                    output: output.clone(),
+                    input: input.clone(),
+                    texels: texels.clone(),
+                    map: map_data.clone(),
+                    states: buffers.add(storage(PATCH_STATE_BYTES * u64::from(patch_count))),
+                    totals: buffers.add(storage(TOTALS_BYTES)),
+                    out_vertices: buffers.add(storage(4 * words * u64::from(vertex_budget))),
+                    out_indices: buffers.add(storage(4 * u64::from(index_budget))),
+                    vertex_budget,
+                    index_budget,
+                    has_tangents,
+                    uniform: None,
+                    generation: 0,
+                    checks: 0,
+                };
+                commands.entity(entity).insert((Mesh3d(output), NoAutoAabb));
+                fresh.insert(new)
+            }
+        };
+        state.texels = texels;
+        state.map = map_data;
+        let margin = (settings.displacement_scale.abs()
+            * settings
+                .displacement_midlevel
+                .max(1.0 - settings.displacement_midlevel))
+            + 0.25 * (input.input.max - input.input.min).max_element();
+        commands.entity(entity).insert(Aabb::from_min_max(
+            input.input.min - margin,
+            input.input.max + margin,
+        ));
+        if let Some(view) = view {
+            let frame = Frame {
+                view,
+                world_from_local: transform.to_matrix(),
+            };
+            let uniform = TessellationUniform::new(
+                &frame,
+                &settings,
+                state.map.as_deref(),
+                patch_count,
+                vertex_budget,
+                index_budget,
+                has_tangents,
+            );
+            if state.uniform != Some(uniform) {
+                state.uniform = Some(uniform);
+                state.generation += 1;
+                // The CPU's estimate of the GPU's bias, for the one warning (every 16th
+                // change until it warns).
+                if state.checks % 16 == 0 && !cache.warned.contains(&(entity, "budget")) {
+                    let levels = input.input.patches.iter().map(|p| {
+                        patch_lod(
+                            patch_edge_factors(&input.input, p, &frame, &settings),
+                            0,
+                            settings.partitioning,
+                        )
+                        .level
+                        .0
+                    });
+                    let bias = choose_bias(
+                        &demand(levels),
+                        u64::from(vertex_budget),
+                        u64::from(index_budget),
+                    );
+                    if bias > 0 {
+                        cache.warn_once(entity, "budget", || format!("the view asks for more than max_triangles ({triangles}): factors are halved {bias} time(s)"));
+                    }
+                }
+                state.checks += 1;
+            }
+        }
+        if let Some(fresh) = fresh {
+            commands.entity(entity).insert(fresh);
+        }
+    }
+}
+
+/// A placeholder mesh of the pool's size, with the attributes the passes write; its GPU
+/// buffers are overwritten by the tessellation (never re-uploaded: it is not changed).
+fn output_mesh(vertices: u32, indices: u32, tangents: bool) -> Mesh {
+    let n = vertices as usize;
+    let mut mesh = Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::RENDER_WORLD,
+    )
+    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0f32; 3]; n])
+    .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, vec![[0.0f32, 1.0, 0.0]; n])
+    .with_inserted_attribute(Mesh::ATTRIBUTE_UV_0, vec![[0.0f32; 2]; n])
+    .with_inserted_indices(Indices::U32(vec![0; indices as usize]));
+    if tangents {
+        mesh.insert_attribute(Mesh::ATTRIBUTE_TANGENT, vec![[1.0f32, 0.0, 0.0, 1.0]; n]);
+    }
+    mesh
+}
+
+/// The input vertices as a WGSL runtime-sized array of `TessVertex`.
+fn encase_vec(items: &Vec<penumbra_cinematic_core::tessellation::TessVertex>) -> Vec<u8> {
+    let mut buffer = bevy::render::render_resource::encase::StorageBuffer::new(Vec::new());
+    buffer.write(items).expect("encodes");
+    buffer.into_inner()
+}

@@ -1,0 +1,608 @@
+// Compute tessellation, three passes per tessellated entity (one bind group):
+//   `factors`  one thread per patch: its edges' factors (canonical endpoints) and level;
+//   `allocate` one workgroup: the least bias (halving all factors) whose output fits the
+//              pool, then each patch's first vertex and index (a prefix sum: the
+//              output's order is the patches' order, whatever the thread count);
+//   `emit`     one workgroup per patch: its grid's vertices (flat or PN-AEN, displaced)
+//              and triangles, into the pool the mesh's buffers are copied from.
+// CPU model: `penumbra_cinematic_core::tessellation::reference` (`tessellate`).
+#define_import_path penumbra::tessellation::tessellate
+
+#import penumbra::tessellation::patch::{
+    Level, NO_OUTPUT, PatchState, SQRT_2, TessVertex, TessellationUniform, Totals, bezier,
+    biased, edge_factor, grid_triangle_count, grid_vertex_count, level_of, normalize_or_zero,
+    pn_edge_point, pn_normal, uv_gradients,
+}
+
+@group(0) @binding(0) var<uniform> u: TessellationUniform;
+@group(0) @binding(1) var<storage, read> vertices: array<TessVertex>;
+// 12 per patch: the triangle, each edge's opposite pair, the dominant vertices.
+@group(0) @binding(2) var<storage, read> patches: array<u32>;
+// The height map's mip chain (`DisplacementMap::texels`).
+@group(0) @binding(3) var<storage, read> texels: array<f32>;
+@group(0) @binding(4) var<storage, read_write> states: array<PatchState>;
+@group(0) @binding(5) var<storage, read_write> totals: Totals;
+// The mesh's interleaved vertices: position, normal, uv[, tangent].
+@group(0) @binding(6) var<storage, read_write> out_vertices: array<f32>;
+@group(0) @binding(7) var<storage, read_write> out_indices: array<u32>;
+
+const ALLOCATE_THREADS: u32 = 256u;
+const MAX_BIAS: u32 = 4u;
+
+fn patch_index(p: u32, k: u32) -> u32 {
+    return patches[p * 12u + k];
+}
+
+fn fractional() -> bool {
+    return u.partitioning == 1u;
+}
+
+// ---- pass 1: factors -------------------------------------------------------------
+
+// Edge e's endpoints in its canonical order (by dominant vertex; own order without
+// the crack fixes), local units.
+fn canonical_endpoints(p: u32, e: u32) -> array<vec3<f32>, 2> {
+    let f = (e + 1u) % 3u;
+    if u.crack_fixes == 0u {
+        return array(vertices[patch_index(p, e)].position, vertices[patch_index(p, f)].position);
+    }
+    let da = patch_index(p, 9u + e);
+    let db = patch_index(p, 9u + f);
+    if db < da {
+        return array(vertices[db].position, vertices[da].position);
+    }
+    return array(vertices[da].position, vertices[db].position);
+}
+
+@compute @workgroup_size(64)
+fn factors(@builtin(global_invocation_id) id: vec3<u32>) {
+    let p = id.x;
+    if p >= u.patch_count {
+        return;
+    }
+    var f = vec3(1.0);
+    for (var e = 0u; e < 3u; e += 1u) {
+        let ends = canonical_endpoints(p, e);
+        let a = (u.world_from_local * vec4(ends[0], 1.0)).xyz;
+        let b = (u.world_from_local * vec4(ends[1], 1.0)).xyz;
+        f[e] = edge_factor(u.view, a, b, u.pixels_per_triangle, u.max_level);
+    }
+    states[p].factors = f;
+    states[p].level = level_of(max(max(f.x, f.y), f.z), false).level;
+}
+
+// ---- pass 2: allocate ------------------------------------------------------------
+
+var<workgroup> sums_v: array<u32, ALLOCATE_THREADS>;
+var<workgroup> sums_i: array<u32, ALLOCATE_THREADS>;
+var<workgroup> chosen_bias: u32;
+
+fn saturating_add(a: u32, b: u32) -> u32 {
+    let s = a + b;
+    return select(s, 0xffffffffu, s < a);
+}
+
+// This thread's patches: a contiguous chunk.
+fn chunk(t: u32) -> vec2<u32> {
+    let size = (u.patch_count + ALLOCATE_THREADS - 1u) / ALLOCATE_THREADS;
+    let first = min(t * size, u.patch_count);
+    return vec2(first, min(first + size, u.patch_count));
+}
+
+fn chunk_demand(t: u32, bias: u32) -> vec2<u32> {
+    let range = chunk(t);
+    var v = 0u;
+    var i = 0u;
+    for (var p = range.x; p < range.y; p += 1u) {
+        let level = max(i32(states[p].level) - i32(bias), 0);
+        v = saturating_add(v, grid_vertex_count(u32(level)));
+        i = saturating_add(i, 3u * grid_triangle_count(u32(level)));
+    }
+    return vec2(v, i);
+}
+
+@compute @workgroup_size(ALLOCATE_THREADS)
+fn allocate(@builtin(local_invocation_index) t: u32) {
+    if t == 0u {
+        chosen_bias = MAX_BIAS - 1u;
+    }
+    for (var bias = 0u; bias < MAX_BIAS; bias += 1u) {
+        let d = chunk_demand(t, bias);
+        sums_v[t] = d.x;
+        sums_i[t] = d.y;
+        workgroupBarrier();
+        if t == 0u {
+            var v = 0u;
+            var i = 0u;
+            for (var k = 0u; k < ALLOCATE_THREADS; k += 1u) {
+                v = saturating_add(v, sums_v[k]);
+                i = saturating_add(i, sums_i[k]);
+            }
+            if v <= u.vertex_budget && i <= u.index_budget && chosen_bias == MAX_BIAS - 1u && bias < chosen_bias {
+                chosen_bias = bias;
+            }
+        }
+        workgroupBarrier();
+    }
+    let bias = workgroupUniformLoad(&chosen_bias);
+    let d = chunk_demand(t, bias);
+    sums_v[t] = d.x;
+    sums_i[t] = d.y;
+    workgroupBarrier();
+    if t == 0u {
+        var v = 0u;
+        var i = 0u;
+        for (var k = 0u; k < ALLOCATE_THREADS; k += 1u) {
+            let dv = sums_v[k];
+            let di = sums_i[k];
+            sums_v[k] = v;
+            sums_i[k] = i;
+            v = saturating_add(v, dv);
+            i = saturating_add(i, di);
+        }
+        totals.bias = bias;
+        totals.vertices = min(v, u.vertex_budget);
+        totals.indices = min(i, u.index_budget);
+        totals.patches = u.patch_count;
+    }
+    workgroupBarrier();
+    let range = chunk(t);
+    var base_v = sums_v[t];
+    var base_i = sums_i[t];
+    for (var p = range.x; p < range.y; p += 1u) {
+        let level = u32(max(i32(states[p].level) - i32(bias), 0));
+        let nv = grid_vertex_count(level);
+        let ni = 3u * grid_triangle_count(level);
+        var out_level = level;
+        if saturating_add(base_v, nv) > u.vertex_budget || saturating_add(base_i, ni) > u.index_budget {
+            out_level = NO_OUTPUT;
+        }
+        states[p].base_vertex = base_v;
+        states[p].base_index = base_i;
+        states[p].out_level = out_level;
+        if out_level != NO_OUTPUT {
+            base_v += nv;
+            base_i += ni;
+        }
+    }
+}
+
+// ---- pass 3: emit ----------------------------------------------------------------
+
+// The displacement map (repeating addressing, trilinear between levels).
+fn texel(level: u32, x: u32, y: u32) -> f32 {
+    let info = u.map_level_info[level];
+    return texels[info.z + y * info.x + x];
+}
+
+fn wrap(i: f32, n: u32) -> u32 {
+    let k = i32(i) % i32(n);
+    return u32(select(k, k + i32(n), k < 0));
+}
+
+fn bilinear(level: u32, uv: vec2<f32>) -> f32 {
+    let info = u.map_level_info[level];
+    let x = uv.x * f32(info.x) - 0.5;
+    let y = uv.y * f32(info.y) - 0.5;
+    let fx = x - floor(x);
+    let fy = y - floor(y);
+    let x0 = wrap(floor(x), info.x);
+    let y0 = wrap(floor(y), info.y);
+    let x1 = (x0 + 1u) % info.x;
+    let y1 = (y0 + 1u) % info.y;
+    let top = texel(level, x0, y0) * (1.0 - fx) + texel(level, x1, y0) * fx;
+    let bottom = texel(level, x0, y1) * (1.0 - fx) + texel(level, x1, y1) * fx;
+    return top * (1.0 - fy) + bottom * fy;
+}
+
+fn sample_height(uv: vec2<f32>, lod_in: f32) -> f32 {
+    let last = f32(u.map_levels - 1u);
+    let lod = clamp(lod_in, 0.0, last);
+    let l0 = floor(lod);
+    let l1 = min(l0 + 1.0, last);
+    let t = lod - l0;
+    let a = bilinear(u32(l0), uv);
+    let b = bilinear(u32(l1), uv);
+    return a * (1.0 - t) + b * t;
+}
+
+fn slope(uv: vec2<f32>, lod: f32) -> vec2<f32> {
+    let step = vec2(exp2(clamp(lod, 0.0, f32(u.map_levels - 1u)))) / u.map_size;
+    let du = sample_height(uv + vec2(step.x, 0.0), lod) - sample_height(uv - vec2(step.x, 0.0), lod);
+    let dv = sample_height(uv + vec2(0.0, step.y), lod) - sample_height(uv - vec2(0.0, step.y), lod);
+    return vec2(du / (2.0 * step.x), dv / (2.0 * step.y));
+}
+
+fn lod_for(span: vec2<f32>, factor: f32) -> f32 {
+    return log2(max(length(span * u.map_size) / (factor * SQRT_2), 1.0));
+}
+
+fn has_map() -> bool {
+    return u.map_levels > 0u;
+}
+
+struct EdgeCurve {
+    p0: vec3<f32>,
+    p1: vec3<f32>,
+    c0: vec3<f32>,
+    c1: vec3<f32>,
+    uv0: vec2<f32>,
+    uv1: vec2<f32>,
+    n0: vec3<f32>,
+    n1: vec3<f32>,
+    reversed: bool,
+}
+
+fn pair_less(a: vec2<u32>, b: vec2<u32>) -> bool {
+    let ka = vec2(min(a.x, a.y), max(a.x, a.y));
+    let kb = vec2(min(b.x, b.y), max(b.x, b.y));
+    return ka.x < kb.x || (ka.x == kb.x && ka.y < kb.y);
+}
+
+// Edge e as both its triangles evaluate it (`patch::edge_curve`).
+fn edge_curve(p: u32, e: u32) -> EdgeCurve {
+    let f = (e + 1u) % 3u;
+    let a = patch_index(p, e);
+    let b = patch_index(p, f);
+    if u.crack_fixes == 0u {
+        let va = vertices[a];
+        let vb = vertices[b];
+        return EdgeCurve(va.position, vb.position, pn_edge_point(va.position, vb.position, va.normal), pn_edge_point(vb.position, va.position, vb.normal), va.uv, vb.uv, va.normal, vb.normal, false);
+    }
+    let oa = patch_index(p, 3u + 2u * e);
+    let ob = patch_index(p, 4u + 2u * e);
+    let da = patch_index(p, 9u + e);
+    let db = patch_index(p, 9u + f);
+    let reversed = db < da;
+    var own = vec2(a, b);
+    var opposite = vec2(oa, ob);
+    var d = vec2(da, db);
+    if reversed {
+        own = own.yx;
+        opposite = opposite.yx;
+        d = d.yx;
+    }
+    var dom = own;
+    var other = opposite;
+    if pair_less(opposite, own) {
+        dom = opposite;
+        other = own;
+    }
+    let p0 = vertices[d.x].position;
+    let p1 = vertices[d.y].position;
+    let c0 = (pn_edge_point(p0, p1, vertices[dom.x].normal) + pn_edge_point(p0, p1, vertices[other.x].normal)) * 0.5;
+    let c1 = (pn_edge_point(p1, p0, vertices[dom.y].normal) + pn_edge_point(p1, p0, vertices[other.y].normal)) * 0.5;
+    return EdgeCurve(p0, p1, c0, c1, vertices[dom.x].uv, vertices[dom.y].uv, vertices[d.x].smooth_normal, vertices[d.y].smooth_normal, reversed);
+}
+
+fn curve_point(c: EdgeCurve, t: f32) -> vec3<f32> {
+    if u.mode == 0u {
+        return c.p0 * (1.0 - t) + c.p1 * t;
+    }
+    return bezier(c.p0, c.c0, c.c1, c.p1, t);
+}
+
+// Everything one patch's vertices need (`reference::PatchEval`).
+struct Patch {
+    own: array<TessVertex, 3>,
+    dominant: array<TessVertex, 3>,
+    curves: array<EdgeCurve, 3>,
+    // Own orientation: per edge, next to corner e and to e + 1.
+    control: array<vec3<f32>, 6>,
+    centre: vec3<f32>,
+    gradients: mat2x3<f32>,
+    edge_factors: vec3<f32>,
+    edge_levels: array<Level, 3>,
+    factor: f32,
+    corner_lods: vec3<f32>,
+    patch_lod: f32,
+}
+
+var<private> pc: Patch;
+
+struct Out {
+    position: vec3<f32>,
+    normal: vec3<f32>,
+    bary: vec3<f32>,
+}
+
+fn prepare_patch(p: u32, state: PatchState, bias: u32) {
+    for (var c = 0u; c < 3u; c += 1u) {
+        pc.own[c] = vertices[patch_index(p, c)];
+        if u.crack_fixes == 1u {
+            pc.dominant[c] = vertices[patch_index(p, 9u + c)];
+        } else {
+            pc.dominant[c] = pc.own[c];
+        }
+    }
+    var sum = vec3(0.0);
+    for (var e = 0u; e < 3u; e += 1u) {
+        let curve = edge_curve(p, e);
+        pc.curves[e] = curve;
+        if curve.reversed {
+            pc.control[2u * e] = curve.c1;
+            pc.control[2u * e + 1u] = curve.c0;
+        } else {
+            pc.control[2u * e] = curve.c0;
+            pc.control[2u * e + 1u] = curve.c1;
+        }
+        pc.edge_factors[e] = biased(state.factors[e], bias);
+        pc.edge_levels[e] = level_of(pc.edge_factors[e], fractional());
+    }
+    let e = (pc.control[0] + pc.control[1] + pc.control[2] + pc.control[3] + pc.control[4] + pc.control[5]) / 6.0;
+    let v = (pc.own[0].position + pc.own[1].position + pc.own[2].position) / 3.0;
+    pc.centre = e + (e - v) * 0.5;
+    pc.gradients = uv_gradients(pc.own[0].position, pc.own[1].position, pc.own[2].position, pc.own[0].uv, pc.own[1].uv, pc.own[2].uv);
+    pc.factor = max(max(pc.edge_factors.x, pc.edge_factors.y), pc.edge_factors.z);
+    pc.corner_lods = vec3(0.0);
+    pc.patch_lod = 0.0;
+    if has_map() {
+        let segment = u.pixels_per_triangle * f32(1u << bias) / u.view.pixels_per_unit * u.local_per_world;
+        for (var c = 0u; c < 3u; c += 1u) {
+            let d = pc.dominant[c];
+            let world = (u.world_from_local * vec4(d.position, 1.0)).xyz;
+            var distance = 1.0;
+            if u.view.orthographic == 0u {
+                distance = length(world - u.view.position);
+            }
+            pc.corner_lods[c] = log2(max(length(d.uv_density * u.map_size) * segment * distance, 1.0));
+        }
+        var span = 0.0;
+        for (var k = 0u; k < 3u; k += 1u) {
+            span = max(span, length((pc.own[(k + 1u) % 3u].uv - pc.own[k].uv) * u.map_size));
+        }
+        pc.patch_lod = log2(max(span / (pc.factor * SQRT_2), 1.0));
+    }
+}
+
+fn displaced(position: vec3<f32>, direction: vec3<f32>, uv: vec2<f32>, lod: f32) -> vec3<f32> {
+    if !has_map() {
+        return position;
+    }
+    let h = sample_height(uv, lod);
+    return position + direction * (u.displacement_scale * (h - u.displacement_midlevel));
+}
+
+fn shading_normal(b: vec3<f32>, lod: f32) -> vec3<f32> {
+    let n0 = pc.own[0].normal;
+    let n1 = pc.own[1].normal;
+    let n2 = pc.own[2].normal;
+    var base: vec3<f32>;
+    if u.mode == 0u {
+        base = normalize_or_zero(n0 * b.x + n1 * b.y + n2 * b.z);
+    } else {
+        base = pn_normal(pc.own[0].position, pc.own[1].position, pc.own[2].position, n0, n1, n2, b);
+    }
+    if !has_map() {
+        return base;
+    }
+    let uv = pc.own[0].uv * b.x + pc.own[1].uv * b.y + pc.own[2].uv * b.z;
+    let s = slope(uv, lod) * u.displacement_scale;
+    return normalize_or_zero(base - (pc.gradients[0] * s.x + pc.gradients[1] * s.y));
+}
+
+fn axis(c: u32) -> vec3<f32> {
+    var b = vec3(0.0);
+    b[c] = 1.0;
+    return b;
+}
+
+fn corner(c: u32) -> Out {
+    let v = pc.dominant[c];
+    let lod = pc.corner_lods[c];
+    var direction = v.normal;
+    if u.crack_fixes == 1u {
+        direction = v.smooth_normal;
+    }
+    let bary = axis(c);
+    return Out(displaced(v.position, direction, v.uv, lod), shading_normal(bary, lod), bary);
+}
+
+fn edge_grid_point(e: u32, x: u32, level: u32) -> Out {
+    let n = 1u << level;
+    let curve = pc.curves[e];
+    var first = e;
+    var last = (e + 1u) % 3u;
+    if curve.reversed {
+        first = (e + 1u) % 3u;
+        last = e;
+    }
+    if x == 0u {
+        return corner(first);
+    }
+    if x == n {
+        return corner(last);
+    }
+    let t = f32(x) / f32(n);
+    var lod = 0.0;
+    if has_map() {
+        lod = lod_for(curve.uv1 - curve.uv0, pc.edge_factors[e]);
+    }
+    let s = 1.0 - t;
+    let uv = curve.uv0 * s + curve.uv1 * t;
+    let direction = normalize_or_zero(curve.n0 * s + curve.n1 * t);
+    let position = displaced(curve_point(curve, t), direction, uv, lod);
+    var own_t = t;
+    if curve.reversed {
+        own_t = 1.0 - t;
+    }
+    var bary = vec3(0.0);
+    bary[e] = 1.0 - own_t;
+    bary[(e + 1u) % 3u] = own_t;
+    return Out(position, shading_normal(bary, lod), bary);
+}
+
+fn morph(a: Out, b: Out, exact: Out, m: f32) -> Out {
+    let mid = (a.position + b.position) * 0.5;
+    let mid_normal = (a.normal + b.normal) * 0.5;
+    return Out(mid + (exact.position - mid) * m, normalize_or_zero(mid_normal + (exact.normal - mid_normal) * m), exact.bary);
+}
+
+fn edge_point(e: u32, x: u32) -> Out {
+    let level = pc.edge_levels[e];
+    let exact = edge_grid_point(e, x, level.level);
+    if !fractional() || level.level == 0u || x % 2u == 0u {
+        return exact;
+    }
+    return morph(edge_grid_point(e, x - 1u, level.level), edge_grid_point(e, x + 1u, level.level), exact, level.morph);
+}
+
+// The patch's grid vertex at own step s of edge e, snapped to the edge's own grid.
+fn snapped(e: u32, n: u32, s: u32) -> Out {
+    let level = countTrailingZeros(n);
+    let d = level - min(pc.edge_levels[e].level, level);
+    var canonical = s;
+    if pc.curves[e].reversed {
+        canonical = n - s;
+    }
+    return edge_point(e, (canonical + ((1u << d) >> 1u)) >> d);
+}
+
+fn grid_point(n: u32, i: u32, j: u32) -> Out {
+    let k = n - i - j;
+    if i == 0u && j == 0u {
+        return corner(0u);
+    }
+    if j == 0u && k == 0u {
+        return corner(1u);
+    }
+    if i == 0u && k == 0u {
+        return corner(2u);
+    }
+    if j == 0u {
+        return snapped(0u, n, i);
+    }
+    if k == 0u {
+        return snapped(1u, n, j);
+    }
+    if i == 0u {
+        return snapped(2u, n, k);
+    }
+    let b = vec3(f32(k), f32(i), f32(j)) / f32(n);
+    let p0 = pc.own[0].position;
+    let p1 = pc.own[1].position;
+    let p2 = pc.own[2].position;
+    var position: vec3<f32>;
+    if u.mode == 0u {
+        position = p0 * b.x + p1 * b.y + p2 * b.z;
+    } else {
+        position = pn_point(b);
+    }
+    let uv = pc.own[0].uv * b.x + pc.own[1].uv * b.y + pc.own[2].uv * b.z;
+    var d0 = pc.dominant[0].normal;
+    var d1 = pc.dominant[1].normal;
+    var d2 = pc.dominant[2].normal;
+    if u.crack_fixes == 1u {
+        d0 = pc.dominant[0].smooth_normal;
+        d1 = pc.dominant[1].smooth_normal;
+        d2 = pc.dominant[2].smooth_normal;
+    }
+    let direction = normalize_or_zero(d0 * b.x + d1 * b.y + d2 * b.z);
+    return Out(displaced(position, direction, uv, pc.patch_lod), shading_normal(b, pc.patch_lod), b);
+}
+
+fn pn_point(b: vec3<f32>) -> vec3<f32> {
+    let w = b.x;
+    let s = b.y;
+    let v = b.z;
+    let c = pc.control;
+    return pc.own[0].position * (w * w * w)
+        + pc.own[1].position * (s * s * s)
+        + pc.own[2].position * (v * v * v)
+        + c[0] * (3.0 * w * w * s)
+        + c[1] * (3.0 * w * s * s)
+        + c[5] * (3.0 * w * w * v)
+        + c[2] * (3.0 * s * s * v)
+        + c[4] * (3.0 * w * v * v)
+        + c[3] * (3.0 * s * v * v)
+        + pc.centre * (6.0 * w * s * v);
+}
+
+// Vertex v's grid coordinates (i, j): rows of constant j.
+fn grid_coords(n: u32, v: u32) -> vec2<u32> {
+    var j = 0u;
+    var start = 0u;
+    loop {
+        let row = n + 1u - j;
+        if v < start + row {
+            break;
+        }
+        start += row;
+        j += 1u;
+    }
+    return vec2(v - start, j);
+}
+
+fn grid_index(n: u32, i: u32, j: u32) -> u32 {
+    return j * (n + 1u) - j * (max(j, 1u) - 1u) / 2u + i;
+}
+
+// Triangle t of the grid as three local vertex indices (`grid_triangle`).
+fn grid_triangle(n: u32, t: u32) -> vec3<u32> {
+    var j = 0u;
+    var first = 0u;
+    loop {
+        let row = 2u * (n - j) - 1u;
+        if t < first + row {
+            break;
+        }
+        first += row;
+        j += 1u;
+    }
+    let r = t - first;
+    let i = r / 2u;
+    if r % 2u == 0u {
+        return vec3(grid_index(n, i, j), grid_index(n, i + 1u, j), grid_index(n, i, j + 1u));
+    }
+    return vec3(grid_index(n, i + 1u, j), grid_index(n, i + 1u, j + 1u), grid_index(n, i, j + 1u));
+}
+
+fn write_vertex(index: u32, o: Out) {
+    let base = index * u.vertex_words;
+    out_vertices[base] = o.position.x;
+    out_vertices[base + 1u] = o.position.y;
+    out_vertices[base + 2u] = o.position.z;
+    out_vertices[base + 3u] = o.normal.x;
+    out_vertices[base + 4u] = o.normal.y;
+    out_vertices[base + 5u] = o.normal.z;
+    let b = o.bary;
+    let uv = pc.own[0].uv * b.x + pc.own[1].uv * b.y + pc.own[2].uv * b.z;
+    out_vertices[base + 6u] = uv.x;
+    out_vertices[base + 7u] = uv.y;
+    if u.has_tangents == 1u {
+        let t = normalize_or_zero(pc.own[0].tangent.xyz * b.x + pc.own[1].tangent.xyz * b.y + pc.own[2].tangent.xyz * b.z);
+        out_vertices[base + 8u] = t.x;
+        out_vertices[base + 9u] = t.y;
+        out_vertices[base + 10u] = t.z;
+        out_vertices[base + 11u] = pc.own[0].tangent.w;
+    }
+}
+
+@compute @workgroup_size(64)
+fn emit(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) t: u32,
+) {
+    let p = group.x + group.y * groups.x;
+    if p >= u.patch_count {
+        return;
+    }
+    let state = states[p];
+    if state.out_level == NO_OUTPUT {
+        return;
+    }
+    prepare_patch(p, state, totals.bias);
+    let n = 1u << state.out_level;
+    for (var v = t; v < grid_vertex_count(state.out_level); v += 64u) {
+        let ij = grid_coords(n, v);
+        write_vertex(state.base_vertex + v, grid_point(n, ij.x, ij.y));
+    }
+    for (var k = t; k < n * n; k += 64u) {
+        let tri = grid_triangle(n, k) + vec3(state.base_vertex);
+        let at = state.base_index + 3u * k;
+        out_indices[at] = tri.x;
+        out_indices[at + 1u] = tri.y;
+        out_indices[at + 2u] = tri.z;
+    }
+}
