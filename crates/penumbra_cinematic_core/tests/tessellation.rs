@@ -451,9 +451,9 @@ fn pn_aen_is_the_pn_triangle_averaged_across_split_edges() {
             }
         }
         if split {
-            split_checked += 1
+            split_checked += 1;
         } else {
-            smooth_checked += 1
+            smooth_checked += 1;
         }
     }
     println!(
@@ -463,7 +463,7 @@ fn pn_aen_is_the_pn_triangle_averaged_across_split_edges() {
     assert!(worst < 2e-6, "{worst}");
 }
 
-/// McDonald and Kilgard's AEN patch written from the paper: each edge's control points
+/// `McDonald` and Kilgard's AEN patch written from the paper: each edge's control points
 /// the mean of PN's from this triangle's normals and from the neighbour's.
 fn aen_closed_form(input: &TessellationInput, patch: &[u32; 12]) -> PnPatch {
     let v = |i: u32| input.vertices[i as usize];

@@ -63,6 +63,7 @@ use bevy::prelude::*;
 use bevy::render::extract_component::ExtractComponentPlugin;
 use bevy::render::render_resource::TextureFormat;
 use bevy::render::storage::ShaderBuffer;
+use bevy::transform::TransformSystems;
 use penumbra_cinematic_core::tessellation::factors::{choose_bias, demand};
 use penumbra_cinematic_core::tessellation::reference::{Frame, patch_edge_factors, patch_lod};
 use penumbra_cinematic_core::tessellation::uniform::{
@@ -160,7 +161,7 @@ impl Plugin for TessellationPlugin {
                 PostUpdate,
                 (restore_untessellated, prepare_tessellated)
                     .chain()
-                    .after(bevy::transform::TransformSystems::Propagate)
+                    .after(TransformSystems::Propagate)
                     .after(bevy::asset::AssetEventSystems)
                     .before(bevy::camera::visibility::VisibilitySystems::CalculateBounds),
             );
@@ -180,11 +181,14 @@ struct CachedInput {
     patches: Handle<ShaderBuffer>,
 }
 
+/// A displacement map's mip chain and its GPU copy.
+type CachedMap = (Arc<DisplacementMap>, Handle<ShaderBuffer>);
+
 /// Preprocessed meshes and displacement maps, by asset; what was warned about.
 #[derive(Resource, Default)]
 struct TessellationCache {
     inputs: HashMap<AssetId<Mesh>, Option<CachedInput>>,
-    maps: HashMap<AssetId<Image>, Option<(Arc<DisplacementMap>, Handle<ShaderBuffer>)>>,
+    maps: HashMap<AssetId<Image>, Option<CachedMap>>,
     no_map: Option<Handle<ShaderBuffer>>,
     warned: HashSet<(Entity, &'static str)>,
 }

@@ -173,6 +173,7 @@ pub struct GpuTessellation {
     patch_count: u32,
 }
 
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
 fn prepare_tessellation_bind_groups(
     mut commands: Commands,
     device: Res<RenderDevice>,

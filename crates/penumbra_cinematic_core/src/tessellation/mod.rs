@@ -31,7 +31,7 @@
 //!   displacement mip following the level, a level switch moves the surface little
 //!   either way.
 //! - **Surfaces** ([`patch`]): flat, or PN triangles (Vlachos et al. 2001) with
-//!   **adjacent edge normals** (PN-AEN, McDonald and Kilgard 2010): each edge's cubic
+//!   **adjacent edge normals** (PN-AEN, `McDonald` and Kilgard 2010): each edge's cubic
 //!   control points are the average of the two sides' (the triangle's own normals and the
 //!   neighbour's at the same positions), so an edge with split normals is one curve.
 //! - **Displacement** along the position-averaged normal by a height map, sampled
@@ -44,7 +44,7 @@
 //! dominant vertices) and the per-vertex data once per mesh.
 //!
 //! References: Vlachos, Peters, Boyd and Mitchell, "Curved PN Triangles" (I3D 2001);
-//! McDonald and Kilgard, "Crack-Free Point-Normal Triangles using Adjacent Edge Normals"
+//! `McDonald` and Kilgard, "Crack-Free Point-Normal Triangles using Adjacent Edge Normals"
 //! (NVIDIA 2010); Castaño, "Water-tight, textured, displaced subdivision surface
 //! tessellation using Direct3D 11" (Gamefest 2008) for dominant edges and vertices;
 //! Strugar, "Continuous Distance-Dependent Level of Detail" (2009) for the geomorph.
@@ -161,7 +161,7 @@ pub fn grid_triangle(n: u32, t: u32) -> [(u32, u32); 3] {
     }
     let r = t - first;
     let i = r / 2;
-    if r % 2 == 0 {
+    if r.is_multiple_of(2) {
         [(i, j), (i + 1, j), (i, j + 1)]
     } else {
         [(i + 1, j), (i + 1, j + 1), (i, j + 1)]

@@ -113,7 +113,7 @@ impl TessellationInput {
     /// Preprocesses `mesh`.
     pub fn new(mesh: SourceMesh<'_>) -> Result<Self, PreprocessError> {
         let n = mesh.positions.len();
-        if mesh.indices.len() % 3 != 0 || mesh.indices.iter().any(|&i| i as usize >= n) {
+        if !mesh.indices.len().is_multiple_of(3) || mesh.indices.iter().any(|&i| i as usize >= n) {
             return Err(PreprocessError::BadIndices);
         }
         if mesh.positions.iter().any(|p| !p.is_finite()) {

@@ -275,7 +275,8 @@ impl<'a> PatchEval<'a> {
     fn edge_point(&self, e: usize, x: u32) -> OutVertex {
         let (level, morph) = self.lod.edge_levels[e];
         let exact = self.edge_grid_point(e, x, level);
-        if self.settings.partitioning == Partitioning::Integer || level == 0 || x % 2 == 0 {
+        if self.settings.partitioning == Partitioning::Integer || level == 0 || x.is_multiple_of(2)
+        {
             return exact;
         }
         let a = self.edge_grid_point(e, x - 1, level);
