@@ -17,7 +17,9 @@ use bevy::prelude::*;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use bevy_penumbra_cinematic::tessellation::TessellationState;
-use bevy_penumbra_cinematic::{Tessellated, TessellationPlugin};
+use bevy_penumbra_cinematic::{
+    Tessellated, TessellationMode, TessellationPartitioning, TessellationPlugin,
+};
 use penumbra_cinematic_core::tessellation::preprocess::boundary_edge_count;
 use penumbra_cinematic_core::tessellation::reference::Frame;
 use penumbra_cinematic_core::tessellation::shapes::{ShapeMesh, height_map, rock};
@@ -73,12 +75,18 @@ fn height_image(size: u32) -> Image {
     )
 }
 
-fn tessellated(map: Handle<Image>) -> Tessellated {
+/// The configuration under test.
+#[derive(Resource, Clone, Copy)]
+struct Config(TessellationMode, TessellationPartitioning);
+
+fn tessellated(map: Handle<Image>, config: Config) -> Tessellated {
     Tessellated {
         pixels_per_triangle: 6.0,
         max_level: 4,
         displacement: Some(map),
         displacement_scale: 0.15,
+        mode: config.0,
+        partitioning: config.1,
         ..default()
     }
 }
@@ -95,13 +103,14 @@ fn scene(
     mut meshes: ResMut<Assets<Mesh>>,
     mut images: ResMut<Assets<Image>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
+    config: Res<Config>,
 ) {
     let map = images.add(height_image(64));
     let rock = commands
         .spawn((
             Mesh3d(meshes.add(rock_mesh(&rock(16, 6)))),
             MeshMaterial3d(materials.add(StandardMaterial::default())),
-            tessellated(map),
+            tessellated(map, *config),
         ))
         .id();
     commands.insert_resource(Rock(rock));
@@ -156,12 +165,24 @@ fn gpu_tessellation_is_the_reference() {
     if !gpu_or_skip("gpu_tessellation_is_the_reference") {
         return;
     }
+    contract(Config(
+        TessellationMode::PnAen,
+        TessellationPartitioning::Integer,
+    ));
+    contract(Config(
+        TessellationMode::Flat,
+        TessellationPartitioning::Fractional,
+    ));
+}
+
+fn contract(config: Config) {
     let harness = HeadlessRender::new(SIZE, SIZE).frames(3).warm_up(|world| {
         let read = &world.resource::<ReadBack>().0;
         read.iter().all(Option::is_some) && words(read[3].as_ref().unwrap())[3] > 0
     });
     let mut app = harness.app();
     app.add_plugins(TessellationPlugin)
+        .insert_resource(config)
         .init_resource::<ReadBack>()
         .add_systems(Startup, scene)
         .add_systems(Update, read_back);
@@ -182,8 +203,14 @@ fn gpu_tessellation_is_the_reference() {
     let settings = Settings {
         pixels_per_triangle: 6.0,
         max_level: 4,
-        mode: SurfaceMode::PnAen,
-        partitioning: Partitioning::Integer,
+        mode: match config.0 {
+            TessellationMode::Flat => SurfaceMode::Flat,
+            TessellationMode::PnAen => SurfaceMode::PnAen,
+        },
+        partitioning: match config.1 {
+            TessellationPartitioning::Integer => Partitioning::Integer,
+            TessellationPartitioning::Fractional => Partitioning::Fractional,
+        },
         displacement_scale: 0.15,
         displacement_midlevel: 0.5,
         crack_fixes: true,
@@ -214,7 +241,7 @@ fn gpu_tessellation_is_the_reference() {
     let mut level_mismatches = 0;
     for (p, &(base, first, lod)) in cpu.patches.iter().enumerate() {
         let s = &states[8 * p..8 * p + 8];
-        if s[6] != lod.level.0 {
+        if s[6] != lod.counts.inside {
             level_mismatches += 1;
         }
         assert_eq!((s[4], s[5]), (base, first), "patch {p}");
@@ -247,7 +274,8 @@ fn gpu_tessellation_is_the_reference() {
     );
     let cracks = boundary_edge_count(&gpu_positions, &indices[..cpu.indices.len()]);
     println!(
-        "{} vertices, {} triangles: |gpu − cpu| max position {position:.2e} (rock radius 1), normal {normal:.2e}, uv {uv:.2e}; GPU boundary edges after welding: {cracks}",
+        "{:?}: {} vertices, {} triangles: |gpu − cpu| max position {position:.2e} (rock radius 1), normal {normal:.2e}, uv {uv:.2e}; GPU boundary edges after welding: {cracks}",
+        (config.0, config.1),
         cpu.positions.len(),
         cpu.indices.len() / 3
     );

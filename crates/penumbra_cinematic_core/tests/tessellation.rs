@@ -383,32 +383,53 @@ fn surface_jump(previous: &TessellatedMesh, next: &TessellatedMesh) -> f32 {
     worst
 }
 
+/// The largest surface jump over camera steps of `step` (a factor) from 2 to 6.5 units.
+fn largest_jump(
+    input: &TessellationInput,
+    map: &DisplacementMap,
+    partitioning: Partitioning,
+    step: f32,
+) -> f32 {
+    let s = settings(SurfaceMode::PnAen, partitioning, 16.0, 4);
+    let mut previous = None;
+    let mut jump = 0.0f32;
+    let mut distance = 2.0;
+    while distance < 6.5 {
+        let out = tessellate(
+            input,
+            &frame_at(distance, HEIGHT),
+            &s,
+            Some(map),
+            u64::MAX,
+            u64::MAX,
+        );
+        if let Some(previous) = &previous {
+            jump = jump.max(surface_jump(previous, &out));
+        }
+        previous = Some(out);
+        distance *= step;
+    }
+    jump
+}
+
 #[test]
 fn fractional_partitioning_moves_the_surface_continuously() {
     let shape = rock(12, 4);
     let input = input_of(&shape);
     let map = map();
-    let mut worst = Vec::new();
-    for partitioning in [Partitioning::Integer, Partitioning::Fractional] {
-        let s = settings(SurfaceMode::PnAen, partitioning, 16.0, 4);
-        let mut previous = None;
-        let mut jump = 0.0f32;
-        // 120 steps of 1% from 2 to 6.5 units.
-        for k in 0..120 {
-            let frame = frame_at(2.0 * 1.01f32.powi(k), HEIGHT);
-            let out = tessellate(&input, &frame, &s, Some(&map), u64::MAX, u64::MAX);
-            if let Some(previous) = &previous {
-                jump = jump.max(surface_jump(previous, &out));
-            }
-            previous = Some(out);
-        }
-        worst.push(jump);
-    }
+    let [integer, fractional, fine] = [
+        (Partitioning::Integer, 1.01),
+        (Partitioning::Fractional, 1.01),
+        (Partitioning::Fractional, 1.0025),
+    ]
+    .map(|(p, step)| largest_jump(&input, &map, p, step));
     println!(
-        "largest surface jump per 1% camera step (rock radius 1, displacement 0.15): integer {:.5}, fractional {:.5}",
-        worst[0], worst[1]
+        "largest surface jump per camera step (rock radius 1, displacement 0.15): 1% steps: integer {integer:.5}, fractional {fractional:.5}; 0.25% steps: fractional {fine:.5}"
     );
-    assert!(worst.iter().all(|&w| w < 0.003), "{worst:?}");
+    // Integer partitioning pops; fractional moves with the camera (a quarter of the
+    // step, about a quarter of the jump: what is left are zipper diagonals flipping).
+    assert!(integer > 3.0 * fractional, "{integer} {fractional}");
+    assert!(fine < 0.5 * fractional, "{fine} {fractional}");
 }
 
 #[test]
@@ -424,11 +445,7 @@ fn pn_aen_is_the_pn_triangle_averaged_across_split_edges() {
     for (p, patch) in input.patches.iter().enumerate() {
         let own = [0, 1, 2].map(|c| input.vertices[patch[c] as usize]);
         let closed_form = PnPatch::pn(own.map(|v| v.position), own.map(|v| v.normal));
-        let lod = penumbra_cinematic_core::tessellation::reference::patch_lod(
-            [8.0; 3],
-            0,
-            Partitioning::Integer,
-        );
+        let lod = penumbra_cinematic_core::tessellation::reference::patch_lod([8.0; 3], 0);
         let eval = PatchEval::new(&input, p, &frame, &s, None, lod, 0);
         let split = (0..3).any(|e| {
             let (a, b) = (patch[e], patch[(e + 1) % 3]);
@@ -436,19 +453,16 @@ fn pn_aen_is_the_pn_triangle_averaged_across_split_edges() {
             input.vertices[a as usize].normal != input.vertices[oa as usize].normal
                 || input.vertices[b as usize].normal != input.vertices[ob as usize].normal
         });
-        for j in 0..=8u32 {
-            for i in 0..=8 - j {
-                let b = Vec3::new((8 - i - j) as f32, i as f32, j as f32) / 8.0;
-                let got = eval.vertex(8, i, j).position;
-                let want = if split {
-                    // The average, per edge, of this PN triangle's and the neighbour's
-                    // control points; the centre from them.
-                    aen_closed_form(&input, patch).point(b)
-                } else {
-                    closed_form.point(b)
-                };
-                worst = worst.max((got - want).length());
-            }
+        for v in 0..lod.counts.vertices() {
+            let vertex = eval.vertex(v);
+            let want = if split {
+                // The average, per edge, of this PN triangle's and the neighbour's
+                // control points; the centre from them.
+                aen_closed_form(&input, patch).point(vertex.bary)
+            } else {
+                closed_form.point(vertex.bary)
+            };
+            worst = worst.max((vertex.position - want).length());
         }
         if split {
             split_checked += 1;

@@ -39,6 +39,7 @@ shader_files! {
     "sss/profile.wgsl" => Some("penumbra::sss::profile"),
     "sss/scatter.wgsl" => None,
     "tessellation/patch.wgsl" => Some("penumbra::tessellation::patch"),
+    "tessellation/layout.wgsl" => Some("penumbra::tessellation::layout"),
     "tessellation/tessellate.wgsl" => Some("penumbra::tessellation::tessellate"),
     "reflections/common.wgsl" => Some("penumbra::reflections::common"),
     "reflections/trace.wgsl" => None,

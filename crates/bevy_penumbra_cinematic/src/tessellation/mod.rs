@@ -14,12 +14,13 @@
 //! whose output fits the entity's pool and places every patch's output by a prefix sum
 //! (the output's order is the patches', deterministic); one workgroup per patch writing
 //! its vertices and triangles. The pool is then copied into the buffers Bevy's mesh
-//! allocator holds for the entity's output mesh. A patch of level `L` is the regular
-//! grid of `2^L` segments per edge; an edge's vertices are a function of the edge alone
-//! (its canonical direction, its own level, the dominant edge's UVs, the position-
-//! averaged normal), so both triangles of an edge produce the same bits: no cracks, also
-//! where normals or UVs split. Details, the algorithm's limits and its CPU model:
-//! `penumbra_cinematic_core::tessellation`.
+//! allocator holds for the entity's output mesh. A patch is laid out as Direct3D 11's
+//! tessellator does with `fractional_odd` partitioning: each edge's own 1-D pattern
+//! as the outer ring, shrunken rings inside, a zipper between; an edge's vertices are a
+//! function of the edge alone (its canonical direction, its factor, the dominant edge's
+//! UVs, the position-averaged normal), so both triangles of an edge produce the same
+//! bits: no cracks, also where normals or UVs split. Details, the algorithm's limits and
+//! its CPU model: `penumbra_cinematic_core::tessellation`.
 //!
 //! The preprocessing — welding positions, dominant vertices, each edge's opposite pair
 //! (meshoptimizer's 12-index patches), averaged normals — runs once per mesh version
@@ -50,7 +51,8 @@
 //!   normal bends the shading normal by the height's slope; a material normal map is
 //!   applied on top.
 //! - Cost: the vertex and index pools twice (the compute pool and Bevy's mesh buffers):
-//!   `(max_triangles + 2·patches)·(32 or 48) + 12·max_triangles` bytes each.
+//!   `(max_triangles + 2·patches)·(32 or 48) + 12·max_triangles` bytes each, plus 32
+//!   bytes per input triangle of patch state.
 
 mod render;
 
@@ -65,7 +67,7 @@ use bevy::render::render_resource::TextureFormat;
 use bevy::render::storage::ShaderBuffer;
 use bevy::transform::TransformSystems;
 use penumbra_cinematic_core::tessellation::factors::{choose_bias, demand};
-use penumbra_cinematic_core::tessellation::reference::{Frame, patch_edge_factors, patch_lod};
+use penumbra_cinematic_core::tessellation::reference::{Frame, patch_edge_factors};
 use penumbra_cinematic_core::tessellation::uniform::{
     PATCH_STATE_BYTES, TOTALS_BYTES, TessellationUniform,
 };
@@ -88,13 +90,14 @@ pub enum TessellationMode {
     PnAen,
 }
 
-/// How factors become levels.
+/// How factors become segments.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]
 pub enum TessellationPartitioning {
-    /// Power-of-two levels switched whole (a small pop: the displacement mip follows).
-    #[default]
+    /// Equal segments: the triangles pop as the count changes.
     Integer,
-    /// The edges' new vertices geomorph from their coarse midpoints.
+    /// Direct3D's `fractional_odd`: new segments grow from zero length, so the surface
+    /// moves continuously with the camera.
+    #[default]
     Fractional,
 }
 
@@ -106,8 +109,9 @@ pub struct Tessellated {
     /// diameter). Default 16. Halving it quadruples the triangles. Not finite or ≤ 0:
     /// the default, one warning.
     pub pixels_per_triangle: f32,
-    /// Highest level: at most `2^max_level` segments per input edge. Default 5 (32
-    /// segments, 1,024 triangles per input triangle); clamped to 6.
+    /// The largest factor is `2^max_level`: at most `2^max_level + 1` segments per input
+    /// edge. Default 5 (33 segments, about 1,600 triangles per input triangle); clamped
+    /// to 6.
     pub max_level: u32,
     /// Height map (red channel, 0–1) displacing along the averaged normal; `None`: no
     /// displacement. Default `None`.
@@ -118,7 +122,7 @@ pub struct Tessellated {
     pub displacement_midlevel: f32,
     /// The surface. Default [`TessellationMode::PnAen`].
     pub mode: TessellationMode,
-    /// Level switching. Default [`TessellationPartitioning::Integer`].
+    /// Segment spacing. Default [`TessellationPartitioning::Fractional`].
     pub partitioning: TessellationPartitioning,
     /// Triangles the output pool holds (raised to the input's count). Default 262,144:
     /// about 12.6 MB of pool twice without tangents.
@@ -134,7 +138,7 @@ impl Default for Tessellated {
             displacement_scale: 0.05,
             displacement_midlevel: 0.5,
             mode: TessellationMode::PnAen,
-            partitioning: TessellationPartitioning::Integer,
+            partitioning: TessellationPartitioning::Fractional,
             max_triangles: 262_144,
         }
     }
@@ -618,17 +622,13 @@ fn prepare_tessellated(
                 // The CPU's estimate of the GPU's bias, for the one warning (every 16th
                 // change until it warns).
                 if state.checks % 16 == 0 && !cache.warned.contains(&(entity, "budget")) {
-                    let levels = input.input.patches.iter().map(|p| {
-                        patch_lod(
-                            patch_edge_factors(&input.input, p, &frame, &settings),
-                            0,
-                            settings.partitioning,
-                        )
-                        .level
-                        .0
-                    });
+                    let factors = input
+                        .input
+                        .patches
+                        .iter()
+                        .map(|p| patch_edge_factors(&input.input, p, &frame, &settings));
                     let bias = choose_bias(
-                        &demand(levels),
+                        &demand(factors),
                         u64::from(vertex_budget),
                         u64::from(index_budget),
                     );

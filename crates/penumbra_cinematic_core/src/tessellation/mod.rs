@@ -6,30 +6,27 @@
 //! # The scheme
 //!
 //! wgpu has no hull or domain shaders, so a patch (one input triangle) is tessellated in
-//! compute into a vertex and index pool. A patch of *level* `L` is the regular grid of
-//! `n = 2^L` segments per edge: `(n+1)(n+2)/2` vertices, `n²` triangles, barycentric
-//! `(k, i, j)/n` for corners 0, 1, 2 ([`grid_vertex_count`], [`grid_triangles`]).
+//! compute into a vertex and index pool, in the manner of Direct3D 11's fixed-function
+//! tessellator with `fractional_odd` partitioning ([`layout`]).
 //!
 //! - **Factors** ([`factors`]): an edge asks for `f = D / pixels_per_triangle` segments,
 //!   `D` the projected diameter, in pixels, of the edge's bounding sphere (so a long thin
 //!   triangle's short edges stay coarse, and an edge seen end-on is not under-
-//!   tessellated); `1 ≤ f ≤ 2^max_level`. Its level is `ℓ = ⌈log₂ f⌉`, so an edge ends up
-//!   with `f ≤ 2^ℓ < 2f` segments of `½–1×` the target. A patch's level is that of its
-//!   largest edge factor.
-//! - **Crack-free edges.** An edge's vertices are computed by a function of the edge alone,
-//!   in a canonical direction (from the endpoint whose *dominant vertex* — the lowest
-//!   vertex index at that position — is lower), at its own level: both triangles of an
-//!   edge produce bit-identical vertices. A patch whose level is above an edge's snaps its
-//!   grid vertices on that edge to the nearest of the edge's (degenerate triangles, no
-//!   T-junctions).
-//! - **Partitioning.** [`Partitioning::Integer`] switches an edge's level whole;
-//!   [`Partitioning::Fractional`] geomorphs the edges: the vertices an edge's level adds
-//!   start at the midpoint of their two coarser neighbours and move to their place as
-//!   `f` grows from `2^(ℓ−1)` to `2^ℓ` (`morph = f/2^(ℓ−1) − 1`). Interior vertices are
-//!   not morphed: a morph toward neighbours on snapped edge rows moved the surface
-//!   *more* than the pop it hides (measured in `tests/tessellation.rs`). With the
-//!   displacement mip following the level, a level switch moves the surface little
-//!   either way.
+//!   tessellated); `1 ≤ f ≤ 2^max_level`. The inside factor is the largest edge's.
+//! - **Layout.** A factor's 1-D pattern has the smallest odd count `n ≥ f` of segments,
+//!   `n − 2` of `1/f` and two shorter ones beside the middle. The outer ring is each
+//!   edge's own pattern; inner rings are shrunken copies of the triangle carrying the
+//!   inside pattern; a zipper joins the outer ring to the first inner ring.
+//! - **Crack-free edges.** An edge's vertices are a function of the edge alone, in a
+//!   canonical direction (from the endpoint whose *dominant vertex* — the lowest vertex
+//!   index at that position — is lower): its factor, pattern, curve, UVs and displacement
+//!   direction. Both triangles of an edge write bit-identical vertices, in the same
+//!   number, so welding by position bits leaves no boundary edge.
+//! - **Partitioning.** [`Partitioning::Fractional`]: as `f` passes an odd number two new
+//!   segments are born with zero length in the middle of the pattern, so every vertex
+//!   moves continuously with the camera (what is left are zipper diagonals flipping;
+//!   measured in `tests/tessellation.rs`). [`Partitioning::Integer`]: `n` equal segments,
+//!   which pop when `n` changes.
 //! - **Surfaces** ([`patch`]): flat, or PN triangles (Vlachos et al. 2001) with
 //!   **adjacent edge normals** (PN-AEN, `McDonald` and Kilgard 2010): each edge's cubic
 //!   control points are the average of the two sides' (the triangle's own normals and the
@@ -50,18 +47,20 @@
 //! Strugar, "Continuous Distance-Dependent Level of Detail" (2009) for the geomorph.
 
 pub mod factors;
+pub mod layout;
 pub mod patch;
 pub mod preprocess;
 pub mod reference;
 pub mod shapes;
 pub mod uniform;
 
-pub use factors::{TessellationView, edge_factor, level_of};
+pub use factors::{TessellationView, edge_factor};
 pub use patch::DisplacementMap;
 pub use preprocess::{PreprocessError, SourceMesh, TessVertex, TessellationInput};
 pub use reference::{TessellatedMesh, tessellate};
 
-/// The highest patch level (`2^6 = 64` segments per edge, 4,096 triangles per patch).
+/// The highest `max_level`: factors up to `2^6 = 64` (65 segments per edge, about
+/// 6,300 triangles per patch).
 pub const MAX_LEVEL: u32 = 6;
 
 /// Indices per patch in [`TessellationInput::patches`]: the triangle (0–2), each edge's
@@ -85,12 +84,11 @@ pub enum SurfaceMode {
 /// How factors become levels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Partitioning {
-    /// Power-of-two levels switched whole: a level change pops (little: the
-    /// displacement mip follows the level).
-    #[default]
+    /// `n` equal segments (`n` the smallest odd count ≥ the factor): a change of `n`
+    /// pops.
     Integer,
-    /// Power-of-two levels with the edges' new vertices geomorphed from their coarse
-    /// midpoints; interior vertices still switch whole.
+    /// Direct3D's `fractional_odd`: new segments grow from zero length, continuous.
+    #[default]
     Fractional,
 }
 
@@ -99,7 +97,7 @@ pub enum Partitioning {
 pub struct Settings {
     /// Target length, in pixels, of a tessellated edge's projected bounding sphere.
     pub pixels_per_triangle: f32,
-    /// Highest level (`≤ MAX_LEVEL`).
+    /// The largest factor is `2^max_level` (`max_level ≤ MAX_LEVEL`).
     pub max_level: u32,
     /// The surface.
     pub mode: SurfaceMode,
@@ -120,82 +118,10 @@ impl Default for Settings {
             pixels_per_triangle: 16.0,
             max_level: 5,
             mode: SurfaceMode::PnAen,
-            partitioning: Partitioning::Integer,
+            partitioning: Partitioning::Fractional,
             displacement_scale: 0.0,
             displacement_midlevel: 0.5,
             crack_fixes: true,
-        }
-    }
-}
-
-/// Vertices of a level-`level` patch: `(n+1)(n+2)/2`, `n = 2^level`.
-pub const fn grid_vertex_count(level: u32) -> u32 {
-    let n = 1 << level;
-    (n + 1) * (n + 2) / 2
-}
-
-/// Triangles of a level-`level` patch: `n²`.
-pub const fn grid_triangle_count(level: u32) -> u32 {
-    1 << (2 * level)
-}
-
-/// The index, within its patch, of grid vertex `(i, j)` (`i` steps toward corner 1, `j`
-/// toward corner 2) of a patch with `n` segments per edge: rows of constant `j`.
-pub const fn grid_index(n: u32, i: u32, j: u32) -> u32 {
-    j * (n + 1) - j * (j.saturating_sub(1)) / 2 + i
-}
-
-/// Triangle `t` of a grid with `n` segments, as grid coordinates `[(i, j); 3]`, wound as
-/// the patch (corner 0 → 1 → 2). Row `j` holds `2(n − j) − 1` triangles: up, down, up, …
-pub fn grid_triangle(n: u32, t: u32) -> [(u32, u32); 3] {
-    // Rows hold 2n−1, 2n−3, …: find the row by the running count.
-    let mut j = 0;
-    let mut first = 0;
-    loop {
-        let row = 2 * (n - j) - 1;
-        if t < first + row {
-            break;
-        }
-        first += row;
-        j += 1;
-    }
-    let r = t - first;
-    let i = r / 2;
-    if r.is_multiple_of(2) {
-        [(i, j), (i + 1, j), (i, j + 1)]
-    } else {
-        [(i + 1, j), (i + 1, j + 1), (i, j + 1)]
-    }
-}
-
-/// All triangles of a grid with `n` segments as local vertex indices.
-pub fn grid_triangles(n: u32) -> Vec<[u32; 3]> {
-    (0..n * n)
-        .map(|t| grid_triangle(n, t).map(|(i, j)| grid_index(n, i, j)))
-        .collect()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn grid_counts_and_winding() {
-        for level in 0..=MAX_LEVEL {
-            let n = 1 << level;
-            let tris = grid_triangles(n);
-            assert_eq!(tris.len() as u32, grid_triangle_count(level));
-            let max = tris.iter().flatten().copied().max().unwrap();
-            assert_eq!(max + 1, grid_vertex_count(level));
-            // Every triangle is wound as (0,0) → (n,0) → (0,n): positive in (i, j).
-            for t in 0..n * n {
-                let [a, b, c] = grid_triangle(n, t);
-                let cross = (b.0 as i64 - a.0 as i64) * (c.1 as i64 - a.1 as i64)
-                    - (b.1 as i64 - a.1 as i64) * (c.0 as i64 - a.0 as i64);
-                assert_eq!(cross, 1, "level {level} triangle {t}");
-            }
-            assert_eq!(grid_index(n, n, 0), n);
-            assert_eq!(grid_index(n, 0, n), grid_vertex_count(level) - 1);
         }
     }
 }

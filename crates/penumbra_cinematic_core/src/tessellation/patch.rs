@@ -315,13 +315,10 @@ impl DisplacementMap {
         Vec2::new(du / (2.0 * step.x), dv / (2.0 * step.y))
     }
 
-    /// The mip where a span of `uv_span` texture coordinates cut at factor `factor` covers
-    /// about one texel per segment (`√2 · factor` segments: the middle of the level's
-    /// `[f, 2f)`), at least 0.
+    /// The mip where a span of `uv_span` texture coordinates cut at factor `factor` (about
+    /// `factor` segments) covers about one texel per segment, at least 0.
     pub fn lod_for(&self, uv_span: Vec2, factor: f32) -> f32 {
-        ((uv_span * self.size()).length() / (factor * std::f32::consts::SQRT_2))
-            .max(1.0)
-            .log2()
+        ((uv_span * self.size()).length() / factor).max(1.0).log2()
     }
 }
 

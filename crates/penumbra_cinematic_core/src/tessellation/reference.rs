@@ -1,10 +1,11 @@
 //! The CPU reference tessellator: the GPU passes' model (`shaders/tessellation/`), vertex
 //! for vertex, and the measurements the tests and benches take of its output.
 
-use super::factors::{TessellationView, biased, choose_bias, demand, edge_factor, level_of};
+use super::factors::{TessellationView, biased, choose_bias, demand, edge_factor};
+use super::layout::{self, Counts, Place, position};
 use super::patch::{DisplacementMap, EdgeCurve, PnPatch, edge_curve, pn_normal, uv_gradients};
 use super::preprocess::{TessVertex, TessellationInput};
-use super::{Partitioning, Settings, SurfaceMode, grid_index, grid_triangles};
+use super::{Settings, SurfaceMode};
 use glam::{Mat4, Vec2, Vec3, Vec4};
 
 /// Where the mesh is and who looks at it.
@@ -28,17 +29,15 @@ impl Frame {
     }
 }
 
-/// A patch's factors and levels.
+/// A patch's factors and segment counts.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PatchLod {
     /// Each edge's factor after the bias.
     pub edge_factors: [f32; 3],
-    /// Each edge's level and morph.
-    pub edge_levels: [(u32, f32); 3],
-    /// The patch's factor (the largest edge's).
+    /// The inside factor (the largest edge's).
     pub factor: f32,
-    /// The patch's level and morph.
-    pub level: (u32, f32),
+    /// Segments per edge and inside.
+    pub counts: Counts,
 }
 
 /// Each edge's unbiased factor (world positions in the edge's canonical order).
@@ -62,15 +61,13 @@ pub fn patch_edge_factors(
     })
 }
 
-/// Levels and morphs of a patch's factors after `bias`.
-pub fn patch_lod(factors: [f32; 3], bias: u32, partitioning: Partitioning) -> PatchLod {
+/// The patch's factors and counts after `bias`.
+pub fn patch_lod(factors: [f32; 3], bias: u32) -> PatchLod {
     let edge_factors = factors.map(|f| biased(f, bias));
-    let factor = edge_factors[0].max(edge_factors[1]).max(edge_factors[2]);
     PatchLod {
         edge_factors,
-        edge_levels: edge_factors.map(|f| level_of(f, partitioning)),
-        factor,
-        level: level_of(factor, partitioning),
+        factor: edge_factors[0].max(edge_factors[1]).max(edge_factors[2]),
+        counts: Counts::new(edge_factors),
     }
 }
 
@@ -161,12 +158,7 @@ impl<'a> PatchEval<'a> {
                     .map(|e| ((own[(e + 1) % 3].uv - own[e].uv) * map.size()).length())
                     .into_iter()
                     .fold(0.0f32, f32::max);
-                (
-                    corner_lods,
-                    (span / (lod.factor * std::f32::consts::SQRT_2))
-                        .max(1.0)
-                        .log2(),
-                )
+                (corner_lods, (span / lod.factor).max(1.0).log2())
             }
             None => ([0.0; 3], 0.0),
         };
@@ -240,9 +232,9 @@ impl<'a> PatchEval<'a> {
         b
     }
 
-    /// Vertex `x` of edge `e`'s own grid (level ℓ, canonical steps), unmorphed.
-    fn edge_grid_point(&self, e: usize, x: u32, level: u32) -> OutVertex {
-        let n = 1u32 << level;
+    /// Edge `e`'s vertex `x` in its canonical order (0 and `nₑ`: its corners).
+    fn edge_point(&self, e: usize, x: u32) -> OutVertex {
+        let n = self.lod.counts.edges[e];
         let curve = &self.curves[e];
         let (first, last) = if curve.reversed {
             ((e + 1) % 3, e)
@@ -255,7 +247,7 @@ impl<'a> PatchEval<'a> {
         if x == n {
             return self.corner(last);
         }
-        let t = x as f32 / n as f32;
+        let t = position(self.lod.edge_factors[e], n, x, self.settings.partitioning);
         let lod = match self.map {
             Some(map) => map.lod_for(curve.uv1 - curve.uv0, self.lod.edge_factors[e]),
             None => 0.0,
@@ -271,68 +263,71 @@ impl<'a> PatchEval<'a> {
         }
     }
 
-    /// Vertex `x` of edge `e`'s own grid with the edge's morph.
-    fn edge_point(&self, e: usize, x: u32) -> OutVertex {
-        let (level, morph) = self.lod.edge_levels[e];
-        let exact = self.edge_grid_point(e, x, level);
-        if self.settings.partitioning == Partitioning::Integer || level == 0 || x.is_multiple_of(2)
-        {
-            return exact;
+    /// Edge `e`'s own parameter of its vertex `j` from corner `e`.
+    pub fn edge_t(&self, e: usize, j: u32) -> f32 {
+        let n = self.lod.counts.edges[e];
+        if self.curves[e].reversed {
+            1.0 - position(
+                self.lod.edge_factors[e],
+                n,
+                n - j,
+                self.settings.partitioning,
+            )
+        } else {
+            position(self.lod.edge_factors[e], n, j, self.settings.partitioning)
         }
-        let a = self.edge_grid_point(e, x - 1, level);
-        let b = self.edge_grid_point(e, x + 1, level);
-        mix(a, b, exact, morph)
     }
 
-    /// Grid vertex `(i, j)` of the patch (`n = 2^level`).
-    fn grid_point(&self, n: u32, i: u32, j: u32) -> OutVertex {
-        let k = n - i - j;
-        match (i, j, k) {
-            (0, 0, _) => self.corner(0),
-            (_, 0, 0) => self.corner(1),
-            (0, _, 0) => self.corner(2),
-            (_, 0, _) => self.snapped(0, n, i),
-            (_, _, 0) => self.snapped(1, n, j),
-            (0, _, _) => self.snapped(2, n, k),
-            _ => {
-                let b = Vec3::new(k as f32, i as f32, j as f32) / n as f32;
-                let p = self.own.map(|v| v.position);
-                let position = match self.settings.mode {
-                    SurfaceMode::Flat => p[0] * b.x + p[1] * b.y + p[2] * b.z,
-                    SurfaceMode::PnAen => self.surface.point(b),
-                };
-                let uv = self.own[0].uv * b.x + self.own[1].uv * b.y + self.own[2].uv * b.z;
-                let d = self.dominant.map(|v| {
-                    if self.settings.crack_fixes {
-                        v.smooth_normal
-                    } else {
-                        v.normal
-                    }
-                });
-                let direction = (d[0] * b.x + d[1] * b.y + d[2] * b.z).normalize_or_zero();
-                let position = self.displaced(position, direction, uv, self.patch_lod);
-                OutVertex {
-                    position,
-                    normal: self.normal(b, self.patch_lod),
-                    bary: b,
-                }
+    /// The patch's surface at own barycentric `b`, displaced.
+    fn inside_point(&self, b: Vec3) -> OutVertex {
+        let p = self.own.map(|v| v.position);
+        let position = match self.settings.mode {
+            SurfaceMode::Flat => p[0] * b.x + p[1] * b.y + p[2] * b.z,
+            SurfaceMode::PnAen => self.surface.point(b),
+        };
+        let uv = self.own[0].uv * b.x + self.own[1].uv * b.y + self.own[2].uv * b.z;
+        let d = self.dominant.map(|v| {
+            if self.settings.crack_fixes {
+                v.smooth_normal
+            } else {
+                v.normal
             }
+        });
+        let direction = (d[0] * b.x + d[1] * b.y + d[2] * b.z).normalize_or_zero();
+        let position = self.displaced(position, direction, uv, self.patch_lod);
+        OutVertex {
+            position,
+            normal: self.normal(b, self.patch_lod),
+            bary: b,
         }
     }
 
-    /// The patch's grid vertex at own step `s` of edge `e`, snapped to the edge's grid.
-    fn snapped(&self, e: usize, n: u32, s: u32) -> OutVertex {
-        let level = n.trailing_zeros();
-        let edge_level = self.lod.edge_levels[e].0;
-        let d = level - edge_level.min(level);
-        let canonical = if self.curves[e].reversed { n - s } else { s };
-        let x = (canonical + ((1u32 << d) >> 1)) >> d;
-        self.edge_point(e, x)
+    /// Local vertex `v` of the patch.
+    pub fn vertex(&self, v: u32) -> OutVertex {
+        match layout::place(
+            &self.lod.counts,
+            self.lod.factor,
+            self.settings.partitioning,
+            v,
+        ) {
+            Place::Edge { e, j: 0 } => self.corner(e),
+            Place::Edge { e, j } => {
+                let n = self.lod.counts.edges[e];
+                self.edge_point(e, if self.curves[e].reversed { n - j } else { j })
+            }
+            Place::Inside(b) => self.inside_point(b),
+        }
     }
 
-    /// Grid vertex `(i, j)` of a patch with `n` segments.
-    pub fn vertex(&self, n: u32, i: u32, j: u32) -> OutVertex {
-        self.grid_point(n, i, j)
+    /// Local triangle `t` of the patch.
+    pub fn triangle(&self, t: u32) -> [u32; 3] {
+        layout::triangle(
+            &self.lod.counts,
+            self.lod.factor,
+            self.settings.partitioning,
+            &|e, j| self.edge_t(e, j),
+            t,
+        )
     }
 
     /// Texture coordinates and tangent at own barycentric `b`.
@@ -355,17 +350,6 @@ impl<'a> PatchEval<'a> {
     }
 }
 
-/// The vertex between the midpoint of `a` and `b` (`morph` 0) and `exact` (1).
-fn mix(a: OutVertex, b: OutVertex, exact: OutVertex, morph: f32) -> OutVertex {
-    let mid = (a.position + b.position) * 0.5;
-    let mid_normal = (a.normal + b.normal) * 0.5;
-    OutVertex {
-        position: mid + (exact.position - mid) * morph,
-        normal: (mid_normal + (exact.normal - mid_normal) * morph).normalize_or_zero(),
-        bary: exact.bary,
-    }
-}
-
 /// Tessellates `input` for `frame` into at most `vertex_budget` vertices and
 /// `index_budget` indices (factors halved until it fits).
 pub fn tessellate(
@@ -381,44 +365,37 @@ pub fn tessellate(
         .iter()
         .map(|patch| patch_edge_factors(input, patch, frame, settings))
         .collect();
-    let levels = factors
-        .iter()
-        .map(|&f| patch_lod(f, 0, settings.partitioning).level.0);
-    let bias = choose_bias(&demand(levels), vertex_budget, index_budget);
+    let bias = choose_bias(
+        &demand(factors.iter().copied()),
+        vertex_budget,
+        index_budget,
+    );
     let mut out = TessellatedMesh {
         bias,
         ..Default::default()
     };
-    let mut grids: Vec<Vec<[u32; 3]>> = Vec::new();
     for (p, &f) in factors.iter().enumerate() {
-        let lod = patch_lod(f, bias, settings.partitioning);
+        let lod = patch_lod(f, bias);
         let eval = PatchEval::new(input, p, frame, settings, map, lod, bias);
-        let level = lod.level.0 as usize;
-        while grids.len() <= level {
-            grids.push(grid_triangles(1 << grids.len()));
-        }
-        let n = 1u32 << level;
         let base = out.positions.len() as u32;
         out.patches.push((base, out.indices.len() as u32, lod));
-        for j in 0..=n {
-            for i in 0..=n - j {
-                debug_assert_eq!(grid_index(n, i, j), out.positions.len() as u32 - base);
-                let v = eval.vertex(n, i, j);
-                let (uv, tangent) = eval.attributes(v.bary);
-                out.positions.push(v.position);
-                out.normals.push(v.normal);
-                out.uvs.push(uv);
-                out.tangents.push(tangent);
-            }
+        for v in 0..lod.counts.vertices() {
+            let vertex = eval.vertex(v);
+            let (uv, tangent) = eval.attributes(vertex.bary);
+            out.positions.push(vertex.position);
+            out.normals.push(vertex.normal);
+            out.uvs.push(uv);
+            out.tangents.push(tangent);
         }
-        out.indices
-            .extend(grids[level].iter().flatten().map(|&i| base + i));
+        for t in 0..lod.counts.triangles() {
+            out.indices.extend(eval.triangle(t).map(|i| base + i));
+        }
     }
     out
 }
 
 impl PatchEval<'_> {
-    /// The displacement mip of the patch's interior vertices.
+    /// The displacement mip of the patch's inside vertices.
     pub fn interior_mip(&self) -> f32 {
         self.patch_lod
     }

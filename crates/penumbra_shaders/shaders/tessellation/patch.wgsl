@@ -3,7 +3,6 @@
 // factors}` (the same expressions in the same order).
 #define_import_path penumbra::tessellation::patch
 
-const SQRT_2: f32 = 1.4142135;
 const MAX_DISPLACEMENT_LEVELS: u32 = 16u;
 // A patch that got no room in the pool (never, when the CPU's budget holds).
 const NO_OUTPUT: u32 = 0xffffffffu;
@@ -51,14 +50,14 @@ struct TessellationUniform {
     map_level_info: array<vec4<u32>, MAX_DISPLACEMENT_LEVELS>,
 }
 
-// Per patch: the edges' unbiased factors and the level they ask for (pass 1); where
-// its output goes and at which level (pass 2).
+// Per patch: the edges' unbiased factors and the inside segments they ask for (pass 1);
+// where its output goes and its inside segments after the bias, or NO_OUTPUT (pass 2).
 struct PatchState {
     factors: vec3<f32>,
-    level: u32,
+    inside: u32,
     base_vertex: u32,
     base_index: u32,
-    out_level: u32,
+    out_inside: u32,
     reserved: u32,
 }
 
@@ -67,12 +66,6 @@ struct Totals {
     vertices: u32,
     indices: u32,
     patches: u32,
-}
-
-struct Level {
-    level: u32,
-    // Fraction of the way the level's new vertices have moved (1: integer).
-    morph: f32,
 }
 
 fn is_finite(x: f32) -> bool {
@@ -91,7 +84,7 @@ fn projected_diameter(view: TessellationView, centre: vec3<f32>, diameter: f32) 
 fn edge_factor(view: TessellationView, a: vec3<f32>, b: vec3<f32>, pixels_per_triangle: f32, max_level: u32) -> f32 {
     let centre = (a + b) * 0.5;
     let px = projected_diameter(view, centre, length(b - a));
-    let f = px / (pixels_per_triangle * SQRT_2);
+    let f = px / pixels_per_triangle;
     if !is_finite(f) {
         return 1.0;
     }
@@ -100,27 +93,6 @@ fn edge_factor(view: TessellationView, a: vec3<f32>, b: vec3<f32>, pixels_per_tr
 
 fn biased(factor: f32, bias: u32) -> f32 {
     return max(factor / f32(1u << bias), 1.0);
-}
-
-fn level_of(f: f32, fractional: bool) -> Level {
-    var level = 0u;
-    while f32(1u << level) < f && level < 31u {
-        level += 1u;
-    }
-    var morph = 1.0;
-    if fractional && level > 0u {
-        morph = clamp(f / f32(1u << (level - 1u)) - 1.0, 0.0, 1.0);
-    }
-    return Level(level, morph);
-}
-
-fn grid_vertex_count(level: u32) -> u32 {
-    let n = 1u << level;
-    return (n + 1u) * (n + 2u) / 2u;
-}
-
-fn grid_triangle_count(level: u32) -> u32 {
-    return 1u << (2u * level);
 }
 
 // PN control point of edge a → b next to a, with a's normal n.

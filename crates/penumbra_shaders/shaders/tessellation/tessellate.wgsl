@@ -3,15 +3,18 @@
 //   `allocate` one workgroup: the least bias (halving all factors) whose output fits the
 //              pool, then each patch's first vertex and index (a prefix sum: the
 //              output's order is the patches' order, whatever the thread count);
-//   `emit`     one workgroup per patch: its grid's vertices (flat or PN-AEN, displaced)
+//   `emit`     one workgroup per patch: its layout's vertices (flat or PN-AEN, displaced)
 //              and triangles, into the pool the mesh's buffers are copied from.
 // CPU model: `penumbra_cinematic_core::tessellation::reference` (`tessellate`).
 #define_import_path penumbra::tessellation::tessellate
 
 #import penumbra::tessellation::patch::{
-    Level, NO_OUTPUT, PatchState, SQRT_2, TessVertex, TessellationUniform, Totals, bezier,
-    biased, edge_factor, grid_triangle_count, grid_vertex_count, level_of, normalize_or_zero,
-    pn_edge_point, pn_normal, uv_gradients,
+    NO_OUTPUT, PatchState, TessVertex, TessellationUniform, Totals, bezier, biased,
+    edge_factor, normalize_or_zero, pn_edge_point, pn_normal, uv_gradients,
+}
+#import penumbra::tessellation::layout::{
+    Counts, counts_of, inner_triangle, outer_vertex, ring_point, ring_vertex,
+    ring_base, pattern_position, segments, triangle_count, vertex_count,
 }
 
 @group(0) @binding(0) var<uniform> u: TessellationUniform;
@@ -68,7 +71,7 @@ fn factors(@builtin(global_invocation_id) id: vec3<u32>) {
         f[e] = edge_factor(u.view, a, b, u.pixels_per_triangle, u.max_level);
     }
     states[p].factors = f;
-    states[p].level = level_of(max(max(f.x, f.y), f.z), false).level;
+    states[p].inside = segments(max(max(f.x, f.y), f.z));
 }
 
 // ---- pass 2: allocate ------------------------------------------------------------
@@ -89,14 +92,22 @@ fn chunk(t: u32) -> vec2<u32> {
     return vec2(first, min(first + size, u.patch_count));
 }
 
+fn biased_factors(f: vec3<f32>, bias: u32) -> vec3<f32> {
+    return vec3(biased(f.x, bias), biased(f.y, bias), biased(f.z, bias));
+}
+
+fn biased_counts(f: vec3<f32>, bias: u32) -> Counts {
+    return counts_of(biased_factors(f, bias));
+}
+
 fn chunk_demand(t: u32, bias: u32) -> vec2<u32> {
     let range = chunk(t);
     var v = 0u;
     var i = 0u;
     for (var p = range.x; p < range.y; p += 1u) {
-        let level = max(i32(states[p].level) - i32(bias), 0);
-        v = saturating_add(v, grid_vertex_count(u32(level)));
-        i = saturating_add(i, 3u * grid_triangle_count(u32(level)));
+        let c = biased_counts(states[p].factors, bias);
+        v = saturating_add(v, vertex_count(c));
+        i = saturating_add(i, 3u * triangle_count(c));
     }
     return vec2(v, i);
 }
@@ -150,17 +161,17 @@ fn allocate(@builtin(local_invocation_index) t: u32) {
     var base_v = sums_v[t];
     var base_i = sums_i[t];
     for (var p = range.x; p < range.y; p += 1u) {
-        let level = u32(max(i32(states[p].level) - i32(bias), 0));
-        let nv = grid_vertex_count(level);
-        let ni = 3u * grid_triangle_count(level);
-        var out_level = level;
+        let c = biased_counts(states[p].factors, bias);
+        let nv = vertex_count(c);
+        let ni = 3u * triangle_count(c);
+        var out_inside = c.inside;
         if saturating_add(base_v, nv) > u.vertex_budget || saturating_add(base_i, ni) > u.index_budget {
-            out_level = NO_OUTPUT;
+            out_inside = NO_OUTPUT;
         }
         states[p].base_vertex = base_v;
         states[p].base_index = base_i;
-        states[p].out_level = out_level;
-        if out_level != NO_OUTPUT {
+        states[p].out_inside = out_inside;
+        if out_inside != NO_OUTPUT {
             base_v += nv;
             base_i += ni;
         }
@@ -214,7 +225,7 @@ fn slope(uv: vec2<f32>, lod: f32) -> vec2<f32> {
 }
 
 fn lod_for(span: vec2<f32>, factor: f32) -> f32 {
-    return log2(max(length(span * u.map_size) / (factor * SQRT_2), 1.0));
+    return log2(max(length(span * u.map_size) / factor, 1.0));
 }
 
 fn has_map() -> bool {
@@ -292,7 +303,7 @@ struct Patch {
     centre: vec3<f32>,
     gradients: mat2x3<f32>,
     edge_factors: vec3<f32>,
-    edge_levels: array<Level, 3>,
+    counts: Counts,
     factor: f32,
     corner_lods: vec3<f32>,
     patch_lod: f32,
@@ -315,7 +326,6 @@ fn prepare_patch(p: u32, state: PatchState, bias: u32) {
             pc.dominant[c] = pc.own[c];
         }
     }
-    var sum = vec3(0.0);
     for (var e = 0u; e < 3u; e += 1u) {
         let curve = edge_curve(p, e);
         pc.curves[e] = curve;
@@ -326,9 +336,9 @@ fn prepare_patch(p: u32, state: PatchState, bias: u32) {
             pc.control[2u * e] = curve.c0;
             pc.control[2u * e + 1u] = curve.c1;
         }
-        pc.edge_factors[e] = biased(state.factors[e], bias);
-        pc.edge_levels[e] = level_of(pc.edge_factors[e], fractional());
     }
+    pc.edge_factors = biased_factors(state.factors, bias);
+    pc.counts = counts_of(pc.edge_factors);
     let e = (pc.control[0] + pc.control[1] + pc.control[2] + pc.control[3] + pc.control[4] + pc.control[5]) / 6.0;
     let v = (pc.own[0].position + pc.own[1].position + pc.own[2].position) / 3.0;
     pc.centre = e + (e - v) * 0.5;
@@ -351,7 +361,7 @@ fn prepare_patch(p: u32, state: PatchState, bias: u32) {
         for (var k = 0u; k < 3u; k += 1u) {
             span = max(span, length((pc.own[(k + 1u) % 3u].uv - pc.own[k].uv) * u.map_size));
         }
-        pc.patch_lod = log2(max(span / (pc.factor * SQRT_2), 1.0));
+        pc.patch_lod = log2(max(span / pc.factor, 1.0));
     }
 }
 
@@ -398,8 +408,9 @@ fn corner(c: u32) -> Out {
     return Out(displaced(v.position, direction, v.uv, lod), shading_normal(bary, lod), bary);
 }
 
-fn edge_grid_point(e: u32, x: u32, level: u32) -> Out {
-    let n = 1u << level;
+// Edge e's vertex x in its canonical order (0 and nₑ: its corners).
+fn edge_point(e: u32, x: u32) -> Out {
+    let n = pc.counts.edges[e];
     let curve = pc.curves[e];
     var first = e;
     var last = (e + 1u) % 3u;
@@ -413,7 +424,7 @@ fn edge_grid_point(e: u32, x: u32, level: u32) -> Out {
     if x == n {
         return corner(last);
     }
-    let t = f32(x) / f32(n);
+    let t = pattern_position(pc.edge_factors[e], n, x, fractional());
     var lod = 0.0;
     if has_map() {
         lod = lod_for(curve.uv1 - curve.uv0, pc.edge_factors[e]);
@@ -432,53 +443,17 @@ fn edge_grid_point(e: u32, x: u32, level: u32) -> Out {
     return Out(position, shading_normal(bary, lod), bary);
 }
 
-fn morph(a: Out, b: Out, exact: Out, m: f32) -> Out {
-    let mid = (a.position + b.position) * 0.5;
-    let mid_normal = (a.normal + b.normal) * 0.5;
-    return Out(mid + (exact.position - mid) * m, normalize_or_zero(mid_normal + (exact.normal - mid_normal) * m), exact.bary);
-}
-
-fn edge_point(e: u32, x: u32) -> Out {
-    let level = pc.edge_levels[e];
-    let exact = edge_grid_point(e, x, level.level);
-    if !fractional() || level.level == 0u || x % 2u == 0u {
-        return exact;
-    }
-    return morph(edge_grid_point(e, x - 1u, level.level), edge_grid_point(e, x + 1u, level.level), exact, level.morph);
-}
-
-// The patch's grid vertex at own step s of edge e, snapped to the edge's own grid.
-fn snapped(e: u32, n: u32, s: u32) -> Out {
-    let level = countTrailingZeros(n);
-    let d = level - min(pc.edge_levels[e].level, level);
-    var canonical = s;
+// Edge e's own parameter of its vertex j from corner e.
+fn edge_t(e: u32, j: u32) -> f32 {
+    let n = pc.counts.edges[e];
     if pc.curves[e].reversed {
-        canonical = n - s;
+        return 1.0 - pattern_position(pc.edge_factors[e], n, n - j, fractional());
     }
-    return edge_point(e, (canonical + ((1u << d) >> 1u)) >> d);
+    return pattern_position(pc.edge_factors[e], n, j, fractional());
 }
 
-fn grid_point(n: u32, i: u32, j: u32) -> Out {
-    let k = n - i - j;
-    if i == 0u && j == 0u {
-        return corner(0u);
-    }
-    if j == 0u && k == 0u {
-        return corner(1u);
-    }
-    if i == 0u && k == 0u {
-        return corner(2u);
-    }
-    if j == 0u {
-        return snapped(0u, n, i);
-    }
-    if k == 0u {
-        return snapped(1u, n, j);
-    }
-    if i == 0u {
-        return snapped(2u, n, k);
-    }
-    let b = vec3(f32(k), f32(i), f32(j)) / f32(n);
+// The patch's surface at own barycentric b, displaced.
+fn inside_point(b: vec3<f32>) -> Out {
     let p0 = pc.own[0].position;
     let p1 = pc.own[1].position;
     let p2 = pc.own[2].position;
@@ -501,6 +476,36 @@ fn grid_point(n: u32, i: u32, j: u32) -> Out {
     return Out(displaced(position, direction, uv, pc.patch_lod), shading_normal(b, pc.patch_lod), b);
 }
 
+// Local vertex v of the patch (`layout::place`).
+fn patch_vertex(v: u32) -> Out {
+    let c = pc.counts;
+    if v < c.edges.x + c.edges.y + c.edges.z {
+        var e = 0u;
+        var base = 0u;
+        while v >= base + c.edges[e] {
+            base += c.edges[e];
+            e += 1u;
+        }
+        let j = v - base;
+        if j == 0u {
+            return corner(e);
+        }
+        var x = j;
+        if pc.curves[e].reversed {
+            x = c.edges[e] - j;
+        }
+        return edge_point(e, x);
+    }
+    let n = c.inside;
+    var r = 1u;
+    while v >= ring_base(c, r) + 3u * (n - 2u * r) {
+        r += 1u;
+    }
+    let local = v - ring_base(c, r);
+    let side = n - 2u * r;
+    return inside_point(ring_point(pc.factor, n, r, local / side, r + local % side, fractional()));
+}
+
 fn pn_point(b: vec3<f32>) -> vec3<f32> {
     let w = b.x;
     let s = b.y;
@@ -518,43 +523,34 @@ fn pn_point(b: vec3<f32>) -> vec3<f32> {
         + pc.centre * (6.0 * w * s * v);
 }
 
-// Vertex v's grid coordinates (i, j): rows of constant j.
-fn grid_coords(n: u32, v: u32) -> vec2<u32> {
-    var j = 0u;
-    var start = 0u;
-    loop {
-        let row = n + 1u - j;
-        if v < start + row {
-            break;
-        }
-        start += row;
-        j += 1u;
-    }
-    return vec2(v - start, j);
+fn write_triangle(at: u32, tri: vec3<u32>) {
+    out_indices[at] = tri.x;
+    out_indices[at + 1u] = tri.y;
+    out_indices[at + 2u] = tri.z;
 }
 
-fn grid_index(n: u32, i: u32, j: u32) -> u32 {
-    return j * (n + 1u) - j * (max(j, 1u) - 1u) / 2u + i;
-}
-
-// Triangle t of the grid as three local vertex indices (`grid_triangle`).
-fn grid_triangle(n: u32, t: u32) -> vec3<u32> {
-    var j = 0u;
-    var first = 0u;
-    loop {
-        let row = 2u * (n - j) - 1u;
-        if t < first + row {
-            break;
+// The zipper of edge e with side e of ring 1 (`layout::zipper`), written from triangle
+// `first` on: nₑ + n − 2 triangles, advancing along whichever side's next vertex comes
+// first.
+fn write_zipper(e: u32, base_vertex: u32, first: u32) {
+    let c = pc.counts;
+    let n = c.inside;
+    let ne = c.edges[e];
+    var a = 0u;
+    var b = 0u;
+    var at = first;
+    while a < ne || b < n - 2u {
+        let outer = outer_vertex(c, e, a) + base_vertex;
+        let inner = ring_vertex(c, 1u, e, 1u + b) + base_vertex;
+        if b == n - 2u || (a < ne && edge_t(e, a + 1u) <= pattern_position(pc.factor, n, 2u + b, fractional())) {
+            write_triangle(3u * at, vec3(outer, outer_vertex(c, e, a + 1u) + base_vertex, inner));
+            a += 1u;
+        } else {
+            write_triangle(3u * at, vec3(outer, ring_vertex(c, 1u, e, 2u + b) + base_vertex, inner));
+            b += 1u;
         }
-        first += row;
-        j += 1u;
+        at += 1u;
     }
-    let r = t - first;
-    let i = r / 2u;
-    if r % 2u == 0u {
-        return vec3(grid_index(n, i, j), grid_index(n, i + 1u, j), grid_index(n, i, j + 1u));
-    }
-    return vec3(grid_index(n, i + 1u, j), grid_index(n, i + 1u, j + 1u), grid_index(n, i, j + 1u));
 }
 
 fn write_vertex(index: u32, o: Out) {
@@ -589,20 +585,28 @@ fn emit(
         return;
     }
     let state = states[p];
-    if state.out_level == NO_OUTPUT {
+    if state.out_inside == NO_OUTPUT {
         return;
     }
     prepare_patch(p, state, totals.bias);
-    let n = 1u << state.out_level;
-    for (var v = t; v < grid_vertex_count(state.out_level); v += 64u) {
-        let ij = grid_coords(n, v);
-        write_vertex(state.base_vertex + v, grid_point(n, ij.x, ij.y));
+    let c = pc.counts;
+    for (var v = t; v < vertex_count(c); v += 64u) {
+        write_vertex(state.base_vertex + v, patch_vertex(v));
     }
-    for (var k = t; k < n * n; k += 64u) {
-        let tri = grid_triangle(n, k) + vec3(state.base_vertex);
-        let at = state.base_index + 3u * k;
-        out_indices[at] = tri.x;
-        out_indices[at + 1u] = tri.y;
-        out_indices[at + 2u] = tri.z;
+    // Triangles: the zippers (one thread each, serial), then the rest in parallel.
+    let first = state.base_index / 3u;
+    var zippers = 0u;
+    if c.inside > 1u {
+        zippers = c.edges.x + c.edges.y + c.edges.z + 3u * (c.inside - 2u);
+        if t < 3u {
+            var offset = 0u;
+            for (var e = 0u; e < t; e += 1u) {
+                offset += c.edges[e] + c.inside - 2u;
+            }
+            write_zipper(t, state.base_vertex, first + offset);
+        }
+    }
+    for (var k = t; k < triangle_count(c) - zippers; k += 64u) {
+        write_triangle(3u * (first + zippers + k), inner_triangle(c, k) + vec3(state.base_vertex));
     }
 }
