@@ -1,0 +1,253 @@
+//! `TessellationPlugin` as a Bevy citizen, on lavapipe:
+//!
+//! - **Opt-in.** Without `Tessellated` nothing is made: no state, no buffer, no GPU
+//!   allocation, the mesh untouched.
+//! - **Bad input.** A line list, a mesh with a non-finite position and a skinned mesh are
+//!   drawn untessellated; a mesh without normals is tessellated with computed normals; a
+//!   mesh without UVs, or a displacement image of an unsupported format, is tessellated
+//!   without displacement; `pixels_per_triangle ≤ 0` falls back to 16 and `max_level`
+//!   above 6 is clamped.
+//! - **Budget and pooling.** A pool too small for the view gets coarser factors (the
+//!   GPU's bias read back, its output within the pool), and while the camera moves every
+//!   frame — a new tessellation each frame — no Penumbra buffer, texture or bind group is
+//!   created.
+
+use bevy::asset::RenderAssetUsages;
+use bevy::image::Image;
+use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
+use bevy::mesh::{Indices, PrimitiveTopology};
+use bevy::prelude::*;
+use bevy::render::gpu_readback::{Readback, ReadbackComplete};
+use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+use bevy::render::storage::ShaderBuffer;
+use bevy_penumbra_cinematic::tessellation::TessellationState;
+use bevy_penumbra_cinematic::{Tessellated, TessellationPlugin};
+use bevy_penumbra_df::{GpuAllocationCounts, PenumbraGpuAllocations};
+use penumbra_cinematic_core::tessellation::shapes::{ShapeMesh, height_map, rock};
+use penumbra_test::{HeadlessRender, gpu_or_skip};
+
+fn mesh_of(shape: &ShapeMesh, normals: bool, uvs: bool) -> Mesh {
+    let mut mesh = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
+        .with_inserted_attribute(
+            Mesh::ATTRIBUTE_POSITION,
+            shape.positions.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+        )
+        .with_inserted_indices(Indices::U32(shape.indices.clone()));
+    if normals {
+        mesh.insert_attribute(
+            Mesh::ATTRIBUTE_NORMAL,
+            shape.normals.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+        );
+    }
+    if uvs {
+        mesh.insert_attribute(
+            Mesh::ATTRIBUTE_UV_0,
+            shape.uvs.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+        );
+    }
+    mesh
+}
+
+fn heights(format: TextureFormat) -> Image {
+    let bytes: Vec<u8> = height_map(16).iter().map(|h| (h * 127.0) as u8).collect();
+    Image::new(
+        Extent3d { width: 16, height: 16, depth_or_array_layers: 1 },
+        TextureDimension::D2,
+        bytes,
+        format,
+        RenderAssetUsages::default(),
+    )
+}
+
+fn camera(distance: f32) -> impl Bundle {
+    (
+        Camera3d::default(),
+        Transform::from_translation(Vec3::new(0.3, 0.6, 1.0).normalize() * distance)
+            .looking_at(Vec3::new(0.0, 0.3, 0.0), Vec3::Y),
+    )
+}
+
+#[test]
+fn without_the_component_nothing_is_made() {
+    if !gpu_or_skip("without_the_component_nothing_is_made") {
+        return;
+    }
+    let harness = HeadlessRender::new(32, 32).frames(3);
+    let mut app = harness.app();
+    app.add_plugins(TessellationPlugin).add_systems(
+        Startup,
+        |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials: ResMut<Assets<StandardMaterial>>| {
+            commands.spawn((
+                Mesh3d(meshes.add(mesh_of(&rock(8, 3), true, true))),
+                MeshMaterial3d(materials.add(StandardMaterial::default())),
+            ));
+            commands.spawn(camera(3.0));
+        },
+    );
+    let (_, mut app) = harness.run_keeping_app(app).expect("renders");
+    let world = app.world_mut();
+    assert_eq!(world.query::<&TessellationState>().iter(world).count(), 0);
+    assert_eq!(world.resource::<Assets<ShaderBuffer>>().len(), 0);
+    assert_eq!(world.resource::<PenumbraGpuAllocations>().counts(), GpuAllocationCounts::default());
+}
+
+#[derive(Resource)]
+struct Cases(Vec<(&'static str, Entity, Handle<Mesh>)>);
+
+#[test]
+fn bad_input_is_skipped_or_repaired() {
+    if !gpu_or_skip("bad_input_is_skipped_or_repaired") {
+        return;
+    }
+    let harness = HeadlessRender::new(32, 32).frames(3);
+    let mut app = harness.app();
+    app.add_plugins(TessellationPlugin).add_systems(
+        Startup,
+        |mut commands: Commands,
+         mut meshes: ResMut<Assets<Mesh>>,
+         mut images: ResMut<Assets<Image>>,
+         mut materials: ResMut<Assets<StandardMaterial>>,
+         mut bindposes: ResMut<Assets<SkinnedMeshInverseBindposes>>| {
+            let shape = rock(8, 3);
+            let material = materials.add(StandardMaterial::default());
+            let good = heights(TextureFormat::R8Unorm);
+            let mut nan = shape.clone();
+            nan.positions[3].x = f32::NAN;
+            let mut lines = mesh_of(&shape, true, true);
+            lines = Mesh::new(PrimitiveTopology::LineList, RenderAssetUsages::default())
+                .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, lines.attribute(Mesh::ATTRIBUTE_POSITION).unwrap().clone());
+            let skinned = mesh_of(&shape, true, true)
+                .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_INDEX, bevy::mesh::VertexAttributeValues::Uint16x4(vec![[0; 4]; shape.positions.len()]))
+                .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, vec![[1.0f32, 0.0, 0.0, 0.0]; shape.positions.len()]);
+            let map = images.add(good);
+            let snorm = images.add(heights(TextureFormat::R8Snorm));
+            let cases: Vec<(&'static str, Mesh, Tessellated)> = vec![
+                ("lines", lines, Tessellated::default()),
+                ("nan", mesh_of(&nan, true, true), Tessellated::default()),
+                ("skinned", skinned, Tessellated::default()),
+                ("no normals", mesh_of(&shape, false, true), Tessellated::default()),
+                ("no uvs", mesh_of(&shape, true, false), Tessellated { displacement: Some(map.clone()), ..default() }),
+                ("snorm map", mesh_of(&shape, true, true), Tessellated { displacement: Some(snorm), ..default() }),
+                ("bad settings", mesh_of(&shape, true, true), Tessellated { pixels_per_triangle: -1.0, max_level: 9, ..default() }),
+                ("good map", mesh_of(&shape, true, true), Tessellated { displacement: Some(map), ..default() }),
+            ];
+            let mut spawned = Vec::new();
+            let joint = commands.spawn(Transform::default()).id();
+            let skin = SkinnedMesh {
+                inverse_bindposes: bindposes.add(SkinnedMeshInverseBindposes::from(vec![Mat4::IDENTITY])),
+                joints: vec![joint],
+            };
+            for (name, mesh, tessellated) in cases {
+                let handle = meshes.add(mesh);
+                let mut entity = commands.spawn((Mesh3d(handle.clone()), MeshMaterial3d(material.clone()), tessellated));
+                if name == "skinned" {
+                    entity.insert(skin.clone());
+                }
+                spawned.push((name, entity.id(), handle));
+            }
+            commands.insert_resource(Cases(spawned));
+            commands.spawn(camera(3.0));
+        },
+    );
+    let (_, app) = harness.run_keeping_app(app).expect("renders");
+    let world = app.world();
+    for (name, entity, source) in &world.resource::<Cases>().0 {
+        let state = world.get::<TessellationState>(*entity);
+        let mesh = &world.get::<Mesh3d>(*entity).unwrap().0;
+        match *name {
+            "lines" | "nan" | "skinned" => {
+                assert!(state.is_none(), "{name}: tessellated");
+                assert_eq!(mesh, source, "{name}: its mesh was replaced");
+            }
+            _ => {
+                let state = state.unwrap_or_else(|| panic!("{name}: not tessellated"));
+                assert_eq!(mesh, state.output(), "{name}");
+                let uniform = state.uniform().expect("a uniform");
+                match *name {
+                    "no normals" => assert!(state.input().computed_normals),
+                    "no uvs" | "snorm map" => assert!(state.map().is_none() && uniform.map_levels == 0, "{name}"),
+                    "bad settings" => assert_eq!((uniform.pixels_per_triangle, uniform.max_level), (16.0, 6)),
+                    "good map" => assert_eq!(uniform.map_levels, 5),
+                    _ => unreachable!(),
+                }
+            }
+        }
+    }
+}
+
+#[derive(Resource, Default)]
+struct Totals(Option<Vec<u32>>);
+
+#[derive(Resource, Default)]
+struct Log(Vec<GpuAllocationCounts>);
+
+fn record(allocations: Res<PenumbraGpuAllocations>, mut log: ResMut<Log>) {
+    log.0.push(allocations.counts());
+}
+
+/// The camera circles a step per frame: a new tessellation every frame.
+fn circle(mut cameras: Query<&mut Transform, With<Camera3d>>, mut frame: Local<u32>) {
+    *frame += 1;
+    let angle = *frame as f32 * 0.05;
+    for mut t in &mut cameras {
+        *t = Transform::from_xyz(1.4 * angle.cos(), 1.0, 1.4 * angle.sin()).looking_at(Vec3::new(0.0, 0.3, 0.0), Vec3::Y);
+    }
+}
+
+#[test]
+fn an_over_budget_view_is_coarsened_and_moving_allocates_nothing() {
+    if !gpu_or_skip("an_over_budget_view_is_coarsened_and_moving_allocates_nothing") {
+        return;
+    }
+    const FRAMES: u32 = 10;
+    let harness = HeadlessRender::new(256, 256).frames(FRAMES).warm_up(|world| {
+        world.resource::<Totals>().0.as_ref().is_some_and(|t| t[3] > 0)
+    });
+    let mut app = harness.app();
+    app.add_plugins(TessellationPlugin)
+        .init_resource::<Totals>()
+        .init_resource::<Log>()
+        .add_systems(
+            Startup,
+            |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials: ResMut<Assets<StandardMaterial>>| {
+                commands.spawn((
+                    Mesh3d(meshes.add(mesh_of(&rock(16, 6), true, true))),
+                    MeshMaterial3d(materials.add(StandardMaterial::default())),
+                    // Below the input's 192 triangles: raised to them.
+                    Tessellated { pixels_per_triangle: 2.0, max_triangles: 10, ..default() },
+                ));
+                commands.spawn(camera(1.4));
+            },
+        )
+        .add_systems(Update, (circle, read_totals))
+        .add_systems(Last, record);
+    let (_, app) = harness.run_keeping_app(app).expect("renders");
+    let world = app.world();
+    let totals = world.resource::<Totals>().0.clone().expect("read back");
+    let mut states = world.try_query::<&TessellationState>().unwrap();
+    let state = states.iter(world).next().expect("tessellated");
+    let (vertex_budget, index_budget) = state.budget();
+    println!(
+        "pool: {vertex_budget} vertices, {index_budget} indices; GPU bias {}, output {} vertices, {} indices",
+        totals[0], totals[1], totals[2]
+    );
+    assert_eq!(index_budget, 3 * 192, "the budget is raised to the input's triangles");
+    assert!(totals[0] > 0, "not coarsened");
+    assert!(totals[1] <= vertex_budget && totals[2] <= index_budget);
+    let log = &world.resource::<Log>().0;
+    let steady = &log[log.len() - FRAMES as usize + 3..];
+    assert_eq!(*steady.last().unwrap() - steady[0], GpuAllocationCounts::default(), "{steady:?}");
+}
+
+/// Reads the totals back every frame (the readback entity stays).
+fn read_totals(mut commands: Commands, states: Query<&TessellationState>, mut started: Local<bool>) {
+    let Some(state) = states.iter().next() else { return };
+    if !*started {
+        *started = true;
+        commands.spawn(Readback::buffer(state.buffers()[3].clone())).observe(
+            |event: On<ReadbackComplete>, mut totals: ResMut<Totals>| {
+                totals.0 = Some(event.data.chunks_exact(4).map(|b| u32::from_le_bytes(b.try_into().unwrap())).collect());
+            },
+        );
+    }
+}
