@@ -10,70 +10,22 @@
 //! - **Drawn.** The entity draws its output mesh through `StandardMaterial`; removing
 //!   `Tessellated` restores the source mesh.
 
-use bevy::asset::RenderAssetUsages;
-use bevy::image::Image;
-use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
-use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use bevy_penumbra_cinematic::tessellation::TessellationState;
 use bevy_penumbra_cinematic::{
     Tessellated, TessellationMode, TessellationPartitioning, TessellationPlugin,
 };
 use penumbra_cinematic_core::tessellation::preprocess::boundary_edge_count;
 use penumbra_cinematic_core::tessellation::reference::Frame;
-use penumbra_cinematic_core::tessellation::shapes::{ShapeMesh, height_map, rock};
+use penumbra_cinematic_core::tessellation::shapes::rock;
 use penumbra_cinematic_core::tessellation::{Partitioning, Settings, SurfaceMode, tessellate};
 use penumbra_test::{HeadlessRender, gpu_or_skip};
 
+mod tessellation_scene;
+use tessellation_scene::{camera, height_image, mesh_of};
+
 const SIZE: u32 = 96;
-
-/// The rock as a Bevy mesh.
-pub fn rock_mesh(shape: &ShapeMesh) -> Mesh {
-    Mesh::new(
-        PrimitiveTopology::TriangleList,
-        RenderAssetUsages::default(),
-    )
-    .with_inserted_attribute(
-        Mesh::ATTRIBUTE_POSITION,
-        shape
-            .positions
-            .iter()
-            .map(|p| p.to_array())
-            .collect::<Vec<_>>(),
-    )
-    .with_inserted_attribute(
-        Mesh::ATTRIBUTE_NORMAL,
-        shape
-            .normals
-            .iter()
-            .map(|p| p.to_array())
-            .collect::<Vec<_>>(),
-    )
-    .with_inserted_attribute(
-        Mesh::ATTRIBUTE_UV_0,
-        shape.uvs.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
-    )
-    .with_inserted_indices(Indices::U32(shape.indices.clone()))
-}
-
-fn height_image(size: u32) -> Image {
-    let bytes: Vec<u8> = height_map(size)
-        .iter()
-        .flat_map(|h| h.to_le_bytes())
-        .collect();
-    Image::new(
-        Extent3d {
-            width: size,
-            height: size,
-            depth_or_array_layers: 1,
-        },
-        TextureDimension::D2,
-        bytes,
-        TextureFormat::R32Float,
-        RenderAssetUsages::default(),
-    )
-}
 
 /// The configuration under test.
 #[derive(Resource, Clone, Copy)]
@@ -108,7 +60,7 @@ fn scene(
     let map = images.add(height_image(64));
     let rock = commands
         .spawn((
-            Mesh3d(meshes.add(rock_mesh(&rock(16, 6)))),
+            Mesh3d(meshes.add(mesh_of(&rock(16, 6), true, true))),
             MeshMaterial3d(materials.add(StandardMaterial::default())),
             tessellated(map, *config),
         ))
@@ -118,15 +70,7 @@ fn scene(
         DirectionalLight::default(),
         Transform::from_xyz(1.0, 2.0, 1.0).looking_at(Vec3::ZERO, Vec3::Y),
     ));
-    commands.spawn((
-        Camera3d::default(),
-        Projection::Perspective(PerspectiveProjection {
-            fov: 0.8,
-            ..default()
-        }),
-        Transform::from_translation(Vec3::new(0.3, 0.6, 1.0).normalize() * 2.6)
-            .looking_at(Vec3::new(0.0, 0.3, 0.0), Vec3::Y),
-    ));
+    commands.spawn(camera(2.6));
 }
 
 /// Starts the read-backs once the state exists.

@@ -14,56 +14,32 @@
 
 use bevy::asset::RenderAssetUsages;
 use bevy::image::Image;
+use bevy::mesh::PrimitiveTopology;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
-use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
-use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use bevy::render::storage::ShaderBuffer;
 use bevy_penumbra_cinematic::tessellation::TessellationState;
 use bevy_penumbra_cinematic::{Tessellated, TessellationPlugin};
 use bevy_penumbra_df::{GpuAllocationCounts, PenumbraGpuAllocations};
-use penumbra_cinematic_core::tessellation::shapes::{ShapeMesh, height_map, rock};
+use penumbra_cinematic_core::tessellation::shapes::{height_map, rock};
 use penumbra_test::{HeadlessRender, gpu_or_skip};
 
-fn mesh_of(shape: &ShapeMesh, normals: bool, uvs: bool) -> Mesh {
-    let mut mesh = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
-        .with_inserted_attribute(
-            Mesh::ATTRIBUTE_POSITION,
-            shape.positions.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
-        )
-        .with_inserted_indices(Indices::U32(shape.indices.clone()));
-    if normals {
-        mesh.insert_attribute(
-            Mesh::ATTRIBUTE_NORMAL,
-            shape.normals.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
-        );
-    }
-    if uvs {
-        mesh.insert_attribute(
-            Mesh::ATTRIBUTE_UV_0,
-            shape.uvs.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
-        );
-    }
-    mesh
-}
+mod tessellation_scene;
+use tessellation_scene::{Totals, camera, mesh_of, read_totals};
 
 fn heights(format: TextureFormat) -> Image {
     let bytes: Vec<u8> = height_map(16).iter().map(|h| (h * 127.0) as u8).collect();
     Image::new(
-        Extent3d { width: 16, height: 16, depth_or_array_layers: 1 },
+        Extent3d {
+            width: 16,
+            height: 16,
+            depth_or_array_layers: 1,
+        },
         TextureDimension::D2,
         bytes,
         format,
         RenderAssetUsages::default(),
-    )
-}
-
-fn camera(distance: f32) -> impl Bundle {
-    (
-        Camera3d::default(),
-        Transform::from_translation(Vec3::new(0.3, 0.6, 1.0).normalize() * distance)
-            .looking_at(Vec3::new(0.0, 0.3, 0.0), Vec3::Y),
     )
 }
 
@@ -76,7 +52,9 @@ fn without_the_component_nothing_is_made() {
     let mut app = harness.app();
     app.add_plugins(TessellationPlugin).add_systems(
         Startup,
-        |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials: ResMut<Assets<StandardMaterial>>| {
+        |mut commands: Commands,
+         mut meshes: ResMut<Assets<Mesh>>,
+         mut materials: ResMut<Assets<StandardMaterial>>| {
             commands.spawn((
                 Mesh3d(meshes.add(mesh_of(&rock(8, 3), true, true))),
                 MeshMaterial3d(materials.add(StandardMaterial::default())),
@@ -88,7 +66,10 @@ fn without_the_component_nothing_is_made() {
     let world = app.world_mut();
     assert_eq!(world.query::<&TessellationState>().iter(world).count(), 0);
     assert_eq!(world.resource::<Assets<ShaderBuffer>>().len(), 0);
-    assert_eq!(world.resource::<PenumbraGpuAllocations>().counts(), GpuAllocationCounts::default());
+    assert_eq!(
+        world.resource::<PenumbraGpuAllocations>().counts(),
+        GpuAllocationCounts::default()
+    );
 }
 
 #[derive(Resource)]
@@ -115,31 +96,81 @@ fn bad_input_is_skipped_or_repaired() {
             nan.positions[3].x = f32::NAN;
             let mut lines = mesh_of(&shape, true, true);
             lines = Mesh::new(PrimitiveTopology::LineList, RenderAssetUsages::default())
-                .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, lines.attribute(Mesh::ATTRIBUTE_POSITION).unwrap().clone());
+                .with_inserted_attribute(
+                    Mesh::ATTRIBUTE_POSITION,
+                    lines.attribute(Mesh::ATTRIBUTE_POSITION).unwrap().clone(),
+                );
             let skinned = mesh_of(&shape, true, true)
-                .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_INDEX, bevy::mesh::VertexAttributeValues::Uint16x4(vec![[0; 4]; shape.positions.len()]))
-                .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, vec![[1.0f32, 0.0, 0.0, 0.0]; shape.positions.len()]);
+                .with_inserted_attribute(
+                    Mesh::ATTRIBUTE_JOINT_INDEX,
+                    bevy::mesh::VertexAttributeValues::Uint16x4(vec![
+                        [0; 4];
+                        shape.positions.len()
+                    ]),
+                )
+                .with_inserted_attribute(
+                    Mesh::ATTRIBUTE_JOINT_WEIGHT,
+                    vec![[1.0f32, 0.0, 0.0, 0.0]; shape.positions.len()],
+                );
             let map = images.add(good);
             let snorm = images.add(heights(TextureFormat::R8Snorm));
             let cases: Vec<(&'static str, Mesh, Tessellated)> = vec![
                 ("lines", lines, Tessellated::default()),
                 ("nan", mesh_of(&nan, true, true), Tessellated::default()),
                 ("skinned", skinned, Tessellated::default()),
-                ("no normals", mesh_of(&shape, false, true), Tessellated::default()),
-                ("no uvs", mesh_of(&shape, true, false), Tessellated { displacement: Some(map.clone()), ..default() }),
-                ("snorm map", mesh_of(&shape, true, true), Tessellated { displacement: Some(snorm), ..default() }),
-                ("bad settings", mesh_of(&shape, true, true), Tessellated { pixels_per_triangle: -1.0, max_level: 9, ..default() }),
-                ("good map", mesh_of(&shape, true, true), Tessellated { displacement: Some(map), ..default() }),
+                (
+                    "no normals",
+                    mesh_of(&shape, false, true),
+                    Tessellated::default(),
+                ),
+                (
+                    "no uvs",
+                    mesh_of(&shape, true, false),
+                    Tessellated {
+                        displacement: Some(map.clone()),
+                        ..default()
+                    },
+                ),
+                (
+                    "snorm map",
+                    mesh_of(&shape, true, true),
+                    Tessellated {
+                        displacement: Some(snorm),
+                        ..default()
+                    },
+                ),
+                (
+                    "bad settings",
+                    mesh_of(&shape, true, true),
+                    Tessellated {
+                        pixels_per_triangle: -1.0,
+                        max_level: 9,
+                        ..default()
+                    },
+                ),
+                (
+                    "good map",
+                    mesh_of(&shape, true, true),
+                    Tessellated {
+                        displacement: Some(map),
+                        ..default()
+                    },
+                ),
             ];
             let mut spawned = Vec::new();
             let joint = commands.spawn(Transform::default()).id();
             let skin = SkinnedMesh {
-                inverse_bindposes: bindposes.add(SkinnedMeshInverseBindposes::from(vec![Mat4::IDENTITY])),
+                inverse_bindposes: bindposes
+                    .add(SkinnedMeshInverseBindposes::from(vec![Mat4::IDENTITY])),
                 joints: vec![joint],
             };
             for (name, mesh, tessellated) in cases {
                 let handle = meshes.add(mesh);
-                let mut entity = commands.spawn((Mesh3d(handle.clone()), MeshMaterial3d(material.clone()), tessellated));
+                let mut entity = commands.spawn((
+                    Mesh3d(handle.clone()),
+                    MeshMaterial3d(material.clone()),
+                    tessellated,
+                ));
                 if name == "skinned" {
                     entity.insert(skin.clone());
                 }
@@ -165,8 +196,12 @@ fn bad_input_is_skipped_or_repaired() {
                 let uniform = state.uniform().expect("a uniform");
                 match *name {
                     "no normals" => assert!(state.input().computed_normals),
-                    "no uvs" | "snorm map" => assert!(state.map().is_none() && uniform.map_levels == 0, "{name}"),
-                    "bad settings" => assert_eq!((uniform.pixels_per_triangle, uniform.max_level), (16.0, 6)),
+                    "no uvs" | "snorm map" => {
+                        assert!(state.map().is_none() && uniform.map_levels == 0, "{name}");
+                    }
+                    "bad settings" => {
+                        assert_eq!((uniform.pixels_per_triangle, uniform.max_level), (16.0, 6));
+                    }
                     "good map" => assert_eq!(uniform.map_levels, 5),
                     _ => unreachable!(),
                 }
@@ -174,9 +209,6 @@ fn bad_input_is_skipped_or_repaired() {
         }
     }
 }
-
-#[derive(Resource, Default)]
-struct Totals(Option<Vec<u32>>);
 
 #[derive(Resource, Default)]
 struct Log(Vec<GpuAllocationCounts>);
@@ -190,7 +222,8 @@ fn circle(mut cameras: Query<&mut Transform, With<Camera3d>>, mut frame: Local<u
     *frame += 1;
     let angle = *frame as f32 * 0.05;
     for mut t in &mut cameras {
-        *t = Transform::from_xyz(1.4 * angle.cos(), 1.0, 1.4 * angle.sin()).looking_at(Vec3::new(0.0, 0.3, 0.0), Vec3::Y);
+        *t = Transform::from_xyz(1.4 * angle.cos(), 1.0, 1.4 * angle.sin())
+            .looking_at(Vec3::new(0.0, 0.3, 0.0), Vec3::Y);
     }
 }
 
@@ -200,21 +233,33 @@ fn an_over_budget_view_is_coarsened_and_moving_allocates_nothing() {
         return;
     }
     const FRAMES: u32 = 10;
-    let harness = HeadlessRender::new(256, 256).frames(FRAMES).warm_up(|world| {
-        world.resource::<Totals>().0.as_ref().is_some_and(|t| t[3] > 0)
-    });
+    let harness = HeadlessRender::new(256, 256)
+        .frames(FRAMES)
+        .warm_up(|world| {
+            world
+                .resource::<Totals>()
+                .0
+                .as_ref()
+                .is_some_and(|t| t[3] > 0)
+        });
     let mut app = harness.app();
     app.add_plugins(TessellationPlugin)
         .init_resource::<Totals>()
         .init_resource::<Log>()
         .add_systems(
             Startup,
-            |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials: ResMut<Assets<StandardMaterial>>| {
+            |mut commands: Commands,
+             mut meshes: ResMut<Assets<Mesh>>,
+             mut materials: ResMut<Assets<StandardMaterial>>| {
                 commands.spawn((
                     Mesh3d(meshes.add(mesh_of(&rock(16, 6), true, true))),
                     MeshMaterial3d(materials.add(StandardMaterial::default())),
                     // Below the input's 192 triangles: raised to them.
-                    Tessellated { pixels_per_triangle: 2.0, max_triangles: 10, ..default() },
+                    Tessellated {
+                        pixels_per_triangle: 2.0,
+                        max_triangles: 10,
+                        ..default()
+                    },
                 ));
                 commands.spawn(camera(1.4));
             },
@@ -231,23 +276,18 @@ fn an_over_budget_view_is_coarsened_and_moving_allocates_nothing() {
         "pool: {vertex_budget} vertices, {index_budget} indices; GPU bias {}, output {} vertices, {} indices",
         totals[0], totals[1], totals[2]
     );
-    assert_eq!(index_budget, 3 * 192, "the budget is raised to the input's triangles");
+    assert_eq!(
+        index_budget,
+        3 * 192,
+        "the budget is raised to the input's triangles"
+    );
     assert!(totals[0] > 0, "not coarsened");
     assert!(totals[1] <= vertex_budget && totals[2] <= index_budget);
     let log = &world.resource::<Log>().0;
     let steady = &log[log.len() - FRAMES as usize + 3..];
-    assert_eq!(*steady.last().unwrap() - steady[0], GpuAllocationCounts::default(), "{steady:?}");
-}
-
-/// Reads the totals back every frame (the readback entity stays).
-fn read_totals(mut commands: Commands, states: Query<&TessellationState>, mut started: Local<bool>) {
-    let Some(state) = states.iter().next() else { return };
-    if !*started {
-        *started = true;
-        commands.spawn(Readback::buffer(state.buffers()[3].clone())).observe(
-            |event: On<ReadbackComplete>, mut totals: ResMut<Totals>| {
-                totals.0 = Some(event.data.chunks_exact(4).map(|b| u32::from_le_bytes(b.try_into().unwrap())).collect());
-            },
-        );
-    }
+    assert_eq!(
+        *steady.last().unwrap() - steady[0],
+        GpuAllocationCounts::default(),
+        "{steady:?}"
+    );
 }

@@ -41,8 +41,11 @@
 //!
 //! # Limits
 //!
-//! - The output pool is sized for [`Tessellated::max_triangles`] (at least the input's
-//!   triangle count); a view that asks for more gets coarser factors (one warning).
+//! - The output pool starts at 65,536 triangles and follows the GPU's totals (read back
+//!   each frame, 16 bytes): ×4 when the view needed coarser factors, down to twice the
+//!   use when under an eighth is used. It never exceeds [`Tessellated::max_triangles`]
+//!   (at least the input's triangle count): a view that asks for more gets coarser
+//!   factors (one warning). The unused tail of the pool is drawn as degenerate triangles.
 //! - The output mesh has positions, normals, UV 0 and (when the input has them)
 //!   tangents; other attributes (colours, a second UV set, joints) are dropped, and
 //!   skinned or morphed meshes are not supported (one warning, left untessellated).
@@ -51,8 +54,8 @@
 //!   normal bends the shading normal by the height's slope; a material normal map is
 //!   applied on top.
 //! - Cost: the vertex and index pools twice (the compute pool and Bevy's mesh buffers):
-//!   `(max_triangles + 2·patches)·(32 or 48) + 12·max_triangles` bytes each, plus 32
-//!   bytes per input triangle of patch state.
+//!   `(capacity + 2·patches)·(32 or 48) + 12·capacity` bytes each, plus 32 bytes per
+//!   input triangle of patch state.
 
 mod render;
 
@@ -63,11 +66,11 @@ use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use bevy::render::extract_component::ExtractComponentPlugin;
+use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::render::render_resource::TextureFormat;
 use bevy::render::storage::ShaderBuffer;
 use bevy::transform::TransformSystems;
-use penumbra_cinematic_core::tessellation::factors::{choose_bias, demand};
-use penumbra_cinematic_core::tessellation::reference::{Frame, patch_edge_factors};
+use penumbra_cinematic_core::tessellation::reference::Frame;
 use penumbra_cinematic_core::tessellation::uniform::{
     PATCH_STATE_BYTES, TOTALS_BYTES, TessellationUniform,
 };
@@ -124,8 +127,8 @@ pub struct Tessellated {
     pub mode: TessellationMode,
     /// Segment spacing. Default [`TessellationPartitioning::Fractional`].
     pub partitioning: TessellationPartitioning,
-    /// Triangles the output pool holds (raised to the input's count). Default 262,144:
-    /// about 12.6 MB of pool twice without tangents.
+    /// The most triangles the output pool may grow to (raised to the input's count).
+    /// Default 1,048,576: about 46 MB of pool twice without tangents, if a view needs it.
     pub max_triangles: u32,
 }
 
@@ -139,7 +142,7 @@ impl Default for Tessellated {
             displacement_midlevel: 0.5,
             mode: TessellationMode::PnAen,
             partitioning: TessellationPartitioning::Fractional,
-            max_triangles: 262_144,
+            max_triangles: 1 << 20,
         }
     }
 }
@@ -205,6 +208,9 @@ impl TessellationCache {
     }
 }
 
+/// The smallest pool, triangles (unless `max_triangles` is smaller): about 3 MB.
+const MIN_CAPACITY: u32 = 65_536;
+
 /// What the plugin made for a [`Tessellated`] entity; extracted to the render world.
 #[derive(Component, Clone)]
 pub struct TessellationState {
@@ -223,7 +229,12 @@ pub struct TessellationState {
     uniform: Option<TessellationUniform>,
     /// Bumped whenever the uniform changes: the render world re-tessellates.
     generation: u64,
-    checks: u32,
+    /// Triangles the pool holds now (between the floor and `max_triangles`).
+    capacity: u32,
+    /// The latest totals read back (bias, vertices, indices, patches).
+    latest: Option<[u32; 4]>,
+    /// The entity reading the totals back.
+    readback: Option<Entity>,
 }
 
 impl TessellationState {
@@ -266,6 +277,12 @@ impl TessellationState {
     /// Pool sizes: vertices, indices.
     pub fn budget(&self) -> (u32, u32) {
         (self.vertex_budget, self.index_budget)
+    }
+
+    /// The latest totals the GPU wrote (bias, vertices, indices, patches), read back a
+    /// frame or two late.
+    pub fn latest_totals(&self) -> Option<[u32; 4]> {
+        self.latest
     }
 }
 
@@ -415,6 +432,9 @@ fn restore_untessellated(
                 .entity(entity)
                 .insert(Mesh3d(state.source.clone()))
                 .remove::<(TessellationState, NoAutoAabb, Aabb)>();
+            if let Some(readback) = state.readback {
+                commands.entity(readback).despawn();
+            }
         }
     }
 }
@@ -538,7 +558,24 @@ fn prepare_tessellated(
             },
         };
         let patch_count = input.input.patches.len() as u32;
-        let triangles = tessellated.max_triangles.max(patch_count);
+        let max = tessellated.max_triangles.max(patch_count);
+        let floor = max.min(MIN_CAPACITY.max(patch_count));
+        let current = state
+            .as_ref()
+            .map_or(floor, |s| s.capacity.clamp(floor, max));
+        let triangles = match state.as_ref().and_then(|s| s.latest) {
+            // The GPU had to coarsen: grow (up to `max_triangles`, then one warning).
+            Some([bias, ..]) if bias > 0 && current < max => current.saturating_mul(4).min(max),
+            Some([bias, ..]) if bias > 0 => {
+                cache.warn_once(entity, "budget", || {
+                    format!("the view asks for more than max_triangles ({max}): factors are halved {bias} time(s)")
+                });
+                current
+            }
+            // Mostly empty: shrink (the unused tail is drawn as degenerate triangles).
+            Some([_, _, indices, _]) if indices / 3 < current / 8 => (indices / 3 * 2).max(floor),
+            _ => current,
+        };
         let (vertex_budget, index_budget) = (
             triangles.saturating_add(2 * patch_count),
             triangles.saturating_mul(3),
@@ -564,12 +601,35 @@ fn prepare_tessellated(
         let mut fresh = None;
         let state = match state {
             Some(state) if !rebuild => state.into_inner(),
-            _ => {
+            old => {
+                if let Some(readback) = old.and_then(|s| s.readback) {
+                    commands.entity(readback).despawn();
+                }
                 let output = meshes.add(output_mesh(vertex_budget, index_budget, has_tangents));
                 let words = if has_tangents { 12 } else { 8 };
                 let storage = |bytes: u64| {
                     ShaderBuffer::with_size(bytes as usize, RenderAssetUsages::RENDER_WORLD)
                 };
+                let totals = buffers.add(storage(TOTALS_BYTES));
+                let id = totals.id();
+                let readback = commands
+                    .spawn(Readback::buffer(totals.clone()))
+                    .observe(
+                        move |event: On<ReadbackComplete>,
+                              mut states: Query<&mut TessellationState>| {
+                            if let Ok(mut state) = states.get_mut(entity)
+                                && state.totals.id() == id
+                                && let Ok(words) = <[u8; 16]>::try_from(&event.data[..])
+                            {
+                                state.latest = Some(std::array::from_fn(|i| {
+                                    u32::from_le_bytes(
+                                        words[4 * i..4 * i + 4].try_into().expect("4 bytes"),
+                                    )
+                                }));
+                            }
+                        },
+                    )
+                    .id();
                 let new = TessellationState {
                     source: source.clone(),
                     output: output.clone(),
@@ -577,7 +637,7 @@ fn prepare_tessellated(
                     texels: texels.clone(),
                     map: map_data.clone(),
                     states: buffers.add(storage(PATCH_STATE_BYTES * u64::from(patch_count))),
-                    totals: buffers.add(storage(TOTALS_BYTES)),
+                    totals,
                     out_vertices: buffers.add(storage(4 * words * u64::from(vertex_budget))),
                     out_indices: buffers.add(storage(4 * u64::from(index_budget))),
                     vertex_budget,
@@ -585,7 +645,9 @@ fn prepare_tessellated(
                     has_tangents,
                     uniform: None,
                     generation: 0,
-                    checks: 0,
+                    capacity: triangles,
+                    latest: None,
+                    readback: Some(readback),
                 };
                 commands.entity(entity).insert((Mesh3d(output), NoAutoAabb));
                 fresh.insert(new)
@@ -619,24 +681,6 @@ fn prepare_tessellated(
             if state.uniform != Some(uniform) {
                 state.uniform = Some(uniform);
                 state.generation += 1;
-                // The CPU's estimate of the GPU's bias, for the one warning (every 16th
-                // change until it warns).
-                if state.checks % 16 == 0 && !cache.warned.contains(&(entity, "budget")) {
-                    let factors = input
-                        .input
-                        .patches
-                        .iter()
-                        .map(|p| patch_edge_factors(&input.input, p, &frame, &settings));
-                    let bias = choose_bias(
-                        &demand(factors),
-                        u64::from(vertex_budget),
-                        u64::from(index_budget),
-                    );
-                    if bias > 0 {
-                        cache.warn_once(entity, "budget", || format!("the view asks for more than max_triangles ({triangles}): factors are halved {bias} time(s)"));
-                    }
-                }
-                state.checks += 1;
             }
         }
         if let Some(fresh) = fresh {
