@@ -7,13 +7,14 @@
 //! ```text
 //! cargo run --example tessellation                                   # a window (if a display exists)
 //! cargo run --example tessellation -- --headless --frames 6 --out tessellation.png
-//! cargo run --example tessellation -- --tessellation flat            # or off
+//! cargo run --example tessellation -- --tessellation flat            # or off, or wireframe
 //! ```
 //!
 //! In a window: `T` cycles off / flat / PN-AEN, `W` toggles the wireframe view (Bevy's
 //! `Wireframe` on the tessellated mesh, where the GPU supports line polygons). Flags as
-//! for every example (`examples/common/cli.rs`). The 256×256 headless screenshot is
-//! checked against `assets/reference/tessellation.png` by `tests/tessellation_example.rs`.
+//! for every example (`examples/common/cli.rs`). The 256×256 headless screenshots are
+//! checked against `assets/reference/tessellation.png` and (`--tessellation wireframe`)
+//! `assets/reference/tessellation_wireframe.png` by `tests/tessellation_example.rs`.
 
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::{Indices, PrimitiveTopology};
@@ -50,7 +51,7 @@ fn settings(choice: TessellationChoice, map: &Handle<Image>) -> Option<Tessellat
     let mode = match choice {
         TessellationChoice::Off => return None,
         TessellationChoice::Flat => TessellationMode::Flat,
-        TessellationChoice::PnAen => TessellationMode::PnAen,
+        TessellationChoice::PnAen | TessellationChoice::Wireframe => TessellationMode::PnAen,
     };
     Some(Tessellated {
         pixels_per_triangle: 12.0,
@@ -140,6 +141,9 @@ fn spawn_scene(
     if let Some(t) = settings(choice, &map) {
         rock.insert(t);
     }
+    if choice == TessellationChoice::Wireframe {
+        rock.insert(Wireframe);
+    }
     let rock = rock.id();
     commands.insert_resource(Scene { rock, map, choice });
     commands.spawn((
@@ -188,7 +192,7 @@ fn toggle(
         scene.choice = match scene.choice {
             TessellationChoice::Off => TessellationChoice::Flat,
             TessellationChoice::Flat => TessellationChoice::PnAen,
-            TessellationChoice::PnAen => TessellationChoice::Off,
+            TessellationChoice::PnAen | TessellationChoice::Wireframe => TessellationChoice::Off,
         };
         info!("tessellation: {:?}", scene.choice);
         match settings(scene.choice, &scene.map) {

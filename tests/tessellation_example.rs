@@ -1,6 +1,7 @@
 //! The `tessellation` example runs headless (in process) and its screenshot matches the
 //! reference kept in `assets/reference/tessellation.png`; the same scene with
-//! `--tessellation off` (the 768-triangle rock) does not, nor with flat patches.
+//! `--tessellation off` (the 768-triangle rock) does not, nor with flat patches; the
+//! wireframe view matches `assets/reference/tessellation_wireframe.png`.
 //!
 //! To accept a deliberate change: `PENUMBRA_BLESS=1 cargo test --test tessellation_example`,
 //! then look at the new reference before committing it.
@@ -41,6 +42,15 @@ fn tessellation_example_matches_reference() {
     let reference =
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/reference/tessellation.png");
     check_golden("tessellation", &actual, &reference, &Tolerance::GOLDEN);
+    let wireframe = capture(&["--tessellation", "wireframe"]);
+    let reference = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("assets/reference/tessellation_wireframe.png");
+    check_golden(
+        "tessellation_wireframe",
+        &wireframe,
+        &reference,
+        &Tolerance::GOLDEN,
+    );
     // Untessellated, or flat patches: different images.
     for mode in ["off", "flat"] {
         let other = capture(&["--tessellation", mode]);

@@ -102,6 +102,8 @@ pub enum TessellationChoice {
     Flat,
     /// PN-AEN patches, displaced (the default).
     PnAen,
+    /// PN-AEN patches with Bevy's wireframe drawn over them.
+    Wireframe,
 }
 
 /// What `--dof` asks for.
@@ -159,7 +161,7 @@ pub enum NoDfao {
 const USAGE: &str = "usage: EXAMPLE [--headless] [--frames N] [--out PATH] [--size WxH] [--lights N] [--glass] \
      [--plain] [--ao-view ao|bent|tiles] [--casters N] [--global-field] [--no-dfao component|plugin] [--msaa off|4|every|edges] \
      [--dof penumbra|circle|bevy-bokeh|bevy-gaussian|off] [--no-sss] [--no-reflections] \
-     [--hair per-sample|sample-shading|alpha-to-coverage|per-pixel|off] [--tessellation off|flat|pn-aen] [--assets DIR]";
+     [--hair per-sample|sample-shading|alpha-to-coverage|per-pixel|off] [--tessellation off|flat|pn-aen|wireframe] [--assets DIR]";
 
 impl Options {
     /// Parses `std::env::args()`-style arguments (without the program name).
@@ -236,7 +238,12 @@ impl Options {
                         "off" => TessellationChoice::Off,
                         "flat" => TessellationChoice::Flat,
                         "pn-aen" => TessellationChoice::PnAen,
-                        v => return Err(format!("--tessellation: off, flat or pn-aen, got {v:?}")),
+                        "wireframe" => TessellationChoice::Wireframe,
+                        v => {
+                            return Err(format!(
+                                "--tessellation: off, flat, pn-aen or wireframe, got {v:?}"
+                            ));
+                        }
                     });
                 }
                 "--dof" => {
