@@ -291,3 +291,97 @@ fn an_over_budget_view_is_coarsened_and_moving_allocates_nothing() {
         "{steady:?}"
     );
 }
+
+/// Which camera draws the rock.
+#[derive(Resource, Clone, Copy, PartialEq)]
+struct Path {
+    deferred: bool,
+    tessellated: bool,
+}
+
+/// The rock's silhouette (pixels not the clear colour) as one camera draws it.
+fn silhouette(path: Path) -> Vec<bool> {
+    const SIZE: u32 = 64;
+    let harness = HeadlessRender::new(SIZE, SIZE)
+        .format(penumbra_test::CaptureFormat::LinearF16)
+        .frames(4);
+    let mut app = harness.app();
+    if path.deferred {
+        app.insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred());
+    }
+    app.add_plugins((
+        TessellationPlugin,
+        bevy_penumbra_df::PenumbraLightingPlugin::default(),
+    ))
+    .insert_resource(path)
+    .insert_resource(ClearColor(Color::BLACK))
+    .add_systems(
+        Startup,
+        |mut commands: Commands,
+         path: Res<Path>,
+         mut meshes: ResMut<Assets<Mesh>>,
+         mut images: ResMut<Assets<Image>>,
+         mut materials: ResMut<Assets<StandardMaterial>>| {
+            let mut rock = commands.spawn((
+                Mesh3d(meshes.add(mesh_of(&rock(16, 6), true, true))),
+                MeshMaterial3d(materials.add(StandardMaterial::default())),
+            ));
+            if path.tessellated {
+                rock.insert(Tessellated {
+                    displacement: Some(images.add(tessellation_scene::height_image(64))),
+                    displacement_scale: 0.3,
+                    pixels_per_triangle: 4.0,
+                    ..default()
+                });
+            }
+            commands.spawn((
+                DirectionalLight::default(),
+                Transform::from_xyz(1.0, 2.0, 1.0).looking_at(Vec3::ZERO, Vec3::Y),
+            ));
+            let mut camera = commands.spawn((camera(2.2), Msaa::Off));
+            if path.deferred {
+                camera.insert(bevy_penumbra_df::PenumbraLighting);
+            }
+        },
+    );
+    let capture = harness.run(app).expect("renders");
+    capture
+        .to_linear()
+        .iter()
+        .map(|p| p[0] + p[1] + p[2] > 1e-3)
+        .collect()
+}
+
+#[test]
+fn forward_and_deferred_cameras_draw_the_tessellated_mesh() {
+    if !gpu_or_skip("forward_and_deferred_cameras_draw_the_tessellated_mesh") {
+        return;
+    }
+    let [forward, deferred, plain] =
+        [(false, true), (true, true), (false, false)].map(|(deferred, tessellated)| {
+            silhouette(Path {
+                deferred,
+                tessellated,
+            })
+        });
+    let differ = |a: &[bool], b: &[bool]| a.iter().zip(b).filter(|(x, y)| x != y).count();
+    let covered = forward.iter().filter(|&&x| x).count();
+    println!(
+        "silhouette: {covered} pixels; forward vs Penumbra's deferred lighting differ in {}, tessellated vs not in {}",
+        differ(&forward, &deferred),
+        differ(&forward, &plain)
+    );
+    assert!(covered > 500, "{covered}");
+    // The same triangles in the G-buffer as in the forward pass.
+    assert!(
+        differ(&forward, &deferred) <= 2,
+        "{}",
+        differ(&forward, &deferred)
+    );
+    // And they are the tessellated, displaced ones.
+    assert!(
+        differ(&forward, &plain) > 50,
+        "{}",
+        differ(&forward, &plain)
+    );
+}
