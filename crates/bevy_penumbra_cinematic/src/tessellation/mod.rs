@@ -57,17 +57,16 @@
 //!   `(capacity + 2·patches)·(32 or 48) + 12·capacity` bytes each, plus 32 bytes per
 //!   input triangle of patch state.
 
+mod input;
 mod render;
 
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::primitives::Aabb;
 use bevy::camera::visibility::NoAutoAabb;
-use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use bevy::render::extract_component::ExtractComponentPlugin;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
-use bevy::render::render_resource::TextureFormat;
 use bevy::render::storage::ShaderBuffer;
 use bevy::transform::TransformSystems;
 use penumbra_cinematic_core::tessellation::reference::Frame;
@@ -75,11 +74,12 @@ use penumbra_cinematic_core::tessellation::uniform::{
     PATCH_STATE_BYTES, TOTALS_BYTES, TessellationUniform,
 };
 use penumbra_cinematic_core::tessellation::{
-    DisplacementMap, MAX_LEVEL, Partitioning, Settings, SourceMesh, SurfaceMode, TessellationInput,
+    DisplacementMap, MAX_LEVEL, Partitioning, Settings, SurfaceMode, TessellationInput,
     TessellationView,
 };
 use std::sync::Arc;
 
+use input::{encase_vec, heights, output_mesh, preprocess};
 pub use render::GpuTessellation;
 
 /// The surface a [`Tessellated`] mesh evaluates.
@@ -316,92 +316,6 @@ fn settings_of(entity: Entity, t: &Tessellated, cache: &mut TessellationCache) -
         displacement_midlevel: finite(t.displacement_midlevel, 0.5),
         crack_fixes: true,
     }
-}
-
-fn f32x3(mesh: &Mesh, attribute: bevy::mesh::MeshVertexAttribute) -> Option<Vec<Vec3>> {
-    match mesh.attribute(attribute)? {
-        VertexAttributeValues::Float32x3(v) => {
-            Some(v.iter().map(|&a| Vec3::from_array(a)).collect())
-        }
-        _ => None,
-    }
-}
-
-/// Preprocesses `mesh` (an error message when it cannot be tessellated).
-fn preprocess(mesh: &Mesh) -> Result<TessellationInput, String> {
-    if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
-        return Err(format!(
-            "its mesh is a {:?}, not a triangle list",
-            mesh.primitive_topology()
-        ));
-    }
-    if mesh.attribute(Mesh::ATTRIBUTE_JOINT_INDEX).is_some() || mesh.morph_targets().is_some() {
-        return Err("skinned and morphed meshes are not supported".into());
-    }
-    let positions =
-        f32x3(mesh, Mesh::ATTRIBUTE_POSITION).ok_or("its mesh has no Float32x3 positions")?;
-    let normals = f32x3(mesh, Mesh::ATTRIBUTE_NORMAL);
-    let uvs = match mesh.attribute(Mesh::ATTRIBUTE_UV_0) {
-        Some(VertexAttributeValues::Float32x2(v)) => {
-            Some(v.iter().map(|&a| Vec2::from_array(a)).collect::<Vec<_>>())
-        }
-        _ => None,
-    };
-    let tangents = match mesh.attribute(Mesh::ATTRIBUTE_TANGENT) {
-        Some(VertexAttributeValues::Float32x4(v)) => {
-            Some(v.iter().map(|&a| Vec4::from_array(a)).collect::<Vec<_>>())
-        }
-        _ => None,
-    };
-    let indices: Vec<u32> = match mesh.indices() {
-        Some(i) => i.iter().map(|i| i as u32).collect(),
-        None => (0..positions.len() as u32).collect(),
-    };
-    TessellationInput::new(SourceMesh {
-        positions: &positions,
-        normals: normals.as_deref(),
-        uvs: uvs.as_deref(),
-        tangents: tangents.as_deref(),
-        indices: &indices,
-    })
-    .map_err(|e| format!("its mesh cannot be tessellated: {e}"))
-}
-
-/// The heights of an image's red channel, or why not.
-fn heights(image: &Image) -> Result<DisplacementMap, String> {
-    let size = image.size();
-    let data = image
-        .data
-        .as_ref()
-        .ok_or("its displacement image has no CPU data")?;
-    let texels = (size.x * size.y) as usize;
-    let read = |stride: usize, f: &dyn Fn(&[u8]) -> f32| -> Vec<f32> {
-        data.chunks_exact(stride).take(texels).map(f).collect()
-    };
-    let r16 = |b: &[u8]| u16::from_le_bytes([b[0], b[1]]);
-    let values = match image.texture_descriptor.format {
-        TextureFormat::R8Unorm | TextureFormat::Rgba8Unorm | TextureFormat::Rgba8UnormSrgb => {
-            let stride = if image.texture_descriptor.format == TextureFormat::R8Unorm {
-                1
-            } else {
-                4
-            };
-            read(stride, &|b| f32::from(b[0]) / 255.0)
-        }
-        TextureFormat::R16Unorm => read(2, &|b| f32::from(r16(b)) / 65535.0),
-        TextureFormat::Rgba16Unorm => read(8, &|b| f32::from(r16(b)) / 65535.0),
-        TextureFormat::R16Float => read(2, &|b| half::f16::from_bits(r16(b)).to_f32()),
-        TextureFormat::Rgba16Float => read(8, &|b| half::f16::from_bits(r16(b)).to_f32()),
-        TextureFormat::R32Float => read(4, &|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
-        TextureFormat::Rgba32Float => read(16, &|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
-        other => {
-            return Err(format!(
-                "its displacement image's format {other:?} is not supported (8/16-bit unorm or 16/32-bit float)"
-            ));
-        }
-    };
-    DisplacementMap::new(size.x, size.y, values)
-        .ok_or_else(|| "its displacement image is empty, mis-sized or not finite".into())
 }
 
 /// The view the factors are computed for.
@@ -687,29 +601,4 @@ fn prepare_tessellated(
             commands.entity(entity).insert(fresh);
         }
     }
-}
-
-/// A placeholder mesh of the pool's size, with the attributes the passes write; its GPU
-/// buffers are overwritten by the tessellation (never re-uploaded: it is not changed).
-fn output_mesh(vertices: u32, indices: u32, tangents: bool) -> Mesh {
-    let n = vertices as usize;
-    let mut mesh = Mesh::new(
-        PrimitiveTopology::TriangleList,
-        RenderAssetUsages::RENDER_WORLD,
-    )
-    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0f32; 3]; n])
-    .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, vec![[0.0f32, 1.0, 0.0]; n])
-    .with_inserted_attribute(Mesh::ATTRIBUTE_UV_0, vec![[0.0f32; 2]; n])
-    .with_inserted_indices(Indices::U32(vec![0; indices as usize]));
-    if tangents {
-        mesh.insert_attribute(Mesh::ATTRIBUTE_TANGENT, vec![[1.0f32, 0.0, 0.0, 1.0]; n]);
-    }
-    mesh
-}
-
-/// The input vertices as a WGSL runtime-sized array of `TessVertex`.
-fn encase_vec(items: &Vec<penumbra_cinematic_core::tessellation::TessVertex>) -> Vec<u8> {
-    let mut buffer = bevy::render::render_resource::encase::StorageBuffer::new(Vec::new());
-    buffer.write(items).expect("encodes");
-    buffer.into_inner()
 }

@@ -1,0 +1,121 @@
+//! A tessellated entity's inputs from Bevy's assets: the mesh's preprocessing, the
+//! displacement image's heights, the input vertices' GPU layout and the output mesh.
+
+use bevy::asset::RenderAssetUsages;
+use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
+use bevy::prelude::*;
+use bevy::render::render_resource::TextureFormat;
+use penumbra_cinematic_core::tessellation::{DisplacementMap, SourceMesh, TessellationInput};
+
+fn f32x3(mesh: &Mesh, attribute: bevy::mesh::MeshVertexAttribute) -> Option<Vec<Vec3>> {
+    match mesh.attribute(attribute)? {
+        VertexAttributeValues::Float32x3(v) => {
+            Some(v.iter().map(|&a| Vec3::from_array(a)).collect())
+        }
+        _ => None,
+    }
+}
+
+/// Preprocesses `mesh` (an error message when it cannot be tessellated).
+pub(super) fn preprocess(mesh: &Mesh) -> Result<TessellationInput, String> {
+    if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
+        return Err(format!(
+            "its mesh is a {:?}, not a triangle list",
+            mesh.primitive_topology()
+        ));
+    }
+    if mesh.attribute(Mesh::ATTRIBUTE_JOINT_INDEX).is_some() || mesh.morph_targets().is_some() {
+        return Err("skinned and morphed meshes are not supported".into());
+    }
+    let positions =
+        f32x3(mesh, Mesh::ATTRIBUTE_POSITION).ok_or("its mesh has no Float32x3 positions")?;
+    let normals = f32x3(mesh, Mesh::ATTRIBUTE_NORMAL);
+    let uvs = match mesh.attribute(Mesh::ATTRIBUTE_UV_0) {
+        Some(VertexAttributeValues::Float32x2(v)) => {
+            Some(v.iter().map(|&a| Vec2::from_array(a)).collect::<Vec<_>>())
+        }
+        _ => None,
+    };
+    let tangents = match mesh.attribute(Mesh::ATTRIBUTE_TANGENT) {
+        Some(VertexAttributeValues::Float32x4(v)) => {
+            Some(v.iter().map(|&a| Vec4::from_array(a)).collect::<Vec<_>>())
+        }
+        _ => None,
+    };
+    let indices: Vec<u32> = match mesh.indices() {
+        Some(i) => i.iter().map(|i| i as u32).collect(),
+        None => (0..positions.len() as u32).collect(),
+    };
+    TessellationInput::new(SourceMesh {
+        positions: &positions,
+        normals: normals.as_deref(),
+        uvs: uvs.as_deref(),
+        tangents: tangents.as_deref(),
+        indices: &indices,
+    })
+    .map_err(|e| format!("its mesh cannot be tessellated: {e}"))
+}
+
+/// The heights of an image's red channel, or why not.
+pub(super) fn heights(image: &Image) -> Result<DisplacementMap, String> {
+    let size = image.size();
+    let data = image
+        .data
+        .as_ref()
+        .ok_or("its displacement image has no CPU data")?;
+    let texels = (size.x * size.y) as usize;
+    let read = |stride: usize, f: &dyn Fn(&[u8]) -> f32| -> Vec<f32> {
+        data.chunks_exact(stride).take(texels).map(f).collect()
+    };
+    let r16 = |b: &[u8]| u16::from_le_bytes([b[0], b[1]]);
+    let values = match image.texture_descriptor.format {
+        TextureFormat::R8Unorm | TextureFormat::Rgba8Unorm | TextureFormat::Rgba8UnormSrgb => {
+            let stride = if image.texture_descriptor.format == TextureFormat::R8Unorm {
+                1
+            } else {
+                4
+            };
+            read(stride, &|b| f32::from(b[0]) / 255.0)
+        }
+        TextureFormat::R16Unorm => read(2, &|b| f32::from(r16(b)) / 65535.0),
+        TextureFormat::Rgba16Unorm => read(8, &|b| f32::from(r16(b)) / 65535.0),
+        TextureFormat::R16Float => read(2, &|b| half::f16::from_bits(r16(b)).to_f32()),
+        TextureFormat::Rgba16Float => read(8, &|b| half::f16::from_bits(r16(b)).to_f32()),
+        TextureFormat::R32Float => read(4, &|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        TextureFormat::Rgba32Float => read(16, &|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        other => {
+            return Err(format!(
+                "its displacement image's format {other:?} is not supported (8/16-bit unorm or 16/32-bit float)"
+            ));
+        }
+    };
+    DisplacementMap::new(size.x, size.y, values)
+        .ok_or_else(|| "its displacement image is empty, mis-sized or not finite".into())
+}
+
+/// A placeholder mesh of the pool's size, with the attributes the passes write; its GPU
+/// buffers are overwritten by the tessellation (never re-uploaded: it is not changed).
+pub(super) fn output_mesh(vertices: u32, indices: u32, tangents: bool) -> Mesh {
+    let n = vertices as usize;
+    let mut mesh = Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::RENDER_WORLD,
+    )
+    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0f32; 3]; n])
+    .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, vec![[0.0f32, 1.0, 0.0]; n])
+    .with_inserted_attribute(Mesh::ATTRIBUTE_UV_0, vec![[0.0f32; 2]; n])
+    .with_inserted_indices(Indices::U32(vec![0; indices as usize]));
+    if tangents {
+        mesh.insert_attribute(Mesh::ATTRIBUTE_TANGENT, vec![[1.0f32, 0.0, 0.0, 1.0]; n]);
+    }
+    mesh
+}
+
+/// The input vertices as a WGSL runtime-sized array of `TessVertex`.
+pub(super) fn encase_vec(
+    items: &Vec<penumbra_cinematic_core::tessellation::TessVertex>,
+) -> Vec<u8> {
+    let mut buffer = bevy::render::render_resource::encase::StorageBuffer::new(Vec::new());
+    buffer.write(items).expect("encodes");
+    buffer.into_inner()
+}
