@@ -17,6 +17,7 @@ use bevy::image::Image;
 use bevy::mesh::PrimitiveTopology;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
+use bevy::render::gpu_readback::Readback;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use bevy::render::storage::ShaderBuffer;
 use bevy_penumbra_cinematic::tessellation::TessellationState;
@@ -80,7 +81,15 @@ fn bad_input_is_skipped_or_repaired() {
     if !gpu_or_skip("bad_input_is_skipped_or_repaired") {
         return;
     }
-    let harness = HeadlessRender::new(32, 32).frames(3);
+    // Until the five that can be tessellated are (the three others never are).
+    let harness = HeadlessRender::new(32, 32).frames(3).warm_up(|world| {
+        world
+            .query::<&TessellationState>()
+            .iter(world)
+            .filter(|s| s.latest_totals().is_some())
+            .count()
+            == 5
+    });
     let mut app = harness.app();
     app.add_plugins(TessellationPlugin).add_systems(
         Startup,
@@ -266,7 +275,7 @@ fn an_over_budget_view_is_coarsened_and_moving_allocates_nothing() {
         )
         .add_systems(Update, (circle, read_totals))
         .add_systems(Last, record);
-    let (_, app) = harness.run_keeping_app(app).expect("renders");
+    let (_, mut app) = harness.run_keeping_app(app).expect("renders");
     let world = app.world();
     let totals = world.resource::<Totals>().0.clone().expect("read back");
     let mut states = world.try_query::<&TessellationState>().unwrap();
@@ -290,6 +299,23 @@ fn an_over_budget_view_is_coarsened_and_moving_allocates_nothing() {
         GpuAllocationCounts::default(),
         "{steady:?}"
     );
+    // Despawning the entity stops the plugin's read-back of its totals (the test's own
+    // stays).
+    let world = app.world_mut();
+    let readbacks = |world: &mut World| {
+        world
+            .query_filtered::<(), With<Readback>>()
+            .iter(world)
+            .count()
+    };
+    let before = readbacks(world);
+    let rock = world
+        .query_filtered::<Entity, With<Tessellated>>()
+        .single(world)
+        .unwrap();
+    world.despawn(rock);
+    app.update();
+    assert_eq!(readbacks(app.world_mut()), before - 1);
 }
 
 /// Which camera draws the rock.
@@ -304,7 +330,8 @@ fn silhouette(path: Path) -> Vec<bool> {
     const SIZE: u32 = 64;
     let harness = HeadlessRender::new(SIZE, SIZE)
         .format(penumbra_test::CaptureFormat::LinearF16)
-        .frames(4);
+        .frames(4)
+        .warm_up(tessellation_scene::all_tessellated);
     let mut app = harness.app();
     if path.deferred {
         app.insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred());
@@ -384,4 +411,52 @@ fn forward_and_deferred_cameras_draw_the_tessellated_mesh() {
         "{}",
         differ(&forward, &plain)
     );
+}
+
+#[test]
+fn the_pool_grows_to_the_view() {
+    if !gpu_or_skip("the_pool_grows_to_the_view") {
+        return;
+    }
+    // Until the GPU needed no bias.
+    let harness = HeadlessRender::new(256, 256).frames(2).warm_up(|world| {
+        world
+            .query::<&TessellationState>()
+            .iter(world)
+            .next()
+            .and_then(TessellationState::latest_totals)
+            .is_some_and(|t| t[0] == 0 && t[3] > 0)
+    });
+    let mut app = harness.app();
+    app.add_plugins(TessellationPlugin).add_systems(
+        Startup,
+        |mut commands: Commands,
+         mut meshes: ResMut<Assets<Mesh>>,
+         mut materials: ResMut<Assets<StandardMaterial>>| {
+            commands.spawn((
+                Mesh3d(meshes.add(mesh_of(&rock(16, 6), true, true))),
+                MeshMaterial3d(materials.add(StandardMaterial::default())),
+                Tessellated {
+                    pixels_per_triangle: 2.0,
+                    ..default()
+                },
+            ));
+            commands.spawn(camera(1.4));
+        },
+    );
+    let (_, mut app) = harness.run_keeping_app(app).expect("renders");
+    let world = app.world_mut();
+    let (state, mesh) = world
+        .query::<(&TessellationState, &Mesh3d)>()
+        .single(world)
+        .unwrap();
+    let totals = state.latest_totals().unwrap();
+    println!(
+        "pool {:?}, output {} triangles",
+        state.budget(),
+        totals[2] / 3
+    );
+    assert!(state.budget().1 > 3 * 65_536, "the pool did not grow");
+    assert!(totals[2] / 3 > 65_536);
+    assert_eq!(mesh.0, *state.output());
 }

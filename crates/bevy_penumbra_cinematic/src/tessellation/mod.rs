@@ -36,14 +36,15 @@
 //!
 //! Add [`Tessellated`] to an entity with a `Mesh3d` (a triangle list with positions;
 //! normals and UVs are computed or zero when missing) and any material. The plugin
-//! replaces the entity's `Mesh3d` by its output mesh while the component is present and
-//! restores the original when it is removed. Bevy's `Wireframe` shows the tessellation.
+//! replaces the entity's `Mesh3d` by its output mesh once the first tessellation is
+//! written (a pool that grows keeps the previous one shown until then) and restores the
+//! original when the component is removed. Bevy's `Wireframe` shows the tessellation.
 //!
 //! # Limits
 //!
 //! - The output pool starts at 65,536 triangles and follows the GPU's totals (read back
-//!   each frame, 16 bytes): ×4 when the view needed coarser factors, down to twice the
-//!   use when under an eighth is used. It never exceeds [`Tessellated::max_triangles`]
+//!   each frame, 32 bytes): up to what the view asked for plus a quarter when it needed
+//!   coarser factors, down to twice the use when under an eighth is used. It never exceeds [`Tessellated::max_triangles`]
 //!   (at least the input's triangle count): a view that asks for more gets coarser
 //!   factors (one warning). The unused tail of the pool is drawn as degenerate triangles.
 //! - The output mesh has positions, normals, UV 0 and (when the input has them)
@@ -198,6 +199,8 @@ struct TessellationCache {
     maps: HashMap<AssetId<Image>, Option<CachedMap>>,
     no_map: Option<Handle<ShaderBuffer>>,
     warned: HashSet<(Entity, &'static str)>,
+    /// Per tessellated entity, the entity reading its totals back.
+    readbacks: HashMap<Entity, Entity>,
 }
 
 impl TessellationCache {
@@ -215,6 +218,9 @@ const MIN_CAPACITY: u32 = 65_536;
 #[derive(Component, Clone)]
 pub struct TessellationState {
     source: Handle<Mesh>,
+    /// What the entity's `Mesh3d` shows: the output once it is filled; until then the
+    /// source or the previous pool's output.
+    shown: Handle<Mesh>,
     output: Handle<Mesh>,
     input: CachedInput,
     texels: Handle<ShaderBuffer>,
@@ -231,10 +237,9 @@ pub struct TessellationState {
     generation: u64,
     /// Triangles the pool holds now (between the floor and `max_triangles`).
     capacity: u32,
-    /// The latest totals read back (bias, vertices, indices, patches).
-    latest: Option<[u32; 4]>,
-    /// The entity reading the totals back.
-    readback: Option<Entity>,
+    /// The latest totals read back (bias, vertices, indices, patches, vertices and
+    /// indices asked for).
+    latest: Option<[u32; 6]>,
 }
 
 impl TessellationState {
@@ -279,9 +284,10 @@ impl TessellationState {
         (self.vertex_budget, self.index_budget)
     }
 
-    /// The latest totals the GPU wrote (bias, vertices, indices, patches), read back a
-    /// frame or two late.
-    pub fn latest_totals(&self) -> Option<[u32; 4]> {
+    /// The latest totals the GPU wrote (bias, vertices, indices, patches, then the
+    /// vertices and indices the view asked for before any bias), read back a frame or
+    /// two late.
+    pub fn latest_totals(&self) -> Option<[u32; 6]> {
         self.latest
     }
 }
@@ -334,9 +340,11 @@ fn tessellation_view(
     ))
 }
 
-/// Restores the source mesh of entities that lost [`Tessellated`].
+/// Restores the source mesh of entities that lost [`Tessellated`] and stops their
+/// read-back (also when the entity was despawned).
 fn restore_untessellated(
     mut commands: Commands,
+    mut cache: ResMut<TessellationCache>,
     mut removed: RemovedComponents<Tessellated>,
     states: Query<&TessellationState>,
 ) {
@@ -346,10 +354,11 @@ fn restore_untessellated(
                 .entity(entity)
                 .insert(Mesh3d(state.source.clone()))
                 .remove::<(TessellationState, NoAutoAabb, Aabb)>();
-            if let Some(readback) = state.readback {
-                commands.entity(readback).despawn();
-            }
         }
+        if let Some(readback) = cache.readbacks.remove(&entity) {
+            commands.entity(readback).try_despawn();
+        }
+        cache.warned.retain(|(e, _)| *e != entity);
     }
 }
 
@@ -382,11 +391,17 @@ fn prepare_tessellated(
         }
     }
     let view = tessellation_view(&cameras);
+    let mut used_meshes = HashSet::new();
+    let mut used_images = HashSet::new();
     for (entity, tessellated, mesh3d, transform, state) in &mut entities {
         let source = match &state {
-            Some(s) if mesh3d.0 == s.output => s.source.clone(),
+            Some(s) if mesh3d.0 == s.shown => s.source.clone(),
             _ => mesh3d.0.clone(),
         };
+        used_meshes.insert(source.id());
+        if let Some(image) = &tessellated.displacement {
+            used_images.insert(image.id());
+        }
         let settings = settings_of(entity, tessellated, &mut cache);
         // The preprocessed input (once per mesh version).
         let input = match cache.inputs.get(&source.id()) {
@@ -478,8 +493,12 @@ fn prepare_tessellated(
             .as_ref()
             .map_or(floor, |s| s.capacity.clamp(floor, max));
         let triangles = match state.as_ref().and_then(|s| s.latest) {
-            // The GPU had to coarsen: grow (up to `max_triangles`, then one warning).
-            Some([bias, ..]) if bias > 0 && current < max => current.saturating_mul(4).min(max),
+            // The GPU had to coarsen: grow to what the view asked for, a quarter more
+            // (up to `max_triangles`, then one warning).
+            Some([bias, _, _, _, _, asked]) if bias > 0 && current < max => (asked / 3)
+                .saturating_add(asked / 12)
+                .next_multiple_of(4096)
+                .clamp(current, max),
             Some([bias, ..]) if bias > 0 => {
                 cache.warn_once(entity, "budget", || {
                     format!("the view asks for more than max_triangles ({max}): factors are halved {bias} time(s)")
@@ -487,7 +506,7 @@ fn prepare_tessellated(
                 current
             }
             // Mostly empty: shrink (the unused tail is drawn as degenerate triangles).
-            Some([_, _, indices, _]) if indices / 3 < current / 8 => (indices / 3 * 2).max(floor),
+            Some([_, _, indices, ..]) if indices / 3 < current / 8 => (indices / 3 * 2).max(floor),
             _ => current,
         };
         let (vertex_budget, index_budget) = (
@@ -500,7 +519,7 @@ fn prepare_tessellated(
                 || !Arc::ptr_eq(&s.input.input, &input.input)
                 || (s.vertex_budget, s.index_budget, s.has_tangents)
                     != (vertex_budget, index_budget, has_tangents)
-                || mesh3d.0 != s.output
+                || mesh3d.0 != s.shown
         });
         let texels = match &map {
             Some((_, texels)) => texels.clone(),
@@ -516,8 +535,8 @@ fn prepare_tessellated(
         let state = match state {
             Some(state) if !rebuild => state.into_inner(),
             old => {
-                if let Some(readback) = old.and_then(|s| s.readback) {
-                    commands.entity(readback).despawn();
+                if let Some(readback) = cache.readbacks.remove(&entity) {
+                    commands.entity(readback).try_despawn();
                 }
                 let output = meshes.add(output_mesh(vertex_budget, index_budget, has_tangents));
                 let words = if has_tangents { 12 } else { 8 };
@@ -533,7 +552,7 @@ fn prepare_tessellated(
                               mut states: Query<&mut TessellationState>| {
                             if let Ok(mut state) = states.get_mut(entity)
                                 && state.totals.id() == id
-                                && let Ok(words) = <[u8; 16]>::try_from(&event.data[..])
+                                && let Some(words) = event.data.get(..24)
                             {
                                 state.latest = Some(std::array::from_fn(|i| {
                                     u32::from_le_bytes(
@@ -544,8 +563,15 @@ fn prepare_tessellated(
                         },
                     )
                     .id();
+                // Until the new pool is filled, the entity shows what it showed (the
+                // source, or the previous pool): no frame without the mesh.
+                let shown = match &old {
+                    Some(old) if old.source == source => old.shown.clone(),
+                    _ => source.clone(),
+                };
                 let new = TessellationState {
                     source: source.clone(),
+                    shown,
                     output: output.clone(),
                     input: input.clone(),
                     texels: texels.clone(),
@@ -561,14 +587,19 @@ fn prepare_tessellated(
                     generation: 0,
                     capacity: triangles,
                     latest: None,
-                    readback: Some(readback),
                 };
-                commands.entity(entity).insert((Mesh3d(output), NoAutoAabb));
+                cache.readbacks.insert(entity, readback);
+                commands.entity(entity).insert(NoAutoAabb);
                 fresh.insert(new)
             }
         };
         state.texels = texels;
         state.map = map_data;
+        // The pool has been filled (its totals came back): show it.
+        if state.shown != state.output && state.latest.is_some() {
+            state.shown = state.output.clone();
+            commands.entity(entity).insert(Mesh3d(state.output.clone()));
+        }
         let margin = (settings.displacement_scale.abs()
             * settings
                 .displacement_midlevel
@@ -601,4 +632,7 @@ fn prepare_tessellated(
             commands.entity(entity).insert(fresh);
         }
     }
+    // Meshes and images no tessellated entity uses any more: free their preprocessing.
+    cache.inputs.retain(|id, _| used_meshes.contains(id));
+    cache.maps.retain(|id, _| used_images.contains(id));
 }

@@ -107,3 +107,18 @@ pub fn read_totals(
             });
     }
 }
+
+/// Warm-up condition: every `Tessellated` entity's first tessellation came back (its
+/// output mesh is shown from the next frame).
+pub fn all_tessellated(world: &mut World) -> bool {
+    let wanted = world
+        .query_filtered::<(), With<bevy_penumbra_cinematic::Tessellated>>()
+        .iter(world)
+        .count();
+    let done = world
+        .query::<&TessellationState>()
+        .iter(world)
+        .filter(|s| s.latest_totals().is_some())
+        .count();
+    done == wanted
+}

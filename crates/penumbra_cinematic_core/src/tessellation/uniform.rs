@@ -11,8 +11,9 @@ use glam::{Mat4, UVec4, Vec2};
 /// output level).
 pub const PATCH_STATE_BYTES: u64 = 32;
 
-/// Bytes of the totals (`Totals`: bias, vertices, indices, patches).
-pub const TOTALS_BYTES: u64 = 16;
+/// Bytes of the totals (`Totals`: bias, vertices, indices, patches, the vertices and
+/// indices asked for at bias 0, two reserved words).
+pub const TOTALS_BYTES: u64 = 32;
 
 /// Threads of the allocation pass's single workgroup.
 pub const ALLOCATE_THREADS: u32 = 256;

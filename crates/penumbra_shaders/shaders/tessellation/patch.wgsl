@@ -61,11 +61,16 @@ struct PatchState {
     reserved: u32,
 }
 
+// What the allocation wrote: the bias it chose, the output's vertices and indices, the
+// patches, and the vertices and indices the view asked for (bias 0).
 struct Totals {
     bias: u32,
     vertices: u32,
     indices: u32,
     patches: u32,
+    demand_vertices: u32,
+    demand_indices: u32,
+    reserved: vec2<u32>,
 }
 
 fn is_finite(x: f32) -> bool {

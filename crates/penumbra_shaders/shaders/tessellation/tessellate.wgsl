@@ -129,6 +129,10 @@ fn allocate(@builtin(local_invocation_index) t: u32) {
                 v = saturating_add(v, sums_v[k]);
                 i = saturating_add(i, sums_i[k]);
             }
+            if bias == 0u {
+                totals.demand_vertices = v;
+                totals.demand_indices = i;
+            }
             if v <= u.vertex_budget && i <= u.index_budget && chosen_bias == MAX_BIAS - 1u && bias < chosen_bias {
                 chosen_bias = bias;
             }
