@@ -72,7 +72,7 @@ pub use particles::{
     DistanceFieldParticlesState,
 };
 pub use scene::{
-    CasterSource, DistanceFieldCaster, DistanceFieldHeightfield, DistanceFieldQuery,
+    CasterMesh, CasterSource, DistanceFieldCaster, DistanceFieldHeightfield, DistanceFieldQuery,
     DistanceFieldScene, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
     DistanceFieldScenePlugin, DistanceFieldSceneSettings, DistanceFieldUploadStats,
     FOLIAGE_AO_TRANSMISSION, HeightfieldTerrain, SceneCasterCounts, SceneHeightfields,

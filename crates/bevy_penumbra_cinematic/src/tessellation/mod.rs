@@ -39,6 +39,9 @@
 //! replaces the entity's `Mesh3d` by its output mesh once the first tessellation is
 //! written (a pool that grows keeps the previous one shown until then) and restores the
 //! original when the component is removed. Bevy's `Wireframe` shows the tessellation.
+//! A `DistanceFieldCaster` on the entity keeps its distance field baked from the source
+//! mesh (the plugin inserts `CasterMesh`): distance-field shadows and occlusion use the
+//! untessellated, undisplaced shape.
 //!
 //! # Limits
 //!
@@ -70,6 +73,7 @@ use bevy::render::extract_component::ExtractComponentPlugin;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::render::storage::ShaderBuffer;
 use bevy::transform::TransformSystems;
+use bevy_penumbra_df::CasterMesh;
 use penumbra_cinematic_core::tessellation::reference::Frame;
 use penumbra_cinematic_core::tessellation::uniform::{
     PATCH_STATE_BYTES, TOTALS_BYTES, TessellationUniform,
@@ -353,7 +357,7 @@ fn restore_untessellated(
             commands
                 .entity(entity)
                 .insert(Mesh3d(state.source.clone()))
-                .remove::<(TessellationState, NoAutoAabb, Aabb)>();
+                .remove::<(TessellationState, NoAutoAabb, Aabb, CasterMesh)>();
         }
         if let Some(readback) = cache.readbacks.remove(&entity) {
             commands.entity(readback).try_despawn();
@@ -589,7 +593,10 @@ fn prepare_tessellated(
                     latest: None,
                 };
                 cache.readbacks.insert(entity, readback);
-                commands.entity(entity).insert(NoAutoAabb);
+                // A distance-field caster keeps baking the source, not the pool.
+                commands
+                    .entity(entity)
+                    .insert((NoAutoAabb, CasterMesh(source.clone())));
                 fresh.insert(new)
             }
         };

@@ -37,7 +37,8 @@ fn bake_settings(caster: &DistanceFieldCaster) -> BakeSettings {
     }
 }
 
-/// Mesh casters get a bake request (answered from the cache when possible).
+/// Mesh casters get a bake request (answered from the cache when possible) for their
+/// [`CasterMesh`](super::CasterMesh), else their `Mesh3d`.
 #[cfg(feature = "bake")]
 #[allow(clippy::type_complexity)]
 pub(super) fn request_caster_bakes(
@@ -47,23 +48,29 @@ pub(super) fn request_caster_bakes(
             Entity,
             &DistanceFieldCaster,
             &Mesh3d,
+            Option<&super::CasterMesh>,
             Option<&SdfBakeRequest>,
         ),
-        Or<(Changed<DistanceFieldCaster>, Changed<Mesh3d>)>,
+        Or<(
+            Changed<DistanceFieldCaster>,
+            Changed<Mesh3d>,
+            Changed<super::CasterMesh>,
+        )>,
     >,
 ) {
-    for (entity, caster, mesh, request) in &casters {
+    for (entity, caster, mesh, source, request) in &casters {
         if caster.source != CasterSource::Mesh {
             continue;
         }
+        let mesh = source.map_or(&mesh.0, |s| &s.0);
         let settings = bake_settings(caster);
-        if request.is_some_and(|r| r.mesh == mesh.0 && r.settings == settings) {
+        if request.is_some_and(|r| r.mesh == *mesh && r.settings == settings) {
             continue;
         }
         // A changed request drops the old outcome (see `sdf_asset`): the caster leaves
         // the scene until its new SDF arrives.
         commands.entity(entity).insert(SdfBakeRequest {
-            mesh: mesh.0.clone(),
+            mesh: mesh.clone(),
             settings,
         });
     }

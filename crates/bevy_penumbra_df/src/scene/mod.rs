@@ -104,6 +104,14 @@ pub enum CasterSource {
     Plane,
 }
 
+/// The mesh a [`CasterSource::Mesh`] caster bakes when it is not the entity's `Mesh3d`:
+/// an entity drawn through a generated mesh keeps its source here
+/// (`bevy_penumbra_cinematic`'s tessellation inserts it). Without it, the caster bakes
+/// its `Mesh3d`.
+#[derive(Component, Reflect, Clone, Debug)]
+#[reflect(Component, Clone)]
+pub struct CasterMesh(pub Handle<Mesh>);
+
 /// Makes an entity a distance-field caster.
 ///
 /// Cost: one 128-byte record on the GPU per instance, uploaded only when the instance
@@ -360,6 +368,7 @@ impl Plugin for DistanceFieldScenePlugin {
             "SdfAssetPlugin",
         );
         app.register_type::<DistanceFieldCaster>()
+            .register_type::<CasterMesh>()
             .register_type::<DistanceFieldHeightfield>()
             .register_type::<DistanceFieldScene>()
             .register_type::<DistanceFieldSceneSettings>()
