@@ -24,6 +24,7 @@ use bevy_penumbra_cinematic::tessellation::TessellationState;
 use bevy_penumbra_cinematic::{Tessellated, TessellationPlugin};
 use bevy_penumbra_df::{GpuAllocationCounts, PenumbraGpuAllocations};
 use penumbra_cinematic_core::tessellation::shapes::{height_map, rock};
+use penumbra_cinematic_core::tessellation::uniform::TessellationUniform;
 use penumbra_test::{HeadlessRender, gpu_or_skip};
 
 mod tessellation_scene;
@@ -459,4 +460,88 @@ fn the_pool_grows_to_the_view() {
     assert!(state.budget().1 > 3 * 65_536, "the pool did not grow");
     assert!(totals[2] / 3 > 65_536);
     assert_eq!(mesh.0, *state.output());
+}
+
+#[derive(Resource)]
+struct Pair {
+    seen: Entity,
+    behind: Entity,
+    first: Option<(TessellationUniform, TessellationUniform)>,
+}
+
+/// The camera dollies toward the rock in front of it, a little every frame.
+fn dolly(mut cameras: Query<&mut Transform, With<Camera3d>>) {
+    for mut t in &mut cameras {
+        let forward = t.forward();
+        t.translation += forward * 0.01;
+    }
+}
+
+/// Keeps the two rocks' first uniforms.
+fn keep_first(mut pair: ResMut<Pair>, states: Query<&TessellationState>) {
+    if pair.first.is_none()
+        && let (Ok(a), Ok(b)) = (states.get(pair.seen), states.get(pair.behind))
+        && let (Some(a), Some(b)) = (a.uniform(), b.uniform())
+    {
+        pair.first = Some((*a, *b));
+    }
+}
+
+#[test]
+fn a_rock_no_view_sees_keeps_its_tessellation() {
+    if !gpu_or_skip("a_rock_no_view_sees_keeps_its_tessellation") {
+        return;
+    }
+    let harness = HeadlessRender::new(64, 64).frames(6);
+    let mut app = harness.app();
+    app.add_plugins(TessellationPlugin)
+        .add_systems(
+            Startup,
+            |mut commands: Commands,
+             mut meshes: ResMut<Assets<Mesh>>,
+             mut materials: ResMut<Assets<StandardMaterial>>| {
+                let mesh = meshes.add(mesh_of(&rock(8, 3), true, true));
+                let material = materials.add(StandardMaterial::default());
+                let mut rock_at = |z: f32| {
+                    commands
+                        .spawn((
+                            Mesh3d(mesh.clone()),
+                            MeshMaterial3d(material.clone()),
+                            Tessellated::default(),
+                            Transform::from_xyz(0.0, 0.0, z),
+                        ))
+                        .id()
+                };
+                let (seen, behind) = (rock_at(0.0), rock_at(8.0));
+                commands.insert_resource(Pair {
+                    seen,
+                    behind,
+                    first: None,
+                });
+                // At z = 4 looking toward −z: the second rock is behind the camera.
+                commands.spawn((Camera3d::default(), Transform::from_xyz(0.0, 0.5, 4.0)));
+            },
+        )
+        .add_systems(Update, (dolly, keep_first));
+    let (_, app) = harness.run_keeping_app(app).expect("renders");
+    let world = app.world();
+    let pair = world.resource::<Pair>();
+    let (seen, behind) = pair.first.expect("both tessellated once");
+    let now = |e: Entity| {
+        *world
+            .get::<TessellationState>(e)
+            .unwrap()
+            .uniform()
+            .unwrap()
+    };
+    assert_ne!(
+        now(pair.seen).view,
+        seen.view,
+        "the rock in view follows the camera"
+    );
+    assert_eq!(
+        now(pair.behind).view,
+        behind.view,
+        "the rock behind was tessellated again"
+    );
 }

@@ -28,7 +28,8 @@
 //!
 //! **When it runs.** Only in a frame where the tessellation camera (a [`TessellationCamera`],
 //! else the active 3D camera of highest order), the entity's transform, its settings or
-//! its mesh changed: a still scene costs nothing. Every camera and shadow view draws the
+//! its mesh changed: a still scene costs nothing. A hidden entity, or one no view saw
+//! last frame (camera or shadow), keeps its last tessellation. Every camera and shadow view draws the
 //! same triangles (shadows match the geometry, no self-shadowing acne from mismatched
 //! levels).
 //!
@@ -175,7 +176,9 @@ impl Plugin for TessellationPlugin {
                     .chain()
                     .after(TransformSystems::Propagate)
                     .after(bevy::asset::AssetEventSystems)
-                    .before(bevy::camera::visibility::VisibilitySystems::CalculateBounds),
+                    .before(bevy::camera::visibility::VisibilitySystems::CalculateBounds)
+                    // Last frame's `ViewVisibility`, before it is reset.
+                    .before(bevy::camera::visibility::VisibilitySystems::VisibilityPropagate),
             );
         render::build(app);
     }
@@ -381,6 +384,7 @@ fn prepare_tessellated(
         &Tessellated,
         &Mesh3d,
         &GlobalTransform,
+        (&InheritedVisibility, &ViewVisibility),
         Option<&mut TessellationState>,
     )>,
 ) {
@@ -397,7 +401,7 @@ fn prepare_tessellated(
     let view = tessellation_view(&cameras);
     let mut used_meshes = HashSet::new();
     let mut used_images = HashSet::new();
-    for (entity, tessellated, mesh3d, transform, state) in &mut entities {
+    for (entity, tessellated, mesh3d, transform, (inherited, seen), state) in &mut entities {
         let source = match &state {
             Some(s) if mesh3d.0 == s.shown => s.source.clone(),
             _ => mesh3d.0.clone(),
@@ -616,7 +620,10 @@ fn prepare_tessellated(
             input.input.min - margin,
             input.input.max + margin,
         ));
-        if let Some(view) = view {
+        // Hidden, or out of every view last frame (cameras and shadow views): keep the
+        // last tessellation rather than redo it for a view that does not see it.
+        let visible = inherited.get() && (seen.get() || state.uniform.is_none());
+        if let (Some(view), true) = (view, visible) {
             let frame = Frame {
                 view,
                 world_from_local: transform.to_matrix(),

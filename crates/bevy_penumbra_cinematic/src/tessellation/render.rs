@@ -286,6 +286,16 @@ fn tessellate(
             continue;
         };
         let stride = 4 * u64::from(extracted.uniform.vertex_words);
+        // The output mesh's slices hold the pool (they were made together); a mismatch
+        // would overflow the copy.
+        let fits = |range: &std::ops::Range<u32>, bytes: u64, element: u64| {
+            u64::from(range.end - range.start) * element >= bytes
+        };
+        if !fits(&vertex_slice.range, extracted.vertex_bytes, stride)
+            || !fits(&index_slice.range, extracted.index_bytes, 4)
+        {
+            continue;
+        }
         let target = (
             extracted.generation,
             vertex_slice.buffer.id(),
