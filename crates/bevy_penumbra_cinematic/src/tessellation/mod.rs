@@ -369,6 +369,16 @@ fn restore_untessellated(
     }
 }
 
+/// What `prepare_tessellated` reads of a tessellated entity.
+type TessellatedEntity = (
+    Entity,
+    &'static Tessellated,
+    &'static Mesh3d,
+    &'static GlobalTransform,
+    (&'static InheritedVisibility, &'static ViewVisibility),
+    Option<&'static mut TessellationState>,
+);
+
 #[allow(clippy::too_many_arguments, reason = "a Bevy system")]
 fn prepare_tessellated(
     mut commands: Commands,
@@ -379,14 +389,7 @@ fn prepare_tessellated(
     images: Res<Assets<Image>>,
     mut buffers: ResMut<Assets<ShaderBuffer>>,
     cameras: Query<(&Camera, &GlobalTransform, Has<TessellationCamera>), With<Camera3d>>,
-    mut entities: Query<(
-        Entity,
-        &Tessellated,
-        &Mesh3d,
-        &GlobalTransform,
-        (&InheritedVisibility, &ViewVisibility),
-        Option<&mut TessellationState>,
-    )>,
+    mut entities: Query<TessellatedEntity>,
 ) {
     for event in mesh_events.read() {
         if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
