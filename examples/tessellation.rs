@@ -17,10 +17,10 @@
 //! `assets/reference/tessellation_wireframe.png` by `tests/tessellation_example.rs`.
 
 use bevy::asset::RenderAssetUsages;
-use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::pbr::wireframe::{Wireframe, WireframePlugin};
 use bevy::prelude::*;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+use penumbra::cinematic::tessellation::shape_mesh;
 use penumbra::prelude::*;
 use penumbra_cinematic_core::tessellation::shapes;
 
@@ -70,35 +70,6 @@ struct Scene {
     choice: TessellationChoice,
 }
 
-fn rock_mesh() -> Mesh {
-    let shape = shapes::rock(32, 8);
-    Mesh::new(
-        PrimitiveTopology::TriangleList,
-        RenderAssetUsages::default(),
-    )
-    .with_inserted_attribute(
-        Mesh::ATTRIBUTE_POSITION,
-        shape
-            .positions
-            .iter()
-            .map(|p| p.to_array())
-            .collect::<Vec<_>>(),
-    )
-    .with_inserted_attribute(
-        Mesh::ATTRIBUTE_NORMAL,
-        shape
-            .normals
-            .iter()
-            .map(|p| p.to_array())
-            .collect::<Vec<_>>(),
-    )
-    .with_inserted_attribute(
-        Mesh::ATTRIBUTE_UV_0,
-        shape.uvs.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
-    )
-    .with_inserted_indices(Indices::U32(shape.indices))
-}
-
 fn height_image() -> Image {
     let size = 256;
     let bytes: Vec<u8> = shapes::height_map(size)
@@ -130,7 +101,7 @@ fn spawn_scene(
         .unwrap_or(TessellationChoice::PnAen);
     let map = images.add(height_image());
     let mut rock = commands.spawn((
-        Mesh3d(meshes.add(rock_mesh())),
+        Mesh3d(meshes.add(shape_mesh(&shapes::rock(32, 8)))),
         MeshMaterial3d(materials.add(StandardMaterial {
             base_color: Color::srgb(0.62, 0.58, 0.52),
             perceptual_roughness: 0.85,

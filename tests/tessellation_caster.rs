@@ -2,43 +2,12 @@
 //! baked from the source mesh (`CasterMesh`), not from the output pool the entity draws
 //! (a placeholder of zeros on the CPU): its SDF bakes, and DF shadows see the rock.
 
-use bevy::asset::RenderAssetUsages;
-use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
-use penumbra::cinematic::tessellation::TessellationState;
+use penumbra::cinematic::tessellation::{TessellationState, shape_mesh};
 use penumbra::df::{CasterMesh, DistanceFieldCaster, SdfBakeRequest, SdfBaked};
 use penumbra::prelude::*;
 use penumbra_cinematic_core::tessellation::shapes::rock;
 use penumbra_test::{HeadlessRender, gpu_or_skip};
-
-fn rock_mesh() -> Mesh {
-    let shape = rock(16, 6);
-    Mesh::new(
-        PrimitiveTopology::TriangleList,
-        RenderAssetUsages::default(),
-    )
-    .with_inserted_attribute(
-        Mesh::ATTRIBUTE_POSITION,
-        shape
-            .positions
-            .iter()
-            .map(|p| p.to_array())
-            .collect::<Vec<_>>(),
-    )
-    .with_inserted_attribute(
-        Mesh::ATTRIBUTE_NORMAL,
-        shape
-            .normals
-            .iter()
-            .map(|p| p.to_array())
-            .collect::<Vec<_>>(),
-    )
-    .with_inserted_attribute(
-        Mesh::ATTRIBUTE_UV_0,
-        shape.uvs.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
-    )
-    .with_inserted_indices(Indices::U32(shape.indices))
-}
 
 #[derive(Resource)]
 struct Rock(Entity, Handle<Mesh>);
@@ -68,7 +37,7 @@ fn a_tessellated_caster_bakes_its_source() {
             |mut commands: Commands,
              mut meshes: ResMut<Assets<Mesh>>,
              mut materials: ResMut<Assets<StandardMaterial>>| {
-                let source = meshes.add(rock_mesh());
+                let source = meshes.add(shape_mesh(&rock(16, 6)));
                 let rock = commands
                     .spawn((
                         Mesh3d(source.clone()),

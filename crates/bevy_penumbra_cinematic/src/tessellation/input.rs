@@ -5,6 +5,7 @@ use bevy::asset::RenderAssetUsages;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
 use bevy::render::render_resource::TextureFormat;
+use penumbra_cinematic_core::tessellation::shapes::ShapeMesh;
 use penumbra_cinematic_core::tessellation::{DisplacementMap, SourceMesh, TessellationInput};
 
 fn f32x3(mesh: &Mesh, attribute: bevy::mesh::MeshVertexAttribute) -> Option<Vec<Vec3>> {
@@ -118,4 +119,34 @@ pub(super) fn encase_vec(
     let mut buffer = bevy::render::render_resource::encase::StorageBuffer::new(Vec::new());
     buffer.write(items).expect("encodes");
     buffer.into_inner()
+}
+
+/// A [`ShapeMesh`] (e.g. `penumbra_cinematic_core::tessellation::shapes::rock`, the
+/// examples' and tests' rock) as a Bevy mesh: positions, normals, UV 0, indices.
+pub fn shape_mesh(shape: &ShapeMesh) -> Mesh {
+    Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::default(),
+    )
+    .with_inserted_attribute(
+        Mesh::ATTRIBUTE_POSITION,
+        shape
+            .positions
+            .iter()
+            .map(|p| p.to_array())
+            .collect::<Vec<_>>(),
+    )
+    .with_inserted_attribute(
+        Mesh::ATTRIBUTE_NORMAL,
+        shape
+            .normals
+            .iter()
+            .map(|p| p.to_array())
+            .collect::<Vec<_>>(),
+    )
+    .with_inserted_attribute(
+        Mesh::ATTRIBUTE_UV_0,
+        shape.uvs.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+    )
+    .with_inserted_indices(Indices::U32(shape.indices.clone()))
 }

@@ -85,6 +85,7 @@ use penumbra_cinematic_core::tessellation::{
 };
 use std::sync::Arc;
 
+pub use input::shape_mesh;
 use input::{encase_vec, heights, output_mesh, preprocess};
 pub use render::GpuTessellation;
 

@@ -5,43 +5,20 @@
 
 use bevy::asset::RenderAssetUsages;
 use bevy::image::Image;
-use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
-use bevy_penumbra_cinematic::tessellation::TessellationState;
+use bevy_penumbra_cinematic::tessellation::{TessellationState, shape_mesh};
 use penumbra_cinematic_core::tessellation::shapes::{ShapeMesh, height_map};
 
 /// `shape` as a Bevy mesh, with or without its normals and UVs.
 pub fn mesh_of(shape: &ShapeMesh, normals: bool, uvs: bool) -> Mesh {
-    let mut mesh = Mesh::new(
-        PrimitiveTopology::TriangleList,
-        RenderAssetUsages::default(),
-    )
-    .with_inserted_attribute(
-        Mesh::ATTRIBUTE_POSITION,
-        shape
-            .positions
-            .iter()
-            .map(|p| p.to_array())
-            .collect::<Vec<_>>(),
-    )
-    .with_inserted_indices(Indices::U32(shape.indices.clone()));
-    if normals {
-        mesh.insert_attribute(
-            Mesh::ATTRIBUTE_NORMAL,
-            shape
-                .normals
-                .iter()
-                .map(|p| p.to_array())
-                .collect::<Vec<_>>(),
-        );
+    let mut mesh = shape_mesh(shape);
+    if !normals {
+        mesh.remove_attribute(Mesh::ATTRIBUTE_NORMAL);
     }
-    if uvs {
-        mesh.insert_attribute(
-            Mesh::ATTRIBUTE_UV_0,
-            shape.uvs.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
-        );
+    if !uvs {
+        mesh.remove_attribute(Mesh::ATTRIBUTE_UV_0);
     }
     mesh
 }
