@@ -252,7 +252,7 @@ fn projected_edges_are_near_the_target_as_the_camera_moves() {
     let ppt = 12.0;
     let s = settings(SurfaceMode::PnAen, Partitioning::Fractional, ppt, 6);
     println!(
-        "distance | triangles | edge length / target: p5 median p95 | texels per edge at its mip: median p95"
+        "distance | triangles | edge length / target: p5 median p95 | histogram <¼ ¼–½ ½–1 1–2 >2 (%) | texels per edge at its mip: median p95"
     );
     for distance in [2.0, 2.8, 4.0, 5.6, 8.0] {
         let frame = frame_at(distance, HEIGHT);
@@ -260,12 +260,20 @@ fn projected_edges_are_near_the_target_as_the_camera_moves() {
         let ratios = edge_ratios(&out, &frame, ppt);
         let (median, p95) = (percentile(&ratios, 0.5), percentile(&ratios, 0.95));
         let texels = texels_per_edge(&input, &out, &frame, &s, &map);
+        let bins = [0.0, 0.25, 0.5, 1.0, 2.0, f32::INFINITY]
+            .windows(2)
+            .map(|w| {
+                100.0 * ratios.iter().filter(|&&r| r >= w[0] && r < w[1]).count() as f32
+                    / ratios.len() as f32
+            });
+        let histogram: Vec<String> = bins.map(|p| format!("{p:.0}")).collect();
         println!(
-            "{distance:8} | {:9} | {:.2} {:.2} {:.2} | {:.2} {:.2}",
+            "{distance:8} | {:9} | {:.2} {:.2} {:.2} | {} | {:.2} {:.2}",
             out.indices.len() / 3,
             percentile(&ratios, 0.05),
             median,
             p95,
+            histogram.join(" "),
             percentile(&texels, 0.5),
             percentile(&texels, 0.95)
         );
