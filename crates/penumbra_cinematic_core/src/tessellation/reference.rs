@@ -154,10 +154,13 @@ impl<'a> PatchEval<'a> {
                         .max(1.0)
                         .log2()
                 });
+                // The mean of the edges' texel spans: a tessellated edge covers about
+                // one texel of the mip (the longest edge's a little more).
                 let span = [0, 1, 2]
                     .map(|e| ((own[(e + 1) % 3].uv - own[e].uv) * map.size()).length())
                     .into_iter()
-                    .fold(0.0f32, f32::max);
+                    .fold(0.0f32, |sum, s| sum + s)
+                    / 3.0;
                 (corner_lods, (span / lod.factor).max(1.0).log2())
             }
             None => ([0.0; 3], 0.0),

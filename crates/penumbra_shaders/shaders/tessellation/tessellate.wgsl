@@ -361,11 +361,12 @@ fn prepare_patch(p: u32, state: PatchState, bias: u32) {
             }
             pc.corner_lods[c] = log2(max(length(d.uv_density * u.map_size) * segment * distance, 1.0));
         }
-        var span = 0.0;
+        // The mean of the edges' texel spans.
+        var sum = 0.0;
         for (var k = 0u; k < 3u; k += 1u) {
-            span = max(span, length((pc.own[(k + 1u) % 3u].uv - pc.own[k].uv) * u.map_size));
+            sum += length((pc.own[(k + 1u) % 3u].uv - pc.own[k].uv) * u.map_size);
         }
-        pc.patch_lod = log2(max(span / pc.factor, 1.0));
+        pc.patch_lod = log2(max(sum / 3.0 / pc.factor, 1.0));
     }
 }
 
