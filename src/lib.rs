@@ -4,14 +4,15 @@
 //! an SDF atlas and GPU object buffer, ray-marched soft shadows, distance-field ambient
 //! occlusion, a global SDF in camera-centred clipmaps — and the Samaritan demo's cinematic
 //! effects: deferred shading with 4× MSAA, scatter bokeh depth of field and screen-space
-//! subsurface scattering, billboard reflections and hair strips (more are planned, see the README).
+//! subsurface scattering, billboard reflections, hair strips and compute tessellation.
 //!
 //! Add [`PenumbraPlugins`] after Bevy's `DefaultPlugins`, then tag entities, lights and
 //! cameras with Penumbra's components. A scene pays only for what it uses: features whose
 //! components are absent run no pass and upload nothing.
 //!
 //! The distance-field features are in [`df`] (`bevy_penumbra_df`), the cinematic ones in
-//! `cinematic` (`bevy_penumbra_cinematic`, features `dof`, `sss`, `reflections` and `hair`); the shader library every
+//! `cinematic` (`bevy_penumbra_cinematic`, features `dof`, `sss`, `reflections`, `hair` and
+//! `tessellation`); the shader library every
 //! feature's WGSL imports (`#import penumbra::…`) in [`shaders`]. See `ARCHITECTURE.md`.
 //!
 //! ```no_run
