@@ -248,6 +248,8 @@ pub struct TessellationState {
     /// The latest totals read back (bias, vertices, indices, patches, vertices and
     /// indices asked for).
     latest: Option<[u32; 6]>,
+    /// The bounds' margin last inserted (local units).
+    margin: f32,
 }
 
 impl TessellationState {
@@ -599,6 +601,8 @@ fn prepare_tessellated(
                     generation: 0,
                     capacity: triangles,
                     latest: None,
+                    // NaN: inserted on the first frame.
+                    margin: f32::NAN,
                 };
                 cache.readbacks.insert(entity, readback);
                 // A distance-field caster keeps baking the source, not the pool.
@@ -615,15 +619,19 @@ fn prepare_tessellated(
             state.shown = state.output.clone();
             commands.entity(entity).insert(Mesh3d(state.output.clone()));
         }
+        // Conservative bounds (PN bulge and displacement), inserted only when they change.
         let margin = (settings.displacement_scale.abs()
             * settings
                 .displacement_midlevel
                 .max(1.0 - settings.displacement_midlevel))
             + 0.25 * (input.input.max - input.input.min).max_element();
-        commands.entity(entity).insert(Aabb::from_min_max(
-            input.input.min - margin,
-            input.input.max + margin,
-        ));
+        if state.margin != margin {
+            state.margin = margin;
+            commands.entity(entity).insert(Aabb::from_min_max(
+                input.input.min - margin,
+                input.input.max + margin,
+            ));
+        }
         // Hidden, or out of every view last frame (cameras and shadow views): keep the
         // last tessellation rather than redo it for a view that does not see it.
         let visible = inherited.get() && (seen.get() || state.uniform.is_none());

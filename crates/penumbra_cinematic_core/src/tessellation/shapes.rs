@@ -2,9 +2,8 @@
 //! down its side, split normals and a second UV chart at its rim) and a height map that
 //! does not tile, so an edge sampled at either side of a seam would crack.
 
-use super::preprocess::position_key;
+use super::preprocess::{SourceMesh, TessellationInput};
 use glam::{Vec2, Vec3};
-use std::collections::HashMap;
 
 /// A triangle-list mesh with every attribute.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -95,30 +94,18 @@ fn rim(p: Vec3) -> Vec3 {
     Vec3::new(p.x, 0.0, p.z)
 }
 
-/// Angle-weighted normals per position over the triangles so far (the dome).
+/// Angle-weighted normals per position over the triangles so far (the dome): the
+/// preprocessing's own (`TessellationInput`'s smooth normals).
 fn smooth_normals(m: &mut ShapeMesh) {
-    let mut sum: HashMap<[u32; 3], Vec3> = HashMap::new();
-    for t in m.indices.chunks_exact(3) {
-        let p = [0, 1, 2].map(|c| m.positions[t[c] as usize]);
-        let face = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
-        for c in 0..3 {
-            let (u, v) = (
-                (p[(c + 1) % 3] - p[c]).normalize_or_zero(),
-                (p[(c + 2) % 3] - p[c]).normalize_or_zero(),
-            );
-            *sum.entry(position_key(p[c])).or_default() += face * u.dot(v).clamp(-1.0, 1.0).acos();
-        }
-    }
-    m.normals = m
-        .positions
-        .iter()
-        .map(|&p| {
-            sum.get(&position_key(p))
-                .copied()
-                .unwrap_or(Vec3::Y)
-                .normalize_or_zero()
-        })
-        .collect();
+    let input = TessellationInput::new(SourceMesh {
+        positions: &m.positions,
+        normals: None,
+        uvs: None,
+        tangents: None,
+        indices: &m.indices,
+    })
+    .expect("the dome is a valid mesh");
+    m.normals = input.vertices.iter().map(|v| v.smooth_normal).collect();
 }
 
 /// A `size²` height map in `[0, 1]` of cobbles and ripples that does not tile (texels
