@@ -11,13 +11,16 @@
 //!   GPU's bias read back, its output within the pool), and while the camera moves every
 //!   frame — a new tessellation each frame — no Penumbra buffer, texture or bind group is
 //!   created.
+//! - **A still scene is free.** Once the latest tessellation's totals are back, nothing is
+//!   read back until the view changes again; one camera step is read back until its own
+//!   totals are in.
 
 use bevy::asset::RenderAssetUsages;
 use bevy::image::Image;
 use bevy::mesh::PrimitiveTopology;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
-use bevy::render::gpu_readback::Readback;
+use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use bevy::render::storage::ShaderBuffer;
 use bevy_penumbra_cinematic::tessellation::TessellationState;
@@ -544,4 +547,88 @@ fn a_rock_no_view_sees_keeps_its_tessellation() {
         behind.view,
         "the rock behind was tessellated again"
     );
+}
+
+/// GPU read-backs completed (any entity's).
+#[derive(Resource, Default)]
+struct Reads(u32);
+
+fn count_reads(_: On<ReadbackComplete>, mut reads: ResMut<Reads>) {
+    reads.0 += 1;
+}
+
+#[test]
+fn a_still_scene_reads_nothing_back() {
+    if !gpu_or_skip("a_still_scene_reads_nothing_back") {
+        return;
+    }
+    const FRAMES: u32 = 10;
+    let harness = HeadlessRender::new(64, 64)
+        .frames(4)
+        .warm_up(tessellation_scene::all_tessellated);
+    let mut app = harness.app();
+    app.add_plugins(TessellationPlugin)
+        .init_resource::<Reads>()
+        .add_observer(count_reads)
+        .add_systems(
+            Startup,
+            |mut commands: Commands,
+             mut meshes: ResMut<Assets<Mesh>>,
+             mut materials: ResMut<Assets<StandardMaterial>>| {
+                commands.spawn((
+                    Mesh3d(meshes.add(mesh_of(&rock(8, 3), true, true))),
+                    MeshMaterial3d(materials.add(StandardMaterial::default())),
+                    Tessellated::default(),
+                ));
+                commands.spawn(camera(3.0));
+            },
+        );
+    let (_, mut app) = harness.run_keeping_app(app).expect("renders");
+    // `FRAMES` frames: the read-backs completed, the most `Readback` entities seen.
+    let run = |app: &mut App| {
+        app.world_mut().resource_mut::<Reads>().0 = 0;
+        let mut most = 0;
+        for _ in 0..FRAMES {
+            app.update();
+            let world = app.world_mut();
+            most = most.max(
+                world
+                    .query_filtered::<(), With<Readback>>()
+                    .iter(world)
+                    .count(),
+            );
+        }
+        (app.world().resource::<Reads>().0, most)
+    };
+    let uniform = |app: &mut App| {
+        let world = app.world_mut();
+        *world
+            .query::<&TessellationState>()
+            .single(world)
+            .unwrap()
+            .uniform()
+            .unwrap()
+    };
+    // The harness's capture and the last tessellation's totals land.
+    run(&mut app);
+    let still = run(&mut app);
+    let first = uniform(&mut app);
+    // The camera steps once: one tessellation, read back until its totals are in.
+    let world = app.world_mut();
+    world
+        .query_filtered::<&mut Transform, With<Camera3d>>()
+        .single_mut(world)
+        .unwrap()
+        .translation *= 0.9;
+    let moved = run(&mut app);
+    let second = uniform(&mut app);
+    let still_again = run(&mut app);
+    println!(
+        "{FRAMES} frames each (read-backs completed, most `Readback` entities): still {still:?}, \
+         after one camera step {moved:?}, still again {still_again:?}"
+    );
+    assert_eq!(still, (0, 0), "a still scene is read back");
+    assert_ne!(first.view, second.view, "the step was not tessellated");
+    assert!(moved.0 >= 1 && moved.1 == 1, "the step's totals: {moved:?}");
+    assert_eq!(still_again, (0, 0), "the read-back did not stop again");
 }

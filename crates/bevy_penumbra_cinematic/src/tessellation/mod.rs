@@ -28,10 +28,11 @@
 //!
 //! **When it runs.** Only in a frame where the tessellation camera (a [`TessellationCamera`],
 //! else the active 3D camera of highest order), the entity's transform, its settings or
-//! its mesh changed: a still scene costs nothing. A hidden entity, or one no view saw
-//! last frame (camera or shadow), keeps its last tessellation. Every camera and shadow view draws the
-//! same triangles (shadows match the geometry, no self-shadowing acne from mismatched
-//! levels).
+//! its mesh changed: a still scene costs nothing. The totals (32 bytes) are read back
+//! only from such a frame until that tessellation's own arrive, two or three frames: none
+//! while still. A hidden entity, or one no view saw last frame (camera or shadow), keeps
+//! its last tessellation. Every camera and shadow view draws the same triangles (shadows
+//! match the geometry, no self-shadowing acne from mismatched levels).
 //!
 //! # Use
 //!
@@ -47,7 +48,7 @@
 //! # Limits
 //!
 //! - The output pool starts at 65,536 triangles and follows the GPU's totals (read back
-//!   each frame, 32 bytes): up to what the view asked for plus a quarter when it needed
+//!   after each tessellation): up to what the view asked for plus a quarter when it needed
 //!   coarser factors, down to twice the use when under an eighth is used. It never exceeds [`Tessellated::max_triangles`]
 //!   (at least the input's triangle count): a view that asks for more gets coarser
 //!   factors (one warning). The unused tail of the pool is drawn as degenerate triangles.
@@ -207,7 +208,8 @@ struct TessellationCache {
     maps: HashMap<AssetId<Image>, Option<CachedMap>>,
     no_map: Option<Handle<ShaderBuffer>>,
     warned: HashSet<(Entity, &'static str)>,
-    /// Per tessellated entity, the entity reading its totals back.
+    /// Per tessellated entity, the entity reading its totals back, while the latest
+    /// tessellation's have not arrived.
     readbacks: HashMap<Entity, Entity>,
 }
 
@@ -241,8 +243,12 @@ pub struct TessellationState {
     index_budget: u32,
     has_tangents: bool,
     uniform: Option<TessellationUniform>,
-    /// Bumped whenever the uniform changes: the render world re-tessellates.
+    /// Bumped whenever the uniform changes: the render world re-tessellates, and stamps
+    /// the totals with it (their last word, the low 32 bits).
     generation: u64,
+    /// The stamp of the latest totals read back (0: none yet): the read-back runs while
+    /// it is not the generation's.
+    arrived: u32,
     /// Triangles the pool holds now (between the floor and `max_triangles`).
     capacity: u32,
     /// The latest totals read back (bias, vertices, indices, patches, vertices and
@@ -264,7 +270,9 @@ impl TessellationState {
     }
 
     /// The output pools (interleaved vertices, `u32` indices), the per-patch states and
-    /// the totals (bias, vertices, indices, patches) the passes write: for read-back.
+    /// the totals (bias, vertices, indices, patches, the vertices and indices asked for,
+    /// a reserved word, the low 32 bits of the tessellation's generation) the passes
+    /// write: for read-back.
     pub fn buffers(&self) -> [&Handle<ShaderBuffer>; 4] {
         [
             &self.out_vertices,
@@ -296,7 +304,7 @@ impl TessellationState {
 
     /// The latest totals the GPU wrote (bias, vertices, indices, patches, then the
     /// vertices and indices the view asked for before any bias), read back a frame or
-    /// two late.
+    /// two late; `None` until the first tessellation's are back.
     pub fn latest_totals(&self) -> Option<[u32; 6]> {
         self.latest
     }
@@ -369,6 +377,30 @@ fn restore_untessellated(
             commands.entity(readback).try_despawn();
         }
         cache.warned.retain(|(e, _)| *e != entity);
+    }
+}
+
+/// The observer of an entity's totals read-back: keeps those of a tessellation (a stamp
+/// of 0: the passes have not run on this buffer yet) and the stamp.
+fn read_totals(
+    entity: Entity,
+    totals: AssetId<ShaderBuffer>,
+) -> impl FnMut(On<ReadbackComplete>, Query<&mut TessellationState>) {
+    move |event, mut states| {
+        let word = |i: usize| {
+            event
+                .data
+                .get(4 * i..4 * i + 4)
+                .map(|b| u32::from_le_bytes(b.try_into().expect("4 bytes")))
+        };
+        if let Ok(mut state) = states.get_mut(entity)
+            && state.totals.id() == totals
+            && let Some(stamp) = word(7)
+            && stamp != 0
+        {
+            state.latest = Some(std::array::from_fn(|i| word(i).expect("8 words")));
+            state.arrived = stamp;
+        }
     }
 }
 
@@ -558,25 +590,6 @@ fn prepare_tessellated(
                     ShaderBuffer::with_size(bytes as usize, RenderAssetUsages::RENDER_WORLD)
                 };
                 let totals = buffers.add(storage(TOTALS_BYTES));
-                let id = totals.id();
-                let readback = commands
-                    .spawn(Readback::buffer(totals.clone()))
-                    .observe(
-                        move |event: On<ReadbackComplete>,
-                              mut states: Query<&mut TessellationState>| {
-                            if let Ok(mut state) = states.get_mut(entity)
-                                && state.totals.id() == id
-                                && let Some(words) = event.data.get(..24)
-                            {
-                                state.latest = Some(std::array::from_fn(|i| {
-                                    u32::from_le_bytes(
-                                        words[4 * i..4 * i + 4].try_into().expect("4 bytes"),
-                                    )
-                                }));
-                            }
-                        },
-                    )
-                    .id();
                 // Until the new pool is filled, the entity shows what it showed (the
                 // source, or the previous pool): no frame without the mesh.
                 let shown = match &old {
@@ -599,12 +612,12 @@ fn prepare_tessellated(
                     has_tangents,
                     uniform: None,
                     generation: 0,
+                    arrived: 0,
                     capacity: triangles,
                     latest: None,
                     // NaN: inserted on the first frame.
                     margin: f32::NAN,
                 };
-                cache.readbacks.insert(entity, readback);
                 // A distance-field caster keeps baking the source, not the pool.
                 commands
                     .entity(entity)
@@ -653,6 +666,19 @@ fn prepare_tessellated(
                 state.uniform = Some(uniform);
                 state.generation += 1;
             }
+        }
+        // Read the totals back from a frame that may tessellate until that tessellation's
+        // are back (stamped with its generation): a still entity reads nothing back.
+        let reading = cache.readbacks.contains_key(&entity);
+        let waiting = state.generation != 0 && state.arrived != state.generation as u32;
+        if waiting && !reading {
+            let readback = commands
+                .spawn(Readback::buffer(state.totals.clone()))
+                .observe(read_totals(entity, state.totals.id()))
+                .id();
+            cache.readbacks.insert(entity, readback);
+        } else if !waiting && let Some(readback) = cache.readbacks.remove(&entity) {
+            commands.entity(readback).try_despawn();
         }
         if let Some(fresh) = fresh {
             commands.entity(entity).insert(fresh);

@@ -1,6 +1,7 @@
 //! The tessellation's GPU plumbing: extraction, the pipelines, the per-entity uniform
-//! and bind group (pooled), and the dispatch that runs the three passes and copies the
-//! pool into the output mesh's buffers.
+//! and bind group (pooled), and the dispatch that runs the three passes, stamps the
+//! totals with the tessellation's generation and copies the pool into the output mesh's
+//! buffers.
 
 use super::TessellationState;
 use bevy::core_pipeline::schedule::camera_driver;
@@ -24,13 +25,19 @@ use bevy::render::storage::{GpuShaderBuffer, ShaderBuffer};
 use bevy::render::sync_component::SyncComponent;
 use bevy::render::{Render, RenderApp, RenderStartup, RenderSystems};
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
-use penumbra_cinematic_core::tessellation::uniform::{ALLOCATE_THREADS, TessellationUniform};
+use penumbra_cinematic_core::tessellation::uniform::{
+    ALLOCATE_THREADS, TOTALS_BYTES, TessellationUniform,
+};
 
 /// Storage buffers the passes bind at once.
 const STORAGE_BUFFERS: u32 = 7;
 
 /// Most workgroups per dispatch dimension (WebGPU's default limit).
 const MAX_GROUPS: u32 = 65_535;
+
+/// Where in the totals the generation they are for goes (the last reserved word, which
+/// the passes leave alone).
+const STAMP_OFFSET: u64 = TOTALS_BYTES - 4;
 
 pub(super) fn build(app: &mut App) {
     let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
@@ -248,9 +255,13 @@ fn prepare_tessellation_bind_groups(
 
 /// Runs the three passes for every entity whose view, settings or mesh buffers changed
 /// since its last tessellation, then copies its pools into its output mesh's buffers.
-/// Dispatches and copies only.
+/// Dispatches and copies only, and a 4-byte write per entity: the low 32 bits of the
+/// generation into the totals (a queue write, so before the passes; the main world reads
+/// the totals back until it sees its latest generation there).
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
 fn tessellate(
     mut ctx: RenderContext,
+    queue: Res<RenderQueue>,
     mut entities: Query<(&ExtractedTessellation, &mut GpuTessellation)>,
     pipeline: Option<Res<TessellationPipeline>>,
     pipeline_cache: Res<PipelineCache>,
@@ -279,7 +290,8 @@ fn tessellate(
         ) else {
             continue; // the output mesh is not allocated yet
         };
-        let (Some(pool_vertices), Some(pool_indices)) = (
+        let (Some(totals), Some(pool_vertices), Some(pool_indices)) = (
+            buffers.get(extracted.buffers[4]),
             buffers.get(extracted.buffers[5]),
             buffers.get(extracted.buffers[6]),
         ) else {
@@ -307,6 +319,9 @@ fn tessellate(
             continue;
         }
         gpu.done = Some(target);
+        // Truncated: the main world compares the low bits.
+        let stamp = extracted.generation as u32;
+        queue.write_buffer(&totals.buffer, STAMP_OFFSET, &stamp.to_le_bytes());
         work.push((
             gpu.group.as_ref().expect("checked").0.clone(),
             gpu.patch_count,
