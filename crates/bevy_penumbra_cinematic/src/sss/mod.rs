@@ -426,6 +426,81 @@ mod tests {
         assert_eq!(meshes(&mut app), [], "the material lost its profile");
     }
 
+    /// A material edit re-examines the meshes with that material, not every mesh: of
+    /// 1,000 meshes with their own materials, editing one examines one.
+    #[test]
+    fn a_material_edit_examines_only_its_meshes() {
+        const MESHES: usize = 1_000;
+        let mut app = App::new();
+        app.add_plugins((MinimalPlugins, AssetPlugin::default()))
+            .init_asset::<StandardMaterial>()
+            .init_resource::<SubsurfaceProfiles>()
+            .init_resource::<render::ScatteringMeshes>()
+            .add_systems(
+                PostUpdate,
+                render::find_scattering_meshes.after(bevy::asset::AssetEventSystems),
+            );
+        let world = app.world_mut();
+        let skin = world
+            .resource_mut::<SubsurfaceProfiles>()
+            .add(SubsurfaceProfile::default())
+            .unwrap();
+        world.spawn(PenumbraLighting);
+        let materials: Vec<Handle<StandardMaterial>> = (0..MESHES)
+            .map(|k| {
+                let material = if k % 2 == 0 {
+                    skin.apply(StandardMaterial::default())
+                } else {
+                    StandardMaterial::default()
+                };
+                world
+                    .resource_mut::<Assets<StandardMaterial>>()
+                    .add(material)
+            })
+            .collect();
+        let entities: Vec<Entity> = materials
+            .iter()
+            .map(|m| world.spawn(MeshMaterial3d(m.clone())).id())
+            .collect();
+        let run = |app: &mut App| {
+            app.update();
+            let found = app.world().resource::<render::ScatteringMeshes>();
+            (found.sorted().len(), found.examined())
+        };
+        assert_eq!(run(&mut app), (MESHES / 2, MESHES), "the first scan");
+        assert_eq!(run(&mut app), (MESHES / 2, 0), "nothing changed");
+        // One material loses its profile, another gains one.
+        for (k, id) in [(0, 1), (1, FIRST_LIGHTING_ID)] {
+            app.world_mut()
+                .resource_mut::<Assets<StandardMaterial>>()
+                .get_mut(&materials[k])
+                .unwrap()
+                .deferred_lighting_pass_id = id;
+        }
+        let (found, examined) = run(&mut app);
+        println!("{MESHES} meshes, 2 materials edited: {examined} meshes examined");
+        assert_eq!(found, MESHES / 2);
+        assert_eq!(examined, 2, "meshes examined for 2 edited materials");
+        let found = app.world().resource::<render::ScatteringMeshes>().sorted();
+        assert!(!found.contains(&entities[0]) && found.contains(&entities[1]));
+        // A mesh sharing an edited material is examined with it; a new handle on a mesh
+        // is examined alone.
+        app.world_mut()
+            .entity_mut(entities[3])
+            .insert(MeshMaterial3d(materials[1].clone()));
+        assert_eq!(run(&mut app), (MESHES / 2 + 1, 1), "a handle changed");
+        app.world_mut()
+            .resource_mut::<Assets<StandardMaterial>>()
+            .get_mut(&materials[1])
+            .unwrap()
+            .deferred_lighting_pass_id = 1;
+        assert_eq!(
+            run(&mut app),
+            (MESHES / 2 - 1, 2),
+            "a shared material edited"
+        );
+    }
+
     #[test]
     fn bad_profiles_are_clamped_and_named() {
         let (good, problems) = SubsurfaceProfile::default().resolve();

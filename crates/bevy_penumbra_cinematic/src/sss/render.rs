@@ -38,16 +38,26 @@ const SPLIT_FORMAT: TextureFormat = TextureFormat::Rgba16Float;
 
 /// Main world: the meshes whose `StandardMaterial` names a subsurface profile (empty
 /// while no profile is registered).
-#[derive(Resource, Default, PartialEq)]
-pub(super) struct ScatteringMeshes(HashSet<Entity>);
+#[derive(Resource, Default)]
+pub(super) struct ScatteringMeshes {
+    meshes: HashSet<Entity>,
+    /// Meshes the last run examined (a full scan: every `StandardMaterial` mesh).
+    examined: usize,
+}
 
 impl ScatteringMeshes {
     /// The meshes, sorted (for tests).
     #[cfg(test)]
     pub(super) fn sorted(&self) -> Vec<Entity> {
-        let mut v: Vec<Entity> = self.0.iter().copied().collect();
+        let mut v: Vec<Entity> = self.meshes.iter().copied().collect();
         v.sort();
         v
+    }
+
+    /// Meshes the last run examined (for tests).
+    #[cfg(test)]
+    pub(super) fn examined(&self) -> usize {
+        self.examined
     }
 }
 
@@ -61,10 +71,47 @@ fn scatters(
         .is_some_and(|m| m.deferred_lighting_pass_id >= FIRST_LIGHTING_ID)
 }
 
+/// The `StandardMaterial` meshes by material, and each one's, while
+/// [`find_scattering_meshes`] is active: a material's asset event finds its meshes.
+#[derive(Default)]
+pub(super) struct MeshesByMaterial {
+    material_of: HashMap<Entity, AssetId<StandardMaterial>>,
+    meshes_of: HashMap<AssetId<StandardMaterial>, HashSet<Entity>>,
+}
+
+impl MeshesByMaterial {
+    /// `entity`'s material is now `material`.
+    fn set(&mut self, entity: Entity, material: AssetId<StandardMaterial>) {
+        match self.material_of.insert(entity, material) {
+            Some(old) if old == material => return,
+            Some(old) => self.unlink(entity, old),
+            None => {}
+        }
+        self.meshes_of.entry(material).or_default().insert(entity);
+    }
+
+    /// `entity` has no material (any more).
+    fn remove(&mut self, entity: Entity) {
+        if let Some(old) = self.material_of.remove(&entity) {
+            self.unlink(entity, old);
+        }
+    }
+
+    fn unlink(&mut self, entity: Entity, material: AssetId<StandardMaterial>) {
+        if let Some(meshes) = self.meshes_of.get_mut(&material) {
+            meshes.remove(&entity);
+            if meshes.is_empty() {
+                self.meshes_of.remove(&material);
+            }
+        }
+    }
+}
+
 /// Keeps the set of meshes with a scattering material, while a profile exists and a
-/// Penumbra camera could shade it: a full scan when that starts or a `StandardMaterial`
-/// changes (its lighting id may have), else only the meshes whose material handle
-/// changed or went away.
+/// Penumbra camera could shade it: a full scan when that starts, else only the meshes
+/// whose material handle changed or went away, and the meshes of a `StandardMaterial`
+/// with an asset event (its lighting id may have changed), found by an index of the
+/// meshes by material kept meanwhile.
 #[allow(clippy::too_many_arguments, reason = "a Bevy system")]
 pub(super) fn find_scattering_meshes(
     profiles: Res<SubsurfaceProfiles>,
@@ -78,41 +125,67 @@ pub(super) fn find_scattering_meshes(
     >,
     mut removed: RemovedComponents<MeshMaterial3d<StandardMaterial>>,
     mut found: ResMut<ScatteringMeshes>,
-    mut active: Local<bool>,
+    // `Some` while active.
+    mut index: Local<Option<MeshesByMaterial>>,
 ) {
-    let materials_changed = material_events.read().count() > 0;
     if profiles.is_empty() || cameras.is_empty() {
+        material_events.clear();
         removed.clear();
-        *active = false;
-        if !found.0.is_empty() {
-            found.0.clear();
+        *index = None;
+        found.bypass_change_detection().examined = 0;
+        if !found.meshes.is_empty() {
+            found.meshes.clear();
         }
         return;
     }
-    let set = &mut found.bypass_change_detection().0;
+    let found_mut = found.bypass_change_detection();
+    let set = &mut found_mut.meshes;
     let mut modified = false;
-    if !*active || materials_changed {
-        *active = true;
-        removed.clear();
-        let now: HashSet<Entity> = meshes
-            .iter()
-            .filter(|(_, material)| scatters(&materials, material))
-            .map(|(entity, _)| entity)
-            .collect();
-        if now != *set {
-            *set = now;
-            modified = true;
-        }
-    } else {
+    if let Some(index) = index.as_mut() {
         for entity in removed.read() {
+            index.remove(entity);
             modified |= set.remove(&entity);
         }
+        // New handles, then the meshes of the materials with an event.
+        let mut examine = HashSet::new();
         for (entity, material) in &changed {
+            index.set(entity, material.id());
+            examine.insert(entity);
+        }
+        for event in material_events.read() {
+            let (AssetEvent::Added { id }
+            | AssetEvent::Modified { id }
+            | AssetEvent::Removed { id }
+            | AssetEvent::Unused { id }
+            | AssetEvent::LoadedWithDependencies { id }) = event;
+            if let Some(meshes) = index.meshes_of.get(id) {
+                examine.extend(meshes.iter().copied());
+            }
+        }
+        found_mut.examined = examine.len();
+        for (entity, material) in meshes.iter_many(&examine) {
             modified |= if scatters(&materials, material) {
                 set.insert(entity)
             } else {
                 set.remove(&entity)
             };
+        }
+    } else {
+        material_events.clear();
+        removed.clear();
+        let mut fresh = MeshesByMaterial::default();
+        let mut now = HashSet::new();
+        for (entity, material) in &meshes {
+            fresh.set(entity, material.id());
+            if scatters(&materials, material) {
+                now.insert(entity);
+            }
+        }
+        found_mut.examined = fresh.material_of.len();
+        *index = Some(fresh);
+        if now != *set {
+            *set = now;
+            modified = true;
         }
     }
     if modified {
@@ -235,7 +308,7 @@ fn extract_subsurface_scene(
     profiles: Extract<Res<SubsurfaceProfiles>>,
 ) {
     if meshes.is_changed() {
-        scene.meshes = meshes.0.iter().map(|&e| MainEntity::from(e)).collect();
+        scene.meshes = meshes.meshes.iter().map(|&e| MainEntity::from(e)).collect();
     }
     if profiles.is_changed() {
         let resolved: Vec<Vec4> = profiles
