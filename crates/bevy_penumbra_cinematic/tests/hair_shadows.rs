@@ -23,7 +23,8 @@ use bevy::light::GlobalAmbientLight;
 use bevy::prelude::*;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy_penumbra_cinematic::hair::{
-    HAIR_SHADOWS_HEADER_BYTES, Hair, HairPlugin, HairShadowBuffers, HairStrands, Strand,
+    HAIR_SHADOWS_HEADER_BYTES, Hair, HairPlugin, HairShadowBuffers, HairShadowTraces, HairStrands,
+    Strand,
 };
 use bevy_penumbra_df::{
     CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldScenePlugin,
@@ -133,9 +134,15 @@ fn word(bytes: &[u8], i: usize) -> u32 {
 }
 
 fn render(df: bool) -> (Vec<[f32; 4]>, KeptApp) {
+    render_with(df, true)
+}
+
+/// [`render`]; `pipelined: false` keeps the render world reachable.
+fn render_with(df: bool, pipelined: bool) -> (Vec<[f32; 4]>, KeptApp) {
     let mut harness = HeadlessRender::new(SIZE, SIZE)
         .format(CaptureFormat::LinearF16)
         .frames(4);
+    harness.pipelined = pipelined;
     if df {
         // Until a read-back shows the sun traced (slot 0).
         harness.warm_up = Some(|world: &mut World| {
@@ -316,6 +323,57 @@ struct CostSetup {
     strands: u32,
     casters: u32,
     df: bool,
+}
+
+/// A still scene traces nothing: once the hair is traced, frames in which neither the
+/// casters, the lights nor the hair change dispatch no trace; moving the caster or a
+/// hair traces again (before the fix: one dispatch per hair entity per frame).
+#[test]
+fn still_hair_is_not_traced_again() {
+    if !gpu_or_skip("still_hair_is_not_traced_again") {
+        return;
+    }
+    let (_, mut app) = render_with(true, false);
+    let traces = |app: &App| {
+        app.sub_app(bevy::render::RenderApp)
+            .world()
+            .resource::<HairShadowTraces>()
+            .0
+    };
+    let settled = traces(&app);
+    assert!(settled >= 2, "both hair entities traced once: {settled}");
+    for _ in 0..6 {
+        app.update();
+    }
+    let still = traces(&app) - settled;
+    println!("hair traces: {settled} until settled, {still} in 6 still frames");
+    assert_eq!(still, 0, "a still scene re-traced the hair");
+    // The caster moves: both entities are traced again.
+    let world = app.world_mut();
+    let mut casters = world.query_filtered::<&mut Transform, With<DistanceFieldCaster>>();
+    for mut t in casters.iter_mut(world) {
+        t.translation.x += 1.0;
+    }
+    let before = traces(&app);
+    for _ in 0..3 {
+        app.update();
+    }
+    let moved = traces(&app) - before;
+    // One hair moves: that entity alone.
+    let first = app.world().resource::<Entities>().0[0];
+    app.world_mut()
+        .get_mut::<Transform>(first)
+        .expect("hair")
+        .translation
+        .y += 0.5;
+    let before = traces(&app);
+    for _ in 0..3 {
+        app.update();
+    }
+    let hair_moved = traces(&app) - before;
+    println!("hair traces: {moved} after the caster moved, {hair_moved} after a hair moved");
+    assert!(moved >= 2, "the caster moved: {moved} traces");
+    assert_eq!(hair_moved, 1, "one hair moved: {hair_moved} traces");
 }
 
 fn cost_scene(

@@ -77,7 +77,7 @@ pub use mesh::{StrandJoints, joints_from_skin, strip_mesh};
 pub use penumbra_cinematic_core::hair::MIN_WIDTH_PX;
 pub use penumbra_cinematic_core::hair::strands::{Strand, StrandProblem};
 #[cfg(feature = "shadows")]
-pub use shadows::{ExtractedHairShadows, GpuHairShadows};
+pub use shadows::{ExtractedHairShadows, GpuHairShadows, HairShadowTraces};
 
 use bevy::asset::io::Reader;
 use bevy::asset::{AssetLoader, LoadContext, LoadState};

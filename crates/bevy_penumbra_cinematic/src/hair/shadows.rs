@@ -25,8 +25,11 @@
 //! camera.
 //!
 //! Cost: nothing while no light has [`DistanceFieldShadows`]. Per hair entity, 16 bytes
-//! per point twice (points, visibility) and one dispatch per frame while it is visible:
-//! per point and light, one cone test per object slot and a march of those in the cone.
+//! per point twice (points, visibility) and one dispatch in a frame where it is visible
+//! and something it reads changed — the scene's objects or SDFs, its transform, its
+//! strands, the lights reaching it — (a still scene traces nothing: the visibilities
+//! stay in their buffer; [`HairShadowTraces`] counts dispatches): per point and light,
+//! one cone test per object slot and a march of those in the cone.
 
 use super::material::{HAIR_SHADOWS_HEADER_BYTES, MAX_HAIR_SHADOW_LIGHTS};
 use super::{Hair, HairBuilt, HairMaterial, HairShadowBuffers, HairStrands};
@@ -88,6 +91,7 @@ pub(super) fn build(app: &mut App) {
         return;
     };
     render_app
+        .init_resource::<HairShadowTraces>()
         .add_systems(
             Render,
             prepare_hair_shadows.in_set(RenderSystems::PrepareBindGroups),
@@ -262,7 +266,16 @@ pub struct GpuHairShadows {
     group: Option<(BindGroup, BoundIds)>,
     /// This frame's workgroups (0: not traced).
     dispatch: u32,
+    /// What the visibilities in its buffer were last traced from: the scene's
+    /// [`DistanceFieldGpu::generation`] and the points' and visibilities' assets. With
+    /// the uniforms, header and bind group unchanged too, the trace is skipped.
+    traced: Option<(u64, AssetId<ShaderBuffer>, AssetId<ShaderBuffer>)>,
 }
+
+/// Hair visibility traces dispatched since startup, per hair entity and frame (render
+/// world): a still scene adds none.
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct HairShadowTraces(pub u64);
 
 #[derive(Resource)]
 struct HairShadowPipeline {
@@ -358,7 +371,7 @@ fn prepare_hair_shadows(
             .atlas
             .as_ref()
             .map_or(&pipeline.no_atlas, |(_, view, _)| view);
-        Some((objects, atlas, df.slot_count))
+        Some((objects, atlas, df.slot_count, df.generation()))
     });
     let all_lights = lights.as_deref().map_or(&[][..], |l| l.lights());
     for (entity, hair, gpu) in &mut hairs {
@@ -386,6 +399,7 @@ fn prepare_hair_shadows(
                 uniforms: (Vec::new(), Vec::new()),
                 group: None,
                 dispatch: 0,
+                traced: None,
             }),
         };
         let translation = hair.world_from_local.w_axis.truncate();
@@ -408,12 +422,17 @@ fn prepare_hair_shadows(
             .map(|(i, (kind, _))| (*kind, if traced { i as u32 } else { UNTRACED }))
             .collect();
         let header = header_bytes(&slots, hair.point_count);
+        // Whether anything the trace reads, besides the scene, changed since it ran.
+        let mut changed = false;
         if header != gpu.header {
             queue.write_buffer(&shadows.buffer, 0, &header);
             gpu.header = header;
+            changed = true;
         }
         gpu.dispatch = 0;
-        if let (true, Some(origin), Some((objects, atlas, slot_count))) = (traced, origin, scene) {
+        if let (true, Some(origin), Some((objects, atlas, slot_count, generation))) =
+            (traced, origin, scene)
+        {
             let origin_world = IVec3::from_array(origin.tile).as_dvec3() * f64::from(TILE_SIZE)
                 + origin.offset.as_dvec3();
             let mut origin_from_local = hair.world_from_local;
@@ -435,6 +454,7 @@ fn prepare_hair_shadows(
             if params != gpu.uniforms.0 {
                 queue.write_buffer(&gpu.params, 0, &params);
                 gpu.uniforms.0 = params;
+                changed = true;
             }
             let mut words = Vec::with_capacity(SHADOW_LIGHT_BYTES / 4 * MAX_HAIR_SHADOW_LIGHTS);
             for (_, light) in &reaching {
@@ -445,6 +465,7 @@ fn prepare_hair_shadows(
             if lights != gpu.uniforms.1 {
                 queue.write_buffer(&gpu.lights, 0, &lights);
                 gpu.uniforms.1 = lights;
+                changed = true;
             }
             let ids = (
                 objects.id(),
@@ -467,12 +488,15 @@ fn prepare_hair_shadows(
                     )),
                 );
                 gpu.group = Some((group, ids));
+                changed = true;
             }
-            gpu.dispatch = if reaching.is_empty() {
-                0
-            } else {
-                hair.point_count.div_ceil(64)
-            };
+            // Traced again only when the scene or an input changed: a still scene with
+            // still hair reads last frame's visibilities.
+            let key = (generation, hair.points, hair.shadows);
+            if !reaching.is_empty() && (changed || gpu.traced != Some(key)) {
+                gpu.dispatch = hair.point_count.div_ceil(64);
+                gpu.traced = Some(key);
+            }
         }
         if let Some(fresh) = fresh {
             commands.entity(entity).insert(fresh);
@@ -486,6 +510,7 @@ fn trace_hair_shadows(
     hairs: Query<&GpuHairShadows>,
     pipeline: Option<Res<HairShadowPipeline>>,
     pipeline_cache: Res<PipelineCache>,
+    mut traces: ResMut<HairShadowTraces>,
 ) {
     let Some(pipeline) = pipeline else {
         return;
@@ -515,6 +540,7 @@ fn trace_hair_shadows(
         }
         pass.set_bind_group(0, group, &[]);
         pass.dispatch_workgroups(hair.dispatch, 1, 1);
+        traces.0 += 1;
     }
     drop(pass);
     time_span.end(ctx.command_encoder());

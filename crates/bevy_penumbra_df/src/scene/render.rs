@@ -53,9 +53,20 @@ pub struct DistanceFieldGpu {
     frame_chunks: Vec<DeltaChunk>,
     /// Most writes one dispatch binds (from the device's storage-binding limit).
     writes_per_chunk: u32,
+    /// Counts frames whose object buffer or atlas contents changed (records written,
+    /// SDFs uploaded, the buffer grown or the atlas created); see
+    /// [`DistanceFieldGpu::generation`].
+    generation: u64,
 }
 
 impl DistanceFieldGpu {
+    /// Changes whenever the object buffer's or the atlas's contents change: a pass whose
+    /// result depends only on them (and inputs of its own) can skip a frame in which
+    /// this and its inputs are as when it last ran.
+    pub fn generation(&self) -> u64 {
+        self.generation
+    }
+
     /// Whether object writes are held back (the delta pipeline compiling): the object
     /// buffer is then behind the main world's records.
     pub fn deltas_held_back(&self) -> bool {
@@ -239,6 +250,7 @@ fn prepare_distance_field_gpu(
     if frame.deltas.slot_count == 0 && gpu.objects.is_none() {
         return; // no caster has ever existed
     }
+    let before = (gpu.objects.as_ref().map(Buffer::id), gpu.atlas.is_some());
     grow_object_buffer(gpu, &frame.deltas, &allocations, &device, &queue);
     if let Some(size) = frame.atlas_size
         && gpu.atlas.is_none()
@@ -267,6 +279,10 @@ fn prepare_distance_field_gpu(
         for upload in &frame.uploads {
             write_atlas(&queue, texture, upload);
         }
+    }
+    let after = (gpu.objects.as_ref().map(Buffer::id), gpu.atlas.is_some());
+    if before != after || (gpu.atlas.is_some() && !frame.uploads.is_empty()) {
+        gpu.generation += 1;
     }
     for w in &frame.deltas.writes {
         gpu.pending.insert(w.slot, w.record);
@@ -307,6 +323,7 @@ fn prepare_distance_field_gpu(
     queue.write_buffer(&buffers.writes, 0, &upload.writes);
     queue.write_buffer(&buffers.params, 0, &upload.params);
     gpu.frame_chunks = upload.chunks;
+    gpu.generation += 1;
 }
 
 /// The delta buffers, grown to hold `writes` writes (never shrunk).
