@@ -55,7 +55,7 @@ pub fn run_headless(options: &Options) -> Result<(), String> {
 /// What an object of the room casts as a distance-field caster (the scene viewer tags
 /// the room its own way, so the room keeps this aside).
 #[derive(Component, Clone)]
-pub struct ShowcaseCaster(CasterSource);
+pub struct ShowcaseCaster(pub CasterSource);
 
 /// The showcase's distance-field effects: every object a caster (analytic shapes where
 /// they exist, baked meshes otherwise), soft shadows from every light, and DFAO on the

@@ -2,6 +2,9 @@
 //!
 //! - `cargo xtask showcase [ARGS]`: the main job — render the showcase scene (in a
 //!   window when a display exists, else headless to a PNG whose path it prints).
+//! - `cargo xtask bench-pack`: the GPU benchmark (`examples/penumbra_bench.rs`) built,
+//!   stripped and packed with its scenes into one archive for a machine without Rust
+//!   ([`bench_pack`]).
 //! - `cargo xtask test [ARGS]`: the whole test suite (`cargo test --workspace`), closing
 //!   with a total in which tests that could not run here (no GPU adapter, no
 //!   `../shared`: `penumbra_testkit::skip`) count as skipped, not passed.
@@ -14,10 +17,14 @@
 use std::path::Path;
 use std::process::{Command, ExitCode};
 
+mod bench_pack;
+
 /// The Debian package providing lavapipe (it depends on the Vulkan loader, `libvulkan1`).
 const DRIVER_PACKAGE: &str = "mesa-vulkan-drivers";
 
-const USAGE: &str = "usage: cargo xtask <showcase|test> [ARGS...]
+const USAGE: &str = "usage: cargo xtask <showcase|test|bench-pack> [ARGS...]
+  bench-pack       build examples/penumbra_bench.rs, strip it, pack it with its scenes
+                   (target/bench-pack/penumbra-bench.tar.gz, at most 60 MiB)
   showcase [ARGS]  run examples/showcase.rs (ARGS go to the example: --headless --frames N --out PATH --size WxH)
   test [ARGS]      run the whole test suite: cargo test --workspace [ARGS]
                    (one test at a time per binary: RUST_TEST_THREADS=1 unless set)";
@@ -26,6 +33,16 @@ fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
     let task = args.next();
     let rest: Vec<String> = args.collect();
+    if task.as_deref() == Some("bench-pack") {
+        let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+        return match bench_pack::bench_pack(&cargo, &rest) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("xtask: bench-pack: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
     let cargo_args: Vec<String> = match task.as_deref() {
         Some("test") => ["test", "--workspace"]
             .into_iter()

@@ -1,0 +1,325 @@
+//! What the benchmark measures in each run, and how.
+//!
+//! - **GPU time per pass**: Bevy's render diagnostics (`RenderDiagnosticsPlugin`: GPU
+//!   timestamp queries around every pass that records a span, Bevy's and Penumbra's).
+//!   Spans of one name closed several times in a frame (Bevy's `shadows`, once per
+//!   light view) are summed per frame.
+//! - **The frame's GPU time**: two timestamps of the benchmark's own, written before
+//!   the render graph's first system and after its last pass, so uninstrumented work
+//!   (Bevy's depth of field, its deferred lighting, copies) counts too. (Bevy's spans
+//!   cannot hold it: they nest per thread, and the render graph's systems run on
+//!   several.)
+//! - **CPU time**: the wall time of each `App::update` (main world and, pipelined, the
+//!   render world of the previous frame), and the CPU time Bevy's diagnostics record
+//!   for encoding each pass (`elapsed_cpu`).
+//! - **GPU memory**: the device allocator's report (wgpu's `generate_allocator_report`),
+//!   summing the allocations whose label starts with `penumbra` (every Penumbra
+//!   resource's label does) against all allocations.
+
+use bevy::diagnostic::DiagnosticsStore;
+use bevy::prelude::*;
+use bevy::render::renderer::{RenderDevice, RenderQueue, render_system};
+use bevy::render::{Render, RenderApp, RenderSystems};
+use penumbra_test::wgpu::{
+    Buffer, BufferDescriptor, BufferUsages, Features as WgpuFeatures, MapMode, QuerySet,
+    QuerySetDescriptor, QueryType,
+};
+use std::collections::{BTreeMap, HashMap};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// Median, 95th percentile and mean of a series of samples (milliseconds or bytes).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Stats {
+    /// The median.
+    pub median: f64,
+    /// The 95th percentile (nearest rank).
+    pub p95: f64,
+    /// The mean.
+    pub mean: f64,
+    /// How many samples.
+    pub n: usize,
+}
+
+impl Stats {
+    /// The statistics of `samples`; `None` when there are none.
+    pub fn of(samples: &[f64]) -> Option<Stats> {
+        let mut s: Vec<f64> = samples.iter().copied().filter(|v| v.is_finite()).collect();
+        if s.is_empty() {
+            return None;
+        }
+        s.sort_by(f64::total_cmp);
+        let rank = |q: f64| s[((q * s.len() as f64).ceil() as usize).clamp(1, s.len()) - 1];
+        let median = if s.len() % 2 == 1 {
+            s[s.len() / 2]
+        } else {
+            0.5 * (s[s.len() / 2 - 1] + s[s.len() / 2])
+        };
+        Some(Stats {
+            median,
+            p95: rank(0.95),
+            mean: s.iter().sum::<f64>() / s.len() as f64,
+            n: s.len(),
+        })
+    }
+}
+
+/// Per-frame samples of every render diagnostic, collected while `recording`.
+#[derive(Resource, Default)]
+pub struct Samples {
+    /// Whether frames are being measured.
+    pub recording: bool,
+    /// Per diagnostic path (`render/<span>/elapsed_gpu` …), one summed value per frame.
+    pub series: BTreeMap<String, Vec<f64>>,
+    /// The newest measurement already taken, per path.
+    seen: HashMap<String, Instant>,
+}
+
+/// Takes each render diagnostic's new measurements of this frame (summed per path).
+pub fn collect_samples(store: Res<DiagnosticsStore>, mut samples: ResMut<Samples>) {
+    let samples = &mut *samples;
+    for diagnostic in store.iter() {
+        let path = diagnostic.path().as_str();
+        if !path.starts_with("render/") {
+            continue;
+        }
+        let last = samples.seen.get(path).copied();
+        let mut newest = last;
+        let mut sum = None::<f64>;
+        for m in diagnostic.measurements() {
+            if last.is_none_or(|t| m.time > t) {
+                *sum.get_or_insert(0.0) += m.value;
+                newest = Some(newest.map_or(m.time, |t: Instant| t.max(m.time)));
+            }
+        }
+        if let Some(t) = newest {
+            samples.seen.insert(path.to_owned(), t);
+        }
+        if let (true, Some(v)) = (samples.recording, sum) {
+            samples.series.entry(path.to_owned()).or_default().push(v);
+        }
+    }
+}
+
+/// GPU memory held when asked: Penumbra's allocations and all of them, bytes.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Memory {
+    /// Bytes in allocations labelled `penumbra…`.
+    pub penumbra_bytes: u64,
+    /// Their count.
+    pub penumbra_allocations: u64,
+    /// Bytes in all allocations.
+    pub total_bytes: u64,
+}
+
+/// Shared by the main and the render world: a request and its answer.
+#[derive(Resource, Clone, Default)]
+pub struct MemoryProbe(pub Arc<Mutex<(bool, Option<Memory>)>>);
+
+impl MemoryProbe {
+    /// Asks the render world for a report (answered within a frame or two).
+    pub fn request(&self) {
+        self.0.lock().expect("not poisoned").0 = true;
+    }
+    /// The answer, once there.
+    pub fn take(&self) -> Option<Memory> {
+        self.0.lock().expect("not poisoned").1.take()
+    }
+}
+
+fn answer_memory_probe(probe: Res<MemoryProbe>, device: Res<RenderDevice>) {
+    let mut state = probe.0.lock().expect("not poisoned");
+    if !state.0 {
+        return;
+    }
+    state.0 = false;
+    let Some(report) = device.wgpu_device().generate_allocator_report() else {
+        state.1 = Some(Memory::default());
+        return;
+    };
+    let mut memory = Memory {
+        total_bytes: report.total_allocated_bytes,
+        ..default()
+    };
+    for a in report
+        .allocations
+        .iter()
+        .filter(|a| a.name.starts_with("penumbra"))
+    {
+        memory.penumbra_bytes += a.size;
+        memory.penumbra_allocations += 1;
+    }
+    state.1 = Some(memory);
+}
+
+/// Each frame's GPU time, ms, as the frame timer reads it back (shared by both
+/// worlds; empty when the device has no timestamps inside encoders).
+#[derive(Resource, Clone, Default)]
+pub struct FrameGpuTimes(pub Arc<Mutex<Vec<f64>>>);
+
+/// The frame timer: two timestamps a frame, resolved into a ring of read-back buffers.
+#[derive(Resource)]
+struct FrameTimer {
+    set: QuerySet,
+    resolve: Buffer,
+    ring: Vec<(Buffer, Arc<AtomicBool>, bool)>,
+    next: usize,
+    period_ns: f64,
+    /// Whether this frame's begin was written.
+    open: bool,
+}
+
+const RING: usize = 8;
+
+fn init_frame_timer(mut commands: Commands, device: Res<RenderDevice>, queue: Res<RenderQueue>) {
+    let needed = WgpuFeatures::TIMESTAMP_QUERY | WgpuFeatures::TIMESTAMP_QUERY_INSIDE_ENCODERS;
+    if !device.features().contains(needed) {
+        warn!("penumbra-bench: no timestamps inside encoders: no frame GPU time");
+        return;
+    }
+    let wgpu = device.wgpu_device();
+    let buffer = |label, usage| {
+        wgpu.create_buffer(&BufferDescriptor {
+            label: Some(label),
+            size: 16,
+            usage,
+            mapped_at_creation: false,
+        })
+    };
+    commands.insert_resource(FrameTimer {
+        set: wgpu.create_query_set(&QuerySetDescriptor {
+            label: Some("bench_frame_timestamps"),
+            ty: QueryType::Timestamp,
+            count: 2,
+        }),
+        resolve: buffer(
+            "bench_frame_resolve",
+            BufferUsages::QUERY_RESOLVE | BufferUsages::COPY_SRC,
+        ),
+        ring: (0..RING)
+            .map(|_| {
+                let b = buffer(
+                    "bench_frame_read",
+                    BufferUsages::COPY_DST | BufferUsages::MAP_READ,
+                );
+                (b, Arc::new(AtomicBool::new(false)), false)
+            })
+            .collect(),
+        next: 0,
+        period_ns: f64::from(queue.get_timestamp_period()),
+        open: false,
+    });
+}
+
+/// Reads the frames whose timestamps arrived, then submits this frame's first one
+/// (before the render graph's first submission).
+fn begin_frame_timer(
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    timer: Option<ResMut<FrameTimer>>,
+    times: Res<FrameGpuTimes>,
+) {
+    let Some(mut timer) = timer else {
+        return;
+    };
+    let period = timer.period_ns;
+    for (buffer, mapped, in_flight) in &mut timer.ring {
+        if *in_flight && mapped.load(Ordering::Acquire) {
+            let ticks: Vec<u64> = buffer
+                .slice(..)
+                .get_mapped_range()
+                .chunks_exact(8)
+                .map(|c| u64::from_le_bytes(c.try_into().expect("8 bytes")))
+                .collect();
+            buffer.unmap();
+            mapped.store(false, Ordering::Release);
+            *in_flight = false;
+            if ticks[1] > ticks[0] {
+                let ms = (ticks[1] - ticks[0]) as f64 * period * 1e-6;
+                times.0.lock().expect("not poisoned").push(ms);
+            }
+        }
+    }
+    let i = timer.next;
+    timer.open = !timer.ring[i].2;
+    if timer.open {
+        let mut encoder = device.create_command_encoder(&Default::default());
+        encoder.write_timestamp(&timer.set, 0);
+        queue.submit([encoder.finish()]);
+    }
+}
+
+/// Submits this frame's last timestamp (after the render graph's last submission) and
+/// sends both to the next free read-back buffer.
+fn end_frame_timer(
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    timer: Option<ResMut<FrameTimer>>,
+) {
+    let Some(mut timer) = timer else {
+        return;
+    };
+    if !timer.open {
+        return; // the ring is full (read-backs late): this frame is not timed
+    }
+    let timer = &mut *timer;
+    let i = timer.next;
+    let (buffer, mapped, in_flight) = &mut timer.ring[i];
+    let mut encoder = device.create_command_encoder(&Default::default());
+    encoder.write_timestamp(&timer.set, 1);
+    encoder.resolve_query_set(&timer.set, 0..2, &timer.resolve, 0);
+    encoder.copy_buffer_to_buffer(&timer.resolve, 0, buffer, 0, 16);
+    let flag = mapped.clone();
+    encoder.map_buffer_on_submit(buffer, MapMode::Read, .., move |result| {
+        if result.is_ok() {
+            flag.store(true, Ordering::Release);
+        }
+    });
+    queue.submit([encoder.finish()]);
+    *in_flight = true;
+    timer.next = (i + 1) % RING;
+}
+
+/// Adds the frame timer, the memory probe and the sample collection to `app` (after
+/// Bevy's `DefaultPlugins` and `RenderDiagnosticsPlugin`).
+pub fn add_measurement(app: &mut App) {
+    let probe = MemoryProbe::default();
+    let times = FrameGpuTimes::default();
+    app.init_resource::<Samples>()
+        .insert_resource(probe.clone())
+        .insert_resource(times.clone())
+        .add_systems(Last, collect_samples);
+    if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
+        render_app
+            .insert_resource(probe)
+            .insert_resource(times)
+            .add_systems(bevy::render::RenderStartup, init_frame_timer)
+            .add_systems(
+                Render,
+                (
+                    begin_frame_timer
+                        .in_set(RenderSystems::Render)
+                        .before(render_system),
+                    end_frame_timer
+                        .in_set(RenderSystems::Render)
+                        .after(render_system),
+                    answer_memory_probe.in_set(RenderSystems::Cleanup),
+                ),
+            );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Stats;
+
+    #[test]
+    fn stats_by_nearest_rank() {
+        let s = Stats::of(&[5.0, 1.0, 3.0, 2.0, 4.0]).unwrap();
+        assert_eq!((s.median, s.p95, s.mean, s.n), (3.0, 5.0, 3.0, 5));
+        let s = Stats::of(&(1..=100).map(f64::from).collect::<Vec<_>>()).unwrap();
+        assert_eq!((s.median, s.p95), (50.5, 95.0));
+        assert!(Stats::of(&[f64::NAN]).is_none());
+    }
+}

@@ -1,0 +1,407 @@
+//! The benchmark's report: JSON with every figure, and a markdown table per size and
+//! scene, then Penumbra's features against Bevy's counterparts.
+//!
+//! A comparison takes each side's own pass where both record one (Bevy's `ssao` and
+//! `ssr` against Penumbra's spans). Where Bevy's pass records none (its shadow maps, its
+//! depth of field), a side's cost is the frame's GPU time less that of the variant
+//! without it (`bevy-no-shadows`, `bevy`) of the same scene and size; the frame totals are compared for
+//! renderers (forward against deferred MSAA, Penumbra off or on against plain Bevy).
+
+use super::RunResult;
+use super::measure::Stats;
+use super::scenes::{SceneKind, Variant};
+use bevy::math::UVec2;
+use serde_json::{Value, json};
+use std::fmt::Write;
+
+/// About the whole benchmark.
+pub struct Meta {
+    /// The device's name.
+    pub device: String,
+    /// Frames measured per run.
+    pub frames: u32,
+    /// Frames of warm-up.
+    pub warm_up: u32,
+    /// The command line.
+    pub command: String,
+}
+
+/// The name of a pass from a diagnostic path (`render/<frame>/<pass>/elapsed_gpu`),
+/// and whether it is GPU time.
+fn pass_of(path: &str) -> Option<(&str, bool)> {
+    let rest = path.strip_prefix("render/")?;
+    let (name, gpu) = if let Some(n) = rest.strip_suffix("/elapsed_gpu") {
+        (n, true)
+    } else {
+        (rest.strip_suffix("/elapsed_cpu")?, false)
+    };
+    Some((name, gpu))
+}
+
+/// GPU time of `pass` (exact name) in `r`.
+pub fn pass_gpu(r: &RunResult, pass: &str) -> Option<Stats> {
+    r.diagnostics
+        .iter()
+        .find(|(p, _)| pass_of(p) == Some((pass, true)))
+        .map(|(_, s)| *s)
+}
+
+/// The frame's GPU time (the frame timer's).
+pub fn frame_gpu(r: &RunResult) -> Option<Stats> {
+    r.frame_gpu
+}
+
+/// The sum of the medians of `passes` (those present), if any is.
+fn passes_median(r: &RunResult, passes: &[&str]) -> Option<f64> {
+    let found: Vec<f64> = passes
+        .iter()
+        .filter_map(|p| pass_gpu(r, p))
+        .map(|s| s.median)
+        .collect();
+    (!found.is_empty()).then(|| found.iter().sum())
+}
+
+/// One feature of Penumbra against Bevy's counterpart, on one scene at one size.
+pub struct Comparison {
+    /// What is compared.
+    pub what: &'static str,
+    /// The scene.
+    pub scene: SceneKind,
+    /// The size.
+    pub size: UVec2,
+    /// Penumbra's side, ms, and how it was measured.
+    pub penumbra: (f64, String),
+    /// Bevy's side, ms, and how it was measured.
+    pub bevy: (f64, String),
+    /// Each side's error against ray-traced truth, where a truth bench measured it.
+    pub errors: &'static str,
+}
+
+/// Every comparison the runs allow.
+pub fn comparisons(results: &[RunResult]) -> Vec<Comparison> {
+    let mut out = Vec::new();
+    let find = |scene, size, variant| {
+        results
+            .iter()
+            .find(|r| r.scene == scene && r.size == size && r.variant == variant)
+    };
+    let mut keys: Vec<(SceneKind, (u32, u32))> = results
+        .iter()
+        .map(|r| (r.scene, (r.size.x, r.size.y)))
+        .collect();
+    keys.dedup();
+    keys.sort();
+    keys.dedup();
+    for (scene, (w, h)) in keys {
+        let size = UVec2::new(w, h);
+        let get = |v| find(scene, size, v);
+        let frame = |v| get(v).and_then(frame_gpu).map(|s| s.median);
+        let delta = |v| Some(frame(v)? - frame(Variant::Bevy)?);
+        let mut push = |what, p: Option<(f64, String)>, b: Option<(f64, String)>, errors| {
+            if let (Some(penumbra), Some(bevy)) = (p, b) {
+                out.push(Comparison {
+                    what,
+                    scene,
+                    size,
+                    penumbra,
+                    bevy,
+                    errors,
+                });
+            }
+        };
+        let on = get(Variant::Penumbra);
+        push(
+            "distance-field shadows / shadow maps",
+            on.and_then(|r| passes_median(r, &["penumbra_df_shadows"]))
+                .map(|v| (v, "`penumbra_df_shadows`, `penumbra`".into())),
+            frame(Variant::Bevy)
+                .zip(frame(Variant::BevyNoShadows))
+                .map(|(a, b)| a - b)
+                .map(|v| (v, "frame, `bevy` − `bevy-no-shadows`".into())),
+            "no truth figure for shadow maps yet",
+        );
+        push(
+            "DFAO / SSAO",
+            on.and_then(|r| passes_median(r, &["penumbra_dfao", "penumbra_global_field_compose"]))
+                .map(|v| (v, "`penumbra_dfao` + global field, `penumbra`".into())),
+            get(Variant::BevySsao)
+                .and_then(|r| passes_median(r, &["ssao"]))
+                .map(|v| (v, "`ssao`, `bevy-ssao`".into())),
+            "mean |Δ| against ray-traced AO (benches/dfao_vs_ssao.py, 128²): Cornell box \
+             DFAO 0.077 / SSAO 0.318, DepthOfFieldExample 0.075 / 0.100",
+        );
+        push(
+            "scatter bokeh / Bevy's bokeh depth of field",
+            delta(Variant::ScatterBokeh).map(|v| (v, "frame − `bevy`".into())),
+            delta(Variant::BevyDof).map(|v| (v, "frame − `bevy`".into())),
+            "tests/bokeh_truth.rs (thin-lens truth)",
+        );
+        push(
+            "deferred 4× MSAA / forward 4× MSAA",
+            frame(Variant::DeferredMsaa4).map(|v| (v, "frame, `deferred-msaa4`".into())),
+            frame(Variant::ForwardMsaa4).map(|v| (v, "frame, `forward-msaa4`".into())),
+            "",
+        );
+        push(
+            "billboard reflections / SSR",
+            on.and_then(|r| passes_median(r, &["penumbra_billboard_reflections"]))
+                .map(|v| (v, "`penumbra_billboard_reflections`, `penumbra`".into())),
+            get(Variant::BevySsr)
+                .and_then(|r| passes_median(r, &["ssr"]))
+                .map(|v| (v, "`ssr`, `bevy-ssr`".into())),
+            "",
+        );
+        push(
+            "Penumbra off / plain Bevy",
+            frame(Variant::PenumbraOff).map(|v| (v, "frame, `penumbra-off`".into())),
+            frame(Variant::Bevy).map(|v| (v, "frame, `bevy`".into())),
+            "",
+        );
+        push(
+            "Penumbra on / plain Bevy",
+            frame(Variant::Penumbra).map(|v| (v, "frame, `penumbra`".into())),
+            frame(Variant::Bevy).map(|v| (v, "frame, `bevy`".into())),
+            "",
+        );
+    }
+    out
+}
+
+fn stats_json(s: Option<Stats>) -> Value {
+    s.map_or(
+        Value::Null,
+        |s| json!({ "median_ms": s.median, "p95_ms": s.p95, "mean_ms": s.mean, "frames": s.n }),
+    )
+}
+
+/// Every figure, as JSON.
+pub fn json(meta: &Meta, results: &[RunResult]) -> Value {
+    let runs: Vec<Value> = results
+        .iter()
+        .map(|r| {
+            let mut passes = serde_json::Map::new();
+            for (path, s) in &r.diagnostics {
+                if let Some((name, gpu)) = pass_of(path) {
+                    let name = if name.is_empty() { "frame" } else { name };
+                    let entry = passes.entry(name).or_insert_with(|| json!({}));
+                    entry[if gpu { "gpu" } else { "cpu" }] = stats_json(Some(*s));
+                }
+            }
+            json!({
+                "scene": r.scene.name(),
+                "variant": r.variant.name(),
+                "width": r.size.x,
+                "height": r.size.y,
+                "frame_gpu": stats_json(frame_gpu(r)),
+                "frame_cpu_wall": stats_json(r.cpu_frame),
+                "passes": passes,
+                "penumbra_gpu_bytes": r.memory.penumbra_bytes,
+                "penumbra_gpu_allocations": r.memory.penumbra_allocations,
+                "total_gpu_bytes": r.memory.total_bytes,
+                "setup_seconds": r.setup_s,
+                "setup_updates": r.setup_frames,
+            })
+        })
+        .collect();
+    let comparisons: Vec<Value> = comparisons(results)
+        .iter()
+        .map(|c| {
+            json!({
+                "what": c.what,
+                "scene": c.scene.name(),
+                "width": c.size.x,
+                "height": c.size.y,
+                "penumbra_ms": c.penumbra.0,
+                "penumbra_source": c.penumbra.1,
+                "bevy_ms": c.bevy.0,
+                "bevy_source": c.bevy.1,
+                "ratio": c.penumbra.0 / c.bevy.0,
+                "errors": c.errors,
+            })
+        })
+        .collect();
+    json!({
+        "device": meta.device,
+        "frames": meta.frames,
+        "warm_up": meta.warm_up,
+        "command": meta.command,
+        "runs": runs,
+        "comparisons": comparisons,
+    })
+}
+
+fn ms(s: Option<Stats>) -> String {
+    s.map_or("–".into(), |s| format!("{:.3} / {:.3}", s.median, s.p95))
+}
+
+fn mib(bytes: u64) -> String {
+    format!("{:.1}", bytes as f64 / (1024.0 * 1024.0))
+}
+
+/// The markdown report: per size and scene, each pass's GPU time (median / p95, ms) in
+/// each variant; then the comparisons.
+pub fn markdown(meta: &Meta, results: &[RunResult]) -> String {
+    let mut md = String::new();
+    let _ = writeln!(
+        md,
+        "Device: {}. {} frames measured per run after the scene's bakes and {} warm-up \
+         frames. Command: `{}`.\n",
+        meta.device, meta.frames, meta.warm_up, meta.command
+    );
+    let mut groups: Vec<(UVec2, SceneKind)> = Vec::new();
+    for r in results {
+        if !groups.contains(&(r.size, r.scene)) {
+            groups.push((r.size, r.scene));
+        }
+    }
+    for (size, scene) in groups {
+        let runs: Vec<&RunResult> = results
+            .iter()
+            .filter(|r| r.size == size && r.scene == scene)
+            .collect();
+        let _ = writeln!(
+            md,
+            "### {} at {}×{} — GPU ms, median / p95\n",
+            scene.name(),
+            size.x,
+            size.y
+        );
+        let header: Vec<&str> = runs.iter().map(|r| r.variant.name()).collect();
+        let _ = writeln!(md, "| pass | {} |", header.join(" | "));
+        let _ = writeln!(md, "|---|{}", "---|".repeat(runs.len()));
+        let row = |md: &mut String, name: &str, cells: Vec<String>| {
+            let _ = writeln!(md, "| {name} | {} |", cells.join(" | "));
+        };
+        row(
+            &mut md,
+            "**frame (GPU)**",
+            runs.iter().map(|r| ms(frame_gpu(r))).collect(),
+        );
+        row(
+            &mut md,
+            "frame (CPU wall)",
+            runs.iter().map(|r| ms(r.cpu_frame)).collect(),
+        );
+        let mut passes: Vec<&str> = runs
+            .iter()
+            .flat_map(|r| r.diagnostics.iter())
+            .filter_map(|(p, _)| pass_of(p))
+            .filter(|(n, gpu)| *gpu && !n.is_empty())
+            .map(|(n, _)| n)
+            .collect();
+        passes.sort_unstable();
+        passes.dedup();
+        for pass in passes {
+            row(
+                &mut md,
+                &format!("`{pass}`"),
+                runs.iter().map(|r| ms(pass_gpu(r, pass))).collect(),
+            );
+        }
+        row(
+            &mut md,
+            "Penumbra GPU memory, MiB (allocations)",
+            runs.iter()
+                .map(|r| {
+                    format!(
+                        "{} ({})",
+                        mib(r.memory.penumbra_bytes),
+                        r.memory.penumbra_allocations
+                    )
+                })
+                .collect(),
+        );
+        row(
+            &mut md,
+            "all GPU memory, MiB",
+            runs.iter().map(|r| mib(r.memory.total_bytes)).collect(),
+        );
+        md.push('\n');
+    }
+    let comparisons = comparisons(results);
+    if !comparisons.is_empty() {
+        let _ = writeln!(md, "### Penumbra against Bevy (GPU ms, medians)\n");
+        let _ = writeln!(
+            md,
+            "| scene | size | Penumbra / Bevy | Penumbra | Bevy | ratio | error against truth |"
+        );
+        let _ = writeln!(md, "|---|---|---|---|---|---|---|");
+        for c in comparisons {
+            let _ = writeln!(
+                md,
+                "| {} | {}×{} | {} | {:.3} ({}) | {:.3} ({}) | {:.2} | {} |",
+                c.scene.name(),
+                c.size.x,
+                c.size.y,
+                c.what,
+                c.penumbra.0,
+                c.penumbra.1,
+                c.bevy.0,
+                c.bevy.1,
+                c.penumbra.0 / c.bevy.0,
+                c.errors
+            );
+        }
+    }
+    md
+}
+
+/// Reads the harness's target back and writes it as a PNG.
+pub fn screenshot(
+    app: &mut bevy::app::App,
+    render: &penumbra_test::HeadlessRender,
+    path: &std::path::Path,
+) -> Result<(), String> {
+    use bevy::prelude::*;
+    use bevy::render::gpu_readback::{Readback, ReadbackComplete};
+    use std::sync::{Arc, Mutex};
+    let handle = app
+        .world()
+        .resource::<penumbra_test::harness::HarnessTarget>()
+        .0
+        .clone();
+    let slot: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
+    let sink = slot.clone();
+    let reader = app
+        .world_mut()
+        .spawn(Readback::texture(handle))
+        .observe(move |event: On<ReadbackComplete>| {
+            sink.lock()
+                .expect("not poisoned")
+                .get_or_insert_with(|| event.data.clone());
+        })
+        .id();
+    for _ in 0..30 {
+        app.update();
+        if slot.lock().expect("not poisoned").is_some() {
+            break;
+        }
+    }
+    app.world_mut().despawn(reader);
+    let data = slot
+        .lock()
+        .expect("not poisoned")
+        .take()
+        .ok_or("the screenshot did not arrive in 30 frames")?;
+    let (w, h) = (render.width as usize, render.height as usize);
+    let padded = (w * 4).div_ceil(256) * 256;
+    let bytes: Vec<u8> = data
+        .chunks_exact(padded)
+        .take(h)
+        .flat_map(|row| &row[..w * 4])
+        .copied()
+        .collect();
+    if bytes.len() < w * h * 4 {
+        return Err("short read-back".into());
+    }
+    penumbra_test::Capture {
+        width: w as u32,
+        height: h as u32,
+        format: render.format,
+        bytes,
+        frame_times: Vec::new(),
+    }
+    .to_rgba8()
+    .save(path)
+    .map_err(|e| format!("{}: {e}", path.display()))
+}

@@ -1,0 +1,307 @@
+//! `penumbra-bench`: Penumbra's passes timed on the GPU beside Bevy's own, headless.
+//!
+//! ```text
+//! cargo run --example penumbra-bench -- --help
+//! cargo run --example penumbra-bench -- --sizes tiny --frames 3       # what CI runs
+//! cargo run --example penumbra-bench -- --sizes 1080p,4k --frames 120 --out bench/
+//! cargo xtask bench-pack    # the same binary and its scenes, packed for a GPU machine
+//! ```
+//!
+//! Every scene (`--scenes`: the showcase room, `CornellBox.glb`,
+//! `DepthOfFieldExample.glb`, `FlightHelmet`, a stress scene) is rendered in each of its
+//! variants (`bevy`, `penumbra-off`, `penumbra`, and Bevy's counterpart of a Penumbra
+//! feature: see `bench/scenes.rs`), each in a fresh app, at every `--sizes` size.
+//! A run waits for the scene to load and every distance field to bake, renders
+//! `--warm-up` frames, then measures `--frames` frames: per pass the GPU time from
+//! timestamp queries (Bevy's render diagnostics) with median and p95, the whole frame's
+//! GPU time, the CPU frame time, and the GPU memory held by Penumbra (the allocator's
+//! report of resources labelled `penumbra…`). Then it compares each Penumbra feature
+//! with Bevy's counterpart measured in the same process (`bench/report.rs`) and writes
+//! `bench.json` and `bench.md` to `--out` (the table also goes to standard output).
+//!
+//! Needs a Vulkan driver (a GPU's, or Mesa's lavapipe); nothing else, no network.
+
+use bevy::prelude::*;
+use bevy::render::diagnostic::RenderDiagnosticsPlugin;
+use clap::Parser;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[path = "bench/measure.rs"]
+pub mod measure;
+#[path = "bench/report.rs"]
+pub mod report;
+#[path = "bench/scenes.rs"]
+pub mod scenes;
+
+#[allow(dead_code, reason = "only the showcase's scene is used")]
+#[path = "showcase.rs"]
+mod showcase;
+
+use measure::{Memory, Samples, Stats};
+use scenes::{Run, SceneKind, Variant};
+
+/// Penumbra's GPU benchmark: every scene in every variant, per-pass GPU times beside
+/// Bevy's own passes.
+#[derive(Parser, Debug, Clone)]
+#[command(name = "penumbra-bench", version)]
+pub struct Args {
+    /// Scenes to render, comma-separated [default: all].
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub scenes: Vec<SceneKind>,
+    /// Only these variants (of each scene's own) [default: each scene's all].
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub variants: Vec<Variant>,
+    /// Render sizes, comma-separated: `1080p` (1920x1080), `4k` (3840x2160), `tiny`
+    /// (160x90, for CI) or `WxH`.
+    #[arg(long, value_delimiter = ',', default_value = "1080p,4k", value_parser = parse_size)]
+    pub sizes: Vec<UVec2>,
+    /// Frames measured per run, after the warm-up (at least 60 for figures to publish).
+    #[arg(long, default_value_t = 60)]
+    pub frames: u32,
+    /// Frames rendered and not measured once the scene is ready (bakes done).
+    #[arg(long, default_value_t = 10)]
+    pub warm_up: u32,
+    /// The folder holding the glTF scenes [default: `scenes/` beside the executable,
+    /// else `../shared/scenes` beside the checkout].
+    #[arg(long)]
+    pub scenes_dir: Option<PathBuf>,
+    /// Where `bench.json` and `bench.md` go.
+    #[arg(long, default_value = "bench-out")]
+    pub out: PathBuf,
+    /// A label for the machine in the report (e.g. "RTX 4090, driver 560") [default:
+    /// the Vulkan adapter's name and driver].
+    #[arg(long)]
+    pub device: Option<String>,
+    /// Also save each run's last frame as `<scene>-<variant>-<W>x<H>.png` in `--out`.
+    #[arg(long)]
+    pub screenshots: bool,
+}
+
+/// `1080p`, `4k`, `tiny` or `WxH`.
+fn parse_size(s: &str) -> Result<UVec2, String> {
+    match s {
+        "1080p" => Ok(UVec2::new(1920, 1080)),
+        "4k" | "2160p" => Ok(UVec2::new(3840, 2160)),
+        "tiny" => Ok(UVec2::new(160, 90)),
+        _ => {
+            let (w, h) = s
+                .split_once('x')
+                .ok_or_else(|| format!("`{s}`: expected 1080p, 4k, tiny or WxH"))?;
+            let n = |v: &str| v.parse::<u32>().ok().filter(|&v| (1..=8192).contains(&v));
+            match (n(w), n(h)) {
+                (Some(w), Some(h)) => Ok(UVec2::new(w, h)),
+                _ => Err(format!("`{s}`: sides must be 1 to 8192 pixels")),
+            }
+        }
+    }
+}
+
+/// What one run measured.
+#[derive(Clone, Debug)]
+pub struct RunResult {
+    /// The scene.
+    pub scene: SceneKind,
+    /// The variant.
+    pub variant: Variant,
+    /// The render size.
+    pub size: UVec2,
+    /// Wall time of each measured `App::update`, ms.
+    pub cpu_frame: Option<Stats>,
+    /// The frame timer's GPU time per frame, ms.
+    pub frame_gpu: Option<Stats>,
+    /// Per diagnostic path (`render/<span>/elapsed_gpu|elapsed_cpu`), ms.
+    pub diagnostics: Vec<(String, Stats)>,
+    /// GPU memory at the end of the run.
+    pub memory: Memory,
+    /// Seconds from startup to ready (loads, bakes).
+    pub setup_s: f64,
+    /// Updates until ready.
+    pub setup_frames: u32,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    let Some(adapter) = penumbra_test::vulkan_adapter() else {
+        eprintln!(
+            "penumbra-bench: no Vulkan adapter found (install a GPU driver, or Mesa's \
+             software one: Debian package `mesa-vulkan-drivers`)"
+        );
+        return ExitCode::FAILURE;
+    };
+    let scenes_dir = scenes::scenes_dir(args.scenes_dir.as_deref());
+    let scenes: Vec<SceneKind> = if args.scenes.is_empty() {
+        SceneKind::ALL.to_vec()
+    } else {
+        args.scenes.clone()
+    };
+    for scene in &scenes {
+        if let Some(file) = scene.file()
+            && !scenes_dir.join(file).is_file()
+        {
+            eprintln!(
+                "penumbra-bench: scene `{}` needs {} (see --scenes-dir)",
+                scene.name(),
+                scenes_dir.join(file).display()
+            );
+            return ExitCode::from(2);
+        }
+    }
+    if let Err(e) = std::fs::create_dir_all(&args.out) {
+        eprintln!("penumbra-bench: {}: {e}", args.out.display());
+        return ExitCode::FAILURE;
+    }
+    let device = args.device.clone().unwrap_or_else(|| adapter.to_owned());
+    let mut results = Vec::new();
+    for &size in &args.sizes {
+        for &scene in &scenes {
+            for &variant in scene.variants() {
+                if !args.variants.is_empty() && !args.variants.contains(&variant) {
+                    continue;
+                }
+                let run = Run { scene, variant };
+                eprintln!(
+                    "penumbra-bench: {} / {} at {}x{} …",
+                    scene.name(),
+                    variant.name(),
+                    size.x,
+                    size.y
+                );
+                match run_one(&args, &run, size, &scenes_dir) {
+                    Ok(result) => {
+                        eprintln!(
+                            "penumbra-bench:   ready after {} updates ({:.1} s); GPU frame \
+                             median {}",
+                            result.setup_frames,
+                            result.setup_s,
+                            report::frame_gpu(&result)
+                                .map_or("n/a".into(), |s| format!("{:.3} ms", s.median))
+                        );
+                        results.push(result);
+                    }
+                    Err(e) => {
+                        eprintln!("penumbra-bench: {} / {}: {e}", scene.name(), variant.name());
+                        return ExitCode::FAILURE;
+                    }
+                }
+            }
+        }
+    }
+    let meta = report::Meta {
+        device,
+        frames: args.frames,
+        warm_up: args.warm_up,
+        command: std::env::args().collect::<Vec<_>>().join(" "),
+    };
+    let json = report::json(&meta, &results);
+    let markdown = report::markdown(&meta, &results);
+    let write = |name: &str, text: &str| {
+        let path = args.out.join(name);
+        std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))
+    };
+    let written = write(
+        "bench.json",
+        &serde_json::to_string_pretty(&json).expect("serialisable"),
+    )
+    .and_then(|()| write("bench.md", &markdown));
+    if let Err(e) = written {
+        eprintln!("penumbra-bench: {e}");
+        return ExitCode::FAILURE;
+    }
+    println!("{markdown}");
+    eprintln!(
+        "penumbra-bench: wrote {} and {}",
+        args.out.join("bench.json").display(),
+        args.out.join("bench.md").display()
+    );
+    ExitCode::SUCCESS
+}
+
+/// Renders one scene in one variant and measures it.
+fn run_one(
+    args: &Args,
+    run: &Run,
+    size: UVec2,
+    scenes_dir: &std::path::Path,
+) -> Result<RunResult, String> {
+    use penumbra_test::HeadlessRender;
+    let mut render = HeadlessRender::new(size.x, size.y);
+    render.asset_root = Some(scenes_dir.to_path_buf());
+    let mut app = render.app();
+    app.add_plugins(RenderDiagnosticsPlugin);
+    measure::add_measurement(&mut app);
+    scenes::add_scene(&mut app, run);
+    app.finish();
+    app.cleanup();
+    let start = std::time::Instant::now();
+    let mut setup_frames = 0;
+    const MAX_SETUP: u32 = 3_000;
+    while !scenes::scene_ready(app.world_mut()) {
+        if setup_frames == MAX_SETUP {
+            return Err(format!("not ready after {MAX_SETUP} updates"));
+        }
+        app.update();
+        setup_frames += 1;
+        if setup_frames % 200 == 0 {
+            eprintln!(
+                "penumbra-bench:   still setting up after {setup_frames} updates ({:.0} s): {}",
+                start.elapsed().as_secs_f64(),
+                scenes::waiting_for(app.world_mut())
+            );
+        }
+    }
+    let setup_s = start.elapsed().as_secs_f64();
+    for _ in 0..args.warm_up {
+        app.update();
+    }
+    app.world_mut().resource_mut::<Samples>().recording = true;
+    let gpu_times = app.world().resource::<measure::FrameGpuTimes>().clone();
+    gpu_times.0.lock().expect("not poisoned").clear();
+    let mut cpu = Vec::with_capacity(args.frames as usize);
+    for _ in 0..args.frames {
+        let t = std::time::Instant::now();
+        app.update();
+        cpu.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    // Render diagnostics arrive a few frames late: keep taking them, not the frames.
+    let probe = app.world().resource::<measure::MemoryProbe>().clone();
+    probe.request();
+    let mut memory = None;
+    for _ in 0..6 {
+        app.update();
+        memory = memory.or_else(|| probe.take());
+    }
+    let samples = std::mem::take(&mut app.world_mut().resource_mut::<Samples>().series);
+    let mut frame_gpu = std::mem::take(&mut *gpu_times.0.lock().expect("not poisoned"));
+    frame_gpu.truncate(args.frames as usize);
+    if args.screenshots {
+        let name = format!(
+            "{}-{}-{}x{}.png",
+            run.scene.name(),
+            run.variant.name(),
+            size.x,
+            size.y
+        );
+        report::screenshot(&mut app, &render, &args.out.join(name))?;
+    }
+    let frames = args.frames as usize;
+    let diagnostics = samples
+        .into_iter()
+        .filter_map(|(path, mut values)| {
+            // At most one value per measured frame (the late ones are of those frames).
+            values.truncate(frames);
+            Some((path, Stats::of(&values)?))
+        })
+        .collect();
+    Ok(RunResult {
+        scene: run.scene,
+        variant: run.variant,
+        size,
+        cpu_frame: Stats::of(&cpu),
+        frame_gpu: Stats::of(&frame_gpu),
+        diagnostics,
+        memory: memory.unwrap_or_default(),
+        setup_s,
+        setup_frames,
+    })
+}
