@@ -34,9 +34,15 @@ pub fn bench_pack(cargo: &std::ffi::OsStr, args: &[String]) -> Result<(), String
             scenes.display()
         ));
     }
-    run(Command::new(cargo)
-        .current_dir(&root)
-        .args(["build", "--example", "penumbra-bench"]))?;
+    // `--workspace`: the features of the whole workspace, as `cargo xtask test` builds
+    // them (the example alone would select other features of Bevy's dependencies and
+    // rebuild Bevy: a second cold build).
+    run(Command::new(cargo).current_dir(&root).args([
+        "build",
+        "--workspace",
+        "--example",
+        "penumbra-bench",
+    ]))?;
     let target = target_dir(cargo, &root)?;
     let binary = target.join("debug/examples/penumbra-bench");
     let pack = target.join("bench-pack");
