@@ -100,6 +100,7 @@ pub(super) fn build(app: &mut App) {
             RenderGraph,
             trace_hair_shadows
                 .after(DistanceFieldRenderSystems::ApplyDeltas)
+                .in_set(bevy::render::renderer::RenderGraphSystems::Render)
                 .before(camera_driver),
         );
 }

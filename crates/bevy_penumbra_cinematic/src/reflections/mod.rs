@@ -134,8 +134,10 @@ pub struct BillboardReflections {
     /// Reflection shadows: each hit dimmed by a soft march along the mirror ray through
     /// the distance-field scene's shadow-casting objects (`DistanceFieldCaster`s), so a
     /// building between a sign and the street hides its reflection. Default true. Cost:
-    /// up to `shadow_steps` distance evaluations of every object per reflecting pixel;
-    /// nothing while the scene has no caster.
+    /// per reflecting pixel, one bounding-sphere test per object (the pixel's cull: the
+    /// objects within the shadow cone of its ray, at most 32; more, and it marches them
+    /// all), then up to `shadow_steps` distance evaluations of each kept object; nothing
+    /// while the scene has no caster.
     pub reflection_shadows: bool,
     /// The march's steps, `1..=256`. Default 32.
     pub shadow_steps: u32,

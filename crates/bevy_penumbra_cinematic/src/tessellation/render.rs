@@ -49,7 +49,12 @@ pub(super) fn build(app: &mut App) {
             Render,
             prepare_tessellation_bind_groups.in_set(RenderSystems::PrepareBindGroups),
         )
-        .add_systems(RenderGraph, tessellate.before(camera_driver));
+        .add_systems(
+            RenderGraph,
+            tessellate
+                .in_set(bevy::render::renderer::RenderGraphSystems::Render)
+                .before(camera_driver),
+        );
 }
 
 pub(super) fn finish(app: &mut App) {

@@ -25,7 +25,7 @@ use bevy_penumbra_df::{
 };
 use penumbra_cinematic_core::reflections::Billboard;
 use penumbra_cinematic_core::reflections::pass::{
-    GpuBillboard, ReflectionUniform, Surface, reflect_pixel_shadowed,
+    GpuBillboard, ReflectionUniform, ShadowCasters, Surface, reflect_pixel_shadowed,
 };
 use penumbra_cinematic_core::reflections::texture::MipChain;
 use penumbra_reference::camera::PerspectiveCamera;
@@ -354,12 +354,26 @@ pub fn analytic_surface(p: IVec2, wall: bool) -> Option<(Vec3, Vec3, f32, Vec3)>
 }
 
 /// The wall's and the board's exact distance (the casters' cuboids), metres.
-pub fn wall_distance(p: Vec3) -> f32 {
-    let cuboid = |center: Vec3, half: Vec3| {
-        let q = (p - center).abs() - half;
-        q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
-    };
-    cuboid(WALL_CENTER, WALL_HALF).min(cuboid(BOARD_CENTER, BOARD_HALF))
+/// The wall's (0) or the board's (1) distance at `p`.
+pub fn caster_distance(i: usize, p: Vec3) -> f32 {
+    let (center, half) = [(WALL_CENTER, WALL_HALF), (BOARD_CENTER, BOARD_HALF)][i];
+    let q = (p - center).abs() - half;
+    q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+}
+
+/// The wall and the board as the reflection shadows' casters (bounding spheres as the
+/// GPU's: a box's half diagonal).
+pub fn casters() -> ShadowCasters<'static, fn(usize, Vec3) -> f32> {
+    static SPHERES: std::sync::OnceLock<[Option<(Vec3, f32)>; 2]> = std::sync::OnceLock::new();
+    ShadowCasters {
+        spheres: SPHERES.get_or_init(|| {
+            [
+                Some((WALL_CENTER, WALL_HALF.length())),
+                Some((BOARD_CENTER, BOARD_HALF.length())),
+            ]
+        }),
+        distance: caster_distance,
+    }
 }
 
 /// The layer the model predicts at every pixel (the floor's analytic G-buffer; `None`
@@ -413,7 +427,7 @@ pub fn model_with(setup: Setup, shadows: bool) -> Vec<Option<Vec4>> {
                 &gpu,
                 &images,
                 &settings,
-                wall_distance,
+                &casters(),
             ))
         })
         .collect()

@@ -201,6 +201,7 @@ pub(super) fn build(render_app: &mut SubApp) {
             RenderGraph,
             compose_global_fields
                 .after(crate::scene::apply_distance_field_deltas)
+                .in_set(bevy::render::renderer::RenderGraphSystems::Render)
                 .before(camera_driver),
         );
 }

@@ -116,6 +116,7 @@ pub(super) fn build(app: &mut App) {
             step_particles
                 .in_set(ParticleSystems::Step)
                 .after(crate::global_field::compose_global_fields)
+                .in_set(bevy::render::renderer::RenderGraphSystems::Render)
                 .before(camera_driver),
         );
 }

@@ -136,6 +136,7 @@ pub(super) fn build(render_app: &mut SubApp) {
             RenderGraph,
             apply_distance_field_deltas
                 .in_set(DistanceFieldRenderSystems::ApplyDeltas)
+                .in_set(bevy::render::renderer::RenderGraphSystems::Render)
                 .before(camera_driver),
         );
 }

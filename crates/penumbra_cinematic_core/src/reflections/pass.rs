@@ -332,18 +332,83 @@ pub fn reflect_pixel(
     images: &[MipChain],
     settings: &ReflectionUniform,
 ) -> Vec4 {
-    reflect_pixel_shadowed(s, billboards, images, settings, |_| f32::MAX)
+    let none = ShadowCasters {
+        spheres: &[],
+        distance: |_, _| f32::MAX,
+    };
+    reflect_pixel_shadowed(s, billboards, images, settings, &none)
+}
+
+/// The shadow-casting objects the reflection shadows march through: each object's
+/// bounding sphere (world centre and radius, metres; `None`: unbounded) and its distance
+/// at a world point.
+pub struct ShadowCasters<'a, F: Fn(usize, Vec3) -> f32> {
+    /// Per object, its bounding sphere.
+    pub spheres: &'a [Option<(Vec3, f32)>],
+    /// Object `i`'s distance (metres) at a world point.
+    pub distance: F,
+}
+
+/// Most objects one pixel's march keeps after its cull; more: it marches them all.
+pub const MAX_SHADOW_CASTERS: usize = 32;
+
+/// Slack added to a cull's reach (rounding must never drop an object): as the
+/// distance-field passes' `cull_slack`.
+fn cull_slack(reach: f32) -> f32 {
+    reach * 1e-4 + 1e-4
+}
+
+/// The objects a pixel's reflection-shadow march may see (`reflections/trace.wgsl`'s
+/// `gather_casters`): those whose bounding sphere comes within `cone · t_end` of the
+/// segment from `origin` to `origin + t_end · dir` — beyond it an object's distance is at
+/// least the cone's radius `cone · t` at every step, so it never dims a hit. `None`: more
+/// than [`MAX_SHADOW_CASTERS`] (or an unbounded one past the cap): march them all.
+pub fn shadow_casters(
+    spheres: &[Option<(Vec3, f32)>],
+    origin: Vec3,
+    dir: Vec3,
+    t_end: f32,
+    cone: f32,
+) -> Option<Vec<usize>> {
+    let end = origin + dir * t_end;
+    let mut kept = Vec::new();
+    for (i, sphere) in spheres.iter().enumerate() {
+        let keep = sphere.is_none_or(|(center, radius)| {
+            let reach = radius + cone * t_end;
+            segment_distance(center, origin, end) < reach + cull_slack(reach)
+        });
+        if keep {
+            if kept.len() == MAX_SHADOW_CASTERS {
+                return None;
+            }
+            kept.push(i);
+        }
+    }
+    Some(kept)
+}
+
+/// The distance from `p` to the segment `a`–`b`.
+fn segment_distance(p: Vec3, a: Vec3, b: Vec3) -> f32 {
+    let ab = b - a;
+    let l2 = ab.dot(ab);
+    let h = if l2 > 0.0 {
+        ((p - a).dot(ab) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p - a - ab * h).length()
 }
 
 /// [`reflect_pixel`] with reflection shadows (when `settings.shadow_steps > 0`): each
-/// hit's radiance scaled by its visibility along the mirror ray ([`shadow_march`]) in the
-/// scene whose distance at a world point `scene_distance` gives (metres).
-pub fn reflect_pixel_shadowed(
+/// hit's radiance scaled by its visibility along the mirror ray ([`shadow_march`])
+/// through `casters` — those [`shadow_casters`] keeps for the pixel's ray, up to its last
+/// hit.
+pub fn reflect_pixel_shadowed<F: Fn(usize, Vec3) -> f32>(
     s: &Surface,
     billboards: &[GpuBillboard],
     images: &[MipChain],
     settings: &ReflectionUniform,
-    scene_distance: impl Fn(Vec3) -> f32,
+    casters: &ShadowCasters<'_, F>,
 ) -> Vec4 {
     let lobe = lobe(s, settings.anisotropy, settings.footprint_slope);
     let k = settings.max_layers.clamp(1, super::MAX_LAYERS as u32) as usize;
@@ -378,6 +443,26 @@ pub fn reflect_pixel_shadowed(
         })
         .collect();
     let cone = (lobe.major.length() * settings.shadow_cone).max(settings.shadow_softness);
+    let t_end = targets.last().map_or(0.0, |h| h.t);
+    let kept = if targets.is_empty() || settings.shadow_steps == 0 {
+        Some(Vec::new())
+    } else {
+        shadow_casters(casters.spheres, s.position, lobe.dir, t_end, cone)
+    };
+    let all: Vec<usize>;
+    let marched: &[usize] = match &kept {
+        Some(kept) => kept,
+        None => {
+            all = (0..casters.spheres.len()).collect();
+            &all
+        }
+    };
+    let scene_distance = |p: Vec3| {
+        marched
+            .iter()
+            .map(|&i| (casters.distance)(i, p))
+            .fold(f32::MAX, f32::min)
+    };
     let visibility = shadow_march(
         s.position,
         lobe.dir,
@@ -577,6 +662,109 @@ mod tests {
         s.position = Vec3::new(0.0, 0.0, -3.0);
         s.view = (s.position - mirrored_target).normalize();
         assert_eq!(reflect_pixel(&s, &[gpu], &[], &settings), Vec4::ZERO);
+    }
+
+    /// The march evaluates only the objects near its ray: a wall across a mirror ray and
+    /// 400 boxes off to the side cost the wall's evaluations alone (before the cull: 401
+    /// per step), with the same visibility as marching everything; past
+    /// [`MAX_SHADOW_CASTERS`] near the ray it marches them all.
+    #[test]
+    fn the_shadow_march_skips_objects_off_its_ray() {
+        use std::cell::Cell;
+        let cuboid = |p: Vec3, c: Vec3, h: Vec3| {
+            let q = (p - c).abs() - h;
+            q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+        };
+        // Box 0: a wall between a floor point and a sign 4 m up its mirror ray; boxes
+        // 1..: a field 6 m or more to the side.
+        let mut boxes = vec![(Vec3::new(0.0, 2.0, -2.0), Vec3::new(2.0, 0.5, 0.1))];
+        for i in 0..400 {
+            let (x, z) = ((i % 20) as f32, (i / 20) as f32);
+            boxes.push((Vec3::new(6.0 + x, 0.5, -10.0 + z), Vec3::splat(0.3)));
+        }
+        let spheres: Vec<_> = boxes.iter().map(|&(c, h)| Some((c, h.length()))).collect();
+        let evaluations = Cell::new(0usize);
+        let casters = ShadowCasters {
+            spheres: &spheres,
+            distance: |i: usize, p: Vec3| {
+                evaluations.set(evaluations.get() + 1);
+                cuboid(p, boxes[i].0, boxes[i].1)
+            },
+        };
+        // The floor at the origin, looking along -z and down: the mirror ray rises
+        // toward -z, through the wall, to a sign facing +z at z = -4.
+        let sign = Billboard::from_transform(
+            Mat4::from_translation(Vec3::new(0.0, 4.0, -4.0)),
+            Vec2::splat(3.0),
+        )
+        .expect("a quad");
+        let gpu = GpuBillboard {
+            center: sign.center,
+            layer: 0,
+            half_x: sign.half_x,
+            emissive: 1.0,
+            half_y: sign.half_y,
+            reserved: 0,
+        };
+        let images = [MipChain::from_straight_alpha(1, 1, &[Vec4::ONE])];
+        let mut settings = ReflectionUniform::new(1, UVec2::ONE, 1);
+        settings.shadow_steps = 32;
+        settings.object_count = boxes.len() as u32;
+        let s = Surface {
+            position: Vec3::ZERO,
+            normal: Vec3::Y,
+            view: Vec3::new(0.0, 1.0, 1.0).normalize(),
+            perceptual_roughness: 0.2,
+        };
+        let culled = reflect_pixel_shadowed(&s, &[gpu], &images, &settings, &casters);
+        let work = evaluations.replace(0);
+        // Everything, as before the cull: a pixel's march through all 401 boxes.
+        let all = shadow_march(
+            s.position,
+            (-s.view).reflect(s.normal),
+            &[ShadowTarget {
+                t: 4.0 / (0.5f32).sqrt(),
+                facing: (0.5f32).sqrt(),
+            }],
+            (lobe(&s, 0.0, settings.footprint_slope).major.length() * settings.shadow_cone)
+                .max(settings.shadow_softness),
+            &settings,
+            |p| {
+                (0..boxes.len())
+                    .map(|i| (casters.distance)(i, p))
+                    .fold(f32::MAX, f32::min)
+            },
+        );
+        let unculled = evaluations.replace(0);
+        println!("reflection shadow march: {work} evaluations culled, {unculled} unculled");
+        assert!(culled.w > 0.1, "the sign is reflected: {culled}");
+        assert!(
+            culled.x < 0.05 && all[0] < 0.05,
+            "the wall hides it: {culled} {all:?}"
+        );
+        assert!(unculled >= 400 * 4, "{unculled}");
+        assert!(
+            work <= 2 * 32,
+            "{work} evaluations: objects off the ray were marched"
+        );
+        // Crowded: 40 boxes along the ray, more than the cap: all are marched.
+        let spheres: Vec<_> = (0..40)
+            .map(|i| Some((Vec3::new(0.0, 0.1 * i as f32, -0.1 * i as f32), 0.01)))
+            .collect();
+        let near = ShadowCasters {
+            spheres: &spheres,
+            distance: |_: usize, _: Vec3| {
+                evaluations.set(evaluations.get() + 1);
+                f32::MAX
+            },
+        };
+        reflect_pixel_shadowed(&s, &[gpu], &images, &settings, &near);
+        assert!(evaluations.get() >= 40, "{}", evaluations.get());
+        assert_eq!(
+            shadow_casters(&spheres, Vec3::ZERO, Vec3::Z, 1.0, 0.0),
+            Some(vec![0]),
+            "beside the ray"
+        );
     }
 
     /// A wall across the ray hides the hits behind it, not those before it; beside the

@@ -303,7 +303,7 @@ fn shadows_against_truth_among(
     steps: u32,
     cone: f32,
 ) -> (f32, usize) {
-    use penumbra_cinematic_core::reflections::pass::reflect_pixel_shadowed;
+    use penumbra_cinematic_core::reflections::pass::{ShadowCasters, reflect_pixel_shadowed};
     // Two triangles per face of each box.
     let faces = [
         [0, 1, 3, 2],
@@ -334,14 +334,20 @@ fn shadows_against_truth_among(
         })
         .collect();
     let occluder = TriangleOccluder::new(&triangles);
+    let box_distance = |i: usize, p: Vec3| {
+        let (center, half) = boxes[i];
+        let q = (p - center).abs() - half;
+        q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+    };
     let distance = |p: Vec3| {
-        boxes
-            .iter()
-            .map(|&(center, half)| {
-                let q = (p - center).abs() - half;
-                q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
-            })
+        (0..boxes.len())
+            .map(|i| box_distance(i, p))
             .fold(f32::MAX, f32::min)
+    };
+    let spheres: Vec<_> = boxes.iter().map(|&(c, h)| Some((c, h.length()))).collect();
+    let casters = ShadowCasters {
+        spheres: &spheres,
+        distance: box_distance,
     };
     let (billboards, images) = scene_billboards();
     let truth = BillboardTruth {
@@ -364,7 +370,7 @@ fn shadows_against_truth_among(
         let want = lobe_mean(frame, s.view, lobe, 1024, 0x5eed + k as u64, |l| {
             truth.radiance(s.position, l)
         });
-        let got = reflect_pixel_shadowed(s, &billboards, &images, &settings, distance);
+        let got = reflect_pixel_shadowed(s, &billboards, &images, &settings, &casters);
         if want.w < 0.01 && got.w < 0.01 {
             continue;
         }

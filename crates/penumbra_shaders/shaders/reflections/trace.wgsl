@@ -15,6 +15,11 @@
 }
 #import penumbra::df::object::{FLAG_CASTS_SHADOWS, FLAG_LIVE, TILE_SIZE}
 #import penumbra::df::distance::object_distance
+#import penumbra::df::shadow::bounding_sphere
+
+// Most objects one pixel's reflection-shadow march keeps after its cull; more: it
+// marches them all (`pass::MAX_SHADOW_CASTERS`).
+const MAX_SHADOW_CASTERS: u32 = 32u;
 
 struct FootprintHit {
     t: f32,
@@ -180,7 +185,12 @@ fn reflect_billboards(trace_pixel: vec2<u32>, origin: vec3<f32>, lobe: Lobe) -> 
         let b = billboards[hits[j].index];
         facing[j] = abs(dot(lobe.dir, normalize(cross(b.half_x, b.half_y))));
     }
-    let visibility = shadow_march(origin, lobe.dir, &hits, &facing, count, cone);
+    var casters: array<u32, MAX_SHADOW_CASTERS>;
+    var caster_count = 0u;
+    if count > 0u && settings.shadow_steps > 0u {
+        caster_count = gather_casters(origin, lobe.dir, hits[count - 1u].t, cone, &casters);
+    }
+    let visibility = shadow_march(origin, lobe.dir, &hits, &facing, count, cone, &casters, caster_count);
     var colour = vec3(0.0);
     var transmittance = 1.0;
     for (var j = 0u; j < count; j += 1u) {
@@ -192,17 +202,71 @@ fn reflect_billboards(trace_pixel: vec2<u32>, origin: vec3<f32>, lobe: Lobe) -> 
     return vec4(colour, 1.0 - transmittance);
 }
 
-// The distance (metres) from world point `p` to the nearest live shadow-casting object.
-fn scene_distance(p: vec3<f32>) -> f32 {
+// Whether object `o` casts reflection shadows.
+fn casts(o: u32) -> bool {
+    let needed = FLAG_LIVE | FLAG_CASTS_SHADOWS;
+    return (objects[o].flags & needed) == needed;
+}
+
+// The live shadow-casting objects whose bounding sphere comes within `cone · t_end` of
+// the ray's segment up to its last hit (`pass::shadow_casters`): beyond, an object never
+// dims a hit. Returns how many (in `list`), or MAX_SHADOW_CASTERS + 1: march them all.
+fn gather_casters(
+    origin: vec3<f32>,
+    dir: vec3<f32>,
+    t_end: f32,
+    cone: f32,
+    list: ptr<function, array<u32, MAX_SHADOW_CASTERS>>,
+) -> u32 {
+    let camera = vec3<f32>(settings.camera_tile) * TILE_SIZE + settings.camera_offset;
+    let a = origin - camera;
+    let ab = dir * t_end;
+    let l2 = dot(ab, ab);
+    var n = 0u;
+    for (var i = 0u; i < settings.object_count; i += 1u) {
+        if !casts(i) {
+            continue;
+        }
+        let sphere = bounding_sphere(objects[i], settings.camera_tile, settings.camera_offset);
+        if sphere.w >= 0.0 {
+            let reach = sphere.w + cone * t_end;
+            var h = 0.0;
+            if l2 > 0.0 {
+                h = clamp(dot(sphere.xyz - a, ab) / l2, 0.0, 1.0);
+            }
+            if length(sphere.xyz - a - ab * h) >= reach + (reach * 1e-4 + 1e-4) {
+                continue;
+            }
+        }
+        if n == MAX_SHADOW_CASTERS {
+            return MAX_SHADOW_CASTERS + 1u;
+        }
+        (*list)[n] = i;
+        n += 1u;
+    }
+    return n;
+}
+
+// The distance (metres) from world point `p` to the nearest of the gathered objects
+// (all live shadow-casting ones when `count` is past the list).
+fn scene_distance(
+    p: vec3<f32>,
+    list: ptr<function, array<u32, MAX_SHADOW_CASTERS>>,
+    count: u32,
+) -> f32 {
     let camera = vec3<f32>(settings.camera_tile) * TILE_SIZE + settings.camera_offset;
     let relative = p - camera;
     var d = 3.4e38;
-    for (var i = 0u; i < settings.object_count; i += 1u) {
-        let o = objects[i];
-        let needed = FLAG_LIVE | FLAG_CASTS_SHADOWS;
-        if (o.flags & needed) != needed {
-            continue;
+    if count > MAX_SHADOW_CASTERS {
+        for (var i = 0u; i < settings.object_count; i += 1u) {
+            if casts(i) {
+                d = min(d, object_distance(objects[i], relative, settings.camera_tile, settings.camera_offset, atlas));
+            }
         }
+        return d;
+    }
+    for (var k = 0u; k < count; k += 1u) {
+        let o = objects[(*list)[k]];
         d = min(d, object_distance(o, relative, settings.camera_tile, settings.camera_offset, atlas));
     }
     return d;
@@ -218,6 +282,8 @@ fn shadow_march(
     facing: ptr<function, array<f32, MAX_LAYERS>>,
     count: u32,
     cone: f32,
+    casters: ptr<function, array<u32, MAX_SHADOW_CASTERS>>,
+    caster_count: u32,
 ) -> array<f32, MAX_LAYERS> {
     var out = array<f32, MAX_LAYERS>(1.0, 1.0, 1.0, 1.0);
     if settings.shadow_steps == 0u || settings.object_count == 0u {
@@ -234,7 +300,7 @@ fn shadow_march(
         if j >= count || v <= 0.0 {
             break;
         }
-        let d = scene_distance(origin + dir * t);
+        let d = scene_distance(origin + dir * t, casters, caster_count);
         // Only surfaces surely in front of the next billboard's plane occlude it.
         if d < ((*hits)[j].t - t) * (*facing)[j] {
             v = min(v, clamp(d / (cone * t), 0.0, 1.0));
