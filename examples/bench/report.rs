@@ -215,7 +215,7 @@ pub fn json(meta: &Meta, results: &[RunResult]) -> Value {
                 "penumbra_source": c.penumbra.1,
                 "bevy_ms": c.bevy.0,
                 "bevy_source": c.bevy.1,
-                "ratio": c.penumbra.0 / c.bevy.0,
+                "ratio": (c.penumbra.0 > 0.0 && c.bevy.0 > 0.0).then(|| c.penumbra.0 / c.bevy.0),
                 "errors": c.errors,
             })
         })
@@ -327,9 +327,15 @@ pub fn markdown(meta: &Meta, results: &[RunResult]) -> String {
         );
         let _ = writeln!(md, "|---|---|---|---|---|---|---|");
         for c in comparisons {
+            // A difference of frame times at or under zero is noise: no ratio.
+            let ratio = if c.penumbra.0 > 0.0 && c.bevy.0 > 0.0 {
+                format!("{:.2}", c.penumbra.0 / c.bevy.0)
+            } else {
+                "– (noise)".into()
+            };
             let _ = writeln!(
                 md,
-                "| {} | {}×{} | {} | {:.3} ({}) | {:.3} ({}) | {:.2} | {} |",
+                "| {} | {}×{} | {} | {:.3} ({}) | {:.3} ({}) | {} | {} |",
                 c.scene.name(),
                 c.size.x,
                 c.size.y,
@@ -338,7 +344,7 @@ pub fn markdown(meta: &Meta, results: &[RunResult]) -> String {
                 c.penumbra.1,
                 c.bevy.0,
                 c.bevy.1,
-                c.penumbra.0 / c.bevy.0,
+                ratio,
                 c.errors
             );
         }

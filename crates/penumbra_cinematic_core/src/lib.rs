@@ -10,9 +10,11 @@
 //! - [`tessellation`]: compute tessellation — the per-mesh preprocessing (12-index
 //!   patches, dominant vertices), the factors, PN-AEN and displacement, and a CPU
 //!   reference tessellator.
+//! - [`dispatch`]: compute dispatches past 65,535 workgroups (two-dimensional).
 //! - [`hair`]: hair strips (started) — a strip's 4× MSAA coverage with an alpha test per
 //!   sample, and its exact area.
 
+pub mod dispatch;
 pub mod dof;
 pub mod hair;
 pub mod reflections;

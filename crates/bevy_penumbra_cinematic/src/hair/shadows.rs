@@ -265,8 +265,8 @@ pub struct GpuHairShadows {
     uniforms: (Vec<u8>, Vec<u8>),
     /// The bind group and the ids of what it binds.
     group: Option<(BindGroup, BoundIds)>,
-    /// This frame's workgroups (0: not traced).
-    dispatch: u32,
+    /// This frame's workgroups, two-dimensional past 65,535 (0: not traced).
+    dispatch: [u32; 3],
     /// What the visibilities in its buffer were last traced from: the scene's
     /// [`DistanceFieldGpu::generation`] and the points' and visibilities' assets. With
     /// the uniforms, header and bind group unchanged too, the trace is skipped.
@@ -399,7 +399,7 @@ fn prepare_hair_shadows(
                 header: Vec::new(),
                 uniforms: (Vec::new(), Vec::new()),
                 group: None,
-                dispatch: 0,
+                dispatch: [0; 3],
                 traced: None,
             }),
         };
@@ -430,7 +430,7 @@ fn prepare_hair_shadows(
             gpu.header = header;
             changed = true;
         }
-        gpu.dispatch = 0;
+        gpu.dispatch = [0; 3];
         if let (true, Some(origin), Some((objects, atlas, slot_count, generation))) =
             (traced, origin, scene)
         {
@@ -495,7 +495,8 @@ fn prepare_hair_shadows(
             // still hair reads last frame's visibilities.
             let key = (generation, hair.points, hair.shadows);
             if !reaching.is_empty() && (changed || gpu.traced != Some(key)) {
-                gpu.dispatch = hair.point_count.div_ceil(64);
+                gpu.dispatch =
+                    penumbra_cinematic_core::dispatch::workgroups_2d(hair.point_count, 64);
                 gpu.traced = Some(key);
             }
         }
@@ -516,7 +517,7 @@ fn trace_hair_shadows(
     let Some(pipeline) = pipeline else {
         return;
     };
-    if hairs.iter().all(|h| h.dispatch == 0) {
+    if hairs.iter().all(|h| h.dispatch[0] == 0) {
         return;
     }
     let Some(trace) = pipeline_cache.get_compute_pipeline(pipeline.trace) else {
@@ -536,11 +537,12 @@ fn trace_hair_shadows(
         let Some((group, _)) = &hair.group else {
             continue;
         };
-        if hair.dispatch == 0 {
+        if hair.dispatch[0] == 0 {
             continue;
         }
         pass.set_bind_group(0, group, &[]);
-        pass.dispatch_workgroups(hair.dispatch, 1, 1);
+        let [x, y, z] = hair.dispatch;
+        pass.dispatch_workgroups(x, y, z);
         traces.0 += 1;
     }
     drop(pass);

@@ -361,7 +361,8 @@ fn tessellate(
             });
         pass.set_bind_group(0, group, &[]);
         pass.set_pipeline(factors);
-        pass.dispatch_workgroups(patch_count.div_ceil(64), 1, 1);
+        let [x, y, z] = penumbra_cinematic_core::dispatch::workgroups_2d(*patch_count, 64);
+        pass.dispatch_workgroups(x, y, z);
         pass.set_pipeline(allocate);
         pass.dispatch_workgroups(1, 1, 1);
         debug_assert_eq!(ALLOCATE_THREADS, 256);

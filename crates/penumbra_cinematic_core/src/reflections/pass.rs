@@ -358,24 +358,36 @@ fn cull_slack(reach: f32) -> f32 {
     reach * 1e-4 + 1e-4
 }
 
-/// The objects a pixel's reflection-shadow march may see (`reflections/trace.wgsl`'s
-/// `gather_casters`): those whose bounding sphere comes within `cone · t_end` of the
-/// segment from `origin` to `origin + t_end · dir` — beyond it an object's distance is at
-/// least the cone's radius `cone · t` at every step, so it never dims a hit. `None`: more
-/// than [`MAX_SHADOW_CASTERS`] (or an unbounded one past the cap): march them all.
+/// The march's ray is split into this many equal segments, each with the objects near
+/// it ([`shadow_casters`]): a long ray across a crowded scene keeps few per segment.
+pub const SHADOW_SEGMENTS: usize = 4;
+
+/// Where each of the [`SHADOW_SEGMENTS`] segments of a march to `t_end` ends: `t_end ·
+/// (k + 1) / 4` (exact in `f32`: the shader computes the same bits).
+pub fn segment_ends(t_end: f32) -> [f32; SHADOW_SEGMENTS] {
+    std::array::from_fn(|k| t_end * (0.25 * (k + 1) as f32))
+}
+
+/// The objects a pixel's reflection-shadow march may see between `t0` and `t1` along
+/// its ray (`reflections/trace.wgsl`'s `gather_casters`): those whose bounding sphere
+/// comes within `cone · t1` of that segment — farther, an object's distance is at least
+/// the cone's radius `cone · t` at every step there, so it never dims a hit. `None`: more
+/// than [`MAX_SHADOW_CASTERS`]: march them all there.
 pub fn shadow_casters(
     spheres: &[Option<(Vec3, f32)>],
     origin: Vec3,
     dir: Vec3,
-    t_end: f32,
+    t0: f32,
+    t1: f32,
     cone: f32,
 ) -> Option<Vec<usize>> {
-    let end = origin + dir * t_end;
+    let start = origin + dir * t0;
+    let end = origin + dir * t1;
     let mut kept = Vec::new();
     for (i, sphere) in spheres.iter().enumerate() {
         let keep = sphere.is_none_or(|(center, radius)| {
-            let reach = radius + cone * t_end;
-            segment_distance(center, origin, end) < reach + cull_slack(reach)
+            let reach = radius + cone * t1;
+            segment_distance(center, start, end) < reach + cull_slack(reach)
         });
         if keep {
             if kept.len() == MAX_SHADOW_CASTERS {
@@ -443,32 +455,29 @@ pub fn reflect_pixel_shadowed<F: Fn(usize, Vec3) -> f32>(
         })
         .collect();
     let cone = (lobe.major.length() * settings.shadow_cone).max(settings.shadow_softness);
-    let t_end = targets.last().map_or(0.0, |h| h.t);
-    let kept = if targets.is_empty() || settings.shadow_steps == 0 {
-        Some(Vec::new())
-    } else {
-        shadow_casters(casters.spheres, s.position, lobe.dir, t_end, cone)
-    };
-    let all: Vec<usize>;
-    let marched: &[usize] = match &kept {
-        Some(kept) => kept,
-        None => {
-            all = (0..casters.spheres.len()).collect();
-            &all
+    let ends = segment_ends(targets.last().map_or(0.0, |h| h.t));
+    // Each segment's objects, gathered when the march first reaches it.
+    let mut gathered: [Option<Option<Vec<usize>>>; SHADOW_SEGMENTS] = Default::default();
+    let scene_distance = |k: usize, p: Vec3| {
+        let kept = gathered[k].get_or_insert_with(|| {
+            let t0 = if k == 0 { 0.0 } else { ends[k - 1] };
+            shadow_casters(casters.spheres, s.position, lobe.dir, t0, ends[k], cone)
+        });
+        let distance = |i: usize| (casters.distance)(i, p);
+        match kept {
+            Some(kept) => kept.iter().map(|&i| distance(i)).fold(f32::MAX, f32::min),
+            None => (0..casters.spheres.len())
+                .map(distance)
+                .fold(f32::MAX, f32::min),
         }
     };
-    let scene_distance = |p: Vec3| {
-        marched
-            .iter()
-            .map(|&i| (casters.distance)(i, p))
-            .fold(f32::MAX, f32::min)
-    };
-    let visibility = shadow_march(
+    let visibility = march_segments(
         s.position,
         lobe.dir,
         &targets,
         cone,
         settings,
+        &ends,
         scene_distance,
     );
     let (mut colour, mut transmittance) = (Vec3::ZERO, 1.0f32);
@@ -509,12 +518,37 @@ pub fn shadow_march(
     settings: &ReflectionUniform,
     scene_distance: impl Fn(Vec3) -> f32,
 ) -> [f32; super::MAX_LAYERS] {
+    march_segments(
+        origin,
+        dir,
+        hits,
+        cone,
+        settings,
+        &[f32::INFINITY],
+        |_, p| scene_distance(p),
+    )
+}
+
+/// [`shadow_march`] with the ray in segments ending at `ends` (ascending; the last one
+/// past the last hit): the distance at a step is `scene_distance(k, p)` in segment `k`,
+/// and a step that would cross a segment's end stops on it, so the next segment's
+/// objects are seen from its start (`reflections/trace.wgsl`'s `shadow_march`).
+pub fn march_segments(
+    origin: Vec3,
+    dir: Vec3,
+    hits: &[ShadowTarget],
+    cone: f32,
+    settings: &ReflectionUniform,
+    ends: &[f32],
+    mut scene_distance: impl FnMut(usize, Vec3) -> f32,
+) -> [f32; super::MAX_LAYERS] {
     let mut out = [1.0f32; super::MAX_LAYERS];
-    if settings.shadow_steps == 0 || settings.object_count == 0 {
+    if settings.shadow_steps == 0 || settings.object_count == 0 || ends.is_empty() {
         return out;
     }
-    let (mut t, mut v, mut j) = (settings.shadow_bias, 1.0f32, 0usize);
+    let (mut t, mut v, mut j, mut k) = (settings.shadow_bias, 1.0f32, 0usize, 0usize);
     let n = hits.len().min(super::MAX_LAYERS);
+    let last = ends.len() - 1;
     for _ in 0..settings.shadow_steps {
         while j < n && t >= hits[j].t {
             out[j] = v;
@@ -523,11 +557,19 @@ pub fn shadow_march(
         if j >= n || v <= 0.0 {
             break;
         }
-        let d = scene_distance(origin + dir * t);
+        while k < last && t >= ends[k] {
+            k += 1;
+        }
+        let d = scene_distance(k, origin + dir * t);
         if d < (hits[j].t - t) * hits[j].facing {
             v = v.min((d / (cone * t)).clamp(0.0, 1.0));
         }
-        t += d.max(MIN_SHADOW_STEP);
+        let next = t + d.max(MIN_SHADOW_STEP);
+        t = if k < last && next > ends[k] {
+            ends[k]
+        } else {
+            next
+        };
     }
     for slot in out.iter_mut().take(n).skip(j) {
         *slot = v;
@@ -761,10 +803,11 @@ mod tests {
         reflect_pixel_shadowed(&s, &[gpu], &images, &settings, &near);
         assert!(evaluations.get() >= 40, "{}", evaluations.get());
         assert_eq!(
-            shadow_casters(&spheres, Vec3::ZERO, Vec3::Z, 1.0, 0.0),
+            shadow_casters(&spheres, Vec3::ZERO, Vec3::Z, 0.0, 1.0, 0.0),
             Some(vec![0]),
             "beside the ray"
         );
+        assert_eq!(segment_ends(2.0), [0.5, 1.0, 1.5, 2.0]);
     }
 
     /// A wall across the ray hides the hits behind it, not those before it; beside the

@@ -60,9 +60,14 @@ fn point_visibility(p: vec3<f32>, light: ShadowLight) -> f32 {
     return finish_visibility(v, light.shaping);
 }
 
+// Dispatched in rows of at most 65,535 groups (`penumbra_cinematic_core::dispatch`).
 @compute @workgroup_size(64)
-fn hair_df_visibility(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
+fn hair_df_visibility(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) local: u32,
+) {
+    let i = (group.y * groups.x + group.x) * 64u + local;
     if i >= params.point_count {
         return;
     }

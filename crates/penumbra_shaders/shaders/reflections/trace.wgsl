@@ -17,9 +17,11 @@
 #import penumbra::df::distance::object_distance
 #import penumbra::df::shadow::bounding_sphere
 
-// Most objects one pixel's reflection-shadow march keeps after its cull; more: it
-// marches them all (`pass::MAX_SHADOW_CASTERS`).
+// Most objects one segment of a pixel's reflection-shadow march keeps after its cull;
+// more: it marches them all there (`pass::MAX_SHADOW_CASTERS`).
 const MAX_SHADOW_CASTERS: u32 = 32u;
+// Segments of the march, each with its own objects (`pass::SHADOW_SEGMENTS`).
+const SHADOW_SEGMENTS: u32 = 4u;
 
 struct FootprintHit {
     t: f32,
@@ -185,12 +187,7 @@ fn reflect_billboards(trace_pixel: vec2<u32>, origin: vec3<f32>, lobe: Lobe) -> 
         let b = billboards[hits[j].index];
         facing[j] = abs(dot(lobe.dir, normalize(cross(b.half_x, b.half_y))));
     }
-    var casters: array<u32, MAX_SHADOW_CASTERS>;
-    var caster_count = 0u;
-    if count > 0u && settings.shadow_steps > 0u {
-        caster_count = gather_casters(origin, lobe.dir, hits[count - 1u].t, cone, &casters);
-    }
-    let visibility = shadow_march(origin, lobe.dir, &hits, &facing, count, cone, &casters, caster_count);
+    let visibility = shadow_march(origin, lobe.dir, &hits, &facing, count, cone);
     var colour = vec3(0.0);
     var transmittance = 1.0;
     for (var j = 0u; j < count; j += 1u) {
@@ -208,19 +205,20 @@ fn casts(o: u32) -> bool {
     return (objects[o].flags & needed) == needed;
 }
 
-// The live shadow-casting objects whose bounding sphere comes within `cone · t_end` of
-// the ray's segment up to its last hit (`pass::shadow_casters`): beyond, an object never
-// dims a hit. Returns how many (in `list`), or MAX_SHADOW_CASTERS + 1: march them all.
+// The live shadow-casting objects whose bounding sphere comes within `cone · t1` of the
+// ray between `t0` and `t1` (`pass::shadow_casters`): farther, an object never dims a
+// hit there. Returns how many (in `list`), or MAX_SHADOW_CASTERS + 1: march them all.
 fn gather_casters(
     origin: vec3<f32>,
     dir: vec3<f32>,
-    t_end: f32,
+    t0: f32,
+    t1: f32,
     cone: f32,
     list: ptr<function, array<u32, MAX_SHADOW_CASTERS>>,
 ) -> u32 {
     let camera = vec3<f32>(settings.camera_tile) * TILE_SIZE + settings.camera_offset;
-    let a = origin - camera;
-    let ab = dir * t_end;
+    let a = (origin + dir * t0) - camera;
+    let ab = (origin + dir * t1) - (origin + dir * t0);
     let l2 = dot(ab, ab);
     var n = 0u;
     for (var i = 0u; i < settings.object_count; i += 1u) {
@@ -229,7 +227,7 @@ fn gather_casters(
         }
         let sphere = bounding_sphere(objects[i], settings.camera_tile, settings.camera_offset);
         if sphere.w >= 0.0 {
-            let reach = sphere.w + cone * t_end;
+            let reach = sphere.w + cone * t1;
             var h = 0.0;
             if l2 > 0.0 {
                 h = clamp(dot(sphere.xyz - a, ab) / l2, 0.0, 1.0);
@@ -272,6 +270,11 @@ fn scene_distance(
     return d;
 }
 
+// Where segment `k` of a march to `t_end` ends (`pass::segment_ends`: exact).
+fn segment_end(t_end: f32, k: u32) -> f32 {
+    return t_end * (0.25 * f32(k + 1u));
+}
+
 // Reflection shadows: each hit's visibility from one soft march along the ray, counting
 // only surfaces in front of the next billboard's plane
 // (`penumbra_cinematic_core::reflections::pass::shadow_march`).
@@ -282,13 +285,18 @@ fn shadow_march(
     facing: ptr<function, array<f32, MAX_LAYERS>>,
     count: u32,
     cone: f32,
-    casters: ptr<function, array<u32, MAX_SHADOW_CASTERS>>,
-    caster_count: u32,
 ) -> array<f32, MAX_LAYERS> {
     var out = array<f32, MAX_LAYERS>(1.0, 1.0, 1.0, 1.0);
-    if settings.shadow_steps == 0u || settings.object_count == 0u {
+    if settings.shadow_steps == 0u || settings.object_count == 0u || count == 0u {
         return out;
     }
+    // The ray to the last hit in SHADOW_SEGMENTS equal parts, each marched through the
+    // objects near it, gathered when the march reaches it (`pass::march_segments`).
+    let t_end = (*hits)[count - 1u].t;
+    var casters: array<u32, MAX_SHADOW_CASTERS>;
+    var caster_count = 0u;
+    var gathered = SHADOW_SEGMENTS;
+    var k = 0u;
     var t = settings.shadow_bias;
     var v = 1.0;
     var j = 0u;
@@ -300,12 +308,30 @@ fn shadow_march(
         if j >= count || v <= 0.0 {
             break;
         }
-        let d = scene_distance(origin + dir * t, casters, caster_count);
+        while k + 1u < SHADOW_SEGMENTS && t >= segment_end(t_end, k) {
+            k += 1u;
+        }
+        if gathered != k {
+            var t0 = 0.0;
+            if k > 0u {
+                t0 = segment_end(t_end, k - 1u);
+            }
+            caster_count = gather_casters(origin, dir, t0, segment_end(t_end, k), cone, &casters);
+            gathered = k;
+        }
+        let d = scene_distance(origin + dir * t, &casters, caster_count);
         // Only surfaces surely in front of the next billboard's plane occlude it.
         if d < ((*hits)[j].t - t) * (*facing)[j] {
             v = min(v, clamp(d / (cone * t), 0.0, 1.0));
         }
-        t += max(d, MIN_SHADOW_STEP);
+        let next = t + max(d, MIN_SHADOW_STEP);
+        // A step stops at its segment's end: the next segment's objects are seen from
+        // its start.
+        if k + 1u < SHADOW_SEGMENTS && next > segment_end(t_end, k) {
+            t = segment_end(t_end, k);
+        } else {
+            t = next;
+        }
     }
     for (; j < count; j += 1u) {
         out[j] = v;

@@ -57,9 +57,14 @@ fn canonical_endpoints(p: u32, e: u32) -> array<vec3<f32>, 2> {
     return array(vertices[da].position, vertices[db].position);
 }
 
+// Dispatched in rows of at most 65,535 groups (`penumbra_cinematic_core::dispatch`).
 @compute @workgroup_size(64)
-fn factors(@builtin(global_invocation_id) id: vec3<u32>) {
-    let p = id.x;
+fn factors(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) local: u32,
+) {
+    let p = (group.y * groups.x + group.x) * 64u + local;
     if p >= u.patch_count {
         return;
     }
