@@ -358,56 +358,10 @@ pub fn screenshot(
     render: &penumbra_test::HeadlessRender,
     path: &std::path::Path,
 ) -> Result<(), String> {
-    use bevy::prelude::*;
-    use bevy::render::gpu_readback::{Readback, ReadbackComplete};
-    use std::sync::{Arc, Mutex};
-    let handle = app
-        .world()
-        .resource::<penumbra_test::harness::HarnessTarget>()
-        .0
-        .clone();
-    let slot: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
-    let sink = slot.clone();
-    let reader = app
-        .world_mut()
-        .spawn(Readback::texture(handle))
-        .observe(move |event: On<ReadbackComplete>| {
-            sink.lock()
-                .expect("not poisoned")
-                .get_or_insert_with(|| event.data.clone());
-        })
-        .id();
-    for _ in 0..30 {
-        app.update();
-        if slot.lock().expect("not poisoned").is_some() {
-            break;
-        }
-    }
-    app.world_mut().despawn(reader);
-    let data = slot
-        .lock()
-        .expect("not poisoned")
-        .take()
-        .ok_or("the screenshot did not arrive in 30 frames")?;
-    let (w, h) = (render.width as usize, render.height as usize);
-    let padded = (w * 4).div_ceil(256) * 256;
-    let bytes: Vec<u8> = data
-        .chunks_exact(padded)
-        .take(h)
-        .flat_map(|row| &row[..w * 4])
-        .copied()
-        .collect();
-    if bytes.len() < w * h * 4 {
-        return Err("short read-back".into());
-    }
-    penumbra_test::Capture {
-        width: w as u32,
-        height: h as u32,
-        format: render.format,
-        bytes,
-        frame_times: Vec::new(),
-    }
-    .to_rgba8()
-    .save(path)
-    .map_err(|e| format!("{}: {e}", path.display()))
+    render
+        .read_target(app)
+        .map_err(|e| e.to_string())?
+        .to_rgba8()
+        .save(path)
+        .map_err(|e| format!("{}: {e}", path.display()))
 }

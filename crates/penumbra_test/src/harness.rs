@@ -372,6 +372,14 @@ impl HeadlessRender {
             })
             .collect();
 
+        let mut capture = self.read_target(&mut app)?;
+        capture.frame_times = frame_times;
+        Ok((capture, app))
+    }
+
+    /// Reads the [`HarnessTarget`] of a running harness app back (updating it until the
+    /// read-back arrives, at most 30 frames).
+    pub fn read_target(&self, app: &mut App) -> Result<Capture, HarnessError> {
         let handle = app.world().resource::<HarnessTarget>().0.clone();
         let slot: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
         let sink = slot.clone();
@@ -399,9 +407,7 @@ impl HeadlessRender {
             .ok_or(HarnessError::ReadbackTimeout {
                 frames: MAX_WAIT_FRAMES,
             })?;
-        let mut capture = self.unpad(data)?;
-        capture.frame_times = frame_times;
-        Ok((capture, app))
+        self.unpad(data)
     }
 
     /// Removes wgpu's 256-byte row alignment from a texture readback.
