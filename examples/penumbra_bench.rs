@@ -305,3 +305,20 @@ fn run_one(
         setup_frames,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::parse_size;
+    use bevy::math::UVec2;
+
+    #[test]
+    fn sizes_by_name_or_wxh() {
+        assert_eq!(parse_size("1080p"), Ok(UVec2::new(1920, 1080)));
+        assert_eq!(parse_size("4k"), Ok(UVec2::new(3840, 2160)));
+        assert_eq!(parse_size("tiny"), Ok(UVec2::new(160, 90)));
+        assert_eq!(parse_size("640x360"), Ok(UVec2::new(640, 360)));
+        for bad in ["0x10", "10x0", "9000x10", "12", "axb", ""] {
+            assert!(parse_size(bad).is_err(), "{bad}");
+        }
+    }
+}

@@ -2,13 +2,13 @@
 //!
 //! - **GPU time per pass**: Bevy's render diagnostics (`RenderDiagnosticsPlugin`: GPU
 //!   timestamp queries around every pass that records a span, Bevy's and Penumbra's).
-//!   Spans of one name closed several times in a frame (Bevy's `shadows`, once per
-//!   light view) are summed per frame.
-//! - **The frame's GPU time**: two timestamps of the benchmark's own, written before
-//!   the render graph's first system and after its last pass, so uninstrumented work
-//!   (Bevy's depth of field, its deferred lighting, copies) counts too. (Bevy's spans
-//!   cannot hold it: they nest per thread, and the render graph's systems run on
-//!   several.)
+//!   Spans of one name closed several times in a frame (Bevy's mesh preprocessing, once
+//!   per view) are summed per frame.
+//! - **The frame's GPU time**: two timestamps of the benchmark's own, submitted before
+//!   and after Bevy's `render_system` (which runs the render graph), so uninstrumented
+//!   work (Bevy's shadow maps, depth of field, deferred lighting, copies) counts too.
+//!   (Bevy's spans cannot hold it: they nest per thread, and the render graph's systems
+//!   run on several.)
 //! - **CPU time**: the wall time of each `App::update` (main world and, pipelined, the
 //!   render world of the previous frame), and the CPU time Bevy's diagnostics record
 //!   for encoding each pass (`elapsed_cpu`).
