@@ -13,8 +13,8 @@
 //! and taps along its long axis, which grows toward grazing angles (the streaks of wet
 //! streets) and with [`BillboardReflections::anisotropy`] — and composited front to back
 //! (premultiplied alpha), each dimmed by its reflection shadow — a soft march along the
-//! mirror ray through the distance-field scene, as Samaritan's reflection shadows ray-cast
-//! the distance field. The result is the view's specular layer
+//! mirror ray through the distance-field scene (each quarter of the ray through the
+//! objects near it), as Samaritan's reflection shadows ray-cast the distance field. The result is the view's specular layer
 //! (`bevy_penumbra_df::lighting::PenumbraSpecularLayer`): Penumbra's lighting pass adds
 //! it under Bevy's environment BRDF and lets it cover the environment map's specular by
 //! its coverage, so energy is not added twice. The model, shared arithmetic and its
@@ -134,10 +134,11 @@ pub struct BillboardReflections {
     /// Reflection shadows: each hit dimmed by a soft march along the mirror ray through
     /// the distance-field scene's shadow-casting objects (`DistanceFieldCaster`s), so a
     /// building between a sign and the street hides its reflection. Default true. Cost:
-    /// per reflecting pixel, one bounding-sphere test per object (the pixel's cull: the
-    /// objects within the shadow cone of its ray, at most 32; more, and it marches them
-    /// all), then up to `shadow_steps` distance evaluations of each kept object; nothing
-    /// while the scene has no caster.
+    /// per reflecting pixel, the ray to its last hit in 4 segments, each reached by the
+    /// march culled once (a bounding-sphere test per object; it keeps the objects within
+    /// the shadow cone of that segment, at most 32, else it marches them all there), then
+    /// up to `shadow_steps` distance evaluations of the kept objects; nothing while the
+    /// scene has no caster.
     pub reflection_shadows: bool,
     /// The march's steps, `1..=256`. Default 32.
     pub shadow_steps: u32,

@@ -41,7 +41,8 @@ const SPLIT_FORMAT: TextureFormat = TextureFormat::Rgba16Float;
 #[derive(Resource, Default)]
 pub(super) struct ScatteringMeshes {
     meshes: HashSet<Entity>,
-    /// Meshes the last run examined (a full scan: every `StandardMaterial` mesh).
+    /// Meshes the last run examined: all on a full scan, else the changed handles' and
+    /// the meshes of materials with an asset event.
     examined: usize,
 }
 
