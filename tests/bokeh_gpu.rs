@@ -23,6 +23,7 @@
 
 use bevy::math::{Mat4, UVec2, Vec2, Vec3, Vec4};
 use penumbra_cinematic_core::dof::{BokehView, Lens, SpriteRule};
+use penumbra_cinematic_core::scan::ScanPlan;
 use penumbra_reference::bokeh::{
     Aperture, BokehImage, Layers, Sprite, composite, downsample, scatter_sprites, sprites,
 };
@@ -173,8 +174,6 @@ fn run(
         wgpu::BufferUsages::empty(),
     );
     let slots = gpu.zeroed("slots", slot_bytes, wgpu::BufferUsages::empty());
-    let list = gpu.zeroed("sprites", slot_bytes, wgpu::BufferUsages::empty());
-    let args = gpu.zeroed("args", 16, wgpu::BufferUsages::INDIRECT);
     let pipeline = gpu.pipeline(
         &flatten("#import penumbra::dof::sprites\n").expect("flattens"),
         "sprites_main",
@@ -200,40 +199,23 @@ fn run(
         &bind,
         [blocks.x.div_ceil(8), blocks.y.div_ceil(8), 1],
     );
-    // The compaction: the scan, then the copy.
-    let compact = flatten("#import penumbra::dof::compact\n").expect("flattens");
-    let scan = gpu.pipeline(&compact, "scan_main");
-    let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("bokeh_scan"),
-        layout: &scan.get_bind_group_layout(0),
-        entries: &[
-            entry(0, uniform.as_entire_binding()),
-            entry(1, block_counts.as_entire_binding()),
-            entry(4, args.as_entire_binding()),
-        ],
-    });
-    gpu.dispatch(&scan, &bind, [1, 1, 1]);
-    let copy = gpu.pipeline(&compact, "compact_main");
-    let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("bokeh_compact"),
-        layout: &copy.get_bind_group_layout(0),
-        entries: &[
-            entry(0, uniform.as_entire_binding()),
-            entry(1, block_counts.as_entire_binding()),
-            entry(2, slots.as_entire_binding()),
-            entry(3, list.as_entire_binding()),
-        ],
-    });
-    gpu.dispatch(&copy, &bind, [(blocks.x * blocks.y).div_ceil(64), 1, 1]);
+    let list = compact_on_gpu(
+        gpu,
+        &uniform,
+        &block_counts,
+        &slots,
+        blocks.x * blocks.y,
+        capacity,
+    );
     let words = |bytes: Vec<u8>| -> Vec<u32> {
         bytes
             .chunks_exact(4)
             .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
             .collect()
     };
-    let a = words(gpu.read(&args, 16));
+    let a = words(gpu.read(&list.args, 16));
     assert_eq!((a[0], a[2], a[3]), (6, 0, 0), "the draw's other arguments");
-    let s = words(gpu.read(&list, slot_bytes));
+    let s = words(gpu.read(&list.sprites, slot_bytes));
     let f = |w: u32| f32::from_bits(w);
     GpuSprites {
         count: a[1],
@@ -250,6 +232,69 @@ fn run(
             })
             .collect(),
     }
+}
+
+/// The compacted list and its draw's arguments.
+struct CompactedList {
+    sprites: wgpu::Buffer,
+    args: wgpu::Buffer,
+}
+
+/// `dof/compact.wgsl`'s three passes, dispatched as the plugin does
+/// (`penumbra_cinematic_core::scan::ScanPlan`).
+fn compact_on_gpu(
+    gpu: &GpuCompute,
+    uniform: &wgpu::Buffer,
+    block_counts: &wgpu::Buffer,
+    slots: &wgpu::Buffer,
+    blocks: u32,
+    capacity: u32,
+) -> CompactedList {
+    let plan = ScanPlan::new(blocks);
+    let list = CompactedList {
+        sprites: gpu.zeroed(
+            "sprites",
+            u64::from(capacity.max(1)) * 32,
+            wgpu::BufferUsages::empty(),
+        ),
+        args: gpu.zeroed("args", 16, wgpu::BufferUsages::INDIRECT),
+    };
+    let group_sums = gpu.zeroed(
+        "group_sums",
+        u64::from(plan.group_sums_len()) * 4,
+        wgpu::BufferUsages::empty(),
+    );
+    let source = flatten("#import penumbra::dof::compact\n").expect("flattens");
+    let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
+    let passes = [
+        ("reduce_main", plan.workgroups()[0]),
+        ("scan_groups_main", plan.workgroups()[1]),
+        ("compact_main", plan.workgroups()[2]),
+    ];
+    for (name, groups) in passes {
+        let pipeline = gpu.pipeline(&source, name);
+        let mut entries = vec![
+            entry(0, uniform.as_entire_binding()),
+            entry(5, group_sums.as_entire_binding()),
+        ];
+        if name != "scan_groups_main" {
+            entries.push(entry(1, block_counts.as_entire_binding()));
+        }
+        if name == "scan_groups_main" {
+            entries.push(entry(4, list.args.as_entire_binding()));
+        }
+        if name == "compact_main" {
+            entries.push(entry(2, slots.as_entire_binding()));
+            entries.push(entry(3, list.sprites.as_entire_binding()));
+        }
+        let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(name),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        gpu.dispatch(&pipeline, &bind, [groups, 1, 1]);
+    }
+    list
 }
 
 /// `v` (an f16 value, normal or zero) as f16 bits.
@@ -343,6 +388,81 @@ fn sprite_pass_matches_the_model() {
             assert_eq!(g.weight, 0.0, "{i}: past the stored blocks");
         }
     }
+}
+
+/// The compaction over many workgroups (a 1000 × 600 half-resolution view: 150,000
+/// blocks, 147 groups of 1,024): the list is the slots' live sprites in slot order, with
+/// no gap and none lost, and the count is theirs — as a sequential scan lists them.
+/// Random occupancy, runs of empty blocks across group boundaries.
+#[test]
+fn compaction_over_many_workgroups_keeps_slot_order() {
+    if !gpu_or_skip("compaction_over_many_workgroups_keeps_slot_order") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let half = UVec2::new(1000, 600);
+    let blocks = (half.x / 2) * (half.y / 2);
+    let capacity = 4 * blocks;
+    let plan = ScanPlan::new(blocks);
+    assert!(plan.groups > 100, "{plan:?}");
+    let mut seed = 0x2545_f491u32;
+    let mut next = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 17;
+        seed ^= seed << 5;
+        seed
+    };
+    let mut slot_words = vec![0f32; 8 * capacity as usize];
+    let mut counts = vec![0u32; blocks as usize];
+    let mut want = Vec::new();
+    for b in 0..blocks {
+        // Every tenth stretch of 3,000 blocks is empty (crossing group boundaries).
+        let empty = (b / 3000) % 10 == 3;
+        for k in 0..4 {
+            let slot = 4 * b + k;
+            if !empty && next() % 3 == 0 {
+                let w = &mut slot_words[8 * slot as usize..8 * slot as usize + 8];
+                w[0] = slot as f32;
+                w[3] = 1.0 + (slot % 4) as f32;
+                counts[b as usize] += 1;
+                want.push(slot);
+            }
+        }
+    }
+    let full = half * 2;
+    let lens = lens();
+    let rule = SpriteRule::default();
+    let clip_from_view =
+        Mat4::perspective_infinite_reverse_rh(lens.fov_y, full.x as f32 / full.y as f32, NEAR);
+    let view = BokehView::new(&lens, &rule, clip_from_view.inverse(), full, capacity);
+    assert_eq!(view.half_size, half);
+    let uniform = gpu.buffer("view", &uniform_bytes(&view), wgpu::BufferUsages::UNIFORM);
+    let bytes = |w: &[u32]| w.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>();
+    let block_counts = gpu.buffer("block_counts", &bytes(&counts), wgpu::BufferUsages::empty());
+    let slot_bits: Vec<u32> = slot_words.iter().map(|f| f.to_bits()).collect();
+    let slots = gpu.buffer("slots", &bytes(&slot_bits), wgpu::BufferUsages::empty());
+    let list = compact_on_gpu(&gpu, &uniform, &block_counts, &slots, blocks, capacity);
+    let words = |b: Vec<u8>| -> Vec<u32> {
+        b.chunks_exact(4)
+            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect()
+    };
+    let args = words(gpu.read(&list.args, 16));
+    eprintln!(
+        "{} sprites in {blocks} blocks, {} groups: {} listed",
+        want.len(),
+        plan.groups,
+        args[1]
+    );
+    assert_eq!(args[1] as usize, want.len(), "the draw's count");
+    let listed = words(gpu.read(&list.sprites, u64::from(capacity) * 32));
+    let got: Vec<u32> = (0..want.len())
+        .map(|i| f32::from_bits(listed[8 * i]) as u32)
+        .collect();
+    let first_wrong = got.iter().zip(&want).position(|(g, w)| g != w);
+    assert_eq!(first_wrong, None, "the first sprite out of slot order");
+    // Nothing past the list.
+    assert!(listed[8 * want.len()..].iter().all(|&w| w == 0));
 }
 
 /// The scatter pass's layers for `sprites` (`(Σ colour · v, Σ v)` per texel, f32).

@@ -11,6 +11,8 @@
 //!   patches, dominant vertices), the factors, PN-AEN and displacement, and a CPU
 //!   reference tessellator.
 //! - [`dispatch`]: compute dispatches past 65,535 workgroups (two-dimensional).
+//! - [`scan`]: prefix sums over many items in three passes of many workgroups (bokeh
+//!   compaction, tessellation allocation).
 //! - [`hair`]: hair strips (started) — a strip's 4× MSAA coverage with an alpha test per
 //!   sample, and its exact area.
 
@@ -18,5 +20,6 @@ pub mod dispatch;
 pub mod dof;
 pub mod hair;
 pub mod reflections;
+pub mod scan;
 pub mod sss;
 pub mod tessellation;

@@ -36,6 +36,7 @@ pub(super) struct BokehPipelines {
     pub(super) sprites_layout: [BindGroupLayoutDescriptor; 2],
     /// The compaction: counts, slots, list, draw arguments.
     pub(super) compact_layout: BindGroupLayoutDescriptor,
+    pub(super) reduce: CachedComputePipelineId,
     pub(super) scan: CachedComputePipelineId,
     pub(super) compact: CachedComputePipelineId,
     pub(super) scatter_layout: BindGroupLayoutDescriptor,
@@ -122,8 +123,9 @@ pub(super) fn init_bokeh_pipelines(
             ShaderStages::COMPUTE,
             (
                 uniform_buffer_sized(false, view_bytes),
-                storage_buffer_sized(false, None),
                 storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_sized(false, None),
                 storage_buffer_sized(false, None),
                 storage_buffer_sized(false, None),
             ),
@@ -139,7 +141,8 @@ pub(super) fn init_bokeh_pipelines(
             ..default()
         })
     };
-    let scan = compact_pipeline("penumbra_bokeh_scan", "scan_main");
+    let reduce = compact_pipeline("penumbra_bokeh_reduce", "reduce_main");
+    let scan = compact_pipeline("penumbra_bokeh_scan", "scan_groups_main");
     let compact = compact_pipeline("penumbra_bokeh_compact", "compact_main");
     let scatter_layout = BindGroupLayoutDescriptor::new(
         "penumbra_bokeh_scatter_layout",
@@ -212,6 +215,7 @@ pub(super) fn init_bokeh_pipelines(
         layer_format,
         sprites_layout,
         compact_layout,
+        reduce,
         scan,
         compact,
         scatter_layout,

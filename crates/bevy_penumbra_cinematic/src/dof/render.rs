@@ -25,6 +25,7 @@ use bevy::render::view::{ExtractedView, ViewDepthTexture, ViewTarget};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
 use bevy_penumbra_df::PenumbraGpuAllocations;
 use penumbra_cinematic_core::dof::{Aperture, BokehView, Lens, SpriteRule, sprite_slots};
+use penumbra_cinematic_core::scan::ScanPlan;
 use std::sync::Arc;
 
 /// Bytes per sprite slot (`penumbra::dof::types::Sprite`).
@@ -60,11 +61,13 @@ struct ApertureTexture {
 struct BokehApertureTextures(HashMap<u64, ApertureTexture>);
 
 /// A view's pooled buffers: the uniform; the sprite pass's slots and per-block counts;
-/// the compacted list and its draw's arguments.
+/// the scan's per-group sums; the compacted list and its draw's arguments.
 #[derive(Component)]
 pub struct ViewBokehBuffers {
     uniform: Buffer,
     block_counts: Buffer,
+    /// One per [`penumbra_cinematic_core::scan::GROUP_ITEMS`] blocks (`ScanPlan::group_sums_len`).
+    group_sums: Buffer,
     slots: Buffer,
     sprites: Buffer,
     args: Buffer,
@@ -217,6 +220,7 @@ fn prepare_bokeh_textures(
             allocations.sized_buffer(&device, label, bytes, BufferUsages::STORAGE | extra)
         };
         let sprite_bytes = |n: u32| u64::from(n.max(1)) * SPRITE_BYTES;
+        let group_sum_bytes = |blocks: u32| u64::from(ScanPlan::new(blocks).group_sums_len()) * 4;
         let mut fresh = None;
         let buffers = match buffers {
             Some(b) => b.into_inner(),
@@ -230,6 +234,11 @@ fn prepare_bokeh_textures(
                 block_counts: storage(
                     "penumbra_bokeh_block_counts",
                     u64::from(blocks.max(1)) * 4,
+                    BufferUsages::empty(),
+                ),
+                group_sums: storage(
+                    "penumbra_bokeh_group_sums",
+                    group_sum_bytes(blocks),
                     BufferUsages::empty(),
                 ),
                 slots: storage(
@@ -252,6 +261,11 @@ fn prepare_bokeh_textures(
             buffers.block_counts = storage(
                 "penumbra_bokeh_block_counts",
                 u64::from(blocks) * 4,
+                BufferUsages::empty(),
+            );
+            buffers.group_sums = storage(
+                "penumbra_bokeh_group_sums",
+                group_sum_bytes(blocks),
                 BufferUsages::empty(),
             );
             buffers.slots = storage(
@@ -439,6 +453,7 @@ fn prepare_bokeh_bind_groups(
                 buffers.slots.as_entire_binding(),
                 buffers.sprites.as_entire_binding(),
                 buffers.args.as_entire_binding(),
+                buffers.group_sums.as_entire_binding(),
             )),
         );
         let scatter = allocations.bind_group(
@@ -482,8 +497,9 @@ fn bokeh_depth_of_field(
         return;
     };
     // Until every pipeline has compiled the view is left as it is.
-    let (Some(sprites), Some(scan), Some(compact), Some(scatter), Some(composite)) = (
+    let (Some(sprites), Some(reduce), Some(scan), Some(compact), Some(scatter), Some(composite)) = (
         pipeline_cache.get_compute_pipeline(ids.sprites),
+        pipeline_cache.get_compute_pipeline(pipelines.reduce),
         pipeline_cache.get_compute_pipeline(pipelines.scan),
         pipeline_cache.get_compute_pipeline(pipelines.compact),
         pipeline_cache.get_render_pipeline(pipelines.scatter),
@@ -517,15 +533,13 @@ fn bokeh_depth_of_field(
         let blocks = (buffers.half_size + UVec2::ONE) / 2;
         pass.dispatch_workgroups(blocks.x.div_ceil(8), blocks.y.div_ceil(8), 1);
     }
-    // The list in block order: a scan of the blocks' counts, then the copy (each in its
-    // own pass: the next reads what the last wrote).
+    // The list in block order: a scan of the blocks' counts over many workgroups, the
+    // copy in its last pass (each in its own pass: the next reads what the last wrote).
+    let [reduce_groups, scan_groups, compact_groups] = ScanPlan::new(buffers.blocks).workgroups();
     for (label, pipeline, workgroups) in [
-        ("penumbra_bokeh_scan", scan, 1),
-        (
-            "penumbra_bokeh_compact",
-            compact,
-            buffers.blocks.div_ceil(64),
-        ),
+        ("penumbra_bokeh_reduce", reduce, reduce_groups),
+        ("penumbra_bokeh_scan", scan, scan_groups),
+        ("penumbra_bokeh_compact", compact, compact_groups),
     ] {
         let mut pass = ctx
             .command_encoder()
