@@ -27,9 +27,10 @@ use tessellation_scene::{camera, height_image, mesh_of};
 
 const SIZE: u32 = 96;
 
-/// The configuration under test.
+/// The configuration under test: mode, partitioning, the rock's segments and rings, the
+/// pool's most triangles.
 #[derive(Resource, Clone, Copy)]
-struct Config(TessellationMode, TessellationPartitioning);
+struct Config(TessellationMode, TessellationPartitioning, (u32, u32), u32);
 
 fn tessellated(map: Handle<Image>, config: Config) -> Tessellated {
     Tessellated {
@@ -39,6 +40,7 @@ fn tessellated(map: Handle<Image>, config: Config) -> Tessellated {
         displacement_scale: 0.15,
         mode: config.0,
         partitioning: config.1,
+        max_triangles: config.3,
         ..default()
     }
 }
@@ -60,7 +62,7 @@ fn scene(
     let map = images.add(height_image(64));
     let rock = commands
         .spawn((
-            Mesh3d(meshes.add(mesh_of(&rock(16, 6), true, true))),
+            Mesh3d(meshes.add(mesh_of(&rock(config.2.0, config.2.1), true, true))),
             MeshMaterial3d(materials.add(StandardMaterial::default())),
             tessellated(map, *config),
         ))
@@ -109,13 +111,26 @@ fn gpu_tessellation_is_the_reference() {
     if !gpu_or_skip("gpu_tessellation_is_the_reference") {
         return;
     }
+    let max = Tessellated::default().max_triangles;
     contract(Config(
         TessellationMode::PnAen,
         TessellationPartitioning::Integer,
+        (16, 6),
+        max,
     ));
     contract(Config(
         TessellationMode::Flat,
         TessellationPartitioning::Fractional,
+        (16, 6),
+        max,
+    ));
+    // Over 1,024 patches: the allocation's scan spans several workgroups; a pool so
+    // small that the factors are halved.
+    contract(Config(
+        TessellationMode::PnAen,
+        TessellationPartitioning::Fractional,
+        (64, 24),
+        6_000,
     ));
 }
 

@@ -10,9 +10,11 @@
 //! entity (`shaders/tessellation/tessellate.wgsl`, `RenderGraph` schedule, before the
 //! cameras): per-patch factors from each edge's bounding sphere projected to the
 //! screen (a long thin triangle's short edges stay coarse; an edge seen end-on is not
-//! under-tessellated); one workgroup that picks the least *bias* (all factors halved)
-//! whose output fits the entity's pool and places every patch's output by a prefix sum
-//! (the output's order is the patches', deterministic); one workgroup per patch writing
+//! under-tessellated); the allocation, a prefix sum over workgroups of 1,024 patches
+//! (`penumbra_cinematic_core::scan`) that picks the least *bias* (all factors halved)
+//! whose output fits the entity's pool and places every patch's output (the output's
+//! order is the patches', deterministic; if even the largest bias does not fit, the
+//! patches past the pool are dropped, in order); one workgroup per patch writing
 //! its vertices and triangles. The pool is then copied into the buffers Bevy's mesh
 //! allocator holds for the entity's output mesh. A patch is laid out as Direct3D 11's
 //! tessellator does with `fractional_odd` partitioning: each edge's own 1-D pattern

@@ -25,12 +25,14 @@ use bevy::render::storage::{GpuShaderBuffer, ShaderBuffer};
 use bevy::render::sync_component::SyncComponent;
 use bevy::render::{Render, RenderApp, RenderStartup, RenderSystems};
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
-use penumbra_cinematic_core::tessellation::uniform::{
-    ALLOCATE_THREADS, TOTALS_BYTES, TessellationUniform,
-};
+use penumbra_cinematic_core::scan::ScanPlan;
+use penumbra_cinematic_core::tessellation::uniform::{TOTALS_BYTES, TessellationUniform};
 
 /// Storage buffers the passes bind at once.
-const STORAGE_BUFFERS: u32 = 7;
+const STORAGE_BUFFERS: u32 = 8;
+
+/// Bytes of one group's sums in the allocation: 4 biases × (vertices, indices).
+const GROUP_SUMS_BYTES: u64 = 4 * 8;
 
 /// Most workgroups per dispatch dimension (WebGPU's default limit).
 const MAX_GROUPS: u32 = 65_535;
@@ -125,7 +127,8 @@ impl ExtractComponent for TessellationState {
 struct TessellationPipeline {
     layout: BindGroupLayoutDescriptor,
     factors: CachedComputePipelineId,
-    allocate: CachedComputePipelineId,
+    /// The allocation's three dispatches: reduce, choose, place.
+    allocate: [CachedComputePipelineId; 3],
     emit: CachedComputePipelineId,
 }
 
@@ -150,6 +153,7 @@ fn init_tessellation_pipeline(
                 storage_buffer_sized(false, None),
                 storage_buffer_sized(false, None),
                 storage_buffer_sized(false, None),
+                storage_buffer_sized(false, None),
             ),
         ),
     );
@@ -163,7 +167,11 @@ fn init_tessellation_pipeline(
         )
     };
     let factors = queue("penumbra_tessellation_factors", "factors");
-    let allocate = queue("penumbra_tessellation_allocate", "allocate");
+    let allocate = [
+        queue("penumbra_tessellation_allocate_reduce", "allocate_reduce"),
+        queue("penumbra_tessellation_allocate_choose", "allocate_choose"),
+        queue("penumbra_tessellation_allocate_place", "allocate_place"),
+    ];
     let emit = queue("penumbra_tessellation_emit", "emit");
     commands.insert_resource(TessellationPipeline {
         layout,
@@ -179,7 +187,10 @@ pub struct GpuTessellation {
     uniform: Buffer,
     /// The uniform last written.
     written: Vec<u8>,
-    group: Option<(BindGroup, [BufferId; 7])>,
+    group: Option<(BindGroup, [BufferId; 8])>,
+    /// The allocation's per-group sums (`ScanPlan::group_sums_len` × 4 biases ×
+    /// `vec2<u32>`): grown, never shrunk.
+    group_sums: Option<Buffer>,
     /// The generation and the mesh buffers last tessellated into.
     done: Option<(u64, BufferId, u64, BufferId, u64)>,
     patch_count: u32,
@@ -220,6 +231,7 @@ fn prepare_tessellation_bind_groups(
                 ),
                 written: Vec::new(),
                 group: None,
+                group_sums: None,
                 done: None,
                 patch_count: 0,
             }),
@@ -232,7 +244,20 @@ fn prepare_tessellation_bind_groups(
             gpu.written = bytes;
         }
         gpu.patch_count = extracted.uniform.patch_count;
-        let ids: [BufferId; 7] = std::array::from_fn(|i| bound[i].id());
+        let sums_bytes =
+            u64::from(ScanPlan::new(gpu.patch_count).group_sums_len()) * GROUP_SUMS_BYTES;
+        let group_sums = match gpu.group_sums.take() {
+            Some(b) if b.size() >= sums_bytes => b,
+            _ => allocations.sized_buffer(
+                &device,
+                "penumbra_tessellation_group_sums",
+                sums_bytes,
+                BufferUsages::STORAGE,
+            ),
+        };
+        let group_sums = gpu.group_sums.insert(group_sums);
+        let ids: [BufferId; 8] =
+            std::array::from_fn(|i| bound.get(i).map_or(group_sums.id(), |b| b.id()));
         if gpu.group.as_ref().is_none_or(|(_, b)| *b != ids) {
             let group = allocations.bind_group(
                 &device,
@@ -247,6 +272,7 @@ fn prepare_tessellation_bind_groups(
                     bound[4].as_entire_binding(),
                     bound[5].as_entire_binding(),
                     bound[6].as_entire_binding(),
+                    group_sums.as_entire_binding(),
                 )),
             );
             gpu.group = Some((group, ids));
@@ -280,9 +306,11 @@ fn tessellate(
     if unsupported.is_some() {
         return;
     }
-    let (Some(factors), Some(allocate), Some(emit)) = (
+    let (Some(factors), Some(reduce), Some(choose), Some(place), Some(emit)) = (
         pipeline_cache.get_compute_pipeline(pipeline.factors),
-        pipeline_cache.get_compute_pipeline(pipeline.allocate),
+        pipeline_cache.get_compute_pipeline(pipeline.allocate[0]),
+        pipeline_cache.get_compute_pipeline(pipeline.allocate[1]),
+        pipeline_cache.get_compute_pipeline(pipeline.allocate[2]),
         pipeline_cache.get_compute_pipeline(pipeline.emit),
     ) else {
         return;
@@ -363,9 +391,13 @@ fn tessellate(
         pass.set_pipeline(factors);
         let [x, y, z] = penumbra_cinematic_core::dispatch::workgroups_2d(*patch_count, 64);
         pass.dispatch_workgroups(x, y, z);
-        pass.set_pipeline(allocate);
-        pass.dispatch_workgroups(1, 1, 1);
-        debug_assert_eq!(ALLOCATE_THREADS, 256);
+        for (allocate, groups) in [reduce, choose, place]
+            .into_iter()
+            .zip(ScanPlan::new(*patch_count).workgroups())
+        {
+            pass.set_pipeline(allocate);
+            pass.dispatch_workgroups(groups, 1, 1);
+        }
         pass.set_pipeline(emit);
         pass.dispatch_workgroups(
             (*patch_count).min(MAX_GROUPS),

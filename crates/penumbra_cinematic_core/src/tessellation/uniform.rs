@@ -15,9 +15,6 @@ pub const PATCH_STATE_BYTES: u64 = 32;
 /// indices asked for at bias 0, two reserved words).
 pub const TOTALS_BYTES: u64 = 32;
 
-/// Threads of the allocation pass's single workgroup.
-pub const ALLOCATE_THREADS: u32 = 256;
-
 /// One tessellated entity's uniform.
 #[derive(ShaderType, Clone, Copy, Debug, PartialEq)]
 pub struct TessellationUniform {

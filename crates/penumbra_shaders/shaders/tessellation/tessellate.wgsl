@@ -1,8 +1,9 @@
 // Compute tessellation, three passes per tessellated entity (one bind group):
 //   `factors`  one thread per patch: its edges' factors (canonical endpoints) and level;
-//   `allocate` one workgroup: the least bias (halving all factors) whose output fits the
-//              pool, then each patch's first vertex and index (a prefix sum: the
-//              output's order is the patches' order, whatever the thread count);
+//   `allocate` three dispatches of a scan over many workgroups: the least bias (halving
+//              all factors) whose output fits the pool, then each patch's first vertex
+//              and index (a prefix sum: the output's order is the patches' order,
+//              whatever the thread count);
 //   `emit`     one workgroup per patch: its layout's vertices (flat or PN-AEN, displaced)
 //              and triangles, into the pool the mesh's buffers are copied from.
 // CPU model: `penumbra_cinematic_core::tessellation::reference` (`tessellate`).
@@ -28,8 +29,10 @@
 // The mesh's interleaved vertices: position, normal, uv[, tangent].
 @group(0) @binding(6) var<storage, read_write> out_vertices: array<f32>;
 @group(0) @binding(7) var<storage, read_write> out_indices: array<u32>;
+// Per group of patches and bias: the vertices and indices it asks for (`allocate_reduce`);
+// then each group's first vertex and index at the chosen bias (`allocate_choose`).
+@group(0) @binding(8) var<storage, read_write> group_sums: array<vec2<u32>>;
 
-const ALLOCATE_THREADS: u32 = 256u;
 const MAX_BIAS: u32 = 4u;
 
 fn patch_index(p: u32, k: u32) -> u32 {
@@ -79,22 +82,60 @@ fn factors(
     states[p].inside = segments(max(max(f.x, f.y), f.z));
 }
 
-// ---- pass 2: allocate ------------------------------------------------------------
+// ---- pass 2: allocate -------------------------------------------------------------
+// A prefix sum over many workgroups (`penumbra_cinematic_core::scan`), in three
+// dispatches: `allocate_reduce` sums each group of 1,024 patches' demand at every bias;
+// `allocate_choose` (one workgroup) picks the least bias whose total fits the pool and
+// turns the groups' sums at that bias into their first vertex and index; `allocate_place`
+// places each patch from its group's offset. Patches are placed in order; one whose
+// output would pass the pool (only when even the largest bias does not fit) is dropped
+// with all after it.
 
-var<workgroup> sums_v: array<u32, ALLOCATE_THREADS>;
-var<workgroup> sums_i: array<u32, ALLOCATE_THREADS>;
-var<workgroup> chosen_bias: u32;
+const SCAN_THREADS: u32 = 256u;
+const ITEMS_PER_THREAD: u32 = 4u;
+const GROUP_ITEMS: u32 = SCAN_THREADS * ITEMS_PER_THREAD;
+
+var<workgroup> partial: array<vec2<u32>, SCAN_THREADS>;
 
 fn saturating_add(a: u32, b: u32) -> u32 {
     let s = a + b;
     return select(s, 0xffffffffu, s < a);
 }
 
-// This thread's patches: a contiguous chunk.
-fn chunk(t: u32) -> vec2<u32> {
-    let size = (u.patch_count + ALLOCATE_THREADS - 1u) / ALLOCATE_THREADS;
-    let first = min(t * size, u.patch_count);
-    return vec2(first, min(first + size, u.patch_count));
+fn saturating_add2(a: vec2<u32>, b: vec2<u32>) -> vec2<u32> {
+    return vec2(saturating_add(a.x, b.x), saturating_add(a.y, b.y));
+}
+
+// The workgroup's exclusive scan of the threads' `value`s (Hillis and Steele, saturating,
+// in `partial`): this thread's offset; `partial[SCAN_THREADS - 1]` then holds the total.
+// Called by every thread of the workgroup; it waits for earlier readers of `partial`.
+fn workgroup_exclusive_scan(i: u32, value: vec2<u32>) -> vec2<u32> {
+    workgroupBarrier();
+    partial[i] = value;
+    workgroupBarrier();
+    for (var d = 1u; d < SCAN_THREADS; d *= 2u) {
+        var add = vec2(0u);
+        if i >= d {
+            add = partial[i - d];
+        }
+        workgroupBarrier();
+        partial[i] = saturating_add2(partial[i], add);
+        workgroupBarrier();
+    }
+    if i == 0u {
+        return vec2(0u);
+    }
+    return partial[i - 1u];
+}
+
+fn group_count() -> u32 {
+    return (u.patch_count + GROUP_ITEMS - 1u) / GROUP_ITEMS;
+}
+
+// Thread `i` of group `g`'s patches (reduce and place).
+fn thread_patches(g: u32, i: u32) -> vec2<u32> {
+    let first = min(g * GROUP_ITEMS + i * ITEMS_PER_THREAD, u.patch_count);
+    return vec2(first, min(first + ITEMS_PER_THREAD, u.patch_count));
 }
 
 fn biased_factors(f: vec3<f32>, bias: u32) -> vec3<f32> {
@@ -105,85 +146,108 @@ fn biased_counts(f: vec3<f32>, bias: u32) -> Counts {
     return counts_of(biased_factors(f, bias));
 }
 
-fn chunk_demand(t: u32, bias: u32) -> vec2<u32> {
-    let range = chunk(t);
-    var v = 0u;
-    var i = 0u;
-    for (var p = range.x; p < range.y; p += 1u) {
-        let c = biased_counts(states[p].factors, bias);
-        v = saturating_add(v, vertex_count(c));
-        i = saturating_add(i, 3u * triangle_count(c));
-    }
-    return vec2(v, i);
+// Patch `p`'s output at `bias`: vertices, indices.
+fn patch_demand(p: u32, bias: u32) -> vec2<u32> {
+    let c = biased_counts(states[p].factors, bias);
+    return vec2(vertex_count(c), 3u * triangle_count(c));
 }
 
-@compute @workgroup_size(ALLOCATE_THREADS)
-fn allocate(@builtin(local_invocation_index) t: u32) {
-    if t == 0u {
-        chosen_bias = MAX_BIAS - 1u;
+fn run_demand(run: vec2<u32>, bias: u32) -> vec2<u32> {
+    var d = vec2(0u);
+    for (var p = run.x; p < run.y; p += 1u) {
+        d = saturating_add2(d, patch_demand(p, bias));
     }
+    return d;
+}
+
+fn fits(d: vec2<u32>) -> bool {
+    return d.x <= u.vertex_budget && d.y <= u.index_budget;
+}
+
+// Pass 2a, one workgroup per 1,024 patches: the group's demand at each bias.
+@compute @workgroup_size(SCAN_THREADS)
+fn allocate_reduce(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(local_invocation_index) i: u32,
+) {
+    let run = thread_patches(group.x, i);
     for (var bias = 0u; bias < MAX_BIAS; bias += 1u) {
-        let d = chunk_demand(t, bias);
-        sums_v[t] = d.x;
-        sums_i[t] = d.y;
-        workgroupBarrier();
-        if t == 0u {
-            var v = 0u;
-            var i = 0u;
-            for (var k = 0u; k < ALLOCATE_THREADS; k += 1u) {
-                v = saturating_add(v, sums_v[k]);
-                i = saturating_add(i, sums_i[k]);
-            }
-            if bias == 0u {
-                totals.demand_vertices = v;
-                totals.demand_indices = i;
-            }
-            if v <= u.vertex_budget && i <= u.index_budget && chosen_bias == MAX_BIAS - 1u && bias < chosen_bias {
-                chosen_bias = bias;
-            }
+        workgroup_exclusive_scan(i, run_demand(run, bias));
+        if i == SCAN_THREADS - 1u {
+            group_sums[group.x * MAX_BIAS + bias] = partial[i];
         }
-        workgroupBarrier();
     }
-    let bias = workgroupUniformLoad(&chosen_bias);
-    let d = chunk_demand(t, bias);
-    sums_v[t] = d.x;
-    sums_i[t] = d.y;
-    workgroupBarrier();
-    if t == 0u {
-        var v = 0u;
-        var i = 0u;
-        for (var k = 0u; k < ALLOCATE_THREADS; k += 1u) {
-            let dv = sums_v[k];
-            let di = sums_i[k];
-            sums_v[k] = v;
-            sums_i[k] = i;
-            v = saturating_add(v, dv);
-            i = saturating_add(i, di);
+}
+
+// Thread `i`'s groups in `allocate_choose`.
+fn thread_groups(i: u32) -> vec2<u32> {
+    let groups = group_count();
+    let run = (groups + SCAN_THREADS - 1u) / SCAN_THREADS;
+    let first = min(i * run, groups);
+    return vec2(first, min(first + run, groups));
+}
+
+fn groups_demand(run: vec2<u32>, bias: u32) -> vec2<u32> {
+    var d = vec2(0u);
+    for (var g = run.x; g < run.y; g += 1u) {
+        d = saturating_add2(d, group_sums[g * MAX_BIAS + bias]);
+    }
+    return d;
+}
+
+// Pass 2b, one workgroup: the bias, each group's first vertex and index, the totals.
+@compute @workgroup_size(SCAN_THREADS)
+fn allocate_choose(@builtin(local_invocation_index) i: u32) {
+    let run = thread_groups(i);
+    // Every thread sees the same totals, so picks the same bias.
+    var bias = MAX_BIAS - 1u;
+    var demand = vec2(0u);
+    for (var b = 0u; b < MAX_BIAS; b += 1u) {
+        workgroup_exclusive_scan(i, groups_demand(run, b));
+        let total = partial[SCAN_THREADS - 1u];
+        if b == 0u {
+            demand = total;
         }
+        if fits(total) && bias == MAX_BIAS - 1u {
+            bias = min(bias, b);
+        }
+    }
+    var offset = workgroup_exclusive_scan(i, groups_demand(run, bias));
+    for (var g = run.x; g < run.y; g += 1u) {
+        let d = group_sums[g * MAX_BIAS + bias];
+        group_sums[g * MAX_BIAS] = offset;
+        offset = saturating_add2(offset, d);
+    }
+    if i == SCAN_THREADS - 1u {
+        let total = partial[i];
         totals.bias = bias;
-        totals.vertices = min(v, u.vertex_budget);
-        totals.indices = min(i, u.index_budget);
+        totals.vertices = min(total.x, u.vertex_budget);
+        totals.indices = min(total.y, u.index_budget);
         totals.patches = u.patch_count;
+        totals.demand_vertices = demand.x;
+        totals.demand_indices = demand.y;
     }
-    workgroupBarrier();
-    let range = chunk(t);
-    var base_v = sums_v[t];
-    var base_i = sums_i[t];
-    for (var p = range.x; p < range.y; p += 1u) {
+}
+
+// Pass 2c, the reduce's workgroups: each patch's first vertex and index, or NO_OUTPUT.
+@compute @workgroup_size(SCAN_THREADS)
+fn allocate_place(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(local_invocation_index) i: u32,
+) {
+    let bias = totals.bias;
+    let run = thread_patches(group.x, i);
+    var base = saturating_add2(
+        group_sums[group.x * MAX_BIAS],
+        workgroup_exclusive_scan(i, run_demand(run, bias)),
+    );
+    for (var p = run.x; p < run.y; p += 1u) {
         let c = biased_counts(states[p].factors, bias);
-        let nv = vertex_count(c);
-        let ni = 3u * triangle_count(c);
-        var out_inside = c.inside;
-        if saturating_add(base_v, nv) > u.vertex_budget || saturating_add(base_i, ni) > u.index_budget {
-            out_inside = NO_OUTPUT;
-        }
-        states[p].base_vertex = base_v;
-        states[p].base_index = base_i;
-        states[p].out_inside = out_inside;
-        if out_inside != NO_OUTPUT {
-            base_v += nv;
-            base_i += ni;
-        }
+        let n = vec2(vertex_count(c), 3u * triangle_count(c));
+        states[p].base_vertex = base.x;
+        states[p].base_index = base.y;
+        states[p].out_inside = select(NO_OUTPUT, c.inside, fits(saturating_add2(base, n)));
+        base = saturating_add2(base, n);
     }
 }
 
