@@ -8,15 +8,18 @@
 //!   with the component, pixels whose reflection misses every billboard are unchanged.
 //! - The half-resolution upsample against its model.
 //! - Skip: no billboard → no pass and no allocation; steady frames allocate nothing.
+//! - The texture array is written layer by layer (a changed image uploads one layer).
 
 mod reflections_scene;
 use reflections_scene::*;
 
 use bevy::prelude::*;
-use bevy_penumbra_cinematic::ReflectionDebugView;
+use bevy::render::RenderApp;
+use bevy_penumbra_cinematic::reflections::ReflectionImageUploads;
+use bevy_penumbra_cinematic::{ReflectionBillboard, ReflectionDebugView};
 use bevy_penumbra_df::PenumbraGpuAllocations;
 use penumbra_cinematic_core::reflections::pass::upsample_half;
-use penumbra_test::gpu_or_skip;
+use penumbra_test::{CaptureFormat, HeadlessRender, KeptApp, gpu_or_skip};
 
 #[test]
 fn the_layer_matches_the_model() {
@@ -295,4 +298,105 @@ fn nothing_to_reflect_costs_nothing() {
         app.update();
     }
     assert_eq!(allocations.counts(), before, "steady frames allocated");
+}
+
+/// The texture array is written layer by layer: a changed image uploads its own layer
+/// (and the reflection changes), a removed billboard uploads nothing, a new image takes
+/// the freed layer; the array texture is made once.
+#[test]
+fn one_changed_image_uploads_one_layer() {
+    if !gpu_or_skip("one_changed_image_uploads_one_layer") {
+        return;
+    }
+    // Not pipelined: the render world stays reachable.
+    let harness = HeadlessRender::new(WIDTH, HEIGHT)
+        .format(CaptureFormat::LinearF16)
+        .frames(5)
+        .without_pipelining();
+    let (before, mut app) = render_with(
+        Setup {
+            reflections: Some(ReflectionDebugView::Layer),
+            ..default()
+        },
+        &harness,
+    );
+    let before = before.to_linear();
+    let uploads = |app: &KeptApp| {
+        *app.sub_app(RenderApp)
+            .world()
+            .resource::<ReflectionImageUploads>()
+    };
+    let first = uploads(&app);
+    println!("first frames: {first:?}");
+    assert_eq!(first.textures, 1);
+    assert!(first.layers >= 2, "{first:?}");
+    let mut boards = app
+        .world_mut()
+        .query::<(Entity, &ReflectionBillboard, &GlobalTransform)>();
+    let mut boards: Vec<_> = boards
+        .iter(app.world())
+        .map(|(e, b, t)| (e, b.image.clone(), t.translation()))
+        .collect();
+    boards.sort_by(|a, b| a.2.x.total_cmp(&b.2.x));
+    // The striped sign (in front, on the left) turns black.
+    let (_, stripes, _) = boards[0].clone();
+    let black = image_of(&vec![
+        Vec4::new(0.0, 0.0, 0.0, 1.0);
+        (IMAGE.x * IMAGE.y) as usize
+    ]);
+    *app.world_mut()
+        .resource_mut::<Assets<Image>>()
+        .get_mut(&stripes)
+        .expect("loaded") = black;
+    for _ in 0..2 {
+        app.update();
+    }
+    let changed = uploads(&app);
+    println!("one image changed: {changed:?}");
+    assert_eq!(
+        (changed.textures, changed.layers),
+        (first.textures, first.layers + 1),
+        "only the changed image's layer"
+    );
+    // Its reflection dimmed.
+    let after = harness
+        .read_target(&mut app)
+        .expect("reads back")
+        .to_linear();
+    let (sum_before, sum_after) = (brightness(&before), brightness(&after));
+    println!("reflected light: {sum_before:.1} before, {sum_after:.1} after");
+    assert!(sum_after < 0.9 * sum_before);
+    // A billboard removed: nothing uploaded. A new image: the freed layer, no new array.
+    let (glow_board, ..) = boards[2];
+    app.world_mut().entity_mut(glow_board).despawn();
+    app.update();
+    assert_eq!(uploads(&app), changed, "a removal uploads nothing");
+    let fresh = app
+        .world_mut()
+        .resource_mut::<Assets<Image>>()
+        .add(image_of(&vec![Vec4::ONE; (IMAGE.x * IMAGE.y) as usize]));
+    app.world_mut().spawn((
+        ReflectionBillboard {
+            image: fresh,
+            size: Vec2::ONE,
+            ..default()
+        },
+        Transform::from_xyz(1.5, 0.8, -3.0),
+    ));
+    for _ in 0..2 {
+        app.update();
+    }
+    let added = uploads(&app);
+    println!("one image added: {added:?}");
+    assert_eq!(
+        (added.textures, added.layers),
+        (changed.textures, changed.layers + 1)
+    );
+    // Steady frames: nothing.
+    app.update();
+    assert_eq!(uploads(&app), added);
+}
+
+fn brightness(image: &[[f32; 4]]) -> f32 {
+    image.iter().map(|p| p[0] + p[1] + p[2]).sum()
 }

@@ -1,5 +1,7 @@
 //! Main world: the billboards as the pass reads them, and the images' mip chains for
-//! the texture array (rebuilt only when the set of images or one of them changes).
+//! the texture array. An image keeps its layer while a billboard shows it, so a changed
+//! or added image changes one layer (the render world uploads that one); a layer no
+//! billboard shows is freed, and a mip chain no billboard refers to is dropped.
 
 use super::{BillboardReflections, ReflectionBillboard};
 use bevy::platform::collections::{HashMap, HashSet};
@@ -10,17 +12,57 @@ use penumbra_cinematic_core::reflections::texture::MipChain;
 use std::sync::Arc;
 
 /// The most images the texture array holds (WebGPU's guaranteed array layers).
-const MAX_LAYERS: usize = 256;
+pub(super) const MAX_ARRAY_LAYERS: usize = 256;
 /// The largest image side (WebGPU's guaranteed 2D texture size).
 const MAX_IMAGE_SIDE: u32 = 8192;
 /// The most memory the texture array may take, bytes.
-const MAX_ARRAY_BYTES: u64 = 256 << 20;
+pub(super) const MAX_ARRAY_BYTES: u64 = 256 << 20;
 
 /// The images of the texture array: one layer each, all `size`.
 #[derive(Debug)]
 pub(super) struct ImageArray {
     pub(super) size: UVec2,
-    pub(super) layers: Vec<Arc<MipChain>>,
+    /// Layer `k`'s image; `None` where the layer is free (no billboard shows its image
+    /// now; a new image takes the first free layer).
+    pub(super) layers: Vec<Option<Arc<MipChain>>>,
+}
+
+/// Which image each layer holds, kept from frame to frame (cleared when the array's
+/// size changes).
+#[derive(Default)]
+pub(super) struct LayerSlots {
+    size: Option<UVec2>,
+    images: Vec<Option<AssetId<Image>>>,
+}
+
+impl LayerSlots {
+    /// Frees the layers of images not in `shown`, and the free layers at the end.
+    fn keep_only(&mut self, shown: &HashSet<AssetId<Image>>) {
+        for slot in &mut self.images {
+            if slot.is_some_and(|id| !shown.contains(&id)) {
+                *slot = None;
+            }
+        }
+        while self.images.last() == Some(&None) {
+            self.images.pop();
+        }
+    }
+
+    /// `id`'s layer: the one it has, else the first free one, else a new one while there
+    /// are fewer than `max`.
+    fn layer_of(&mut self, id: AssetId<Image>, max: usize) -> Option<usize> {
+        if let Some(k) = self.images.iter().position(|s| *s == Some(id)) {
+            return Some(k);
+        }
+        if let Some(k) = self.images.iter().position(Option::is_none) {
+            self.images[k] = Some(id);
+            return Some(k);
+        }
+        (self.images.len() < max).then(|| {
+            self.images.push(Some(id));
+            self.images.len() - 1
+        })
+    }
 }
 
 /// The billboards the reflection cameras see this frame (empty while there is no such
@@ -31,6 +73,11 @@ pub(super) struct ReflectionScene {
     /// A new `Arc` whenever the array's content changes.
     pub(super) images: Option<Arc<ImageArray>>,
 }
+
+/// Each billboard image's mip chain (`None`: unreadable), made once per image version;
+/// dropped when no billboard refers to the image, or no camera reflects.
+#[derive(Resource, Default)]
+pub(super) struct ReflectionMipChains(pub(super) HashMap<AssetId<Image>, Option<Arc<MipChain>>>);
 
 /// A billboard image's linear texels, or `None` when its format cannot be read.
 fn linear_texels(image: &Image) -> Option<(UVec2, Vec<Vec4>)> {
@@ -67,10 +114,12 @@ pub(super) fn collect_reflection_billboards(
     )>,
     images: Res<Assets<Image>>,
     mut image_events: MessageReader<AssetEvent<Image>>,
-    mut chains: Local<HashMap<AssetId<Image>, Option<Arc<MipChain>>>>,
+    mut chains: ResMut<ReflectionMipChains>,
+    mut slots: Local<LayerSlots>,
     mut warned: Local<Warned>,
     mut scene: ResMut<ReflectionScene>,
 ) {
+    let chains = &mut chains.0;
     for event in image_events.read() {
         if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
             chains.remove(id);
@@ -82,8 +131,12 @@ pub(super) fn collect_reflection_billboards(
             *scene = ReflectionScene::default();
         }
         chains.clear();
+        *slots = LayerSlots::default();
         return;
     }
+    // Mip chains no billboard refers to (shown or not) are dropped.
+    let referenced: HashSet<AssetId<Image>> = billboards.iter().map(|b| b.1.image.id()).collect();
+    chains.retain(|id, _| referenced.contains(id));
     let mut list: Vec<_> = billboards.iter().filter(|b| b.3.get()).collect();
     list.sort_by_key(|b| b.0);
     // Valid quads whose image is loaded and readable.
@@ -145,7 +198,15 @@ pub(super) fn collect_reflection_billboards(
         .map(|(size, _)| *size);
     // One layer's bytes: `Rgba16Float` and its mip chain (at most 4/3 of level 0).
     let layer_bytes = size.map_or(0, |s| u64::from(s.x) * u64::from(s.y) * 8 * 4 / 3);
-    let mut layers: Vec<AssetId<Image>> = Vec::new();
+    let max_layers = MAX_ARRAY_LAYERS.min((MAX_ARRAY_BYTES / layer_bytes.max(1)) as usize);
+    if slots.size != size {
+        *slots = LayerSlots { size, ..default() };
+    }
+    let of_size = |id: &AssetId<Image>| {
+        let c = chains[id].as_ref().expect("readable");
+        Some(UVec2::new(c.width, c.height)) == size
+    };
+    slots.keep_only(&valid.iter().map(|v| v.2).filter(of_size).collect());
     let mut gpu = Vec::with_capacity(valid.len());
     for (entity, quad, id, emissive) in valid {
         let c = chains[&id].as_ref().expect("readable");
@@ -162,19 +223,13 @@ pub(super) fn collect_reflection_billboards(
             }
             continue;
         }
-        let layer = match layers.iter().position(|l| *l == id) {
+        let layer = match slots.layer_of(id, max_layers) {
             Some(layer) => layer,
-            None if layers.len() < MAX_LAYERS
-                && (layers.len() as u64 + 1) * layer_bytes <= MAX_ARRAY_BYTES =>
-            {
-                layers.push(id);
-                layers.len() - 1
-            }
             None => {
                 if warned.entities.insert(entity) {
                     warn!(
                         "Penumbra: ReflectionBillboard on {entity}: its image would be beyond \
-                         the reflection array's {MAX_LAYERS} layers or {} MiB; skipped",
+                         the reflection array's {MAX_ARRAY_LAYERS} layers or {} MiB; skipped",
                         MAX_ARRAY_BYTES >> 20
                     );
                 }
@@ -191,9 +246,10 @@ pub(super) fn collect_reflection_billboards(
             reserved: 0,
         });
     }
-    let chains_now: Vec<Arc<MipChain>> = layers
+    let chains_now: Vec<Option<Arc<MipChain>>> = slots
+        .images
         .iter()
-        .map(|id| chains[id].clone().expect("readable"))
+        .map(|slot| slot.map(|id| chains[&id].clone().expect("readable")))
         .collect();
     let same_images = match (&scene.images, size) {
         (Some(array), Some(size)) => {
@@ -203,7 +259,10 @@ pub(super) fn collect_reflection_billboards(
                     .layers
                     .iter()
                     .zip(&chains_now)
-                    .all(|(a, b)| Arc::ptr_eq(a, b))
+                    .all(|(a, b)| match (a, b) {
+                        (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+                        (a, b) => a.is_none() && b.is_none(),
+                    })
         }
         (None, None) => true,
         _ => false,

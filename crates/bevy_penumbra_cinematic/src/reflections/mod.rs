@@ -32,6 +32,13 @@
 //! 8,192 texels a side, or would be the array's 257th. An image still loading is
 //! skipped silently.
 //!
+//! An image keeps its layer while a billboard shows it: a changed image re-uploads its
+//! own layer, a new one takes the first free layer, and a removed billboard frees its
+//! image's layer and uploads nothing ([`ReflectionImageUploads`] counts). The array
+//! texture grows to the next power of two of the layers and is made anew only on a new
+//! image size, more layers than it holds, or under a quarter of them in use. A mip chain
+//! (CPU, 4/3 × 16 bytes per texel) is dropped when no billboard refers to its image.
+//!
 //! The component reflects a quad; it draws nothing. Show the sign itself with a mesh on
 //! the same entity (a `Rectangle` of the same size with an emissive material), or not.
 //!
@@ -61,6 +68,8 @@
 
 mod collect;
 mod render;
+
+pub use render::ReflectionImageUploads;
 
 use bevy::prelude::*;
 use bevy::render::RenderApp;
@@ -250,6 +259,7 @@ impl Plugin for BillboardReflectionsPlugin {
         app.register_type::<ReflectionBillboard>()
             .register_type::<BillboardReflections>()
             .init_resource::<collect::ReflectionScene>()
+            .init_resource::<collect::ReflectionMipChains>()
             .add_plugins(render::sync_plugin())
             .add_systems(
                 PostUpdate,
@@ -296,6 +306,7 @@ mod tests {
         app.add_plugins((MinimalPlugins, AssetPlugin::default()))
             .init_asset::<Image>()
             .init_resource::<collect::ReflectionScene>()
+            .init_resource::<collect::ReflectionMipChains>()
             .add_systems(PostUpdate, collect::collect_reflection_billboards);
         let world = app.world_mut();
         let mut images = world.resource_mut::<Assets<Image>>();
@@ -361,8 +372,9 @@ mod tests {
         };
         assert_eq!(layer_of(0.0), layer_of(2.0), "one image, one layer");
         assert_ne!(layer_of(0.0), layer_of(1.0));
+        let (red_index, blue_index) = (layer_of(0.0) as usize, layer_of(1.0) as usize);
         // Blue's straight alpha 0.5 (sRGB 0 0 255, alpha 128/255), premultiplied.
-        let blue_layer = &images.layers[layer_of(1.0) as usize];
+        let blue_layer = images.layers[layer_of(1.0) as usize].as_ref().unwrap();
         let texel = blue_layer.levels[0][0];
         assert!((texel.w - 128.0 / 255.0).abs() < 1e-3 && (texel.z - texel.w).abs() < 1e-3);
         // A steady frame keeps the same array (no upload).
@@ -373,6 +385,28 @@ mod tests {
             &before,
             scene.images.as_ref().unwrap()
         ));
+        // Blue's billboard removed: its layer is freed, red keeps its own, and blue's mip
+        // chain is dropped (red's, the small and the unreadable image's stay: billboards
+        // still refer to them).
+        app.world_mut().despawn(b);
+        app.update();
+        let scene = app.world().resource::<collect::ReflectionScene>();
+        let images = scene.images.as_ref().expect("an array");
+        assert!(
+            images.layers.get(blue_index).is_none_or(Option::is_none),
+            "blue's layer freed"
+        );
+        assert!(std::sync::Arc::ptr_eq(
+            images.layers[red_index].as_ref().unwrap(),
+            before.layers[red_index].as_ref().unwrap()
+        ));
+        let chains = &app.world().resource::<collect::ReflectionMipChains>().0;
+        assert!(!chains.contains_key(&blue.id()), "blue's chain dropped");
+        assert!(
+            chains.contains_key(&red.id()) && chains.len() == 3,
+            "{}",
+            chains.len()
+        );
     }
 
     /// More distinct images than the array's layers: the billboards beyond are skipped.
@@ -382,6 +416,7 @@ mod tests {
         app.add_plugins((MinimalPlugins, AssetPlugin::default()))
             .init_asset::<Image>()
             .init_resource::<collect::ReflectionScene>()
+            .init_resource::<collect::ReflectionMipChains>()
             .add_systems(PostUpdate, collect::collect_reflection_billboards);
         let world = app.world_mut();
         world.spawn(BillboardReflections::default());

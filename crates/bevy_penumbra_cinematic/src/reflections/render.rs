@@ -2,7 +2,7 @@
 //! (uploaded when they change), each reflecting view's layer texture, pipeline and bind
 //! group, and the trace draw before Penumbra's lighting pass.
 
-use super::collect::{ImageArray, ReflectionScene};
+use super::collect::{ImageArray, MAX_ARRAY_BYTES, MAX_ARRAY_LAYERS, ReflectionScene};
 use super::{BillboardReflections, ReflectionDebugView};
 use bevy::core_pipeline::schedule::Core3d;
 use bevy::pbr::{MeshPipelineKey, MeshViewBindGroup, ViewKeyCache};
@@ -20,7 +20,7 @@ use bevy::render::render_resource::{
     ColorWrites, Extent3d, FilterMode, LoadOp, MipmapFilterMode, Operations, Origin3d,
     PipelineCache, RenderPassColorAttachment, RenderPassDescriptor, RenderPipelineDescriptor,
     Sampler, SamplerBindingType, SamplerDescriptor, ShaderStages, ShaderType, StoreOp,
-    TexelCopyBufferLayout, TexelCopyTextureInfo, TextureAspect, TextureDescriptor,
+    TexelCopyBufferLayout, TexelCopyTextureInfo, Texture, TextureAspect, TextureDescriptor,
     TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
     TextureViewDescriptor, TextureViewDimension, TextureViewId,
 };
@@ -37,6 +37,7 @@ use bevy_penumbra_df::scene::DistanceFieldGpu;
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
 use penumbra_cinematic_core::reflections::cull::TILE;
 use penumbra_cinematic_core::reflections::pass::{GpuBillboard, ReflectionUniform};
+use penumbra_cinematic_core::reflections::texture::MipChain;
 use penumbra_df_core::cull::CameraOrigin;
 use std::num::NonZeroU64;
 use std::sync::Arc;
@@ -63,6 +64,26 @@ impl SyncComponent for BillboardReflections {
 
 pub(super) fn sync_plugin() -> SyncComponentPlugin<BillboardReflections> {
     SyncComponentPlugin::default()
+}
+
+/// Uploads of the billboards' texture array since startup (render world): a changed
+/// image uploads its layer alone; a steady scene uploads nothing.
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReflectionImageUploads {
+    /// Array textures made (the first, and on a new image size, more layers than it
+    /// holds, or under a quarter of them used).
+    pub textures: u64,
+    /// Layers (images with their mip chains) written.
+    pub layers: u64,
+}
+
+/// The texture array on the GPU and what each of its layers holds.
+#[derive(Default)]
+struct UploadedArray {
+    texture: Option<Texture>,
+    layers: Vec<Option<Arc<MipChain>>>,
+    /// The images last uploaded.
+    array: Option<Arc<ImageArray>>,
 }
 
 /// The billboards and images on the GPU.
@@ -121,6 +142,7 @@ struct ReflectionPipelines {
 pub(super) fn build(render_app: &mut SubApp) {
     render_app
         .init_resource::<ReflectionGpuScene>()
+        .init_resource::<ReflectionImageUploads>()
         .add_systems(RenderStartup, init_reflection_pipelines)
         .add_systems(
             ExtractSchedule,
@@ -235,7 +257,8 @@ fn prepare_reflection_scene(
     allocations: Res<PenumbraGpuAllocations>,
     device: Res<RenderDevice>,
     queue: Res<RenderQueue>,
-    mut uploaded: Local<Option<Arc<ImageArray>>>,
+    mut uploaded: Local<UploadedArray>,
+    mut uploads: ResMut<ReflectionImageUploads>,
 ) {
     let gpu = &mut *gpu;
     if gpu.images.is_none() || gpu.billboards.is_empty() {
@@ -261,67 +284,109 @@ fn prepare_reflection_scene(
         gpu.dirty = false;
     }
     let images = gpu.images.clone().expect("checked");
-    if uploaded.as_ref().is_some_and(|u| Arc::ptr_eq(u, &images)) {
+    if uploaded
+        .array
+        .as_ref()
+        .is_some_and(|u| Arc::ptr_eq(u, &images))
+    {
         return;
     }
-    let first = &images.layers[0];
+    let Some(first) = images.layers.iter().flatten().next() else {
+        return;
+    };
     let mip_count = first.levels.len() as u32;
-    let texture = allocations.texture(
-        &device,
-        &TextureDescriptor {
-            label: Some("penumbra_reflection_images"),
-            size: Extent3d {
-                width: images.size.x,
-                height: images.size.y,
-                depth_or_array_layers: images.layers.len() as u32,
+    let layers = images.layers.len() as u32;
+    // The texture is kept while the images' size holds and their layers fit (it grows
+    // to the next power of two, shrinks when a quarter is used).
+    let fits = uploaded.texture.as_ref().is_some_and(|t| {
+        t.width() == images.size.x
+            && t.height() == images.size.y
+            && t.mip_level_count() == mip_count
+            && (layers <= t.depth_or_array_layers())
+            && (layers * 4 > t.depth_or_array_layers() || t.depth_or_array_layers() == 1)
+    });
+    if !fits {
+        let layer_bytes = u64::from(images.size.x) * u64::from(images.size.y) * 8 * 4 / 3;
+        let most = (MAX_ARRAY_BYTES / layer_bytes.max(1)).clamp(1, MAX_ARRAY_LAYERS as u64) as u32;
+        let capacity = layers.next_power_of_two().min(most).max(layers);
+        let texture = allocations.texture(
+            &device,
+            &TextureDescriptor {
+                label: Some("penumbra_reflection_images"),
+                size: Extent3d {
+                    width: images.size.x,
+                    height: images.size.y,
+                    depth_or_array_layers: capacity,
+                },
+                mip_level_count: mip_count,
+                sample_count: 1,
+                dimension: TextureDimension::D2,
+                format: TextureFormat::Rgba16Float,
+                usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
+                view_formats: &[],
             },
-            mip_level_count: mip_count,
-            sample_count: 1,
-            dimension: TextureDimension::D2,
-            format: TextureFormat::Rgba16Float,
-            usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
-            view_formats: &[],
-        },
-    );
-    for (layer, chain) in images.layers.iter().enumerate() {
-        for (level, texels) in chain.levels.iter().enumerate() {
-            let (w, h) = chain.level_size(level);
-            let bits: Vec<u8> = texels
-                .iter()
-                .flat_map(|t| t.to_array())
-                .flat_map(|x| half::f16::from_f32(x).to_le_bytes())
-                .collect();
-            queue.write_texture(
-                TexelCopyTextureInfo {
-                    texture: &texture,
-                    mip_level: level as u32,
-                    origin: Origin3d {
-                        x: 0,
-                        y: 0,
-                        z: layer as u32,
-                    },
-                    aspect: TextureAspect::All,
-                },
-                &bits,
-                TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(w * 8),
-                    rows_per_image: Some(h),
-                },
-                Extent3d {
-                    width: w,
-                    height: h,
-                    depth_or_array_layers: 1,
-                },
-            );
-        }
+        );
+        gpu.array = Some(texture.create_view(&TextureViewDescriptor {
+            dimension: Some(TextureViewDimension::D2Array),
+            ..default()
+        }));
+        gpu.mip_count = mip_count;
+        uploaded.texture = Some(texture);
+        uploaded.layers.clear();
+        uploads.textures += 1;
     }
-    gpu.array = Some(texture.create_view(&TextureViewDescriptor {
-        dimension: Some(TextureViewDimension::D2Array),
-        ..default()
-    }));
-    gpu.mip_count = mip_count;
-    *uploaded = Some(images);
+    let texture = uploaded.texture.clone().expect("just made");
+    uploaded.layers.resize(images.layers.len(), None);
+    for (layer, chain) in images.layers.iter().enumerate() {
+        let Some(chain) = chain else {
+            continue; // free: what it held is never sampled
+        };
+        if uploaded.layers[layer]
+            .as_ref()
+            .is_some_and(|u| Arc::ptr_eq(u, chain))
+        {
+            continue;
+        }
+        upload_layer(&queue, &texture, layer as u32, chain);
+        uploaded.layers[layer] = Some(chain.clone());
+        uploads.layers += 1;
+    }
+    uploaded.array = Some(images);
+}
+
+/// One image's mip chain into layer `layer` of the array.
+fn upload_layer(queue: &RenderQueue, texture: &Texture, layer: u32, chain: &MipChain) {
+    for (level, texels) in chain.levels.iter().enumerate() {
+        let (w, h) = chain.level_size(level);
+        let bits: Vec<u8> = texels
+            .iter()
+            .flat_map(|t| t.to_array())
+            .flat_map(|x| half::f16::from_f32(x).to_le_bytes())
+            .collect();
+        queue.write_texture(
+            TexelCopyTextureInfo {
+                texture,
+                mip_level: level as u32,
+                origin: Origin3d {
+                    x: 0,
+                    y: 0,
+                    z: layer,
+                },
+                aspect: TextureAspect::All,
+            },
+            &bits,
+            TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(w * 8),
+                rows_per_image: Some(h),
+            },
+            Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
 }
 
 impl ReflectionPipelines {
