@@ -223,18 +223,15 @@ pub(super) fn collect_reflection_billboards(
             }
             continue;
         }
-        let layer = match slots.layer_of(id, max_layers) {
-            Some(layer) => layer,
-            None => {
-                if warned.entities.insert(entity) {
-                    warn!(
-                        "Penumbra: ReflectionBillboard on {entity}: its image would be beyond \
-                         the reflection array's {MAX_ARRAY_LAYERS} layers or {} MiB; skipped",
-                        MAX_ARRAY_BYTES >> 20
-                    );
-                }
-                continue;
+        let Some(layer) = slots.layer_of(id, max_layers) else {
+            if warned.entities.insert(entity) {
+                warn!(
+                    "Penumbra: ReflectionBillboard on {entity}: its image would be beyond \
+                     the reflection array's {MAX_ARRAY_LAYERS} layers or {} MiB; skipped",
+                    MAX_ARRAY_BYTES >> 20
+                );
             }
+            continue;
         };
         warned.entities.remove(&entity);
         gpu.push(GpuBillboard {
