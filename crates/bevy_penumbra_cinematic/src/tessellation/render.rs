@@ -378,34 +378,41 @@ fn tessellate(
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
     let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_tessellation");
-    for (group, patch_count, vertices, indices) in &work {
-        // Indices past the output stay 0: degenerate triangles.
+    // Indices past the output stay 0: degenerate triangles.
+    for (.., indices) in &work {
         ctx.command_encoder().clear_buffer(&indices.0, 0, None);
+    }
+    // Every entity's passes in one compute pass (each dispatch sees the last one's
+    // writes), then the copies into the meshes' buffers.
+    {
         let mut pass = ctx
             .command_encoder()
             .begin_compute_pass(&ComputePassDescriptor {
                 label: Some("penumbra_tessellation"),
                 timestamp_writes: None,
             });
-        pass.set_bind_group(0, group, &[]);
-        pass.set_pipeline(factors);
-        let [x, y, z] = penumbra_cinematic_core::dispatch::workgroups_2d(*patch_count, 64);
-        pass.dispatch_workgroups(x, y, z);
-        for (allocate, groups) in [reduce, choose, place]
-            .into_iter()
-            .zip(ScanPlan::new(*patch_count).workgroups())
-        {
-            pass.set_pipeline(allocate);
-            pass.dispatch_workgroups(groups, 1, 1);
+        for (group, patch_count, ..) in &work {
+            pass.set_bind_group(0, group, &[]);
+            pass.set_pipeline(factors);
+            let [x, y, z] = penumbra_cinematic_core::dispatch::workgroups_2d(*patch_count, 64);
+            pass.dispatch_workgroups(x, y, z);
+            for (allocate, groups) in [reduce, choose, place]
+                .into_iter()
+                .zip(ScanPlan::new(*patch_count).workgroups())
+            {
+                pass.set_pipeline(allocate);
+                pass.dispatch_workgroups(groups, 1, 1);
+            }
+            pass.set_pipeline(emit);
+            pass.dispatch_workgroups(
+                (*patch_count).min(MAX_GROUPS),
+                patch_count.div_ceil(MAX_GROUPS),
+                1,
+            );
         }
-        pass.set_pipeline(emit);
-        pass.dispatch_workgroups(
-            (*patch_count).min(MAX_GROUPS),
-            patch_count.div_ceil(MAX_GROUPS),
-            1,
-        );
-        drop(pass);
-        let encoder = ctx.command_encoder();
+    }
+    let encoder = ctx.command_encoder();
+    for (_, _, vertices, indices) in &work {
         encoder.copy_buffer_to_buffer(&vertices.0, 0, &vertices.1, vertices.2, vertices.3);
         encoder.copy_buffer_to_buffer(&indices.0, 0, &indices.1, indices.2, indices.3);
     }
