@@ -27,6 +27,7 @@
 
 use crate::scene::{DistanceFieldScene, DistanceFieldSceneSettings, DistanceFieldUploadStats};
 use crate::sdf_asset::{SdfBakeFailed, SdfBaked};
+use crate::system_times::timed;
 use crate::{CasterSource, DistanceFieldCaster, PenumbraLighting};
 use bevy::diagnostic::{Diagnostic, DiagnosticPath, Diagnostics, RegisterDiagnostic};
 use bevy::prelude::*;
@@ -86,7 +87,7 @@ impl Plugin for PenumbraDiagnosticsPlugin {
         }
         app.add_systems(
             PostUpdate,
-            measure.after(crate::scene::DistanceFieldSystems::UpdateObjects),
+            timed(measure).after(crate::scene::DistanceFieldSystems::UpdateObjects),
         );
     }
 }

@@ -49,6 +49,7 @@ pub mod sdf_asset;
 pub mod shader_library;
 #[cfg(feature = "shadows")]
 pub mod shadows;
+pub mod system_times;
 
 #[cfg(feature = "ao")]
 pub use ao::{

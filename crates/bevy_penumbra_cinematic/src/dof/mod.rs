@@ -87,6 +87,7 @@ use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::render_resource::TextureUsages;
+use bevy_penumbra_df::system_times::timed;
 use penumbra_cinematic_core::dof::{Aperture, Lens, SpriteRule};
 use std::sync::Arc;
 
@@ -504,9 +505,9 @@ impl Plugin for BokehDepthOfFieldPlugin {
             .add_systems(
                 PostUpdate,
                 (
-                    warn_bad_bokeh_settings,
-                    prepare_bokeh_apertures,
-                    configure_bokeh_depth_textures,
+                    timed(warn_bad_bokeh_settings),
+                    timed(prepare_bokeh_apertures),
+                    timed(configure_bokeh_depth_textures),
                 ),
             );
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {

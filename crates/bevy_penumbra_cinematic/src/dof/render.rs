@@ -24,6 +24,7 @@ use bevy::render::texture::{CachedTexture, TextureCache};
 use bevy::render::view::{ExtractedView, ViewDepthTexture, ViewTarget};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
 use bevy_penumbra_df::PenumbraGpuAllocations;
+use bevy_penumbra_df::system_times::timed;
 use penumbra_cinematic_core::dof::{Aperture, BokehView, Lens, SpriteRule, sprite_slots};
 use penumbra_cinematic_core::scan::ScanPlan;
 use std::sync::Arc;
@@ -115,18 +116,18 @@ pub(super) fn finish(render_app: &mut SubApp) {
     }
     render_app
         .add_systems(RenderStartup, init_bokeh_pipelines)
-        .add_systems(ExtractSchedule, extract_bokeh_depth_of_field)
+        .add_systems(ExtractSchedule, timed(extract_bokeh_depth_of_field))
         .add_systems(
             Render,
             (
-                prepare_bokeh_pipelines.in_set(RenderSystems::Prepare),
-                prepare_bokeh_textures.in_set(RenderSystems::PrepareResources),
-                prepare_bokeh_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+                timed(prepare_bokeh_pipelines).in_set(RenderSystems::Prepare),
+                timed(prepare_bokeh_textures).in_set(RenderSystems::PrepareResources),
+                timed(prepare_bokeh_bind_groups).in_set(RenderSystems::PrepareBindGroups),
             ),
         )
         .add_systems(
             Core3d,
-            bokeh_depth_of_field
+            timed(bokeh_depth_of_field)
                 .in_set(Core3dSystems::PostProcess)
                 .before(bevy::core_pipeline::tonemapping::tonemapping),
         );

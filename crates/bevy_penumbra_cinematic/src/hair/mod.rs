@@ -85,6 +85,7 @@ use bevy::mesh::VertexAttributeValues;
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use bevy::render::storage::ShaderBuffer;
+use bevy_penumbra_df::system_times::timed;
 use penumbra_cinematic_core::hair::strands::{check_strands, parse_hair, strands_from_ribbons};
 
 /// Strands of hair: polylines with a width and an atlas slot, in the hair entity's space.
@@ -373,7 +374,11 @@ impl Plugin for HairPlugin {
             .init_asset_loader::<HairStrandsLoader>()
             .add_systems(
                 PostUpdate,
-                (remove_hair, build_hair, warn_hair_without_msaa)
+                (
+                    timed(remove_hair),
+                    timed(build_hair),
+                    timed(warn_hair_without_msaa),
+                )
                     .chain()
                     .after(bevy::asset::AssetEventSystems),
             );

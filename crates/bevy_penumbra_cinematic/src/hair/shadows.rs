@@ -55,6 +55,7 @@ use bevy::render::{Render, RenderApp, RenderStartup, RenderSystems};
 use bevy_penumbra_df::lighting::ShadowedLightKind;
 use bevy_penumbra_df::scene::{DistanceFieldGpu, DistanceFieldRenderSystems};
 use bevy_penumbra_df::shadows::DistanceFieldShadowedLights;
+use bevy_penumbra_df::system_times::timed;
 use bevy_penumbra_df::{
     DistanceFieldShadows, PenumbraGpuAllocations, PenumbraShaderLibrary, ReadsNoShadowMaps,
 };
@@ -82,7 +83,7 @@ struct HairShadowParams {
 pub(super) fn build(app: &mut App) {
     app.add_systems(
         PostUpdate,
-        build_hair_shadows
+        timed(build_hair_shadows)
             .after(super::build_hair)
             .after(bevy::asset::AssetEventSystems),
     )
@@ -94,11 +95,11 @@ pub(super) fn build(app: &mut App) {
         .init_resource::<HairShadowTraces>()
         .add_systems(
             Render,
-            prepare_hair_shadows.in_set(RenderSystems::PrepareBindGroups),
+            timed(prepare_hair_shadows).in_set(RenderSystems::PrepareBindGroups),
         )
         .add_systems(
             RenderGraph,
-            trace_hair_shadows
+            timed(trace_hair_shadows)
                 .after(DistanceFieldRenderSystems::ApplyDeltas)
                 .in_set(bevy::render::renderer::RenderGraphSystems::Render)
                 .before(camera_driver),

@@ -74,6 +74,7 @@ pub use render::ReflectionImageUploads;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy_penumbra_df::PenumbraLighting;
+use bevy_penumbra_df::system_times::timed;
 
 pub use penumbra_cinematic_core::reflections::{DEFAULT_LAYERS, MAX_LAYERS};
 
@@ -264,8 +265,8 @@ impl Plugin for BillboardReflectionsPlugin {
             .add_systems(
                 PostUpdate,
                 (
-                    warn_bad_reflection_settings,
-                    collect::collect_reflection_billboards
+                    timed(warn_bad_reflection_settings),
+                    timed(collect::collect_reflection_billboards)
                         .after(TransformSystems::Propagate)
                         .after(bevy::asset::AssetEventSystems)
                         .after(bevy::camera::visibility::VisibilitySystems::VisibilityPropagate),

@@ -34,6 +34,7 @@ use bevy_penumbra_df::lighting::{
     PenumbraLightingPipeline, PenumbraLightingSystems, PenumbraLightingView, PenumbraSpecularLayer,
 };
 use bevy_penumbra_df::scene::DistanceFieldGpu;
+use bevy_penumbra_df::system_times::timed;
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
 use penumbra_cinematic_core::reflections::cull::TILE;
 use penumbra_cinematic_core::reflections::pass::{GpuBillboard, ReflectionUniform};
@@ -146,19 +147,22 @@ pub(super) fn build(render_app: &mut SubApp) {
         .add_systems(RenderStartup, init_reflection_pipelines)
         .add_systems(
             ExtractSchedule,
-            (extract_reflection_scene, extract_reflection_cameras),
+            (
+                timed(extract_reflection_scene),
+                timed(extract_reflection_cameras),
+            ),
         )
         .add_systems(
             Render,
             (
-                prepare_reflection_scene.in_set(RenderSystems::PrepareResources),
-                prepare_reflection_views.in_set(RenderSystems::PrepareResources),
-                prepare_reflection_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+                timed(prepare_reflection_scene).in_set(RenderSystems::PrepareResources),
+                timed(prepare_reflection_views).in_set(RenderSystems::PrepareResources),
+                timed(prepare_reflection_bind_groups).in_set(RenderSystems::PrepareBindGroups),
             ),
         )
         .add_systems(
             Core3d,
-            billboard_reflections.in_set(PenumbraLightingSystems::Shading),
+            timed(billboard_reflections).in_set(PenumbraLightingSystems::Shading),
         );
 }
 

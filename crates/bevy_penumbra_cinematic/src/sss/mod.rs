@@ -81,6 +81,7 @@ mod render;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy_penumbra_df::PenumbraLighting;
+use bevy_penumbra_df::system_times::timed;
 use penumbra_cinematic_core::sss::{FIRST_LIGHTING_ID, MAX_PROFILES, ScatterProfile};
 
 /// Adds [`SubsurfaceScattering`] and the [`SubsurfaceProfiles`] resource. Part of
@@ -334,10 +335,10 @@ impl Plugin for SubsurfaceScatteringPlugin {
             .add_systems(
                 PostUpdate,
                 (
-                    warn_bad_subsurface_settings,
-                    warn_msaa_cameras,
+                    timed(warn_bad_subsurface_settings),
+                    timed(warn_msaa_cameras),
                     // After the frame's material edits become events.
-                    render::find_scattering_meshes.after(bevy::asset::AssetEventSystems),
+                    timed(render::find_scattering_meshes).after(bevy::asset::AssetEventSystems),
                 ),
             );
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {

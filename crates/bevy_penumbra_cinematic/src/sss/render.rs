@@ -30,6 +30,7 @@ use bevy_penumbra_df::lighting::{
     PenumbraLightingBindGroup, PenumbraLightingPipeline, PenumbraLightingSystems,
     PenumbraLightingView, set_lighting_bind_groups, visible_meshes,
 };
+use bevy_penumbra_df::system_times::timed;
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraLighting, PenumbraShaderLibrary};
 use penumbra_cinematic_core::sss::{FIRST_LIGHTING_ID, SubsurfaceUniform};
 
@@ -261,18 +262,21 @@ pub(super) fn build(render_app: &mut SubApp) {
         .add_systems(RenderStartup, init_subsurface_pipelines)
         .add_systems(
             ExtractSchedule,
-            (extract_subsurface_scene, extract_subsurface_cameras),
+            (
+                timed(extract_subsurface_scene),
+                timed(extract_subsurface_cameras),
+            ),
         )
         .add_systems(
             Render,
             (
-                prepare_subsurface_views.in_set(RenderSystems::PrepareResources),
-                prepare_subsurface_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+                timed(prepare_subsurface_views).in_set(RenderSystems::PrepareResources),
+                timed(prepare_subsurface_bind_groups).in_set(RenderSystems::PrepareBindGroups),
             ),
         )
         .add_systems(
             Core3d,
-            subsurface_scattering.in_set(PenumbraLightingSystems::Shading),
+            timed(subsurface_scattering).in_set(PenumbraLightingSystems::Shading),
         );
 }
 

@@ -78,6 +78,7 @@ use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::render::storage::ShaderBuffer;
 use bevy::transform::TransformSystems;
 use bevy_penumbra_df::CasterMesh;
+use bevy_penumbra_df::system_times::timed;
 use penumbra_cinematic_core::tessellation::reference::Frame;
 use penumbra_cinematic_core::tessellation::uniform::{
     PATCH_STATE_BYTES, TOTALS_BYTES, TessellationUniform,
@@ -176,7 +177,7 @@ impl Plugin for TessellationPlugin {
             .add_plugins(ExtractComponentPlugin::<TessellationState>::default())
             .add_systems(
                 PostUpdate,
-                (restore_untessellated, prepare_tessellated)
+                (timed(restore_untessellated), timed(prepare_tessellated))
                     .chain()
                     .after(TransformSystems::Propagate)
                     .after(bevy::asset::AssetEventSystems)

@@ -24,6 +24,7 @@ use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQue
 use bevy::render::storage::{GpuShaderBuffer, ShaderBuffer};
 use bevy::render::sync_component::SyncComponent;
 use bevy::render::{Render, RenderApp, RenderStartup, RenderSystems};
+use bevy_penumbra_df::system_times::timed;
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
 use penumbra_cinematic_core::scan::ScanPlan;
 use penumbra_cinematic_core::tessellation::uniform::{TOTALS_BYTES, TessellationUniform};
@@ -49,11 +50,11 @@ pub(super) fn build(app: &mut App) {
         .add_systems(RenderStartup, init_tessellation_pipeline)
         .add_systems(
             Render,
-            prepare_tessellation_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+            timed(prepare_tessellation_bind_groups).in_set(RenderSystems::PrepareBindGroups),
         )
         .add_systems(
             RenderGraph,
-            tessellate
+            timed(tessellate)
                 .in_set(bevy::render::renderer::RenderGraphSystems::Render)
                 .before(camera_driver),
         );

@@ -101,6 +101,7 @@
 mod render;
 
 use crate::lighting::{PenumbraAoInput, PenumbraLighting};
+use crate::system_times::timed;
 use bevy::core_pipeline::prepass::MotionVectorPrepass;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
@@ -394,7 +395,7 @@ impl Plugin for DistanceFieldAmbientOcclusionPlugin {
         crate::shader_library::register_shader_library(app);
         app.register_type::<DistanceFieldAmbientOcclusion>()
             .add_plugins(ExtractComponentPlugin::<DistanceFieldAmbientOcclusion>::default())
-            .add_systems(PostUpdate, warn_bad_settings);
+            .add_systems(PostUpdate, timed(warn_bad_settings));
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app);
         }

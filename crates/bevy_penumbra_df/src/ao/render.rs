@@ -8,6 +8,7 @@ use crate::lighting::msaa_render::{DeferredMsaaTextures, pixel_prepass};
 use crate::lighting::{PenumbraAoInput, PenumbraLightingView};
 use crate::scene::{DistanceFieldGpu, GpuHeightfields};
 use crate::shader_library::PenumbraShaderLibrary;
+use crate::system_times::timed;
 use bevy::core_pipeline::prepass::{MotionVectorPrepass, ViewPrepassTextures};
 use bevy::core_pipeline::schedule::Core3d;
 use bevy::prelude::*;
@@ -120,15 +121,15 @@ pub(super) fn build(render_app: &mut SubApp) {
         .add_systems(
             Render,
             (
-                prepare_dfao_textures
+                timed(prepare_dfao_textures)
                     .in_set(RenderSystems::PrepareResources)
                     .after(crate::scene::DistanceFieldRenderSystems::PrepareGpu),
-                prepare_dfao_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+                timed(prepare_dfao_bind_groups).in_set(RenderSystems::PrepareBindGroups),
             ),
         )
         .add_systems(
             Core3d,
-            distance_field_ambient_occlusion
+            timed(distance_field_ambient_occlusion)
                 .in_set(crate::lighting::render::PenumbraLightingSystems::Inputs),
         );
 }

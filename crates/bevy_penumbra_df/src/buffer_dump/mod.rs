@@ -30,6 +30,7 @@
 
 mod render;
 
+use crate::system_times::timed;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
@@ -111,7 +112,7 @@ impl Plugin for PenumbraBufferDumpPlugin {
         app.register_type::<PenumbraBufferDump>()
             .add_plugins(ExtractComponentPlugin::<PenumbraBufferDump>::default())
             .insert_resource(DumpReceiver(Mutex::new(receiver)))
-            .add_systems(First, receive_dumps);
+            .add_systems(First, timed(receive_dumps));
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app, sender);
         }

@@ -7,6 +7,7 @@ use crate::lighting::msaa_render::{DeferredMsaaTextures, pixel_prepass};
 use crate::lighting::render::{PenumbraLightingInputs, PenumbraLightingPipeline};
 use crate::lighting::{PenumbraAoInput, PenumbraLightingView};
 use crate::shader_library::PenumbraShaderLibrary;
+use crate::system_times::timed;
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
 use bevy::pbr::ScreenSpaceAmbientOcclusionResources;
@@ -96,15 +97,18 @@ pub(super) fn build(render_app: &mut SubApp, sender: Sender<RawDump>) {
         .add_systems(
             Render,
             (
-                (prepare_buffer_dumps, prepare_buffer_dump_bind_groups)
+                (
+                    timed(prepare_buffer_dumps),
+                    timed(prepare_buffer_dump_bind_groups),
+                )
                     .chain()
                     .in_set(RenderSystems::PrepareBindGroups),
-                map_buffer_dumps.in_set(RenderSystems::Cleanup),
+                timed(map_buffer_dumps).in_set(RenderSystems::Cleanup),
             ),
         )
         .add_systems(
             Core3d,
-            penumbra_buffer_dump.in_set(Core3dSystems::PostProcess),
+            timed(penumbra_buffer_dump).in_set(Core3dSystems::PostProcess),
         );
 }
 

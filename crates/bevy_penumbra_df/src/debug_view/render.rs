@@ -4,6 +4,7 @@ use super::{DistanceFieldDebugMode, DistanceFieldDebugView};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::scene::{CulledObjects, DistanceFieldGpu, DistanceFieldPipelines};
 use crate::shader_library::PenumbraShaderLibrary;
+use crate::system_times::timed;
 use bevy::core_pipeline::{Core3dSystems, FullscreenShader, schedule::Core3d};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
@@ -49,18 +50,18 @@ pub(super) fn build(render_app: &mut SubApp) {
         .add_systems(
             Render,
             (
-                prepare_debug_view_pipelines.in_set(RenderSystems::Prepare),
-                prepare_debug_view_resources
+                timed(prepare_debug_view_pipelines).in_set(RenderSystems::Prepare),
+                timed(prepare_debug_view_resources)
                     .in_set(RenderSystems::PrepareResources)
                     .after(crate::scene::DistanceFieldRenderSystems::PrepareGpu),
-                prepare_debug_view_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+                timed(prepare_debug_view_bind_groups).in_set(RenderSystems::PrepareBindGroups),
             ),
         )
         .add_systems(
             Core3d,
             // After tonemapping: the debug image is shown as it is (it is not a radiance).
             // Left unordered, HDR cameras were tonemapped in some runs and not in others.
-            distance_field_debug_view
+            timed(distance_field_debug_view)
                 .in_set(Core3dSystems::PostProcess)
                 .after(bevy::core_pipeline::tonemapping::tonemapping),
         );

@@ -10,6 +10,7 @@ use crate::debug_view::render::{draw_over_view, fullscreen_pipeline};
 use crate::debug_view::{DistanceFieldDebugMode, DistanceFieldDebugView};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::shader_library::PenumbraShaderLibrary;
+use crate::system_times::timed;
 use bevy::core_pipeline::{Core3dSystems, FullscreenShader, schedule::Core3d};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
@@ -48,13 +49,13 @@ pub(super) fn build(render_app: &mut SubApp) {
         .add_systems(
             Render,
             (
-                prepare_field_debug_pipelines.in_set(RenderSystems::Prepare),
-                prepare_field_debug_resources.in_set(RenderSystems::PrepareBindGroups),
+                timed(prepare_field_debug_pipelines).in_set(RenderSystems::Prepare),
+                timed(prepare_field_debug_resources).in_set(RenderSystems::PrepareBindGroups),
             ),
         )
         .add_systems(
             Core3d,
-            global_field_debug_view
+            timed(global_field_debug_view)
                 .in_set(Core3dSystems::PostProcess)
                 .after(bevy::core_pipeline::tonemapping::tonemapping),
         );

@@ -52,6 +52,7 @@ mod render;
 use crate::scene::{
     DistanceFieldFrame, DistanceFieldScene, DistanceFieldSystems, SceneHeightfields,
 };
+use crate::system_times::timed;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
@@ -203,7 +204,10 @@ impl Plugin for GlobalDistanceFieldPlugin {
             .init_resource::<SeenRecords>()
             .add_systems(
                 PostUpdate,
-                (warn_bad_settings, update_global_distance_fields)
+                (
+                    timed(warn_bad_settings),
+                    timed(update_global_distance_fields),
+                )
                     .chain()
                     .after(DistanceFieldSystems::UpdateObjects),
             );

@@ -15,6 +15,7 @@ use super::GlobalDistanceFieldState;
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::scene::{DistanceFieldGpu, DistanceFieldRenderSystems, GpuHeightfields};
 use crate::shader_library::PenumbraShaderLibrary;
+use crate::system_times::timed;
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
@@ -191,15 +192,15 @@ pub(super) fn build(render_app: &mut SubApp) {
         .add_systems(
             Render,
             (
-                prepare_global_field_buffers
+                timed(prepare_global_field_buffers)
                     .in_set(RenderSystems::PrepareResources)
                     .after(DistanceFieldRenderSystems::PrepareGpu),
-                prepare_global_field_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+                timed(prepare_global_field_bind_groups).in_set(RenderSystems::PrepareBindGroups),
             ),
         )
         .add_systems(
             RenderGraph,
-            compose_global_fields
+            timed(compose_global_fields)
                 .after(crate::scene::apply_distance_field_deltas)
                 .in_set(bevy::render::renderer::RenderGraphSystems::Render)
                 .before(camera_driver),

@@ -54,6 +54,7 @@ pub mod msaa;
 pub(crate) mod msaa_render;
 pub(crate) mod render;
 
+use crate::system_times::timed;
 use bevy::core_pipeline::prepass::{DeferredPrepass, DepthPrepass};
 use bevy::pbr::DefaultOpaqueRendererMethod;
 use bevy::pbr::deferred::{PbrDeferredLightingDepthId, SkipDeferredLighting};
@@ -199,12 +200,17 @@ impl Plugin for PenumbraLightingPlugin {
                 require_deferred_default: self.require_deferred_default,
             })
             .add_plugins(ExtractComponentPlugin::<PenumbraLighting>::default())
-            .add_systems(PostUpdate, (check_render_method, warn_forward_cameras))
+            .add_systems(
+                PostUpdate,
+                (timed(check_render_method), timed(warn_forward_cameras)),
+            )
             .add_systems(
                 PostUpdate,
                 (
-                    msaa::hold_deferred_msaa.before(bevy::core_pipeline::core_3d::check_msaa),
-                    msaa::restore_deferred_msaa.after(bevy::core_pipeline::core_3d::check_msaa),
+                    timed(msaa::hold_deferred_msaa)
+                        .before(bevy::core_pipeline::core_3d::check_msaa),
+                    timed(msaa::restore_deferred_msaa)
+                        .after(bevy::core_pipeline::core_3d::check_msaa),
                 ),
             );
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {

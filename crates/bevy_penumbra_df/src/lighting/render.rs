@@ -5,6 +5,7 @@ use super::msaa_render::{self, DeferredMsaaTextures, LightingVariant, MSAA_VARIA
 use super::{PenumbraLightingView, PenumbraSpecularLayer};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::shader_library::PenumbraShaderLibrary;
+use crate::system_times::timed;
 use bevy::core_pipeline::core_3d::main_opaque_pass_3d;
 use bevy::core_pipeline::deferred::{
     DEFERRED_LIGHTING_PASS_ID_DEPTH_FORMAT, copy_lighting_id::DeferredLightingIdDepthTexture,
@@ -205,13 +206,14 @@ pub(super) fn build(render_app: &mut SubApp) {
         .add_systems(
             Render,
             (
-                prepare_penumbra_lighting_pipelines.in_set(RenderSystems::Prepare),
-                prepare_penumbra_lighting_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+                timed(prepare_penumbra_lighting_pipelines).in_set(RenderSystems::Prepare),
+                timed(prepare_penumbra_lighting_bind_groups)
+                    .in_set(RenderSystems::PrepareBindGroups),
             ),
         )
         .add_systems(
             Render,
-            msaa_render::prepare_deferred_msaa_textures
+            timed(msaa_render::prepare_deferred_msaa_textures)
                 .in_set(RenderSystems::PrepareResourcesFlush),
         )
         .configure_sets(
@@ -227,11 +229,11 @@ pub(super) fn build(render_app: &mut SubApp) {
         .add_systems(
             Core3d,
             (
-                penumbra_lighting.in_set(PenumbraLightingSystems::Lighting),
-                msaa_render::swap_in_msaa_gbuffer.before(Core3dSystems::Prepass),
+                timed(penumbra_lighting).in_set(PenumbraLightingSystems::Lighting),
+                timed(msaa_render::swap_in_msaa_gbuffer).before(Core3dSystems::Prepass),
                 (
-                    msaa_render::swap_out_msaa_gbuffer,
-                    msaa_render::classify_deferred_msaa,
+                    timed(msaa_render::swap_out_msaa_gbuffer),
+                    timed(msaa_render::classify_deferred_msaa),
                 )
                     .chain()
                     .after(Core3dSystems::Prepass)

@@ -41,6 +41,7 @@ mod render;
 
 pub use render::{ExtractedParticles, GpuParticles};
 
+use crate::system_times::timed;
 use bevy::asset::{RenderAssetUsages, uuid_handle};
 use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
@@ -236,7 +237,7 @@ impl Plugin for DistanceFieldParticlesPlugin {
         crate::shader_library::register_shader_library(app);
         app.register_type::<DistanceFieldParticles>().add_systems(
             PostUpdate,
-            (warn_bad_settings, emit_particles)
+            (timed(warn_bad_settings), timed(emit_particles))
                 .chain()
                 .after(TransformSystems::Propagate),
         );

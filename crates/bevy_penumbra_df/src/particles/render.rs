@@ -7,6 +7,7 @@ use super::{DistanceFieldParticles, DistanceFieldParticlesState};
 use crate::global_field::{GlobalDistanceField, ViewGlobalField, empty_read_group, read_layout};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::shader_library::PenumbraShaderLibrary;
+use crate::system_times::timed;
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::math::DVec3;
 use bevy::prelude::*;
@@ -106,14 +107,14 @@ pub(super) fn build(app: &mut App) {
     render_app
         .init_resource::<ParticleFieldCamera>()
         .init_resource::<NoParticleField>()
-        .add_systems(ExtractSchedule, extract_particle_field_camera)
+        .add_systems(ExtractSchedule, timed(extract_particle_field_camera))
         .add_systems(
             Render,
-            prepare_particles.in_set(RenderSystems::PrepareBindGroups),
+            timed(prepare_particles).in_set(RenderSystems::PrepareBindGroups),
         )
         .add_systems(
             RenderGraph,
-            step_particles
+            timed(step_particles)
                 .in_set(ParticleSystems::Step)
                 .after(crate::global_field::compose_global_fields)
                 .in_set(bevy::render::renderer::RenderGraphSystems::Render)

@@ -47,6 +47,7 @@ mod render;
 mod scene_casters;
 
 use crate::sdf_asset::{SdfBakeFailed, SdfBaked, SdfVolumeAsset};
+use crate::system_times::timed;
 use bevy::ecs::entity::EntityHashMap;
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
@@ -396,24 +397,26 @@ impl Plugin for DistanceFieldScenePlugin {
                 PostUpdate,
                 (
                     (
-                        scene_casters::untag_removed_roots,
-                        scene_casters::tag_scene_casters,
-                        scene_casters::count_scene_casters,
+                        timed(scene_casters::untag_removed_roots),
+                        timed(scene_casters::tag_scene_casters),
+                        timed(scene_casters::count_scene_casters),
                     )
                         .chain()
                         .in_set(DistanceFieldSystems::TagSceneCasters),
-                    bake_requests::request_caster_bakes.in_set(DistanceFieldSystems::RequestBakes),
+                    timed(bake_requests::request_caster_bakes)
+                        .in_set(DistanceFieldSystems::RequestBakes),
                     (
-                        remove_distance_field_casters,
-                        update_distance_field_casters,
-                        finish_frame,
+                        timed(remove_distance_field_casters),
+                        timed(update_distance_field_casters),
+                        timed(finish_frame),
                     )
                         .chain()
                         .in_set(DistanceFieldSystems::UpdateObjects),
                     // Apps without images (no `ImagePlugin`) have no terrain to build.
                     (
-                        heightfield::build_heightfields.run_if(resource_exists::<Assets<Image>>),
-                        heightfield::collect_heightfields,
+                        timed(heightfield::build_heightfields)
+                            .run_if(resource_exists::<Assets<Image>>),
+                        timed(heightfield::collect_heightfields),
                     )
                         .chain()
                         .in_set(DistanceFieldSystems::UpdateObjects),

@@ -8,6 +8,7 @@
 use super::{AtlasUpload, DistanceFieldFrame, SceneHeightfields};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::shader_library::PenumbraShaderLibrary;
+use crate::system_times::timed;
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
@@ -118,23 +119,23 @@ pub(super) fn build(render_app: &mut SubApp) {
     render_app
         .init_resource::<DistanceFieldGpu>()
         .init_resource::<ExtractedDistanceFieldFrame>()
-        .add_systems(ExtractSchedule, extract_distance_field_frame)
+        .add_systems(ExtractSchedule, timed(extract_distance_field_frame))
         .configure_sets(
             Render,
             DistanceFieldRenderSystems::PrepareGpu.in_set(RenderSystems::PrepareResources),
         )
-        .add_systems(ExtractSchedule, extract_heightfields)
+        .add_systems(ExtractSchedule, timed(extract_heightfields))
         .add_systems(
             Render,
             (
-                prepare_distance_field_gpu,
-                prepare_heightfields.run_if(resource_exists::<ExtractedHeightfields>),
+                timed(prepare_distance_field_gpu),
+                timed(prepare_heightfields).run_if(resource_exists::<ExtractedHeightfields>),
             )
                 .in_set(DistanceFieldRenderSystems::PrepareGpu),
         )
         .add_systems(
             RenderGraph,
-            apply_distance_field_deltas
+            timed(apply_distance_field_deltas)
                 .in_set(DistanceFieldRenderSystems::ApplyDeltas)
                 .in_set(bevy::render::renderer::RenderGraphSystems::Render)
                 .before(camera_driver),

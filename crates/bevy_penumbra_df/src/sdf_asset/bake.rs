@@ -1,6 +1,7 @@
 //! Runtime baking of `Mesh`es (feature `bake`): requests, the async bakes, the cache.
 
 use super::{SdfBakeFailed, SdfBaked, SdfVolumeAsset};
+use crate::system_times::timed;
 use bevy::{
     mesh::{Indices, PrimitiveTopology, VertexAttributeValues},
     platform::collections::{HashMap, HashSet},
@@ -24,7 +25,10 @@ pub(super) fn build(app: &mut App) {
         .register_type::<SdfBakeStats>()
         .init_resource::<SdfBakeCache>()
         .init_resource::<SdfBakeStats>()
-        .add_systems(Update, (start_sdf_bakes, finish_sdf_bakes).chain());
+        .add_systems(
+            Update,
+            (timed(start_sdf_bakes), timed(finish_sdf_bakes)).chain(),
+        );
 }
 
 /// Asks for the mesh's distance field to be baked (or fetched from the cache).

@@ -14,6 +14,7 @@ use crate::lighting::{
 };
 use crate::scene::{DistanceFieldGpu, GpuHeightfields};
 use crate::shader_library::PenumbraShaderLibrary;
+use crate::system_times::timed;
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::core_pipeline::schedule::Core3d;
 use bevy::pbr::{
@@ -193,23 +194,25 @@ pub(super) fn build(render_app: &mut SubApp) {
         .init_resource::<super::consumers::NoShadowMapReaders>()
         .add_systems(
             ExtractSchedule,
-            super::consumers::extract_no_shadow_map_readers,
+            timed(super::consumers::extract_no_shadow_map_readers),
         )
         .add_systems(
             Render,
             (
-                super::consumers::skip_unread_shadow_maps
+                timed(super::consumers::skip_unread_shadow_maps)
                     .in_set(RenderSystems::CreateViews)
                     .before(prepare_lights),
-                prepare_distance_field_shadows
+                timed(prepare_distance_field_shadows)
                     .in_set(RenderSystems::PrepareResources)
                     .after(crate::scene::DistanceFieldRenderSystems::PrepareGpu),
-                prepare_distance_field_shadow_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+                timed(prepare_distance_field_shadow_bind_groups)
+                    .in_set(RenderSystems::PrepareBindGroups),
             ),
         )
         .add_systems(
             Core3d,
-            distance_field_shadows.in_set(crate::lighting::render::PenumbraLightingSystems::Inputs),
+            timed(distance_field_shadows)
+                .in_set(crate::lighting::render::PenumbraLightingSystems::Inputs),
         );
 }
 
