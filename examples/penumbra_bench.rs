@@ -108,6 +108,10 @@ pub struct RunResult {
     pub size: UVec2,
     /// Wall time of each measured `App::update`, ms.
     pub cpu_frame: Option<Stats>,
+    /// CPU time of all Penumbra systems per update, ms (`system_times`).
+    pub penumbra_cpu: Option<Stats>,
+    /// CPU time of each Penumbra system per update, ms, by system.
+    pub systems_cpu: Vec<(String, Stats)>,
     /// The frame timer's GPU time per frame, ms.
     pub frame_gpu: Option<Stats>,
     /// Per diagnostic path (`render/<span>/elapsed_gpu|elapsed_cpu`), ms.
@@ -258,11 +262,14 @@ fn run_one(
     let gpu_times = app.world().resource::<measure::FrameGpuTimes>().clone();
     gpu_times.0.lock().expect("not poisoned").clear();
     let mut cpu = Vec::with_capacity(args.frames as usize);
+    let mut systems = measure::SystemSeries::start();
     for _ in 0..args.frames {
         let t = std::time::Instant::now();
         app.update();
         cpu.push(t.elapsed().as_secs_f64() * 1e3);
+        systems.take_frame();
     }
+    let (penumbra_cpu, systems_cpu) = systems.finish();
     // Render diagnostics arrive a few frames late: keep taking them, not the frames.
     let probe = app.world().resource::<measure::MemoryProbe>().clone();
     probe.request();
@@ -298,6 +305,8 @@ fn run_one(
         variant: run.variant,
         size,
         cpu_frame: Stats::of(&cpu),
+        penumbra_cpu,
+        systems_cpu,
         frame_gpu: Stats::of(&frame_gpu),
         diagnostics,
         memory: memory.unwrap_or_default(),

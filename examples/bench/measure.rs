@@ -10,8 +10,10 @@
 //!   (Bevy's spans cannot hold it: they nest per thread, and the render graph's systems
 //!   run on several.)
 //! - **CPU time**: the wall time of each `App::update` (main world and, pipelined, the
-//!   render world of the previous frame), and the CPU time Bevy's diagnostics record
-//!   for encoding each pass (`elapsed_cpu`).
+//!   render world of the previous frame), the CPU time Bevy's diagnostics record for
+//!   encoding each pass (`elapsed_cpu`), and each Penumbra system's own run time
+//!   (`bevy_penumbra_df::system_times`), summed over what ran during each update (with
+//!   pipelined rendering, the render world's systems of the frame before).
 //! - **GPU memory**: the device allocator's report (wgpu's `generate_allocator_report`),
 //!   summing the allocations whose label starts with `penumbra` (every Penumbra
 //!   resource's label does) against all allocations.
@@ -20,6 +22,7 @@ use bevy::diagnostic::DiagnosticsStore;
 use bevy::prelude::*;
 use bevy::render::renderer::{RenderDevice, RenderQueue, render_system};
 use bevy::render::{Render, RenderApp, RenderSystems};
+use bevy_penumbra_df::system_times;
 use penumbra_test::wgpu::{
     Buffer, BufferDescriptor, BufferUsages, Features as WgpuFeatures, MapMode, QuerySet,
     QuerySetDescriptor, QueryType,
@@ -99,6 +102,54 @@ pub fn collect_samples(store: Res<DiagnosticsStore>, mut samples: ResMut<Samples
         if let (true, Some(v)) = (samples.recording, sum) {
             samples.series.entry(path.to_owned()).or_default().push(v);
         }
+    }
+}
+
+/// Each Penumbra system's CPU time per measured update (`system_times`).
+pub struct SystemSeries {
+    frames: usize,
+    series: BTreeMap<&'static str, Vec<f64>>,
+    totals: Vec<f64>,
+}
+
+impl SystemSeries {
+    /// Starts recording (what ran before is dropped).
+    pub fn start() -> Self {
+        system_times::record_system_times(true);
+        system_times::take_system_times();
+        Self {
+            frames: 0,
+            series: BTreeMap::new(),
+            totals: Vec::new(),
+        }
+    }
+
+    /// Takes what ran since the last call as one frame's (systems that did not run: 0).
+    pub fn take_frame(&mut self) {
+        let times = system_times::take_system_times();
+        let mut total = 0.0;
+        for (name, time, _) in times {
+            let ms = time.as_secs_f64() * 1e3;
+            total += ms;
+            let series = self.series.entry(name).or_default();
+            series.resize(self.frames, 0.0);
+            series.push(ms);
+        }
+        self.frames += 1;
+        self.totals.push(total);
+    }
+
+    /// Stops recording: the total's statistics and each system's, by name.
+    pub fn finish(mut self) -> (Option<Stats>, Vec<(String, Stats)>) {
+        system_times::record_system_times(false);
+        let systems = std::mem::take(&mut self.series)
+            .into_iter()
+            .filter_map(|(name, mut v)| {
+                v.resize(self.frames, 0.0);
+                Some((name.to_owned(), Stats::of(&v)?))
+            })
+            .collect();
+        (Stats::of(&self.totals), systems)
     }
 }
 

@@ -194,6 +194,12 @@ pub fn json(meta: &Meta, results: &[RunResult]) -> Value {
                 "height": r.size.y,
                 "frame_gpu": stats_json(frame_gpu(r)),
                 "frame_cpu_wall": stats_json(r.cpu_frame),
+                "penumbra_systems_cpu": stats_json(r.penumbra_cpu),
+                "systems_cpu": r
+                    .systems_cpu
+                    .iter()
+                    .map(|(name, s)| (name.clone(), stats_json(Some(*s))))
+                    .collect::<serde_json::Map<_, _>>(),
                 "passes": passes,
                 "penumbra_gpu_bytes": r.memory.penumbra_bytes,
                 "penumbra_gpu_allocations": r.memory.penumbra_allocations,
@@ -282,6 +288,11 @@ pub fn markdown(meta: &Meta, results: &[RunResult]) -> String {
             "frame (CPU wall)",
             runs.iter().map(|r| ms(r.cpu_frame)).collect(),
         );
+        row(
+            &mut md,
+            "Penumbra systems (CPU)",
+            runs.iter().map(|r| ms(r.penumbra_cpu)).collect(),
+        );
         let mut passes: Vec<&str> = runs
             .iter()
             .flat_map(|r| r.diagnostics.iter())
@@ -317,6 +328,7 @@ pub fn markdown(meta: &Meta, results: &[RunResult]) -> String {
             runs.iter().map(|r| mib(r.memory.total_bytes)).collect(),
         );
         md.push('\n');
+        busiest_systems(&mut md, &runs);
     }
     let comparisons = comparisons(results);
     if !comparisons.is_empty() {
@@ -350,6 +362,46 @@ pub fn markdown(meta: &Meta, results: &[RunResult]) -> String {
         }
     }
     md
+}
+
+/// The most systems [`busiest_systems`] lists.
+const BUSIEST: usize = 12;
+
+/// Penumbra's busiest systems (by their largest median over the runs), CPU ms per
+/// update, median / p95, in each run that ran any.
+fn busiest_systems(md: &mut String, runs: &[&RunResult]) {
+    let runs: Vec<&RunResult> = runs
+        .iter()
+        .copied()
+        .filter(|r| !r.systems_cpu.is_empty())
+        .collect();
+    if runs.is_empty() {
+        return;
+    }
+    let mut names: Vec<(&str, f64)> = Vec::new();
+    for (name, stats) in runs.iter().flat_map(|r| r.systems_cpu.iter()) {
+        match names.iter_mut().find(|(n, _)| n == name) {
+            Some((_, m)) => *m = m.max(stats.median),
+            None => names.push((name, stats.median)),
+        }
+    }
+    names.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(b.0)));
+    names.truncate(BUSIEST);
+    let header: Vec<&str> = runs.iter().map(|r| r.variant.name()).collect();
+    let _ = writeln!(
+        md,
+        "Penumbra's busiest systems, CPU ms per update, median / p95:\n\n| system | {} |",
+        header.join(" | ")
+    );
+    let _ = writeln!(md, "|---|{}", "---|".repeat(runs.len()));
+    for (name, _) in names {
+        let cells: Vec<String> = runs
+            .iter()
+            .map(|r| ms(r.systems_cpu.iter().find(|(n, _)| n == name).map(|s| s.1)))
+            .collect();
+        let _ = writeln!(md, "| `{name}` | {} |", cells.join(" | "));
+    }
+    md.push('\n');
 }
 
 /// Reads the harness's target back and writes it as a PNG.
