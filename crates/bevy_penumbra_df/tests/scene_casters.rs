@@ -109,7 +109,7 @@ fn casters(app: &mut App) -> Vec<(Entity, DistanceFieldCaster)> {
 }
 
 #[test]
-fn cornell_box_twice_tags_every_primitive_and_shares_the_bakes() {
+fn cornell_box_twice_tags_every_mesh_and_shares_the_bakes() {
     let Some(dir) = scenes_dir() else { return };
     let mut app = app(&dir);
     let a = spawn(&mut app, "CornellBox.glb", coarse());
@@ -117,7 +117,8 @@ fn cornell_box_twice_tags_every_primitive_and_shares_the_bakes() {
     settle(&mut app);
     // 4 nodes, 6 primitives (the room is 3): every mesh entity under the root is a
     // caster. All materials are double-sided in the file: the light panel and the room's
-    // walls are open (two-sided shells), the two blocks closed (solid).
+    // walls are open (two-sided shells), the two blocks closed (solid). The room's union
+    // is open too (a box without its front): a shell either way, so it stays in pieces.
     let ca = counts(&app, a);
     assert_eq!(ca, counts(&app, b));
     let meshes = {
@@ -128,11 +129,11 @@ fn cornell_box_twice_tags_every_primitive_and_shares_the_bakes() {
             .count() as u32
     };
     assert_eq!(
-        ca.casters * 2,
+        (ca.casters + ca.merged) * 2,
         meshes,
-        "every mesh entity is a caster: {ca:?}"
+        "every mesh entity is a caster or merged into one: {ca:?}"
     );
-    assert_eq!((ca.casters, ca.two_sided), (6, 4), "{ca:?}");
+    assert_eq!((ca.casters, ca.two_sided, ca.merged), (6, 4, 0), "{ca:?}");
     let all = casters(&mut app);
     assert!(all.iter().all(|(_, c)| c.resolution_scale == 0.125));
     // Shared bakes: the second instance bakes nothing; one atlas volume per distinct
@@ -233,7 +234,11 @@ fn a_respawned_scene_is_tagged_again_and_counted_once() {
     }
     settle(&mut app);
     let c = counts(&app, root);
-    assert_eq!((c.casters, c.two_sided, c.skinned), (6, 4, 0), "{c:?}");
+    assert_eq!(
+        (c.casters, c.two_sided, c.skinned, c.merged),
+        (6, 4, 0, 0),
+        "{c:?}"
+    );
     assert_eq!(casters(&mut app).len(), 6);
 }
 
@@ -282,4 +287,49 @@ fn masked_meshes_let_the_foliage_transmission_through() {
     assert_eq!(leaf.ao_transmission, FOLIAGE_AO_TRANSMISSION);
     assert!(!block.two_sided);
     assert_eq!(block.ao_transmission, 0.0);
+}
+
+/// The primitives of one glTF mesh bake as one field over their union: the cake's six
+/// slices are six meshes of seven open primitives each (crust, icing, cut faces, a
+/// candle); the union of each closes, so it bakes solid (no two-sided shell), on the
+/// first primitive's entity, and the others carry no caster.
+#[test]
+fn a_meshs_primitives_bake_as_one_field() {
+    let Some(dir) = scenes_dir() else { return };
+    let mut app = app(&dir);
+    let root = spawn(&mut app, "AlienCake/cakeBirthday.glb", coarse());
+    settle(&mut app);
+    let c = counts(&app, root);
+    println!("{c:?}");
+    let meshes = {
+        let world = app.world_mut();
+        world
+            .query_filtered::<(), With<Mesh3d>>()
+            .iter(world)
+            .count() as u32
+    };
+    assert_eq!(meshes, 42, "seven primitives per slice");
+    assert_eq!(c.casters + c.merged + c.small, meshes, "{c:?}");
+    assert_eq!(c.casters, 6, "one caster per slice: {c:?}");
+    let all = casters(&mut app);
+    let world = app.world_mut();
+    for (entity, caster) in &all {
+        let merged = world
+            .get::<bevy_penumbra_df::CasterMesh>(*entity)
+            .expect("the union as the caster's mesh");
+        let union = world
+            .resource::<Assets<Mesh>>()
+            .get(&merged.0)
+            .expect("loaded");
+        assert!(union.count_vertices() > 100, "{}", union.count_vertices());
+        assert!(!caster.two_sided, "the union is solid");
+    }
+    // One request per caster; equal unions share a bake.
+    let bakes = *world.resource::<SdfBakeStats>();
+    assert_eq!(bakes.failed, 0, "{bakes:?}");
+    assert_eq!(
+        bakes.baked + bakes.memory_hits + bakes.disk_hits,
+        6,
+        "{bakes:?}"
+    );
 }

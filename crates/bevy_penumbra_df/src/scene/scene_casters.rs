@@ -3,11 +3,13 @@
 //!
 //! The rule is documented on [`DistanceFieldSceneCasters`].
 
-use super::DistanceFieldCaster;
+use super::{CasterMesh, DistanceFieldCaster};
+use bevy::asset::RenderAssetUsages;
 use bevy::camera::primitives::MeshAabb;
 use bevy::mesh::morph::MeshMorphWeights;
 use bevy::mesh::skinning::SkinnedMesh;
 use bevy::mesh::{PrimitiveTopology, VertexAttributeValues};
+use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 
 /// What [`DistanceFieldSceneCasters`] does with skinned and morphing meshes.
@@ -57,6 +59,17 @@ pub enum SceneTwoSided {
 ///    exporters mark most materials double-sided (Blender does by default), and a
 ///    shell about a voxel thick makes a solid box self-shadow at grazing angles.
 ///    Materials other than `StandardMaterial` count as opaque and single-sided.
+///
+/// **One field per glTF mesh.** Bevy spawns one entity per glTF primitive (one per
+/// material); the casting primitives of one mesh under one node bake as a single field
+/// over their union, placed on the first primitive's entity ([`CasterMesh`]: the union,
+/// in its local space), as Unreal bakes a static mesh over all its sections. The sign
+/// comes from the union's generalized winding number, so open pieces that close
+/// together (a cake's crust, icing and cut faces) bake solid. Rule 5 is applied to the
+/// union (masked or double-sided if any primitive is, open if the union is): a union
+/// that would be a two-sided shell anyway (a room's open walls) stays in pieces, the
+/// same shells in smaller volumes. The other primitives carry no caster
+/// ([`SceneCasterCounts::merged`]).
 ///
 /// A mesh entity that already has a `DistanceFieldCaster` of its own is left alone; the
 /// casters it adds carry [`DistanceFieldSceneCaster`] and are removed when the
@@ -123,6 +136,9 @@ pub struct SceneCasterCounts {
     pub unsupported: u32,
     /// Left alone: the entity has its own `DistanceFieldCaster`.
     pub own: u32,
+    /// Primitives baked into a sibling's field: the primitives of one glTF mesh are one
+    /// caster (counted once in `casters`, on its first primitive).
+    pub merged: u32,
 }
 
 /// Why a mesh is or is not a caster.
@@ -132,6 +148,8 @@ enum Verdict {
         two_sided: bool,
         /// Alpha-masked material (foliage).
         masked: bool,
+        /// The material is double-sided.
+        double_sided: bool,
     },
     Skinned,
     Small,
@@ -160,7 +178,6 @@ type MeshQuery<'w, 's> = Query<
 /// is shared by exactly two triangles. Strips and meshes without `Float32x3` positions
 /// count as open.
 pub(super) fn is_closed(mesh: &Mesh) -> bool {
-    use bevy::platform::collections::HashMap;
     let (PrimitiveTopology::TriangleList, Ok(VertexAttributeValues::Float32x3(positions))) = (
         mesh.primitive_topology(),
         mesh.try_attribute(Mesh::ATTRIBUTE_POSITION),
@@ -254,7 +271,11 @@ fn verdict(
         SceneTwoSided::FromMaterial => masked || double_sided && !closed(mesh),
         SceneTwoSided::Always => true,
     };
-    Verdict::Caster { two_sided, masked }
+    Verdict::Caster {
+        two_sided,
+        masked,
+        double_sided,
+    }
 }
 
 /// The nearest ancestor (or the entity itself) with [`DistanceFieldSceneCasters`].
@@ -286,11 +307,13 @@ pub(super) fn tag_scene_casters(
     meshes: MeshQuery,
     parents: Query<&ChildOf>,
     children: Query<&Children>,
-    mesh_assets: Option<Res<Assets<Mesh>>>,
+    mut mesh_assets: Option<ResMut<Assets<Mesh>>>,
     // Absent in apps without PBR (e.g. headless logic tests): no material, opaque.
     materials: Option<Res<Assets<StandardMaterial>>>,
     mut waiting: Local<Vec<Entity>>,
-    mut closed_meshes: Local<bevy::platform::collections::HashMap<AssetId<Mesh>, bool>>,
+    mut closed_meshes: Local<HashMap<AssetId<Mesh>, bool>>,
+    drawn_through: Query<(), (With<CasterMesh>, Without<SceneMergedMesh>)>,
+    mut merges: Local<MergedMeshes>,
 ) {
     // No root: nothing to tag (and no ancestor walk for every new mesh).
     if roots.is_empty() {
@@ -317,74 +340,279 @@ pub(super) fn tag_scene_casters(
             todo.push((entity, root));
         }
     }
+    let mut decided: HashSet<Entity> = HashSet::default();
     for (entity, root) in todo {
-        let (Ok((mesh, transform, material, skinned, morphed, caster, tag)), Ok((_, settings))) =
-            (meshes.get(entity), roots.get(root))
-        else {
+        if decided.contains(&entity) {
+            continue;
+        }
+        let Ok((_, settings)) = roots.get(root) else {
             continue;
         };
-        let mut tally = SceneCasterCounts::default();
-        if caster.is_some() && tag.is_none() {
-            tally.own = 1;
-        } else {
-            let material = material
-                .zip(materials.as_deref())
-                .map(|(m, all)| all.get(&m.0));
-            let closed = |m: &Mesh| {
-                *closed_meshes
-                    .entry(mesh.id())
-                    .or_insert_with(|| is_closed(m))
+        let settings: &DistanceFieldSceneCasters = &settings;
+        // The primitives of one glTF mesh are decided together.
+        let group = primitive_group(entity, &meshes, &parents, &children, &drawn_through);
+        decided.extend(group.iter().copied());
+        let mut judged = Vec::with_capacity(group.len());
+        for &member in &group {
+            let Ok((mesh, transform, material, skinned, morphed, caster, tag)) = meshes.get(member)
+            else {
+                continue;
             };
-            match verdict(
-                &settings,
-                mesh_assets.as_deref().and_then(|a| a.get(&mesh.0)),
-                transform,
-                material,
-                skinned || morphed,
-                closed,
-            ) {
-                Verdict::Wait => {
-                    waiting.push(entity);
-                    continue;
-                }
-                Verdict::Caster { two_sided, masked } => {
+            let verdict = if caster.is_some() && tag.is_none() {
+                None // its own caster: left alone
+            } else {
+                let material = material
+                    .zip(materials.as_deref())
+                    .map(|(m, all)| all.get(&m.0));
+                let closed = |m: &Mesh| {
+                    *closed_meshes
+                        .entry(mesh.id())
+                        .or_insert_with(|| is_closed(m))
+                };
+                Some(verdict(
+                    settings,
+                    mesh_assets.as_deref().and_then(|a| a.get(&mesh.0)),
+                    transform,
+                    material,
+                    skinned || morphed,
+                    closed,
+                ))
+            };
+            judged.push((member, verdict, tag.is_some()));
+        }
+        if judged.iter().any(|(_, v, _)| *v == Some(Verdict::Wait)) {
+            waiting.extend(judged.iter().map(|j| j.0));
+            continue;
+        }
+        let casting: Vec<Entity> = judged
+            .iter()
+            .filter(|(_, v, _)| matches!(v, Some(Verdict::Caster { .. })))
+            .map(|j| j.0)
+            .collect();
+        // The union's material flags: masked or double-sided if any primitive is.
+        let (masked, double_sided) =
+            judged
+                .iter()
+                .fold((false, false), |(m, d), (_, v, _)| match v {
+                    Some(Verdict::Caster {
+                        masked,
+                        double_sided,
+                        ..
+                    }) => (m || *masked, d || *double_sided),
+                    _ => (m, d),
+                });
+        // Two or more casting primitives: one field over their union, on the first, when
+        // the union bakes solid (its sign is what merging fixes). A union that would be a
+        // two-sided shell anyway (a room's open walls) stays in pieces: the same shells,
+        // in smaller volumes than one around the whole.
+        let merged = (casting.len() > 1)
+            .then(|| {
+                let assets = mesh_assets.as_deref_mut()?;
+                let handle = merged_caster_mesh(&casting, &meshes, assets, &mut merges)?;
+                let closed = *closed_meshes
+                    .entry(handle.id())
+                    .or_insert_with(|| assets.get(&handle).is_some_and(is_closed));
+                let two_sided = match settings.two_sided {
+                    SceneTwoSided::Never => false,
+                    SceneTwoSided::FromMaterial => masked || double_sided && !closed,
+                    SceneTwoSided::Always => true,
+                };
+                (!two_sided).then_some(handle)
+            })
+            .flatten();
+        let lead = casting.first().copied();
+        for (member, verdict, tagged) in judged {
+            let mut tally = SceneCasterCounts::default();
+            let mut commands = commands.entity(member);
+            match verdict {
+                None => tally.own = 1,
+                Some(Verdict::Caster {
+                    two_sided, masked, ..
+                }) if merged.is_none() => {
                     tally.casters = 1;
                     tally.two_sided = u32::from(two_sided);
-                    let ao_transmission = if masked {
-                        settings.masked_ao_transmission
-                    } else {
-                        settings.caster.ao_transmission
-                    };
-                    commands.entity(entity).insert((
-                        DistanceFieldCaster {
-                            source: super::CasterSource::Mesh,
-                            two_sided,
-                            ao_transmission,
-                            ..settings.caster.clone()
-                        },
-                        DistanceFieldSceneCaster(root),
+                    commands.remove::<(CasterMesh, SceneMergedMesh)>();
+                    commands.insert(scene_caster(settings, two_sided, masked, root));
+                }
+                Some(Verdict::Caster { .. }) if Some(member) == lead => {
+                    let handle = merged.as_ref().expect("merged");
+                    tally.casters = 1;
+                    commands.insert((
+                        scene_caster(settings, false, masked, root),
+                        CasterMesh(handle.clone()),
+                        SceneMergedMesh,
                     ));
                 }
-                skipped => {
+                Some(Verdict::Caster { .. }) => {
+                    tally.merged = 1;
+                    commands.remove::<(
+                        DistanceFieldCaster,
+                        DistanceFieldSceneCaster,
+                        CasterMesh,
+                        SceneMergedMesh,
+                    )>();
+                }
+                Some(skipped) => {
                     match skipped {
                         Verdict::Skinned => tally.skinned = 1,
                         Verdict::Small => tally.small = 1,
                         Verdict::Blended => tally.blended = 1,
                         _ => tally.unsupported = 1,
                     }
-                    if tag.is_some() {
-                        commands
-                            .entity(entity)
-                            .remove::<(DistanceFieldCaster, DistanceFieldSceneCaster)>();
+                    if tagged {
+                        commands.remove::<(
+                            DistanceFieldCaster,
+                            DistanceFieldSceneCaster,
+                            CasterMesh,
+                            SceneMergedMesh,
+                        )>();
                     }
                 }
             }
+            commands.insert(SceneMeshVerdict {
+                root,
+                counts: tally,
+            });
         }
-        commands.entity(entity).insert(SceneMeshVerdict {
-            root,
-            counts: tally,
-        });
     }
+}
+
+/// The caster a scene root's rule makes.
+fn scene_caster(
+    settings: &DistanceFieldSceneCasters,
+    two_sided: bool,
+    masked: bool,
+    root: Entity,
+) -> (DistanceFieldCaster, DistanceFieldSceneCaster) {
+    let ao_transmission = if masked {
+        settings.masked_ao_transmission
+    } else {
+        settings.caster.ao_transmission
+    };
+    (
+        DistanceFieldCaster {
+            source: super::CasterSource::Mesh,
+            two_sided,
+            ao_transmission,
+            ..settings.caster.clone()
+        },
+        DistanceFieldSceneCaster(root),
+    )
+}
+
+/// Marks a caster whose [`CasterMesh`] the scene rule made (the union of its glTF mesh's
+/// primitives): removed with the caster.
+#[derive(Component, Clone, Copy, Debug)]
+pub(super) struct SceneMergedMesh;
+
+/// The glTF file and mesh index of a primitive's mesh (`MeshN/PrimitiveM` label), or
+/// `None` for a mesh not loaded from glTF.
+pub(super) fn gltf_mesh_of(path: Option<&bevy::asset::AssetPath>) -> Option<(String, usize)> {
+    let path = path?;
+    let label = path.label()?;
+    let rest = label.strip_prefix("Mesh")?;
+    let (mesh, primitive) = rest.split_once("/Primitive")?;
+    primitive.parse::<usize>().ok()?;
+    Some((path.without_label().to_string(), mesh.parse().ok()?))
+}
+
+/// `entity` and its siblings that are primitives of the same glTF mesh (children of one
+/// node, meshes `MeshN/PrimitiveM` of one file and one `N`), in the node's child order;
+/// `[entity]` for any other mesh entity. A primitive drawn through another mesh (its own
+/// `CasterMesh`, e.g. tessellated) is decided alone.
+fn primitive_group(
+    entity: Entity,
+    meshes: &MeshQuery,
+    parents: &Query<&ChildOf>,
+    children: &Query<&Children>,
+    drawn_through: &Query<(), (With<CasterMesh>, Without<SceneMergedMesh>)>,
+) -> Vec<Entity> {
+    let key = |e: Entity| {
+        let (mesh, ..) = meshes.get(e).ok()?;
+        if drawn_through.contains(e) {
+            return None;
+        }
+        gltf_mesh_of(mesh.0.path())
+    };
+    let (Some(own), Ok(parent)) = (key(entity), parents.get(entity)) else {
+        return vec![entity];
+    };
+    let Ok(siblings) = children.get(parent.parent()) else {
+        return vec![entity];
+    };
+    let group: Vec<Entity> = siblings
+        .iter()
+        .filter(|&e| key(e).as_ref() == Some(&own))
+        .collect();
+    if group.contains(&entity) {
+        group
+    } else {
+        vec![entity]
+    }
+}
+
+/// Merged meshes by their primitives (mesh and position relative to the first): the
+/// instances of a glTF mesh share one union, so one bake and one atlas volume. Ids, not
+/// handles: a union no caster holds any more is freed, and made again when needed.
+#[derive(Default)]
+pub(super) struct MergedMeshes(HashMap<Vec<(AssetId<Mesh>, [u32; 12])>, AssetId<Mesh>>);
+
+/// The union of `casting`'s meshes in the first one's local space (positions and
+/// triangles only: what a bake reads), a main-world mesh asset; `None` when a member is
+/// not a triangle list with `Float32x3` positions (each is then decided alone).
+fn merged_caster_mesh(
+    casting: &[Entity],
+    meshes: &MeshQuery,
+    assets: &mut Assets<Mesh>,
+    merges: &mut MergedMeshes,
+) -> Option<Handle<Mesh>> {
+    let (_, lead_transform, ..) = meshes.get(casting[0]).ok()?;
+    let local_from_world = lead_transform.affine().inverse();
+    let mut key = Vec::with_capacity(casting.len());
+    let mut relatives = Vec::with_capacity(casting.len());
+    for &e in casting {
+        let (mesh, transform, ..) = meshes.get(e).ok()?;
+        let relative = local_from_world * transform.affine();
+        let bits = relative.to_cols_array().map(f32::to_bits);
+        key.push((mesh.id(), bits));
+        relatives.push((mesh.id(), relative));
+    }
+    if let Some(handle) = merges
+        .0
+        .get(&key)
+        .and_then(|&id| assets.get_strong_handle(id))
+    {
+        return Some(handle);
+    }
+    let mut positions: Vec<[f32; 3]> = Vec::new();
+    let mut indices: Vec<u32> = Vec::new();
+    for (id, relative) in relatives {
+        let mesh = assets.get(id)?;
+        let (PrimitiveTopology::TriangleList, Ok(VertexAttributeValues::Float32x3(p))) = (
+            mesh.primitive_topology(),
+            mesh.try_attribute(Mesh::ATTRIBUTE_POSITION),
+        ) else {
+            return None;
+        };
+        let base = u32::try_from(positions.len()).ok()?;
+        positions.extend(
+            p.iter()
+                .map(|v| relative.transform_point3(Vec3::from(*v)).to_array()),
+        );
+        match mesh.indices() {
+            Some(list) => indices.extend(list.iter().map(|i| base + i as u32)),
+            None => indices.extend(base..base + p.len() as u32),
+        }
+    }
+    let union = Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::MAIN_WORLD,
+    )
+    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions)
+    .with_inserted_indices(bevy::mesh::Indices::U32(indices));
+    let handle = assets.add(union);
+    merges.0.insert(key, handle.id());
+    Some(handle)
 }
 
 /// Recomputes [`SceneCasterCounts`] on every root when a verdict was made or a judged
@@ -424,24 +652,27 @@ fn add_counts(c: &mut SceneCasterCounts, t: &SceneCasterCounts) {
     c.blended += t.blended;
     c.unsupported += t.unsupported;
     c.own += t.own;
+    c.merged += t.merged;
 }
 
 /// Removing [`DistanceFieldSceneCasters`] removes the casters it added.
 pub(super) fn untag_removed_roots(
     mut commands: Commands,
     mut removed: RemovedComponents<DistanceFieldSceneCasters>,
-    tagged: Query<(Entity, &DistanceFieldSceneCaster)>,
+    tagged: Query<(Entity, &DistanceFieldSceneCaster, Has<SceneMergedMesh>)>,
     judged: Query<(Entity, &SceneMeshVerdict)>,
 ) {
     let removed: Vec<Entity> = removed.read().collect();
     if removed.is_empty() {
         return;
     }
-    for (entity, tag) in &tagged {
+    for (entity, tag, merged) in &tagged {
         if removed.contains(&tag.0) {
-            commands
-                .entity(entity)
-                .remove::<(DistanceFieldCaster, DistanceFieldSceneCaster)>();
+            let mut e = commands.entity(entity);
+            e.remove::<(DistanceFieldCaster, DistanceFieldSceneCaster)>();
+            if merged {
+                e.remove::<(CasterMesh, SceneMergedMesh)>();
+            }
         }
     }
     // Verdicts under a root that is no longer one are stale.
@@ -459,8 +690,33 @@ pub(super) fn untag_removed_roots(
 
 #[cfg(test)]
 mod tests {
-    use super::is_closed;
+    use super::{gltf_mesh_of, is_closed};
+    use bevy::asset::AssetPath;
     use bevy::prelude::*;
+
+    #[test]
+    fn primitives_are_grouped_by_file_and_mesh() {
+        let of = |p: &str| gltf_mesh_of(Some(&AssetPath::parse(p)));
+        assert_eq!(
+            of("scenes/cake.glb#Mesh3/Primitive1"),
+            Some(("scenes/cake.glb".into(), 3))
+        );
+        assert_eq!(
+            of("cake.glb#Mesh3/Primitive0"),
+            Some(("cake.glb".into(), 3))
+        );
+        assert_eq!(of("cake.glb#Mesh12/Primitive7").map(|k| k.1), Some(12));
+        for other in [
+            "cake.glb",
+            "cake.glb#Mesh3",
+            "cake.glb#Material0",
+            "cake.glb#Mesh3/MorphTargets",
+            "cake.glb#MeshX/Primitive0",
+        ] {
+            assert_eq!(of(other), None, "{other}");
+        }
+        assert_eq!(gltf_mesh_of(None), None);
+    }
 
     #[test]
     fn closed_meshes_are_told_from_open_ones() {
