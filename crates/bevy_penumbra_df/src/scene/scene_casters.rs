@@ -555,7 +555,11 @@ fn primitive_group(
 /// instances of a glTF mesh share one union, so one bake and one atlas volume. Ids, not
 /// handles: a union no caster holds any more is freed, and made again when needed.
 #[derive(Default)]
-pub(super) struct MergedMeshes(HashMap<Vec<(AssetId<Mesh>, [u32; 12])>, AssetId<Mesh>>);
+pub(super) struct MergedMeshes(HashMap<Vec<MergedPart>, AssetId<Mesh>>);
+
+/// A primitive of a union: its mesh and its transform relative to the first's (the
+/// affine matrix's bits).
+type MergedPart = (AssetId<Mesh>, [u32; 12]);
 
 /// The union of `casting`'s meshes in the first one's local space (positions and
 /// triangles only: what a bake reads), a main-world mesh asset; `None` when a member is
