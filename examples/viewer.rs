@@ -198,7 +198,10 @@ fn spawn_scene(mut commands: Commands, args: Res<ViewerArgs>, assets: Res<AssetS
     ));
     // Plain Bevy: no casters, no bakes, no atlas (the panel can add them later).
     if !args.0.plain {
-        root.insert(DistanceFieldSceneCasters::default());
+        root.insert(DistanceFieldSceneCasters {
+            two_sided: args.0.two_sided,
+            ..default()
+        });
     }
     if let Some((_, file)) = scene_location(&args.0) {
         root.insert(WorldAssetRoot(

@@ -72,6 +72,21 @@ pub struct Args {
     /// defaults.
     #[arg(long, value_parser = parse_f_stops, allow_hyphen_values = true)]
     pub bokeh: Option<f32>,
+    /// When the scene's meshes bake two-sided (a shell about the surface):
+    /// `never`, `material` (double-sided and open, or alpha-masked: the default) or
+    /// `always` (`DistanceFieldSceneCasters::two_sided`).
+    #[arg(long, value_parser = parse_two_sided, default_value = "material")]
+    pub two_sided: penumbra::df::SceneTwoSided,
+}
+
+fn parse_two_sided(s: &str) -> Result<penumbra::df::SceneTwoSided, String> {
+    use penumbra::df::SceneTwoSided;
+    match s {
+        "never" => Ok(SceneTwoSided::Never),
+        "material" => Ok(SceneTwoSided::FromMaterial),
+        "always" => Ok(SceneTwoSided::Always),
+        _ => Err(format!("{s}: not never, material or always")),
+    }
 }
 
 impl Args {

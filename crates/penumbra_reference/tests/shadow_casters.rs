@@ -187,3 +187,119 @@ fn point_and_spot_lights_trace_exactly_the_pixels_they_reach() {
         assert!(traced > 100 && shadowed > 10 && skipped > 100, "{spot:?}");
     }
 }
+
+/// A mirrored caster (a node scaled by −1, as exporters write mirrored props: its
+/// transform's determinant is negative) shadows and occludes exactly as its unmirrored
+/// twin seen in a mirror: the same baked volume, once under `scale(−1, 1, 1)`, once
+/// unmirrored with the receivers, the light and the normals mirrored in x. An asymmetric
+/// closed mesh (a box with a second box on one side), the sun low from one side; a
+/// mirrored record read with the unmirrored one's sign or bounds would shadow the wrong
+/// side, or everything.
+#[test]
+fn mirrored_casters_shadow_and_occlude_as_their_unmirrored_twin() {
+    use penumbra_reference::dfao::pixel_ao;
+    use penumbra_sdf::shapes::cuboid;
+    let mut mesh = cuboid(Vec3::new(0.3, 0.3, 0.3));
+    let arm = cuboid(Vec3::new(0.25, 0.1, 0.1));
+    let base = mesh.positions.len() as u32;
+    mesh.positions
+        .extend(arm.positions.iter().map(|p| *p + Vec3::new(0.45, 0.1, 0.0)));
+    mesh.triangles
+        .extend(arm.triangles.iter().map(|t| t.map(|i| i + base)));
+    let v = bake(&mesh, &BakeSettings::longest_axis(32), None)
+        .unwrap()
+        .volume;
+    let mut atlas = Atlas::new(v.dims);
+    let bits: Vec<u16> = v.data.iter().map(|h| h.to_bits()).collect();
+    atlas.write(UVec3::ZERO, v.dims, &bits);
+    let at = Vec3::new(0.2, 0.6, -0.1);
+    let record = |world_from_local: Affine3A| {
+        encode(&ObjectDesc {
+            world_from_local,
+            shape: CasterShape::Volume {
+                region: AtlasRegion {
+                    origin: UVec3::ZERO,
+                    dims: v.dims,
+                },
+                local_origin: v.origin.as_vec3(),
+                voxel_size: v.voxel_size,
+                margin: v.margin,
+            },
+            flags: CASTING | flags::VISIBLE,
+        })
+        .unwrap()
+    };
+    let spin = Quat::from_rotation_y(0.4);
+    let mirrored = [record(mirrored_transform(at, spin))];
+    // Its mirror image in the world's x (two flips: a positive determinant).
+    let flip = Vec3::new(-1.0, 1.0, 1.0);
+    let twin = [record(
+        Affine3A::from_scale(flip) * mirrored_transform(at, spin),
+    )];
+    let camera = CameraOrigin::at(Vec3::ZERO).unwrap();
+    let light = sun(Vec3::new(0.8, 0.5, 0.2));
+    let twin_light = sun(Vec3::new(-0.8, 0.5, 0.2));
+    let (mut shadowed, mut lit, mut worst) = (0, 0, 0.0f32);
+    let (mut ao_worst, mut ao_sum, mut ao_n) = (0.0f32, 0.0f32, 0);
+    let trace = penumbra_df_core::ao::AoTrace {
+        max_distance: 1.0,
+        cone_count: 9,
+        steps_per_cone: 16,
+        bias: 0.02,
+        shaping: penumbra_df_core::ao::CONE_SHAPING,
+    };
+    for i in 0..41 {
+        for k in 0..41 {
+            let p = Vec3::new(-2.0 + 0.1 * i as f32, 0.0, -2.0 + 0.1 * k as f32);
+            let a = pixel_visibility(&mirrored, &atlas, &camera, p, Vec3::Y, &light);
+            let b = pixel_visibility(&twin, &atlas, &camera, p * flip, Vec3::Y, &twin_light);
+            worst = worst.max((a - b).abs());
+            if a < 0.1 {
+                shadowed += 1;
+            } else if a > 0.9 {
+                lit += 1;
+            }
+            let ao_a = pixel_ao(&mirrored, &atlas, &camera, p, Vec3::Y, &trace).ao;
+            let ao_b = pixel_ao(&twin, &atlas, &camera, p * flip, Vec3::Y, &trace).ao;
+            ao_worst = ao_worst.max((ao_a - ao_b).abs());
+            ao_sum += (ao_a - ao_b).abs();
+            ao_n += 1;
+        }
+    }
+    println!(
+        "{shadowed} shadowed, {lit} lit floor points; |mirrored − twin| shadow worst \
+         {worst:.2e}, AO worst {ao_worst:.2e}, mean {:.2e}",
+        ao_sum / ao_n as f32
+    );
+    assert!(shadowed > 20 && lit > 1000, "{shadowed} {lit}");
+    assert!(worst < 1e-4, "shadows differ by {worst}");
+    // The cones' tangent frame is not mirror-symmetric: the cone set differs slightly.
+    assert!(
+        ao_worst < 0.05 && ao_sum / (ao_n as f32) < 0.01,
+        "{ao_worst}"
+    );
+    // And not the unmirrored caster: the arm points the other way.
+    let unmirrored = [record(
+        Affine3A::from_translation(at) * Affine3A::from_quat(spin),
+    )];
+    let differs = (0..41 * 41)
+        .filter(|j| {
+            let p = Vec3::new(
+                -2.0 + 0.1 * (j / 41) as f32,
+                0.0,
+                -2.0 + 0.1 * (j % 41) as f32,
+            );
+            let a = pixel_visibility(&mirrored, &atlas, &camera, p, Vec3::Y, &light);
+            let c = pixel_visibility(&unmirrored, &atlas, &camera, p, Vec3::Y, &light);
+            (a - c).abs() > 0.5
+        })
+        .count();
+    assert!(differs > 10, "{differs}");
+}
+
+/// `translation(at) · rotation(spin) · scale(−1, 1, 1)`.
+fn mirrored_transform(at: Vec3, spin: Quat) -> Affine3A {
+    Affine3A::from_translation(at)
+        * Affine3A::from_quat(spin)
+        * Affine3A::from_scale(Vec3::new(-1.0, 1.0, 1.0))
+}
