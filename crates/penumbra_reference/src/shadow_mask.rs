@@ -19,7 +19,8 @@ use crate::df_shadow::cone_interval;
 use glam::{IVec3, Mat3, Mat4, Vec2, Vec3, Vec4};
 use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::heightfield::HeightfieldTexture;
-use penumbra_df_core::object::{ObjectRecord, TILE_SIZE, flags};
+use penumbra_df_core::object::{ObjectRecord, ShapeKind, TILE_SIZE, flags};
+use penumbra_df_core::shadow::self_shadow_start;
 
 pub use penumbra_df_core::shadow::{ShadowLight as MaskLight, ShadowLightKind as MaskLightKind};
 
@@ -155,7 +156,15 @@ pub fn pixel_visibility_with_terrain(
             continue;
         }
         let sphere = bounding_sphere(r, camera);
-        let (mut t, mut t_end) = (light.bias, t_max);
+        // Volumes: past the receiver's own surface as the field sees it.
+        let voxel = if r.kind() == ShapeKind::Volume as u32 {
+            r.conservative_scale()
+        } else {
+            0.0
+        };
+        let two_sided = r.flags() & flags::TWO_SIDED != 0;
+        let start = self_shadow_start(voxel, two_sided, normal, dir);
+        let (mut t, mut t_end) = (light.bias.max(start), t_max);
         if let Some((center, radius)) = sphere {
             if round_cone_distance(center, p, end, 0.0, end_radius) >= radius + cull_slack(radius) {
                 continue;

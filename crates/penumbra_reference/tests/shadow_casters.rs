@@ -303,3 +303,106 @@ fn mirrored_transform(at: Vec3, spin: Quat) -> Affine3A {
         * Affine3A::from_quat(spin)
         * Affine3A::from_scale(Vec3::new(-1.0, 1.0, 1.0))
 }
+
+/// A receiver does not shadow itself through its own baked field: a gently rolling
+/// 4 m sheet (a terrain patch) baked two-sided — a shell about a voxel thick, its
+/// surface inside it — under a low sun (20° above the horizon) that lights every point
+/// of it. Marched from the surface, the shell reads as an occluder at every step until
+/// the ray rises out of it: blotches across the lit sheet. The self-shadow offset
+/// (`penumbra_df_core::shadow::self_shadow_start`) starts each march past it. A box on
+/// the sheet still shadows the points behind it (the offset is about a voxel, not a
+/// contact shadow's length).
+#[test]
+fn a_two_sided_sheet_does_not_shadow_itself() {
+    let n = 24;
+    let height = |x: f32, z: f32| 0.08 * (1.3 * x).sin() * (0.9 * z).cos();
+    let mut sheet = TriMesh::default();
+    for k in 0..=n {
+        for i in 0..=n {
+            let (x, z) = (
+                -2.0 + 4.0 * i as f32 / n as f32,
+                -2.0 + 4.0 * k as f32 / n as f32,
+            );
+            sheet.positions.push(Vec3::new(x, height(x, z), z));
+        }
+    }
+    let row = n + 1;
+    for k in 0..n {
+        for i in 0..n {
+            let a = k * row + i;
+            sheet.triangles.push([a, a + row, a + 1]);
+            sheet.triangles.push([a + 1, a + row, a + row + 1]);
+        }
+    }
+    let settings = BakeSettings {
+        sign: SignMethod::TWO_SIDED,
+        ..BakeSettings::longest_axis(64)
+    };
+    let v = bake(&sheet, &settings, None).unwrap().volume;
+    let mut atlas = Atlas::new(v.dims);
+    let bits: Vec<u16> = v.data.iter().map(|h| h.to_bits()).collect();
+    atlas.write(UVec3::ZERO, v.dims, &bits);
+    let terrain = encode(&ObjectDesc {
+        world_from_local: Affine3A::IDENTITY,
+        shape: CasterShape::Volume {
+            region: AtlasRegion {
+                origin: UVec3::ZERO,
+                dims: v.dims,
+            },
+            local_origin: v.origin.as_vec3(),
+            voxel_size: v.voxel_size,
+            margin: v.margin,
+        },
+        flags: CASTING | flags::VISIBLE | flags::TWO_SIDED,
+    })
+    .unwrap();
+    let to_sun = Vec3::new(1.0, 20f32.to_radians().tan(), 0.3).normalize();
+    let light = sun(to_sun);
+    let camera = CameraOrigin::at(Vec3::ZERO).unwrap();
+    let normal = |x: f32, z: f32| {
+        let e = 1e-3;
+        let dx = (height(x + e, z) - height(x - e, z)) / (2.0 * e);
+        let dz = (height(x, z + e) - height(x, z - e)) / (2.0 * e);
+        Vec3::new(-dx, 1.0, -dz).normalize()
+    };
+    let (mut dark, mut points, mut sum) = (0, 0, 0.0f32);
+    for k in 0..31 {
+        for i in 0..31 {
+            let (x, z) = (-1.5 + 0.1 * i as f32, -1.5 + 0.1 * k as f32);
+            let p = Vec3::new(x, height(x, z), z);
+            let v = pixel_visibility(&[terrain], &atlas, &camera, p, normal(x, z), &light);
+            points += 1;
+            sum += v;
+            dark += usize::from(v < 0.9);
+        }
+    }
+    println!(
+        "voxel {:.3} m: {dark} of {points} lit sheet points under 0.9, mean visibility {:.3}",
+        v.voxel_size,
+        sum / points as f32
+    );
+    assert!(
+        dark <= points / 50,
+        "{dark} of {points} points shadow themselves"
+    );
+    // A 0.4 m box standing on the sheet at the origin still shadows the sheet behind it
+    // (away from the sun), from its foot on.
+    let boxed = [
+        terrain,
+        encode(&ObjectDesc {
+            world_from_local: Affine3A::from_translation(Vec3::new(0.0, 0.2, 0.0)),
+            shape: CasterShape::Cuboid {
+                half_extents: Vec3::splat(0.2),
+            },
+            flags: CASTING | flags::VISIBLE,
+        })
+        .unwrap(),
+    ];
+    let behind = -to_sun.with_y(0.0).normalize();
+    for along in [0.3f32, 0.5, 0.8] {
+        let (x, z) = (behind.x * along, behind.z * along);
+        let p = Vec3::new(x, height(x, z), z);
+        let v = pixel_visibility(&boxed, &atlas, &camera, p, normal(x, z), &light);
+        assert!(v < 0.1, "{along} m behind the box: {v}");
+    }
+}

@@ -50,6 +50,15 @@ impl SignMethod {
     pub const BACKFACE_RATIO: SignMethod = SignMethod::BackfaceRatio { threshold: 0.5 };
 }
 
+/// How far a field's zero level lies outside the mesh, voxels: a two-sided bake's
+/// shell, 0 for a winding-number sign.
+fn shell_voxels(sign: &SignMethod) -> f32 {
+    match sign {
+        SignMethod::TwoSided { shell_voxels } if shell_voxels.is_finite() => shell_voxels.max(0.0),
+        _ => 0.0,
+    }
+}
+
 /// Bake settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BakeSettings {
@@ -311,8 +320,11 @@ pub fn bake(
         voxel_size: h,
         data,
         // The mesh's bounds are `border` voxels inside the sample box (less f32
-        // rounding of the grid's placement).
-        margin: (grid.border as f32 - 0.01).max(0.0),
+        // rounding of the grid's placement); a two-sided field's zero level is its shell,
+        // `shell_voxels` outside the mesh. (A margin measured from the mesh alone put a
+        // flat sheet's shell outside the shrunk box: every point above the box read as
+        // inside it, and shadowed everything.)
+        margin: (grid.border as f32 - 0.01 - shell_voxels(&settings.sign)).max(0.0),
     };
     drop(distance);
     let thin_feature_samples = if settings.keep_thin_features {
@@ -723,6 +735,46 @@ fn fibonacci_directions(n: usize) -> Vec<Vec3> {
 mod tests {
     use super::*;
     use crate::shapes;
+
+    /// Outside the sample box a two-sided field stays a lower bound of the distance to
+    /// its shell, positive: a flat 1 m quad (the box a few voxels thick) read from above,
+    /// beside and below its box. With the margin measured from the mesh alone, the shell
+    /// reached past the shrunk box and every point outside read as inside (−0.14 m at
+    /// 0.3 m above the quad).
+    #[test]
+    fn a_flat_two_sided_field_is_outside_its_box() {
+        let quad = TriMesh {
+            positions: vec![
+                Vec3::new(-0.5, 0.0, -0.5),
+                Vec3::new(0.5, 0.0, -0.5),
+                Vec3::new(0.5, 0.0, 0.5),
+                Vec3::new(-0.5, 0.0, 0.5),
+            ],
+            triangles: vec![[0, 2, 1], [0, 3, 2]],
+            ..Default::default()
+        };
+        let settings = BakeSettings {
+            sign: SignMethod::TWO_SIDED,
+            ..BakeSettings::longest_axis(32)
+        };
+        let v = bake(&quad, &settings, None).unwrap().volume;
+        let h = f64::from(v.voxel_size);
+        let shell = 0.866 * h;
+        for p in [
+            glam::DVec3::new(0.1, 0.3, 0.0),
+            glam::DVec3::new(0.0, -0.5, 0.2),
+            glam::DVec3::new(0.2, 1.5, -0.3),
+            glam::DVec3::new(0.9, 0.05, 0.0),
+            glam::DVec3::new(-0.8, 0.4, 0.7),
+        ] {
+            // The exact distance to the quad, less the shell.
+            let c = glam::DVec3::new(p.x.clamp(-0.5, 0.5), 0.0, p.z.clamp(-0.5, 0.5));
+            let truth = (p - c).length() - shell;
+            let d = f64::from(v.sample(p));
+            assert!(d > 0.0, "{p}: {d} inside");
+            assert!(d <= truth + 0.05 * h, "{p}: {d} over the truth {truth}");
+        }
+    }
 
     /// The thin-feature guard's triangle prefilter (skip triangles whose box holds only
     /// settled cells) flips exactly the samples the full lattice walk flips.

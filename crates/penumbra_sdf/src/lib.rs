@@ -35,7 +35,7 @@ pub mod volume;
 /// Version of the baking algorithm: bumped whenever [`bake()`] can produce different
 /// output for the same input and settings, so caches keyed on it (as
 /// `bevy_penumbra_df`'s is) never serve a stale bake.
-pub const BAKER_VERSION: u32 = 3;
+pub const BAKER_VERSION: u32 = 4;
 
 #[cfg(feature = "bake")]
 pub use bake::{Bake, BakeError, BakeSettings, BakeTimings, SignMethod, bake};

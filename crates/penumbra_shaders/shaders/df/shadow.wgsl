@@ -10,8 +10,9 @@
 #define_import_path penumbra::df::shadow
 
 #import penumbra::df::object::{
-    DistanceFieldObject, FLAG_CASTS_SHADOWS, FLAG_CAST_HIDDEN_SHADOW, FLAG_LIVE, FLAG_VISIBLE,
-    KIND_CAPSULE, KIND_SPHERE,
+    DistanceFieldObject, FLAG_CASTS_SHADOWS, FLAG_CAST_HIDDEN_SHADOW, FLAG_LIVE, FLAG_TWO_SIDED,
+    FLAG_VISIBLE,
+    KIND_CAPSULE, KIND_SPHERE, KIND_VOLUME,
     camera_relative, object_kind, rows_column, shape_bounds, transform_rows,
 }
 #import penumbra::df::distance::object_distance
@@ -164,18 +165,41 @@ fn cone_interval(o: vec3<f32>, dir: vec3<f32>, radius: f32, tan_half: f32) -> ve
     return vec2<f32>((-b - s) / (2.0 * a), (-b + s) / (2.0 * a));
 }
 
-// The fraction of the light's cone one object leaves open along the ray from p.
+// Self-shadow offset of two-sided fields (`penumbra_df_core::shadow::{SELF_SHADOW_VOXELS,
+// SHELL_VOXELS, SELF_SHADOW_MAX_START_VOXELS}`).
+const SELF_SHADOW_VOXELS: f32 = 0.5;
+const SHELL_VOXELS: f32 = 0.8660254;
+const SELF_SHADOW_MAX_START_VOXELS: f32 = 4.0;
+
+// Where the march through object `o` starts along the ray for a receiver of unit normal
+// `n` (zero: unknown): for a two-sided (shell) field, where the ray has risen past the
+// shell about the receiver's own surface and half a voxel more, at most 4 voxels
+// farther; 0 for solid fields and analytic shapes
+// (`penumbra_df_core::shadow::self_shadow_start`).
+fn self_shadow_start(o: DistanceFieldObject, n: vec3<f32>, dir: vec3<f32>) -> f32 {
+    let voxel = o.conservative_scale;
+    let shell = object_kind(o) == KIND_VOLUME && (o.flags & FLAG_TWO_SIDED) != 0u;
+    if !shell || !(voxel > 0.0) || all(n == vec3<f32>(0.0)) {
+        return 0.0;
+    }
+    let rise = (SHELL_VOXELS + SELF_SHADOW_VOXELS) * voxel;
+    return min(rise / max(dot(n, dir), 1e-3), rise + SELF_SHADOW_MAX_START_VOXELS * voxel);
+}
+
+// The fraction of the light's cone one object leaves open along the ray from p, the
+// march starting `start` along it at the earliest (after the light's bias).
 fn march_object(
     o: DistanceFieldObject,
     sphere: vec4<f32>,
     p: vec3<f32>,
     ray: ShadowRay,
     light: ShadowLight,
+    start: f32,
     camera_tile: vec3<i32>,
     camera_offset: vec3<f32>,
     atlas: texture_3d<f32>,
 ) -> f32 {
-    var t = light.bias;
+    var t = max(light.bias, start);
     var t_end = ray.t_max;
     if sphere.w >= 0.0 {
         // March only where the cone meets the object's ball.

@@ -13,7 +13,7 @@
 #import penumbra::df::heightfield::{HeightfieldRecord, heightfield_distance}
 #import penumbra::df::shadow::{
     ShadowLight, ShadowRay, bounding_sphere, casts_shadows, cull_slack, finish_visibility, gbuffer_normal,
-    horizon_visibility, is_directional, march_object, object_in_cone,
+    horizon_visibility, is_directional, march_object, object_in_cone, self_shadow_start,
     round_cone_distance, shadow_ray, traces_point,
 }
 #import penumbra::lighting::msaa::MSAA_SAMPLE_POSITIONS
@@ -199,9 +199,10 @@ fn trace(
     // The surface's own shadow, from its G-buffer normal; where it hides the whole light,
     // no march (and the pixel does not widen its tile's cone).
     var horizon = 1.0;
+    var normal = vec3<f32>(0.0);
     if surface && view.size.w == 1u {
-        let n = gbuffer_normal(point.normal_word);
-        horizon = horizon_visibility(n, ray.dir, ray.tan_half);
+        normal = gbuffer_normal(point.normal_word);
+        horizon = horizon_visibility(normal, ray.dir, ray.tan_half);
     }
     let march = surface && horizon > 0.0;
     if march {
@@ -334,8 +335,9 @@ fn trace(
             for (var i = 0u; i < n; i += 1u) {
                 let sphere = tile_spheres[i];
                 if object_in_cone(sphere, p, ray) {
+                    let o = objects[tile_slots[i]];
                     let v = march_object(
-                        objects[tile_slots[i]], sphere, p, ray, light,
+                        o, sphere, p, ray, light, self_shadow_start(o, normal, ray.dir),
                         view.camera_tile.xyz, view.camera_offset.xyz, atlas,
                     );
                     visibility = min(visibility, v);

@@ -52,8 +52,10 @@ fn point_visibility(p: vec3<f32>, light: ShadowLight) -> f32 {
         }
         let sphere = bounding_sphere(o, params.origin_tile.xyz, params.origin_offset.xyz);
         if object_in_cone(sphere, p, ray) {
+            // A hair point has no surface of its own: no self-shadow offset.
             v = min(v, march_object(
-                o, sphere, p, ray, light, params.origin_tile.xyz, params.origin_offset.xyz, atlas,
+                o, sphere, p, ray, light, 0.0, params.origin_tile.xyz, params.origin_offset.xyz,
+                atlas,
             ));
         }
     }
