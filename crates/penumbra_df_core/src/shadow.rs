@@ -190,3 +190,43 @@ pub fn grid_view_words(camera: &CameraOrigin, to_light: Vec3, enabled: bool) -> 
     words.extend(v.extend(0.0).to_array().map(f32::to_bits));
     words
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `shadow.wgsl` uses these constants; solid fields, unknown normals and analytic
+    /// shapes (voxel 0) get no offset; a grazing ray's start is capped.
+    #[test]
+    fn the_self_shadow_start_and_its_shader_twin() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shaders/df/shadow.wgsl");
+        let source = std::fs::read_to_string(path).expect("shadow.wgsl");
+        for (name, value) in [
+            ("SELF_SHADOW_VOXELS", SELF_SHADOW_VOXELS),
+            ("SHELL_VOXELS", SHELL_VOXELS),
+            ("SELF_SHADOW_MAX_START_VOXELS", SELF_SHADOW_MAX_START_VOXELS),
+        ] {
+            let line = source
+                .lines()
+                .find(|l| l.starts_with(&format!("const {name}: f32 = ")))
+                .unwrap_or_else(|| panic!("{name} in shadow.wgsl"));
+            let wgsl: f32 = line
+                .trim_start_matches(&format!("const {name}: f32 = "))
+                .trim_end_matches(';')
+                .parse()
+                .expect("a float");
+            assert_eq!(wgsl, value, "{name}");
+        }
+        let up = Vec3::Y;
+        let h = 0.1;
+        assert_eq!(self_shadow_start(h, false, up, up), 0.0);
+        assert_eq!(self_shadow_start(h, true, Vec3::ZERO, up), 0.0);
+        assert_eq!(self_shadow_start(0.0, true, up, up), 0.0);
+        assert_eq!(self_shadow_start(f32::NAN, true, up, up), 0.0);
+        let rise = (SHELL_VOXELS + SELF_SHADOW_VOXELS) * h;
+        assert!((self_shadow_start(h, true, up, up) - rise).abs() < 1e-6);
+        let grazing = Vec3::new(1.0, 0.01, 0.0).normalize();
+        let most = rise + SELF_SHADOW_MAX_START_VOXELS * h;
+        assert!((self_shadow_start(h, true, up, grazing) - most).abs() < 1e-6);
+    }
+}

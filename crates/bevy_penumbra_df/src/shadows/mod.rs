@@ -23,6 +23,15 @@
 //! plane hides the whole light are not marched. On the shadow bench this halves the
 //! bunny's error (0.111 → 0.059 mean over its shadowed pixels, same settings).
 //!
+//! A receiver on a two-sided caster (a terrain sheet, a floor, foliage) sits inside its
+//! own field's shell, about √3/2 voxel thick: the march through that field starts where
+//! the ray has risen past the shell and half a voxel more above the receiver's tangent
+//! plane, at most 4 voxels farther along the ray (Unreal's self-shadow bias;
+//! `penumbra_df_core::shadow::self_shadow_start`). Solid fields get none (their surface
+//! is the zero crossing; half a voxel more cost the bunny's creases 0.03 of accuracy).
+//! On the Bevy terrain example asset the mean error against ray-traced truth went from
+//! 0.238 to 0.063 over all pixels.
+//!
 //! # Passes (per camera, per light)
 //!
 //! 1. Light culling (compute): positional lights keep casters within their range,
