@@ -42,16 +42,51 @@ fn sun(to_light: Vec3) -> ShadowLight {
     }
 }
 
+/// A mesh baked into an atlas of its own.
+struct Baked {
+    atlas: Atlas,
+    volume: penumbra_sdf::SdfVolume,
+}
+
+impl Baked {
+    fn new(mesh: &TriMesh, settings: &BakeSettings) -> Self {
+        let volume = bake(mesh, settings, None).unwrap().volume;
+        let mut atlas = Atlas::new(volume.dims);
+        let bits: Vec<u16> = volume.data.iter().map(|h| h.to_bits()).collect();
+        atlas.write(UVec3::ZERO, volume.dims, &bits);
+        Self { atlas, volume }
+    }
+
+    /// An instance of the volume.
+    fn record(&self, world_from_local: Affine3A, f: u32) -> ObjectRecord {
+        let v = &self.volume;
+        encode(&ObjectDesc {
+            world_from_local,
+            shape: CasterShape::Volume {
+                region: AtlasRegion {
+                    origin: UVec3::ZERO,
+                    dims: v.dims,
+                },
+                local_origin: v.origin.as_vec3(),
+                voxel_size: v.voxel_size,
+                margin: v.margin,
+            },
+            flags: f,
+        })
+        .unwrap()
+    }
+}
+
 #[test]
 fn hidden_casters_cast_no_shadow_unless_they_are_proxies() {
     let camera = CameraOrigin::at(Vec3::ZERO).unwrap();
-    let atlas = Atlas::new(UVec3::ONE);
+    let atlas = &Atlas::new(UVec3::ONE);
     let light = sun(Vec3::Y);
     let under = Vec3::ZERO; // the ground point right under the ball
     let at = Vec3::new(0.0, 1.0, 0.0);
     let visibility = |f: u32| {
         let records = [sphere(at, 0.3, f)];
-        pixel_visibility(&records, &atlas, &camera, under, Vec3::Y, &light)
+        pixel_visibility(&records, atlas, &camera, under, Vec3::Y, &light)
     };
     let visible = visibility(CASTING | flags::VISIBLE);
     let hidden = visibility(CASTING);
@@ -86,28 +121,16 @@ fn two_sided_casters_occlude_like_any_caster() {
         sign: SignMethod::TWO_SIDED,
         ..BakeSettings::longest_axis(24)
     };
-    let v = bake(&card, &settings, None).unwrap().volume;
-    let mut atlas = Atlas::new(v.dims);
-    let bits: Vec<u16> = v.data.iter().map(|h| h.to_bits()).collect();
-    atlas.write(UVec3::ZERO, v.dims, &bits);
+    let baked = Baked::new(&card, &settings);
+    let atlas = &baked.atlas;
     let record = |f: u32| {
-        encode(&ObjectDesc {
-            world_from_local: Affine3A::from_rotation_translation(
+        baked.record(
+            Affine3A::from_rotation_translation(
                 Quat::from_rotation_x(0.2),
                 Vec3::new(0.0, 1.0, 0.0),
             ),
-            shape: CasterShape::Volume {
-                region: AtlasRegion {
-                    origin: UVec3::ZERO,
-                    dims: v.dims,
-                },
-                local_origin: v.origin.as_vec3(),
-                voxel_size: v.voxel_size,
-                margin: v.margin,
-            },
-            flags: f,
-        })
-        .unwrap()
+            f,
+        )
     };
     let plain = [record(CASTING | flags::VISIBLE)];
     let two_sided = [record(CASTING | flags::VISIBLE | flags::TWO_SIDED)];
@@ -118,8 +141,8 @@ fn two_sided_casters_occlude_like_any_caster() {
         for k in 0..21 {
             let world = Vec3::new(-0.5 + 0.05 * i as f32, 0.0, -0.5 + 0.05 * k as f32);
             let p = world - Vec3::new(0.0, 2.0, 3.0);
-            let a = pixel_visibility(&plain, &atlas, &camera, p, Vec3::Y, &light);
-            let b = pixel_visibility(&two_sided, &atlas, &camera, p, Vec3::Y, &light);
+            let a = pixel_visibility(&plain, atlas, &camera, p, Vec3::Y, &light);
+            let b = pixel_visibility(&two_sided, atlas, &camera, p, Vec3::Y, &light);
             assert_eq!(a, b, "{world}: the flag changed the mask");
             if world.x.abs() < 0.2 && world.z.abs() < 0.2 {
                 assert!(a < 0.02, "{world}: under the card's middle, {a}");
@@ -137,7 +160,7 @@ fn two_sided_casters_occlude_like_any_caster() {
 fn point_and_spot_lights_trace_exactly_the_pixels_they_reach() {
     let eye = Vec3::new(0.0, 4.0, 6.0);
     let camera = CameraOrigin::at(eye).unwrap();
-    let atlas = Atlas::new(UVec3::ONE);
+    let atlas = &Atlas::new(UVec3::ONE);
     let lamp = Vec3::new(0.5, 2.0, -0.5);
     let records = [sphere(
         Vec3::new(0.8, 1.0, -0.3),
@@ -170,10 +193,10 @@ fn point_and_spot_lights_trace_exactly_the_pixels_they_reach() {
                 let outside = v.length() > 3.0 * (1.0 + 1e-3)
                     || spot.is_some_and(|(d, c)| v.normalize().dot(d) < c - 1e-3);
                 let (got, work) =
-                    pixel_visibility_counted(&records, &atlas, &camera, p, Vec3::Y, &light);
+                    pixel_visibility_counted(&records, atlas, &camera, p, Vec3::Y, &light);
                 if reaches {
                     let (want, _) =
-                        pixel_visibility_counted(&records, &atlas, &camera, p, Vec3::Y, &full);
+                        pixel_visibility_counted(&records, atlas, &camera, p, Vec3::Y, &full);
                     assert_eq!(got, want, "{world} {spot:?}");
                     traced += 1;
                     shadowed += usize::from(want < 0.5);
@@ -206,29 +229,11 @@ fn mirrored_casters_shadow_and_occlude_as_their_unmirrored_twin() {
         .extend(arm.positions.iter().map(|p| *p + Vec3::new(0.45, 0.1, 0.0)));
     mesh.triangles
         .extend(arm.triangles.iter().map(|t| t.map(|i| i + base)));
-    let v = bake(&mesh, &BakeSettings::longest_axis(32), None)
-        .unwrap()
-        .volume;
-    let mut atlas = Atlas::new(v.dims);
-    let bits: Vec<u16> = v.data.iter().map(|h| h.to_bits()).collect();
-    atlas.write(UVec3::ZERO, v.dims, &bits);
+    let baked = Baked::new(&mesh, &BakeSettings::longest_axis(32));
+    let atlas = &baked.atlas;
     let at = Vec3::new(0.2, 0.6, -0.1);
-    let record = |world_from_local: Affine3A| {
-        encode(&ObjectDesc {
-            world_from_local,
-            shape: CasterShape::Volume {
-                region: AtlasRegion {
-                    origin: UVec3::ZERO,
-                    dims: v.dims,
-                },
-                local_origin: v.origin.as_vec3(),
-                voxel_size: v.voxel_size,
-                margin: v.margin,
-            },
-            flags: CASTING | flags::VISIBLE,
-        })
-        .unwrap()
-    };
+    let record =
+        |world_from_local: Affine3A| baked.record(world_from_local, CASTING | flags::VISIBLE);
     let spin = Quat::from_rotation_y(0.4);
     let mirrored = [record(mirrored_transform(at, spin))];
     // Its mirror image in the world's x (two flips: a positive determinant).
@@ -251,16 +256,16 @@ fn mirrored_casters_shadow_and_occlude_as_their_unmirrored_twin() {
     for i in 0..41 {
         for k in 0..41 {
             let p = Vec3::new(-2.0 + 0.1 * i as f32, 0.0, -2.0 + 0.1 * k as f32);
-            let a = pixel_visibility(&mirrored, &atlas, &camera, p, Vec3::Y, &light);
-            let b = pixel_visibility(&twin, &atlas, &camera, p * flip, Vec3::Y, &twin_light);
+            let a = pixel_visibility(&mirrored, atlas, &camera, p, Vec3::Y, &light);
+            let b = pixel_visibility(&twin, atlas, &camera, p * flip, Vec3::Y, &twin_light);
             worst = worst.max((a - b).abs());
             if a < 0.1 {
                 shadowed += 1;
             } else if a > 0.9 {
                 lit += 1;
             }
-            let ao_a = pixel_ao(&mirrored, &atlas, &camera, p, Vec3::Y, &trace).ao;
-            let ao_b = pixel_ao(&twin, &atlas, &camera, p * flip, Vec3::Y, &trace).ao;
+            let ao_a = pixel_ao(&mirrored, atlas, &camera, p, Vec3::Y, &trace).ao;
+            let ao_b = pixel_ao(&twin, atlas, &camera, p * flip, Vec3::Y, &trace).ao;
             ao_worst = ao_worst.max((ao_a - ao_b).abs());
             ao_sum += (ao_a - ao_b).abs();
             ao_n += 1;
@@ -289,8 +294,8 @@ fn mirrored_casters_shadow_and_occlude_as_their_unmirrored_twin() {
                 0.0,
                 -2.0 + 0.1 * (j % 41) as f32,
             );
-            let a = pixel_visibility(&mirrored, &atlas, &camera, p, Vec3::Y, &light);
-            let c = pixel_visibility(&unmirrored, &atlas, &camera, p, Vec3::Y, &light);
+            let a = pixel_visibility(&mirrored, atlas, &camera, p, Vec3::Y, &light);
+            let c = pixel_visibility(&unmirrored, atlas, &camera, p, Vec3::Y, &light);
             (a - c).abs() > 0.5
         })
         .count();
@@ -338,24 +343,12 @@ fn a_two_sided_sheet_does_not_shadow_itself() {
         sign: SignMethod::TWO_SIDED,
         ..BakeSettings::longest_axis(64)
     };
-    let v = bake(&sheet, &settings, None).unwrap().volume;
-    let mut atlas = Atlas::new(v.dims);
-    let bits: Vec<u16> = v.data.iter().map(|h| h.to_bits()).collect();
-    atlas.write(UVec3::ZERO, v.dims, &bits);
-    let terrain = encode(&ObjectDesc {
-        world_from_local: Affine3A::IDENTITY,
-        shape: CasterShape::Volume {
-            region: AtlasRegion {
-                origin: UVec3::ZERO,
-                dims: v.dims,
-            },
-            local_origin: v.origin.as_vec3(),
-            voxel_size: v.voxel_size,
-            margin: v.margin,
-        },
-        flags: CASTING | flags::VISIBLE | flags::TWO_SIDED,
-    })
-    .unwrap();
+    let baked = Baked::new(&sheet, &settings);
+    let (atlas, v) = (&baked.atlas, &baked.volume);
+    let terrain = baked.record(
+        Affine3A::IDENTITY,
+        CASTING | flags::VISIBLE | flags::TWO_SIDED,
+    );
     let to_sun = Vec3::new(1.0, 20f32.to_radians().tan(), 0.3).normalize();
     let light = sun(to_sun);
     let camera = CameraOrigin::at(Vec3::ZERO).unwrap();
@@ -370,7 +363,7 @@ fn a_two_sided_sheet_does_not_shadow_itself() {
         for i in 0..31 {
             let (x, z) = (-1.5 + 0.1 * i as f32, -1.5 + 0.1 * k as f32);
             let p = Vec3::new(x, height(x, z), z);
-            let v = pixel_visibility(&[terrain], &atlas, &camera, p, normal(x, z), &light);
+            let v = pixel_visibility(&[terrain], atlas, &camera, p, normal(x, z), &light);
             points += 1;
             sum += v;
             dark += usize::from(v < 0.9);
@@ -402,7 +395,7 @@ fn a_two_sided_sheet_does_not_shadow_itself() {
     for along in [0.3f32, 0.5, 0.8] {
         let (x, z) = (behind.x * along, behind.z * along);
         let p = Vec3::new(x, height(x, z), z);
-        let v = pixel_visibility(&boxed, &atlas, &camera, p, normal(x, z), &light);
+        let v = pixel_visibility(&boxed, atlas, &camera, p, normal(x, z), &light);
         assert!(v < 0.1, "{along} m behind the box: {v}");
     }
 }

@@ -423,6 +423,8 @@ pub(super) fn tag_scene_casters(
         let lead = casting.first().copied();
         for (member, verdict, tagged) in judged {
             let mut tally = SceneCasterCounts::default();
+            // Its `CasterMesh`, if any, is the rule's (a union), not another plugin's.
+            let ours = !drawn_through.contains(member);
             let mut commands = commands.entity(member);
             match verdict {
                 None => tally.own = 1,
@@ -431,7 +433,9 @@ pub(super) fn tag_scene_casters(
                 }) if merged.is_none() => {
                     tally.casters = 1;
                     tally.two_sided = u32::from(two_sided);
-                    commands.remove::<(CasterMesh, SceneMergedMesh)>();
+                    if ours {
+                        commands.remove::<(CasterMesh, SceneMergedMesh)>();
+                    }
                     commands.insert(scene_caster(settings, two_sided, masked, root));
                 }
                 Some(Verdict::Caster { .. }) if Some(member) == lead => {
@@ -445,12 +449,7 @@ pub(super) fn tag_scene_casters(
                 }
                 Some(Verdict::Caster { .. }) => {
                     tally.merged = 1;
-                    commands.remove::<(
-                        DistanceFieldCaster,
-                        DistanceFieldSceneCaster,
-                        CasterMesh,
-                        SceneMergedMesh,
-                    )>();
+                    untag(&mut commands, ours);
                 }
                 Some(skipped) => {
                     match skipped {
@@ -460,12 +459,7 @@ pub(super) fn tag_scene_casters(
                         _ => tally.unsupported = 1,
                     }
                     if tagged {
-                        commands.remove::<(
-                            DistanceFieldCaster,
-                            DistanceFieldSceneCaster,
-                            CasterMesh,
-                            SceneMergedMesh,
-                        )>();
+                        untag(&mut commands, ours);
                     }
                 }
             }
@@ -498,6 +492,16 @@ fn scene_caster(
         },
         DistanceFieldSceneCaster(root),
     )
+}
+
+/// Removes what the rule added to a mesh entity: the caster, and the union's
+/// [`CasterMesh`] when it is the rule's (`ours`; another plugin's, e.g. tessellation's,
+/// stays).
+fn untag(commands: &mut EntityCommands, ours: bool) {
+    commands.remove::<(DistanceFieldCaster, DistanceFieldSceneCaster)>();
+    if ours {
+        commands.remove::<(CasterMesh, SceneMergedMesh)>();
+    }
 }
 
 /// Marks a caster whose [`CasterMesh`] the scene rule made (the union of its glTF mesh's
