@@ -309,7 +309,7 @@ fn mirrored_transform(at: Vec3, spin: Quat) -> Affine3A {
         * Affine3A::from_scale(Vec3::new(-1.0, 1.0, 1.0))
 }
 
-/// A receiver does not shadow itself through its own baked field: a gently rolling
+/// A receiver does not shadow or occlude itself through its own baked field: a gently rolling
 /// 4 m sheet (a terrain patch) baked two-sided — a shell about a voxel thick, its
 /// surface inside it — under a low sun (20° above the horizon) that lights every point
 /// of it. Marched from the surface, the shell reads as an occluder at every step until
@@ -347,7 +347,7 @@ fn a_two_sided_sheet_does_not_shadow_itself() {
     let (atlas, v) = (&baked.atlas, &baked.volume);
     let terrain = baked.record(
         Affine3A::IDENTITY,
-        CASTING | flags::VISIBLE | flags::TWO_SIDED,
+        CASTING | flags::CASTS_OCCLUSION | flags::VISIBLE | flags::TWO_SIDED,
     );
     let to_sun = Vec3::new(1.0, 20f32.to_radians().tan(), 0.3).normalize();
     let light = sun(to_sun);
@@ -377,6 +377,34 @@ fn a_two_sided_sheet_does_not_shadow_itself() {
     assert!(
         dark <= points / 50,
         "{dark} of {points} points shadow themselves"
+    );
+    // Nor occlude themselves: DFAO reads a two-sided field as its surface, not its shell
+    // (inside which the receiver sits). The sheet rolls gently: its sky is nearly open.
+    let trace = penumbra_df_core::ao::AoTrace {
+        max_distance: 1.0,
+        cone_count: 9,
+        steps_per_cone: 16,
+        bias: 0.02,
+        shaping: penumbra_df_core::ao::CONE_SHAPING,
+    };
+    let (mut closed, mut ao_sum) = (0, 0.0f32);
+    for k in 0..31 {
+        for i in 0..31 {
+            let (x, z) = (-1.5 + 0.1 * i as f32, -1.5 + 0.1 * k as f32);
+            let p = Vec3::new(x, height(x, z), z);
+            let n = normal(x, z);
+            let ao = penumbra_reference::dfao::pixel_ao(&[terrain], atlas, &camera, p, n, &trace);
+            ao_sum += ao.ao;
+            closed += usize::from(ao.ao < 0.8);
+        }
+    }
+    println!(
+        "AO: {closed} of {points} points under 0.8, mean {:.3}",
+        ao_sum / points as f32
+    );
+    assert!(
+        closed <= points / 50,
+        "{closed} of {points} points occlude themselves"
     );
     // A 0.4 m box standing on the sheet at the origin still shadows the sheet behind it
     // (away from the sun), from its foot on.

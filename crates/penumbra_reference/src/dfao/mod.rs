@@ -40,7 +40,8 @@ use penumbra_df_core::ao::{
     tangent_frame,
 };
 use penumbra_df_core::cull::CameraOrigin;
-use penumbra_df_core::object::{ObjectRecord, flags};
+use penumbra_df_core::object::{ObjectRecord, ShapeKind, flags};
+use penumbra_df_core::shadow::SHELL_VOXELS;
 
 /// One pixel's occlusion: AO (1 open, 0 occluded) and the unit bent normal.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -82,7 +83,9 @@ fn in_reach(sphere: Option<(Vec3, f32)>, p: Vec3, influence: f32) -> bool {
 /// unit `axis` rising `rise` per metre above it) through object `r`, and the distance
 /// evaluations it took. The cone's radius at a sample is capped by the sample's height
 /// above the plane: the part of the cone below it is not in the hemisphere, and the
-/// receiver's own surface is never nearer than that height.
+/// receiver's own surface is never nearer than that height. A two-sided field is read
+/// as its surface, not its shell (the distance plus the shell, [`SHELL_VOXELS`]): a
+/// receiver on it sits inside its own shell, which would otherwise close every cone.
 #[allow(clippy::too_many_arguments, reason = "the march's inputs")]
 fn march_cone(
     r: &ObjectRecord,
@@ -103,6 +106,11 @@ fn march_cone(
         t = t.max(t0);
         t_end = t_end.min(t1);
     }
+    let shell = if r.kind() == ShapeKind::Volume as u32 && r.flags() & flags::TWO_SIDED != 0 {
+        SHELL_VOXELS * r.conservative_scale()
+    } else {
+        0.0
+    };
     let mut v = 1.0f32;
     let mut evaluations = 0;
     for _ in 0..trace.steps_per_cone {
@@ -113,12 +121,13 @@ fn march_cone(
         evaluations += 1;
         let cone = (t * tan_half).max(1e-6);
         let floor = sphere.map_or(0.0, |(_, radius)| 1.0 - (radius / cone).powi(2).min(1.0));
-        if d <= 0.0 {
+        let surface = d + shell;
+        if surface <= 0.0 {
             v = v.min(floor);
             break;
         }
         let open = cone.min(trace.bias + t * rise).max(1e-6);
-        v = v.min((d / open).max(floor));
+        v = v.min((surface / open).max(floor));
         t += d.max(cone * MIN_STEP_FRACTION);
     }
     let v = v.clamp(0.0, 1.0).powf(trace.shaping);

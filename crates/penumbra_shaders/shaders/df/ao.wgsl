@@ -3,11 +3,11 @@
 #define_import_path penumbra::df::ao
 
 #import penumbra::df::object::{
-    DistanceFieldObject, FLAG_CASTS_OCCLUSION, FLAG_CAST_HIDDEN_SHADOW, FLAG_LIVE, FLAG_VISIBLE,
-    ao_transmission,
+    DistanceFieldObject, FLAG_CASTS_OCCLUSION, FLAG_CAST_HIDDEN_SHADOW, FLAG_LIVE, FLAG_TWO_SIDED,
+    FLAG_VISIBLE, KIND_VOLUME, ao_transmission, object_kind,
 }
 #import penumbra::df::distance::object_distance
-#import penumbra::df::shadow::cone_interval
+#import penumbra::df::shadow::{SHELL_VOXELS, cone_interval}
 
 const MAX_CONES: u32 = 16u;
 const GOLDEN_ANGLE: f32 = 2.3999633;
@@ -87,6 +87,10 @@ fn march_cone(
         t = max(t, interval.x);
         t_end = min(t_end, interval.y);
     }
+    // A two-sided field is read as its surface, not its shell: a receiver on it sits
+    // inside its own shell.
+    let two_sided = object_kind(obj) == KIND_VOLUME && (obj.flags & FLAG_TWO_SIDED) != 0u;
+    let shell = select(0.0, SHELL_VOXELS * obj.conservative_scale, two_sided);
     var v = 1.0;
     for (var i = 0u; i < view.steps_per_cone; i += 1u) {
         if t >= t_end {
@@ -98,12 +102,13 @@ fn march_cone(
         if sphere.w >= 0.0 {
             floor = 1.0 - min((sphere.w / cone) * (sphere.w / cone), 1.0);
         }
-        if d <= 0.0 {
+        let surface = d + shell;
+        if surface <= 0.0 {
             v = min(v, floor);
             break;
         }
         let open = max(min(cone, view.bias + t * rise), 1e-6);
-        v = min(v, max(d / open, floor));
+        v = min(v, max(surface / open, floor));
         t += max(d, cone * MIN_STEP_FRACTION);
     }
     v = clamp(v, 0.0, 1.0);
