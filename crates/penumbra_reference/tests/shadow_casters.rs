@@ -42,6 +42,17 @@ fn sun(to_light: Vec3) -> ShadowLight {
     }
 }
 
+/// DFAO within 1 m, 9 cones (the pass's defaults otherwise).
+fn ao_trace() -> penumbra_df_core::ao::AoTrace {
+    penumbra_df_core::ao::AoTrace {
+        max_distance: 1.0,
+        cone_count: 9,
+        steps_per_cone: 16,
+        bias: 0.02,
+        shaping: penumbra_df_core::ao::CONE_SHAPING,
+    }
+}
+
 /// A mesh baked into an atlas of its own.
 struct Baked {
     atlas: Atlas,
@@ -246,13 +257,7 @@ fn mirrored_casters_shadow_and_occlude_as_their_unmirrored_twin() {
     let twin_light = sun(Vec3::new(-0.8, 0.5, 0.2));
     let (mut shadowed, mut lit, mut worst) = (0, 0, 0.0f32);
     let (mut ao_worst, mut ao_sum, mut ao_n) = (0.0f32, 0.0f32, 0);
-    let trace = penumbra_df_core::ao::AoTrace {
-        max_distance: 1.0,
-        cone_count: 9,
-        steps_per_cone: 16,
-        bias: 0.02,
-        shaping: penumbra_df_core::ao::CONE_SHAPING,
-    };
+    let trace = ao_trace();
     for i in 0..41 {
         for k in 0..41 {
             let p = Vec3::new(-2.0 + 0.1 * i as f32, 0.0, -2.0 + 0.1 * k as f32);
@@ -380,13 +385,7 @@ fn a_two_sided_sheet_does_not_shadow_itself() {
     );
     // Nor occlude themselves: DFAO reads a two-sided field as its surface, not its shell
     // (inside which the receiver sits). The sheet rolls gently: its sky is nearly open.
-    let trace = penumbra_df_core::ao::AoTrace {
-        max_distance: 1.0,
-        cone_count: 9,
-        steps_per_cone: 16,
-        bias: 0.02,
-        shaping: penumbra_df_core::ao::CONE_SHAPING,
-    };
+    let trace = ao_trace();
     let (mut closed, mut ao_sum) = (0, 0.0f32);
     for k in 0..31 {
         for i in 0..31 {
