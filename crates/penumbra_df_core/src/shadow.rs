@@ -195,8 +195,9 @@ pub fn grid_view_words(camera: &CameraOrigin, to_light: Vec3, enabled: bool) -> 
 mod tests {
     use super::*;
 
-    /// `shadow.wgsl` uses these constants; solid fields, unknown normals and analytic
-    /// shapes (voxel 0) get no offset; a grazing ray's start is capped.
+    /// `shadow.wgsl` uses these constants, and the shell is the baker's; solid fields,
+    /// unknown normals and analytic shapes (voxel 0) get no offset; a grazing ray's start
+    /// is capped.
     #[test]
     fn the_self_shadow_start_and_its_shader_twin() {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shaders/df/shadow.wgsl");
@@ -217,6 +218,13 @@ mod tests {
                 .expect("a float");
             assert_eq!(wgsl, value, "{name}");
         }
+        // The shell is the one the plugin's two-sided bakes put about the surface.
+        let penumbra_sdf::SignMethod::TwoSided { shell_voxels } =
+            penumbra_sdf::SignMethod::TWO_SIDED
+        else {
+            unreachable!("TWO_SIDED is two-sided")
+        };
+        assert_eq!(SHELL_VOXELS, shell_voxels);
         let up = Vec3::Y;
         let h = 0.1;
         assert_eq!(self_shadow_start(h, false, up, up), 0.0);
