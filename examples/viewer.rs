@@ -238,31 +238,47 @@ fn adopt_showcase(
     }
 }
 
-/// A scene that fails to load is fatal (headless: exit 1; windowed: exit).
+/// A scene that fails to load is fatal (headless: exit 1; windowed: exit). A dependency
+/// that fails (a texture in a format Bevy cannot decode, a missing image file) is not:
+/// one warning, and the scene is drawn without it, as Bevy draws a material whose
+/// texture is missing.
 fn watch_load(
     root: Single<&WorldAssetRoot, With<ViewerScene>>,
     assets: Res<AssetServer>,
     mut error: ResMut<ViewerError>,
     mut exit: MessageWriter<AppExit>,
+    mut warned: Local<bool>,
 ) {
     if error.0.is_some() {
         return;
     }
     use bevy::asset::{LoadState, RecursiveDependencyLoadState};
     let id = root.0.id();
-    let failure = match (
-        assets.get_load_state(id),
-        assets.get_recursive_dependency_load_state(id),
-    ) {
-        (Some(LoadState::Failed(e)), _) | (_, Some(RecursiveDependencyLoadState::Failed(e))) => {
-            Some(e.to_string())
-        }
-        _ => None,
-    };
-    if let Some(e) = failure {
+    if let Some(LoadState::Failed(e)) = assets.get_load_state(id) {
         error.0 = Some(format!("the scene failed to load: {e}"));
         exit.write(AppExit::error());
+    } else if let Some(RecursiveDependencyLoadState::Failed(_)) =
+        assets.get_recursive_dependency_load_state(id)
+        && !*warned
+    {
+        // Bevy's asset server has logged which file and why.
+        *warned = true;
+        warn!(
+            "viewer: a texture or other part of the scene failed to load (see above): drawn without it"
+        );
     }
+}
+
+/// Whether the scene and every dependency that could load have loaded (a failed texture
+/// does not hold the scene back).
+fn scene_loaded(assets: &AssetServer, id: impl Into<bevy::asset::UntypedAssetId>) -> bool {
+    use bevy::asset::{LoadState, RecursiveDependencyLoadState};
+    let id = id.into();
+    matches!(assets.get_load_state(id), Some(LoadState::Loaded))
+        && matches!(
+            assets.get_recursive_dependency_load_state(id),
+            Some(RecursiveDependencyLoadState::Loaded | RecursiveDependencyLoadState::Failed(_))
+        )
 }
 
 /// The scene root: its glTF scene (none for the showcase) and what was tagged.
@@ -293,7 +309,7 @@ fn frame_scene(
     mut waited: Local<u32>,
 ) {
     let (root, handle, counts) = *root;
-    let loaded = handle.is_none_or(|h| assets.is_loaded_with_dependencies(h.0.id()));
+    let loaded = handle.is_none_or(|h| scene_loaded(&assets, h.0.id()));
     let boxes: Vec<(Vec3, Vec3)> = children
         .iter_descendants(root)
         .filter_map(|e| meshes.get(e).ok())

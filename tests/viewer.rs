@@ -436,18 +436,39 @@ fn a_scene_without_meshes_renders_an_empty_frame() {
 }
 
 #[test]
-fn a_missing_texture_is_named_and_the_scene_still_renders() {
-    if !gpu_or_skip("a_missing_texture_is_named_and_the_scene_still_renders") {
+fn missing_and_broken_textures_are_named_and_the_scene_still_renders() {
+    if !gpu_or_skip("missing_and_broken_textures_are_named_and_the_scene_still_renders") {
         return;
     }
     let Some(bin) = viewer_binary() else { return };
-    // Valid glTF whose texture file is missing: the header checks pass; Bevy names the
-    // file in one error and the scene renders without the texture (degraded, not fatal).
-    let scene = scratch(
-        "missing_image.gltf",
-        br#"{"asset":{"version":"2.0"},"images":[{"uri":"missing.png"}],"textures":[{"source":0}],"materials":[{"pbrMetallicRoughness":{"baseColorTexture":{"index":0}}}],"scenes":[{"nodes":[]}],"scene":0}"#,
-    );
+    // A valid glTF quad whose material's textures are a missing PNG and a JPEG file of
+    // garbage: the header checks pass; Bevy names each file in one error and the scene
+    // renders without them (degraded, not fatal), its caster baked.
+    let mut bytes = Vec::new();
+    for p in [
+        [-1.0f32, 0.0, -1.0],
+        [1.0, 0.0, -1.0],
+        [1.0, 0.0, 1.0],
+        [-1.0, 0.0, 1.0],
+    ] {
+        bytes.extend(p.iter().flat_map(|v| v.to_le_bytes()));
+    }
+    bytes.extend([0u16, 2, 1, 0, 3, 2].iter().flat_map(|i| i.to_le_bytes()));
+    scratch("quad.bin", &bytes);
+    let gltf = r#"{"asset":{"version":"2.0"},
+        "buffers":[{"uri":"quad.bin","byteLength":60}],
+        "bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":48},{"buffer":0,"byteOffset":48,"byteLength":12}],
+        "accessors":[{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]},
+            {"bufferView":1,"componentType":5123,"count":6,"type":"SCALAR"}],
+        "images":[{"uri":"missing.png"},{"uri":"broken.jpg"}],
+        "textures":[{"source":0},{"source":1}],
+        "materials":[{"pbrMetallicRoughness":{"baseColorTexture":{"index":0},"metallicRoughnessTexture":{"index":1}}}],
+        "meshes":[{"primitives":[{"attributes":{"POSITION":0},"indices":1,"material":0}]}],
+        "nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}],"scene":0}"#;
+    scratch("broken.jpg", b"\xff\xd8\xff not a JPEG at all");
+    let scene = scratch("missing_image.gltf", gltf.as_bytes());
     let out_png = output_dir().join("viewer_inputs/missing_image.png");
+    let dump = output_dir().join("viewer_inputs/missing_image_dump");
     let out = std::process::Command::new(&bin)
         .args([
             scene.to_str().unwrap(),
@@ -459,14 +480,21 @@ fn a_missing_texture_is_named_and_the_scene_still_renders() {
         ])
         .arg("--out")
         .arg(&out_png)
+        .arg("--dump")
+        .arg(&dump)
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(0), "{stderr}");
-    assert_eq!(
-        stderr.lines().filter(|l| l.contains("missing.png")).count(),
-        1,
-        "{stderr}"
-    );
+    for file in ["missing.png", "broken.jpg"] {
+        assert_eq!(
+            stderr.lines().filter(|l| l.contains(file)).count(),
+            1,
+            "{file}: {stderr}"
+        );
+    }
     assert!(out_png.is_file());
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dump.join("meta.json")).unwrap()).unwrap();
+    assert_eq!(meta["settings"]["baked"].as_u64(), Some(1), "{meta}");
 }

@@ -28,6 +28,9 @@
 //! - [`particles`]: particles colliding with the global field (restitution, friction).
 //! - [`shadow_mask`]: the distance-field shadow-mask pass — per pixel, the march over the
 //!   GPU object records with its per-object cone culling.
+//! - [`scene_truth`]: ray-traced truth for a whole glTF scene through a camera — sun
+//!   visibility and ambient occlusion per pixel, as the scene viewer's `--dump` shows them.
+//! - [`npy`]: float32 `.npy` files (the viewer's dumps, the truth written beside them).
 //! - [`scene`]: an analytic ray-traced scene (spheres, planes, directional lights with hard
 //!   shadows) shaded with [`pbr`], the expected image of simple GPU render tests.
 
@@ -39,10 +42,12 @@ pub mod dfao;
 pub mod field_debug;
 pub mod global_sdf;
 pub mod msaa;
+pub mod npy;
 pub mod particles;
 pub mod pbr;
 pub mod reflections;
 pub mod scene;
+pub mod scene_truth;
 pub mod shadow_mask;
 pub mod sss;
 #[cfg(test)]

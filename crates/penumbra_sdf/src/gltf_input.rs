@@ -69,6 +69,16 @@ pub fn load_gltf(
     base_dir: Option<&Path>,
     selection: &GltfSelection,
 ) -> Result<(TriMesh, GltfReport), GltfError> {
+    load_gltf_with_sides(bytes, base_dir, selection).map(|(mesh, _, report)| (mesh, report))
+}
+
+/// [`load_gltf`], and for each triangle whether its material is double-sided (a renderer
+/// draws its back faces; a single-sided triangle seen from behind is culled).
+pub fn load_gltf_with_sides(
+    bytes: &[u8],
+    base_dir: Option<&Path>,
+    selection: &GltfSelection,
+) -> Result<(TriMesh, Vec<bool>, GltfReport), GltfError> {
     // The gltf crate validates structure but can still panic on inconsistent accessor
     // data; a corrupt file must be an error, never a crash.
     std::panic::catch_unwind(|| load_gltf_unguarded(bytes, base_dir, selection)).unwrap_or_else(
@@ -84,7 +94,7 @@ fn load_gltf_unguarded(
     bytes: &[u8],
     base_dir: Option<&Path>,
     selection: &GltfSelection,
-) -> Result<(TriMesh, GltfReport), GltfError> {
+) -> Result<(TriMesh, Vec<bool>, GltfReport), GltfError> {
     let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| GltfError::Parse(e.to_string()))?;
     let mut buffers = Vec::new();
     for buffer in gltf.document.buffers() {
@@ -157,7 +167,11 @@ fn load_gltf_unguarded(
             }
         }
     }
-    Ok((TriMesh::from_f64(&out.positions, out.triangles), report))
+    Ok((
+        TriMesh::from_f64(&out.positions, out.triangles),
+        out.double_sided,
+        report,
+    ))
 }
 
 /// Triangles gathered in f64, before centring.
@@ -165,6 +179,8 @@ fn load_gltf_unguarded(
 struct Triangles {
     positions: Vec<DVec3>,
     triangles: Vec<[u32; 3]>,
+    /// Per triangle: its material is double-sided.
+    double_sided: Vec<bool>,
 }
 
 fn load_uri(uri: &str, base_dir: Option<&Path>) -> Result<Vec<u8>, GltfError> {
@@ -247,12 +263,14 @@ fn append_mesh(
             _ => Topology::Fan,
         };
         let tris = triangles_from(&indices, topology);
+        let double_sided = primitive.material().double_sided();
         for t in tris {
             // Out-of-range indices stay out of range (base + i ≥ len) and are reported
             // by `TriMesh::validate`.
             let t = t.map(|i| base.saturating_add(i));
             out.triangles
                 .push(if flip { [t[0], t[2], t[1]] } else { t });
+            out.double_sided.push(double_sided);
         }
         report.primitives += 1;
     }

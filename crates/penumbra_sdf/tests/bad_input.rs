@@ -208,3 +208,32 @@ fn bad_gltf_files_are_errors() {
     let e = load_gltf(good.as_bytes(), None, &GltfSelection::Mesh("nope".into())).unwrap_err();
     assert!(e.to_string().contains("\"tri\""), "{e}");
 }
+
+#[test]
+fn each_triangle_knows_whether_its_material_is_double_sided() {
+    use penumbra_sdf::gltf_input::load_gltf_with_sides;
+    let floats: Vec<u8> = [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+        .iter()
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    use base64::Engine;
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&floats)
+    );
+    // Three primitives on one triangle: a double-sided material, a single-sided one, none.
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"uri":"{uri}","byteLength":36}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":36}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3",
+        "min":[0,0,0],"max":[1,1,0]}}],
+        "materials":[{{"doubleSided":true}},{{}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"material":0}},
+            {{"attributes":{{"POSITION":0}},"material":1}},{{"attributes":{{"POSITION":0}}}}]}}],
+        "nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#
+    );
+    let (mesh, sides, _) =
+        load_gltf_with_sides(json.as_bytes(), None, &GltfSelection::Scene).unwrap();
+    assert_eq!(mesh.triangles.len(), 3);
+    assert_eq!(sides, [true, false, false]);
+}
