@@ -37,6 +37,8 @@ pub struct DumpCheck {
     pub ao_mean: (f64, f64),
     /// Triangles traced.
     pub triangles: usize,
+    /// The distance-field atlas bytes the scene's fields fill (from `meta.json`).
+    pub atlas_used_bytes: Option<f64>,
 }
 
 fn vec3(v: &serde_json::Value) -> Option<Vec3> {
@@ -79,6 +81,7 @@ pub fn check_dump(dir: &Path, facing: Facing, write: bool) -> Result<DumpCheck, 
     let (_, depth) = npy::read_f32(&dir.join("depth.npy"))?;
     let mut check = DumpCheck {
         triangles: triangles.len(),
+        atlas_used_bytes: meta["settings"]["atlas_used_bytes"].as_f64(),
         ..Default::default()
     };
     let surface = |i: usize| hits[i].is_some() && !depth[i].is_nan();
@@ -157,6 +160,7 @@ fn main() {
                     "ao": c.ao.map(|e| round(e.all)),
                     "ao_ours_truth": [round(c.ao_mean.0), round(c.ao_mean.1)],
                     "triangles": c.triangles,
+                    "atlas_used_bytes": c.atlas_used_bytes,
                 })
             );
         }

@@ -735,6 +735,11 @@ fn dump_buffers(app: &mut App, args: &Args, dir: &std::path::Path) -> Result<u64
         }
     }
     let app_camera_ao = world.get::<DistanceFieldAmbientOcclusion>(camera).cloned();
+    let atlas_used_bytes = world.get_resource::<DiagnosticsStore>().and_then(|store| {
+        store
+            .get(&penumbra::df::diagnostics::ATLAS_USED_BYTES)?
+            .value()
+    });
     let counts = scene_counts(world);
     let (baked, failed) = {
         let mut q = world
@@ -764,6 +769,7 @@ fn dump_buffers(app: &mut App, args: &Args, dir: &std::path::Path) -> Result<u64
             },
             "baked": baked,
             "failed_bakes": failed,
+            "atlas_used_bytes": atlas_used_bytes,
             "metre_settings_scale": framing.scale(),
             "penumbra": !args.plain,
             "ambient_occlusion": dump::ao_summary(app_camera_ao.as_ref()),

@@ -15,8 +15,10 @@ pub enum Resolution {
     /// `n` samples along the longest axis of the padded box (the CLI's `--resolution`).
     LongestAxis(u32),
     /// `density` samples per mesh unit (× the instance's scale, for runtime bakes), each
-    /// axis clamped to `[min, max]` samples. Unreal-like default: 32 per metre, 8..=256,
-    /// which gives about 50³ for a 1.5 m mesh.
+    /// axis clamped to `[min, max]` samples, and at least `min_longest` samples along the
+    /// longest axis (small meshes get finer voxels than `density` gives). Default: 32 per
+    /// metre, 8..=256, at least 48 along the longest axis: about 50³ for a 1.5 m mesh,
+    /// 48 × 26 × 26 for a 0.7 m helmet (1.5 cm voxels instead of 3.1 cm).
     PerUnit {
         /// Samples per mesh unit.
         density: f32,
@@ -24,6 +26,9 @@ pub enum Resolution {
         min: u32,
         /// Most samples along an axis.
         max: u32,
+        /// Fewest samples along the longest axis (border included; at most `max`; 0: no
+        /// such floor).
+        min_longest: u32,
     },
 }
 
@@ -43,11 +48,15 @@ impl Default for GridPolicy {
                 density: 32.0,
                 min: 8,
                 max: 256,
+                min_longest: DEFAULT_MIN_LONGEST,
             },
             border_voxels: 2,
         }
     }
 }
+
+/// The default floor on samples along a mesh's longest axis ([`Resolution::PerUnit`]).
+pub const DEFAULT_MIN_LONGEST: u32 = 48;
 
 /// The largest grid a bake accepts: 2^27 samples (512³ = 256 MiB of f16).
 pub const MAX_SAMPLES: u64 = 1 << 27;
@@ -117,20 +126,35 @@ impl GridPolicy {
                 }
                 extent.max_element() / (n as u64 - pad) as f32
             }
-            Resolution::PerUnit { density, min, max } => {
+            Resolution::PerUnit {
+                density,
+                min,
+                max,
+                min_longest,
+            } => {
                 if !(density.is_finite() && density > 0.0) {
                     return Err(GridError::BadResolution(format!("density {density}")));
                 }
-                if min < 2 || max < min {
-                    return Err(GridError::BadResolution(format!("min {min}, max {max}")));
+                if min < 2 || max < min || min_longest > max {
+                    return Err(GridError::BadResolution(format!(
+                        "min {min}, max {max}, min_longest {min_longest}"
+                    )));
                 }
                 if (max as u64) < pad + 1 {
                     return Err(GridError::BadResolution(format!(
                         "max {max} leaves no samples inside a {border}-sample border"
                     )));
                 }
+                // Small meshes: at least `min_longest` samples along the longest axis.
+                let floor = if (min_longest as u64) > pad {
+                    extent.max_element() / (min_longest as u64 - pad) as f32
+                } else {
+                    f32::INFINITY
+                };
                 // Cap the longest axis at `max` samples by growing the voxel.
-                (1.0 / density).max(extent.max_element() / (max as u64 - pad) as f32)
+                (1.0 / density)
+                    .min(floor)
+                    .max(extent.max_element() / (max as u64 - pad) as f32)
             }
         };
         // A point-like or flat mesh: give the voxel a size from the other axes, or 1.
@@ -208,6 +232,28 @@ mod tests {
         // A flat mesh still gets the minimum along its flat axis.
         let g = policy.resolve(&bounds(Vec3::new(1.0, 0.0, 1.0))).unwrap();
         assert_eq!(g.dims.y, 8);
+        // A 0.7 m prop would get 23 + 5 samples at 32 per unit: the floor gives it 48.
+        let g = policy
+            .resolve(&bounds(Vec3::new(0.37, 0.72, 0.37)))
+            .unwrap();
+        assert_eq!(g.dims.y, DEFAULT_MIN_LONGEST, "{}", g.dims);
+        assert!(
+            (g.voxel_size - 0.72 / 43.0).abs() < 1e-6,
+            "{}",
+            g.voxel_size
+        );
+        // Without the floor: the density alone.
+        let off = GridPolicy {
+            resolution: Resolution::PerUnit {
+                density: 32.0,
+                min: 8,
+                max: 256,
+                min_longest: 0,
+            },
+            border_voxels: 2,
+        };
+        let g = off.resolve(&bounds(Vec3::new(0.37, 0.72, 0.37))).unwrap();
+        assert_eq!(g.voxel_size, 1.0 / 32.0);
     }
 
     #[test]
@@ -220,16 +266,25 @@ mod tests {
                 density: 0.0,
                 min: 8,
                 max: 256,
+                min_longest: 0,
             },
             Resolution::PerUnit {
                 density: f32::NAN,
                 min: 8,
                 max: 256,
+                min_longest: 0,
             },
             Resolution::PerUnit {
                 density: 10.0,
                 min: 300,
                 max: 256,
+                min_longest: 0,
+            },
+            Resolution::PerUnit {
+                density: 10.0,
+                min: 8,
+                max: 64,
+                min_longest: 65,
             },
         ];
         for resolution in bad {
@@ -258,6 +313,7 @@ mod tests {
                     density,
                     min: 8,
                     max: u32::MAX,
+                    min_longest: 0,
                 },
                 border_voxels: 2,
             }

@@ -25,6 +25,10 @@ fn bake_settings(caster: &DistanceFieldCaster) -> BakeSettings {
                 density: 32.0 * scale,
                 min: 8,
                 max: 256,
+                // The floor for small meshes scales with the caster's override too.
+                min_longest: (penumbra_sdf::grid::DEFAULT_MIN_LONGEST as f32 * scale)
+                    .round()
+                    .clamp(0.0, 256.0) as u32,
             },
             ..GridPolicy::default()
         },

@@ -22,7 +22,8 @@ usage: penumbra-bake MESH [--resolution N | --voxels-per-unit V] [--sign METHOD]
   --mesh NAME          glTF only: bake the mesh NAME alone, in its own space
   --resolution N       N samples along the longest axis (including a 2-sample border)
   --voxels-per-unit V  V samples per mesh unit, each axis clamped to 8..=256
-                       (default: 32 per unit, like Unreal's defaults)
+                       (default: 32 per unit, like Unreal's defaults, and at
+                       least 48 samples along the longest axis)
   --sign METHOD        winding (default) | backface | parity | two-sided
   --two-sided          same as --sign two-sided (foliage: a thin shell around surfaces)
   --out FILE           write the field as .psdf (default: MESH with extension .psdf)
@@ -76,6 +77,7 @@ fn parse(args: impl IntoIterator<Item = String>) -> Result<Args, String> {
                     density: d,
                     min: 8,
                     max: 256,
+                    min_longest: 0,
                 });
             }
             "--sign" => {
