@@ -62,17 +62,17 @@ const CORPUS: &[Case] = &[
     Case {
         file: "DepthOfFieldExample.glb",
         flags: &[],
-        bounds: b(0.17, 0.06, 0.13),
+        bounds: b(0.15, 0.06, 0.13),
     },
     Case {
         file: "PalmTree/PalmTree.gltf",
         flags: &["--eye=5,4,7", "--target=0,1.8,-0.5"],
-        bounds: b(0.52, 0.04, 0.03),
+        bounds: b(0.42, 0.04, 0.03),
     },
     Case {
         file: "AlienCake/cakeBirthday.glb",
         flags: &[],
-        bounds: b(0.12, 0.04, 0.06),
+        bounds: b(0.08, 0.04, 0.06),
     },
     Case {
         file: "AlienCake/alien.glb",
@@ -92,12 +92,12 @@ const CORPUS: &[Case] = &[
     Case {
         file: "FlightHelmet/FlightHelmet.gltf",
         flags: &[],
-        bounds: b(0.32, 0.13, 0.23),
+        bounds: b(0.33, 0.14, 0.23),
     },
     Case {
         file: "AnisotropyBarnLamp/AnisotropyBarnLamp.gltf",
         flags: &[],
-        bounds: b(0.52, 0.12, 0.10),
+        bounds: b(0.35, 0.09, 0.10),
     },
     Case {
         file: "terrain/terrain.glb",

@@ -20,7 +20,7 @@ use glam::{IVec3, Mat3, Mat4, Vec2, Vec3, Vec4};
 use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::heightfield::HeightfieldTexture;
 use penumbra_df_core::object::{ObjectRecord, ShapeKind, TILE_SIZE, flags};
-use penumbra_df_core::shadow::self_shadow_start;
+use penumbra_df_core::shadow::march_start;
 
 pub use penumbra_df_core::shadow::{ShadowLight as MaskLight, ShadowLightKind as MaskLightKind};
 
@@ -163,8 +163,8 @@ pub fn pixel_visibility_with_terrain(
             0.0
         };
         let two_sided = r.flags() & flags::TWO_SIDED != 0;
-        let start = self_shadow_start(voxel, two_sided, normal, dir);
-        let (mut t, mut t_end) = (light.bias.max(start), t_max);
+        let start = march_start(light.bias, voxel, two_sided, normal, dir);
+        let (mut t, mut t_end) = (start, t_max);
         if let Some((center, radius)) = sphere {
             if round_cone_distance(center, p, end, 0.0, end_radius) >= radius + cull_slack(radius) {
                 continue;

@@ -32,6 +32,12 @@
 //! On the Bevy terrain example asset the mean error against ray-traced truth went from
 //! 0.238 to 0.063 over all pixels.
 //!
+//! The light's bias is a world distance chosen for metre-scale fields; a field finer than
+//! half of it (a small prop) starts its march after two of its own voxels instead
+//! (`penumbra_df_core::shadow::march_start`), so its contact shadows survive: on the
+//! scene corpus the barn lamp's error over shadowed pixels went 0.393 → 0.261, the
+//! cake's 0.075 → 0.047, and the shadow bench's defaults 0.0429 → 0.0401.
+//!
 //! # Passes (per camera, per light)
 //!
 //! 1. Light culling (compute): positional lights keep casters within their range,
@@ -128,7 +134,9 @@ pub struct DistanceFieldShadows {
     /// (the bench's choice: 0.02 costs 9 % more distance evaluations for 8 %
     /// more error, 0.06 saves 6 % for 12 % more). Too small: self-shadowing where SDFs
     /// are coarse; too large: detached contacts. The surface's own shadow (back faces,
-    /// the terminator) comes from the G-buffer normal instead, whatever the bias.
+    /// the terminator) comes from the G-buffer normal instead, whatever the bias. A
+    /// distance field with voxels under half the bias starts two of its voxels out
+    /// instead (module docs).
     pub bias: f32,
     /// Penumbra shaping: visibility `v` becomes `v^shaping` (clamped to `[0.05, 20]`).
     /// The march reports too little light in penumbrae (it sees none of the light's

@@ -170,6 +170,7 @@ fn cone_interval(o: vec3<f32>, dir: vec3<f32>, radius: f32, tan_half: f32) -> ve
 const SELF_SHADOW_VOXELS: f32 = 0.5;
 const SHELL_VOXELS: f32 = 0.8660254;
 const SELF_SHADOW_MAX_START_VOXELS: f32 = 4.0;
+const FINE_FIELD_BIAS_VOXELS: f32 = 2.0;
 
 // Where the march through object `o` starts along the ray for a receiver of unit normal
 // `n` (zero: unknown): for a two-sided (shell) field, where the ray has risen past the
@@ -186,8 +187,22 @@ fn self_shadow_start(o: DistanceFieldObject, n: vec3<f32>, dir: vec3<f32>) -> f3
     return min(rise / max(dot(n, dir), 1e-3), rise + SELF_SHADOW_MAX_START_VOXELS * voxel);
 }
 
+// Where the march through object `o` starts along the ray from a receiver of unit normal
+// `n` (zero: unknown) under a light of world bias `bias`: the bias, or
+// FINE_FIELD_BIAS_VOXELS voxels of a finer field (a small prop keeps its contact
+// shadows), and never inside a two-sided field's own shell
+// (`penumbra_df_core::shadow::march_start`).
+fn march_start(o: DistanceFieldObject, n: vec3<f32>, dir: vec3<f32>, bias: f32) -> f32 {
+    var start = bias;
+    let voxel = o.conservative_scale;
+    if object_kind(o) == KIND_VOLUME && voxel > 0.0 {
+        start = min(start, FINE_FIELD_BIAS_VOXELS * voxel);
+    }
+    return max(start, self_shadow_start(o, n, dir));
+}
+
 // The fraction of the light's cone one object leaves open along the ray from p, the
-// march starting `start` along it at the earliest (after the light's bias).
+// march starting `start` along it at the earliest (`march_start`, or the light's bias).
 fn march_object(
     o: DistanceFieldObject,
     sphere: vec4<f32>,
@@ -199,7 +214,7 @@ fn march_object(
     camera_offset: vec3<f32>,
     atlas: texture_3d<f32>,
 ) -> f32 {
-    var t = max(light.bias, start);
+    var t = start;
     var t_end = ray.t_max;
     if sphere.w >= 0.0 {
         // March only where the cone meets the object's ball.

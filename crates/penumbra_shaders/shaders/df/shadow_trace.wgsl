@@ -13,7 +13,7 @@
 #import penumbra::df::heightfield::{HeightfieldRecord, heightfield_distance}
 #import penumbra::df::shadow::{
     ShadowLight, ShadowRay, bounding_sphere, casts_shadows, cull_slack, finish_visibility, gbuffer_normal,
-    horizon_visibility, is_directional, march_object, object_in_cone, self_shadow_start,
+    horizon_visibility, is_directional, march_object, march_start, object_in_cone,
     round_cone_distance, shadow_ray, traces_point,
 }
 #import penumbra::lighting::msaa::MSAA_SAMPLE_POSITIONS
@@ -337,7 +337,7 @@ fn trace(
                 if object_in_cone(sphere, p, ray) {
                     let o = objects[tile_slots[i]];
                     let v = march_object(
-                        o, sphere, p, ray, light, self_shadow_start(o, normal, ray.dir),
+                        o, sphere, p, ray, light, march_start(o, normal, ray.dir, light.bias),
                         view.camera_tile.xyz, view.camera_offset.xyz, atlas,
                     );
                     visibility = min(visibility, v);

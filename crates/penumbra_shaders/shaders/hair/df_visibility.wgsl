@@ -52,9 +52,11 @@ fn point_visibility(p: vec3<f32>, light: ShadowLight) -> f32 {
         }
         let sphere = bounding_sphere(o, params.origin_tile.xyz, params.origin_offset.xyz);
         if object_in_cone(sphere, p, ray) {
-            // A hair point has no surface of its own: no self-shadow offset.
+            // A hair point has no surface of its own: the light's bias, no self-shadow
+            // offset.
             v = min(v, march_object(
-                o, sphere, p, ray, light, 0.0, params.origin_tile.xyz, params.origin_offset.xyz,
+                o, sphere, p, ray, light, light.bias, params.origin_tile.xyz,
+                params.origin_offset.xyz,
                 atlas,
             ));
         }
