@@ -163,28 +163,7 @@ fn scenes_dir() -> Option<PathBuf> {
 
 /// Reads a float32 `.npy` written by the viewer: (shape, values).
 fn read_npy(path: &Path) -> (Vec<usize>, Vec<f32>) {
-    let bytes = std::fs::read(path).unwrap();
-    assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00", "{path:?}");
-    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
-    assert_eq!((10 + len) % 64, 0, "header alignment");
-    let header = std::str::from_utf8(&bytes[10..10 + len]).unwrap();
-    assert!(header.contains("'descr': '<f4'") && header.contains("'fortran_order': False"));
-    let shape: Vec<usize> = header
-        .split_once("'shape': (")
-        .unwrap()
-        .1
-        .split_once(')')
-        .unwrap()
-        .0
-        .split(',')
-        .filter_map(|s| s.trim().parse().ok())
-        .collect();
-    let data: Vec<f32> = bytes[10 + len..]
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect();
-    assert_eq!(shape.iter().product::<usize>(), data.len(), "{path:?}");
-    (shape, data)
+    penumbra_reference::npy::read_f32(path).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// What one headless run produced.

@@ -3,32 +3,7 @@
 
 use bevy::math::{UVec2, Vec3};
 use penumbra::df::PenumbraBuffers;
-use std::io::Write;
 use std::path::Path;
-
-/// Writes one `.npy` array of `shape` (row-major) from `data`.
-pub fn write_npy(path: &Path, shape: &[usize], data: &[f32]) -> std::io::Result<()> {
-    assert_eq!(shape.iter().product::<usize>(), data.len(), "npy shape");
-    let dims: Vec<String> = shape.iter().map(usize::to_string).collect();
-    let shape = if dims.len() == 1 {
-        format!("({},)", dims[0])
-    } else {
-        format!("({})", dims.join(", "))
-    };
-    let mut header = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape}, }}");
-    // Magic (6) + version (2) + length (2) + header + '\n' is a multiple of 64.
-    let unpadded = 10 + header.len() + 1;
-    header.push_str(&" ".repeat(unpadded.next_multiple_of(64) - unpadded));
-    header.push('\n');
-    let mut file = std::io::BufWriter::new(std::fs::File::create(path)?);
-    file.write_all(b"\x93NUMPY\x01\x00")?;
-    file.write_all(&(header.len() as u16).to_le_bytes())?;
-    file.write_all(header.as_bytes())?;
-    for v in data {
-        file.write_all(&v.to_le_bytes())?;
-    }
-    file.flush()
-}
 
 /// What `meta.json` says about the camera and lights.
 pub struct DumpMeta {
@@ -59,7 +34,7 @@ pub fn write_dump(dir: &Path, buffers: &PenumbraBuffers, meta: &DumpMeta) -> Res
         }
         let file = format!("{}.npy", b.name);
         let path = dir.join(&file);
-        write_npy(&path, &shape, &b.data)
+        penumbra_reference::npy::write_f32(&path, &shape, &b.data)
             .map_err(|e| format!("writing {}: {e}", path.display()))?;
         bytes += std::fs::metadata(&path).map_or(0, |m| m.len());
         files.insert(

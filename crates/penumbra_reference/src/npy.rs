@@ -79,6 +79,11 @@ mod tests {
         let path = dir.join("a.npy");
         let data = [1.0, f32::NAN, -2.5, 0.0, 3.0, 7.0];
         super::write_f32(&path, &[2, 3], &data).unwrap();
+        // The header is padded so that the data starts on a 64-byte boundary.
+        let bytes = std::fs::read(&path).unwrap();
+        let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+        assert_eq!((10 + len) % 64, 0);
+        assert_eq!(bytes.len(), 10 + len + 4 * data.len());
         let (shape, back) = super::read_f32(&path).unwrap();
         assert_eq!(shape, [2, 3]);
         assert!(

@@ -145,6 +145,19 @@ fn every_sign_method_agrees_on_a_closed_box_away_from_the_surface() {
     );
 }
 
+/// One triangle's three positions (0,0,0), (1,0,0), (0,1,0) as a base64 `data:` URI.
+fn triangle_buffer_uri() -> String {
+    let floats: Vec<u8> = [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+        .iter()
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    use base64::Engine;
+    format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&floats)
+    )
+}
+
 #[test]
 fn bad_gltf_files_are_errors() {
     let tetra_json = |uri: &str, byte_length: usize| {
@@ -157,15 +170,7 @@ fn bad_gltf_files_are_errors() {
             "nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#
         )
     };
-    let floats: Vec<u8> = [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
-        .iter()
-        .flat_map(|f| f.to_le_bytes())
-        .collect();
-    use base64::Engine;
-    let uri = format!(
-        "data:application/octet-stream;base64,{}",
-        base64::engine::general_purpose::STANDARD.encode(&floats)
-    );
+    let uri = triangle_buffer_uri();
     // The good file reads one triangle, by scene and by name.
     let good = tetra_json(&uri, 36);
     let (m, report) = load_gltf(good.as_bytes(), None, &GltfSelection::Scene).unwrap();
@@ -212,15 +217,7 @@ fn bad_gltf_files_are_errors() {
 #[test]
 fn each_triangle_knows_whether_its_material_is_double_sided() {
     use penumbra_sdf::gltf_input::load_gltf_with_sides;
-    let floats: Vec<u8> = [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
-        .iter()
-        .flat_map(|f| f.to_le_bytes())
-        .collect();
-    use base64::Engine;
-    let uri = format!(
-        "data:application/octet-stream;base64,{}",
-        base64::engine::general_purpose::STANDARD.encode(&floats)
-    );
+    let uri = triangle_buffer_uri();
     // Three primitives on one triangle: a double-sided material, a single-sided one, none.
     let json = format!(
         r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"uri":"{uri}","byteLength":36}}],
