@@ -92,7 +92,7 @@ const CORPUS: &[Case] = &[
     Case {
         file: "FlightHelmet/FlightHelmet.gltf",
         flags: &[],
-        bounds: b(0.33, 0.14, 0.23),
+        bounds: b(0.30, 0.12, 0.24),
     },
     Case {
         file: "AnisotropyBarnLamp/AnisotropyBarnLamp.gltf",

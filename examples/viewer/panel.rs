@@ -248,9 +248,16 @@ fn casters_ui(
 ) {
     if let Some(c) = counts {
         ui.label(format!(
-            "{} casters ({} two-sided, {} primitives merged into them); skipped: {} skinned, \
-             {} small, {} blended, {} other",
-            c.casters, c.two_sided, c.merged, c.skinned, c.small, c.blended, c.unsupported
+            "{} casters ({} two-sided, {} double-sided but closed: solid, {} primitives \
+             merged into them); skipped: {} skinned, {} small, {} blended, {} other",
+            c.casters,
+            c.two_sided,
+            c.solid_double_sided,
+            c.merged,
+            c.skinned,
+            c.small,
+            c.blended,
+            c.unsupported
         ));
     }
     // Edit a copy: writing through `Mut` every frame would re-tag the scene every frame.

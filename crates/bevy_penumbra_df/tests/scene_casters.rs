@@ -133,7 +133,13 @@ fn cornell_box_twice_tags_every_mesh_and_shares_the_bakes() {
         meshes,
         "every mesh entity is a caster or merged into one: {ca:?}"
     );
-    assert_eq!((ca.casters, ca.two_sided, ca.merged), (6, 4, 0), "{ca:?}");
+    // The walls and the light panel are open sheets (two-sided); the blocks are
+    // double-sided but closed (solid).
+    assert_eq!(
+        (ca.casters, ca.two_sided, ca.solid_double_sided, ca.merged),
+        (6, 4, 2, 0),
+        "{ca:?}"
+    );
     let all = casters(&mut app);
     assert!(all.iter().all(|(_, c)| c.resolution_scale == 0.125));
     // Shared bakes: the second instance bakes nothing; one atlas volume per distinct
@@ -194,7 +200,11 @@ fn palm_tree_open_sheets_are_two_sided_and_small_meshes_are_skipped() {
     // 10 meshes, one primitive each: trunk, 7 leaves, landscape, water. Every material
     // is double-sided (none alpha-masked); the leaves are closed (modelled with
     // thickness), two meshes are open sheets.
-    assert_eq!((c.casters, c.two_sided), (10, 2), "{c:?}");
+    assert_eq!(
+        (c.casters, c.two_sided, c.solid_double_sided),
+        (10, 2, 8),
+        "{c:?}"
+    );
     // A size threshold above the leaves (≈ 1.7 m) but below the trunk and the
     // landscape skips the leaves.
     app.world_mut()

@@ -29,6 +29,7 @@ pub mod grid;
 pub mod mesh;
 #[cfg(feature = "bake")]
 pub mod obj;
+pub mod openness;
 pub mod shapes;
 pub mod volume;
 

@@ -53,11 +53,14 @@ pub enum SceneTwoSided {
 /// 5. Otherwise a [`DistanceFieldCaster`] from the root's template
 ///    ([`DistanceFieldSceneCasters::caster`]), **two-sided** (a shell around the
 ///    surface) when the material is alpha-masked (`Mask`, `AlphaToCoverage`: foliage
-///    cards), or `double_sided` and the mesh is open (some edge, after welding equal
-///    positions, is not shared by exactly two triangles: a wall, a leaf, a terrain
-///    sheet), per [`SceneTwoSided`]. A closed double-sided mesh is baked solid:
-///    exporters mark most materials double-sided (Blender does by default), and a
-///    shell about a voxel thick makes a solid box self-shadow at grazing angles.
+///    cards), or `double_sided` and the mesh is open: its boundary (edges one triangle
+///    uses, after welding equal positions) is long for its area — an open index
+///    (boundary over √area, `penumbra_sdf::openness`) above 1.5, where any flat sheet
+///    scores at least 2√π ≈ 3.54 (a wall, a leaf, a terrain sheet) — per
+///    [`SceneTwoSided`]. A closed or nearly closed double-sided mesh (a hose with a few
+///    holes, 0.67) is baked solid: exporters mark most materials double-sided (Blender
+///    does by default), and a shell about a voxel thick makes a solid box self-shadow
+///    at grazing angles.
 ///    Materials other than `StandardMaterial` count as opaque and single-sided.
 ///
 /// **One field per glTF mesh.** Bevy spawns one entity per glTF primitive (one per
@@ -126,6 +129,9 @@ pub struct SceneCasterCounts {
     pub casters: u32,
     /// Of those, two-sided.
     pub two_sided: u32,
+    /// Of those, solid although their material is double-sided: closed or nearly closed
+    /// (open index ≤ 1.5, see rule 5 of [`DistanceFieldSceneCasters`]).
+    pub solid_double_sided: u32,
     /// Skipped: skinned or morphing (with [`SkinnedCasters::Skip`]).
     pub skinned: u32,
     /// Skipped: below [`DistanceFieldSceneCasters::min_size`].
@@ -174,51 +180,24 @@ type MeshQuery<'w, 's> = Query<
     ),
 >;
 
-/// Whether a triangle-list mesh is closed: after welding equal positions, every edge
-/// is shared by exactly two triangles. Strips and meshes without `Float32x3` positions
-/// count as open.
-pub(super) fn is_closed(mesh: &Mesh) -> bool {
+/// Whether a triangle-list mesh is closed or nearly so: its open index (boundary length
+/// over √area, `penumbra_sdf::openness`) is at most
+/// [`NEARLY_CLOSED_OPEN_INDEX`](penumbra_sdf::openness::NEARLY_CLOSED_OPEN_INDEX). Strips
+/// and meshes without `Float32x3` positions count as open.
+pub(super) fn is_nearly_closed(mesh: &Mesh) -> bool {
     let (PrimitiveTopology::TriangleList, Ok(VertexAttributeValues::Float32x3(positions))) = (
         mesh.primitive_topology(),
         mesh.try_attribute(Mesh::ATTRIBUTE_POSITION),
     ) else {
         return false;
     };
-    // Weld on a grid of 10⁻⁵ of the mesh's size: seams whose positions differ by
-    // rounding (sin 0 against sin 2π) are one vertex.
-    let (lo, hi) = positions
-        .iter()
-        .fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| {
-            (lo.min(Vec3::from(*p)), hi.max(Vec3::from(*p)))
-        });
-    let cell = ((hi - lo).max_element() * 1e-5).max(f32::MIN_POSITIVE);
-    let mut welded: HashMap<[i64; 3], u32> = HashMap::default();
-    let ids: Vec<u32> = positions
-        .iter()
-        .map(|p| {
-            let key = p.map(|c| (c / cell).round() as i64);
-            let next = welded.len() as u32;
-            *welded.entry(key).or_insert(next)
-        })
-        .collect();
+    let positions: Vec<Vec3> = positions.iter().map(|p| Vec3::from(*p)).collect();
     let indices: Vec<u32> = match mesh.indices() {
-        Some(list) => list.iter().filter_map(|v| ids.get(v).copied()).collect(),
-        None => ids.clone(),
+        Some(list) => list.iter().map(|i| i as u32).collect(),
+        None => (0..positions.len() as u32).collect(),
     };
-    let expected = mesh.indices().map_or(ids.len(), |i| i.len());
-    if indices.len() != expected || expected < 12 || !expected.is_multiple_of(3) {
-        return false;
-    }
-    let mut edges: HashMap<(u32, u32), u32> = HashMap::default();
-    for t in indices.chunks_exact(3) {
-        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            if a == b {
-                continue;
-            }
-            *edges.entry((a.min(b), a.max(b))).or_default() += 1;
-        }
-    }
-    edges.values().all(|&n| n == 2)
+    penumbra_sdf::openness::open_index(&positions, &indices)
+        <= penumbra_sdf::openness::NEARLY_CLOSED_OPEN_INDEX
 }
 
 fn verdict(
@@ -367,7 +346,7 @@ pub(super) fn tag_scene_casters(
                 let closed = |m: &Mesh| {
                     *closed_meshes
                         .entry(mesh.id())
-                        .or_insert_with(|| is_closed(m))
+                        .or_insert_with(|| is_nearly_closed(m))
                 };
                 Some(verdict(
                     settings,
@@ -411,7 +390,7 @@ pub(super) fn tag_scene_casters(
                 let handle = merged_caster_mesh(&casting, &meshes, assets, &mut merges)?;
                 let closed = *closed_meshes
                     .entry(handle.id())
-                    .or_insert_with(|| assets.get(&handle).is_some_and(is_closed));
+                    .or_insert_with(|| assets.get(&handle).is_some_and(is_nearly_closed));
                 let two_sided = match settings.two_sided {
                     SceneTwoSided::Never => false,
                     SceneTwoSided::FromMaterial => masked || double_sided && !closed,
@@ -429,10 +408,13 @@ pub(super) fn tag_scene_casters(
             match verdict {
                 None => tally.own = 1,
                 Some(Verdict::Caster {
-                    two_sided, masked, ..
+                    two_sided,
+                    masked,
+                    double_sided,
                 }) if merged.is_none() => {
                     tally.casters = 1;
                     tally.two_sided = u32::from(two_sided);
+                    tally.solid_double_sided = u32::from(double_sided && !two_sided);
                     if ours {
                         commands.remove::<(CasterMesh, SceneMergedMesh)>();
                     }
@@ -441,6 +423,7 @@ pub(super) fn tag_scene_casters(
                 Some(Verdict::Caster { .. }) if Some(member) == lead => {
                     let handle = merged.as_ref().expect("merged");
                     tally.casters = 1;
+                    tally.solid_double_sided = u32::from(double_sided);
                     commands.insert((
                         scene_caster(settings, false, masked, root),
                         CasterMesh(handle.clone()),
@@ -655,6 +638,7 @@ pub(super) fn count_scene_casters(
 fn add_counts(c: &mut SceneCasterCounts, t: &SceneCasterCounts) {
     c.casters += t.casters;
     c.two_sided += t.two_sided;
+    c.solid_double_sided += t.solid_double_sided;
     c.skinned += t.skinned;
     c.small += t.small;
     c.blended += t.blended;
@@ -698,7 +682,7 @@ pub(super) fn untag_removed_roots(
 
 #[cfg(test)]
 mod tests {
-    use super::{gltf_mesh_of, is_closed};
+    use super::{gltf_mesh_of, is_nearly_closed};
     use bevy::asset::AssetPath;
     use bevy::prelude::*;
 
@@ -730,18 +714,24 @@ mod tests {
     fn closed_meshes_are_told_from_open_ones() {
         // Bevy's primitives duplicate positions per face (normals): welding finds the
         // shared edges.
-        assert!(is_closed(&Cuboid::default().into()));
-        assert!(is_closed(&Sphere::new(1.0).mesh().uv(16, 8)));
-        assert!(is_closed(&Torus::new(0.3, 0.6).into()));
-        assert!(!is_closed(&Plane3d::default().mesh().build()));
-        assert!(!is_closed(
+        assert!(is_nearly_closed(&Cuboid::default().into()));
+        assert!(is_nearly_closed(&Sphere::new(1.0).mesh().uv(16, 8)));
+        assert!(is_nearly_closed(&Torus::new(0.3, 0.6).into()));
+        assert!(!is_nearly_closed(&Plane3d::default().mesh().build()));
+        assert!(!is_nearly_closed(
             &Cylinder::new(0.5, 1.0).mesh().without_caps().build()
         ));
-        // A box missing one face (two triangles) is open.
+        // A box missing one face (two triangles) is open: a lidless crate.
         let mut open: Mesh = Cuboid::default().into();
         if let Some(bevy::mesh::Indices::U32(i)) = open.indices_mut() {
             i.truncate(i.len() - 6);
         }
-        assert!(!is_closed(&open));
+        assert!(!is_nearly_closed(&open));
+        // A sphere missing one small triangle is nearly closed (a baked solid signs it).
+        let mut holed = Sphere::new(1.0).mesh().ico(3).unwrap();
+        if let Some(bevy::mesh::Indices::U32(i)) = holed.indices_mut() {
+            i.truncate(i.len() - 3);
+        }
+        assert!(is_nearly_closed(&holed));
     }
 }
