@@ -124,8 +124,8 @@ pub mod prelude {
         CasterSource, DeferredMsaa, DeferredMsaaShading, DistanceFieldCaster,
         DistanceFieldHeightfield, DistanceFieldParticles, DistanceFieldQuery, DistanceFieldScene,
         DistanceFieldSceneCasters, DistanceFieldSceneSettings, DistanceFieldUploadStats,
-        GlobalDistanceField, GlobalDistanceFieldStats, PenumbraLighting, PenumbraLightingPlugin,
-        SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset,
+        GlobalDistanceField, GlobalDistanceFieldStats, MergeDistanceFieldCasters, PenumbraLighting,
+        PenumbraLightingPlugin, SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset,
     };
     #[cfg(feature = "ao")]
     pub use bevy_penumbra_df::{

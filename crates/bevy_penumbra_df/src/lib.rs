@@ -76,8 +76,8 @@ pub use scene::{
     CasterMesh, CasterSource, DistanceFieldCaster, DistanceFieldHeightfield, DistanceFieldQuery,
     DistanceFieldScene, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
     DistanceFieldScenePlugin, DistanceFieldSceneSettings, DistanceFieldUploadStats,
-    FOLIAGE_AO_TRANSMISSION, HeightfieldTerrain, SceneCasterCounts, SceneHeightfields,
-    SceneTwoSided, SkinnedCasters, SphereHit,
+    FOLIAGE_AO_TRANSMISSION, HeightfieldTerrain, MergeDistanceFieldCasters, SceneCasterCounts,
+    SceneHeightfields, SceneTwoSided, SkinnedCasters, SphereHit,
 };
 pub use sdf_asset::{SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset, SdfVolumeLoader};
 #[cfg(feature = "bake")]

@@ -10,8 +10,9 @@ use bevy::render::settings::{RenderCreation, WgpuSettings};
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_penumbra_df::{
     DistanceFieldCaster, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
-    DistanceFieldScenePlugin, DistanceFieldUploadStats, FOLIAGE_AO_TRANSMISSION, SceneCasterCounts,
-    SdfAssetPlugin, SdfBakeCache, SdfBakeStats, SdfBaked, SkinnedCasters,
+    DistanceFieldScenePlugin, DistanceFieldUploadStats, FOLIAGE_AO_TRANSMISSION,
+    MergeDistanceFieldCasters, SceneCasterCounts, SdfAssetPlugin, SdfBakeCache, SdfBakeStats,
+    SdfBaked, SkinnedCasters,
 };
 use std::path::PathBuf;
 
@@ -341,5 +342,100 @@ fn a_meshs_primitives_bake_as_one_field() {
         bakes.baked + bakes.memory_hits + bakes.disk_hits,
         6,
         "{bakes:?}"
+    );
+}
+
+/// `MergeDistanceFieldCasters` bakes a subtree of several nodes (a prop) as one field:
+/// two open halves of a box on two nodes close together, so the union is solid, on the
+/// first mesh; without the marker each half is its own caster. Needs no `../shared`.
+#[test]
+fn a_marked_subtree_bakes_as_one_field() {
+    let mut app = app(std::path::Path::new("assets"));
+    // Two open halves of a unit box: the bottom, front and left faces, and the top,
+    // back and right ones (three faces each, so neither closes alone).
+    let halves = {
+        let full: Mesh = Cuboid::new(1.0, 1.0, 1.0).into();
+        let Some(bevy::mesh::Indices::U32(all)) = full.indices().cloned() else {
+            panic!("u32 indices")
+        };
+        let world = app.world_mut();
+        let mut meshes = world.resource_mut::<Assets<Mesh>>();
+        // Bevy's cuboid: 6 faces of 6 indices (front, back, right, left, top, bottom).
+        let face = |k: usize| all[6 * k..6 * k + 6].to_vec();
+        let half = |faces: [usize; 3]| {
+            let mut m = full.clone();
+            m.insert_indices(bevy::mesh::Indices::U32(
+                faces.iter().flat_map(|&k| face(k)).collect(),
+            ));
+            m
+        };
+        [meshes.add(half([0, 3, 5])), meshes.add(half([1, 2, 4]))]
+    };
+    let spawn_prop = |app: &mut App, marked: bool| {
+        let world = app.world_mut();
+        let parts: Vec<Entity> = halves
+            .iter()
+            .map(|h| {
+                // Each half on its own node (a child of a child).
+                let node = world
+                    .spawn((Transform::default(), Visibility::default()))
+                    .id();
+                let mesh = world.spawn(Mesh3d(h.clone())).id();
+                world.entity_mut(node).add_child(mesh);
+                node
+            })
+            .collect();
+        let prop = world
+            .spawn((Transform::default(), Visibility::default()))
+            .id();
+        world.entity_mut(prop).add_children(&parts);
+        if marked {
+            world.entity_mut(prop).insert(MergeDistanceFieldCasters);
+        }
+        let root = world
+            .spawn((coarse(), Transform::default(), Visibility::default()))
+            .id();
+        world.entity_mut(root).add_child(prop);
+        root
+    };
+    let plain = spawn_prop(&mut app, false);
+    let merged = spawn_prop(&mut app, true);
+    let later = spawn_prop(&mut app, false);
+    for _ in 0..5 {
+        app.update();
+    }
+    let c = counts(&app, plain);
+    assert_eq!((c.casters, c.merged), (2, 0), "{c:?}");
+    let c = counts(&app, merged);
+    assert_eq!((c.casters, c.merged, c.two_sided), (1, 1, 0), "{c:?}");
+    // A marker inserted once the prop is tagged (as after a glTF scene spawns)
+    // re-decides its subtree.
+    assert_eq!(counts(&app, later).casters, 2);
+    let prop = app.world().get::<Children>(later).expect("the prop")[0];
+    app.world_mut()
+        .entity_mut(prop)
+        .insert(MergeDistanceFieldCasters);
+    for _ in 0..5 {
+        app.update();
+    }
+    let c = counts(&app, later);
+    assert_eq!((c.casters, c.merged), (1, 1), "{c:?}");
+    // The merged caster's mesh is the union of both halves: 6 faces.
+    let world = app.world_mut();
+    let unions: Vec<usize> = world
+        .query::<(&bevy_penumbra_df::CasterMesh, &DistanceFieldSceneCaster)>()
+        .iter(world)
+        .filter(|(_, tag)| tag.0 == merged || tag.0 == later)
+        .map(|(m, _)| {
+            world
+                .resource::<Assets<Mesh>>()
+                .get(&m.0)
+                .map_or(0, |u| u.indices().map_or(0, |i| i.len() / 3))
+        })
+        .collect();
+    assert_eq!(
+        unions,
+        [12, 12],
+        "one union of 12 triangles per merged prop"
     );
 }

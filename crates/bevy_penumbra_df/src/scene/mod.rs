@@ -67,8 +67,8 @@ pub use render::{
     DistanceFieldGpu, DistanceFieldPipelines, DistanceFieldRenderSystems, GpuHeightfields,
 };
 pub use scene_casters::{
-    DistanceFieldSceneCaster, DistanceFieldSceneCasters, SceneCasterCounts, SceneTwoSided,
-    SkinnedCasters,
+    DistanceFieldSceneCaster, DistanceFieldSceneCasters, MergeDistanceFieldCasters,
+    SceneCasterCounts, SceneTwoSided, SkinnedCasters,
 };
 
 /// Adds distance-field casters, the atlas and the object buffer. Part of
@@ -381,6 +381,7 @@ impl Plugin for DistanceFieldScenePlugin {
             .register_type::<DistanceFieldUploadStats>()
             .register_type::<DistanceFieldSceneCasters>()
             .register_type::<DistanceFieldSceneCaster>()
+            .register_type::<MergeDistanceFieldCasters>()
             .register_type::<SceneCasterCounts>()
             .init_resource::<DistanceFieldSceneSettings>()
             .init_resource::<DistanceFieldUploadStats>()

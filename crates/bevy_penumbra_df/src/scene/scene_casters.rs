@@ -72,7 +72,8 @@ pub enum SceneTwoSided {
 /// union (masked or double-sided if any primitive is, open if the union is): a union
 /// that would be a two-sided shell anyway (a room's open walls) stays in pieces, the
 /// same shells in smaller volumes. The other primitives carry no caster
-/// ([`SceneCasterCounts::merged`]).
+/// ([`SceneCasterCounts::merged`]). [`MergeDistanceFieldCasters`] on a node merges its
+/// whole subtree the same way (a prop of several nodes).
 ///
 /// A mesh entity that already has a `DistanceFieldCaster` of its own is left alone; the
 /// casters it adds carry [`DistanceFieldSceneCaster`] and are removed when the
@@ -114,6 +115,18 @@ impl Default for DistanceFieldSceneCasters {
         }
     }
 }
+
+/// On a node under a [`DistanceFieldSceneCasters`] root (or on the root): every mesh in
+/// its subtree bakes as one distance field over their union — a prop of several nodes
+/// (a lamp of base, arm and shade) as Unreal bakes one static mesh — when the union bakes
+/// solid (rule 5 of [`DistanceFieldSceneCasters`] on the union; a union that would be a
+/// two-sided shell stays in pieces). The union is taken at the nodes' transforms when it
+/// is decided: for static props (a part that moves later keeps its old place in the
+/// field). Inserting it re-decides the subtree's meshes, so it can be added once a glTF
+/// scene has spawned.
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Component, Clone, Default)]
+pub struct MergeDistanceFieldCasters;
 
 /// Marks a caster added by [`DistanceFieldSceneCasters`]; the root it came from.
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq, Eq)]
@@ -293,6 +306,7 @@ pub(super) fn tag_scene_casters(
     mut closed_meshes: Local<HashMap<AssetId<Mesh>, bool>>,
     drawn_through: Query<(), (With<CasterMesh>, Without<SceneMergedMesh>)>,
     mut merges: Local<MergedMeshes>,
+    merge_nodes: Query<(Entity, Ref<MergeDistanceFieldCasters>)>,
 ) {
     // No root: nothing to tag (and no ancestor walk for every new mesh).
     if roots.is_empty() {
@@ -306,6 +320,19 @@ pub(super) fn tag_scene_casters(
             todo.extend(
                 std::iter::once(root)
                     .chain(children.iter_descendants(root))
+                    .filter(|&e| meshes.contains(e))
+                    .map(|e| (e, root)),
+            );
+        }
+    }
+    // A new merge marker re-decides its subtree.
+    for (node, marker) in &merge_nodes {
+        if marker.is_added()
+            && let Some(root) = scene_root(node, &parents, &roots)
+        {
+            todo.extend(
+                std::iter::once(node)
+                    .chain(children.iter_descendants(node))
                     .filter(|&e| meshes.contains(e))
                     .map(|e| (e, root)),
             );
@@ -328,8 +355,18 @@ pub(super) fn tag_scene_casters(
             continue;
         };
         let settings: &DistanceFieldSceneCasters = &settings;
-        // The primitives of one glTF mesh are decided together.
-        let group = primitive_group(entity, &meshes, &parents, &children, &drawn_through);
+        // The primitives of one glTF mesh, or the meshes under a merge marker, are
+        // decided together.
+        let group = merge_group(
+            entity,
+            root,
+            &merge_nodes,
+            &meshes,
+            &parents,
+            &children,
+            &drawn_through,
+        )
+        .unwrap_or_else(|| primitive_group(entity, &meshes, &parents, &children, &drawn_through));
         decided.extend(group.iter().copied());
         let mut judged = Vec::with_capacity(group.len());
         for &member in &group {
@@ -536,6 +573,35 @@ fn primitive_group(
     } else {
         vec![entity]
     }
+}
+
+/// The meshes under `entity`'s nearest [`MergeDistanceFieldCasters`] (itself or an
+/// ancestor up to the scene `root`), in hierarchy order; `None` without one. Meshes
+/// drawn through another mesh (their own `CasterMesh`) are left out, decided alone.
+fn merge_group(
+    entity: Entity,
+    root: Entity,
+    merge_nodes: &Query<(Entity, Ref<MergeDistanceFieldCasters>)>,
+    meshes: &MeshQuery,
+    parents: &Query<&ChildOf>,
+    children: &Query<&Children>,
+    drawn_through: &Query<(), (With<CasterMesh>, Without<SceneMergedMesh>)>,
+) -> Option<Vec<Entity>> {
+    if drawn_through.contains(entity) {
+        return None;
+    }
+    let mut up = std::iter::once(entity).chain(parents.iter_ancestors(entity));
+    let node = up
+        .by_ref()
+        .take_while(|&e| e != root)
+        .chain(std::iter::once(root))
+        .find(|&e| merge_nodes.contains(e))?;
+    Some(
+        std::iter::once(node)
+            .chain(children.iter_descendants(node))
+            .filter(|&e| meshes.contains(e) && !drawn_through.contains(e))
+            .collect(),
+    )
 }
 
 /// Merged meshes by their primitives (mesh and position relative to the first): the
