@@ -254,7 +254,8 @@ fn a_respawned_scene_is_tagged_again_and_counted_once() {
 }
 
 /// Alpha-masked meshes (foliage cards) get the scene's `masked_ao_transmission` and are
-/// two-sided; opaque ones keep the template's (solid). Needs no `../shared`.
+/// two-sided; opaque ones keep the template's (solid), but a flat opaque quad is a
+/// two-sided shell too. Needs no `../shared`.
 #[test]
 fn masked_meshes_let_the_foliage_transmission_through() {
     let mut app = app(std::path::Path::new("assets"));
@@ -275,15 +276,20 @@ fn masked_meshes_let_the_foliage_transmission_through() {
     };
     let leaf = app
         .world_mut()
-        .spawn((Mesh3d(card), MeshMaterial3d(masked)))
+        .spawn((Mesh3d(card.clone()), MeshMaterial3d(masked)))
         .id();
     let block = app
         .world_mut()
-        .spawn((Mesh3d(solid), MeshMaterial3d(opaque)))
+        .spawn((Mesh3d(solid), MeshMaterial3d(opaque.clone())))
+        .id();
+    // An opaque single-sided quad (a decal): flat and open, so a shell, but no foliage.
+    let decal = app
+        .world_mut()
+        .spawn((Mesh3d(card.clone()), MeshMaterial3d(opaque)))
         .id();
     app.world_mut()
         .spawn((coarse(), Transform::default(), Visibility::default()))
-        .add_children(&[leaf, block]);
+        .add_children(&[leaf, block, decal]);
     for _ in 0..5 {
         app.update();
     }
@@ -293,11 +299,13 @@ fn masked_meshes_let_the_foliage_transmission_through() {
             .cloned()
             .expect("tagged")
     };
-    let (leaf, block) = (caster(leaf), caster(block));
+    let (leaf, block, decal) = (caster(leaf), caster(block), caster(decal));
     assert!(leaf.two_sided);
     assert_eq!(leaf.ao_transmission, FOLIAGE_AO_TRANSMISSION);
     assert!(!block.two_sided);
     assert_eq!(block.ao_transmission, 0.0);
+    assert!(decal.two_sided);
+    assert_eq!(decal.ao_transmission, 0.0);
 }
 
 /// The primitives of one glTF mesh bake as one field over their union: the cake's six

@@ -53,7 +53,8 @@ pub enum SceneTwoSided {
 /// 5. Otherwise a [`DistanceFieldCaster`] from the root's template
 ///    ([`DistanceFieldSceneCasters::caster`]), **two-sided** (a shell around the
 ///    surface) when the material is alpha-masked (`Mask`, `AlphaToCoverage`: foliage
-///    cards), or `double_sided` and the mesh is open: its boundary (edges one triangle
+///    cards), or `double_sided` or flat (a decal, a zero-thickness quad: a local box
+///    a thousandth as thick as long) and the mesh is open: its boundary (edges one triangle
 ///    uses, after welding equal positions) is long for its area — an open index
 ///    (boundary over √area, `penumbra_sdf::openness`) above 1.5, where any flat sheet
 ///    scores at least 2√π ≈ 3.54 (a wall, a leaf, a terrain sheet) — per
@@ -213,6 +214,13 @@ pub(super) fn is_nearly_closed(mesh: &Mesh) -> bool {
         <= penumbra_sdf::openness::NEARLY_CLOSED_OPEN_INDEX
 }
 
+/// A flat piece (a decal, a zero-thickness quad): its local box is at most a thousandth
+/// as thick as it is long. Baked solid, an open flat piece has no inside for its sign to
+/// find; it bakes as a two-sided shell whatever its material.
+fn is_flat(half_extents: Vec3) -> bool {
+    half_extents.min_element() <= 1e-3 * half_extents.max_element()
+}
+
 fn verdict(
     settings: &DistanceFieldSceneCasters,
     mesh: Option<&Mesh>,
@@ -260,7 +268,7 @@ fn verdict(
     };
     let two_sided = match settings.two_sided {
         SceneTwoSided::Never => false,
-        SceneTwoSided::FromMaterial => masked || double_sided && !closed(mesh),
+        SceneTwoSided::FromMaterial => masked || (double_sided || is_flat(half)) && !closed(mesh),
         SceneTwoSided::Always => true,
     };
     Verdict::Caster {
@@ -428,9 +436,13 @@ pub(super) fn tag_scene_casters(
                 let closed = *closed_meshes
                     .entry(handle.id())
                     .or_insert_with(|| assets.get(&handle).is_some_and(is_nearly_closed));
+                let flat = assets
+                    .get(&handle)
+                    .and_then(Mesh::compute_aabb)
+                    .is_some_and(|b| is_flat(Vec3::from(b.half_extents)));
                 let two_sided = match settings.two_sided {
                     SceneTwoSided::Never => false,
-                    SceneTwoSided::FromMaterial => masked || double_sided && !closed,
+                    SceneTwoSided::FromMaterial => masked || (double_sided || flat) && !closed,
                     SceneTwoSided::Always => true,
                 };
                 (!two_sided).then_some(handle)
