@@ -617,6 +617,10 @@ pub fn run_headless(args: &Args) -> Result<(), String> {
     if let Some(e) = app.world_mut().resource_mut::<ViewerError>().0.take() {
         return Err(e);
     }
+    // `--out` into a folder that does not exist yet makes it (as `--dump` does).
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+    }
     capture
         .to_rgba8()
         .save(&out)

@@ -446,7 +446,10 @@ fn missing_and_broken_textures_are_named_and_the_scene_still_renders() {
         "nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}],"scene":0}"#;
     scratch("broken.jpg", b"\xff\xd8\xff not a JPEG at all");
     let scene = scratch("missing_image.gltf", gltf.as_bytes());
-    let out_png = output_dir().join("viewer_inputs/missing_image.png");
+    // `--out` into a folder that does not exist yet: the viewer makes it.
+    let out_dir = output_dir().join("viewer_inputs/new_folder");
+    let _ = std::fs::remove_dir_all(&out_dir);
+    let out_png = out_dir.join("missing_image.png");
     let dump = output_dir().join("viewer_inputs/missing_image_dump");
     let out = std::process::Command::new(&bin)
         .args([
