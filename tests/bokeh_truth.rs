@@ -356,38 +356,28 @@ fn render(setup: Setup, views: Vec<View>, frames: u32) -> (Vec<Vec<Vec3>>, f64) 
 /// by casting its
 /// ray against the scene's triangles.
 fn distances() -> Vec<f32> {
-    use penumbra_sdf::bvh::Bvh;
-    use penumbra_sdf::gltf_input::{GltfSelection, load_gltf};
+    use penumbra_reference::camera::PerspectiveCamera;
+    use penumbra_reference::scene_truth::{Facing, SceneTriangles, primary_hits};
     let dir = penumbra_testkit::shared_dir("bokeh_truth", env!("CARGO_MANIFEST_DIR"), "scenes")
         .expect("../shared/scenes");
-    let bytes = std::fs::read(dir.join(SCENE)).expect("the scene");
-    let (mesh, _) = load_gltf(&bytes, Some(&dir), &GltfSelection::Scene).expect("parses");
-    let origin = mesh.origin.as_vec3();
-    let tris: Vec<[Vec3; 3]> = mesh
-        .triangles
+    let scene = SceneTriangles::from_gltf(&dir.join(SCENE)).expect("the scene");
+    let transform = CIRCUIT.camera_transform();
+    let camera = PerspectiveCamera {
+        world_from_view: transform.to_matrix(),
+        fov_y: PerspectiveProjection::default().fov,
+        width: WIDTH,
+        height: HEIGHT,
+    };
+    let forward = transform.forward().as_vec3();
+    let far = CIRCUIT.max_depth;
+    primary_hits(&scene, &camera, Facing::AllFaces)
         .iter()
-        .map(|t| t.map(|i| mesh.positions[i as usize] + origin))
-        .collect();
-    let bvh = Bvh::build(&tris);
-    let camera = CIRCUIT.camera_transform();
-    let forward = camera.forward().as_vec3();
-    let t = (0.5 * PerspectiveProjection::default().fov).tan();
-    let aspect = WIDTH as f32 / HEIGHT as f32;
-    let mut out = Vec::with_capacity((WIDTH * HEIGHT) as usize);
-    for y in 0..HEIGHT {
-        for x in 0..WIDTH {
-            let ndc = Vec2::new(
-                (x as f32 + 0.5) / WIDTH as f32 * 2.0 - 1.0,
-                1.0 - (y as f32 + 0.5) / HEIGHT as f32 * 2.0,
-            );
-            let local = Vec3::new(ndc.x * t * aspect, ndc.y * t, -1.0).normalize();
-            let dir = camera.rotation * local;
-            let hit = bvh.ray_nearest(camera.translation, dir, 0.0, f32::INFINITY);
-            let far = CIRCUIT.max_depth;
-            out.push(hit.map_or(far, |(d, ..)| (d * dir.dot(forward)).min(far)));
-        }
-    }
-    out
+        .map(|hit| {
+            hit.map_or(far, |h| {
+                ((h.position - transform.translation).dot(forward)).min(far)
+            })
+        })
+        .collect()
 }
 
 /// The masks: (name, pixels).
