@@ -11,7 +11,9 @@
 use glam::{Affine3A, UVec2, Vec2, Vec3};
 use penumbra_df_core::object::{CasterShape, ObjectDesc, encode, flags};
 use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind, words_to_bytes};
-use penumbra_reference::shadow_mask::{pixel_visibility, position_from_depth};
+use penumbra_reference::shadow_mask::{
+    pack_gbuffer_normal, pixel_visibility, position_from_depth, unpack_gbuffer_normal,
+};
 use penumbra_test::wgpu::{self, BufferUsages};
 use penumbra_test::{GpuCompute, gpu_or_skip};
 
@@ -103,6 +105,45 @@ fn gpu_shadow_mask_matches_far_from_the_origin() {
         "gpu_shadow_mask_matches_far_from_the_origin",
         Vec3::new(1.0e5, 0.0, -1.0e5),
     );
+}
+
+/// G-buffer normals that face away from the eye (exported opposite to their triangles,
+/// a double-sided back face not flipped) are turned to face it
+/// (`shadow_mask::facing_the_eye`): with every normal negated, the GPU's mask equals the
+/// model's, and most pixels lit with the normals as they are stay lit (7,372 of 10,270:
+/// normals within 0.25 of grazing come back reflected, as a silhouette's would). Read as
+/// they are, negated normals hide the light from all but 98; only reflected, from half
+/// (5,023 stayed lit).
+#[test]
+fn normals_facing_away_from_the_eye_are_turned_to_face_it() {
+    if !gpu_or_skip("normals_facing_away_from_the_eye_are_turned_to_face_it") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let passes = passes(&gpu);
+    let scene = scene(Vec3::ZERO);
+    let straight_view = view(&scene, Vec3::ZERO);
+    let mut inverted = view(&scene, Vec3::ZERO);
+    for w in &mut inverted.normals {
+        let n = unpack_gbuffer_normal(*w);
+        *w = pack_gbuffer_normal(-n);
+    }
+    for (light_name, light) in lights(Vec3::ZERO, EYE).into_iter().take(1) {
+        let (straight, _) = gpu_mask(&gpu, &passes, &scene, &straight_view, &light);
+        let (turned, _) = gpu_mask(&gpu, &passes, &scene, &inverted, &light);
+        let want = reference_mask(&scene, &inverted, &light);
+        let lit = |mask: &[f32]| mask.iter().filter(|&&v| v > 0.5).count();
+        let (mean, _, max) = compare(&turned, &want);
+        eprintln!(
+            "{light_name}: {} lit pixels with the normals as they are, {} with them \
+             negated; negated vs the model: mean {mean:.5}, max {max:.3}",
+            lit(&straight),
+            lit(&turned)
+        );
+        assert!(lit(&straight) > 5000, "{light_name}");
+        assert!(lit(&turned) * 10 > lit(&straight) * 7, "{light_name}");
+        assert!(mean < 1e-4 && max < 0.05, "{mean} {max}");
+    }
 }
 
 /// With a terrain (hills across the scene, seen only by the distance fields) every

@@ -121,6 +121,27 @@ fn trace_point(gid: vec2<u32>, inside: bool) -> TracePoint {
 }
 #endif
 
+// A G-buffer normal this far past facing away from the eye is inverted, not a smooth
+// normal past a silhouette (`shadow_mask::INVERTED_NORMAL_COS`).
+const INVERTED_NORMAL_COS: f32 = 0.25;
+
+// `normal` turned into the hemisphere facing the eye from camera-relative `p`: negated
+// when it faces away by more than INVERTED_NORMAL_COS, reflected across the view ray's
+// normal plane when by less (a visible surface faces the camera; an inverted G-buffer
+// normal would hide a lit face from the light). CPU model: `shadow_mask::facing_the_eye`.
+fn facing_the_eye(normal: vec3<f32>, p: vec3<f32>) -> vec3<f32> {
+    let l2 = dot(p, p);
+    if !(l2 > 0.0) {
+        return normal;
+    }
+    let to_eye = -p * inverseSqrt(l2);
+    let c = dot(normal, to_eye);
+    if c < -INVERTED_NORMAL_COS {
+        return -normal;
+    }
+    return normal - 2.0 * min(c, 0.0) * to_eye;
+}
+
 // Camera-relative world position of frame-buffer point `screen` at reverse-Z `depth`.
 fn position_from_depth(screen: vec2<f32>, depth: f32) -> vec3<f32> {
     let uv = screen / vec2<f32>(textureDimensions(depth_texture));
@@ -196,12 +217,12 @@ fn trace(
         surface = traces_point(light, p);
     }
     let ray = shadow_ray(p, light);
-    // The surface's own shadow, from its G-buffer normal; where it hides the whole light,
-    // no march (and the pixel does not widen its tile's cone).
+    // The surface's own shadow, from its G-buffer normal turned to face the eye; where it
+    // hides the whole light, no march (and the pixel does not widen its tile's cone).
     var horizon = 1.0;
     var normal = vec3<f32>(0.0);
     if surface && view.size.w == 1u {
-        normal = gbuffer_normal(point.normal_word);
+        normal = facing_the_eye(gbuffer_normal(point.normal_word), p);
         horizon = horizon_visibility(normal, ray.dir, ray.tan_half);
     }
     let march = surface && horizon > 0.0;
