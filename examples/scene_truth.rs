@@ -76,7 +76,7 @@ pub fn check_dump(dir: &Path, facing: Facing, write: bool) -> Result<DumpCheck, 
         meta["size"][1].as_u64().ok_or("meta.json: size")? as u32,
     );
     let camera = PerspectiveCamera::looking_at(eye, target, fov.to_radians(), w, h);
-    let triangles = SceneTriangles::from_gltf(Path::new(scene))?;
+    let triangles = SceneTriangles::from_gltf(Path::new(scene), facing)?;
     let hits = scene_truth::primary_hits(&triangles, &camera, facing);
     let (_, depth) = npy::read_f32(&dir.join("depth.npy"))?;
     let mut check = DumpCheck {

@@ -360,7 +360,7 @@ fn distances() -> Vec<f32> {
     use penumbra_reference::scene_truth::{Facing, SceneTriangles, primary_hits};
     let dir = penumbra_testkit::shared_dir("bokeh_truth", env!("CARGO_MANIFEST_DIR"), "scenes")
         .expect("../shared/scenes");
-    let scene = SceneTriangles::from_gltf(&dir.join(SCENE)).expect("the scene");
+    let scene = SceneTriangles::from_gltf(&dir.join(SCENE), Facing::AllFaces).expect("the scene");
     let transform = CIRCUIT.camera_transform();
     let camera = PerspectiveCamera {
         world_from_view: transform.to_matrix(),

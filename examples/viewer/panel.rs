@@ -249,7 +249,7 @@ fn casters_ui(
     if let Some(c) = counts {
         ui.label(format!(
             "{} casters ({} two-sided, {} double-sided but closed: solid, {} primitives \
-             merged into them); skipped: {} skinned, {} small, {} blended, {} other",
+             merged into them); skipped: {} skinned, {} small, {} blended or glass, {} other",
             c.casters,
             c.two_sided,
             c.solid_double_sided,

@@ -218,6 +218,25 @@ fn palm_tree_open_sheets_are_two_sided_and_small_meshes_are_skipped() {
     assert_eq!(casters(&mut app).len(), 3);
 }
 
+/// Glass casts nothing: the flight helmet's goggle lenses (alpha-blended) and the barn
+/// lamp's glass (`KHR_materials_transmission`, a transmissive `StandardMaterial`) are
+/// skipped, as Bevy draws both after the G-buffer the passes read.
+#[test]
+fn blended_and_transmissive_glass_casts_nothing() {
+    let Some(dir) = scenes_dir() else { return };
+    let mut app = app(&dir);
+    let helmet = spawn(&mut app, "FlightHelmet/FlightHelmet.gltf", coarse());
+    let lamp = spawn(
+        &mut app,
+        "AnisotropyBarnLamp/AnisotropyBarnLamp.gltf",
+        coarse(),
+    );
+    settle(&mut app);
+    let (h, l) = (counts(&app, helmet), counts(&app, lamp));
+    assert_eq!(h.blended, 1, "{h:?}");
+    assert_eq!(l.blended, 1, "{l:?}");
+}
+
 #[test]
 fn a_respawned_scene_is_tagged_again_and_counted_once() {
     let Some(dir) = scenes_dir() else { return };

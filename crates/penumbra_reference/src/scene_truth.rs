@@ -71,15 +71,26 @@ impl SceneTriangles {
     }
 
     /// Every mesh of a glTF file's default scene, placed by its node transforms (the
-    /// baker's reader: skinned meshes in bind pose).
-    pub fn from_gltf(path: &Path) -> Result<SceneTriangles, String> {
+    /// baker's reader: skinned meshes in bind pose). In the [`Facing::Raster`]
+    /// convention without its see-through triangles (alpha-blended or transmissive
+    /// materials, `penumbra_sdf::gltf_input::TriangleMaterial`): Bevy draws them after
+    /// the depth prepass and the G-buffer the passes read, so a pixel of glass shows
+    /// what lies behind it, and the scene casters skip them (a goggle's lens, a lamp's
+    /// glass). [`Facing::AllFaces`], the Embree oracles' convention, keeps them.
+    pub fn from_gltf(path: &Path, facing: Facing) -> Result<SceneTriangles, String> {
         use penumbra_sdf::gltf_input::{GltfSelection, load_gltf_with_sides};
         let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let (mesh, double_sided, _) =
+        let (mesh, materials, _) =
             load_gltf_with_sides(&bytes, path.parent(), &GltfSelection::Scene)
                 .map_err(|e| format!("{}: {e}", path.display()))?;
         let world = |i: u32| (mesh.origin + mesh.positions[i as usize].as_dvec3()).as_vec3();
-        let triangles = mesh.triangles.iter().map(|t| t.map(world)).collect();
+        let (triangles, double_sided) = mesh
+            .triangles
+            .iter()
+            .zip(&materials)
+            .filter(|(_, m)| facing == Facing::AllFaces || !m.see_through)
+            .map(|(t, m)| (t.map(world), m.double_sided))
+            .unzip();
         Ok(SceneTriangles::new(triangles, double_sided))
     }
 

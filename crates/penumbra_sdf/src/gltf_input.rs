@@ -72,13 +72,27 @@ pub fn load_gltf(
     load_gltf_with_sides(bytes, base_dir, selection).map(|(mesh, _, report)| (mesh, report))
 }
 
-/// [`load_gltf`], and for each triangle whether its material is double-sided (a renderer
-/// draws its back faces; a single-sided triangle seen from behind is culled).
+/// What a renderer needs to know of a triangle's material ([`load_gltf_with_sides`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TriangleMaterial {
+    /// Double-sided: a renderer draws its back faces; a single-sided triangle seen from
+    /// behind is culled.
+    pub double_sided: bool,
+    /// See-through: alpha-blended (`alphaMode: BLEND`) or transmissive
+    /// (`KHR_materials_transmission` with a factor above 0: glass). Bevy draws both after
+    /// its opaque passes (transparent and transmissive phases), so they are in neither
+    /// the depth prepass nor the deferred G-buffer, and Penumbra's scene casters skip
+    /// them.
+    pub see_through: bool,
+}
+
+/// [`load_gltf`], and for each triangle what its material tells a renderer
+/// ([`TriangleMaterial`]).
 pub fn load_gltf_with_sides(
     bytes: &[u8],
     base_dir: Option<&Path>,
     selection: &GltfSelection,
-) -> Result<(TriMesh, Vec<bool>, GltfReport), GltfError> {
+) -> Result<(TriMesh, Vec<TriangleMaterial>, GltfReport), GltfError> {
     // The gltf crate validates structure but can still panic on inconsistent accessor
     // data; a corrupt file must be an error, never a crash.
     std::panic::catch_unwind(|| load_gltf_unguarded(bytes, base_dir, selection)).unwrap_or_else(
@@ -94,7 +108,7 @@ fn load_gltf_unguarded(
     bytes: &[u8],
     base_dir: Option<&Path>,
     selection: &GltfSelection,
-) -> Result<(TriMesh, Vec<bool>, GltfReport), GltfError> {
+) -> Result<(TriMesh, Vec<TriangleMaterial>, GltfReport), GltfError> {
     let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| GltfError::Parse(e.to_string()))?;
     let mut buffers = Vec::new();
     for buffer in gltf.document.buffers() {
@@ -169,7 +183,7 @@ fn load_gltf_unguarded(
     }
     Ok((
         TriMesh::from_f64(&out.positions, out.triangles),
-        out.double_sided,
+        out.materials,
         report,
     ))
 }
@@ -179,8 +193,8 @@ fn load_gltf_unguarded(
 struct Triangles {
     positions: Vec<DVec3>,
     triangles: Vec<[u32; 3]>,
-    /// Per triangle: its material is double-sided.
-    double_sided: Vec<bool>,
+    /// Per triangle: what its material tells a renderer.
+    materials: Vec<TriangleMaterial>,
 }
 
 fn load_uri(uri: &str, base_dir: Option<&Path>) -> Result<Vec<u8>, GltfError> {
@@ -263,14 +277,21 @@ fn append_mesh(
             _ => Topology::Fan,
         };
         let tris = triangles_from(&indices, topology);
-        let double_sided = primitive.material().double_sided();
+        let material = primitive.material();
+        let transmissive = material
+            .transmission()
+            .is_some_and(|t| t.transmission_factor() > 0.0);
+        let material = TriangleMaterial {
+            double_sided: material.double_sided(),
+            see_through: material.alpha_mode() == gltf::material::AlphaMode::Blend || transmissive,
+        };
         for t in tris {
             // Out-of-range indices stay out of range (base + i ≥ len) and are reported
             // by `TriMesh::validate`.
             let t = t.map(|i| base.saturating_add(i));
             out.triangles
                 .push(if flip { [t[0], t[2], t[1]] } else { t });
-            out.double_sided.push(double_sided);
+            out.materials.push(material);
         }
         report.primitives += 1;
     }

@@ -215,22 +215,40 @@ fn bad_gltf_files_are_errors() {
 }
 
 #[test]
-fn each_triangle_knows_whether_its_material_is_double_sided() {
-    use penumbra_sdf::gltf_input::load_gltf_with_sides;
+fn each_triangle_knows_whether_its_material_is_double_sided_or_see_through() {
+    use penumbra_sdf::gltf_input::{TriangleMaterial, load_gltf_with_sides};
     let uri = triangle_buffer_uri();
-    // Three primitives on one triangle: a double-sided material, a single-sided one, none.
+    // Five primitives on one triangle: a double-sided material, a single-sided one, none,
+    // an alpha-blended one, a transmissive one (glass).
     let json = format!(
         r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"uri":"{uri}","byteLength":36}}],
         "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":36}}],
         "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3",
         "min":[0,0,0],"max":[1,1,0]}}],
-        "materials":[{{"doubleSided":true}},{{}}],
+        "extensionsUsed":["KHR_materials_transmission"],
+        "materials":[{{"doubleSided":true}},{{}},{{"alphaMode":"BLEND"}},
+            {{"extensions":{{"KHR_materials_transmission":{{"transmissionFactor":1}}}}}}],
         "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"material":0}},
-            {{"attributes":{{"POSITION":0}},"material":1}},{{"attributes":{{"POSITION":0}}}}]}}],
+            {{"attributes":{{"POSITION":0}},"material":1}},{{"attributes":{{"POSITION":0}}}},
+            {{"attributes":{{"POSITION":0}},"material":2}},
+            {{"attributes":{{"POSITION":0}},"material":3}}]}}],
         "nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#
     );
     let (mesh, sides, _) =
         load_gltf_with_sides(json.as_bytes(), None, &GltfSelection::Scene).unwrap();
-    assert_eq!(mesh.triangles.len(), 3);
-    assert_eq!(sides, [true, false, false]);
+    assert_eq!(mesh.triangles.len(), 5);
+    let m = |double_sided, see_through| TriangleMaterial {
+        double_sided,
+        see_through,
+    };
+    assert_eq!(
+        sides,
+        [
+            m(true, false),
+            m(false, false),
+            m(false, false),
+            m(false, true),
+            m(false, true)
+        ]
+    );
 }

@@ -49,7 +49,10 @@ pub enum SceneTwoSided {
 /// 3. **Small**: the largest side of the mesh's world-space bounding box below
 ///    [`DistanceFieldSceneCasters::min_size`]: skipped (a pebble is not worth a trace).
 /// 4. **Alpha-blended** `StandardMaterial`s (`Blend`, `Premultiplied`, `Add`,
-///    `Multiply`): skipped. Glass and smoke would cast solid shadows.
+///    `Multiply`) and **transmissive** ones (`specular_transmission` above 0: glass,
+///    glTF's `KHR_materials_transmission`): skipped. Glass and smoke would cast solid
+///    shadows (and Bevy draws both after the depth prepass and G-buffer, so the passes
+///    shade what lies behind them).
 /// 5. Otherwise a [`DistanceFieldCaster`] from the root's template
 ///    ([`DistanceFieldSceneCasters::caster`]), **two-sided** (a shell around the
 ///    surface) when the material is alpha-masked (`Mask`, `AlphaToCoverage`: foliage
@@ -150,7 +153,7 @@ pub struct SceneCasterCounts {
     pub skinned: u32,
     /// Skipped: below [`DistanceFieldSceneCasters::min_size`].
     pub small: u32,
-    /// Skipped: alpha-blended material.
+    /// Skipped: alpha-blended or transmissive material.
     pub blended: u32,
     /// Skipped: not triangles, or no usable positions.
     pub unsupported: u32,
@@ -257,6 +260,9 @@ fn verdict(
     let (double_sided, masked) = match material {
         // A material component whose asset is not loaded yet.
         Some(None) => return Verdict::Wait,
+        // Glass: Bevy draws a transmissive material after the opaque passes, as a blended
+        // one; neither casts.
+        Some(Some(m)) if m.specular_transmission > 0.0 => return Verdict::Blended,
         Some(Some(m)) => match m.alpha_mode {
             AlphaMode::Blend | AlphaMode::Premultiplied | AlphaMode::Add | AlphaMode::Multiply => {
                 return Verdict::Blended;
