@@ -39,6 +39,12 @@ pub struct DumpCheck {
     pub triangles: usize,
     /// The distance-field atlas bytes the scene's fields fill (from `meta.json`).
     pub atlas_used_bytes: Option<f64>,
+    /// Of the sun's error on shadowed pixels, the share on pixels whose dumped G-buffer
+    /// normal faces away from the sun while the triangle the truth hit faces it (a
+    /// smooth or normal-mapped normal past the terminator): the surface's own shadow
+    /// darkens them, ray tracing lights them, and shading (`n · l ≤ 0` with that
+    /// normal) leaves them unlit either way. `None` without a sun or a `normal` buffer.
+    pub shading_turned_away: Option<f64>,
 }
 
 fn vec3(v: &serde_json::Value) -> Option<Vec3> {
@@ -99,6 +105,29 @@ pub fn check_dump(dir: &Path, facing: Facing, write: bool) -> Result<DumpCheck, 
         let (_, ours) = npy::read_f32(&dir.join(format!("{buffer}.npy")))?;
         let truth = scene_truth::sun_visibility(&triangles, &hits, direction, angle, SUN_SPP);
         check.sun = Some(scene_truth::compare(&ours, &truth, &depth));
+        if let Ok((_, normals)) = npy::read_f32(&dir.join("normal.npy")) {
+            let to_sun = -direction.normalize_or_zero();
+            let (mut turned, mut total) = (0.0f64, 0.0f64);
+            for (i, hit) in hits.iter().enumerate() {
+                let (o, t) = (ours[i], truth[i]);
+                let Some(hit) = hit.filter(|_| !(t.is_nan() || depth[i].is_nan())) else {
+                    continue;
+                };
+                let o = if o.is_nan() { 1.0 } else { o };
+                if !(o < 0.98 || t < 0.98) {
+                    continue;
+                }
+                let e = f64::from((o - t).abs());
+                total += e;
+                let n = normals
+                    .get(3 * i..3 * i + 3)
+                    .map_or(Vec3::ZERO, |n| Vec3::new(n[0], n[1], n[2]));
+                if n.dot(to_sun) <= 0.0 && hit.shadow_normal.dot(to_sun) > 0.0 {
+                    turned += e;
+                }
+            }
+            check.shading_turned_away = Some(if total > 0.0 { turned / total } else { 0.0 });
+        }
         check.lit = (mean_where(&ours, surface), mean_where(&truth, surface));
         if write {
             npy::write_f32(
@@ -161,6 +190,7 @@ fn main() {
                     "ao_ours_truth": [round(c.ao_mean.0), round(c.ao_mean.1)],
                     "triangles": c.triangles,
                     "atlas_used_bytes": c.atlas_used_bytes,
+                    "shading_turned_away": c.shading_turned_away.map(round),
                 })
             );
         }

@@ -156,6 +156,8 @@ fn spawn_scene(
         };
         camera.insert(DistanceFieldAmbientOcclusion {
             trace_resolution_divisor: divisor,
+            // The divisor as set, whatever the view's size.
+            min_trace_rows: 0,
             temporal_filter: false,
             ..default()
         });

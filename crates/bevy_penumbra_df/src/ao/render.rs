@@ -28,7 +28,7 @@ use bevy::render::render_resource::{
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::view::ExtractedView;
 use bevy::render::{Render, RenderStartup, RenderSystems};
-use penumbra_df_core::ao::{AoTemporalView, AoTraceView, jitter, trace_size};
+use penumbra_df_core::ao::{AoTemporalView, AoTraceView, jitter, trace_size, view_divisor};
 use penumbra_df_core::cull::CameraOrigin;
 
 /// The passes' pipelines.
@@ -342,26 +342,26 @@ fn prepare_dfao_textures(
         let temporal = resolved.temporal
             && motion
             && resolved.debug != DistanceFieldAoDebugView::ObjectsPerTile;
+        let size = view.viewport.zw().max(UVec2::ONE);
+        // A small view traces more of its pixels (`view_divisor`).
+        let divisor = view_divisor(size, resolved.divisor, resolved.min_trace_rows);
         // Only the passes this view runs need to have compiled.
-        let ready =
-            compiled[0] && (resolved.divisor <= 1 || compiled[1]) && (!temporal || compiled[2]);
+        let ready = compiled[0] && (divisor <= 1 || compiled[1]) && (!temporal || compiled[2]);
         if !(ready && has_objects) {
             commands.entity(entity).remove::<PenumbraAoInput>();
             continue;
         }
-        let size = view.viewport.zw().max(UVec2::ONE);
         let mut fresh = None;
         let textures = match textures {
             Some(t)
                 if t.size == size
-                    && t.divisor == resolved.divisor
+                    && t.divisor == divisor
                     && t.history.is_some() == temporal
                     && t.samples.is_some() == samples =>
             {
                 t
             }
             _ => {
-                let divisor = resolved.divisor;
                 let texture = |label| ao_texture(&allocations, &device, label, size);
                 fresh = Some(ViewAoTextures {
                     trace: ao_texture(
