@@ -54,6 +54,8 @@ pub mod camera;
 pub mod cli;
 #[path = "viewer/dump.rs"]
 pub mod dump;
+#[path = "viewer/fallback.rs"]
+pub mod fallback;
 #[path = "viewer/input.rs"]
 pub mod input;
 #[path = "viewer/panel.rs"]
@@ -241,21 +243,47 @@ fn adopt_showcase(
 /// A scene that fails to load is fatal (headless: exit 1; windowed: exit). A dependency
 /// that fails (a texture in a format Bevy cannot decode, a missing image file) is not:
 /// one warning, and the scene is drawn without it, as Bevy draws a material whose
-/// texture is missing.
+/// texture is missing. A GLB whose embedded image fails fails whole in Bevy's loader:
+/// it is loaded again without its textures, with one warning (`fallback`).
+#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
 fn watch_load(
-    root: Single<&WorldAssetRoot, With<ViewerScene>>,
+    mut commands: Commands,
+    root: Single<(Entity, &WorldAssetRoot), With<ViewerScene>>,
     assets: Res<AssetServer>,
+    args: Res<ViewerArgs>,
+    registry: Res<bevy::asset::io::embedded::EmbeddedAssetRegistry>,
     mut error: ResMut<ViewerError>,
     mut exit: MessageWriter<AppExit>,
     mut warned: Local<bool>,
+    mut reloaded: Local<bool>,
 ) {
     if error.0.is_some() {
         return;
     }
     use bevy::asset::{LoadState, RecursiveDependencyLoadState};
+    let (entity, root) = *root;
     let id = root.0.id();
     if let Some(LoadState::Failed(e)) = assets.get_load_state(id) {
-        error.0 = Some(format!("the scene failed to load: {e}"));
+        let message = e.to_string();
+        if !*reloaded && fallback::is_image_error(&message) {
+            *reloaded = true;
+            let path = args.0.scene.clone().unwrap_or_default();
+            match fallback::reload_untextured(&mut commands, entity, &path, &registry, &assets) {
+                Ok(()) => {
+                    warn!(
+                        "viewer: an image embedded in the scene failed to decode ({message}): \
+                         drawing the scene without its textures"
+                    );
+                    return;
+                }
+                Err(why) => {
+                    error.0 = Some(format!("the scene failed to load: {message} ({why})"));
+                    exit.write(AppExit::error());
+                    return;
+                }
+            }
+        }
+        error.0 = Some(format!("the scene failed to load: {message}"));
         exit.write(AppExit::error());
     } else if let Some(RecursiveDependencyLoadState::Failed(_)) =
         assets.get_recursive_dependency_load_state(id)

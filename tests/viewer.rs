@@ -480,3 +480,83 @@ fn missing_and_broken_textures_are_named_and_the_scene_still_renders() {
         serde_json::from_str(&std::fs::read_to_string(dump.join("meta.json")).unwrap()).unwrap();
     assert_eq!(meta["settings"]["baked"].as_u64(), Some(1), "{meta}");
 }
+
+#[test]
+fn a_glb_whose_embedded_image_fails_is_drawn_without_its_textures() {
+    if !gpu_or_skip("a_glb_whose_embedded_image_fails_is_drawn_without_its_textures") {
+        return;
+    }
+    let Some(bin) = viewer_binary() else { return };
+    // A GLB quad whose base colour is an embedded "PNG" of garbage: Bevy's glTF loader
+    // fails the whole scene on it; the viewer loads it again without its textures, warns
+    // once, and renders it, its caster baked.
+    let mut data = Vec::new();
+    for p in [
+        [-1.0f32, 0.0, -1.0],
+        [1.0, 0.0, -1.0],
+        [1.0, 0.0, 1.0],
+        [-1.0, 0.0, 1.0],
+    ] {
+        data.extend(p.iter().flat_map(|v| v.to_le_bytes()));
+    }
+    data.extend([0u16, 2, 1, 0, 3, 2].iter().flat_map(|i| i.to_le_bytes()));
+    data.extend(b"\x89PNG\r\n\x1a\n not a PNG at all");
+    while data.len() % 4 != 0 {
+        data.push(0);
+    }
+    let image_len = data.len() - 60;
+    let mut json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"byteLength":{}}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":12}},
+            {{"buffer":0,"byteOffset":60,"byteLength":{image_len}}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]}},
+            {{"bufferView":1,"componentType":5123,"count":6,"type":"SCALAR"}}],
+        "images":[{{"bufferView":2,"mimeType":"image/png"}}],
+        "textures":[{{"source":0}}],
+        "materials":[{{"pbrMetallicRoughness":{{"baseColorTexture":{{"index":0}},"baseColorFactor":[0.8,0.2,0.2,1]}}}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1,"material":0}}]}}],
+        "nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#,
+        data.len()
+    )
+    .into_bytes();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let total = 12 + 8 + json.len() + 8 + data.len();
+    let mut glb = Vec::new();
+    glb.extend(b"glTF");
+    glb.extend(2u32.to_le_bytes());
+    glb.extend((total as u32).to_le_bytes());
+    glb.extend((json.len() as u32).to_le_bytes());
+    glb.extend(b"JSON");
+    glb.extend(&json);
+    glb.extend((data.len() as u32).to_le_bytes());
+    glb.extend(b"BIN\0");
+    glb.extend(&data);
+    let scene = scratch("broken_embedded_image.glb", &glb);
+    let out_png = output_dir().join("viewer_inputs/broken_embedded_image.png");
+    let dump = output_dir().join("viewer_inputs/broken_embedded_image_dump");
+    let out = std::process::Command::new(&bin)
+        .args([scene.to_str().unwrap(), "--headless", "--size", "32x32"])
+        .args(["--frames", "1"])
+        .arg("--out")
+        .arg(&out_png)
+        .arg("--dump")
+        .arg(&dump)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert_eq!(
+        stderr
+            .lines()
+            .filter(|l| l.contains("without its textures"))
+            .count(),
+        1,
+        "{stderr}"
+    );
+    assert!(out_png.is_file());
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dump.join("meta.json")).unwrap()).unwrap();
+    assert_eq!(meta["settings"]["baked"].as_u64(), Some(1), "{meta}");
+}

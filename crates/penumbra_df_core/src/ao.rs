@@ -292,33 +292,31 @@ pub fn jitter(frame: u32, divisor: u32) -> UVec2 {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+
     #[test]
     fn small_views_trace_at_least_the_minimum_rows() {
-        use super::{MIN_TRACE_ROWS, view_divisor as divisor_for};
-        use glam::UVec2;
-        let view_divisor = |s, d| divisor_for(s, d, MIN_TRACE_ROWS);
+        let rows = |s, d| view_divisor(s, d, MIN_TRACE_ROWS);
         // 0 rows: the divisor whatever the size.
-        assert_eq!(divisor_for(UVec2::new(64, 64), 4, 0), 4);
+        assert_eq!(view_divisor(UVec2::new(64, 64), 4, 0), 4);
         // Tall enough: the requested divisor.
-        assert_eq!(view_divisor(UVec2::new(1920, 1080), 4), 4);
-        assert_eq!(view_divisor(UVec2::new(512, 384), 4), 4);
+        assert_eq!(rows(UVec2::new(1920, 1080), 4), 4);
+        assert_eq!(rows(UVec2::new(512, 384), 4), 4);
         // Smaller: the largest divisor that keeps the rows, 1 below them.
-        assert_eq!(view_divisor(UVec2::new(384, 288), 4), 3);
-        assert_eq!(view_divisor(UVec2::new(256, 192), 4), 2);
-        assert_eq!(view_divisor(UVec2::new(128, 96), 4), 1);
-        assert_eq!(view_divisor(UVec2::new(64, 64), 4), 1);
+        assert_eq!(rows(UVec2::new(384, 288), 4), 3);
+        assert_eq!(rows(UVec2::new(256, 192), 4), 2);
+        assert_eq!(rows(UVec2::new(128, 96), 4), 1);
+        assert_eq!(rows(UVec2::new(64, 64), 4), 1);
         for h in 1..600 {
-            let d = view_divisor(UVec2::new(h, h), 4);
+            let d = rows(UVec2::new(h, h), 4);
             assert!((1..=4).contains(&d));
             assert!(d == 1 || h / d >= MIN_TRACE_ROWS, "{h}: {d}");
             assert!(d == 4 || h / (d + 1) < MIN_TRACE_ROWS, "{h}: {d}");
         }
         // Never below 1; a requested 1 stays 1.
-        assert_eq!(view_divisor(UVec2::new(4000, 4000), 0), 1);
-        assert_eq!(view_divisor(UVec2::new(4000, 4000), 1), 1);
+        assert_eq!(rows(UVec2::new(4000, 4000), 0), 1);
+        assert_eq!(rows(UVec2::new(4000, 4000), 1), 1);
     }
-
-    use super::*;
 
     #[test]
     fn cones_cover_the_hemisphere_and_clear_the_plane() {

@@ -507,9 +507,7 @@ mod tests {
         assert!(error <= 0.06 && blind > 0.2, "{error} {blind}");
     }
 
-    /// The horizon term against counting: directions spread uniformly over the light's
-    /// cone (16k per case), the fraction above the tangent plane; from back faces to
-    /// fully lit, for a 3° sun and a 40° light.
+    /// Normals facing the eye are kept, inverted ones negated, silhouette ones reflected.
     #[test]
     fn normals_are_turned_to_face_the_eye() {
         let p = Vec3::new(0.0, 0.0, -5.0); // straight ahead: the eye is along +z
@@ -523,8 +521,19 @@ mod tests {
         assert!((turned.x - past.x).abs() < 1e-6 && (turned.z + past.z).abs() < 1e-6);
         // Zero stays zero (no normal: no own shadow).
         assert_eq!(facing_the_eye(Vec3::ZERO, p), Vec3::ZERO);
+        // The shader's twin of the threshold.
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../penumbra_shaders/shaders/df/shadow_trace.wgsl"
+        );
+        let source = std::fs::read_to_string(path).expect("shadow_trace.wgsl");
+        let want = format!("const INVERTED_NORMAL_COS: f32 = {INVERTED_NORMAL_COS};");
+        assert!(source.lines().any(|l| l == want), "{want}");
     }
 
+    /// The horizon term against counting: directions spread uniformly over the light's
+    /// cone (16k per case), the fraction above the tangent plane; from back faces to
+    /// fully lit, for a 3° sun and a 40° light.
     #[test]
     fn horizon_is_the_fraction_of_the_light_above_the_plane() {
         let n = Vec3::Y;
