@@ -20,23 +20,12 @@ pub fn is_image_error(message: &str) -> bool {
 }
 
 /// The GLB `bytes` with no images, textures or samplers, and no material or extension
-/// referring to one; the binary chunk as it was.
+/// referring to one; the binary chunk as it was (`gltf::binary::Glb` reads and writes
+/// the container).
 pub fn strip_textures(bytes: &[u8]) -> Result<Vec<u8>, String> {
-    let word = |at: usize| -> Result<u32, String> {
-        let b = bytes.get(at..at + 4).ok_or("GLB: truncated")?;
-        Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-    };
-    if bytes.get(0..4) != Some(b"glTF".as_slice()) {
-        return Err("not a GLB file".into());
-    }
-    let json_len = word(12)? as usize;
-    if word(16)? != 0x4E4F_534A {
-        return Err("GLB: the first chunk is not JSON".into());
-    }
-    let json = bytes.get(20..20 + json_len).ok_or("GLB: truncated JSON")?;
-    let rest = &bytes[20 + json_len..];
+    let mut glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| format!("GLB: {e}"))?;
     let mut doc: serde_json::Value =
-        serde_json::from_slice(json).map_err(|e| format!("GLB JSON: {e}"))?;
+        serde_json::from_slice(&glb.json).map_err(|e| format!("GLB JSON: {e}"))?;
     let root = doc.as_object_mut().ok_or("GLB JSON is not an object")?;
     for key in ["images", "textures", "samplers"] {
         root.remove(key);
@@ -50,20 +39,8 @@ pub fn strip_textures(bytes: &[u8]) -> Result<Vec<u8>, String> {
             list.retain(|e| !e.as_str().is_some_and(|e| e.contains("texture")));
         }
     }
-    let mut json = serde_json::to_vec(&doc).map_err(|e| e.to_string())?;
-    while json.len() % 4 != 0 {
-        json.push(b' ');
-    }
-    let total = 12 + 8 + json.len() + rest.len();
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(&0x4E4F_534Au32.to_le_bytes());
-    out.extend_from_slice(&json);
-    out.extend_from_slice(rest);
-    Ok(out)
+    glb.json = serde_json::to_vec(&doc).map_err(|e| e.to_string())?.into();
+    glb.to_vec().map_err(|e| format!("GLB: {e}"))
 }
 
 /// Removes every object member named `…Texture` (`baseColorTexture`, `normalTexture`,

@@ -21,7 +21,10 @@
 //! of the light's disc above its tangent plane (0 on back faces, a smooth ramp across the
 //! terminator, exact for a plane), and the mask is the smaller of the two. Pixels whose
 //! plane hides the whole light are not marched. On the shadow bench this halves the
-//! bunny's error (0.111 → 0.059 mean over its shadowed pixels, same settings).
+//! bunny's error (0.111 → 0.059 mean over its shadowed pixels, same settings). A normal
+//! that faces away from the eye is turned to face it first
+//! (`penumbra_reference::shadow_mask::facing_the_eye`: an inverted normal negated, a
+//! smooth one past a silhouette reflected), as the surface the camera sees faces it.
 //!
 //! A receiver on a two-sided caster (a terrain sheet, a floor, foliage) sits inside its
 //! own field's shell, about √3/2 voxel thick: the march through that field starts where
