@@ -414,15 +414,8 @@ fn a_scene_without_meshes_renders_an_empty_frame() {
     assert_eq!(r.meta["settings"]["casters"]["casters"].as_u64(), Some(0));
 }
 
-#[test]
-fn missing_and_broken_textures_are_named_and_the_scene_still_renders() {
-    if !gpu_or_skip("missing_and_broken_textures_are_named_and_the_scene_still_renders") {
-        return;
-    }
-    let Some(bin) = viewer_binary() else { return };
-    // A valid glTF quad whose material's textures are a missing PNG and a JPEG file of
-    // garbage: the header checks pass; Bevy names each file in one error and the scene
-    // renders without them (degraded, not fatal), its caster baked.
+/// A 2 m quad in y = 0 facing up: 4 positions (48 bytes) then 6 `u16` indices (12).
+fn quad_buffer() -> Vec<u8> {
     let mut bytes = Vec::new();
     for p in [
         [-1.0f32, 0.0, -1.0],
@@ -433,7 +426,19 @@ fn missing_and_broken_textures_are_named_and_the_scene_still_renders() {
         bytes.extend(p.iter().flat_map(|v| v.to_le_bytes()));
     }
     bytes.extend([0u16, 2, 1, 0, 3, 2].iter().flat_map(|i| i.to_le_bytes()));
-    scratch("quad.bin", &bytes);
+    bytes
+}
+
+#[test]
+fn missing_and_broken_textures_are_named_and_the_scene_still_renders() {
+    if !gpu_or_skip("missing_and_broken_textures_are_named_and_the_scene_still_renders") {
+        return;
+    }
+    let Some(bin) = viewer_binary() else { return };
+    // A valid glTF quad whose material's textures are a missing PNG and a JPEG file of
+    // garbage: the header checks pass; Bevy names each file in one error and the scene
+    // renders without them (degraded, not fatal), its caster baked.
+    scratch("quad.bin", &quad_buffer());
     let gltf = r#"{"asset":{"version":"2.0"},
         "buffers":[{"uri":"quad.bin","byteLength":60}],
         "bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":48},{"buffer":0,"byteOffset":48,"byteLength":12}],
@@ -490,16 +495,7 @@ fn a_glb_whose_embedded_image_fails_is_drawn_without_its_textures() {
     // A GLB quad whose base colour is an embedded "PNG" of garbage: Bevy's glTF loader
     // fails the whole scene on it; the viewer loads it again without its textures, warns
     // once, and renders it, its caster baked.
-    let mut data = Vec::new();
-    for p in [
-        [-1.0f32, 0.0, -1.0],
-        [1.0, 0.0, -1.0],
-        [1.0, 0.0, 1.0],
-        [-1.0, 0.0, 1.0],
-    ] {
-        data.extend(p.iter().flat_map(|v| v.to_le_bytes()));
-    }
-    data.extend([0u16, 2, 1, 0, 3, 2].iter().flat_map(|i| i.to_le_bytes()));
+    let mut data = quad_buffer();
     data.extend(b"\x89PNG\r\n\x1a\n not a PNG at all");
     while data.len() % 4 != 0 {
         data.push(0);
