@@ -497,7 +497,7 @@ fn a_glb_whose_embedded_image_fails_is_drawn_without_its_textures() {
     // once, and renders it, its caster baked.
     let mut data = quad_buffer();
     data.extend(b"\x89PNG\r\n\x1a\n not a PNG at all");
-    while data.len() % 4 != 0 {
+    while !data.len().is_multiple_of(4) {
         data.push(0);
     }
     let image_len = data.len() - 60;
@@ -515,7 +515,7 @@ fn a_glb_whose_embedded_image_fails_is_drawn_without_its_textures() {
         data.len()
     )
     .into_bytes();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let total = 12 + 8 + json.len() + 8 + data.len();
