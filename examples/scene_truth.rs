@@ -107,26 +107,19 @@ pub fn check_dump(dir: &Path, facing: Facing, write: bool) -> Result<DumpCheck, 
         check.sun = Some(scene_truth::compare(&ours, &truth, &depth));
         if let Ok((_, normals)) = npy::read_f32(&dir.join("normal.npy")) {
             let to_sun = -direction.normalize_or_zero();
-            let (mut turned, mut total) = (0.0f64, 0.0f64);
-            for (i, hit) in hits.iter().enumerate() {
-                let (o, t) = (ours[i], truth[i]);
-                let Some(hit) = hit.filter(|_| !(t.is_nan() || depth[i].is_nan())) else {
-                    continue;
-                };
-                let o = if o.is_nan() { 1.0 } else { o };
-                if !(o < 0.98 || t < 0.98) {
-                    continue;
-                }
-                let e = f64::from((o - t).abs());
-                total += e;
+            let turned_away = |i: usize| {
                 let n = normals
                     .get(3 * i..3 * i + 3)
                     .map_or(Vec3::ZERO, |n| Vec3::new(n[0], n[1], n[2]));
-                if n.dot(to_sun) <= 0.0 && hit.shadow_normal.dot(to_sun) > 0.0 {
-                    turned += e;
-                }
-            }
-            check.shading_turned_away = Some(if total > 0.0 { turned / total } else { 0.0 });
+                let triangle_lit = hits[i].is_some_and(|h| h.shadow_normal.dot(to_sun) > 0.0);
+                n.dot(to_sun) <= 0.0 && triangle_lit
+            };
+            check.shading_turned_away = Some(scene_truth::shadowed_error_share(
+                &ours,
+                &truth,
+                &depth,
+                turned_away,
+            ));
         }
         check.lit = (mean_where(&ours, surface), mean_where(&truth, surface));
         if write {

@@ -271,18 +271,32 @@ pub struct TruthError {
     pub shadowed_pixels: usize,
 }
 
+/// Per pixel where both see a surface (`depth` and `truth` not NaN; `ours` NaN counts as
+/// 1, fully open): its index, |ours − truth|, and whether either calls it shadowed
+/// (below 0.98).
+fn pixel_errors<'a>(
+    ours: &'a [f32],
+    truth: &'a [f32],
+    depth: &'a [f32],
+) -> impl Iterator<Item = (usize, f64, bool)> + 'a {
+    ours.iter()
+        .zip(truth)
+        .zip(depth)
+        .enumerate()
+        .filter(|(_, ((_, t), d))| !(t.is_nan() || d.is_nan()))
+        .map(|(i, ((&o, &t), _))| {
+            let o = if o.is_nan() { 1.0 } else { o };
+            (i, f64::from((o - t).abs()), o < 0.98 || t < 0.98)
+        })
+}
+
 /// Compares `ours` with `truth` where both see a surface (`depth` and `truth` not NaN;
 /// `ours` NaN counts as 1, fully open).
 pub fn compare(ours: &[f32], truth: &[f32], depth: &[f32]) -> TruthError {
     let (mut all, mut shadowed) = ((0.0f64, 0usize), (0.0f64, 0usize));
-    for ((&o, &t), &d) in ours.iter().zip(truth).zip(depth) {
-        if t.is_nan() || d.is_nan() {
-            continue;
-        }
-        let o = if o.is_nan() { 1.0 } else { o };
-        let e = f64::from((o - t).abs());
+    for (_, e, is_shadowed) in pixel_errors(ours, truth, depth) {
         all = (all.0 + e, all.1 + 1);
-        if o < 0.98 || t < 0.98 {
+        if is_shadowed {
             shadowed = (shadowed.0 + e, shadowed.1 + 1);
         }
     }
@@ -293,6 +307,22 @@ pub fn compare(ours: &[f32], truth: &[f32], depth: &[f32]) -> TruthError {
         pixels: all.1,
         shadowed_pixels: shadowed.1,
     }
+}
+
+/// Of [`compare`]'s error over shadowed pixels, the share on the pixels `keep` selects
+/// (0 without error).
+pub fn shadowed_error_share(
+    ours: &[f32],
+    truth: &[f32],
+    depth: &[f32],
+    keep: impl Fn(usize) -> bool,
+) -> f64 {
+    let (kept, total) = pixel_errors(ours, truth, depth)
+        .filter(|&(_, _, shadowed)| shadowed)
+        .fold((0.0f64, 0.0f64), |(k, t), (i, e, _)| {
+            (if keep(i) { k + e } else { k }, t + e)
+        });
+    if total > 0.0 { kept / total } else { 0.0 }
 }
 
 #[cfg(test)]

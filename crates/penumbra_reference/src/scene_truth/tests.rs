@@ -177,3 +177,21 @@ fn the_truth_is_deterministic_and_nan_on_background() {
     assert_eq!((e.pixels, e.shadowed_pixels), (3, 2));
     assert!((e.all - 0.5 / 3.0).abs() < 1e-9 && (e.shadowed - 0.25).abs() < 1e-9);
 }
+
+/// The share of the shadowed-pixel error on chosen pixels: the same pixels and errors as
+/// `compare` (lit-lit pixels and pixels without truth left out).
+#[test]
+fn the_shadowed_error_share_counts_the_pixels_compare_counts() {
+    let ours = [0.0, 1.0, 0.5, 0.2, f32::NAN];
+    let truth = [1.0, 1.0, 0.0, f32::NAN, 0.0];
+    let depth = [1.0; 5];
+    let e = compare(&ours, &truth, &depth);
+    // Pixel 4: ours NaN counts as 1 (error 1); pixel 3 has no truth.
+    assert_eq!(e.shadowed_pixels, 3);
+    assert!((e.shadowed - 2.5 / 3.0).abs() < 1e-12);
+    let share = |keep: &[usize]| shadowed_error_share(&ours, &truth, &depth, |i| keep.contains(&i));
+    assert!((share(&[0]) - 1.0 / 2.5).abs() < 1e-12);
+    assert!((share(&[0, 2, 4]) - 1.0).abs() < 1e-12);
+    assert_eq!(share(&[1, 3]), 0.0);
+    assert_eq!(shadowed_error_share(&[1.0], &[1.0], &[1.0], |_| true), 0.0);
+}
