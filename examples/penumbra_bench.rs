@@ -76,6 +76,12 @@ pub struct Args {
     /// Also save each run's last frame as `<scene>-<variant>-<W>x<H>.png` in `--out`.
     #[arg(long)]
     pub screenshots: bool,
+    /// Seconds one run (setup, warm-up and measured frames) may take before the bench
+    /// gives up: it keeps the report of the runs before it and exits with status 3 (a
+    /// GPU hang, or a pass far over budget, must not eat a lent machine's time). 0: no
+    /// limit.
+    #[arg(long, default_value_t = 300)]
+    pub run_limit: u64,
 }
 
 /// `1080p`, `4k`, `tiny` or `WxH`.
@@ -155,7 +161,21 @@ fn main() -> ExitCode {
         eprintln!("penumbra-bench: {}: {e}", args.out.display());
         return ExitCode::FAILURE;
     }
-    let device = args.device.clone().unwrap_or_else(|| adapter.to_owned());
+    let meta = report::Meta {
+        device: args.device.clone().unwrap_or_else(|| adapter.to_owned()),
+        frames: args.frames,
+        warm_up: args.warm_up,
+        command: std::env::args().collect::<Vec<_>>().join(" "),
+    };
+    let watchdog = Watchdog::start(args.run_limit);
+    // A panic (wgpu's device-lost and time-out panics among them) ends the process at
+    // once: unwinding past a lost device can block, and the runs before it are on disk.
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        default_hook(info);
+        eprintln!("penumbra-bench: a run panicked; the runs before it are in the report");
+        std::process::exit(101);
+    }));
     let mut results = Vec::new();
     for &size in &args.sizes {
         for &scene in &scenes {
@@ -171,7 +191,16 @@ fn main() -> ExitCode {
                     size.x,
                     size.y
                 );
-                match run_one(&args, &run, size, &scenes_dir) {
+                watchdog.arm(format!(
+                    "{} / {} at {}x{}",
+                    scene.name(),
+                    variant.name(),
+                    size.x,
+                    size.y
+                ));
+                let outcome = run_one(&args, &run, size, &scenes_dir);
+                watchdog.disarm();
+                match outcome {
                     Ok(result) => {
                         eprintln!(
                             "penumbra-bench:   ready after {} updates ({:.1} s); GPU frame \
@@ -182,6 +211,11 @@ fn main() -> ExitCode {
                                 .map_or("n/a".into(), |s| format!("{:.3} ms", s.median))
                         );
                         results.push(result);
+                        // After every run, so that a later failure keeps these figures.
+                        if let Err(e) = write_report(&args.out, &meta, &results) {
+                            eprintln!("penumbra-bench: {e}");
+                            return ExitCode::FAILURE;
+                        }
                     }
                     Err(e) => {
                         eprintln!("penumbra-bench: {} / {}: {e}", scene.name(), variant.name());
@@ -191,27 +225,11 @@ fn main() -> ExitCode {
             }
         }
     }
-    let meta = report::Meta {
-        device,
-        frames: args.frames,
-        warm_up: args.warm_up,
-        command: std::env::args().collect::<Vec<_>>().join(" "),
-    };
-    let json = report::json(&meta, &results);
-    let markdown = report::markdown(&meta, &results);
-    let write = |name: &str, text: &str| {
-        let path = args.out.join(name);
-        std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))
-    };
-    let written = write(
-        "bench.json",
-        &serde_json::to_string_pretty(&json).expect("serialisable"),
-    )
-    .and_then(|()| write("bench.md", &markdown));
-    if let Err(e) = written {
+    if let Err(e) = write_report(&args.out, &meta, &results) {
         eprintln!("penumbra-bench: {e}");
         return ExitCode::FAILURE;
     }
+    let markdown = report::markdown(&meta, &results);
     println!("{markdown}");
     eprintln!(
         "penumbra-bench: wrote {} and {}",
@@ -219,6 +237,67 @@ fn main() -> ExitCode {
         args.out.join("bench.md").display()
     );
     ExitCode::SUCCESS
+}
+
+/// Writes `bench.json` and `bench.md` for the runs so far.
+fn write_report(
+    out: &std::path::Path,
+    meta: &report::Meta,
+    results: &[RunResult],
+) -> Result<(), String> {
+    let write = |name: &str, text: &str| {
+        let path = out.join(name);
+        std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))
+    };
+    let json = report::json(meta, results);
+    write(
+        "bench.json",
+        &serde_json::to_string_pretty(&json).expect("serialisable"),
+    )?;
+    write("bench.md", &report::markdown(meta, results))
+}
+
+/// The run in progress and when it started, watched by [`Watchdog`].
+type Current = std::sync::Arc<std::sync::Mutex<Option<(std::time::Instant, String)>>>;
+
+/// Ends the process when one run takes longer than `--run-limit` seconds.
+struct Watchdog {
+    current: Current,
+}
+
+impl Watchdog {
+    fn start(limit_s: u64) -> Self {
+        let current = Current::default();
+        if limit_s > 0 {
+            let watched = current.clone();
+            let limit = std::time::Duration::from_secs(limit_s);
+            std::thread::spawn(move || {
+                loop {
+                    std::thread::sleep(std::time::Duration::from_millis(250));
+                    let guard = watched.lock().unwrap_or_else(|e| e.into_inner());
+                    if let Some((start, what)) = &*guard
+                        && start.elapsed() > limit
+                    {
+                        eprintln!(
+                            "penumbra-bench: {what} still running after {limit_s} s \
+                             (--run-limit): giving up; the runs before it are in the report"
+                        );
+                        std::process::exit(3);
+                    }
+                }
+            });
+        }
+        Self { current }
+    }
+
+    fn arm(&self, what: String) {
+        *self.current.lock().unwrap_or_else(|e| e.into_inner()) =
+            Some((std::time::Instant::now(), what));
+    }
+
+    fn disarm(&self) {
+        *self.current.lock().unwrap_or_else(|e| e.into_inner()) = None;
+    }
 }
 
 /// Renders one scene in one variant and measures it.
@@ -237,6 +316,19 @@ fn run_one(
     scenes::add_scene(&mut app, run);
     app.finish();
     app.cleanup();
+    let result = measure_run(args, run, size, &render, &mut app);
+    measure::drain_gpu(&app);
+    result
+}
+
+/// The body of [`run_one`] once its app is built: setup, warm-up, measured frames.
+fn measure_run(
+    args: &Args,
+    run: &Run,
+    size: UVec2,
+    render: &penumbra_test::HeadlessRender,
+    app: &mut App,
+) -> Result<RunResult, String> {
     let start = std::time::Instant::now();
     let mut setup_frames = 0;
     const MAX_SETUP: u32 = 3_000;
@@ -289,7 +381,7 @@ fn run_one(
             size.x,
             size.y
         );
-        report::screenshot(&mut app, &render, &args.out.join(name))?;
+        report::screenshot(app, render, &args.out.join(name))?;
     }
     let frames = args.frames as usize;
     let diagnostics = samples

@@ -4,28 +4,37 @@
 //!   timestamp queries around every pass that records a span, Bevy's and Penumbra's).
 //!   Spans of one name closed several times in a frame (Bevy's mesh preprocessing, once
 //!   per view) are summed per frame.
-//! - **The frame's GPU time**: two timestamps of the benchmark's own, submitted before
-//!   and after Bevy's `render_system` (which runs the render graph), so uninstrumented
-//!   work (Bevy's shadow maps, depth of field, deferred lighting, copies) counts too.
-//!   (Bevy's spans cannot hold it: they nest per thread, and the render graph's systems
-//!   run on several.)
+//! - **The frame's GPU time**: two timestamps of the benchmark's own, the first submitted
+//!   just before the render graph submits the frame's command buffers (after they are
+//!   all encoded: a timestamp submitted earlier would also count the GPU idling while the
+//!   CPU encodes, which on a real GPU is most of a frame), the last after Bevy's
+//!   `render_system`, so uninstrumented work (Bevy's shadow maps, depth of field,
+//!   deferred lighting, copies) counts too. (Bevy's spans cannot hold it: they nest per
+//!   thread, and the render graph's systems run on several.) Work a system submits
+//!   itself during the render graph (rare: a grown buffer's copy) falls before it.
 //! - **CPU time**: the wall time of each `App::update` (main world and, pipelined, the
 //!   render world of the previous frame), the CPU time Bevy's diagnostics record for
 //!   encoding each pass (`elapsed_cpu`), and each Penumbra system's own run time
 //!   (`bevy_penumbra_df::system_times`), summed over what ran during each update (with
 //!   pipelined rendering, the render world's systems of the frame before).
+//! - **Frames in flight**: at most two (`FRAMES_IN_FLIGHT`): after each frame the
+//!   render world waits for the GPU to finish the frame two before it, as a swap chain
+//!   would; a headless app otherwise queues frames without limit. Each run drains the
+//!   GPU before its app is dropped.
 //! - **GPU memory**: the device allocator's report (wgpu's `generate_allocator_report`),
 //!   summing the allocations whose label starts with `penumbra` (every Penumbra
 //!   resource's label does) against all allocations.
 
 use bevy::diagnostic::DiagnosticsStore;
 use bevy::prelude::*;
-use bevy::render::renderer::{RenderDevice, RenderQueue, render_system};
+use bevy::render::renderer::{
+    RenderDevice, RenderGraph, RenderGraphSystems, RenderQueue, render_system,
+};
 use bevy::render::{Render, RenderApp, RenderSystems};
 use bevy_penumbra_df::system_times;
 use penumbra_test::wgpu::{
-    Buffer, BufferDescriptor, BufferUsages, Features as WgpuFeatures, MapMode, QuerySet,
-    QuerySetDescriptor, QueryType,
+    Buffer, BufferDescriptor, BufferUsages, Features as WgpuFeatures, MapMode, PollType, QuerySet,
+    QuerySetDescriptor, QueryType, SubmissionIndex,
 };
 use std::collections::{BTreeMap, HashMap};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -263,14 +272,8 @@ fn init_frame_timer(mut commands: Commands, device: Res<RenderDevice>, queue: Re
     });
 }
 
-/// Reads the frames whose timestamps arrived, then submits this frame's first one
-/// (before the render graph's first submission).
-fn begin_frame_timer(
-    device: Res<RenderDevice>,
-    queue: Res<RenderQueue>,
-    timer: Option<ResMut<FrameTimer>>,
-    times: Res<FrameGpuTimes>,
-) {
+/// Reads the frames whose timestamps arrived and claims this frame's read-back buffer.
+fn begin_frame_timer(timer: Option<ResMut<FrameTimer>>, times: Res<FrameGpuTimes>) {
     let Some(mut timer) = timer else {
         return;
     };
@@ -294,11 +297,22 @@ fn begin_frame_timer(
     }
     let i = timer.next;
     timer.open = !timer.ring[i].2;
-    if timer.open {
-        let mut encoder = device.create_command_encoder(&Default::default());
-        encoder.write_timestamp(&timer.set, 0);
-        queue.submit([encoder.finish()]);
-    }
+}
+
+/// Submits this frame's first timestamp: in the render graph, after every pass is
+/// encoded and just before Bevy submits them, so the GPU reaches it when the frame's
+/// work is about to start, not while the CPU still encodes.
+fn stamp_frame_start(
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    timer: Option<Res<FrameTimer>>,
+) {
+    let Some(timer) = timer.filter(|t| t.open) else {
+        return;
+    };
+    let mut encoder = device.create_command_encoder(&Default::default());
+    encoder.write_timestamp(&timer.set, 0);
+    queue.submit([encoder.finish()]);
 }
 
 /// Submits this frame's last timestamp (after the render graph's last submission) and
@@ -332,6 +346,45 @@ fn end_frame_timer(
     timer.next = (i + 1) % RING;
 }
 
+/// Frames the GPU may lag behind the CPU. A headless app presents nothing, so nothing
+/// else holds the CPU back: without this it queues frames far ahead of a slow GPU,
+/// and dropping the app then waits on all of them (wgpu gives up after 6.3 s and
+/// panics). Two, as a swap chain's usual latency.
+const FRAMES_IN_FLIGHT: usize = 2;
+
+/// The submissions of the frames in flight, oldest first.
+#[derive(Resource, Default)]
+struct InFlight(std::collections::VecDeque<SubmissionIndex>);
+
+/// Marks the end of this frame's work with a submission and waits until the GPU has
+/// finished the frame [`FRAMES_IN_FLIGHT`] before it.
+fn throttle_frames(
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    mut in_flight: ResMut<InFlight>,
+) {
+    let encoder = device.create_command_encoder(&Default::default());
+    in_flight.0.push_back(queue.submit([encoder.finish()]));
+    while in_flight.0.len() > FRAMES_IN_FLIGHT {
+        let oldest = in_flight.0.pop_front().expect("not empty");
+        // An error here (a lost device) shows again, with its cause, where Bevy polls.
+        let _ = device.wgpu_device().poll(PollType::Wait {
+            submission_index: Some(oldest),
+            timeout: None,
+        });
+    }
+}
+
+/// Waits until the GPU has finished everything submitted, so that dropping the app
+/// does not wait (and give up) on queued frames.
+pub fn drain_gpu(app: &App) {
+    if let Some(render_app) = app.get_sub_app(RenderApp)
+        && let Some(device) = render_app.world().get_resource::<RenderDevice>()
+    {
+        let _ = device.wgpu_device().poll(PollType::wait_indefinitely());
+    }
+}
+
 /// Adds the frame timer, the memory probe and the sample collection to `app` (after
 /// Bevy's `DefaultPlugins` and `RenderDiagnosticsPlugin`).
 pub fn add_measurement(app: &mut App) {
@@ -345,14 +398,22 @@ pub fn add_measurement(app: &mut App) {
         render_app
             .insert_resource(probe)
             .insert_resource(times)
+            .init_resource::<InFlight>()
             .add_systems(bevy::render::RenderStartup, init_frame_timer)
+            .add_systems(
+                RenderGraph,
+                stamp_frame_start
+                    .after(RenderGraphSystems::Render)
+                    .before(RenderGraphSystems::Submit),
+            )
             .add_systems(
                 Render,
                 (
                     begin_frame_timer
                         .in_set(RenderSystems::Render)
                         .before(render_system),
-                    end_frame_timer
+                    (end_frame_timer, throttle_frames)
+                        .chain()
                         .in_set(RenderSystems::Render)
                         .after(render_system),
                     answer_memory_probe.in_set(RenderSystems::Cleanup),
