@@ -5,7 +5,9 @@
 //! The archive (`target/bench-pack/penumbra-bench.tar.gz`, at most [`MAX_ARCHIVE_BYTES`])
 //! unpacks to `penumbra-bench/`: the binary, `scenes/` (from `../shared/scenes`:
 //! `CornellBox.glb`, `DepthOfFieldExample.glb`, `FlightHelmet/`), `run.sh` (runs the
-//! binary from any folder, passing its arguments) and `README.txt`. The dev profile is
+//! binary from any folder, passing its arguments; `bench_run.sh`), `lib/libvulkan.so.1`
+//! (the build machine's Vulkan loader, used only where the GPU machine has none) and
+//! `README.txt`. The dev profile is
 //! used, as the tests': dependencies at opt-level 1 (Bevy's CPU side), the GPU's work
 //! unchanged; a release build would add a cold ~30 minute build of its own.
 
@@ -125,17 +127,31 @@ fn glibc_needed(binary: &Path) -> Option<String> {
         })
 }
 
+/// `run.sh`: the Vulkan loader and NVIDIA's headless driver found (see its comments).
+const RUN_SH: &str = include_str!("bench_run.sh");
+
+/// The Vulkan loader packed for machines without one (a GPU container may carry the
+/// driver but not the loader), copied from the build machine.
+const VULKAN_LOADERS: &[&str] = &[
+    "/usr/lib/x86_64-linux-gnu/libvulkan.so.1",
+    "/lib/x86_64-linux-gnu/libvulkan.so.1",
+    "/usr/lib64/libvulkan.so.1",
+];
+
 fn write_script(stage: &Path) -> Result<(), String> {
     let script = stage.join("run.sh");
-    std::fs::write(
-        &script,
-        "#!/bin/sh\n\
-         # Runs Penumbra's GPU benchmark from the unpacked archive; arguments go to it\n\
-         # (see --help). Needs a Vulkan driver, nothing else.\n\
-         here=$(cd \"$(dirname \"$0\")\" && pwd)\n\
-         exec \"$here/penumbra-bench\" --scenes-dir \"$here/scenes\" \"$@\"\n",
-    )
-    .map_err(|e| format!("{}: {e}", script.display()))?;
+    std::fs::write(&script, RUN_SH).map_err(|e| format!("{}: {e}", script.display()))?;
+    match VULKAN_LOADERS.iter().map(Path::new).find(|p| p.is_file()) {
+        Some(loader) => {
+            std::fs::create_dir_all(stage.join("lib")).map_err(|e| format!("{e}"))?;
+            // `copy` follows the symbolic link: the library itself.
+            std::fs::copy(loader, stage.join("lib/libvulkan.so.1"))
+                .map_err(|e| format!("{}: {e}", loader.display()))?;
+        }
+        None => eprintln!(
+            "bench-pack: no libvulkan.so.1 here to pack: the archive needs one on the GPU machine"
+        ),
+    }
     run(Command::new("chmod").arg("+x").arg(&script))?;
     std::fs::write(
         stage.join("README.txt"),
@@ -143,7 +159,9 @@ fn write_script(stage: &Path) -> Result<(), String> {
          Run: ./run.sh --sizes 1080p,4k --frames 120 --out bench-out\n\
          Options: ./run.sh --help\n\
          Writes bench-out/bench.json and bench-out/bench.md (also printed).\n\
-         Needs: Linux, a Vulkan driver (libvulkan.so.1 and the GPU's ICD).\n",
+         Needs: Linux and a GPU's Vulkan driver (its ICD); the Vulkan loader is packed\n\
+         in lib/ for machines without one, and NVIDIA's driver is reached through its EGL\n\
+         library when there is no display (see run.sh).\n",
     )
     .map_err(|e| format!("README.txt: {e}"))
 }
