@@ -6,7 +6,14 @@
 //! has them, CPU spans otherwise), under `render/<span>/elapsed_gpu` and
 //! `render/<span>/elapsed_cpu` (milliseconds), with the spans `penumbra_df_apply_deltas`,
 //! `penumbra_df_shadows`, `penumbra_lighting`, `penumbra_df_debug_view` and
-//! `penumbra_buffer_dump`.
+//! `penumbra_buffer_dump` (and the other features' own: `penumbra_dfao`,
+//! `penumbra_billboard_reflections`, `penumbra_bokeh_dof`, …). The heavier ones hold a
+//! span per stage for profiling on a GPU, `render/<span>/<stage>/elapsed_gpu`:
+//! `penumbra_df_shadows` `cull`, `grid`, `trace`, `upsample` (one of each per light, so
+//! a stage's path appears once per light in a frame), `penumbra_dfao` `trace`, `upsample`,
+//! `sample_upsample`, `temporal`, `penumbra_billboard_reflections` `tile_cull`, `trace`,
+//! `penumbra_bokeh_dof` `sprites`, `list`, `scatter`, `composite`. Spans inside compute
+//! passes read wrongly on lavapipe (the stages' sum is a fraction of the total there).
 //!
 //! Scene figures ([`PenumbraDiagnosticsPlugin`], one value per frame):
 //!

@@ -529,14 +529,17 @@ fn bokeh_depth_of_field(
                 label: Some("penumbra_bokeh_sprites"),
                 timestamp_writes: None,
             });
+        let span = diagnostics.pass_span(&mut pass, "sprites");
         pass.set_pipeline(sprites);
         pass.set_bind_group(0, &sprites_group, &[]);
         let blocks = (buffers.half_size + UVec2::ONE) / 2;
         pass.dispatch_workgroups(blocks.x.div_ceil(8), blocks.y.div_ceil(8), 1);
+        span.end(&mut pass);
     }
     // The list in block order: a scan of the blocks' counts over many workgroups, the
     // copy in its last pass (each in its own pass: the next reads what the last wrote).
     let [reduce_groups, scan_groups, compact_groups] = ScanPlan::new(buffers.blocks).workgroups();
+    let list_span = diagnostics.time_span(ctx.command_encoder(), "list");
     for (label, pipeline, workgroups) in [
         ("penumbra_bokeh_reduce", reduce, reduce_groups),
         ("penumbra_bokeh_scan", scan, scan_groups),
@@ -552,6 +555,7 @@ fn bokeh_depth_of_field(
         pass.set_bind_group(0, &groups.compact, &[]);
         pass.dispatch_workgroups(workgroups, 1, 1);
     }
+    list_span.end(ctx.command_encoder());
     {
         let layer = |view| {
             Some(RenderPassColorAttachment {
@@ -574,9 +578,11 @@ fn bokeh_depth_of_field(
                 ],
                 ..default()
             });
+        let span = diagnostics.pass_span(&mut pass, "scatter");
         pass.set_pipeline(scatter);
         pass.set_bind_group(0, &groups.scatter, &[]);
         pass.draw_indirect(&buffers.args, 0);
+        span.end(&mut pass);
     }
     let post = target.post_process_write();
     {
@@ -595,9 +601,11 @@ fn bokeh_depth_of_field(
                 })],
                 ..default()
             });
+        let span = diagnostics.pass_span(&mut pass, "composite");
         pass.set_pipeline(composite);
         pass.set_bind_group(0, &composite_group, &[]);
         pass.draw(0..3, 0..1);
+        span.end(&mut pass);
     }
     time_span.end(ctx.command_encoder());
 }

@@ -710,11 +710,13 @@ fn distance_field_ambient_occlusion(
                 label: Some("penumbra_dfao_trace"),
                 timestamp_writes: None,
             });
+        let span = diagnostics.pass_span(&mut pass, "trace");
         pass.set_pipeline(trace);
         pass.set_bind_group(0, trace_group, &[]);
         pass.set_bind_group(1, far_group, &[]);
         let size = trace_size(textures.size, textures.divisor);
         pass.dispatch_workgroups(size.x.div_ceil(8), size.y.div_ceil(8), 1);
+        span.end(&mut pass);
     }
     if let (Some(upsample_group), Some(upsample)) = (&groups.upsample, upsample) {
         // Its own pass: the trace, written as storage above, is sampled here.
@@ -724,9 +726,11 @@ fn distance_field_ambient_occlusion(
                 label: Some("penumbra_dfao_upsample"),
                 timestamp_writes: None,
             });
+        let span = diagnostics.pass_span(&mut pass, "upsample");
         pass.set_pipeline(upsample);
         pass.set_bind_group(0, upsample_group, &[]);
         pass.dispatch_workgroups(textures.size.x.div_ceil(8), textures.size.y.div_ceil(8), 1);
+        span.end(&mut pass);
     }
     if let (Some(group), Some(pipeline)) = (&groups.sample_upsample, sample_upsample) {
         // Deferred MSAA: the edge pixels' samples, one thread each (the trace is
@@ -737,9 +741,11 @@ fn distance_field_ambient_occlusion(
                 label: Some("penumbra_dfao_sample_upsample"),
                 timestamp_writes: None,
             });
+        let span = diagnostics.pass_span(&mut pass, "sample_upsample");
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, group, &[]);
         pass.dispatch_workgroups(textures.size.x.div_ceil(4), textures.size.y.div_ceil(4), 1);
+        span.end(&mut pass);
     }
     if let (Some(temporal_groups), Some(temporal)) = (&groups.temporal, temporal) {
         let mut pass = ctx
@@ -748,9 +754,11 @@ fn distance_field_ambient_occlusion(
                 label: Some("penumbra_dfao_temporal"),
                 timestamp_writes: None,
             });
+        let span = diagnostics.pass_span(&mut pass, "temporal");
         pass.set_pipeline(temporal);
         pass.set_bind_group(0, &temporal_groups[groups.parity], &[]);
         pass.dispatch_workgroups(textures.size.x.div_ceil(8), textures.size.y.div_ceil(8), 1);
+        span.end(&mut pass);
     }
     time_span.end(ctx.command_encoder());
 }

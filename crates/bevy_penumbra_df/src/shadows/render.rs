@@ -665,41 +665,59 @@ fn distance_field_shadows(
             encoder.clear_buffer(&r.grid, 0, None);
             encoder.clear_buffer(&r.cursors, 0, None);
         }
-        let mut pass = encoder.begin_compute_pass(&ComputePassDescriptor {
-            label: Some("penumbra_df_shadows"),
-            timestamp_writes: None,
+        // One compute pass per stage, each with its own span (Bevy's pass spans hold a
+        // pipeline-statistics query: one per pass), summed over the lights by readers
+        // of the diagnostics.
+        let mut stage =
+            |label: &'static str,
+             span_name: &'static str,
+             record: &mut dyn FnMut(&mut bevy::render::render_resource::ComputePass)| {
+                let mut pass = ctx
+                    .command_encoder()
+                    .begin_compute_pass(&ComputePassDescriptor {
+                        label: Some(label),
+                        timestamp_writes: None,
+                    });
+                let span = diagnostics.pass_span(&mut pass, span_name);
+                record(&mut pass);
+                span.end(&mut pass);
+            };
+        stage("penumbra_df_shadows_cull", "cull", &mut |pass| {
+            pass.set_pipeline(cull);
+            pass.set_bind_group(0, &bind.cull, &[]);
+            pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
         });
-        pass.set_pipeline(cull);
-        pass.set_bind_group(0, &bind.cull, &[]);
-        pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
         if let (true, Some(grid)) = (r.use_grid, &bind.grid) {
             // Reset, bounds, count, scan, fill: one thread per culled caster (at most
             // `slots`), the scan in one workgroup.
             let per_caster = slots.div_ceil(64).max(1);
-            for (pipeline, x) in grid_pipelines
-                .iter()
-                .zip([1, per_caster, per_caster, 1, per_caster])
-            {
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, grid, &[]);
-                pass.dispatch_workgroups(x, 1, 1);
-            }
+            stage("penumbra_df_shadows_grid", "grid", &mut |pass| {
+                for (pipeline, x) in grid_pipelines
+                    .iter()
+                    .zip([1, per_caster, per_caster, 1, per_caster])
+                {
+                    pass.set_pipeline(pipeline);
+                    pass.set_bind_group(0, grid, &[]);
+                    pass.dispatch_workgroups(x, 1, 1);
+                }
+            });
         }
         let trace_size = if r.half {
             half_size(masks.size)
         } else {
             masks.size
         };
-        pass.set_pipeline(trace);
-        pass.set_bind_group(0, &bind.trace, &[]);
-        pass.dispatch_workgroups(trace_size.x.div_ceil(8), trace_size.y.div_ceil(8), 1);
-        if let (Some(group), Some(pipeline)) = (&bind.sample_trace, sample_trace) {
-            // Deferred MSAA: the edge pixels' samples, one thread each.
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, group, &[]);
-            pass.dispatch_workgroups(masks.size.x.div_ceil(4), masks.size.y.div_ceil(4), 1);
-        }
-        drop(pass);
+        stage("penumbra_df_shadows_trace", "trace", &mut |pass| {
+            pass.set_pipeline(trace);
+            pass.set_bind_group(0, &bind.trace, &[]);
+            pass.dispatch_workgroups(trace_size.x.div_ceil(8), trace_size.y.div_ceil(8), 1);
+            if let (Some(group), Some(pipeline)) = (&bind.sample_trace, sample_trace) {
+                // Deferred MSAA: the edge pixels' samples, one thread each.
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, group, &[]);
+                pass.dispatch_workgroups(masks.size.x.div_ceil(4), masks.size.y.div_ceil(4), 1);
+            }
+        });
         if let Some(upsample_bind) = bind.upsample.as_ref().filter(|_| r.half) {
             // Its own pass: the half texture, written as storage above, is read as a
             // sampled texture here.
@@ -709,9 +727,11 @@ fn distance_field_shadows(
                     label: Some("penumbra_df_shadows_upsample"),
                     timestamp_writes: None,
                 });
+            let span = diagnostics.pass_span(&mut pass, "upsample");
             pass.set_pipeline(upsample);
             pass.set_bind_group(0, upsample_bind, &[]);
             pass.dispatch_workgroups(masks.size.x.div_ceil(8), masks.size.y.div_ceil(8), 1);
+            span.end(&mut pass);
         }
     }
     time_span.end(ctx.command_encoder());
