@@ -28,7 +28,7 @@ use penumbra_reference::bokeh::{
     Aperture, BokehImage, Layers, Sprite, composite, downsample, scatter_sprites, sprites,
 };
 use penumbra_reference::df::f16_to_f32;
-use penumbra_shaders::flatten;
+use penumbra_shaders::{flatten, flatten_with_defs};
 use penumbra_test::multisample::{MsSample, filled_gbuffer};
 use penumbra_test::wgpu;
 use penumbra_test::{GpuCompute, gpu_or_skip, uniform_bytes};
@@ -533,13 +533,16 @@ fn scatter_on_gpu(
         })
     };
     let (near, far) = (target("near"), target("far"));
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("bokeh_scatter"),
-        source: wgpu::ShaderSource::Wgsl(
-            flatten("#import penumbra::dof::scatter\n")
-                .expect("flattens")
-                .into(),
-        ),
+    // One draw per layer, as the plugin's: near (`NEAR_LAYER`), then far.
+    let modules = [&["NEAR_LAYER"][..], &[]].map(|defs| {
+        device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("bokeh_scatter"),
+            source: wgpu::ShaderSource::Wgsl(
+                flatten_with_defs("#import penumbra::dof::scatter\n", defs)
+                    .expect("flattens")
+                    .into(),
+            ),
+        })
     });
     let additive = wgpu::BlendComponent {
         src_factor: wgpu::BlendFactor::One,
@@ -554,54 +557,58 @@ fn scatter_on_gpu(
         }),
         write_mask: wgpu::ColorWrites::ALL,
     });
-    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("bokeh_scatter"),
-        layout: None,
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vertex"),
-            compilation_options: Default::default(),
-            buffers: &[],
-        },
-        primitive: Default::default(),
-        depth_stencil: None,
-        multisample: Default::default(),
-        fragment: Some(wgpu::FragmentState {
-            module: &module,
-            entry_point: Some("fragment"),
-            compilation_options: Default::default(),
-            targets: &[layer_target.clone(), layer_target],
-        }),
-        multiview_mask: None,
-        cache: None,
+    let pipelines = modules.each_ref().map(|module| {
+        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("bokeh_scatter"),
+            layout: None,
+            vertex: wgpu::VertexState {
+                module,
+                entry_point: Some("vertex"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: Default::default(),
+            depth_stencil: None,
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module,
+                entry_point: Some("fragment"),
+                compilation_options: Default::default(),
+                targets: std::slice::from_ref(&layer_target),
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
     });
     let aperture_view = aperture_texture.create_view(&Default::default());
-    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("bokeh_scatter"),
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: uniform.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: sprite_buffer.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: wgpu::BindingResource::TextureView(&aperture_view),
-            },
-            wgpu::BindGroupEntry {
-                binding: 3,
-                resource: wgpu::BindingResource::Sampler(&sampler),
-            },
-            wgpu::BindGroupEntry {
-                binding: 4,
-                resource: info.as_entire_binding(),
-            },
-        ],
-    });
+    let bind = |pipeline: &wgpu::RenderPipeline| {
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("bokeh_scatter"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: uniform.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: sprite_buffer.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&aperture_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::Sampler(&sampler),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: info.as_entire_binding(),
+                },
+            ],
+        })
+    };
     let views = [
         near.create_view(&Default::default()),
         far.create_view(&Default::default()),
@@ -619,17 +626,20 @@ fn scatter_on_gpu(
                 },
             })
         };
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("bokeh_scatter"),
-            color_attachments: &[attachment(&views[0]), attachment(&views[1])],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &bind, &[]);
-        pass.draw(0..6, 0..sprites.len() as u32);
+        for (pipeline, view) in pipelines.iter().zip(&views) {
+            let group = bind(pipeline);
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("bokeh_scatter"),
+                color_attachments: &[attachment(view)],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.draw(0..6, 0..sprites.len() as u32);
+        }
     }
     gpu.queue.submit([encoder.finish()]);
     let read = |t: &wgpu::Texture| -> Vec<Vec4> {

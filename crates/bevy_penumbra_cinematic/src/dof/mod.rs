@@ -29,7 +29,10 @@
 //!    textured with the aperture, adds `(colour · w, w)` into a **near** or a **far**
 //!    layer (additive blending), `w` normalised by what the aperture sums to over the
 //!    texels the sprite covers (tabulated per aperture), so a pixel spreads unit weight
-//!    at any size; near sprites show the aperture point-reflected.
+//!    at any size; near sprites show the aperture point-reflected. Two draws of the
+//!    list, one per layer (the vertex shader drops the other layer's sprites), so each
+//!    fragment blends one float4 target instead of two (one of them adding zeros): the
+//!    same sums in the same order, half the blending.
 //! 3. **Composite** (fullscreen, view resolution): each pixel starts from the sharp image,
 //!    blends to the resolved far layer (`Σ colour w / Σ w`) as its own circle of confusion grows from ½
 //!    pixel to `min_circle_of_confusion`, then the resolved near layer is laid over it
@@ -73,13 +76,13 @@
 //! cannot blend 32-bit floats), the sprites' slots and their compacted list (32 bytes
 //! each per half pixel) and a count per block: 50 MB at 1080p. The passes: the sprite
 //! pass, the scan (three passes over workgroups of 1,024 blocks: `penumbra_cinematic_core::scan`), the copy,
-//! one quad per sprite, the composite. On lavapipe at 384 × 288 (`tests/bokeh_truth.rs`,
+//! one quad per sprite (two draws of the list), the composite. On lavapipe at 384 × 288 (`tests/bokeh_truth.rs`,
 //! f/0.05) frames take 41–46 ms with it, 31–34 ms with Bevy's Gaussian `DepthOfField`,
 //! 35–37 ms with its bokeh and 24–31 ms with none (3 runs). On an NVIDIA H200 at
 //! 1920×1080 on Bevy's depth-of-field scene: 10.9 ms, against about 3.0 ms for Bevy's
 //! bokeh `DepthOfField` (`BENCHMARKS.md`) — over #44's 1 ms budget, not yet profiled by
 //! stage. Diagnostics: the time span `penumbra_bokeh_dof`, and within it `sprites`,
-//! `list` (scan and copy), `scatter` and `composite`.
+//! `list` (scan and copy), `scatter_near`, `scatter_far` and `composite`.
 
 mod pipelines;
 mod render;

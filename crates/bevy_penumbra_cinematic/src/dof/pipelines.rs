@@ -44,7 +44,7 @@ pub(super) struct BokehPipelines {
     pub(super) sprites_shader: Handle<Shader>,
     pub(super) composite_shader: Handle<Shader>,
     pub(super) sprites: [Option<CachedComputePipelineId>; 2],
-    pub(super) scatter: CachedRenderPipelineId,
+    pub(super) scatter: [CachedRenderPipelineId; 2],
     pub(super) composite: HashMap<(TextureFormat, bool), CachedRenderPipelineId>,
     /// Linear, clamp-to-edge: the aperture.
     pub(super) sampler: Sampler,
@@ -195,21 +195,30 @@ pub(super) fn init_bokeh_pipelines(
         }),
         write_mask: ColorWrites::ALL,
     });
-    let scatter = pipeline_cache.queue_render_pipeline(RenderPipelineDescriptor {
-        label: Some("penumbra_bokeh_scatter".into()),
-        layout: vec![scatter_layout.clone()],
-        vertex: VertexState {
-            shader: scatter_shader.clone(),
-            entry_point: Some("vertex".into()),
+    // One draw per layer (`scatter.wgsl`): near, then far.
+    let scatter = [true, false].map(|near| {
+        let (label, shader_defs) = if near {
+            ("penumbra_bokeh_scatter_near", vec!["NEAR_LAYER".into()])
+        } else {
+            ("penumbra_bokeh_scatter_far", vec![])
+        };
+        pipeline_cache.queue_render_pipeline(RenderPipelineDescriptor {
+            label: Some(label.into()),
+            layout: vec![scatter_layout.clone()],
+            vertex: VertexState {
+                shader: scatter_shader.clone(),
+                shader_defs: shader_defs.clone(),
+                entry_point: Some("vertex".into()),
+                ..default()
+            },
+            fragment: Some(FragmentState {
+                shader: scatter_shader.clone(),
+                shader_defs,
+                entry_point: Some("fragment".into()),
+                targets: vec![layer.clone()],
+            }),
             ..default()
-        },
-        fragment: Some(FragmentState {
-            shader: scatter_shader,
-            entry_point: Some("fragment".into()),
-            targets: vec![layer.clone(), layer],
-            ..default()
-        }),
-        ..default()
+        })
     });
     commands.insert_resource(BokehPipelines {
         layer_format,

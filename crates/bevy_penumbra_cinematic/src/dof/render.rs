@@ -498,14 +498,24 @@ fn bokeh_depth_of_field(
         return;
     };
     // Until every pipeline has compiled the view is left as it is.
-    let (Some(sprites), Some(reduce), Some(scan), Some(compact), Some(scatter), Some(composite)) = (
+    let (
+        Some(sprites),
+        Some(reduce),
+        Some(scan),
+        Some(compact),
+        Some(scatter_near),
+        Some(scatter_far),
+        Some(composite),
+    ) = (
         pipeline_cache.get_compute_pipeline(ids.sprites),
         pipeline_cache.get_compute_pipeline(pipelines.reduce),
         pipeline_cache.get_compute_pipeline(pipelines.scan),
         pipeline_cache.get_compute_pipeline(pipelines.compact),
-        pipeline_cache.get_render_pipeline(pipelines.scatter),
+        pipeline_cache.get_render_pipeline(pipelines.scatter[0]),
+        pipeline_cache.get_render_pipeline(pipelines.scatter[1]),
         pipeline_cache.get_render_pipeline(ids.composite),
-    ) else {
+    )
+    else {
         return;
     };
     let source = target.main_texture_view().id();
@@ -556,30 +566,38 @@ fn bokeh_depth_of_field(
         pass.dispatch_workgroups(workgroups, 1, 1);
     }
     list_span.end(ctx.command_encoder());
-    {
-        let layer = |view| {
-            Some(RenderPassColorAttachment {
-                view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: Operations {
-                    load: LoadOp::Clear(default()),
-                    store: StoreOp::Store,
-                },
-            })
-        };
+    // One draw per layer, each over the whole list (`scatter.wgsl`).
+    for (label, span_name, pipeline, view) in [
+        (
+            "penumbra_bokeh_scatter_near",
+            "scatter_near",
+            scatter_near,
+            &textures.near.default_view,
+        ),
+        (
+            "penumbra_bokeh_scatter_far",
+            "scatter_far",
+            scatter_far,
+            &textures.far.default_view,
+        ),
+    ] {
         let mut pass = ctx
             .command_encoder()
             .begin_render_pass(&RenderPassDescriptor {
-                label: Some("penumbra_bokeh_scatter"),
-                color_attachments: &[
-                    layer(&textures.near.default_view),
-                    layer(&textures.far.default_view),
-                ],
+                label: Some(label),
+                color_attachments: &[Some(RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: Operations {
+                        load: LoadOp::Clear(default()),
+                        store: StoreOp::Store,
+                    },
+                })],
                 ..default()
             });
-        let span = diagnostics.pass_span(&mut pass, "scatter");
-        pass.set_pipeline(scatter);
+        let span = diagnostics.pass_span(&mut pass, span_name);
+        pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &groups.scatter, &[]);
         pass.draw_indirect(&buffers.args, 0);
         span.end(&mut pass);

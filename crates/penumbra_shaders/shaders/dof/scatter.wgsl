@@ -1,7 +1,10 @@
 // Scatter bokeh depth of field, second pass: one instanced quad per sprite of the
-// compacted list (`draw_indirect` with its count), drawn in list order into two
-// half-resolution targets with additive blending — the near layer (location 0) and the far layer
-// (location 1), each texel `(Σ colour · v, Σ v)`. A fragment adds the aperture image
+// compacted list (`draw_indirect` with its count), drawn in list order with additive
+// blending into one half-resolution layer per draw — the near layer (this shader with
+// `NEAR_LAYER`) and the far layer, each texel `(Σ colour · v, Σ v)`. Each draw runs
+// the list's vertices and drops the other layer's sprites there, so each fragment
+// blends one target (a float4 each way), not two; the sums and their order per layer
+// are those of one draw into both. A fragment adds the aperture image
 // around the sprite's pixel, or around each of a block's four, normalised by what the
 // aperture sums to over the texels it covers, so each pixel spreads unit weight; near
 // sprites read the aperture point-reflected. CPU model: `penumbra_reference::bokeh::scatter_sprites`.
@@ -32,11 +35,6 @@ struct VertexOutput {
     @location(2) @interpolate(flat) norm: f32,
 }
 
-struct Layers {
-    @location(0) near: vec4<f32>,
-    @location(1) far: vec4<f32>,
-}
-
 @vertex
 fn vertex(@builtin(vertex_index) vertex_index: u32, @builtin(instance_index) instance: u32) -> VertexOutput {
     var out: VertexOutput;
@@ -45,8 +43,9 @@ fn vertex(@builtin(vertex_index) vertex_index: u32, @builtin(instance_index) ins
         return out;
     }
     let s = sprites[instance];
-    if s.shape.w == 0.0 {
-        // A place left empty (buffers too small for the view): nothing to draw.
+    if s.shape.w == 0.0 || !in_this_layer(s.color.a > 0.5) {
+        // A place left empty (buffers too small for the view), or a sprite of the
+        // other layer: nothing to draw.
         out.position = vec4<f32>(2.0, 2.0, 2.0, 1.0);
         return out;
     }
@@ -61,6 +60,15 @@ fn vertex(@builtin(vertex_index) vertex_index: u32, @builtin(instance_index) ins
     out.color = vec4<f32>(s.color.rgb / s.shape.w, s.color.a);
     out.norm = normalisation(s.shape.z);
     return out;
+}
+
+// Whether a sprite (near or far) is drawn by this draw.
+fn in_this_layer(near: bool) -> bool {
+#ifdef NEAR_LAYER
+    return near;
+#else
+    return !near;
+#endif
 }
 
 // What a sprite of diameter `d` (half-resolution pixels) sums to over the texel centres
@@ -112,9 +120,8 @@ fn sprite_weight(p: vec2<f32>, shape: vec4<f32>, near: bool) -> f32 {
 }
 
 @fragment
-fn fragment(in: VertexOutput) -> Layers {
+fn fragment(in: VertexOutput) -> @location(0) vec4<f32> {
     let near = in.color.a > 0.5;
     let v = sprite_weight(in.position.xy, in.shape, near) / in.norm;
-    let add = vec4<f32>(in.color.rgb * v, v);
-    return Layers(select(vec4<f32>(0.0), add, near), select(add, vec4<f32>(0.0), near));
+    return vec4<f32>(in.color.rgb * v, v);
 }
