@@ -38,6 +38,26 @@ fn pass_of(path: &str) -> Option<(&str, bool)> {
     Some((name, gpu))
 }
 
+/// The shader invocations Bevy's pass spans count (pipeline-statistics queries, where
+/// the device has them): `(span, kind, per-frame stats)` for Penumbra's spans. A measure
+/// of work that does not depend on the device's speed: overdraw, threads dispatched.
+fn invocations(r: &RunResult) -> Vec<(&str, &'static str, Stats)> {
+    const KINDS: [(&str, &str); 2] = [
+        ("/fragment_shader_invocations", "fragment"),
+        ("/compute_shader_invocations", "compute"),
+    ];
+    r.diagnostics
+        .iter()
+        .filter_map(|(path, s)| {
+            let rest = path.strip_prefix("render/")?;
+            KINDS.iter().find_map(|(suffix, kind)| {
+                let span = rest.strip_suffix(suffix)?;
+                (span.starts_with("penumbra") && s.median > 0.0).then_some((span, *kind, *s))
+            })
+        })
+        .collect()
+}
+
 /// GPU time of `pass` (exact name) in `r`.
 pub fn pass_gpu(r: &RunResult, pass: &str) -> Option<Stats> {
     r.diagnostics
@@ -201,6 +221,10 @@ pub fn json(meta: &Meta, results: &[RunResult]) -> Value {
                     .map(|(name, s)| (name.clone(), stats_json(Some(*s))))
                     .collect::<serde_json::Map<_, _>>(),
                 "passes": passes,
+                "invocations": invocations(r)
+                    .into_iter()
+                    .map(|(span, kind, s)| json!({ "span": span, "kind": kind, "median": s.median, "p95": s.p95 }))
+                    .collect::<Vec<_>>(),
                 "penumbra_gpu_bytes": r.memory.penumbra_bytes,
                 "penumbra_gpu_allocations": r.memory.penumbra_allocations,
                 "total_gpu_bytes": r.memory.total_bytes,
@@ -307,6 +331,27 @@ pub fn markdown(meta: &Meta, results: &[RunResult]) -> String {
                 &mut md,
                 &format!("`{pass}`"),
                 runs.iter().map(|r| ms(pass_gpu(r, pass))).collect(),
+            );
+        }
+        let mut counted: Vec<(&str, &str)> = runs
+            .iter()
+            .flat_map(|r| invocations(r))
+            .map(|(span, kind, _)| (span, kind))
+            .collect();
+        counted.sort_unstable();
+        counted.dedup();
+        for (span, kind) in counted {
+            row(
+                &mut md,
+                &format!("`{span}`: {kind} invocations, millions"),
+                runs.iter()
+                    .map(|r| {
+                        invocations(r)
+                            .iter()
+                            .find(|(s, k, _)| *s == span && *k == kind)
+                            .map_or("–".into(), |(_, _, s)| format!("{:.3}", s.median * 1e-6))
+                    })
+                    .collect(),
             );
         }
         row(

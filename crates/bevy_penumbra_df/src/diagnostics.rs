@@ -12,8 +12,8 @@
 //! `penumbra_df_shadows` `cull`, `grid`, `trace`, `upsample` (one of each per light, so
 //! a stage's path appears once per light in a frame), `penumbra_dfao` `trace`, `upsample`,
 //! `sample_upsample`, `temporal`, `penumbra_billboard_reflections` `tile_cull`, `trace`,
-//! `penumbra_bokeh_dof` `sprites`, `list`, `scatter_near`, `scatter_far`, `composite`. Spans inside compute
-//! passes read wrongly on lavapipe (the stages' sum is a fraction of the total there).
+//! `penumbra_bokeh_dof` `sprites`, `list`, `scatter_near`, `scatter_far`, `composite`. On
+//! lavapipe the compute stages' times read wrongly (their sum is a fraction of the total).
 //!
 //! Scene figures ([`PenumbraDiagnosticsPlugin`], one value per frame):
 //!

@@ -532,6 +532,9 @@ fn bokeh_depth_of_field(
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
     let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_bokeh_dof");
+    // Compute passes are timed from the encoder (Bevy's pass spans inside compute passes
+    // corrupted lavapipe's heap).
+    let sprites_span = diagnostics.time_span(ctx.command_encoder(), "sprites");
     {
         let mut pass = ctx
             .command_encoder()
@@ -539,13 +542,12 @@ fn bokeh_depth_of_field(
                 label: Some("penumbra_bokeh_sprites"),
                 timestamp_writes: None,
             });
-        let span = diagnostics.pass_span(&mut pass, "sprites");
         pass.set_pipeline(sprites);
         pass.set_bind_group(0, &sprites_group, &[]);
         let blocks = (buffers.half_size + UVec2::ONE) / 2;
         pass.dispatch_workgroups(blocks.x.div_ceil(8), blocks.y.div_ceil(8), 1);
-        span.end(&mut pass);
     }
+    sprites_span.end(ctx.command_encoder());
     // The list in block order: a scan of the blocks' counts over many workgroups, the
     // copy in its last pass (each in its own pass: the next reads what the last wrote).
     let [reduce_groups, scan_groups, compact_groups] = ScanPlan::new(buffers.blocks).workgroups();

@@ -704,61 +704,69 @@ fn distance_field_ambient_occlusion(
     let diagnostics = diagnostics.as_deref();
     let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_dfao");
     {
-        let mut pass = ctx
-            .command_encoder()
-            .begin_compute_pass(&ComputePassDescriptor {
-                label: Some("penumbra_dfao_trace"),
-                timestamp_writes: None,
-            });
-        let span = diagnostics.pass_span(&mut pass, "trace");
-        pass.set_pipeline(trace);
-        pass.set_bind_group(0, trace_group, &[]);
-        pass.set_bind_group(1, far_group, &[]);
-        let size = trace_size(textures.size, textures.divisor);
-        pass.dispatch_workgroups(size.x.div_ceil(8), size.y.div_ceil(8), 1);
-        span.end(&mut pass);
+        let span = diagnostics.time_span(ctx.command_encoder(), "trace");
+        {
+            let mut pass = ctx
+                .command_encoder()
+                .begin_compute_pass(&ComputePassDescriptor {
+                    label: Some("penumbra_dfao_trace"),
+                    timestamp_writes: None,
+                });
+            pass.set_pipeline(trace);
+            pass.set_bind_group(0, trace_group, &[]);
+            pass.set_bind_group(1, far_group, &[]);
+            let size = trace_size(textures.size, textures.divisor);
+            pass.dispatch_workgroups(size.x.div_ceil(8), size.y.div_ceil(8), 1);
+        }
+        span.end(ctx.command_encoder());
     }
     if let (Some(upsample_group), Some(upsample)) = (&groups.upsample, upsample) {
         // Its own pass: the trace, written as storage above, is sampled here.
-        let mut pass = ctx
-            .command_encoder()
-            .begin_compute_pass(&ComputePassDescriptor {
-                label: Some("penumbra_dfao_upsample"),
-                timestamp_writes: None,
-            });
-        let span = diagnostics.pass_span(&mut pass, "upsample");
-        pass.set_pipeline(upsample);
-        pass.set_bind_group(0, upsample_group, &[]);
-        pass.dispatch_workgroups(textures.size.x.div_ceil(8), textures.size.y.div_ceil(8), 1);
-        span.end(&mut pass);
+        let span = diagnostics.time_span(ctx.command_encoder(), "upsample");
+        {
+            let mut pass = ctx
+                .command_encoder()
+                .begin_compute_pass(&ComputePassDescriptor {
+                    label: Some("penumbra_dfao_upsample"),
+                    timestamp_writes: None,
+                });
+            pass.set_pipeline(upsample);
+            pass.set_bind_group(0, upsample_group, &[]);
+            pass.dispatch_workgroups(textures.size.x.div_ceil(8), textures.size.y.div_ceil(8), 1);
+        }
+        span.end(ctx.command_encoder());
     }
     if let (Some(group), Some(pipeline)) = (&groups.sample_upsample, sample_upsample) {
         // Deferred MSAA: the edge pixels' samples, one thread each (the trace is
         // sampled here, as by the upsample).
-        let mut pass = ctx
-            .command_encoder()
-            .begin_compute_pass(&ComputePassDescriptor {
-                label: Some("penumbra_dfao_sample_upsample"),
-                timestamp_writes: None,
-            });
-        let span = diagnostics.pass_span(&mut pass, "sample_upsample");
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, group, &[]);
-        pass.dispatch_workgroups(textures.size.x.div_ceil(4), textures.size.y.div_ceil(4), 1);
-        span.end(&mut pass);
+        let span = diagnostics.time_span(ctx.command_encoder(), "sample_upsample");
+        {
+            let mut pass = ctx
+                .command_encoder()
+                .begin_compute_pass(&ComputePassDescriptor {
+                    label: Some("penumbra_dfao_sample_upsample"),
+                    timestamp_writes: None,
+                });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(textures.size.x.div_ceil(4), textures.size.y.div_ceil(4), 1);
+        }
+        span.end(ctx.command_encoder());
     }
     if let (Some(temporal_groups), Some(temporal)) = (&groups.temporal, temporal) {
-        let mut pass = ctx
-            .command_encoder()
-            .begin_compute_pass(&ComputePassDescriptor {
-                label: Some("penumbra_dfao_temporal"),
-                timestamp_writes: None,
-            });
-        let span = diagnostics.pass_span(&mut pass, "temporal");
-        pass.set_pipeline(temporal);
-        pass.set_bind_group(0, &temporal_groups[groups.parity], &[]);
-        pass.dispatch_workgroups(textures.size.x.div_ceil(8), textures.size.y.div_ceil(8), 1);
-        span.end(&mut pass);
+        let span = diagnostics.time_span(ctx.command_encoder(), "temporal");
+        {
+            let mut pass = ctx
+                .command_encoder()
+                .begin_compute_pass(&ComputePassDescriptor {
+                    label: Some("penumbra_dfao_temporal"),
+                    timestamp_writes: None,
+                });
+            pass.set_pipeline(temporal);
+            pass.set_bind_group(0, &temporal_groups[groups.parity], &[]);
+            pass.dispatch_workgroups(textures.size.x.div_ceil(8), textures.size.y.div_ceil(8), 1);
+        }
+        span.end(ctx.command_encoder());
     }
     time_span.end(ctx.command_encoder());
 }

@@ -665,22 +665,23 @@ fn distance_field_shadows(
             encoder.clear_buffer(&r.grid, 0, None);
             encoder.clear_buffer(&r.cursors, 0, None);
         }
-        // One compute pass per stage, each with its own span (Bevy's pass spans hold a
-        // pipeline-statistics query: one per pass), summed over the lights by readers
-        // of the diagnostics.
+        // One compute pass per stage, each in its own span: timestamps on the encoder
+        // around the pass (Bevy's pass spans inside compute passes corrupted lavapipe's
+        // heap), summed over the lights by readers of the diagnostics.
         let mut stage =
             |label: &'static str,
              span_name: &'static str,
              record: &mut dyn FnMut(&mut bevy::render::render_resource::ComputePass)| {
+                let span = diagnostics.time_span(ctx.command_encoder(), span_name);
                 let mut pass = ctx
                     .command_encoder()
                     .begin_compute_pass(&ComputePassDescriptor {
                         label: Some(label),
                         timestamp_writes: None,
                     });
-                let span = diagnostics.pass_span(&mut pass, span_name);
                 record(&mut pass);
-                span.end(&mut pass);
+                drop(pass);
+                span.end(ctx.command_encoder());
             };
         stage("penumbra_df_shadows_cull", "cull", &mut |pass| {
             pass.set_pipeline(cull);
@@ -721,17 +722,18 @@ fn distance_field_shadows(
         if let Some(upsample_bind) = bind.upsample.as_ref().filter(|_| r.half) {
             // Its own pass: the half texture, written as storage above, is read as a
             // sampled texture here.
+            let span = diagnostics.time_span(ctx.command_encoder(), "upsample");
             let mut pass = ctx
                 .command_encoder()
                 .begin_compute_pass(&ComputePassDescriptor {
                     label: Some("penumbra_df_shadows_upsample"),
                     timestamp_writes: None,
                 });
-            let span = diagnostics.pass_span(&mut pass, "upsample");
             pass.set_pipeline(upsample);
             pass.set_bind_group(0, upsample_bind, &[]);
             pass.dispatch_workgroups(masks.size.x.div_ceil(8), masks.size.y.div_ceil(8), 1);
-            span.end(&mut pass);
+            drop(pass);
+            span.end(ctx.command_encoder());
         }
     }
     time_span.end(ctx.command_encoder());
