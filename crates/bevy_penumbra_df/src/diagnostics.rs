@@ -145,3 +145,28 @@ fn measure(
         .count() as f64;
     diagnostics.add_measurement(&BAKES_PENDING, || bakes);
 }
+
+/// Records one compute pass in a time span of its own (nested in whatever span is
+/// open), timed from the encoder around the pass: Bevy's pass spans inside compute
+/// passes were a validation error two to a pass and made lavapipe corrupt its heap one
+/// to a pass. The per-stage spans of Penumbra's compute work use it.
+pub fn timed_compute_pass(
+    ctx: &mut bevy::render::renderer::RenderContext<'_, '_>,
+    diagnostics: Option<&bevy::render::diagnostic::DiagnosticsRecorder>,
+    label: &'static str,
+    span: &'static str,
+    record: impl FnOnce(&mut bevy::render::render_resource::ComputePass<'_>),
+) {
+    use bevy::render::diagnostic::RecordDiagnostics;
+    let span = diagnostics.time_span(ctx.command_encoder(), span);
+    {
+        let mut pass = ctx.command_encoder().begin_compute_pass(
+            &bevy::render::render_resource::ComputePassDescriptor {
+                label: Some(label),
+                timestamp_writes: None,
+            },
+        );
+        record(&mut pass);
+    }
+    span.end(ctx.command_encoder());
+}

@@ -24,6 +24,7 @@ use bevy::render::texture::{CachedTexture, TextureCache};
 use bevy::render::view::{ExtractedView, ViewDepthTexture, ViewTarget};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
 use bevy_penumbra_df::PenumbraGpuAllocations;
+use bevy_penumbra_df::diagnostics::timed_compute_pass;
 use bevy_penumbra_df::system_times::timed;
 use penumbra_cinematic_core::dof::{Aperture, BokehView, Lens, SpriteRule, sprite_slots};
 use penumbra_cinematic_core::scan::ScanPlan;
@@ -532,22 +533,18 @@ fn bokeh_depth_of_field(
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
     let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_bokeh_dof");
-    // Compute passes are timed from the encoder (Bevy's pass spans inside compute passes
-    // corrupted lavapipe's heap).
-    let sprites_span = diagnostics.time_span(ctx.command_encoder(), "sprites");
-    {
-        let mut pass = ctx
-            .command_encoder()
-            .begin_compute_pass(&ComputePassDescriptor {
-                label: Some("penumbra_bokeh_sprites"),
-                timestamp_writes: None,
-            });
-        pass.set_pipeline(sprites);
-        pass.set_bind_group(0, &sprites_group, &[]);
-        let blocks = (buffers.half_size + UVec2::ONE) / 2;
-        pass.dispatch_workgroups(blocks.x.div_ceil(8), blocks.y.div_ceil(8), 1);
-    }
-    sprites_span.end(ctx.command_encoder());
+    timed_compute_pass(
+        &mut ctx,
+        diagnostics,
+        "penumbra_bokeh_sprites",
+        "sprites",
+        |pass| {
+            pass.set_pipeline(sprites);
+            pass.set_bind_group(0, &sprites_group, &[]);
+            let blocks = (buffers.half_size + UVec2::ONE) / 2;
+            pass.dispatch_workgroups(blocks.x.div_ceil(8), blocks.y.div_ceil(8), 1);
+        },
+    );
     // The list in block order: a scan of the blocks' counts over many workgroups, the
     // copy in its last pass (each in its own pass: the next reads what the last wrote).
     let [reduce_groups, scan_groups, compact_groups] = ScanPlan::new(buffers.blocks).workgroups();
