@@ -6,14 +6,12 @@
 //! has them, CPU spans otherwise), under `render/<span>/elapsed_gpu` and
 //! `render/<span>/elapsed_cpu` (milliseconds), with the spans `penumbra_df_apply_deltas`,
 //! `penumbra_df_shadows`, `penumbra_lighting`, `penumbra_df_debug_view` and
-//! `penumbra_buffer_dump` (and the other features' own: `penumbra_dfao`,
-//! `penumbra_billboard_reflections`, `penumbra_bokeh_dof`, …). The heavier ones hold a
-//! span per stage for profiling on a GPU, `render/<span>/<stage>/elapsed_gpu`:
-//! `penumbra_df_shadows` `cull`, `grid`, `trace`, `upsample` (one of each per light, so
-//! a stage's path appears once per light in a frame), `penumbra_dfao` `trace`, `upsample`,
-//! `sample_upsample`, `temporal`, `penumbra_billboard_reflections` `tile_cull`, `trace`,
-//! `penumbra_bokeh_dof` `sprites`, `list`, `scatter_near`, `scatter_far`, `composite`. On
-//! lavapipe the compute stages' times read wrongly (their sum is a fraction of the total).
+//! `penumbra_buffer_dump`. One span per pass, none nested: Bevy 0.19's recorder keeps
+//! the open spans of all render threads in one list and closes with `swap_remove`, so
+//! a span nested in another on one thread, while other threads open and close theirs,
+//! is sometimes closed in its parent's place — stage spans tried inside DF shadows and
+//! DFAO (#44) came back as `penumbra_df_shadows/cull/grid` and gave `cull` the whole
+//! pass's time at p95 on lavapipe.
 //!
 //! Scene figures ([`PenumbraDiagnosticsPlugin`], one value per frame):
 //!
@@ -144,29 +142,4 @@ fn measure(
         .filter(|c| c.source == CasterSource::Mesh)
         .count() as f64;
     diagnostics.add_measurement(&BAKES_PENDING, || bakes);
-}
-
-/// Records one compute pass in a time span of its own (nested in whatever span is
-/// open), timed from the encoder around the pass: Bevy's pass spans inside compute
-/// passes were a validation error two to a pass and made lavapipe corrupt its heap one
-/// to a pass. The per-stage spans of Penumbra's compute work use it.
-pub fn timed_compute_pass(
-    ctx: &mut bevy::render::renderer::RenderContext<'_, '_>,
-    diagnostics: Option<&bevy::render::diagnostic::DiagnosticsRecorder>,
-    label: &'static str,
-    span: &'static str,
-    record: impl FnOnce(&mut bevy::render::render_resource::ComputePass<'_>),
-) {
-    use bevy::render::diagnostic::RecordDiagnostics;
-    let span = diagnostics.time_span(ctx.command_encoder(), span);
-    {
-        let mut pass = ctx.command_encoder().begin_compute_pass(
-            &bevy::render::render_resource::ComputePassDescriptor {
-                label: Some(label),
-                timestamp_writes: None,
-            },
-        );
-        record(&mut pass);
-    }
-    span.end(ctx.command_encoder());
 }

@@ -81,8 +81,7 @@
 //! 35–37 ms with its bokeh and 24–31 ms with none (3 runs). On an NVIDIA H200 at
 //! 1920×1080 on Bevy's depth-of-field scene: 10.9 ms, against about 3.0 ms for Bevy's
 //! bokeh `DepthOfField` (`BENCHMARKS.md`) — over #44's 1 ms budget, not yet profiled by
-//! stage. Diagnostics: the time span `penumbra_bokeh_dof`, and within it `sprites`,
-//! `list` (scan and copy), `scatter_near`, `scatter_far` and `composite`.
+//! stage. Diagnostics: the time span `penumbra_bokeh_dof`.
 
 mod pipelines;
 mod render;

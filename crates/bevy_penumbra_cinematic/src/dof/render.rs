@@ -24,7 +24,6 @@ use bevy::render::texture::{CachedTexture, TextureCache};
 use bevy::render::view::{ExtractedView, ViewDepthTexture, ViewTarget};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
 use bevy_penumbra_df::PenumbraGpuAllocations;
-use bevy_penumbra_df::diagnostics::timed_compute_pass;
 use bevy_penumbra_df::system_times::timed;
 use penumbra_cinematic_core::dof::{Aperture, BokehView, Lens, SpriteRule, sprite_slots};
 use penumbra_cinematic_core::scan::ScanPlan;
@@ -533,22 +532,21 @@ fn bokeh_depth_of_field(
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
     let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_bokeh_dof");
-    timed_compute_pass(
-        &mut ctx,
-        diagnostics,
-        "penumbra_bokeh_sprites",
-        "sprites",
-        |pass| {
-            pass.set_pipeline(sprites);
-            pass.set_bind_group(0, &sprites_group, &[]);
-            let blocks = (buffers.half_size + UVec2::ONE) / 2;
-            pass.dispatch_workgroups(blocks.x.div_ceil(8), blocks.y.div_ceil(8), 1);
-        },
-    );
+    {
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor {
+                label: Some("penumbra_bokeh_sprites"),
+                timestamp_writes: None,
+            });
+        pass.set_pipeline(sprites);
+        pass.set_bind_group(0, &sprites_group, &[]);
+        let blocks = (buffers.half_size + UVec2::ONE) / 2;
+        pass.dispatch_workgroups(blocks.x.div_ceil(8), blocks.y.div_ceil(8), 1);
+    }
     // The list in block order: a scan of the blocks' counts over many workgroups, the
     // copy in its last pass (each in its own pass: the next reads what the last wrote).
     let [reduce_groups, scan_groups, compact_groups] = ScanPlan::new(buffers.blocks).workgroups();
-    let list_span = diagnostics.time_span(ctx.command_encoder(), "list");
     for (label, pipeline, workgroups) in [
         ("penumbra_bokeh_reduce", reduce, reduce_groups),
         ("penumbra_bokeh_scan", scan, scan_groups),
@@ -564,18 +562,15 @@ fn bokeh_depth_of_field(
         pass.set_bind_group(0, &groups.compact, &[]);
         pass.dispatch_workgroups(workgroups, 1, 1);
     }
-    list_span.end(ctx.command_encoder());
     // One draw per layer, each over the whole list (`scatter.wgsl`).
-    for (label, span_name, pipeline, view) in [
+    for (label, pipeline, view) in [
         (
             "penumbra_bokeh_scatter_near",
-            "scatter_near",
             scatter_near,
             &textures.near.default_view,
         ),
         (
             "penumbra_bokeh_scatter_far",
-            "scatter_far",
             scatter_far,
             &textures.far.default_view,
         ),
@@ -595,11 +590,9 @@ fn bokeh_depth_of_field(
                 })],
                 ..default()
             });
-        let span = diagnostics.pass_span(&mut pass, span_name);
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &groups.scatter, &[]);
         pass.draw_indirect(&buffers.args, 0);
-        span.end(&mut pass);
     }
     let post = target.post_process_write();
     {
@@ -618,11 +611,9 @@ fn bokeh_depth_of_field(
                 })],
                 ..default()
             });
-        let span = diagnostics.pass_span(&mut pass, "composite");
         pass.set_pipeline(composite);
         pass.set_bind_group(0, &composite_group, &[]);
         pass.draw(0..3, 0..1);
-        span.end(&mut pass);
     }
     time_span.end(ctx.command_encoder());
 }

@@ -746,13 +746,11 @@ pub fn billboard_reflections(
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        let span = diagnostics.pass_span(&mut pass, "tile_cull");
         pass.set_render_pipeline(cull);
         pass.set_bind_group(0, &mesh_view.main, &mesh_view.main_offsets);
         pass.set_bind_group(1, &mesh_view.binding_array, &[]);
         pass.set_bind_group(2, group, &[]);
         pass.draw(0..3, 0..1);
-        span.end(&mut pass);
     }
     let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
         label: Some("penumbra_billboard_reflections"),
@@ -770,13 +768,11 @@ pub fn billboard_reflections(
         occlusion_query_set: None,
         multiview_mask: None,
     });
-    let span = diagnostics.pass_span(&mut pass, "trace");
     pass.set_render_pipeline(pipeline);
     pass.set_bind_group(0, &mesh_view.main, &mesh_view.main_offsets);
     pass.set_bind_group(1, &mesh_view.binding_array, &[]);
     pass.set_bind_group(2, group, &[]);
     pass.draw(0..3, 0..1);
-    span.end(&mut pass);
     drop(pass);
     time_span.end(ctx.command_encoder());
 }

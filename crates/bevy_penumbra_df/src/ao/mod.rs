@@ -91,12 +91,12 @@
 //! samples per caster within reach; an upsample; the temporal pass (one history read,
 //! a 5×5 fill on unstable pixels); 8 bytes per pixel (full-size result) plus 8 per
 //! traced pixel, plus 40 per pixel for the temporal filter (two history pairs and the
-//! filtered result). Diagnostics: the time span `penumbra_dfao` (all passes) and within
-//! it one per pass, `trace`, `upsample`, `sample_upsample` and `temporal`, for profiling
-//! on a GPU. On lavapipe the per-pass spans read wrongly (a sixth of the total between
-//! them): `tests/dfao_pass_times.rs`, ignored, times each pass through wgpu instead — at
-//! 512² on lavapipe the trace takes 34 / 68 / 386 ms for 10 / 100 / 1,000 casters with
-//! the defaults, the upsample and the temporal pass about 14–22 ms each.
+//! filtered result). Diagnostics: the time span `penumbra_dfao` (all passes; per-pass
+//! spans read wrongly on lavapipe — inside the compute passes, and also as encoder spans
+//! around each pass, whose sum was a sixth of the total — so there are none;
+//! `tests/dfao_pass_times.rs`, ignored, times each pass through wgpu instead: at 512² on
+//! lavapipe the trace takes 34 / 68 / 386 ms for 10 / 100 / 1,000 casters with the
+//! defaults, the upsample and the temporal pass about 14–22 ms each).
 
 mod render;
 

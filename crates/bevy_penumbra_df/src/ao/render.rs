@@ -2,7 +2,6 @@
 //! input the lighting pass reads.
 
 use super::{DistanceFieldAoDebugView, DistanceFieldSpecularOcclusion, ExtractedDfao};
-use crate::diagnostics::timed_compute_pass;
 use crate::global_field::ViewGlobalField;
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::lighting::msaa_render::{DeferredMsaaTextures, pixel_prepass};
@@ -21,10 +20,10 @@ use bevy::render::render_resource::binding_types::{
 use bevy::render::render_resource::encase::UniformBuffer as EncaseBuffer;
 use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
-    BufferId, BufferUsages, CachedComputePipelineId, ComputePipelineDescriptor, Extent3d,
-    PipelineCache, ShaderStages, ShaderType, StorageTextureAccess, TextureDescriptor,
-    TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
-    TextureViewDescriptor, TextureViewId,
+    BufferId, BufferUsages, CachedComputePipelineId, ComputePassDescriptor,
+    ComputePipelineDescriptor, Extent3d, PipelineCache, ShaderStages, ShaderType,
+    StorageTextureAccess, TextureDescriptor, TextureDimension, TextureFormat, TextureSampleType,
+    TextureUsages, TextureView, TextureViewDescriptor, TextureViewId,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::view::ExtractedView;
@@ -704,72 +703,54 @@ fn distance_field_ambient_occlusion(
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
     let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_dfao");
-    timed_compute_pass(
-        &mut ctx,
-        diagnostics,
-        "penumbra_dfao_trace",
-        "trace",
-        |pass| {
-            pass.set_pipeline(trace);
-            pass.set_bind_group(0, trace_group, &[]);
-            pass.set_bind_group(1, far_group, &[]);
-            let size = trace_size(textures.size, textures.divisor);
-            pass.dispatch_workgroups(size.x.div_ceil(8), size.y.div_ceil(8), 1);
-        },
-    );
+    {
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor {
+                label: Some("penumbra_dfao_trace"),
+                timestamp_writes: None,
+            });
+        pass.set_pipeline(trace);
+        pass.set_bind_group(0, trace_group, &[]);
+        pass.set_bind_group(1, far_group, &[]);
+        let size = trace_size(textures.size, textures.divisor);
+        pass.dispatch_workgroups(size.x.div_ceil(8), size.y.div_ceil(8), 1);
+    }
     if let (Some(upsample_group), Some(upsample)) = (&groups.upsample, upsample) {
         // Its own pass: the trace, written as storage above, is sampled here.
-        timed_compute_pass(
-            &mut ctx,
-            diagnostics,
-            "penumbra_dfao_upsample",
-            "upsample",
-            |pass| {
-                pass.set_pipeline(upsample);
-                pass.set_bind_group(0, upsample_group, &[]);
-                pass.dispatch_workgroups(
-                    textures.size.x.div_ceil(8),
-                    textures.size.y.div_ceil(8),
-                    1,
-                );
-            },
-        );
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor {
+                label: Some("penumbra_dfao_upsample"),
+                timestamp_writes: None,
+            });
+        pass.set_pipeline(upsample);
+        pass.set_bind_group(0, upsample_group, &[]);
+        pass.dispatch_workgroups(textures.size.x.div_ceil(8), textures.size.y.div_ceil(8), 1);
     }
     if let (Some(group), Some(pipeline)) = (&groups.sample_upsample, sample_upsample) {
         // Deferred MSAA: the edge pixels' samples, one thread each (the trace is
         // sampled here, as by the upsample).
-        timed_compute_pass(
-            &mut ctx,
-            diagnostics,
-            "penumbra_dfao_sample_upsample",
-            "sample_upsample",
-            |pass| {
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, group, &[]);
-                pass.dispatch_workgroups(
-                    textures.size.x.div_ceil(4),
-                    textures.size.y.div_ceil(4),
-                    1,
-                );
-            },
-        );
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor {
+                label: Some("penumbra_dfao_sample_upsample"),
+                timestamp_writes: None,
+            });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, group, &[]);
+        pass.dispatch_workgroups(textures.size.x.div_ceil(4), textures.size.y.div_ceil(4), 1);
     }
     if let (Some(temporal_groups), Some(temporal)) = (&groups.temporal, temporal) {
-        timed_compute_pass(
-            &mut ctx,
-            diagnostics,
-            "penumbra_dfao_temporal",
-            "temporal",
-            |pass| {
-                pass.set_pipeline(temporal);
-                pass.set_bind_group(0, &temporal_groups[groups.parity], &[]);
-                pass.dispatch_workgroups(
-                    textures.size.x.div_ceil(8),
-                    textures.size.y.div_ceil(8),
-                    1,
-                );
-            },
-        );
+        let mut pass = ctx
+            .command_encoder()
+            .begin_compute_pass(&ComputePassDescriptor {
+                label: Some("penumbra_dfao_temporal"),
+                timestamp_writes: None,
+            });
+        pass.set_pipeline(temporal);
+        pass.set_bind_group(0, &temporal_groups[groups.parity], &[]);
+        pass.dispatch_workgroups(textures.size.x.div_ceil(8), textures.size.y.div_ceil(8), 1);
     }
     time_span.end(ctx.command_encoder());
 }

@@ -7,7 +7,6 @@ use super::resources::{
     CULL_VIEW_BYTES, DistanceFieldShadowResources, ShadowViewParams, UPSAMPLE_VIEW_BYTES,
     ViewTextures,
 };
-use crate::diagnostics::timed_compute_pass;
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::lighting::msaa_render::{DeferredMsaaTextures, pixel_prepass};
 use crate::lighting::{
@@ -28,10 +27,10 @@ use bevy::render::render_resource::binding_types::{
     texture_storage_2d, uniform_buffer_sized,
 };
 use bevy::render::render_resource::{
-    BindGroupLayoutDescriptor, BindGroupLayoutEntries, CachedComputePipelineId, Extent3d,
-    PipelineCache, ShaderStages, StorageTextureAccess, Texture, TextureDescriptor,
-    TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
-    TextureViewDescriptor, TextureViewDimension,
+    BindGroupLayoutDescriptor, BindGroupLayoutEntries, CachedComputePipelineId,
+    ComputePassDescriptor, Extent3d, PipelineCache, ShaderStages, StorageTextureAccess, Texture,
+    TextureDescriptor, TextureDimension, TextureFormat, TextureSampleType, TextureUsages,
+    TextureView, TextureViewDescriptor, TextureViewDimension,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::sync_world::MainEntity;
@@ -666,76 +665,53 @@ fn distance_field_shadows(
             encoder.clear_buffer(&r.grid, 0, None);
             encoder.clear_buffer(&r.cursors, 0, None);
         }
-        // One compute pass per stage, each in its own span (summed over the lights by
-        // readers of the diagnostics).
-        timed_compute_pass(
-            &mut ctx,
-            diagnostics,
-            "penumbra_df_shadows_cull",
-            "cull",
-            |pass| {
-                pass.set_pipeline(cull);
-                pass.set_bind_group(0, &bind.cull, &[]);
-                pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
-            },
-        );
+        let mut pass = encoder.begin_compute_pass(&ComputePassDescriptor {
+            label: Some("penumbra_df_shadows"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(cull);
+        pass.set_bind_group(0, &bind.cull, &[]);
+        pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
         if let (true, Some(grid)) = (r.use_grid, &bind.grid) {
             // Reset, bounds, count, scan, fill: one thread per culled caster (at most
             // `slots`), the scan in one workgroup.
             let per_caster = slots.div_ceil(64).max(1);
-            timed_compute_pass(
-                &mut ctx,
-                diagnostics,
-                "penumbra_df_shadows_grid",
-                "grid",
-                |pass| {
-                    for (pipeline, x) in grid_pipelines
-                        .iter()
-                        .zip([1, per_caster, per_caster, 1, per_caster])
-                    {
-                        pass.set_pipeline(pipeline);
-                        pass.set_bind_group(0, grid, &[]);
-                        pass.dispatch_workgroups(x, 1, 1);
-                    }
-                },
-            );
+            for (pipeline, x) in grid_pipelines
+                .iter()
+                .zip([1, per_caster, per_caster, 1, per_caster])
+            {
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, grid, &[]);
+                pass.dispatch_workgroups(x, 1, 1);
+            }
         }
         let trace_size = if r.half {
             half_size(masks.size)
         } else {
             masks.size
         };
-        timed_compute_pass(
-            &mut ctx,
-            diagnostics,
-            "penumbra_df_shadows_trace",
-            "trace",
-            |pass| {
-                pass.set_pipeline(trace);
-                pass.set_bind_group(0, &bind.trace, &[]);
-                pass.dispatch_workgroups(trace_size.x.div_ceil(8), trace_size.y.div_ceil(8), 1);
-                if let (Some(group), Some(pipeline)) = (&bind.sample_trace, sample_trace) {
-                    // Deferred MSAA: the edge pixels' samples, one thread each.
-                    pass.set_pipeline(pipeline);
-                    pass.set_bind_group(0, group, &[]);
-                    pass.dispatch_workgroups(masks.size.x.div_ceil(4), masks.size.y.div_ceil(4), 1);
-                }
-            },
-        );
+        pass.set_pipeline(trace);
+        pass.set_bind_group(0, &bind.trace, &[]);
+        pass.dispatch_workgroups(trace_size.x.div_ceil(8), trace_size.y.div_ceil(8), 1);
+        if let (Some(group), Some(pipeline)) = (&bind.sample_trace, sample_trace) {
+            // Deferred MSAA: the edge pixels' samples, one thread each.
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(masks.size.x.div_ceil(4), masks.size.y.div_ceil(4), 1);
+        }
+        drop(pass);
         if let Some(upsample_bind) = bind.upsample.as_ref().filter(|_| r.half) {
             // Its own pass: the half texture, written as storage above, is read as a
             // sampled texture here.
-            timed_compute_pass(
-                &mut ctx,
-                diagnostics,
-                "penumbra_df_shadows_upsample",
-                "upsample",
-                |pass| {
-                    pass.set_pipeline(upsample);
-                    pass.set_bind_group(0, upsample_bind, &[]);
-                    pass.dispatch_workgroups(masks.size.x.div_ceil(8), masks.size.y.div_ceil(8), 1);
-                },
-            );
+            let mut pass = ctx
+                .command_encoder()
+                .begin_compute_pass(&ComputePassDescriptor {
+                    label: Some("penumbra_df_shadows_upsample"),
+                    timestamp_writes: None,
+                });
+            pass.set_pipeline(upsample);
+            pass.set_bind_group(0, upsample_bind, &[]);
+            pass.dispatch_workgroups(masks.size.x.div_ceil(8), masks.size.y.div_ceil(8), 1);
         }
     }
     time_span.end(ctx.command_encoder());
