@@ -83,7 +83,7 @@ impl SceneKind {
                 DeferredMsaa4,
             ],
             SceneKind::Cornell | SceneKind::Helmet => &[Bevy, BevyNoShadows, Penumbra, BevySsao],
-            SceneKind::Dof => &[Bevy, BevyDof, ScatterBokeh],
+            SceneKind::Dof => &[Bevy, BevyDof, ScatterBokeh, ScatterBokehHalf],
             SceneKind::Stress => &[Bevy, BevyNoShadows, Penumbra, BevySsr],
         }
     }
@@ -113,6 +113,9 @@ pub enum Variant {
     BevyDof,
     /// Plain Bevy's renderer with Penumbra's scatter bokeh (`BokehDepthOfField`).
     ScatterBokeh,
+    /// Scatter bokeh with every sprite at half resolution (`quarter_resolution_coc`
+    /// at infinity): what the quarter-resolution layers save.
+    ScatterBokehHalf,
     /// Plain Bevy with its screen-space reflections.
     BevySsr,
 }
@@ -130,6 +133,7 @@ impl Variant {
             Variant::DeferredMsaa4 => "deferred-msaa4",
             Variant::BevyDof => "bevy-dof",
             Variant::ScatterBokeh => "scatter-bokeh",
+            Variant::ScatterBokehHalf => "scatter-bokeh-half",
             Variant::BevySsr => "bevy-ssr",
         }
     }
@@ -142,6 +146,7 @@ impl Variant {
                 | Variant::Penumbra
                 | Variant::DeferredMsaa4
                 | Variant::ScatterBokeh
+                | Variant::ScatterBokehHalf
         )
     }
 
@@ -312,11 +317,17 @@ fn spawn_camera(mut commands: Commands, run: Res<Run>) {
                 ..default()
             });
         }
-        Variant::ScatterBokeh => {
+        Variant::ScatterBokeh | Variant::ScatterBokehHalf => {
+            let quarter_resolution_coc = if run.variant == Variant::ScatterBokehHalf {
+                f32::INFINITY
+            } else {
+                BokehDepthOfField::default().quarter_resolution_coc
+            };
             camera.insert(BokehDepthOfField {
                 focal_distance,
                 aperture_f_stops,
                 max_depth,
+                quarter_resolution_coc,
                 ..default()
             });
         }

@@ -19,9 +19,9 @@
 //!    of the focal plane. A block whose four pixels are out of focus on one side of the
 //!    focal plane and agree in circle of confusion, luminance and depth becomes **one** sprite, otherwise
 //!    each out-of-focus pixel becomes one (the 1-or-4 rule). Each block writes its own
-//!    four slots and its count; an exclusive prefix sum of the counts (one workgroup)
-//!    and a copy list the sprites in block order with no gaps and set the indirect
-//!    draw's instance count. The order — and the layers' floating-point sums — never
+//!    four slots and its count per layer (below); an exclusive prefix sum of the counts
+//!    and a copy list the sprites layer by layer, in block order within each, with no
+//!    gaps, and set each layer's indirect draw. The order — and the layers' floating-point sums — never
 //!    depend on which thread ran first: the output is the same bit for bit on every run
 //!    (appending through an atomic counter made 261 of 12,065 pixels differ between two
 //!    runs on lavapipe).
@@ -29,14 +29,19 @@
 //!    textured with the aperture, adds `(colour · w, w)` into a **near** or a **far**
 //!    layer (additive blending), `w` normalised by what the aperture sums to over the
 //!    texels the sprite covers (tabulated per aperture), so a pixel spreads unit weight
-//!    at any size; near sprites show the aperture point-reflected. Two draws of the
-//!    list, one per layer (the vertex shader drops the other layer's sprites), so each
-//!    fragment blends one float4 target instead of two (one of them adding zeros): the
-//!    same sums in the same order, half the blending.
+//!    at any size; near sprites show the aperture point-reflected. Sprites whose
+//!    circle of confusion reaches `quarter_resolution_coc` (32 px) go to a near and a
+//!    far layer at **quarter** resolution instead: each quarter texel adds what the
+//!    sprite adds at its four half-resolution texel centres (the half-resolution layer
+//!    summed 2×2, the aperture shrunk by the quarter round trip's extra blur), a quarter
+//!    of the fragments and blends for the same samples. One draw per layer over its own
+//!    part of the list (four vertices per sprite, a triangle strip), so each fragment
+//!    blends one float4 target and no vertex runs for another layer's sprite.
 //! 3. **Composite** (fullscreen, view resolution): each pixel starts from the sharp image,
-//!    blends to the resolved far layer (`Σ colour w / Σ w`) as its own circle of confusion grows from ½
-//!    pixel to `min_circle_of_confusion`, then the resolved near layer is laid over it
-//!    with opacity `min(Σ w, 1)`. Pixels under ½ pixel of blur that no near sprite reaches
+//!    blends to the resolved far layer (`Σ colour w / Σ w`, the half-resolution layer
+//!    plus a quarter of the quarter-resolution one, both read bilinearly) as its own
+//!    circle of confusion grows from ½ pixel to `min_circle_of_confusion`, then the
+//!    resolved near layer is laid over it with opacity `min(Σ w, 1)`. Pixels under ½ pixel of blur that no near sprite reaches
 //!    are the input, bit for bit.
 //!
 //! The passes run in `Core3d`'s post-processing, before tonemapping, on the linear HDR
@@ -64,24 +69,37 @@
 //!   occlusion borders (0.097 against 0.127) and on the bokeh's shape.
 //! - Cost grows with the out-of-focus area times the squared circle of confusion (every
 //!   sprite's quad is rasterised): a fully blurred view at the 64 px default fills about
-//!   `(w h / 4) · 32² / 4` half-resolution fragments before the 1-or-4 rule merges
-//!   agreeing blocks (about a quarter of the sprites on smooth regions).
+//!   `(w h / 4) · 32² / 16` fragments at quarter resolution (four times that with
+//!   `quarter_resolution_coc` at infinity) before the 1-or-4 rule merges agreeing blocks
+//!   (about a quarter of the sprites on smooth regions). Against the ray-traced thin
+//!   lens (`penumbra_reference::bokeh` truth tests, 256 × 160, blur up to 64 px) the
+//!   32 px default draws 0.68 of the fragments of half resolution everywhere at the same
+//!   error (0.0122 mean display error); from 24 px, 0.63 at the same error; from 16 px,
+//!   0.27 but 0.0080 against 0.0042 in out-of-focus interiors. An isolated 48 px
+//!   highlight covers its aperture's shape with overlap 0.94–0.95 at quarter resolution,
+//!   0.96 at half.
 //! - No opt-out per material: everything drawn before post-processing is blurred
 //!   (a second main pass after the effect would be needed; not offered).
 //! - With MSAA the depth is the first sample's, as Bevy's `DepthOfField` reads it.
 //! - Perspective cameras only (one warning, then nothing, on an orthographic one).
 //!
-//! Cost: nothing without the component. Per camera: two half-resolution layers
-//! (`Rgba32Float`, 32 bytes per half pixel for both; `Rgba16Float`, 16, on devices that
-//! cannot blend 32-bit floats), the sprites' slots and their compacted list (32 bytes
-//! each per half pixel) and a count per block: 50 MB at 1080p. The passes: the sprite
+//! Cost: nothing without the component. Per camera: two half-resolution and two
+//! quarter-resolution layers (`Rgba32Float`, 40 bytes per half pixel for all four;
+//! `Rgba16Float`, 20, on devices that cannot blend 32-bit floats), the sprites' slots and their compacted list (32 bytes
+//! each per half pixel) and a count per block: 54 MB at 1080p. The passes: the sprite
 //! pass, the scan (three passes over workgroups of 1,024 blocks: `penumbra_cinematic_core::scan`), the copy,
-//! one quad per sprite (two draws of the list), the composite. On lavapipe at 384 × 288 (`tests/bokeh_truth.rs`,
+//! one quad per sprite (a draw per layer), the composite. On lavapipe at 384 × 288 (`tests/bokeh_truth.rs`,
 //! f/0.05) frames take 41–46 ms with it, 31–34 ms with Bevy's Gaussian `DepthOfField`,
 //! 35–37 ms with its bokeh and 24–31 ms with none (3 runs). On an NVIDIA H200 at
 //! 1920×1080 on Bevy's depth-of-field scene: 10.9 ms, against about 3.0 ms for Bevy's
-//! bokeh `DepthOfField` (`BENCHMARKS.md`) — over #44's 1 ms budget, not yet profiled by
-//! stage. Diagnostics: the time span `penumbra_bokeh_dof`.
+//! bokeh `DepthOfField` (`BENCHMARKS.md`, before the layers were listed apart and the
+//! quarter-resolution layers; not measured on a GPU since) — over #44's 1 ms budget.
+//! Profiled on lavapipe at 1920×1080 (`penumbra-bench --scenes dof`): the far layer's
+//! draw shaded 24.2 M fragments, the near one's 0.14 M; with every layer's draw running
+//! every sprite's six vertices, vertex work was about 100 ms of lavapipe's time per
+//! draw, which listing the layers apart and four-vertex strips removed (the pass 757 →
+//! 544 ms). That scene's blur stays under the 32 px of the quarter-resolution layers
+//! (their draws shaded no fragment), so they save nothing there. Diagnostics: the time span `penumbra_bokeh_dof`.
 
 mod pipelines;
 mod render;
@@ -175,6 +193,14 @@ pub struct BokehDepthOfField {
     /// The 1-or-4 rule: largest spread of a block's distances relative to its mean.
     /// Default 0.05. Must be ≥ 0 (default otherwise, with a warning).
     pub merge_depth_tolerance: f32,
+    /// Circles of confusion from this size, view pixels, are scattered at quarter
+    /// resolution: a quarter of the fragments and blends per sprite (the scatter pass's
+    /// cost grows with the square of the blur), aperture edges about one view pixel
+    /// softer. Default 32, where a bokeh's edges are as sharp relative to its size as
+    /// those of a 16 px bokeh at half resolution (module docs: the error against the thin
+    /// lens is unchanged). At least 16 (smaller values are clamped, with a warning; NaN
+    /// gives the default); `f32::INFINITY` keeps every sprite at half resolution.
+    pub quarter_resolution_coc: f32,
 }
 
 impl Default for BokehDepthOfField {
@@ -193,6 +219,7 @@ impl Default for BokehDepthOfField {
             merge_coc_tolerance: rule.coc_tolerance,
             merge_color_tolerance: rule.color_tolerance,
             merge_depth_tolerance: rule.depth_tolerance,
+            quarter_resolution_coc: rule.quarter_coc,
         }
     }
 }
@@ -286,7 +313,7 @@ impl BokehDepthOfField {
                 fallback
             }
         };
-        let rule = SpriteRule {
+        let mut rule = SpriteRule {
             min_coc,
             merge: self.merge_blocks,
             coc_tolerance: tolerance(
@@ -304,7 +331,20 @@ impl BokehDepthOfField {
                 self.merge_depth_tolerance,
                 defaults.merge_depth_tolerance,
             ),
+            quarter_coc: self.quarter_resolution_coc,
         };
+        let q = self.quarter_resolution_coc;
+        if q.is_nan() || q < 16.0 {
+            let c = if q.is_nan() {
+                defaults.quarter_resolution_coc
+            } else {
+                16.0
+            };
+            problems.push(format!(
+                "quarter_resolution_coc = {q} (must be at least 16; using {c})"
+            ));
+            rule.quarter_coc = c;
+        }
         if let BokehAperture::Polygon { sides, rotation } = self.aperture {
             if sides < 3 {
                 problems.push(format!("aperture sides = {sides} (must be ≥ 3; using 3)"));

@@ -13,8 +13,9 @@ use bevy::render::render_resource::{
     BindGroupLayoutDescriptor, BindGroupLayoutEntries, BlendComponent, BlendFactor, BlendOperation,
     BlendState, CachedComputePipelineId, CachedRenderPipelineId, ColorTargetState, ColorWrites,
     ComputePipelineDescriptor, DownlevelFlags, FilterMode, FragmentState, PipelineCache,
-    RenderPipelineDescriptor, Sampler, SamplerBindingType, SamplerDescriptor, ShaderStages,
-    ShaderType, TextureFormat, TextureSampleType, VertexState, WgpuFeatures,
+    PrimitiveState, PrimitiveTopology, RenderPipelineDescriptor, Sampler, SamplerBindingType,
+    SamplerDescriptor, ShaderStages, ShaderType, TextureFormat, TextureSampleType, VertexState,
+    WgpuFeatures,
 };
 use bevy::render::renderer::{RenderAdapter, RenderDevice};
 use bevy::render::view::{Msaa, ViewTarget};
@@ -44,13 +45,43 @@ pub(super) struct BokehPipelines {
     pub(super) sprites_shader: Handle<Shader>,
     pub(super) composite_shader: Handle<Shader>,
     pub(super) sprites: [Option<CachedComputePipelineId>; 2],
-    pub(super) scatter: [CachedRenderPipelineId; 2],
+    /// Near half, far half, near quarter, far quarter (`SCATTER_LAYERS`).
+    pub(super) scatter: [CachedRenderPipelineId; 4],
     pub(super) composite: HashMap<(TextureFormat, bool), CachedRenderPipelineId>,
     /// Linear, clamp-to-edge: the aperture.
     pub(super) sampler: Sampler,
     /// [`LAYER_FORMAT`], or [`LAYER_FORMAT_FALLBACK`] without `FLOAT32_BLENDABLE`.
     pub(super) layer_format: TextureFormat,
 }
+
+/// The scatter pass's layers, one draw each: the draw's label, the texture's, near,
+/// quarter resolution.
+pub(super) const SCATTER_LAYERS: [(&str, &str, bool, bool); 4] = [
+    (
+        "penumbra_bokeh_scatter_near",
+        "penumbra_bokeh_near",
+        true,
+        false,
+    ),
+    (
+        "penumbra_bokeh_scatter_far",
+        "penumbra_bokeh_far",
+        false,
+        false,
+    ),
+    (
+        "penumbra_bokeh_scatter_near_quarter",
+        "penumbra_bokeh_near_quarter",
+        true,
+        true,
+    ),
+    (
+        "penumbra_bokeh_scatter_far_quarter",
+        "penumbra_bokeh_far_quarter",
+        false,
+        true,
+    ),
+];
 
 /// A view's pipelines (ids into the pipeline cache).
 #[derive(Component, Clone, Copy)]
@@ -154,6 +185,8 @@ pub(super) fn init_bokeh_pipelines(
                 texture_2d(TextureSampleType::Float { filterable: true }),
                 sampler(SamplerBindingType::Filtering),
                 storage_buffer_read_only_sized(false, None),
+                // The layers' first indices (the draws' argument buffer).
+                storage_buffer_read_only_sized(false, None),
             ),
         ),
     );
@@ -166,6 +199,8 @@ pub(super) fn init_bokeh_pipelines(
                     uniform_buffer_sized(false, view_bytes),
                     color(),
                     depth(ms),
+                    color(),
+                    color(),
                     color(),
                     color(),
                 ),
@@ -195,16 +230,23 @@ pub(super) fn init_bokeh_pipelines(
         }),
         write_mask: ColorWrites::ALL,
     });
-    // One draw per layer (`scatter.wgsl`): near, then far.
-    let scatter = [true, false].map(|near| {
-        let (label, shader_defs) = if near {
-            ("penumbra_bokeh_scatter_near", vec!["NEAR_LAYER".into()])
-        } else {
-            ("penumbra_bokeh_scatter_far", vec![])
-        };
+    // One draw per layer (`scatter.wgsl`), in `SCATTER_LAYERS`' order.
+    let scatter = SCATTER_LAYERS.map(|(label, _, near, quarter)| {
+        let mut shader_defs = Vec::new();
+        if near {
+            shader_defs.push("NEAR_LAYER".into());
+        }
+        if quarter {
+            shader_defs.push("QUARTER_LAYER".into());
+        }
         pipeline_cache.queue_render_pipeline(RenderPipelineDescriptor {
             label: Some(label.into()),
             layout: vec![scatter_layout.clone()],
+            // Four vertices per sprite (`scatter.wgsl`).
+            primitive: PrimitiveState {
+                topology: PrimitiveTopology::TriangleStrip,
+                ..default()
+            },
             vertex: VertexState {
                 shader: scatter_shader.clone(),
                 shader_defs: shader_defs.clone(),

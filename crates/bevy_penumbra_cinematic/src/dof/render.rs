@@ -1,8 +1,9 @@
 //! Render-world side of scatter bokeh: extraction, the pooled per-view buffers and
-//! half-resolution layers, the aperture textures, the bind groups and the three passes.
+//! half- and quarter-resolution layers, the aperture textures, the bind groups and the three passes.
 
 use super::pipelines::{
-    BokehPipelines, ViewBokehPipelines, init_bokeh_pipelines, prepare_bokeh_pipelines, unsupported,
+    BokehPipelines, SCATTER_LAYERS, ViewBokehPipelines, init_bokeh_pipelines,
+    prepare_bokeh_pipelines, unsupported,
 };
 use super::{BokehApertureShape, BokehDepthOfField};
 use bevy::camera::Projection;
@@ -31,6 +32,10 @@ use std::sync::Arc;
 
 /// Bytes per sprite slot (`penumbra::dof::types::Sprite`).
 const SPRITE_BYTES: u64 = 32;
+
+/// `LayerDraws` (`dof/types.wgsl`): four `draw_indirect` arguments (16 bytes each), then
+/// the layers' first indices in the list (a `vec4<u32>`).
+const LAYER_DRAWS_BYTES: u64 = 4 * 16 + 16;
 
 /// A bokeh camera's settings in the render world, resolved at extraction.
 #[derive(Component, Clone, Debug)]
@@ -79,16 +84,16 @@ pub struct ViewBokehBuffers {
     half_size: UVec2,
 }
 
-/// A view's half-resolution layers (from Bevy's `TextureCache`, fetched each frame).
+/// A view's layers (from Bevy's `TextureCache`, fetched each frame): near and far at
+/// half resolution, then at quarter resolution (`SCATTER_LAYERS`' order).
 #[derive(Component)]
 pub struct ViewBokehTextures {
-    near: CachedTexture,
-    far: CachedTexture,
+    layers: [CachedTexture; 4],
 }
 
 /// What a view's bind groups bind: the two main textures, the depth, the layers, the
 /// sprite buffer, the aperture.
-type BindKey = ([TextureViewId; 5], BufferId, u64);
+type BindKey = ([TextureViewId; 7], BufferId, u64);
 
 /// A view's bind groups, remade only when a bound resource changes. The sprite and
 /// composite passes read the view's colour, which ping-pongs between Bevy's two main
@@ -192,14 +197,16 @@ fn prepare_bokeh_textures(
         let half = (full + UVec2::ONE) / 2;
         let capacity = sprite_slots(full);
         let mut entity_commands = commands.entity(entity);
-        let mut layer = |label| {
+        let quarter = (half + UVec2::ONE) / 2;
+        let mut layer = |(_, label, _, is_quarter): (&str, &'static str, bool, bool)| {
+            let size = if is_quarter { quarter } else { half };
             texture_cache.get(
                 &device,
                 TextureDescriptor {
                     label: Some(label),
                     size: Extent3d {
-                        width: half.x,
-                        height: half.y,
+                        width: size.x,
+                        height: size.y,
                         depth_or_array_layers: 1,
                     },
                     mip_level_count: 1,
@@ -212,8 +219,7 @@ fn prepare_bokeh_textures(
             )
         };
         let textures = ViewBokehTextures {
-            near: layer("penumbra_bokeh_near"),
-            far: layer("penumbra_bokeh_far"),
+            layers: SCATTER_LAYERS.map(&mut layer),
         };
         entity_commands.insert(textures);
         let blocks = capacity / 4;
@@ -221,7 +227,8 @@ fn prepare_bokeh_textures(
             allocations.sized_buffer(&device, label, bytes, BufferUsages::STORAGE | extra)
         };
         let sprite_bytes = |n: u32| u64::from(n.max(1)) * SPRITE_BYTES;
-        let group_sum_bytes = |blocks: u32| u64::from(ScanPlan::new(blocks).group_sums_len()) * 4;
+        // Four counts (one per layer) per block and per group.
+        let group_sum_bytes = |blocks: u32| u64::from(ScanPlan::new(blocks).group_sums_len()) * 16;
         let mut fresh = None;
         let buffers = match buffers {
             Some(b) => b.into_inner(),
@@ -234,7 +241,7 @@ fn prepare_bokeh_textures(
                 ),
                 block_counts: storage(
                     "penumbra_bokeh_block_counts",
-                    u64::from(blocks.max(1)) * 4,
+                    u64::from(blocks.max(1)) * 16,
                     BufferUsages::empty(),
                 ),
                 group_sums: storage(
@@ -252,7 +259,12 @@ fn prepare_bokeh_textures(
                     sprite_bytes(capacity),
                     BufferUsages::empty(),
                 ),
-                args: storage("penumbra_bokeh_draw_args", 16, BufferUsages::INDIRECT),
+                // Four draws' arguments and the layers' first indices (`LayerDraws`).
+                args: storage(
+                    "penumbra_bokeh_draw_args",
+                    LAYER_DRAWS_BYTES,
+                    BufferUsages::INDIRECT,
+                ),
                 capacity,
                 blocks,
                 half_size: half,
@@ -261,7 +273,7 @@ fn prepare_bokeh_textures(
         if buffers.capacity < capacity {
             buffers.block_counts = storage(
                 "penumbra_bokeh_block_counts",
-                u64::from(blocks) * 4,
+                u64::from(blocks) * 16,
                 BufferUsages::empty(),
             );
             buffers.group_sums = storage(
@@ -403,8 +415,10 @@ fn prepare_bokeh_bind_groups(
                 mains[0].id(),
                 mains[1].id(),
                 depth_view.id(),
-                textures.near.default_view.id(),
-                textures.far.default_view.id(),
+                textures.layers[0].default_view.id(),
+                textures.layers[1].default_view.id(),
+                textures.layers[2].default_view.id(),
+                textures.layers[3].default_view.id(),
             ],
             buffers.sprites.id(),
             bokeh.aperture.id,
@@ -437,8 +451,10 @@ fn prepare_bokeh_bind_groups(
                     buffers.uniform.as_entire_binding(),
                     main,
                     depth_view,
-                    &textures.near.default_view,
-                    &textures.far.default_view,
+                    &textures.layers[0].default_view,
+                    &textures.layers[1].default_view,
+                    &textures.layers[2].default_view,
+                    &textures.layers[3].default_view,
                 )),
             );
             ((main.id(), sprites), (main.id(), composite))
@@ -467,6 +483,7 @@ fn prepare_bokeh_bind_groups(
                 &aperture.view,
                 &pipelines.sampler,
                 aperture.info.as_entire_binding(),
+                buffers.args.as_entire_binding(),
             )),
         );
         commands.entity(entity).insert(ViewBokehBindGroups {
@@ -498,26 +515,21 @@ fn bokeh_depth_of_field(
         return;
     };
     // Until every pipeline has compiled the view is left as it is.
-    let (
-        Some(sprites),
-        Some(reduce),
-        Some(scan),
-        Some(compact),
-        Some(scatter_near),
-        Some(scatter_far),
-        Some(composite),
-    ) = (
+    let (Some(sprites), Some(reduce), Some(scan), Some(compact), Some(composite)) = (
         pipeline_cache.get_compute_pipeline(ids.sprites),
         pipeline_cache.get_compute_pipeline(pipelines.reduce),
         pipeline_cache.get_compute_pipeline(pipelines.scan),
         pipeline_cache.get_compute_pipeline(pipelines.compact),
-        pipeline_cache.get_render_pipeline(pipelines.scatter[0]),
-        pipeline_cache.get_render_pipeline(pipelines.scatter[1]),
         pipeline_cache.get_render_pipeline(ids.composite),
-    )
-    else {
+    ) else {
         return;
     };
+    let scatter = pipelines
+        .scatter
+        .map(|id| pipeline_cache.get_render_pipeline(id));
+    if scatter.iter().any(Option::is_none) {
+        return;
+    }
     let source = target.main_texture_view().id();
     let pick = |pair: &'_ [(TextureViewId, BindGroup); 2]| {
         pair.iter()
@@ -563,18 +575,13 @@ fn bokeh_depth_of_field(
         pass.dispatch_workgroups(workgroups, 1, 1);
     }
     // One draw per layer, each over the whole list (`scatter.wgsl`).
-    for (label, pipeline, view) in [
-        (
-            "penumbra_bokeh_scatter_near",
-            scatter_near,
-            &textures.near.default_view,
-        ),
-        (
-            "penumbra_bokeh_scatter_far",
-            scatter_far,
-            &textures.far.default_view,
-        ),
-    ] {
+    for (layer, (((label, _, _, _), pipeline), texture)) in SCATTER_LAYERS
+        .into_iter()
+        .zip(scatter.into_iter().flatten())
+        .zip(&textures.layers)
+        .enumerate()
+    {
+        let view = &texture.default_view;
         let mut pass = ctx
             .command_encoder()
             .begin_render_pass(&RenderPassDescriptor {
@@ -592,7 +599,7 @@ fn bokeh_depth_of_field(
             });
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &groups.scatter, &[]);
-        pass.draw_indirect(&buffers.args, 0);
+        pass.draw_indirect(&buffers.args, 16 * layer as u64);
     }
     let post = target.post_process_write();
     {

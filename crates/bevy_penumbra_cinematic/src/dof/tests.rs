@@ -28,6 +28,7 @@ fn bad_settings_are_clamped_and_named() {
         max_depth: f32::NAN,
         min_circle_of_confusion: -1.0,
         merge_coc_tolerance: f32::INFINITY,
+        quarter_resolution_coc: 4.0,
         aperture: BokehAperture::Polygon {
             sides: 2,
             rotation: f32::NAN,
@@ -35,7 +36,7 @@ fn bad_settings_are_clamped_and_named() {
         ..default()
     };
     let (lens, rule, problems) = bad.resolve(FOV);
-    assert_eq!(problems.len(), 9, "{problems:#?}");
+    assert_eq!(problems.len(), 10, "{problems:#?}");
     for name in [
         "focal_distance",
         "aperture_f_stops",
@@ -44,6 +45,7 @@ fn bad_settings_are_clamped_and_named() {
         "max_depth",
         "min_circle_of_confusion",
         "merge_coc_tolerance",
+        "quarter_resolution_coc",
         "sides",
         "rotation",
     ] {
@@ -59,7 +61,24 @@ fn bad_settings_are_clamped_and_named() {
     assert_eq!(lens.max_depth, f32::INFINITY);
     assert_eq!(rule.min_coc, 0.0);
     assert_eq!(rule.coc_tolerance, 2.0);
+    assert_eq!(rule.quarter_coc, 16.0);
     assert!(lens.coc(1.0, 1080).is_finite());
+    // NaN: the default; infinity (every sprite at half resolution) is accepted.
+    for (q, want, warned) in [
+        (f32::NAN, 32.0, true),
+        (f32::INFINITY, f32::INFINITY, false),
+    ] {
+        let settings = BokehDepthOfField {
+            quarter_resolution_coc: q,
+            ..default()
+        };
+        let (_, rule, problems) = settings.resolve(FOV);
+        assert_eq!(
+            (rule.quarter_coc, problems.len() == 1),
+            (want, warned),
+            "{q}"
+        );
+    }
     // A focal plane inside the focal length has no image: twice the focal length.
     let close = BokehDepthOfField {
         focal_distance: 0.001,

@@ -83,6 +83,24 @@ pub struct SpriteRule {
     pub color_tolerance: f32,
     /// Largest spread of the block's distances relative to its mean.
     pub depth_tolerance: f32,
+    /// Circles of confusion from this size (full-resolution pixels) are scattered into
+    /// quarter-resolution layers: a quarter of the fragments (and blends) per sprite, one
+    /// aperture sample per fragment. At least 16 (smaller values act as 16);
+    /// `f32::INFINITY`: every sprite at half resolution.
+    pub quarter_coc: f32,
+}
+
+impl SpriteRule {
+    /// The sprite diameter (half-resolution pixels) from which a sprite is drawn at
+    /// quarter resolution: `quarter_coc / 2` (sprites of 16 px and more are `coc / 2`
+    /// wide), `f32::MAX` for never.
+    pub fn quarter_diameter(&self) -> f32 {
+        if self.quarter_coc.is_finite() {
+            0.5 * self.quarter_coc.max(16.0)
+        } else {
+            f32::MAX
+        }
+    }
 }
 
 impl Default for SpriteRule {
@@ -93,6 +111,7 @@ impl Default for SpriteRule {
             coc_tolerance: 2.0,
             color_tolerance: 0.1,
             depth_tolerance: 0.05,
+            quarter_coc: 32.0,
         }
     }
 }
@@ -113,6 +132,8 @@ pub struct BokehView {
     pub full_size: UVec2,
     /// The half-resolution size, `ceil(full / 2)`.
     pub half_size: UVec2,
+    /// The quarter-resolution size, `ceil(half / 2)`.
+    pub quarter_size: UVec2,
     /// [`Lens::coc_scale`] at the view's height.
     pub coc_scale: f32,
     /// [`Lens::focal_distance`].
@@ -134,6 +155,9 @@ pub struct BokehView {
     /// Sprite slots the sprite buffer holds, 4 per 2×2 block of half-resolution pixels
     /// ([`sprite_slots`]); sprites past it are dropped.
     pub capacity: u32,
+    /// [`SpriteRule::quarter_diameter`]: sprites at least this wide (half-resolution
+    /// pixels) are drawn into the quarter-resolution layers.
+    pub quarter_diameter: f32,
 }
 
 /// The sprite slots a view of `full_size` pixels needs: 4 per 2×2 block of its
@@ -153,10 +177,12 @@ impl BokehView {
         full_size: UVec2,
         capacity: u32,
     ) -> Self {
+        let half_size = (full_size + UVec2::ONE) / 2;
         BokehView {
             view_from_clip,
             full_size,
-            half_size: (full_size + UVec2::ONE) / 2,
+            half_size,
+            quarter_size: (half_size + UVec2::ONE) / 2,
             coc_scale: lens.coc_scale(full_size.y),
             focal_distance: lens.focal_distance,
             max_coc: lens.max_coc,
@@ -167,6 +193,7 @@ impl BokehView {
             depth_tolerance: rule.depth_tolerance,
             merge: u32::from(rule.merge),
             capacity,
+            quarter_diameter: rule.quarter_diameter(),
         }
     }
 }

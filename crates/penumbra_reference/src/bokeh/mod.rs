@@ -25,8 +25,9 @@ pub mod truth;
 mod truth_tests;
 
 pub use scatter::{
-    BokehImage, HalfImage, Layers, Sprite, composite, depth_of_field, downsample, scatter_sprites,
-    sprite_diameter, sprite_weight, sprites,
+    BokehImage, HalfImage, Layers, Sprite, by_layer, composite, depth_of_field, downsample,
+    is_quarter, layer_index, quarter_diameter, quarter_sprite_weight, scatter_fragments,
+    scatter_sprites, sprite_diameter, sprite_weight, sprites,
 };
 
 pub use penumbra_cinematic_core::dof::{

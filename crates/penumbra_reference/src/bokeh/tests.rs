@@ -68,40 +68,51 @@ fn bright_pixel(size: u32, at: UVec2, z: f32) -> BokehImage {
 }
 
 /// A single bright pixel spreads into the aperture's shape scaled to its circle of
-/// confusion, with its energy kept.
+/// confusion, with its energy kept: at half resolution (24 px) and at quarter resolution
+/// (48 px, over `SpriteRule::quarter_coc`).
 #[test]
 fn a_bright_pixel_spreads_into_the_aperture() {
-    let lens = lens();
     let size = 128;
     let z = 12.0;
-    let coc = lens.coc(z, size);
-    assert!(coc > 20.0 && coc < 40.0, "{coc}");
-    for (name, aperture) in [
-        ("circle", Aperture::circle(64)),
-        ("hexagon", Aperture::hexagon(64)),
-    ] {
-        for at in [UVec2::new(64, 64), UVec2::new(57, 70)] {
-            let image = bright_pixel(size, at, z);
-            let (out, _) = depth_of_field(&image, &lens, &aperture, &SpriteRule::default());
-            let energy: f32 = out.iter().map(|c| c.x).sum();
-            let peak = 1000.0 / (aperture.mean() * coc * coc);
-            let (mut both, mut either) = (0, 0);
-            for y in 0..size {
-                for x in 0..size {
-                    let d = UVec2::new(x, y).as_vec2() - at.as_vec2();
-                    let uv = d / coc + 0.5;
-                    let inside_shape = uv.cmpge(Vec2::ZERO).all()
-                        && uv.cmple(Vec2::ONE).all()
-                        && aperture.sample(uv) > 0.5;
-                    let lit = out[(y * size + x) as usize].x > 0.5 * peak;
-                    both += u32::from(inside_shape && lit);
-                    either += u32::from(inside_shape || lit);
+    for (lens, quarter) in [(lens(), false), (lens_at(0.0175), true)] {
+        let coc = lens.coc(z, size);
+        let rule = SpriteRule::default();
+        assert_eq!(coc >= rule.quarter_coc, quarter, "{coc}");
+        assert!(coc > 20.0 && coc < 50.0, "{coc}");
+        for (name, aperture) in [
+            ("circle", Aperture::circle(64)),
+            ("hexagon", Aperture::hexagon(64)),
+        ] {
+            for at in [UVec2::new(64, 64), UVec2::new(57, 70)] {
+                let image = bright_pixel(size, at, z);
+                let (out, sprites) = depth_of_field(&image, &lens, &aperture, &rule);
+                let bright = sprites
+                    .iter()
+                    .max_by(|a, b| a.color.x.total_cmp(&b.color.x))
+                    .expect("sprites");
+                assert_eq!(is_quarter(bright, rule.quarter_diameter()), quarter);
+                let energy: f32 = out.iter().map(|c| c.x).sum();
+                let peak = 1000.0 / (aperture.mean() * coc * coc);
+                let (mut both, mut either) = (0, 0);
+                for y in 0..size {
+                    for x in 0..size {
+                        let d = UVec2::new(x, y).as_vec2() - at.as_vec2();
+                        let uv = d / coc + 0.5;
+                        let inside_shape = uv.cmpge(Vec2::ZERO).all()
+                            && uv.cmple(Vec2::ONE).all()
+                            && aperture.sample(uv) > 0.5;
+                        let lit = out[(y * size + x) as usize].x > 0.5 * peak;
+                        both += u32::from(inside_shape && lit);
+                        either += u32::from(inside_shape || lit);
+                    }
                 }
+                let iou = both as f32 / either as f32;
+                eprintln!(
+                    "{name} at {at}: coc {coc:.2} px, energy {energy:.2} of 1000, IoU {iou:.3}"
+                );
+                assert!((energy - 1000.0).abs() < 10.0, "{name}: energy {energy}");
+                assert!(iou >= 0.9, "{name}: IoU {iou}");
             }
-            let iou = both as f32 / either as f32;
-            eprintln!("{name} at {at}: coc {coc:.2} px, energy {energy:.2} of 1000, IoU {iou:.3}");
-            assert!((energy - 1000.0).abs() < 10.0, "{name}: energy {energy}");
-            assert!(iou >= 0.9, "{name}: IoU {iou}");
         }
     }
 }
@@ -374,5 +385,65 @@ fn sprites_spread_unit_weight_at_every_size() {
         );
         assert!(worst.0 < 0.01, "{name}: {worst:?}");
         assert!(worst_large.0 < 0.01, "{name}: {worst_large:?}");
+    }
+}
+
+/// A quarter-resolution sprite spreads its weight over the quarter texels it covers, as
+/// a half-resolution one does: blocks and single pixels, wherever their centre falls
+/// in the quarter texel (one sample per quarter texel was up to 13 % off).
+#[test]
+fn quarter_resolution_sprites_spread_their_weight() {
+    for (name, aperture) in [
+        ("circle", Aperture::circle(64)),
+        ("hexagon", Aperture::hexagon(64)),
+    ] {
+        let mut worst = [(0.0f32, 0.0f32); 2];
+        for k in 0..=480 {
+            let diameter = 16.0 + 0.2 * k as f32;
+            for (weight, center) in [
+                (4.0, Vec2::splat(41.0)),
+                (1.0, Vec2::new(40.5, 41.5)),
+                (1.0, Vec2::new(41.5, 40.5)),
+            ] {
+                let i = usize::from(weight < 2.0);
+                for near in [false, true] {
+                    let s = Sprite {
+                        center,
+                        diameter,
+                        color: Vec3::ONE,
+                        weight,
+                        near,
+                    };
+                    let block = if weight > 1.0 { 1.0 } else { 0.0 };
+                    let (c, d) = (
+                        0.5 * center,
+                        0.5 * (quarter_diameter(diameter) + block) + 0.5,
+                    );
+                    let mut sum = 0.0;
+                    let n = d.ceil() as i32 + 2;
+                    for y in -n..=n {
+                        for x in -n..=n {
+                            let p = c.floor() + Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                            let o = p - c;
+                            if o.x >= -0.5 * d && o.x < 0.5 * d && o.y >= -0.5 * d && o.y < 0.5 * d
+                            {
+                                sum += quarter_sprite_weight(&s, &aperture, p);
+                            }
+                        }
+                    }
+                    let error = (sum / weight - 1.0).abs();
+                    if error > worst[i].0 {
+                        worst[i] = (error, diameter);
+                    }
+                }
+            }
+        }
+        eprintln!(
+            "{name}: worst |Σ weight / weight − 1| at quarter resolution: blocks {:.4} (d = {:.1}), \
+             single pixels {:.4} (d = {:.1})",
+            worst[0].0, worst[0].1, worst[1].0, worst[1].1
+        );
+        assert!(worst[0].0 < 0.01, "{name} blocks: {:?}", worst[0]);
+        assert!(worst[1].0 < 0.01, "{name} single pixels: {:?}", worst[1]);
     }
 }

@@ -1,38 +1,34 @@
 // Scatter bokeh depth of field, between the sprite and scatter passes: the blocks' sprites
-// listed in block order, with no gaps, and the draw's instance count. An exclusive prefix
-// sum of the blocks' counts in three passes over many workgroups
+// listed layer by layer (`sprite_layer`: near, far, near quarter, far quarter), in block
+// order within each layer, with no gaps; each layer's first index in the list and its
+// draw's instance count. An exclusive prefix sum of the blocks' counts (a vector of the
+// four layers' counts) in three passes over many workgroups
 // (`penumbra_cinematic_core::scan`): `reduce_main` sums each group's 1,024 blocks,
 // `scan_groups_main` (one workgroup) turns the groups' sums into offsets, `compact_main`
 // scans each group's blocks again from its offset and copies their sprites there.
 // Deterministic: the order does not depend on which thread runs first, so neither do the
-// layers' floating-point sums. CPU model: `penumbra_reference::bokeh::sprites` (the list
-// in the same order); the scan's: `penumbra_cinematic_core::scan::exclusive_scan`.
+// layers' floating-point sums. CPU model: `penumbra_reference::bokeh::{sprites,
+// by_layer}` (the list in the same order); the scan's:
+// `penumbra_cinematic_core::scan::exclusive_scan`.
 #define_import_path penumbra::dof::compact
 
-#import penumbra::dof::types::{BokehView, Sprite}
-
-// `draw_indirect`'s arguments.
-struct DrawArgs {
-    vertex_count: u32,
-    instance_count: u32,
-    first_vertex: u32,
-    first_instance: u32,
-}
+#import penumbra::dof::types::{BokehView, DrawArgs, LayerDraws, Sprite, sprite_layer}
 
 @group(0) @binding(0) var<uniform> view: BokehView;
-// Each block's sprite count (the sprite pass's).
-@group(0) @binding(1) var<storage, read> block_counts: array<u32>;
+// Each block's sprite count per layer (the sprite pass's).
+@group(0) @binding(1) var<storage, read> block_counts: array<vec4<u32>>;
 @group(0) @binding(2) var<storage, read> slots: array<Sprite>;
 @group(0) @binding(3) var<storage, read_write> sprites: array<Sprite>;
-@group(0) @binding(4) var<storage, read_write> args: DrawArgs;
-// Each group's sum (`reduce_main`), then its first index in the list (`scan_groups_main`).
-@group(0) @binding(5) var<storage, read_write> group_sums: array<u32>;
+@group(0) @binding(4) var<storage, read_write> args: LayerDraws;
+// Each group's sums (`reduce_main`), then its first index in each layer
+// (`scan_groups_main`).
+@group(0) @binding(5) var<storage, read_write> group_sums: array<vec4<u32>>;
 
 const SCAN_THREADS: u32 = 256u;
 const ITEMS_PER_THREAD: u32 = 4u;
 const GROUP_ITEMS: u32 = SCAN_THREADS * ITEMS_PER_THREAD;
 
-var<workgroup> partial: array<u32, SCAN_THREADS>;
+var<workgroup> partial: array<vec4<u32>, SCAN_THREADS>;
 
 // Blocks of the half-resolution image (2×2 pixels each).
 fn block_total() -> u32 {
@@ -47,8 +43,8 @@ fn thread_blocks(g: u32, i: u32) -> vec2<u32> {
     return vec2(first, min(first + ITEMS_PER_THREAD, n));
 }
 
-fn run_sum(run: vec2<u32>) -> u32 {
-    var sum = 0u;
+fn run_sum(run: vec2<u32>) -> vec4<u32> {
+    var sum = vec4<u32>(0u);
     for (var b = run.x; b < run.y; b += 1u) {
         sum += block_counts[b];
     }
@@ -58,11 +54,11 @@ fn run_sum(run: vec2<u32>) -> u32 {
 // The workgroup's exclusive scan of the threads' `value`s (Hillis and Steele, in
 // `partial`): this thread's offset; `partial[SCAN_THREADS - 1]` then holds the last
 // thread's inclusive sum. Called by every thread of the workgroup.
-fn workgroup_exclusive_scan(i: u32, value: u32) -> u32 {
+fn workgroup_exclusive_scan(i: u32, value: vec4<u32>) -> vec4<u32> {
     partial[i] = value;
     workgroupBarrier();
     for (var d = 1u; d < SCAN_THREADS; d *= 2u) {
-        var add = 0u;
+        var add = vec4<u32>(0u);
         if i >= d {
             add = partial[i - d];
         }
@@ -93,7 +89,7 @@ fn scan_groups_main(@builtin(local_invocation_index) i: u32) {
     let run = (groups + SCAN_THREADS - 1u) / SCAN_THREADS;
     let first = min(i * run, groups);
     let end = min(first + run, groups);
-    var sum = 0u;
+    var sum = vec4<u32>(0u);
     for (var g = first; g < end; g += 1u) {
         sum += group_sums[g];
     }
@@ -104,13 +100,25 @@ fn scan_groups_main(@builtin(local_invocation_index) i: u32) {
         offset += c;
     }
     if i == SCAN_THREADS - 1u {
-        args = DrawArgs(6u, min(partial[i], view.capacity), 0u, 0u);
+        // Layer `l` starts after the layers before it; what passes the list's capacity
+        // is not drawn.
+        let totals = partial[i];
+        var first = vec4<u32>(0u);
+        for (var l = 1u; l < 4u; l += 1u) {
+            first[l] = first[l - 1u] + totals[l - 1u];
+        }
+        args.first = first;
+        for (var l = 0u; l < 4u; l += 1u) {
+            let stored = min(first[l] + totals[l], view.capacity) - min(first[l], view.capacity);
+            args.draws[l] = DrawArgs(4u, stored, 0u, 0u);
+        }
     }
 }
 
-// Block `b`'s sprites, in slot order, from `first` on.
-fn copy_block(b: u32, first: u32) {
-    var j = first;
+// Block `b`'s sprites, in slot order, each at its layer's next index: `offsets` (the
+// block's first index within each layer) from the layers' first indices.
+fn copy_block(b: u32, offsets: vec4<u32>) {
+    var next = args.first + offsets;
     for (var k = 0u; k < 4u; k += 1u) {
         if 4u * b + k >= view.capacity {
             // Not stored by the sprite pass (a buffer too small): its place stays empty.
@@ -118,10 +126,11 @@ fn copy_block(b: u32, first: u32) {
         }
         let s = slots[4u * b + k];
         if s.shape.w > 0.0 {
-            if j < view.capacity {
-                sprites[j] = s;
+            let l = sprite_layer(view, s);
+            if next[l] < view.capacity {
+                sprites[next[l]] = s;
             }
-            j += 1u;
+            next[l] += 1u;
         }
     }
 }

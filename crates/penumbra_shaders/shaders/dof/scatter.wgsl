@@ -1,16 +1,19 @@
 // Scatter bokeh depth of field, second pass: one instanced quad per sprite of the
-// compacted list (`draw_indirect` with its count), drawn in list order with additive
-// blending into one half-resolution layer per draw — the near layer (this shader with
-// `NEAR_LAYER`) and the far layer, each texel `(Σ colour · v, Σ v)`. Each draw runs
-// the list's vertices and drops the other layer's sprites there, so each fragment
-// blends one target (a float4 each way), not two; the sums and their order per layer
-// are those of one draw into both. A fragment adds the aperture image
-// around the sprite's pixel, or around each of a block's four, normalised by what the
-// aperture sums to over the texels it covers, so each pixel spreads unit weight; near
-// sprites read the aperture point-reflected. CPU model: `penumbra_reference::bokeh::scatter_sprites`.
+// compacted list (`draw_indirect` with its layer's count), drawn in list order with
+// additive blending into one layer per draw — near (`NEAR_LAYER`) or far, at half
+// resolution or, for sprites at least `view.quarter_diameter` wide, at quarter
+// resolution (`QUARTER_LAYER`) — each texel `(Σ colour · v, Σ v)`. The list holds each
+// layer's sprites together (`compact.wgsl`): each draw runs its own sprites' four
+// vertices (a triangle strip) and each fragment blends one target. A fragment adds the aperture image around the sprite's pixel, or around
+// each of a block's four, normalised by what the aperture sums to over the texels it
+// covers, so each pixel spreads unit weight; near sprites read the aperture
+// point-reflected. A quarter texel adds what the sprite (its aperture shrunk by
+// `quarter_diameter`) adds at its four half-resolution texel centres: a quarter of the
+// fragments and blends of a half-resolution sprite, the same samples.
+// CPU model: `penumbra_reference::bokeh::scatter_sprites`.
 #define_import_path penumbra::dof::scatter
 
-#import penumbra::dof::types::{BokehView, Sprite}
+#import penumbra::dof::types::{BokehView, LayerDraws, Sprite, quarter_diameter}
 
 @group(0) @binding(0) var<uniform> view: BokehView;
 @group(0) @binding(1) var<storage, read> sprites: array<Sprite>;
@@ -20,6 +23,21 @@
 // interval of its normalisation table (`Aperture::norm_words`): the lattice sum at the
 // start, its continuous part at the end, the jump and the diameter it comes past.
 @group(0) @binding(4) var<storage, read> aperture_norm: array<f32>;
+// Where each layer's sprites start in `sprites` (the compaction's).
+@group(0) @binding(5) var<storage, read> layer_draws: LayerDraws;
+
+// This draw's layer (`sprite_layer`'s order).
+#ifdef NEAR_LAYER
+const LAYER_SIDE: u32 = 0u;
+#else
+const LAYER_SIDE: u32 = 1u;
+#endif
+#ifdef QUARTER_LAYER
+const LAYER_RESOLUTION: u32 = 2u;
+#else
+const LAYER_RESOLUTION: u32 = 0u;
+#endif
+const LAYER: u32 = LAYER_SIDE + LAYER_RESOLUTION;
 
 // `penumbra_cinematic_core::dof::{NORM_TABLE_MAX, NORM_TABLE_STEPS, NORM_INTERVALS}`.
 const NORM_TABLE_MAX: f32 = 64.0;
@@ -38,37 +56,41 @@ struct VertexOutput {
 @vertex
 fn vertex(@builtin(vertex_index) vertex_index: u32, @builtin(instance_index) instance: u32) -> VertexOutput {
     var out: VertexOutput;
-    if instance >= view.capacity {
+    let index = layer_draws.first[LAYER] + instance;
+    if index >= view.capacity {
         out.position = vec4<f32>(2.0, 2.0, 2.0, 1.0);
         return out;
     }
-    let s = sprites[instance];
-    if s.shape.w == 0.0 || !in_this_layer(s.color.a > 0.5) {
-        // A place left empty (buffers too small for the view), or a sprite of the
-        // other layer: nothing to draw.
+    let s = sprites[index];
+    if s.shape.w == 0.0 {
+        // A place left empty (buffers too small for the view): nothing to draw.
         out.position = vec4<f32>(2.0, 2.0, 2.0, 1.0);
         return out;
     }
-    // Two triangles: (0, 0) (1, 0) (0, 1), (0, 1) (1, 0) (1, 1).
+    // A triangle strip: (0, 0) (1, 0) (0, 1) (1, 1).
     let corners = array(vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 0.0), vec2<f32>(0.0, 1.0),
-        vec2<f32>(0.0, 1.0), vec2<f32>(1.0, 0.0), vec2<f32>(1.0, 1.0));
-    let extent = s.shape.z + select(0.0, 1.0, s.shape.w > 1.0);
-    let p = s.shape.xy + (corners[vertex_index % 6u] - 0.5) * extent;
-    let ndc = p / vec2<f32>(view.half_size) * 2.0 - 1.0;
-    out.position = vec4<f32>(ndc.x, -ndc.y, 0.0, 1.0);
-    out.shape = s.shape;
-    out.color = vec4<f32>(s.color.rgb / s.shape.w, s.color.a);
-    out.norm = normalisation(s.shape.z);
-    return out;
-}
-
-// Whether a sprite (near or far) is drawn by this draw.
-fn in_this_layer(near: bool) -> bool {
-#ifdef NEAR_LAYER
-    return near;
+        vec2<f32>(1.0, 1.0));
+    let block = select(0.0, 1.0, s.shape.w > 1.0);
+    var shape = s.shape;
+#ifdef QUARTER_LAYER
+    // The half-resolution quad (one pixel wider for a block) halved, and half a quarter
+    // texel more for the samples around each texel centre.
+    shape.z = quarter_diameter(s.shape.z);
+    let center = 0.5 * s.shape.xy;
+    let extent = 0.5 * (shape.z + block) + 0.5;
+    let size = vec2<f32>(view.quarter_size);
 #else
-    return !near;
+    let center = s.shape.xy;
+    let extent = s.shape.z + block;
+    let size = vec2<f32>(view.half_size);
 #endif
+    let p = center + (corners[vertex_index % 4u] - 0.5) * extent;
+    let ndc = p / size * 2.0 - 1.0;
+    out.position = vec4<f32>(ndc.x, -ndc.y, 0.0, 1.0);
+    out.shape = shape;
+    out.color = vec4<f32>(s.color.rgb / s.shape.w, s.color.a);
+    out.norm = normalisation(shape.z);
+    return out;
 }
 
 // What a sprite of diameter `d` (half-resolution pixels) sums to over the texel centres
@@ -122,6 +144,15 @@ fn sprite_weight(p: vec2<f32>, shape: vec4<f32>, near: bool) -> f32 {
 @fragment
 fn fragment(in: VertexOutput) -> @location(0) vec4<f32> {
     let near = in.color.a > 0.5;
+#ifdef QUARTER_LAYER
+    // The quarter texel's four half-resolution texel centres (`quarter_sprite_weight`).
+    var v = 0.0;
+    for (var k = 0u; k < 4u; k += 1u) {
+        let o = vec2<f32>(f32(k & 1u), f32(k >> 1u)) - 0.5;
+        v += sprite_weight(2.0 * in.position.xy + o, in.shape, near) / in.norm;
+    }
+#else
     let v = sprite_weight(in.position.xy, in.shape, near) / in.norm;
+#endif
     return vec4<f32>(in.color.rgb * v, v);
 }

@@ -3,12 +3,13 @@
 // takes the mean colour of its 2×2 view pixels and the circle of confusion of the
 // nearest; the block becomes one sprite when all four are out of focus on one side of
 // the focal plane and agree (the 1-or-4 rule), else each out-of-focus pixel becomes
-// one. Sprites are appended to `sprites`, counted in the indirect draw's instance count.
+// one. Each block writes its four slots and its sprites' count per layer
+// (`sprite_layer`), which the compaction lists layer by layer.
 // CPU model: `penumbra_reference::bokeh::{downsample, sprites}`.
 #define_import_path penumbra::dof::sprites
 
 #import penumbra::dof::types::{
-    BokehView, Sprite, coc_of_distance, distance_from_depth, sprite_diameter,
+    BokehView, Sprite, coc_of_distance, distance_from_depth, sprite_diameter, sprite_layer,
 }
 
 @group(0) @binding(0) var<uniform> view: BokehView;
@@ -20,8 +21,8 @@
 #else
 @group(0) @binding(2) var depth_texture: texture_depth_2d;
 #endif
-// Per block, its sprites (0 to 4): the compaction's input.
-@group(0) @binding(3) var<storage, read_write> block_counts: array<u32>;
+// Per block, its sprites (0 to 4) in each layer: the compaction's input.
+@group(0) @binding(3) var<storage, read_write> block_counts: array<vec4<u32>>;
 @group(0) @binding(4) var<storage, read_write> slots: array<Sprite>;
 
 // A half-resolution pixel: mean colour, circle of confusion, distance.
@@ -81,19 +82,22 @@ fn block_agrees(b: array<HalfPixel, 4>) -> bool {
         && (d_hi - d_lo <= view.depth_tolerance * d_mean || d_lo == d_hi);
 }
 
-// Slot `slot` holds a sprite, or nothing when `weight` is 0; 1 when it holds one.
-fn write(slot: u32, center: vec2<f32>, coc: f32, color: vec3<f32>, weight: f32) -> u32 {
+// Slot `slot` holds a sprite, or nothing when `weight` is 0; what it adds to the
+// block's counts per layer.
+fn write(slot: u32, center: vec2<f32>, coc: f32, color: vec3<f32>, weight: f32) -> vec4<u32> {
     var sprite = Sprite(vec4<f32>(0.0), vec4<f32>(0.0));
+    var count = vec4<u32>(0u);
     if weight > 0.0 {
         sprite = Sprite(
             vec4<f32>(center, sprite_diameter(coc), weight),
             vec4<f32>(color, select(0.0, 1.0, coc < 0.0)),
         );
+        count[sprite_layer(view, sprite)] = 1u;
     }
     if slot < view.capacity {
         slots[slot] = sprite;
     }
-    return select(0u, 1u, weight > 0.0);
+    return count;
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -111,7 +115,7 @@ fn sprites_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let index = block.y * ((view.half_size.x + 1u) / 2u) + block.x;
     let base = 4u * index;
-    var count = 0u;
+    var count = vec4<u32>(0u);
     if view.merge == 1u && inside && block_agrees(b) {
         let coc = (b[0].coc + b[1].coc + b[2].coc + b[3].coc) / 4.0;
         let color = b[0].color + b[1].color + b[2].color + b[3].color;

@@ -6,10 +6,15 @@
 // (`penumbra_cinematic_core::dof::HALF_RES_BLUR`).
 const HALF_RES_BLUR: f32 = 16.0;
 
+// The quarter-resolution round trip's extra blur over the half-resolution one, half
+// pixels² (`penumbra_reference::bokeh::scatter::QUARTER_RES_BLUR`).
+const QUARTER_RES_BLUR: f32 = 12.0;
+
 struct BokehView {
     view_from_clip: mat4x4<f32>,
     full_size: vec2<u32>,
     half_size: vec2<u32>,
+    quarter_size: vec2<u32>,
     coc_scale: f32,
     focal_distance: f32,
     max_coc: f32,
@@ -20,6 +25,8 @@ struct BokehView {
     depth_tolerance: f32,
     merge: u32,
     capacity: u32,
+    // Sprites at least this wide (half-resolution pixels) are drawn at quarter resolution.
+    quarter_diameter: f32,
 }
 
 // One sprite: `shape` = (centre in half-resolution pixels, aperture diameter, weight:
@@ -29,6 +36,21 @@ struct BokehView {
 struct Sprite {
     shape: vec4<f32>,
     color: vec4<f32>,
+}
+
+// `draw_indirect`'s arguments.
+struct DrawArgs {
+    vertex_count: u32,
+    instance_count: u32,
+    first_vertex: u32,
+    first_instance: u32,
+}
+
+// The scatter pass's four draws (one per layer, `sprite_layer`'s order) and each layer's
+// first index in the sprite list, written by the compaction.
+struct LayerDraws {
+    draws: array<DrawArgs, 4>,
+    first: vec4<u32>,
 }
 
 // Distance along the view axis of view pixel `p` whose reverse-Z depth is `depth`
@@ -59,4 +81,17 @@ fn sprite_diameter(coc: f32) -> f32 {
     let d = abs(coc);
     let fade = clamp((16.0 - d) / 8.0, 0.0, 1.0);
     return max(0.5 * sqrt(max(d * d - HALF_RES_BLUR * fade, 0.0)), 1.0);
+}
+
+// The aperture diameter, half-resolution pixels, a sprite `diameter` wide is drawn with at
+// quarter resolution (`bokeh::quarter_diameter`).
+fn quarter_diameter(diameter: f32) -> f32 {
+    return sqrt(max(diameter * diameter - QUARTER_RES_BLUR, 1.0));
+}
+
+// The layer a sprite is drawn into, in the scatter pass's order: 0 near and 1 far at
+// half resolution, 2 near and 3 far at quarter resolution (sprites at least
+// `view.quarter_diameter` wide) (`bokeh::layer_index`).
+fn sprite_layer(view: BokehView, s: Sprite) -> u32 {
+    return select(1u, 0u, s.color.a > 0.5) + select(0u, 2u, s.shape.z >= view.quarter_diameter);
 }
