@@ -155,6 +155,30 @@ fn masks(coc: &[f32], size: UVec2) -> [Vec<bool>; 3] {
     out
 }
 
+/// [`masks`] of `input`'s circles of confusion through `lens`.
+fn image_masks(input: &BokehImage, lens: &Lens) -> [Vec<bool>; 3] {
+    let coc: Vec<f32> = input
+        .distance
+        .iter()
+        .map(|&d| lens.coc(d, input.size.y))
+        .collect();
+    masks(&coc, input.size)
+}
+
+/// Mean display-encoded error of `image` against `truth` over the pixels of `mask`
+/// (largest channel), and how many pixels that is.
+fn display_error(image: &[Vec3], truth: &[Vec3], mask: &[bool]) -> (f32, usize) {
+    let (sum, n) = image
+        .iter()
+        .zip(truth)
+        .zip(mask)
+        .filter(|(_, m)| **m)
+        .fold((0.0f32, 0), |(s, n), ((a, b), _)| {
+            (s + (display(*a) - display(*b)).abs().max_element(), n + 1)
+        });
+    (sum / n.max(1) as f32, n)
+}
+
 /// The scatter model is close to the thin lens everywhere and far closer than the
 /// pinhole image out of focus and on the borders; in focus it is the pinhole image.
 #[test]
@@ -167,24 +191,9 @@ fn scatter_model_against_the_thin_lens() {
     let (truth, pinholes) = thin_lens_image(&scene, &camera, &lens, &aperture, 16);
     assert!(pinholes >= 64, "{pinholes} pinholes");
     let (model, sprites) = depth_of_field(&input, &lens, &aperture, &SpriteRule::default());
-    let coc: Vec<f32> = input
-        .distance
-        .iter()
-        .map(|&d| lens.coc(d, size.y))
-        .collect();
-    let masks = masks(&coc, size);
+    let masks = image_masks(&input, &lens);
     let names = ["in focus", "out-of-focus interiors", "borders"];
-    let error = |image: &[Vec3], mask: &[bool]| {
-        let (sum, n) = image
-            .iter()
-            .zip(&truth)
-            .zip(mask)
-            .filter(|(_, m)| **m)
-            .fold((0.0f32, 0), |(s, n), ((a, b), _)| {
-                (s + (display(*a) - display(*b)).abs().max_element(), n + 1)
-            });
-        (sum / n.max(1) as f32, n)
-    };
+    let error = |image: &[Vec3], mask: &[bool]| display_error(image, &truth, mask);
     // `PENUMBRA_BOKEH_DUMP=DIR`: the three images as PPM, display-encoded.
     if let Ok(dir) = std::env::var("PENUMBRA_BOKEH_DUMP") {
         for (name, img) in [
@@ -288,28 +297,12 @@ fn bokeh_orientation_matches_the_thin_lens() {
 #[test]
 fn quarter_resolution_error_against_work() {
     let (camera, lens) = camera_and_lens_sized(0.03, UVec2::new(256, 160), 64.0);
-    let size = UVec2::new(camera.width, camera.height);
     let scene = scene();
     let aperture = Aperture::hexagon(64);
     let input = pinhole_image(&scene, &camera);
     let (truth, _) = thin_lens_image(&scene, &camera, &lens, &aperture, 16);
-    let coc: Vec<f32> = input
-        .distance
-        .iter()
-        .map(|&d| lens.coc(d, size.y))
-        .collect();
-    let masks = masks(&coc, size);
-    let error = |image: &[Vec3], mask: &[bool]| {
-        let (sum, n) = image
-            .iter()
-            .zip(&truth)
-            .zip(mask)
-            .filter(|(_, m)| **m)
-            .fold((0.0f32, 0), |(s, n), ((a, b), _)| {
-                (s + (display(*a) - display(*b)).abs().max_element(), n + 1)
-            });
-        sum / n.max(1) as f32
-    };
+    let masks = image_masks(&input, &lens);
+    let error = |image: &[Vec3], mask: &[bool]| display_error(image, &truth, mask).0;
     let half = downsample(&input, &lens);
     let mut rows = Vec::new();
     for quarter_coc in [16.0, 20.0, 24.0, 32.0, 48.0, f32::INFINITY] {
