@@ -367,6 +367,7 @@ fn bokeh_layouts_and_constants_match() {
     use encase::ShaderType;
     use penumbra_cinematic_core::dof::{
         BokehView, HALF_RES_BLUR, NORM_INTERVALS, NORM_TABLE_MAX, NORM_TABLE_STEPS,
+        QUARTER_RES_BLUR,
     };
     let m = parse("#import penumbra::dof::types\n");
     let (members, size) = struct_layout(&m, "BokehView");
@@ -378,6 +379,7 @@ fn bokeh_layouts_and_constants_match() {
             "view_from_clip",
             "full_size",
             "half_size",
+            "quarter_size",
             "coc_scale",
             "focal_distance",
             "max_coc",
@@ -388,14 +390,20 @@ fn bokeh_layouts_and_constants_match() {
             "depth_tolerance",
             "merge",
             "capacity",
+            "quarter_diameter",
         ]
     );
     let (_, sprite) = struct_layout(&m, "Sprite");
     assert_eq!(sprite, 32);
     assert_eq!(constant(&m, "HALF_RES_BLUR") as f32, HALF_RES_BLUR);
+    assert_eq!(constant(&m, "QUARTER_RES_BLUR") as f32, QUARTER_RES_BLUR);
     let compact = parse("#import penumbra::dof::compact\n");
     let (_, args) = struct_layout(&compact, "DrawArgs");
     assert_eq!(args, 16);
+    // Four draws' arguments, then the layers' first indices (the plugin's
+    // `LAYER_DRAWS_BYTES`).
+    let (_, draws) = struct_layout(&compact, "LayerDraws");
+    assert_eq!(draws, 80);
     let scatter = parse("#import penumbra::dof::scatter\n");
     assert_eq!(constant(&scatter, "NORM_TABLE_MAX") as f32, NORM_TABLE_MAX);
     assert_eq!(

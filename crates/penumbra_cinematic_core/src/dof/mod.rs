@@ -122,6 +122,13 @@ impl Default for SpriteRule {
 /// Sprites under 16 px are shrunk by it (`bokeh::sprite_diameter` in the CPU model).
 pub const HALF_RES_BLUR: f32 = 16.0;
 
+/// The extra blur of the quarter-resolution round trip over the half-resolution one, as
+/// a disc's squared diameter in **half-resolution** pixels: the quarter round trip's
+/// `4 × HALF_RES_BLUR` view px² less the `HALF_RES_BLUR` that half-resolution sprites of
+/// that size keep, over 4. Quarter-resolution sprites are shrunk by it
+/// (`bokeh::quarter_diameter` in the CPU model).
+pub const QUARTER_RES_BLUR: f32 = 0.75 * HALF_RES_BLUR;
+
 /// The bokeh passes' view uniform (`penumbra::dof::types::BokehView`).
 #[derive(ShaderType, Clone, Copy, Debug, PartialEq)]
 pub struct BokehView {

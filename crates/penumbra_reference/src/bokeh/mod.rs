@@ -31,5 +31,5 @@ pub use scatter::{
 };
 
 pub use penumbra_cinematic_core::dof::{
-    Aperture, ApertureError, HALF_RES_BLUR, Lens, NORM_TABLE_MAX, SpriteRule,
+    Aperture, ApertureError, HALF_RES_BLUR, Lens, NORM_TABLE_MAX, QUARTER_RES_BLUR, SpriteRule,
 };

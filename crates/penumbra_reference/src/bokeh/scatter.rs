@@ -7,7 +7,7 @@
 //! (negative in front of the focal plane); sprite positions and sizes are in
 //! half-resolution pixels, `(0, 0)` the top-left corner of the half image.
 
-use super::{Aperture, HALF_RES_BLUR, Lens, SpriteRule};
+use super::{Aperture, HALF_RES_BLUR, Lens, QUARTER_RES_BLUR, SpriteRule};
 use glam::{UVec2, Vec2, Vec3, Vec4};
 
 /// A linear HDR image and the distance along the view axis of each pixel (metres;
@@ -342,15 +342,9 @@ pub fn sprite_weight(s: &Sprite, aperture: &Aperture, p: Vec2) -> f32 {
     sum / aperture.normalisation(s.diameter)
 }
 
-/// The extra blur of the quarter-resolution round trip over the half-resolution one, as
-/// a disc's squared diameter in half-resolution pixels: the quarter round trip's
-/// `4 × HALF_RES_BLUR` view px² less the `HALF_RES_BLUR` that half-resolution sprites of
-/// this size keep, over 4 (half-resolution px²).
-const QUARTER_RES_BLUR: f32 = 0.75 * HALF_RES_BLUR;
-
 /// The aperture diameter, half-resolution pixels, a sprite `diameter` wide is drawn with
-/// at quarter resolution: shrunk so that the result's spread is that of the same sprite
-/// at half resolution.
+/// at quarter resolution: shrunk by [`QUARTER_RES_BLUR`] so that the result's spread is
+/// that of the same sprite at half resolution.
 pub fn quarter_diameter(diameter: f32) -> f32 {
     (diameter * diameter - QUARTER_RES_BLUR).max(1.0).sqrt()
 }

@@ -7,7 +7,7 @@
 const HALF_RES_BLUR: f32 = 16.0;
 
 // The quarter-resolution round trip's extra blur over the half-resolution one, half
-// pixels² (`penumbra_reference::bokeh::scatter::QUARTER_RES_BLUR`).
+// pixels² (`penumbra_cinematic_core::dof::QUARTER_RES_BLUR`).
 const QUARTER_RES_BLUR: f32 = 12.0;
 
 struct BokehView {
