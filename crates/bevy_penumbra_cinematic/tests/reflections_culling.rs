@@ -11,7 +11,8 @@ use penumbra_test::{HeadlessRender, gpu_or_skip};
 
 /// Tile culling changes no pixel: the layer with it equals the layer testing every
 /// billboard at every pixel, bit for bit — glossy, anisotropic, at half resolution, with
-/// a hundred billboards more (lists of many lengths).
+/// a hundred billboards more (lists of many lengths), and with the wall's reflection
+/// shadows (the tiles' caster lists must hold it wherever it dims a hit).
 #[test]
 fn tile_culling_changes_no_pixel() {
     if !gpu_or_skip("tile_culling_changes_no_pixel") {
@@ -31,6 +32,16 @@ fn tile_culling_changes_no_pixel() {
             anisotropy: 0.9,
             half_resolution: true,
             extra_billboards: 100,
+            ..default()
+        },
+        Setup {
+            wall: true,
+            ..default()
+        },
+        Setup {
+            wall: true,
+            perceptual_roughness: 0.5,
+            half_resolution: true,
             ..default()
         },
     ] {

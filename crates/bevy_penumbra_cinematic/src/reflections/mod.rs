@@ -64,15 +64,22 @@
 //!   half resolution quarters it. On lavapipe at 384 × 288: 15–20 ms for a few signs,
 //!   ~90 ms for 100, ~850 ms for 1,000 (250 ms at half resolution). Memory: the array
 //!   (4/3 × 8 bytes per texel per image), 32 bytes per billboard, the layer texture (8
-//!   bytes per pixel, a quarter at half resolution) and up to 129 words per tile.
-//! - **Many casters**: each segment of a pixel's shadow march tests every caster's
-//!   bounding sphere to gather its own (O(pixels × casters)), and a segment that gathers
-//!   more than 32 marches them all. In the benchmark's stress scene (1,000 casters, 100
-//!   signs; lavapipe, 320 × 180) the pass takes 3.5 s, of which 81 ms without reflection
-//!   shadows and 2.1 s with the overflow capped at 32 (an experiment, not a fix): the
-//!   march and its gathers are 98 % of it. What fits a scene of that size is to march
-//!   the global distance field (`GlobalDistanceField`) beyond the gathered objects, as
-//!   DFAO's far field does; not done yet.
+//!   bytes per pixel, a quarter at half resolution) and up to 129 words per tile (129
+//!   more with reflection shadows: the caster list).
+//! - **Many casters**: with reflection shadows the tile cull also lists each tile's
+//!   shadow casters (up to 128: those within reach of some ray of its pixels, up to the
+//!   farthest billboard the tile keeps), and each segment of a pixel's march gathers its
+//!   own from that list; a tile with more than 128 gathers from every object
+//!   (O(pixels × casters)), and a segment that gathers more than 32 marches all its
+//!   candidates. A glossy floor's tiles list few: on a model of the benchmark's stress
+//!   scene (1,000 casters, 100 signs; `penumbra_cinematic_core`'s test
+//!   `reflection_shadow_work`) ground-only tiles keep 49 casters on average; but tiles
+//!   holding the casters' own glossy surfaces face every way, and 118 of 160 tiles at
+//!   320 × 180 (406 of 560 at 640 × 360) are over 128. On lavapipe the pass there takes
+//!   7.9 s (8.5 s before the caster lists: 5 frames, within the machine's noise); 81 ms
+//!   of it without reflection shadows. What fits a scene of that size is to march the
+//!   global distance field (`GlobalDistanceField`) where a segment overflows, as DFAO's
+//!   far field does; not done yet.
 
 mod collect;
 mod render;
@@ -153,10 +160,11 @@ pub struct BillboardReflections {
     /// the distance-field scene's shadow-casting objects (`DistanceFieldCaster`s), so a
     /// building between a sign and the street hides its reflection. Default true. Cost:
     /// per reflecting pixel, the ray to its last hit in 4 segments, each reached by the
-    /// march culled once (a bounding-sphere test per object; it keeps the objects within
-    /// the shadow cone of that segment, at most 32, else it marches them all there), then
-    /// up to `shadow_steps` distance evaluations of the kept objects; nothing while the
-    /// scene has no caster.
+    /// march culled once (a bounding-sphere test per object of its tile's caster list,
+    /// or per object when the tile has none; it keeps the objects within the shadow cone
+    /// of that segment, at most 32, else it marches every candidate there), then up to
+    /// `shadow_steps` distance evaluations of the kept objects; nothing while the scene
+    /// has no caster.
     pub reflection_shadows: bool,
     /// The march's steps, `1..=256`. Default 32.
     pub shadow_steps: u32,
@@ -166,8 +174,11 @@ pub struct BillboardReflections {
     pub shadow_softness: f32,
     /// Cull the billboards per 16 × 16-pixel tile of the trace (a small pass listing
     /// those some pixel of the tile could reflect) instead of testing every billboard at
-    /// every pixel. Changes no pixel. Default true; off only to compare. Memory: up to
-    /// 129 words per tile.
+    /// every pixel; with reflection shadows it lists each tile's shadow casters too (the
+    /// objects some pixel's march could gather). Changes no pixel where no march segment
+    /// gathers more than 32 casters (elsewhere steps may differ in length, by casters too
+    /// far to dim a hit). Default true; off only to compare. Memory: up to 129 words per
+    /// tile, 129 more with reflection shadows.
     pub tile_culling: bool,
     /// Debug view. Default none.
     pub debug_view: ReflectionDebugView,

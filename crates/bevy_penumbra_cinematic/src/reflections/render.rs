@@ -49,6 +49,9 @@ const LAYER_FORMAT: TextureFormat = TextureFormat::Rgba16Float;
 const CULL_FORMAT: TextureFormat = TextureFormat::R8Unorm;
 /// Most billboards one tile's list holds (more: the tile tests every billboard).
 const MAX_TILE_CAPACITY: u32 = 128;
+/// Most shadow casters one tile's list holds (more: the tile's pixels gather from every
+/// object).
+const MAX_TILE_CASTERS: u32 = 128;
 
 /// A reflecting camera's settings in the render world (clamped).
 #[derive(Component, Clone, Debug)]
@@ -604,6 +607,7 @@ fn prepare_reflection_bind_groups(
     let count = gpu.billboards.len() as u32;
     for (entity, view, settings, draw, group) in &mut views {
         let s = &settings.0;
+        let origin = CameraOrigin::at(view.world_from_view.translation());
         // Tile lists: a count and `capacity` indices per tile.
         let tiles = UVec2::new(
             draw.trace_size.x.div_ceil(TILE),
@@ -614,7 +618,27 @@ fn prepare_reflection_bind_groups(
         } else {
             0
         };
-        let words = u64::from(tiles.x * tiles.y) * u64::from(capacity + 1);
+        // Far from the tile range (or a NaN camera): no shadows.
+        let object_count = if origin.is_some() { object_count } else { 0 };
+        let shadow_steps = if s.reflection_shadows {
+            s.shadow_steps
+        } else {
+            0
+        };
+        // With reflection shadows, the cull lists each tile's casters too.
+        let caster_capacity = if capacity > 0 && shadow_steps > 0 {
+            object_count.min(MAX_TILE_CASTERS)
+        } else {
+            0
+        };
+        let record = capacity
+            + 1
+            + if caster_capacity > 0 {
+                caster_capacity + 1
+            } else {
+                0
+            };
+        let words = u64::from(tiles.x * tiles.y) * u64::from(record);
         let lists = |words: u64| {
             allocations.sized_buffer(
                 &device,
@@ -642,7 +666,6 @@ fn prepare_reflection_bind_groups(
             group.tile_lists = lists(words);
             group.tile_words = words.next_power_of_two().max(4);
         }
-        let origin = CameraOrigin::at(view.world_from_view.translation());
         let uniform = ReflectionUniform {
             max_layers: s.max_layers,
             max_distance: s.max_distance,
@@ -650,16 +673,12 @@ fn prepare_reflection_bind_groups(
             half_resolution: u32::from(s.half_resolution),
             camera_tile: origin.map_or(IVec3::ZERO, |o| IVec3::from_array(o.tile)),
             camera_offset: origin.map_or(Vec3::ZERO, |o| o.offset),
-            // Far from the tile range (or a NaN camera): no shadows.
-            object_count: if origin.is_some() { object_count } else { 0 },
-            shadow_steps: if s.reflection_shadows {
-                s.shadow_steps
-            } else {
-                0
-            },
+            object_count,
+            shadow_steps,
             shadow_softness: s.shadow_softness,
             tiles_x: tiles.x,
             tile_capacity: capacity,
+            caster_capacity,
             trace_size: draw.trace_size,
             ..ReflectionUniform::new(count, images.size, gpu.mip_count)
         };

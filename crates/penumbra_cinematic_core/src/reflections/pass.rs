@@ -112,6 +112,9 @@ pub struct ReflectionUniform {
     /// The shadow cone's half-width as a share of the footprint's long half-axis
     /// ([`SHADOW_CONE`]).
     pub shadow_cone: f32,
+    /// Shadow casters a tile's list holds (0: no caster lists; each pixel's march
+    /// gathers from every object).
+    pub caster_capacity: u32,
 }
 
 impl ReflectionUniform {
@@ -137,6 +140,7 @@ impl ReflectionUniform {
             tile_capacity: 0,
             trace_size: UVec2::ZERO,
             shadow_cone: SHADOW_CONE,
+            caster_capacity: 0,
         }
     }
 }
@@ -369,12 +373,14 @@ pub fn segment_ends(t_end: f32) -> [f32; SHADOW_SEGMENTS] {
 }
 
 /// The objects a pixel's reflection-shadow march may see between `t0` and `t1` along
-/// its ray (`reflections/trace.wgsl`'s `gather_casters`): those whose bounding sphere
-/// comes within `cone · t1` of that segment — farther, an object's distance is at least
-/// the cone's radius `cone · t` at every step there, so it never dims a hit. `None`: more
-/// than [`MAX_SHADOW_CASTERS`]: march them all there.
+/// its ray (`reflections/trace.wgsl`'s `gather_casters`): those of `candidates` (the
+/// tile's caster list; `None`: every object) whose bounding sphere comes within
+/// `cone · t1` of that segment — farther, an object's distance is at least the cone's
+/// radius `cone · t` at every step there, so it never dims a hit. `None`: more than
+/// [`MAX_SHADOW_CASTERS`]: march every candidate there.
 pub fn shadow_casters(
     spheres: &[Option<(Vec3, f32)>],
+    candidates: Option<&[usize]>,
     origin: Vec3,
     dir: Vec3,
     t0: f32,
@@ -384,8 +390,8 @@ pub fn shadow_casters(
     let start = origin + dir * t0;
     let end = origin + dir * t1;
     let mut kept = Vec::new();
-    for (i, sphere) in spheres.iter().enumerate() {
-        let keep = sphere.is_none_or(|(center, radius)| {
+    for i in candidate_indices(candidates, spheres.len()) {
+        let keep = spheres[i].is_none_or(|(center, radius)| {
             let reach = radius + cone * t1;
             segment_distance(center, start, end) < reach + cull_slack(reach)
         });
@@ -397,6 +403,19 @@ pub fn shadow_casters(
         }
     }
     Some(kept)
+}
+
+/// The tile's caster list, or every object's index below `count`.
+fn candidate_indices(
+    candidates: Option<&[usize]>,
+    count: usize,
+) -> impl Iterator<Item = usize> + '_ {
+    let listed = candidates.map(|list| list.iter().copied());
+    let every = candidates.is_none().then_some(0..count);
+    listed
+        .into_iter()
+        .flatten()
+        .chain(every.into_iter().flatten())
 }
 
 /// The distance from `p` to the segment `a`–`b`.
@@ -421,6 +440,23 @@ pub fn reflect_pixel_shadowed<F: Fn(usize, Vec3) -> f32>(
     images: &[MipChain],
     settings: &ReflectionUniform,
     casters: &ShadowCasters<'_, F>,
+) -> Vec4 {
+    reflect_pixel_in_tile(s, billboards, images, settings, casters, None)
+}
+
+/// [`reflect_pixel_shadowed`] for a pixel whose tile lists its shadow casters
+/// (`tile_casters`, from [`super::cull::tile_casters`]; `None`: the tile has no list):
+/// the march gathers from that list, and a segment with more than
+/// [`MAX_SHADOW_CASTERS`] marches the list rather than every object. The gathered
+/// segments are the same (the tile's list holds every object they can keep); an
+/// overflowing segment's steps may differ in length, by objects too far to dim a hit.
+pub fn reflect_pixel_in_tile<F: Fn(usize, Vec3) -> f32>(
+    s: &Surface,
+    billboards: &[GpuBillboard],
+    images: &[MipChain],
+    settings: &ReflectionUniform,
+    casters: &ShadowCasters<'_, F>,
+    tile_casters: Option<&[usize]>,
 ) -> Vec4 {
     let lobe = lobe(s, settings.anisotropy, settings.footprint_slope);
     let k = settings.max_layers.clamp(1, super::MAX_LAYERS as u32) as usize;
@@ -461,12 +497,20 @@ pub fn reflect_pixel_shadowed<F: Fn(usize, Vec3) -> f32>(
     let scene_distance = |k: usize, p: Vec3| {
         let kept = gathered[k].get_or_insert_with(|| {
             let t0 = if k == 0 { 0.0 } else { ends[k - 1] };
-            shadow_casters(casters.spheres, s.position, lobe.dir, t0, ends[k], cone)
+            shadow_casters(
+                casters.spheres,
+                tile_casters,
+                s.position,
+                lobe.dir,
+                t0,
+                ends[k],
+                cone,
+            )
         });
         let distance = |i: usize| (casters.distance)(i, p);
         match kept {
             Some(kept) => kept.iter().map(|&i| distance(i)).fold(f32::MAX, f32::min),
-            None => (0..casters.spheres.len())
+            None => candidate_indices(tile_casters, casters.spheres.len())
                 .map(distance)
                 .fold(f32::MAX, f32::min),
         }
@@ -803,7 +847,7 @@ mod tests {
         reflect_pixel_shadowed(&s, &[gpu], &images, &settings, &near);
         assert!(evaluations.get() >= 40, "{}", evaluations.get());
         assert_eq!(
-            shadow_casters(&spheres, Vec3::ZERO, Vec3::Z, 0.0, 1.0, 0.0),
+            shadow_casters(&spheres, None, Vec3::ZERO, Vec3::Z, 0.0, 1.0, 0.0),
             Some(vec![0]),
             "beside the ray"
         );

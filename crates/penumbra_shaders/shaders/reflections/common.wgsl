@@ -9,7 +9,7 @@
     pbr_deferred_functions::pbr_input_from_deferred_gbuffer,
     mesh_view_bindings::{deferred_prepass_texture, depth_prepass_texture},
 }
-#import penumbra::df::object::DistanceFieldObject
+#import penumbra::df::object::{DistanceFieldObject, FLAG_CASTS_SHADOWS, FLAG_LIVE, TILE_SIZE}
 
 const MAX_TAPS: u32 = 8u;
 const MAX_LAYERS: u32 = 4u;
@@ -51,6 +51,8 @@ struct ReflectionUniform {
     trace_size: vec2<u32>,
     // The shadow cone's half-width as a share of the footprint's long half-axis.
     shadow_cone: f32,
+    // Shadow casters a tile's list holds (0: no caster lists).
+    caster_capacity: u32,
 }
 
 // Trace pixels per tile side.
@@ -63,9 +65,36 @@ const TILE: u32 = 16u;
 // The distance-field scene (reflection shadows): its objects and atlas.
 @group(2) @binding(4) var<storage, read> objects: array<DistanceFieldObject>;
 @group(2) @binding(5) var atlas: texture_3d<f32>;
-// Per tile: the count of billboards kept, then their indices (`tile_capacity` slots); a
-// count over the capacity means "every billboard".
+// Per tile (from `tile_record`): the count of billboards kept, then their indices
+// (`tile_capacity` slots); with caster lists, the count of shadow casters kept, then
+// their object slots (`caster_capacity` slots). A count over its capacity means "every
+// billboard" or "every object".
 @group(2) @binding(6) var<storage, read_write> tile_lists: array<u32>;
+
+// Where tile `tile`'s record starts in `tile_lists`.
+fn tile_record(tile: vec2<u32>) -> u32 {
+    var stride = settings.tile_capacity + 1u;
+    if settings.caster_capacity > 0u {
+        stride += settings.caster_capacity + 1u;
+    }
+    return (tile.y * settings.tiles_x + tile.x) * stride;
+}
+
+// Where a tile's caster count is, from its record's start.
+fn caster_record(record: u32) -> u32 {
+    return record + settings.tile_capacity + 1u;
+}
+
+// Whether object `o` casts reflection shadows.
+fn casts(o: u32) -> bool {
+    let needed = FLAG_LIVE | FLAG_CASTS_SHADOWS;
+    return (objects[o].flags & needed) == needed;
+}
+
+// The camera's world position (the distance-field scene's objects are relative to it).
+fn camera_position() -> vec3<f32> {
+    return vec3<f32>(settings.camera_tile) * TILE_SIZE + settings.camera_offset;
+}
 
 struct Lobe {
     dir: vec3<f32>,

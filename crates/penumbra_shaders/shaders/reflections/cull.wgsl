@@ -2,12 +2,15 @@
 // fragment per tile of the trace's image bounds its pixels — a sphere around their
 // positions, a cone around their mirror directions, their largest footprint spread —
 // and lists the billboards some ray from those bounds could meet. Conservative: the
-// trace's result is the same as testing every billboard.
+// trace's result is the same as testing every billboard. With reflection shadows it also
+// lists the shadow casters some pixel's march could gather (`cull::tile_casters`).
 // CPU model: `penumbra_cinematic_core::reflections::cull`.
 
 #import penumbra::reflections::common::{
-    GpuBillboard, TILE, billboards, settings, surface_sample, tile_lists,
+    GpuBillboard, TILE, billboards, camera_position, caster_record, casts, objects, settings,
+    surface_sample, tile_lists, tile_record,
 }
+#import penumbra::df::shadow::bounding_sphere
 
 struct FullscreenVertexOutput {
     @builtin(position) position: vec4<f32>,
@@ -32,14 +35,18 @@ struct TileBounds {
 @fragment
 fn cull(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
     let tile = vec2<u32>(in.position.xy);
-    let base = (tile.y * settings.tiles_x + tile.x) * (settings.tile_capacity + 1u);
+    let base = tile_record(tile);
     let bounds = tile_bounds(tile);
     var count = 0u;
+    // The farthest any pixel meets a kept billboard (`cull::tile_march_length`).
+    var march_length = 0.0;
     if bounds.valid {
         for (var i = 0u; i < settings.billboard_count; i += 1u) {
-            if !tile_keeps(bounds, billboards[i]) {
+            let reach = tile_reach(bounds, billboards[i]);
+            if reach < 0.0 {
                 continue;
             }
+            march_length = max(march_length, reach);
             if count < settings.tile_capacity {
                 tile_lists[base + 1u + count] = i;
             }
@@ -48,7 +55,70 @@ fn cull(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
     }
     // Over the capacity: the trace tests every billboard.
     tile_lists[base] = count;
+    if settings.caster_capacity > 0u {
+        list_casters(bounds, caster_record(base), march_length * (1.0 + 1e-3));
+    }
     return vec4(0.0);
+}
+
+// The shadow casters some pixel's march of at most `march_length` could gather
+// (`cull::tile_casters`), written at `at`: their count, then their object slots.
+fn list_casters(b: TileBounds, at: u32, march_length: f32) {
+    var n = 0u;
+    if b.valid && march_length > 0.0 {
+        let cone = max(b.spread * settings.shadow_cone, settings.shadow_softness);
+        let center = b.center - camera_position();
+        for (var i = 0u; i < settings.object_count; i += 1u) {
+            if !casts(i) {
+                continue;
+            }
+            let sphere = bounding_sphere(objects[i], settings.camera_tile, settings.camera_offset);
+            if !tile_keeps_caster(b, center, sphere, march_length, cone) {
+                continue;
+            }
+            if n < settings.caster_capacity {
+                tile_lists[at + 1u + n] = i;
+            }
+            n += 1u;
+        }
+    }
+    // Over the capacity: the trace's pixels gather from every object.
+    tile_lists[at] = n;
+}
+
+// Whether the object bounded by `sphere` (camera-relative; w < 0: unbounded) may come
+// within reach of a march of a pixel of the tile (`cull::tile_keeps_caster`); `center`
+// the tile's centre, camera-relative.
+fn tile_keeps_caster(
+    b: TileBounds,
+    center: vec3<f32>,
+    sphere: vec4<f32>,
+    march_length: f32,
+    cone: f32,
+) -> bool {
+    if sphere.w < 0.0 {
+        return true;
+    }
+    var reach = sphere.w + cone * march_length + b.radius;
+    reach += reach * 1e-3 + 1e-3;
+    let v = sphere.xyz - center;
+    let dist = length(v);
+    if dist <= reach {
+        return true;
+    }
+    if dist > march_length + reach {
+        return false;
+    }
+    if b.cos_angle <= -1.0 {
+        return true;
+    }
+    let sin_angle = sqrt(max(1.0 - b.cos_angle * b.cos_angle, 0.0));
+    let cos_to = dot(b.axis, v) / dist;
+    let sin_ball = reach / dist;
+    let cos_ball = sqrt(max(1.0 - sin_ball * sin_ball, 0.0));
+    let cos_sum = b.cos_angle * cos_ball - sin_angle * sin_ball;
+    let sum_past_pi = b.cos_angle < 0.0 && cos_ball < 0.0;
+    return sum_past_pi || cos_to >= cos_sum - 1e-5;
 }
 
 // The bounds of a tile's pixels (`TileBounds::from_pixels`).
@@ -102,20 +172,21 @@ fn tile_bounds(tile: vec2<u32>) -> TileBounds {
     return out;
 }
 
-// Whether some ray from the bounds could meet billboard `b` (`cull::tile_keeps`).
-fn tile_keeps(b: TileBounds, billboard: GpuBillboard) -> bool {
+// How far along its ray some pixel of the bounds could meet billboard `b`; −1 when
+// none can (`cull::tile_reach`).
+fn tile_reach(b: TileBounds, billboard: GpuBillboard) -> f32 {
     let cross_axes = cross(billboard.half_x, billboard.half_y);
     let area = length(cross_axes);
     if !(area > 0.0) {
-        return false;
+        return -1.0;
     }
     let n = cross_axes / area;
     let plane = dot(b.center - billboard.center, n);
     if plane + b.radius <= 0.0 {
-        return false;
+        return -1.0;
     }
     if plane - b.radius > settings.max_distance {
-        return false;
+        return -1.0;
     }
     let sin_angle = sqrt(max(1.0 - b.cos_angle * b.cos_angle, 0.0));
     let toward = -dot(b.axis, n);
@@ -128,10 +199,10 @@ fn tile_keeps(b: TileBounds, billboard: GpuBillboard) -> bool {
         max_facing = select(widest, 1.0, toward >= b.cos_angle);
     }
     if max_facing <= 0.0 {
-        return false;
+        return -1.0;
     }
     if min_facing <= 1e-3 || b.cos_angle <= -1.0 {
-        return true;
+        return settings.max_distance;
     }
     let hx = length(billboard.half_x);
     let hy = length(billboard.half_y);
@@ -141,13 +212,14 @@ fn tile_keeps(b: TileBounds, billboard: GpuBillboard) -> bool {
     let ball = hx + hy + reach + b.radius;
     let v = billboard.center - b.center;
     let dist = length(v);
+    let farthest = min(t_max, dist + ball);
     if dist <= ball {
-        return true;
+        return farthest;
     }
     let cos_to = dot(b.axis, v) / dist;
     let sin_ball = ball / dist;
     let cos_ball = sqrt(max(1.0 - sin_ball * sin_ball, 0.0));
     let cos_sum = b.cos_angle * cos_ball - sin_angle * sin_ball;
     let sum_past_pi = b.cos_angle < 0.0 && cos_ball < 0.0;
-    return sum_past_pi || cos_to >= cos_sum - 1e-5;
+    return select(-1.0, farthest, sum_past_pi || cos_to >= cos_sum - 1e-5);
 }

@@ -7,13 +7,13 @@
 // soft march along the mirror ray through the distance-field scene's objects dims each
 // hit by its visibility.
 // Each pixel tests only its tile's billboards (`reflections/cull.wgsl`), which changes
-// no result. CPU model: `penumbra_cinematic_core::reflections::pass::reflect_pixel`.
+// no result, and its shadow march gathers from its tile's casters. CPU model: `penumbra_cinematic_core::reflections::pass::reflect_pixel`.
 
 #import penumbra::reflections::common::{
     GpuBillboard, Lobe, MAX_LAYERS, MAX_TAPS, MIN_SHADOW_STEP, TILE, atlas, billboards,
-    images, images_sampler, objects, settings, surface_sample, tile_lists,
+    camera_position, caster_record, casts, images, images_sampler, objects, settings,
+    surface_sample, tile_lists, tile_record,
 }
-#import penumbra::df::object::{FLAG_CASTS_SHADOWS, FLAG_LIVE, TILE_SIZE}
 #import penumbra::df::distance::object_distance
 #import penumbra::df::shadow::bounding_sphere
 
@@ -145,8 +145,7 @@ fn reflect_billboards(trace_pixel: vec2<u32>, origin: vec3<f32>, lobe: Lobe) -> 
     var list_start = 0u;
     var use_list = false;
     if settings.tile_capacity > 0u {
-        let tile = trace_pixel / TILE;
-        let base = (tile.y * settings.tiles_x + tile.x) * (settings.tile_capacity + 1u);
+        let base = tile_record(trace_pixel / TILE);
         if tile_lists[base] <= settings.tile_capacity {
             listed = tile_lists[base];
             list_start = base + 1u;
@@ -187,7 +186,7 @@ fn reflect_billboards(trace_pixel: vec2<u32>, origin: vec3<f32>, lobe: Lobe) -> 
         let b = billboards[hits[j].index];
         facing[j] = abs(dot(lobe.dir, normalize(cross(b.half_x, b.half_y))));
     }
-    let visibility = shadow_march(origin, lobe.dir, &hits, &facing, count, cone);
+    let visibility = shadow_march(origin, lobe.dir, &hits, &facing, count, cone, tile_casters(trace_pixel));
     var colour = vec3(0.0);
     var transmittance = 1.0;
     for (var j = 0u; j < count; j += 1u) {
@@ -199,29 +198,53 @@ fn reflect_billboards(trace_pixel: vec2<u32>, origin: vec3<f32>, lobe: Lobe) -> 
     return vec4(colour, 1.0 - transmittance);
 }
 
-// Whether object `o` casts reflection shadows.
-fn casts(o: u32) -> bool {
-    let needed = FLAG_LIVE | FLAG_CASTS_SHADOWS;
-    return (objects[o].flags & needed) == needed;
+// The objects a pixel's shadow march gathers from: its tile's caster list, or every
+// object slot (no lists, or the tile's is over its capacity).
+struct Candidates {
+    start: u32,
+    count: u32,
+    listed: bool,
 }
 
-// The live shadow-casting objects whose bounding sphere comes within `cone · t1` of the
-// ray between `t0` and `t1` (`pass::shadow_casters`): farther, an object never dims a
-// hit there. Returns how many (in `list`), or MAX_SHADOW_CASTERS + 1: march them all.
+fn tile_casters(trace_pixel: vec2<u32>) -> Candidates {
+    var c = Candidates(0u, settings.object_count, false);
+    if settings.caster_capacity > 0u {
+        let at = caster_record(tile_record(trace_pixel / TILE));
+        let n = tile_lists[at];
+        if n <= settings.caster_capacity {
+            c = Candidates(at + 1u, n, true);
+        }
+    }
+    return c;
+}
+
+// The object slot of candidate `m`.
+fn candidate(c: Candidates, m: u32) -> u32 {
+    if c.listed {
+        return tile_lists[c.start + m];
+    }
+    return m;
+}
+
+// The live shadow-casting candidates whose bounding sphere comes within `cone · t1` of
+// the ray between `t0` and `t1` (`pass::shadow_casters`): farther, an object never dims
+// a hit there. Returns how many (in `list`), or MAX_SHADOW_CASTERS + 1: march every
+// candidate.
 fn gather_casters(
     origin: vec3<f32>,
     dir: vec3<f32>,
     t0: f32,
     t1: f32,
     cone: f32,
+    c: Candidates,
     list: ptr<function, array<u32, MAX_SHADOW_CASTERS>>,
 ) -> u32 {
-    let camera = vec3<f32>(settings.camera_tile) * TILE_SIZE + settings.camera_offset;
-    let a = (origin + dir * t0) - camera;
+    let a = (origin + dir * t0) - camera_position();
     let ab = (origin + dir * t1) - (origin + dir * t0);
     let l2 = dot(ab, ab);
     var n = 0u;
-    for (var i = 0u; i < settings.object_count; i += 1u) {
+    for (var m = 0u; m < c.count; m += 1u) {
+        let i = candidate(c, m);
         if !casts(i) {
             continue;
         }
@@ -246,17 +269,18 @@ fn gather_casters(
 }
 
 // The distance (metres) from world point `p` to the nearest of the gathered objects
-// (all live shadow-casting ones when `count` is past the list).
+// (every live shadow-casting candidate when `count` is past the list).
 fn scene_distance(
     p: vec3<f32>,
+    c: Candidates,
     list: ptr<function, array<u32, MAX_SHADOW_CASTERS>>,
     count: u32,
 ) -> f32 {
-    let camera = vec3<f32>(settings.camera_tile) * TILE_SIZE + settings.camera_offset;
-    let relative = p - camera;
+    let relative = p - camera_position();
     var d = 3.4e38;
     if count > MAX_SHADOW_CASTERS {
-        for (var i = 0u; i < settings.object_count; i += 1u) {
+        for (var m = 0u; m < c.count; m += 1u) {
+            let i = candidate(c, m);
             if casts(i) {
                 d = min(d, object_distance(objects[i], relative, settings.camera_tile, settings.camera_offset, atlas));
             }
@@ -285,6 +309,7 @@ fn shadow_march(
     facing: ptr<function, array<f32, MAX_LAYERS>>,
     count: u32,
     cone: f32,
+    candidates: Candidates,
 ) -> array<f32, MAX_LAYERS> {
     var out = array<f32, MAX_LAYERS>(1.0, 1.0, 1.0, 1.0);
     if settings.shadow_steps == 0u || settings.object_count == 0u || count == 0u {
@@ -316,10 +341,10 @@ fn shadow_march(
             if k > 0u {
                 t0 = segment_end(t_end, k - 1u);
             }
-            caster_count = gather_casters(origin, dir, t0, segment_end(t_end, k), cone, &casters);
+            caster_count = gather_casters(origin, dir, t0, segment_end(t_end, k), cone, candidates, &casters);
             gathered = k;
         }
-        let d = scene_distance(origin + dir * t, &casters, caster_count);
+        let d = scene_distance(origin + dir * t, candidates, &casters, caster_count);
         // Only surfaces surely in front of the next billboard's plane occlude it.
         if d < ((*hits)[j].t - t) * (*facing)[j] {
             v = min(v, clamp(d / (cone * t), 0.0, 1.0));
