@@ -415,3 +415,42 @@ fn bokeh_layouts_and_constants_match() {
         NORM_INTERVALS
     );
 }
+
+/// Billboard reflections: `ReflectionUniform` and `GpuBillboard` laid out by `encase` as
+/// the WGSL structs (the same members in the same order, the same size).
+#[test]
+fn reflection_layouts_match() {
+    use encase::ShaderType;
+    use penumbra_cinematic_core::reflections::pass::{GpuBillboard, ReflectionUniform};
+    let m = parse("#import penumbra::reflections::types\n");
+    let (members, size) = struct_layout(&m, "ReflectionUniform");
+    assert_eq!(u64::from(size), ReflectionUniform::min_size().get());
+    let names: Vec<&str> = members.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "billboard_count",
+            "max_layers",
+            "max_distance",
+            "anisotropy",
+            "texture_size",
+            "mip_count",
+            "half_resolution",
+            "camera_tile",
+            "object_count",
+            "camera_offset",
+            "footprint_slope",
+            "shadow_steps",
+            "shadow_bias",
+            "shadow_softness",
+            "taps",
+            "tiles_x",
+            "tile_capacity",
+            "trace_size",
+            "shadow_cone",
+            "caster_capacity",
+        ]
+    );
+    let (_, billboard) = struct_layout(&m, "GpuBillboard");
+    assert_eq!(u64::from(billboard), GpuBillboard::min_size().get());
+}

@@ -66,25 +66,28 @@
 //!   (4/3 × 8 bytes per texel per image), 32 bytes per billboard, the layer texture (8
 //!   bytes per pixel, a quarter at half resolution) and up to 129 words per tile (129
 //!   more with reflection shadows: the caster list).
-//! - **Many casters**: with reflection shadows the tile cull also lists each tile's
-//!   shadow casters (up to 128: those within reach of some ray of its pixels, up to the
-//!   farthest billboard the tile keeps), and each segment of a pixel's march gathers its
-//!   own from that list; a tile with more than 128 gathers from every object
-//!   (O(pixels × casters)), and a segment that gathers more than 32 marches all its
-//!   candidates. A glossy floor's tiles list few: on a model of the benchmark's stress
-//!   scene (1,000 casters, 100 signs; `penumbra_cinematic_core`'s test
+//! - **Many casters**: with reflection shadows a small compute pass first writes each
+//!   object's camera-relative bounding sphere (16 bytes), and the tile cull lists each
+//!   tile's shadow casters (up to 128: those within reach of some ray of its pixels, up
+//!   to the farthest billboard the tile keeps); each segment of a pixel's march gathers
+//!   its own from that list; a tile with more than 128 gathers from every object
+//!   (O(pixels × casters) sphere tests), and a segment that gathers more than 32 marches
+//!   all its candidates. A glossy floor's tiles list few: on a model of the benchmark's
+//!   stress scene (1,000 casters, 100 signs; `penumbra_cinematic_core`'s test
 //!   `reflection_shadow_work`) ground-only tiles keep 49 casters on average; but tiles
 //!   holding the casters' own glossy surfaces face every way, and 118 of 160 tiles at
 //!   320 × 180 (406 of 560 at 640 × 360) are over 128. On lavapipe the pass there takes
-//!   7.9 s (8.5 s before the caster lists: 5 frames, within the machine's noise); 81 ms
-//!   of it without reflection shadows. What fits a scene of that size is to march the
-//!   global distance field (`GlobalDistanceField`) where a segment overflows, as DFAO's
-//!   far field does; not done yet.
+//!   4.4 s (8.5 s before the spheres and the lists, 7.9 s with the lists alone; 5
+//!   frames); 81 ms of it without reflection shadows. What fits a scene of that size is
+//!   to march the global distance field (`GlobalDistanceField`) where a segment
+//!   overflows, as DFAO's far field does; not done yet.
 
 mod collect;
 mod render;
+mod spheres;
+mod upload;
 
-pub use render::ReflectionImageUploads;
+pub use upload::ReflectionImageUploads;
 
 use bevy::prelude::*;
 use bevy::render::RenderApp;

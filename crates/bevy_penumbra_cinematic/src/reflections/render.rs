@@ -2,7 +2,10 @@
 //! (uploaded when they change), each reflecting view's layer texture, pipeline and bind
 //! group, and the trace draw before Penumbra's lighting pass.
 
-use super::collect::{ImageArray, MAX_ARRAY_BYTES, MAX_ARRAY_LAYERS, ReflectionScene};
+use super::spheres::{SPHERE_BYTES, SpheresPipeline, ViewCasterSpheres};
+use super::upload::{
+    ReflectionGpuScene, ReflectionImageUploads, extract_reflection_scene, prepare_reflection_scene,
+};
 use super::{BillboardReflections, ReflectionDebugView};
 use bevy::core_pipeline::schedule::Core3d;
 use bevy::pbr::{MeshPipelineKey, MeshViewBindGroup, ViewKeyCache};
@@ -13,16 +16,15 @@ use bevy::render::render_resource::binding_types::{
     sampler, storage_buffer_read_only_sized, storage_buffer_sized, texture_2d_array, texture_3d,
     uniform_buffer_sized,
 };
-use bevy::render::render_resource::encase::{StorageBuffer, UniformBuffer as EncaseBuffer};
+use bevy::render::render_resource::encase::UniformBuffer as EncaseBuffer;
 use bevy::render::render_resource::{
     AddressMode, BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries,
     Buffer, BufferDescriptor, BufferId, BufferUsages, CachedRenderPipelineId, ColorTargetState,
-    ColorWrites, Extent3d, FilterMode, LoadOp, MipmapFilterMode, Operations, Origin3d,
-    PipelineCache, RenderPassColorAttachment, RenderPassDescriptor, RenderPipelineDescriptor,
-    Sampler, SamplerBindingType, SamplerDescriptor, ShaderStages, ShaderType, StoreOp,
-    TexelCopyBufferLayout, TexelCopyTextureInfo, Texture, TextureAspect, TextureDescriptor,
+    ColorWrites, Extent3d, FilterMode, LoadOp, MipmapFilterMode, Operations, PipelineCache,
+    RenderPassColorAttachment, RenderPassDescriptor, RenderPipelineDescriptor, Sampler,
+    SamplerBindingType, SamplerDescriptor, ShaderStages, ShaderType, StoreOp, TextureDescriptor,
     TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
-    TextureViewDescriptor, TextureViewDimension, TextureViewId,
+    TextureViewDescriptor, TextureViewId,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::sync_component::{SyncComponent, SyncComponentPlugin};
@@ -38,10 +40,8 @@ use bevy_penumbra_df::system_times::timed;
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
 use penumbra_cinematic_core::reflections::cull::TILE;
 use penumbra_cinematic_core::reflections::pass::{GpuBillboard, ReflectionUniform};
-use penumbra_cinematic_core::reflections::texture::MipChain;
 use penumbra_df_core::cull::CameraOrigin;
 use std::num::NonZeroU64;
-use std::sync::Arc;
 
 /// The layer texture's format.
 const LAYER_FORMAT: TextureFormat = TextureFormat::Rgba16Float;
@@ -70,39 +70,6 @@ pub(super) fn sync_plugin() -> SyncComponentPlugin<BillboardReflections> {
     SyncComponentPlugin::default()
 }
 
-/// Uploads of the billboards' texture array since startup (render world): a changed
-/// image uploads its layer alone; a steady scene uploads nothing.
-#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct ReflectionImageUploads {
-    /// Array textures made (the first, and on a new image size, more layers than it
-    /// holds, or under a quarter of them used).
-    pub textures: u64,
-    /// Layers (images with their mip chains) written.
-    pub layers: u64,
-}
-
-/// The texture array on the GPU and what each of its layers holds.
-#[derive(Default)]
-struct UploadedArray {
-    texture: Option<Texture>,
-    layers: Vec<Option<Arc<MipChain>>>,
-    /// The images last uploaded.
-    array: Option<Arc<ImageArray>>,
-}
-
-/// The billboards and images on the GPU.
-#[derive(Resource, Default)]
-struct ReflectionGpuScene {
-    billboards: Vec<GpuBillboard>,
-    images: Option<Arc<ImageArray>>,
-    /// Storage buffer and its capacity in billboards.
-    buffer: Option<(Buffer, usize)>,
-    array: Option<TextureView>,
-    mip_count: u32,
-    /// The billboards changed since their last upload.
-    dirty: bool,
-}
-
 /// A reflecting view's draws this frame (absent: none).
 #[derive(Component)]
 pub struct ViewReflections {
@@ -114,8 +81,9 @@ pub struct ViewReflections {
     trace_size: UVec2,
 }
 
-/// What a group 2 binds: the uniform, billboard and object buffers; the array and atlas.
-type BoundResources = ([BufferId; 4], [TextureViewId; 2]);
+/// What a group 2 binds: the uniform, billboard, object, tile-list and sphere buffers;
+/// the array and atlas.
+type BoundResources = ([BufferId; 5], [TextureViewId; 2]);
 
 /// A reflecting view's uniform and group 2 (remade when a bound resource changes).
 #[derive(Component)]
@@ -124,15 +92,17 @@ pub struct ViewReflectionsBindGroup {
     /// The tiles' billboard lists and their size in words.
     tile_lists: Buffer,
     tile_words: u64,
+    /// The caster spheres' buffer and pass.
+    spheres: ViewCasterSpheres,
     group: Option<(BindGroup, BoundResources)>,
 }
 
 /// Bytes of one distance-field object record.
-const OBJECT_BYTES: u64 = 128;
+pub(super) const OBJECT_BYTES: u64 = 128;
 
 /// The trace's group 2, shader and sampler, and its pipelines per view key.
 #[derive(Resource)]
-struct ReflectionPipelines {
+pub(super) struct ReflectionPipelines {
     layout: BindGroupLayoutDescriptor,
     shader: Handle<Shader>,
     cull_shader: Handle<Shader>,
@@ -141,6 +111,8 @@ struct ReflectionPipelines {
     no_objects: Buffer,
     no_atlas: TextureView,
     queued: HashMap<(MeshPipelineKey, bool), CachedRenderPipelineId>,
+    /// The caster spheres' pass (reflection shadows).
+    spheres: SpheresPipeline,
 }
 
 pub(super) fn build(render_app: &mut SubApp) {
@@ -173,6 +145,7 @@ fn init_reflection_pipelines(
     mut commands: Commands,
     library: Option<Res<PenumbraShaderLibrary>>,
     device: Res<RenderDevice>,
+    pipeline_cache: Res<PipelineCache>,
 ) {
     let Some(library) = library else {
         warn!("Penumbra: the shader library is not registered; no billboard reflections");
@@ -190,6 +163,7 @@ fn init_reflection_pipelines(
                 storage_buffer_read_only_sized(false, NonZeroU64::new(OBJECT_BYTES)),
                 texture_3d(TextureSampleType::Float { filterable: false }),
                 storage_buffer_sized(false, NonZeroU64::new(4)),
+                storage_buffer_read_only_sized(false, NonZeroU64::new(SPHERE_BYTES)),
             ),
         ),
     );
@@ -232,18 +206,8 @@ fn init_reflection_pipelines(
         no_objects,
         no_atlas,
         queued: HashMap::default(),
+        spheres: SpheresPipeline::new(&pipeline_cache, library.handle("reflections/spheres.wgsl")),
     });
-}
-
-fn extract_reflection_scene(
-    mut gpu: ResMut<ReflectionGpuScene>,
-    scene: Extract<Res<ReflectionScene>>,
-) {
-    if scene.is_changed() {
-        gpu.billboards.clone_from(&scene.billboards);
-        gpu.images.clone_from(&scene.images);
-        gpu.dirty = true;
-    }
 }
 
 fn extract_reflection_cameras(
@@ -254,145 +218,6 @@ fn extract_reflection_cameras(
         if let Ok(mut render) = commands.get_entity(entity) {
             render.insert(ExtractedBillboardReflections(settings.resolve().0));
         }
-    }
-}
-
-/// Uploads the billboards when they change (the buffer grows by powers of two) and the
-/// texture array when its images do; nothing on frames where neither did.
-fn prepare_reflection_scene(
-    mut gpu: ResMut<ReflectionGpuScene>,
-    allocations: Res<PenumbraGpuAllocations>,
-    device: Res<RenderDevice>,
-    queue: Res<RenderQueue>,
-    mut uploaded: Local<UploadedArray>,
-    mut uploads: ResMut<ReflectionImageUploads>,
-) {
-    let gpu = &mut *gpu;
-    if gpu.images.is_none() || gpu.billboards.is_empty() {
-        return;
-    }
-    let needed = gpu.billboards.len();
-    if gpu.buffer.as_ref().is_none_or(|(_, cap)| *cap < needed) {
-        let capacity = needed.next_power_of_two();
-        let buffer = allocations.sized_buffer(
-            &device,
-            "penumbra_reflection_billboards",
-            capacity as u64 * GpuBillboard::min_size().get(),
-            BufferUsages::STORAGE | BufferUsages::COPY_DST,
-        );
-        gpu.buffer = Some((buffer, capacity));
-        gpu.dirty = true;
-    }
-    if gpu.dirty {
-        let mut bytes = StorageBuffer::new(Vec::new());
-        bytes.write(&gpu.billboards).expect("billboards encode");
-        let (buffer, _) = gpu.buffer.as_ref().expect("just made");
-        queue.write_buffer(buffer, 0, bytes.as_ref());
-        gpu.dirty = false;
-    }
-    let images = gpu.images.clone().expect("checked");
-    if uploaded
-        .array
-        .as_ref()
-        .is_some_and(|u| Arc::ptr_eq(u, &images))
-    {
-        return;
-    }
-    let Some(first) = images.layers.iter().flatten().next() else {
-        return;
-    };
-    let mip_count = first.levels.len() as u32;
-    let layers = images.layers.len() as u32;
-    // The texture is kept while the images' size holds and their layers fit (it grows
-    // to the next power of two, shrinks when a quarter is used).
-    let fits = uploaded.texture.as_ref().is_some_and(|t| {
-        t.width() == images.size.x
-            && t.height() == images.size.y
-            && t.mip_level_count() == mip_count
-            && (layers <= t.depth_or_array_layers())
-            && (layers * 4 > t.depth_or_array_layers() || t.depth_or_array_layers() == 1)
-    });
-    if !fits {
-        let layer_bytes = u64::from(images.size.x) * u64::from(images.size.y) * 8 * 4 / 3;
-        let most = (MAX_ARRAY_BYTES / layer_bytes.max(1)).clamp(1, MAX_ARRAY_LAYERS as u64) as u32;
-        let capacity = layers.next_power_of_two().min(most).max(layers);
-        let texture = allocations.texture(
-            &device,
-            &TextureDescriptor {
-                label: Some("penumbra_reflection_images"),
-                size: Extent3d {
-                    width: images.size.x,
-                    height: images.size.y,
-                    depth_or_array_layers: capacity,
-                },
-                mip_level_count: mip_count,
-                sample_count: 1,
-                dimension: TextureDimension::D2,
-                format: TextureFormat::Rgba16Float,
-                usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
-                view_formats: &[],
-            },
-        );
-        gpu.array = Some(texture.create_view(&TextureViewDescriptor {
-            dimension: Some(TextureViewDimension::D2Array),
-            ..default()
-        }));
-        gpu.mip_count = mip_count;
-        uploaded.texture = Some(texture);
-        uploaded.layers.clear();
-        uploads.textures += 1;
-    }
-    let texture = uploaded.texture.clone().expect("just made");
-    uploaded.layers.resize(images.layers.len(), None);
-    for (layer, chain) in images.layers.iter().enumerate() {
-        let Some(chain) = chain else {
-            continue; // free: what it held is never sampled
-        };
-        if uploaded.layers[layer]
-            .as_ref()
-            .is_some_and(|u| Arc::ptr_eq(u, chain))
-        {
-            continue;
-        }
-        upload_layer(&queue, &texture, layer as u32, chain);
-        uploaded.layers[layer] = Some(chain.clone());
-        uploads.layers += 1;
-    }
-    uploaded.array = Some(images);
-}
-
-/// One image's mip chain into layer `layer` of the array.
-fn upload_layer(queue: &RenderQueue, texture: &Texture, layer: u32, chain: &MipChain) {
-    for (level, texels) in chain.levels.iter().enumerate() {
-        let (w, h) = chain.level_size(level);
-        let bits: Vec<u8> = texels
-            .iter()
-            .flat_map(|t| t.to_array())
-            .flat_map(|x| half::f16::from_f32(x).to_le_bytes())
-            .collect();
-        queue.write_texture(
-            TexelCopyTextureInfo {
-                texture,
-                mip_level: level as u32,
-                origin: Origin3d {
-                    x: 0,
-                    y: 0,
-                    z: layer,
-                },
-                aspect: TextureAspect::All,
-            },
-            &bits,
-            TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(w * 8),
-                rows_per_image: Some(h),
-            },
-            Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-        );
     }
 }
 
@@ -659,6 +484,7 @@ fn prepare_reflection_bind_groups(
                 ),
                 tile_lists: lists(words),
                 tile_words: words.next_power_of_two().max(4),
+                spheres: ViewCasterSpheres::new(&allocations, &device, 1),
                 group: None,
             }),
         };
@@ -687,12 +513,23 @@ fn prepare_reflection_bind_groups(
             .write(&uniform)
             .expect("the reflection uniform encodes");
         queue.write_buffer(&group.uniform, 0, bytes.as_ref());
+        // The casters' spheres, with reflection shadows.
+        group.spheres.prepare(
+            &allocations,
+            &device,
+            &pipeline_cache,
+            &pipelines.spheres,
+            &group.uniform,
+            objects,
+            if shadow_steps > 0 { object_count } else { 0 },
+        );
         let key = (
             [
                 group.uniform.id(),
                 buffer.id(),
                 objects.id(),
                 group.tile_lists.id(),
+                group.spheres.buffer.id(),
             ],
             [array.id(), df_atlas.id()],
         );
@@ -709,6 +546,7 @@ fn prepare_reflection_bind_groups(
                     objects.as_entire_binding(),
                     df_atlas,
                     group.tile_lists.as_entire_binding(),
+                    group.spheres.buffer.as_entire_binding(),
                 )),
             );
             group.group = Some((bind_group, key));
@@ -729,14 +567,25 @@ pub fn billboard_reflections(
         Option<&ViewReflectionsBindGroup>,
     )>,
     pipeline_cache: Res<PipelineCache>,
+    pipelines: Option<Res<ReflectionPipelines>>,
     mut ctx: RenderContext,
 ) {
-    let (draw, mesh_view, group) = view.into_inner();
-    let (Some(pipeline), Some((group, _))) = (
+    let (draw, mesh_view, view_group) = view.into_inner();
+    let (Some(pipeline), Some(view_group), Some(pipelines)) = (
         pipeline_cache.get_render_pipeline(draw.pipeline),
-        group.and_then(|g| g.group.as_ref()),
+        view_group,
+        pipelines,
     ) else {
         return; // compiling, or the first frame
+    };
+    let Some((group, _)) = view_group.group.as_ref() else {
+        return;
+    };
+    let Some(spheres) = view_group
+        .spheres
+        .ready(&pipeline_cache, &pipelines.spheres)
+    else {
+        return; // compiling
     };
     let cull = match &draw.cull {
         Some((id, target)) => match pipeline_cache.get_render_pipeline(*id) {
@@ -748,6 +597,11 @@ pub fn billboard_reflections(
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
     let time_span = diagnostics.time_span(ctx.command_encoder(), "penumbra_billboard_reflections");
+    if spheres {
+        view_group
+            .spheres
+            .dispatch(ctx.command_encoder(), &pipeline_cache, &pipelines.spheres);
+    }
     if let Some((cull, target)) = cull {
         let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
             label: Some("penumbra_reflection_tile_cull"),

@@ -10,50 +10,12 @@
     mesh_view_bindings::{deferred_prepass_texture, depth_prepass_texture},
 }
 #import penumbra::df::object::{DistanceFieldObject, FLAG_CASTS_SHADOWS, FLAG_LIVE, TILE_SIZE}
+#import penumbra::reflections::types::{GpuBillboard, ReflectionUniform}
 
 const MAX_TAPS: u32 = 8u;
 const MAX_LAYERS: u32 = 4u;
 const MAX_ANISOTROPY: f32 = 0.95;
 const MIN_SHADOW_STEP: f32 = 0.01;
-
-// `penumbra_cinematic_core::reflections::pass::GpuBillboard`.
-struct GpuBillboard {
-    center: vec3<f32>,
-    layer: u32,
-    half_x: vec3<f32>,
-    emissive: f32,
-    half_y: vec3<f32>,
-    reserved: u32,
-}
-
-// `penumbra_cinematic_core::reflections::pass::ReflectionUniform`.
-struct ReflectionUniform {
-    billboard_count: u32,
-    max_layers: u32,
-    max_distance: f32,
-    anisotropy: f32,
-    texture_size: vec2<u32>,
-    mip_count: u32,
-    half_resolution: u32,
-    camera_tile: vec3<i32>,
-    object_count: u32,
-    camera_offset: vec3<f32>,
-    footprint_slope: f32,
-    shadow_steps: u32,
-    shadow_bias: f32,
-    shadow_softness: f32,
-    taps: u32,
-    // Tiles per row of the trace's image; billboards a tile's list holds (0: no lists,
-    // the trace tests every billboard).
-    tiles_x: u32,
-    tile_capacity: u32,
-    // The trace's image size, pixels.
-    trace_size: vec2<u32>,
-    // The shadow cone's half-width as a share of the footprint's long half-axis.
-    shadow_cone: f32,
-    // Shadow casters a tile's list holds (0: no caster lists).
-    caster_capacity: u32,
-}
 
 // Trace pixels per tile side.
 const TILE: u32 = 16u;
@@ -65,6 +27,9 @@ const TILE: u32 = 16u;
 // The distance-field scene (reflection shadows): its objects and atlas.
 @group(2) @binding(4) var<storage, read> objects: array<DistanceFieldObject>;
 @group(2) @binding(5) var atlas: texture_3d<f32>;
+// Per object slot, its bounding sphere relative to the camera for the shadow casters
+// (w −1: unbounded), w −2 for the rest (`reflections/spheres.wgsl`, run before the cull).
+@group(2) @binding(7) var<storage, read> spheres: array<vec4<f32>>;
 // Per tile (from `tile_record`): the count of billboards kept, then their indices
 // (`tile_capacity` slots); with caster lists, the count of shadow casters kept, then
 // their object slots (`caster_capacity` slots). A count over its capacity means "every

@@ -7,10 +7,10 @@
 // CPU model: `penumbra_cinematic_core::reflections::cull`.
 
 #import penumbra::reflections::common::{
-    GpuBillboard, TILE, billboards, camera_position, caster_record, casts, objects, settings,
-    surface_sample, tile_lists, tile_record,
+    TILE, billboards, camera_position, caster_record, settings, spheres, surface_sample,
+    tile_lists, tile_record,
 }
-#import penumbra::df::shadow::bounding_sphere
+#import penumbra::reflections::types::GpuBillboard
 
 struct FullscreenVertexOutput {
     @builtin(position) position: vec4<f32>,
@@ -69,10 +69,10 @@ fn list_casters(b: TileBounds, at: u32, march_length: f32) {
         let cone = max(b.spread * settings.shadow_cone, settings.shadow_softness);
         let center = b.center - camera_position();
         for (var i = 0u; i < settings.object_count; i += 1u) {
-            if !casts(i) {
-                continue;
+            let sphere = spheres[i];
+            if sphere.w < -1.5 {
+                continue; // not a live shadow caster
             }
-            let sphere = bounding_sphere(objects[i], settings.camera_tile, settings.camera_offset);
             if !tile_keeps_caster(b, center, sphere, march_length, cone) {
                 continue;
             }

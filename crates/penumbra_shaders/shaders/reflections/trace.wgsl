@@ -10,12 +10,12 @@
 // no result, and its shadow march gathers from its tile's casters. CPU model: `penumbra_cinematic_core::reflections::pass::reflect_pixel`.
 
 #import penumbra::reflections::common::{
-    GpuBillboard, Lobe, MAX_LAYERS, MAX_TAPS, MIN_SHADOW_STEP, TILE, atlas, billboards,
-    camera_position, caster_record, casts, images, images_sampler, objects, settings,
+    Lobe, MAX_LAYERS, MAX_TAPS, MIN_SHADOW_STEP, TILE, atlas, billboards, camera_position,
+    caster_record, casts, images, images_sampler, objects, settings, spheres,
     surface_sample, tile_lists, tile_record,
 }
+#import penumbra::reflections::types::GpuBillboard
 #import penumbra::df::distance::object_distance
-#import penumbra::df::shadow::bounding_sphere
 
 // Most objects one segment of a pixel's reflection-shadow march keeps after its cull;
 // more: it marches them all there (`pass::MAX_SHADOW_CASTERS`).
@@ -245,10 +245,10 @@ fn gather_casters(
     var n = 0u;
     for (var m = 0u; m < c.count; m += 1u) {
         let i = candidate(c, m);
-        if !casts(i) {
-            continue;
+        let sphere = spheres[i];
+        if sphere.w < -1.5 {
+            continue; // not a live shadow caster
         }
-        let sphere = bounding_sphere(objects[i], settings.camera_tile, settings.camera_offset);
         if sphere.w >= 0.0 {
             let reach = sphere.w + cone * t1;
             var h = 0.0;
