@@ -364,12 +364,12 @@ fn cull_slack(reach: f32) -> f32 {
 
 /// The march's ray is split into this many equal segments, each with the objects near
 /// it ([`shadow_casters`]): a long ray across a crowded scene keeps few per segment.
-pub const SHADOW_SEGMENTS: usize = 4;
+pub const SHADOW_SEGMENTS: usize = 8;
 
 /// Where each of the [`SHADOW_SEGMENTS`] segments of a march to `t_end` ends: `t_end ·
-/// (k + 1) / 4` (exact in `f32`: the shader computes the same bits).
+/// (k + 1) / 8` (exact in `f32`: the shader computes the same bits).
 pub fn segment_ends(t_end: f32) -> [f32; SHADOW_SEGMENTS] {
-    std::array::from_fn(|k| t_end * (0.25 * (k + 1) as f32))
+    std::array::from_fn(|k| t_end * (0.125 * (k + 1) as f32))
 }
 
 /// The objects a pixel's reflection-shadow march may see between `t0` and `t1` along
@@ -851,7 +851,10 @@ mod tests {
             Some(vec![0]),
             "beside the ray"
         );
-        assert_eq!(segment_ends(2.0), [0.5, 1.0, 1.5, 2.0]);
+        assert_eq!(
+            segment_ends(2.0),
+            [0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 1.75, 2.0]
+        );
     }
 
     /// A wall across the ray hides the hits behind it, not those before it; beside the

@@ -21,7 +21,7 @@
 // more: it marches them all there (`pass::MAX_SHADOW_CASTERS`).
 const MAX_SHADOW_CASTERS: u32 = 32u;
 // Segments of the march, each with its own objects (`pass::SHADOW_SEGMENTS`).
-const SHADOW_SEGMENTS: u32 = 4u;
+const SHADOW_SEGMENTS: u32 = 8u;
 
 struct FootprintHit {
     t: f32,
@@ -296,7 +296,7 @@ fn scene_distance(
 
 // Where segment `k` of a march to `t_end` ends (`pass::segment_ends`: exact).
 fn segment_end(t_end: f32, k: u32) -> f32 {
-    return t_end * (0.25 * f32(k + 1u));
+    return t_end * (0.125 * f32(k + 1u));
 }
 
 // Reflection shadows: each hit's visibility from one soft march along the ray, counting
