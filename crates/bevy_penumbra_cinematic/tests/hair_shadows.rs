@@ -12,7 +12,8 @@
 //!   entity's points sit after the first's in Bevy's vertex slab (a point index that
 //!   ignored the mesh's first vertex would read the first entity's).
 //! - **Shadow maps.** The hair carries `ReadsNoShadowMaps` (the sun's shadow map is not
-//!   kept for it).
+//!   kept for it), beside five more distance-field-shadowed point lights out of its reach
+//!   (more lights than it takes, none of which lights it).
 
 #![cfg(feature = "shadows")]
 
@@ -96,6 +97,19 @@ fn scene(df: bool) -> impl FnMut(Commands, ResMut<Assets<HairStrands>>) {
         ));
         if df {
             sun.insert(sun_settings());
+            // Five distance-field-shadowed point lights whose range ends far from the
+            // hair: they light nothing of it, so it still needs no shadow map.
+            for i in 0..5 {
+                commands.spawn((
+                    PointLight {
+                        range: 10.0,
+                        shadow_maps_enabled: false,
+                        ..default()
+                    },
+                    DistanceFieldShadows::default(),
+                    Transform::from_xyz(1000.0 + 50.0 * i as f32, 0.0, 0.0),
+                ));
+            }
         }
         commands.spawn((
             DistanceFieldCaster {

@@ -53,7 +53,8 @@ pub struct HairParams {
 }
 
 /// Lights one hair entity takes from the distance fields (`penumbra::hair::shadows`'s
-/// `MAX_HAIR_SHADOW_LIGHTS`); others keep their shadow maps.
+/// `MAX_HAIR_SHADOW_LIGHTS`), of those that reach it (a point or spot light's range);
+/// with more, the lights keep their shadow maps.
 pub const MAX_HAIR_SHADOW_LIGHTS: usize = 4;
 
 /// Bytes of `penumbra::hair::shadows`'s `HairShadows` before its points: the counts and

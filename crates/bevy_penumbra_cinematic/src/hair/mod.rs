@@ -36,14 +36,9 @@
 //! visibility is marched once per frame in a compute pass (the mask pass's march, from
 //! the point, without a surface's own-shadow term) and interpolated along the strand;
 //! the light's shadow map is not read for the hair (`ReadsNoShadowMaps`). Up to
-//! [`MAX_HAIR_SHADOW_LIGHTS`] such lights per hair entity; skinned hair keeps their
-//! shadow maps (one warning). Details and cost: `shadows.rs`. With more such lights
-//! the hair is not `ReadsNoShadowMaps`, and since that decision is per frame, not per
-//! light, **every** distance-field-shadowed light then renders its shadow map: in the
-//! benchmark's stress scene (8 such lights) Bevy's shadow maps, which record no pass
-//! span, take 4.7 s of lavapipe's 8.5 s frame at 160 × 90 (3.8 s with the lights' maps
-//! switched off). Keeping only the maps of the lights the hair does not take is not
-//! done yet.
+//! [`MAX_HAIR_SHADOW_LIGHTS`] such lights reaching a hair entity (lights out of range
+//! do not count); skinned hair keeps their shadow maps (one warning). Details and cost:
+//! `shadows.rs`.
 //!
 //! # Inputs
 //!

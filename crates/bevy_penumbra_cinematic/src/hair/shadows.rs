@@ -14,12 +14,17 @@
 //! the surface's own-shadow term (a strand has no tangent plane). The vertex shader
 //! reads its point's visibility; along a strand it is interpolated between points. The
 //! lights' shadow maps are not read for those lights: the hair carries
-//! [`ReadsNoShadowMaps`], so a light that only hair kept mapped renders no shadow map.
+//! [`ReadsNoShadowMaps`] while it takes every such light that reaches it (all
+//! directional ones; point and spot lights whose range meets its bounding sphere: out
+//! of range they light it with no shadow map either), so a light that only hair kept
+//! mapped renders no shadow map.
 //!
 //! Limits: hair casts no distance-field shadow (it is no caster) — under such a light
 //! neither the hair itself nor other surfaces get its shadow; skinned hair keeps the
 //! lights' shadow maps (one warning); terrains (`DistanceFieldHeightfield`) do not
-//! shadow hair; a light beyond the fourth reaching a hair keeps its shadow map; along a
+//! shadow hair; with more than four reaching a hair, it reads their shadow maps and,
+//! the decision being per frame and not per light, every distance-field-shadowed light
+//! renders its map (`bevy_penumbra_df`'s `ShadowMapConsumers`); along a
 //! segment the shadow is linear between the points; the trace is view-independent, so
 //! a directional light's `max_view_distance` counts from the hair's origin, not from a
 //! camera.
@@ -85,7 +90,8 @@ pub(super) fn build(app: &mut App) {
         PostUpdate,
         timed(build_hair_shadows)
             .after(super::build_hair)
-            .after(bevy::asset::AssetEventSystems),
+            .after(bevy::asset::AssetEventSystems)
+            .after(bevy::transform::TransformSystems::Propagate),
     )
     .add_plugins(ExtractComponentPlugin::<HairShadowBuffers>::default());
     let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
@@ -138,18 +144,38 @@ fn centre_line_points(strands: &HairStrands) -> (Vec<u8>, u32, Vec3, f32) {
     (bytes, points.len() as u32, center, radius)
 }
 
+/// Where a distance-field-shadowed light reaches: `None` everywhere (directional),
+/// else its position and range.
+type LightReach = Option<(Vec3, f32)>;
+
+/// Whether a light reaching `reach` can light a sphere (centre, radius): a point or spot
+/// light lights nothing beyond its range (Bevy's clustering). Conservative by a hair, so
+/// that the render world's choice of lights (`prepare_hair_shadows`, the same test on
+/// the extracted frame) never holds more than this counts.
+fn reaches(reach: LightReach, (center, radius): (Vec3, f32)) -> bool {
+    reach.is_none_or(|(at, range)| {
+        let r = range + radius;
+        at.distance(center) <= r + r * 1e-3 + 1e-3
+    })
+}
+
 /// While distance-field-shadowed lights exist, gives each drawn [`Hair`] entity its
 /// points and visibility buffers (again when its strip mesh is rebuilt) and points its
 /// material at them; marks it [`ReadsNoShadowMaps`] while it takes every such light
-/// from the distance fields.
+/// that can reach it from the distance fields (lights out of range light it with no
+/// shadow map either).
 #[allow(clippy::type_complexity, reason = "a Bevy query")]
 fn build_hair_shadows(
     mut commands: Commands,
-    lights: Query<(), With<DistanceFieldShadows>>,
+    lights: Query<
+        (&GlobalTransform, Option<&PointLight>, Option<&SpotLight>),
+        With<DistanceFieldShadows>,
+    >,
     hairs: Query<(
         Entity,
         &Hair,
         &HairBuilt,
+        &GlobalTransform,
         Option<&Mesh3d>,
         Option<&HairShadowBuffers>,
         Has<ReadsNoShadowMaps>,
@@ -162,10 +188,23 @@ fn build_hair_shadows(
     let Some(mut buffers) = buffers else {
         return; // no renderer
     };
-    let light_count = lights.iter().count();
-    for (entity, hair, built, mesh, shadow_buffers, reads_none) in &hairs {
+    let reach: Vec<LightReach> = lights
+        .iter()
+        .map(|(transform, point, spot)| {
+            let range = point.map(|p| p.range).or(spot.map(|s| s.range))?;
+            Some((transform.translation(), range))
+        })
+        .collect();
+    let light_count = reach.len();
+    for (entity, hair, built, transform, mesh, shadow_buffers, reads_none) in &hairs {
         let current = shadow_buffers.filter(|b| mesh.is_some_and(|m| m.id() == b.mesh));
-        let wants_none = current.is_some() && light_count <= MAX_HAIR_SHADOW_LIGHTS;
+        let wants_none = current.is_some_and(|b| {
+            let sphere = (
+                transform.transform_point(b.center),
+                b.radius * transform.scale().abs().max_element(),
+            );
+            reach.iter().filter(|r| reaches(**r, sphere)).count() <= MAX_HAIR_SHADOW_LIGHTS
+        });
         if wants_none != reads_none {
             if wants_none {
                 commands.entity(entity).insert(ReadsNoShadowMaps);
@@ -572,5 +611,17 @@ mod tests {
         assert_eq!(f32::from_bits(word(9)), 1.0);
         assert_eq!([word(12), word(13), word(14)], [1, 7, 1]);
         assert_eq!(word(22), UNTRACED);
+    }
+
+    /// A directional light reaches everything; a point or spot light its range plus the
+    /// sphere's radius (a hair more, never less).
+    #[test]
+    fn lights_reach_within_their_range() {
+        let sphere = (Vec3::new(0.0, 0.0, 10.0), 1.0);
+        assert!(reaches(None, sphere));
+        assert!(reaches(Some((Vec3::ZERO, 9.0)), sphere));
+        assert!(reaches(Some((Vec3::ZERO, 8.999)), sphere));
+        assert!(!reaches(Some((Vec3::ZERO, 8.9)), sphere));
+        assert!(!reaches(Some((Vec3::new(0.0, 0.0, -100.0), 14.0)), sphere));
     }
 }
