@@ -91,7 +91,7 @@ pub(super) fn build(app: &mut App) {
         timed(build_hair_shadows)
             .after(super::build_hair)
             .after(bevy::asset::AssetEventSystems)
-            .after(bevy::transform::TransformSystems::Propagate),
+            .after(TransformSystems::Propagate),
     )
     .add_plugins(ExtractComponentPlugin::<HairShadowBuffers>::default());
     let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
