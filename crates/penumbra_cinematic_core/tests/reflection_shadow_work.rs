@@ -69,14 +69,7 @@ fn signs() -> Vec<GpuBillboard> {
                 at.extend(1.0),
             );
             let quad = Billboard::from_transform(world, glam::Vec2::new(2.0, 1.0)).expect("a quad");
-            GpuBillboard {
-                center: quad.center,
-                layer: 0,
-                half_x: quad.half_x,
-                emissive: 1.0,
-                half_y: quad.half_y,
-                reserved: 0,
-            }
+            GpuBillboard::new(&quad, 0, 1.0)
         })
         .collect()
 }

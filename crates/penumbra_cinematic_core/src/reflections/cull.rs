@@ -317,14 +317,7 @@ mod tests {
                 };
                 let quad =
                     Billboard::from_transform(transform, Vec2::new(1.0, 0.6) * scale).unwrap();
-                let gpu = GpuBillboard {
-                    center: quad.center,
-                    layer: 0,
-                    half_x: quad.half_x,
-                    emissive: 1.0,
-                    half_y: quad.half_y,
-                    reserved: 0,
-                };
+                let gpu = GpuBillboard::new(&quad, 0, 1.0);
                 let keeps = tile_keeps(&bounds, &gpu, 30.0);
                 total += 1;
                 kept += usize::from(keeps);
@@ -368,14 +361,7 @@ mod tests {
             Vec2::splat(0.2),
         )
         .unwrap();
-        let gpu = GpuBillboard {
-            center: quad.center,
-            layer: 0,
-            half_x: quad.half_x,
-            emissive: 1.0,
-            half_y: quad.half_y,
-            reserved: 0,
-        };
+        let gpu = GpuBillboard::new(&quad, 0, 1.0);
         let tile = |spread: f32| TileBounds {
             center: Vec3::ZERO,
             radius: 0.01,
@@ -462,14 +448,7 @@ mod tests {
                         Vec2::new(3.0 + 4.0 * rng.next(), 2.0 + 2.0 * rng.next()),
                     )
                     .expect("a quad");
-                    GpuBillboard {
-                        center: quad.center,
-                        layer: 0,
-                        half_x: quad.half_x,
-                        emissive: 1.0,
-                        half_y: quad.half_y,
-                        reserved: 0,
-                    }
+                    GpuBillboard::new(&quad, 0, 1.0)
                 })
                 .collect();
             // 30 spheres: near some pixel's mirror ray or anywhere around it.
@@ -568,14 +547,7 @@ mod tests {
             Vec2::new(20.0, 20.0),
         )
         .expect("a quad");
-        let billboards = [GpuBillboard {
-            center: sign.center,
-            layer: 0,
-            half_x: sign.half_x,
-            emissive: 1.0,
-            half_y: sign.half_y,
-            reserved: 0,
-        }];
+        let billboards = [GpuBillboard::new(&sign, 0, 1.0)];
         let images = [MipChain::from_straight_alpha(1, 1, &[Vec4::ONE])];
         let mut settings = ReflectionUniform::new(1, UVec2::ONE, 1);
         settings.shadow_steps = 64;

@@ -58,6 +58,18 @@ pub struct GpuBillboard {
 }
 
 impl GpuBillboard {
+    /// Quad `quad` showing image layer `layer` at `emissive` cd/m² per texel of 1.
+    pub fn new(quad: &Billboard, layer: u32, emissive: f32) -> Self {
+        GpuBillboard {
+            center: quad.center,
+            layer,
+            half_x: quad.half_x,
+            emissive,
+            half_y: quad.half_y,
+            reserved: 0,
+        }
+    }
+
     /// The quad.
     pub fn billboard(&self) -> Billboard {
         Billboard {
@@ -717,14 +729,7 @@ mod tests {
             Vec2::splat(2.0),
         )
         .unwrap();
-        let gpu = GpuBillboard {
-            center: quad.center,
-            layer: 0,
-            half_x: quad.half_x,
-            emissive: 3.0,
-            half_y: quad.half_y,
-            reserved: 0,
-        };
+        let gpu = GpuBillboard::new(&quad, 0, 3.0);
         let settings = ReflectionUniform::new(1, UVec2::splat(8), 4);
         // The texel's centre: u = 5.5/8, v = 2.5/8 → x = −1 + 2u, y = 2 − 2v.
         let target = Vec3::new(-1.0 + 2.0 * 5.5 / 8.0, 2.0 - 2.0 * 2.5 / 8.0, -2.0);
@@ -784,14 +789,7 @@ mod tests {
             Vec2::splat(3.0),
         )
         .expect("a quad");
-        let gpu = GpuBillboard {
-            center: sign.center,
-            layer: 0,
-            half_x: sign.half_x,
-            emissive: 1.0,
-            half_y: sign.half_y,
-            reserved: 0,
-        };
+        let gpu = GpuBillboard::new(&sign, 0, 1.0);
         let images = [MipChain::from_straight_alpha(1, 1, &[Vec4::ONE])];
         let mut settings = ReflectionUniform::new(1, UVec2::ONE, 1);
         settings.shadow_steps = 32;

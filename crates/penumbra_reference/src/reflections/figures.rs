@@ -421,14 +421,7 @@ fn edge_widths(perceptual_roughness: f32, distance: f32) -> (f32, f32) {
         Vec2::new(10.0 * distance, 2.0 * distance),
     )
     .unwrap();
-    let billboards = [GpuBillboard {
-        center: quad.center,
-        layer: 0,
-        half_x: quad.half_x,
-        emissive: 1.0,
-        half_y: quad.half_y,
-        reserved: 0,
-    }];
+    let billboards = [GpuBillboard::new(&quad, 0, 1.0)];
     let truth = BillboardTruth {
         billboards: &billboards,
         images: &images,
