@@ -422,4 +422,12 @@ mod tests {
             assert!(parse_size(bad).is_err(), "{bad}");
         }
     }
+
+    #[test]
+    fn the_report_warns_of_a_cpu_drivers_compute_spans() {
+        let lavapipe = "llvmpipe (LLVM 15.0.6, 256 bits) (Cpu, driver llvmpipe Mesa 22.3.6)";
+        let h200 = "NVIDIA H200 (DiscreteGpu, driver NVIDIA 570.0)";
+        assert!(super::report::cpu_driver_note(lavapipe).is_some());
+        assert!(super::report::cpu_driver_note(h200).is_none());
+    }
 }

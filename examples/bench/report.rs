@@ -268,6 +268,21 @@ fn mib(bytes: u64) -> String {
     format!("{:.1}", bytes as f64 / (1024.0 * 1024.0))
 }
 
+/// What a CPU driver's pass times mean, for a device line that names one (wgpu's
+/// adapter type `Cpu`: Mesa's lavapipe). llvmpipe stamps a timestamp query when it
+/// rasterizes its current scene, not when the queue reaches the query: once a frame has
+/// drawn, both ends of a span around a compute pass are stamped after the compute has
+/// run, so the span reads near 0 and the compute's time falls outside every span
+/// (measured with Mesa 22.3; BENCHMARKS.md). The frame's GPU time is right.
+pub fn cpu_driver_note(device: &str) -> Option<&'static str> {
+    device.contains("(Cpu").then_some(
+        "**A CPU driver:** llvmpipe stamps timestamps when it rasterizes, so a span \
+         around a compute pass after the frame's first draw reads near 0 and the \
+         compute's time falls between spans: compute spans here under-count (the frame's \
+         GPU time does not). Profile the driver's threads (`perf`) to split it.",
+    )
+}
+
 /// The markdown report: per size and scene, each pass's GPU time (median / p95, ms) in
 /// each variant; then the comparisons.
 pub fn markdown(meta: &Meta, results: &[RunResult]) -> String {
@@ -278,6 +293,9 @@ pub fn markdown(meta: &Meta, results: &[RunResult]) -> String {
          frames. Command: `{}`.\n",
         meta.device, meta.frames, meta.warm_up, meta.command
     );
+    if let Some(note) = cpu_driver_note(&meta.device) {
+        let _ = writeln!(md, "{note}\n");
+    }
     let mut groups: Vec<(UVec2, SceneKind)> = Vec::new();
     for r in results {
         if !groups.contains(&(r.size, r.scene)) {
