@@ -17,6 +17,11 @@ impl GpuCompute {
     /// A device on the first Vulkan adapter with that adapter's own limits, or `None`
     /// without one (use with [`crate::gpu_or_skip`]).
     pub fn new() -> Option<GpuCompute> {
+        Self::with_features(wgpu::Features::empty())
+    }
+
+    /// As [`Self::new`], also requiring `features`; `None` where the adapter lacks them.
+    pub fn with_features(features: wgpu::Features) -> Option<GpuCompute> {
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
             backends: wgpu::Backends::VULKAN,
             ..wgpu::InstanceDescriptor::new_without_display_handle()
@@ -28,15 +33,19 @@ impl GpuCompute {
                 compatible_surface: None,
             }))
             .ok()?;
+        if !adapter.features().contains(features) {
+            return None;
+        }
         let (device, queue) =
             bevy::tasks::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
                 label: Some("penumbra_test_compute"),
                 // Multisampled `Rgba32Uint` (Bevy's G-buffer, as Penumbra's deferred
                 // MSAA renders it) needs the adapter's own format features; the bokeh
                 // layers blend `Rgba32Float`.
-                required_features: adapter.features()
-                    & (wgpu::Features::TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES
-                        | wgpu::Features::FLOAT32_BLENDABLE),
+                required_features: features
+                    | adapter.features()
+                        & (wgpu::Features::TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES
+                            | wgpu::Features::FLOAT32_BLENDABLE),
                 required_limits: adapter.limits(),
                 experimental_features: wgpu::ExperimentalFeatures::disabled(),
                 memory_hints: wgpu::MemoryHints::Performance,

@@ -9,6 +9,7 @@
 //! (BENCHMARKS.md). Run: `cargo test -p penumbra_test --test driver_timestamps --
 //! --ignored --nocapture`.
 
+use penumbra_test::compute::GpuCompute;
 use std::time::Instant;
 use wgpu::*;
 
@@ -22,78 +23,29 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
 }";
 
 struct Rig {
-    device: Device,
-    queue: Queue,
+    gpu: GpuCompute,
     pipeline: ComputePipeline,
     bind_group: BindGroup,
     queries: QuerySet,
     resolve: Buffer,
-    read: Buffer,
     target: TextureView,
 }
 
 fn rig() -> Option<Rig> {
-    let instance = Instance::new(InstanceDescriptor {
-        backends: Backends::VULKAN,
-        ..InstanceDescriptor::new_without_display_handle()
-    });
-    let adapter =
-        bevy::tasks::block_on(instance.request_adapter(&RequestAdapterOptions::default())).ok()?;
-    let features = Features::TIMESTAMP_QUERY | Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
-    if !adapter.features().contains(features) {
-        return None;
-    }
-    let (device, queue) = bevy::tasks::block_on(adapter.request_device(&DeviceDescriptor {
-        label: Some("penumbra_driver_timestamps"),
-        required_features: features,
-        required_limits: adapter.limits(),
-        experimental_features: ExperimentalFeatures::disabled(),
-        memory_hints: MemoryHints::Performance,
-        trace: Trace::Off,
-    }))
-    .ok()?;
-    let module = device.create_shader_module(ShaderModuleDescriptor {
-        label: None,
-        source: ShaderSource::Wgsl(SHADER.into()),
-    });
-    let pipeline = device.create_compute_pipeline(&ComputePipelineDescriptor {
-        label: None,
-        layout: None,
-        module: &module,
-        entry_point: Some("main"),
-        compilation_options: Default::default(),
-        cache: None,
-    });
-    let out = device.create_buffer(&BufferDescriptor {
-        label: None,
-        size: 4 * 64 * 256,
-        usage: BufferUsages::STORAGE,
-        mapped_at_creation: false,
-    });
-    let bind_group = device.create_bind_group(&BindGroupDescriptor {
-        label: None,
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &[BindGroupEntry {
-            binding: 0,
-            resource: out.as_entire_binding(),
-        }],
-    });
-    let buffer = |usage| {
-        device.create_buffer(&BufferDescriptor {
-            label: None,
-            size: 16,
-            usage,
-            mapped_at_creation: false,
-        })
-    };
-    let resolve = buffer(BufferUsages::QUERY_RESOLVE | BufferUsages::COPY_SRC);
-    let read = buffer(BufferUsages::MAP_READ | BufferUsages::COPY_DST);
-    let queries = device.create_query_set(&QuerySetDescriptor {
+    let gpu = GpuCompute::with_features(
+        Features::TIMESTAMP_QUERY | Features::TIMESTAMP_QUERY_INSIDE_ENCODERS,
+    )?;
+    let pipeline = gpu.pipeline(SHADER, "main");
+    let out = gpu.zeroed("out", 4 * 64 * 256, BufferUsages::empty());
+    let bind_group = gpu.bind(&pipeline, &[(0, &out)]);
+    let resolve = gpu.zeroed("resolve", 16, BufferUsages::QUERY_RESOLVE);
+    let queries = gpu.device.create_query_set(&QuerySetDescriptor {
         label: None,
         ty: QueryType::Timestamp,
         count: 2,
     });
-    let target = device
+    let target = gpu
+        .device
         .create_texture(&TextureDescriptor {
             label: None,
             size: Extent3d {
@@ -110,13 +62,11 @@ fn rig() -> Option<Rig> {
         })
         .create_view(&Default::default());
     Some(Rig {
-        device,
-        queue,
+        gpu,
         pipeline,
         bind_group,
         queries,
         resolve,
-        read,
         target,
     })
 }
@@ -124,7 +74,7 @@ fn rig() -> Option<Rig> {
 /// One submission: the compute pass between two timestamps (written by the encoder or
 /// by the pass), then a render pass that clears when `draw`. Returns (CPU wall, span), ms.
 fn measure(rig: &Rig, pass_timestamps: bool, draw: bool) -> (f64, f64) {
-    let mut encoder = rig.device.create_command_encoder(&Default::default());
+    let mut encoder = rig.gpu.device.create_command_encoder(&Default::default());
     if !pass_timestamps {
         encoder.write_timestamp(&rig.queries, 0);
     }
@@ -159,26 +109,17 @@ fn measure(rig: &Rig, pass_timestamps: bool, draw: bool) -> (f64, f64) {
         });
     }
     encoder.resolve_query_set(&rig.queries, 0..2, &rig.resolve, 0);
-    encoder.copy_buffer_to_buffer(&rig.resolve, 0, &rig.read, 0, 16);
     let start = Instant::now();
-    rig.queue.submit([encoder.finish()]);
-    rig.device
-        .poll(PollType::wait_indefinitely())
-        .expect("the device answers");
+    rig.gpu.queue.submit([encoder.finish()]);
+    rig.gpu.wait();
     let wall = start.elapsed().as_secs_f64() * 1e3;
-    rig.read.slice(..).map_async(MapMode::Read, |_| {});
-    rig.device
-        .poll(PollType::wait_indefinitely())
-        .expect("the device answers");
     let stamps: Vec<u64> = rig
-        .read
-        .slice(..)
-        .get_mapped_range()
+        .gpu
+        .read(&rig.resolve, 16)
         .chunks(8)
         .map(|c| u64::from_le_bytes(c.try_into().expect("8 bytes")))
         .collect();
-    rig.read.unmap();
-    let period_ms = f64::from(rig.queue.get_timestamp_period()) * 1e-6;
+    let period_ms = f64::from(rig.gpu.queue.get_timestamp_period()) * 1e-6;
     (wall, stamps[1].wrapping_sub(stamps[0]) as f64 * period_ms)
 }
 
