@@ -8,11 +8,12 @@
 //!
 //! The scene, its depth buffer and the passes: `support/shadow_passes.rs`.
 
-use glam::{Affine3A, UVec2, Vec2, Vec3};
+use glam::{Affine3A, Quat, UVec2, Vec2, Vec3};
 use penumbra_df_core::object::{CasterShape, ObjectDesc, encode, flags};
 use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind, words_to_bytes};
 use penumbra_reference::shadow_mask::{
-    pack_gbuffer_normal, pixel_visibility, position_from_depth, unpack_gbuffer_normal,
+    facing_the_eye, horizon, pack_gbuffer_normal, pixel_visibility, position_from_depth,
+    receiver_field_normal, shadow_ray, unpack_gbuffer_normal,
 };
 use penumbra_test::wgpu::{self, BufferUsages};
 use penumbra_test::{GpuCompute, gpu_or_skip};
@@ -144,6 +145,89 @@ fn normals_facing_away_from_the_eye_are_turned_to_face_it() {
         assert!(lit(&turned) * 10 > lit(&straight) * 7, "{light_name}");
         assert!(mean < 1e-4 && max < 0.05, "{mean} {max}");
     }
+}
+
+/// A G-buffer normal tilted away from the light (a normal map, smooth shading past the
+/// terminator) gives way to the caster field's own normal for the surface's own shadow
+/// (`shadow_mask::receiver_field_normal`): with every normal tilted 35° away from the
+/// sun, the GPU's mask equals the model's, and on the torus (the scene's volume, whose
+/// field the pixels read) most of the pixels the tilted normals alone would darken stay
+/// lit.
+#[test]
+fn a_caster_field_gives_way_where_a_tilted_gbuffer_normal_hides_the_light() {
+    if !gpu_or_skip("a_caster_field_gives_way_where_a_tilted_gbuffer_normal_hides_the_light") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let passes = passes(&gpu);
+    let scene = scene(Vec3::ZERO);
+    let straight_view = view(&scene, Vec3::ZERO);
+    let (light_name, light) = lights(Vec3::ZERO, EYE)[0];
+    let size = Vec2::new(WIDTH as f32, HEIGHT as f32);
+    let position = |view: &View, i: usize| {
+        let pixel = Vec2::new((i as u32 % WIDTH) as f32, (i as u32 / WIDTH) as f32);
+        position_from_depth(
+            view.view_from_clip,
+            view.world_from_view,
+            size,
+            pixel,
+            view.depth[i],
+        )
+    };
+    let mut tilted = view(&scene, Vec3::ZERO);
+    for (i, w) in tilted.normals.iter_mut().enumerate() {
+        if straight_view.depth[i] <= 0.0 {
+            continue;
+        }
+        let n = unpack_gbuffer_normal(*w);
+        let (to_light, _, _) = shadow_ray(position(&straight_view, i), &light);
+        let axis = n.cross(to_light);
+        if axis.length() > 1e-3 {
+            let turn = Quat::from_axis_angle(axis.normalize(), -35f32.to_radians());
+            *w = pack_gbuffer_normal(turn * n);
+        }
+    }
+    let (straight, _) = gpu_mask(&gpu, &passes, &scene, &straight_view, &light);
+    let (got, _) = gpu_mask(&gpu, &passes, &scene, &tilted, &light);
+    let want = reference_mask(&scene, &tilted, &light);
+    let (mean, _, max) = compare(&got, &want);
+    // The torus's pixels: those the field reads.
+    let (mut on_field, mut lit_straight, mut lit_tilted, mut hidden) = (0, 0, 0, 0);
+    for i in 0..(WIDTH * HEIGHT) as usize {
+        if tilted.depth[i] <= 0.0 {
+            continue;
+        }
+        let p = position(&tilted, i);
+        let n = facing_the_eye(tilted.normal(i), p);
+        if receiver_field_normal(&scene.records, &scene.atlas, &tilted.camera, p, n).is_none() {
+            continue;
+        }
+        on_field += 1;
+        if straight[i] > 0.5 {
+            lit_straight += 1;
+            lit_tilted += usize::from(got[i] > 0.5);
+            let (dir, _, tan_half) = shadow_ray(p, &light);
+            hidden += usize::from(horizon(n, dir, tan_half) <= 0.0);
+        }
+    }
+    eprintln!(
+        "{light_name}: {on_field} pixels on the torus's field; {lit_straight} lit with the \
+         normals as they are, {lit_tilted} with them tilted ({hidden} of them hidden by \
+         the tilted normal alone); tilted vs the model: mean {mean:.5}, max {max:.3}"
+    );
+    assert!(mean < 1e-4 && max < 0.05, "{mean} {max}");
+    assert!(
+        hidden > 100,
+        "the tilt hides the sun from only {hidden} pixels"
+    );
+    // Of the pixels the tilt alone would darken, the field gives back at least half
+    // (measured: 172 of 246; none with the field's normal ignored, which also breaks the
+    // contract: mean 0.026, max 1).
+    let given_back = lit_tilted as i64 - (lit_straight - hidden) as i64;
+    assert!(
+        given_back * 2 >= hidden as i64,
+        "{given_back} of {hidden} given back ({lit_tilted} of {lit_straight} lit)"
+    );
 }
 
 /// With a terrain (hills across the scene, seen only by the distance fields) every

@@ -115,6 +115,35 @@ pub const SELF_SHADOW_MAX_START_VOXELS: f32 = 4.0;
 /// shapes start at the bias. Chosen on the scene corpus (`tests/scene_corpus.rs`).
 pub const FINE_FIELD_BIAS_VOXELS: f32 = 2.0;
 
+/// How far outside a volume caster's surface a receiver may lie, in the field's voxels,
+/// and still take the field's own normal for its own shadow: the surface's own shadow
+/// (the light below its horizon) is decided by the caster's field where the G-buffer's
+/// smooth or normal-mapped normal hides a light the triangles face
+/// (`penumbra_reference::shadow_mask::field_normal`, `shadow.wgsl`'s `field_normal`).
+pub const FIELD_NORMAL_REACH_VOXELS: f32 = 1.0;
+
+/// The field normal's gradient stencil (a tetrahedron of four samples), voxels from its
+/// centre along each axis.
+pub const FIELD_NORMAL_STEP_VOXELS: f32 = 0.5;
+
+/// The field normal is kept only where its gradient's length is a distance's: within
+/// these bounds (a sample stencil across a thin feature or a medial axis is not).
+pub const FIELD_NORMAL_MIN_GRADIENT: f32 = 0.25;
+
+/// See [`FIELD_NORMAL_MIN_GRADIENT`].
+pub const FIELD_NORMAL_MAX_GRADIENT: f32 = 2.0;
+
+/// The field's normal replaces the G-buffer's only where the two agree this well
+/// (cosine): a normal map or smooth shading tilts a normal by less; a field read at a
+/// sharp edge or across a thin part turns by more. Chosen on the scene corpus
+/// (`tests/scene_corpus.rs`): 0.5 and 0.7 against facing 0.1–0.3 (ARCHITECTURE.md).
+pub const FIELD_NORMAL_MIN_AGREEMENT: f32 = 0.7;
+
+/// ... and only where the field faces the light by at least this cosine (a field normal
+/// is a voxel-scale estimate: within a few degrees of the terminator it guessed the
+/// triangle's side wrong on the corpus, lighting faces the light does not reach).
+pub const FIELD_NORMAL_MIN_FACING: f32 = 0.2;
+
 /// Where a march through a field of world voxel size `voxel` (0: an analytic shape)
 /// starts along the ray from a receiver of unit normal `normal` (zero: unknown) under a
 /// light of world bias `bias`: the bias, or [`FINE_FIELD_BIAS_VOXELS`] voxels of a finer
@@ -228,6 +257,12 @@ mod tests {
             ("SHELL_VOXELS", SHELL_VOXELS),
             ("SELF_SHADOW_MAX_START_VOXELS", SELF_SHADOW_MAX_START_VOXELS),
             ("FINE_FIELD_BIAS_VOXELS", FINE_FIELD_BIAS_VOXELS),
+            ("FIELD_NORMAL_REACH_VOXELS", FIELD_NORMAL_REACH_VOXELS),
+            ("FIELD_NORMAL_STEP_VOXELS", FIELD_NORMAL_STEP_VOXELS),
+            ("FIELD_NORMAL_MIN_GRADIENT", FIELD_NORMAL_MIN_GRADIENT),
+            ("FIELD_NORMAL_MAX_GRADIENT", FIELD_NORMAL_MAX_GRADIENT),
+            ("FIELD_NORMAL_MIN_AGREEMENT", FIELD_NORMAL_MIN_AGREEMENT),
+            ("FIELD_NORMAL_MIN_FACING", FIELD_NORMAL_MIN_FACING),
         ] {
             let line = source
                 .lines()

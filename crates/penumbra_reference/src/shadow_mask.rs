@@ -20,7 +20,10 @@ use glam::{IVec3, Mat3, Mat4, Vec2, Vec3, Vec4};
 use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::heightfield::HeightfieldTexture;
 use penumbra_df_core::object::{ObjectRecord, ShapeKind, TILE_SIZE, flags};
-use penumbra_df_core::shadow::march_start;
+use penumbra_df_core::shadow::{
+    FIELD_NORMAL_MAX_GRADIENT, FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING,
+    FIELD_NORMAL_MIN_GRADIENT, FIELD_NORMAL_REACH_VOXELS, FIELD_NORMAL_STEP_VOXELS, march_start,
+};
 
 pub use penumbra_df_core::shadow::{ShadowLight as MaskLight, ShadowLightKind as MaskLightKind};
 
@@ -130,7 +133,6 @@ pub fn pixel_visibility_with_terrain(
     light: &MaskLight,
     terrain: &HeightfieldTexture,
 ) -> (f32, u32) {
-    let mut evaluations = 0;
     if matches!(light.kind, MaskLightKind::Directional(_)) {
         // The encoder's `max(0)`: NaN traces nothing.
         let reach = light.max_view_distance.max(0.0);
@@ -143,11 +145,25 @@ pub fn pixel_visibility_with_terrain(
         return (1.0, 0);
     }
     let (dir, t_max, tan_half) = shadow_ray(p, light);
-    let normal = facing_the_eye(normal, p);
-    // The surface's own shadow; where it hides the whole light, no march.
-    let own = horizon(normal, dir, tan_half);
+    let mut normal = facing_the_eye(normal, p);
+    // The surface's own shadow; where it hides the whole light, no march. Where the
+    // light is below the G-buffer normal's horizon, the caster field the receiver lies
+    // on may give the triangles' own facing instead ([`receiver_field_normal`]).
+    let mut own = horizon(normal, dir, tan_half);
+    let mut evaluations = 0;
+    if normal != Vec3::ZERO && own < 1.0 {
+        let (field, reads) = receiver_field_normal_counted(records, atlas, camera, p, normal);
+        evaluations += reads;
+        if let Some(field) = field
+            && field.dot(normal) >= FIELD_NORMAL_MIN_AGREEMENT
+            && field.dot(dir) >= FIELD_NORMAL_MIN_FACING
+        {
+            normal = field;
+            own = 1.0;
+        }
+    }
     if own <= 0.0 {
-        return (0.0, 0);
+        return (0.0, evaluations);
     }
     let end = p + dir * t_max;
     let end_radius = t_max * tan_half;
@@ -204,6 +220,101 @@ pub fn pixel_visibility_with_terrain(
         finish(visibility, light.shaping.clamp(0.05, 20.0)).min(own),
         evaluations,
     )
+}
+
+/// The outward normal of the caster field that camera-relative receiver `p` lies on,
+/// seen from `side` (its G-buffer normal turned to face the eye): among the
+/// shadow-casting volumes whose bounding sphere holds `p`, each one's [`field_normal`],
+/// the one with the smallest distance (the first slot on a tie). `shadow_trace.wgsl`
+/// reads the same objects from its tile's caster list.
+pub fn receiver_field_normal(
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    camera: &CameraOrigin,
+    p: Vec3,
+    side: Vec3,
+) -> Option<Vec3> {
+    receiver_field_normal_counted(records, atlas, camera, p, side).0
+}
+
+/// [`receiver_field_normal`] and the distance evaluations it took (one, and four more
+/// where the receiver lies on the field).
+fn receiver_field_normal_counted(
+    records: &[ObjectRecord],
+    atlas: &Atlas,
+    camera: &CameraOrigin,
+    p: Vec3,
+    side: Vec3,
+) -> (Option<Vec3>, u32) {
+    let mut evaluations = 0;
+    let mut best: Option<(f32, Vec3)> = None;
+    for r in records {
+        if !flags::casts_shadows(r.flags()) {
+            continue;
+        }
+        let Some((center, radius)) = bounding_sphere(r, camera) else {
+            continue;
+        };
+        let v = p - center;
+        if v.dot(v) > radius * radius {
+            continue;
+        }
+        if r.kind() == ShapeKind::Volume as u32 {
+            evaluations += 1;
+        }
+        if let Some((n, d)) = field_normal(r, atlas, camera, p, side) {
+            evaluations += 4;
+            if best.is_none_or(|(b, _)| d < b) {
+                best = Some((d, n));
+            }
+        }
+    }
+    (best.map(|(_, n)| n), evaluations)
+}
+
+/// The outward unit normal of volume record `r`'s surface at camera-relative receiver
+/// `p`, and the field's mean distance where it was read: the gradient of the field by a
+/// tetrahedron of four samples [`FIELD_NORMAL_STEP_VOXELS`] voxels about `p` — about the
+/// point a voxel along `side` (the G-buffer normal turned to face the eye) for a
+/// two-sided field, whose shell is symmetric about its sheet, so that the normal is the
+/// side the eye sees (read a voxel toward the eye instead, a curved sheet's normal leaned
+/// toward the eye: 12° median error on a torus, against 3°). `None` for
+/// analytic shapes, where `p` lies more than [`FIELD_NORMAL_REACH_VOXELS`] voxels outside
+/// the field's surface, or where the gradient's length is not a distance's
+/// ([`FIELD_NORMAL_MIN_GRADIENT`]). `shadow.wgsl`'s `field_normal`.
+pub fn field_normal(
+    r: &ObjectRecord,
+    atlas: &Atlas,
+    camera: &CameraOrigin,
+    p: Vec3,
+    side: Vec3,
+) -> Option<(Vec3, f32)> {
+    let h = r.conservative_scale();
+    if r.kind() != ShapeKind::Volume as u32 || h.is_nan() || h <= 0.0 {
+        return None;
+    }
+    let d = |q: Vec3| object_distance(r, q, camera, atlas);
+    // NaN distances read no normal.
+    let reach = d(p);
+    if reach.is_nan() || reach > FIELD_NORMAL_REACH_VOXELS * h {
+        return None;
+    }
+    let two_sided = r.flags() & flags::TWO_SIDED != 0;
+    let q = p + side * if two_sided { h } else { 0.0 };
+    let s = FIELD_NORMAL_STEP_VOXELS * h;
+    let ks = [
+        Vec3::new(1.0, -1.0, -1.0),
+        Vec3::new(-1.0, -1.0, 1.0),
+        Vec3::new(-1.0, 1.0, -1.0),
+        Vec3::new(1.0, 1.0, 1.0),
+    ];
+    let ds = ks.map(|k| d(q + k * s));
+    let g = (ks[0] * ds[0] + ks[1] * ds[1] + ks[2] * ds[2] + ks[3] * ds[3]) / (4.0 * s);
+    let len = g.length();
+    if !(FIELD_NORMAL_MIN_GRADIENT..=FIELD_NORMAL_MAX_GRADIENT).contains(&len) {
+        return None;
+    }
+    Some((g / len, 0.25 * (ds[0] + ds[1] + ds[2] + ds[3])))
 }
 
 /// The terrains' visibility along the shadow ray `(dir, t_max, tan_half)` from

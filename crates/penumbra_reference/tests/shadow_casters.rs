@@ -14,7 +14,7 @@ use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, encode, flags};
 use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind};
 use penumbra_reference::df::Atlas;
-use penumbra_reference::shadow_mask::{pixel_visibility, pixel_visibility_counted};
+use penumbra_reference::shadow_mask::{field_normal, pixel_visibility, pixel_visibility_counted};
 use penumbra_sdf::{BakeSettings, SignMethod, TriMesh, bake};
 
 const CASTING: u32 = flags::LIVE | flags::CASTS_SHADOWS;
@@ -424,5 +424,81 @@ fn a_two_sided_sheet_does_not_shadow_itself() {
         let p = Vec3::new(x, height(x, z), z);
         let v = pixel_visibility(&boxed, atlas, &camera, p, normal(x, z), &light);
         assert!(v < 0.1, "{along} m behind the box: {v}");
+    }
+}
+
+/// The caster field's own normal at a receiver (`shadow_mask::field_normal`, which the
+/// mask pass reads where the G-buffer normal hides the light) against the triangles'
+/// own: at the centroid of every triangle of a torus that faces the eye, baked solid and
+/// two-sided (a shell, read on the side a G-buffer normal 20° off the triangle's says),
+/// the field's normal is the triangle's: measured median 2.75° / 95th percentile 5.3°
+/// solid, 6.6° / 20.4° two-sided.
+#[test]
+fn a_caster_fields_normal_is_its_triangles() {
+    let mesh = penumbra_sdf::shapes::torus(0.5, 0.18, 96, 48);
+    let eye = Vec3::new(0.4, 2.5, 3.0);
+    let camera = CameraOrigin::at(eye).unwrap();
+    for (name, sign, f) in [
+        ("solid", SignMethod::default(), CASTING),
+        (
+            "two-sided",
+            SignMethod::TWO_SIDED,
+            CASTING | flags::TWO_SIDED,
+        ),
+    ] {
+        let settings = BakeSettings {
+            sign,
+            ..BakeSettings::longest_axis(36)
+        };
+        let baked = Baked::new(&mesh, &settings);
+        let spin = Quat::from_rotation_x(0.5);
+        let at = Vec3::new(0.1, 0.3, -0.2);
+        let record = baked.record(Affine3A::from_rotation_translation(spin, at), f);
+        let (mut seen, mut read) = (0, 0);
+        let mut angles = Vec::new();
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|k| spin * mesh.positions[k as usize] + at);
+            let centroid = (a + b + c) / 3.0;
+            let facet = (b - a).cross(c - a).normalize();
+            let to_eye = (eye - centroid).normalize();
+            if facet.dot(to_eye) < 0.2 {
+                continue;
+            }
+            seen += 1;
+            let p = centroid - eye;
+            // A G-buffer normal 20° off the triangle's (a normal map), toward the eye.
+            let axis = facet.cross(to_eye);
+            let side = if axis.length() > 1e-3 {
+                Quat::from_axis_angle(axis.normalize(), 20f32.to_radians()) * facet
+            } else {
+                facet
+            };
+            let Some((n, _)) = field_normal(&record, &baked.atlas, &camera, p, side) else {
+                continue;
+            };
+            read += 1;
+            angles.push(n.dot(facet).clamp(-1.0, 1.0).acos().to_degrees());
+        }
+        angles.sort_by(f32::total_cmp);
+        let median = angles[angles.len() / 2];
+        let p95 = angles[angles.len() * 95 / 100];
+        println!(
+            "{name}: the field's normal at {read} of {seen} triangles facing the eye; \
+             angle to the triangle's: median {median:.2}°, 95th percentile {p95:.2}°, \
+             worst {:.2}°",
+            angles[angles.len() - 1]
+        );
+        assert!(read * 100 >= seen * 95, "{name}: {read} of {seen}");
+        // A shell is read a voxel off its sheet: on a curved one (the tube's radius is
+        // 4.7 voxels) the nearest sheet point moves with the G-buffer normal's tilt.
+        let (most_median, most_p95) = if name == "solid" {
+            (4.0, 8.0)
+        } else {
+            (9.0, 25.0)
+        };
+        assert!(
+            median < most_median && p95 < most_p95,
+            "{name}: {median}° {p95}°"
+        );
     }
 }

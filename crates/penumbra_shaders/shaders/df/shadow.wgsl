@@ -201,6 +201,60 @@ fn march_start(o: DistanceFieldObject, n: vec3<f32>, dir: vec3<f32>, bias: f32) 
     return max(start, self_shadow_start(o, n, dir));
 }
 
+// The field's own normal at a receiver, and when it replaces the G-buffer's
+// (`penumbra_df_core::shadow::FIELD_NORMAL_*`).
+const FIELD_NORMAL_REACH_VOXELS: f32 = 1.0;
+const FIELD_NORMAL_STEP_VOXELS: f32 = 0.5;
+const FIELD_NORMAL_MIN_GRADIENT: f32 = 0.25;
+const FIELD_NORMAL_MAX_GRADIENT: f32 = 2.0;
+const FIELD_NORMAL_MIN_AGREEMENT: f32 = 0.7;
+const FIELD_NORMAL_MIN_FACING: f32 = 0.2;
+// No field normal: `w` above every distance.
+const NO_FIELD_NORMAL: vec4<f32> = vec4<f32>(0.0, 0.0, 0.0, 3.0e38);
+
+// The outward normal of volume `o`'s surface at the receiver `p`, from the field's
+// gradient (a tetrahedron of four samples) — about the point a voxel along `side` (the
+// G-buffer normal turned to face the eye) for a two-sided field, whose shell is
+// symmetric about its sheet, so that the normal is the side the eye sees: xyz the unit
+// normal, w the field's mean distance there (among several objects the smallest wins).
+// NO_FIELD_NORMAL where `o` is not a volume, `p` lies farther than
+// FIELD_NORMAL_REACH_VOXELS outside its surface, or the gradient's length is not a
+// distance's. CPU model: `penumbra_reference::shadow_mask::field_normal`.
+fn field_normal(
+    o: DistanceFieldObject,
+    p: vec3<f32>,
+    side: vec3<f32>,
+    camera_tile: vec3<i32>,
+    camera_offset: vec3<f32>,
+    atlas: texture_3d<f32>,
+) -> vec4<f32> {
+    let h = o.conservative_scale;
+    if object_kind(o) != KIND_VOLUME || !(h > 0.0) {
+        return NO_FIELD_NORMAL;
+    }
+    if !(object_distance(o, p, camera_tile, camera_offset, atlas) <= FIELD_NORMAL_REACH_VOXELS * h) {
+        return NO_FIELD_NORMAL;
+    }
+    // A two-sided field's shell is symmetric about its sheet: read it on the side seen.
+    let two_sided = (o.flags & FLAG_TWO_SIDED) != 0u;
+    let q = p + side * select(0.0, h, two_sided);
+    let s = FIELD_NORMAL_STEP_VOXELS * h;
+    let k0 = vec3<f32>(1.0, -1.0, -1.0);
+    let k1 = vec3<f32>(-1.0, -1.0, 1.0);
+    let k2 = vec3<f32>(-1.0, 1.0, -1.0);
+    let k3 = vec3<f32>(1.0, 1.0, 1.0);
+    let d0 = object_distance(o, q + k0 * s, camera_tile, camera_offset, atlas);
+    let d1 = object_distance(o, q + k1 * s, camera_tile, camera_offset, atlas);
+    let d2 = object_distance(o, q + k2 * s, camera_tile, camera_offset, atlas);
+    let d3 = object_distance(o, q + k3 * s, camera_tile, camera_offset, atlas);
+    let g = (k0 * d0 + k1 * d1 + k2 * d2 + k3 * d3) / (4.0 * s);
+    let len = length(g);
+    if !(len >= FIELD_NORMAL_MIN_GRADIENT && len <= FIELD_NORMAL_MAX_GRADIENT) {
+        return NO_FIELD_NORMAL;
+    }
+    return vec4<f32>(g / len, 0.25 * (d0 + d1 + d2 + d3));
+}
+
 // The fraction of the light's cone one object leaves open along the ray from p, the
 // march starting `start` along it at the earliest (`march_start`, or the light's bias).
 fn march_object(

@@ -13,7 +13,8 @@
 #import penumbra::df::heightfield::{HeightfieldRecord, heightfield_distance}
 #import penumbra::df::shadow::{
     ShadowLight, ShadowRay, bounding_sphere, casts_shadows, cull_slack, finish_visibility, gbuffer_normal,
-    horizon_visibility, is_directional, march_object, march_start, object_in_cone,
+    FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, NO_FIELD_NORMAL, field_normal, horizon_visibility, is_directional, march_object, march_start,
+    object_in_cone,
     round_cone_distance, shadow_ray, traces_point,
 }
 #import penumbra::lighting::msaa::MSAA_SAMPLE_POSITIONS
@@ -73,6 +74,10 @@ var<workgroup> tile_max: array<atomic<u32>, 3>;
 var<workgroup> tile_slots: array<u32, 64>;
 var<workgroup> tile_spheres: array<vec4<f32>, 64>;
 var<workgroup> tile_count: atomic<u32>;
+// Whether a pixel of the tile has the light partly below its G-buffer normal's horizon
+// (then the tile reads its casters' fields for their own normals).
+var<workgroup> tile_hidden: atomic<u32>;
+var<workgroup> tile_reads_fields: u32;
 var<workgroup> tile_n: u32;
 var<workgroup> total_n: u32;
 // The tile's candidates: 0 the light's list, 1 the grid (large casters, then the casters
@@ -202,6 +207,7 @@ fn trace(
             atomicStore(&tile_max[i], 0u);
         }
         atomicStore(&tile_count, 0u);
+        atomicStore(&tile_hidden, 0u);
     }
     workgroupBarrier();
 
@@ -217,16 +223,19 @@ fn trace(
         surface = traces_point(light, p);
     }
     let ray = shadow_ray(p, light);
-    // The surface's own shadow, from its G-buffer normal turned to face the eye; where it
-    // hides the whole light, no march (and the pixel does not widen its tile's cone).
-    var horizon = 1.0;
+    // The surface's normal: its G-buffer normal turned to face the eye, unless a caster's
+    // field gives its own (below). Every surface pixel widens its tile's cone: the field
+    // may face the light where the G-buffer normal does not.
     var normal = vec3<f32>(0.0);
+    var horizon = 1.0;
     if surface && view.size.w == 1u {
         normal = facing_the_eye(gbuffer_normal(point.normal_word), p);
         horizon = horizon_visibility(normal, ray.dir, ray.tan_half);
+        if horizon < 1.0 {
+            atomicStore(&tile_hidden, 1u);
+        }
     }
-    let march = surface && horizon > 0.0;
-    if march {
+    if surface {
         for (var i = 0u; i < 3u; i += 1u) {
             atomicMin(&tile_min[i], order_key(p[i]));
             atomicMax(&tile_max[i], order_key(p[i]));
@@ -267,6 +276,7 @@ fn trace(
         cone_end_radius = 2.0 * light.source;
     }
     if li == 0u {
+        tile_reads_fields = atomicLoad(&tile_hidden);
         tile_mode = 0u;
         total_n = light_object_count[0];
         if !any_surface {
@@ -300,58 +310,49 @@ fn trace(
     let cells = tile_cells;
     let large_n = tile_large;
 
-    var visibility = 1.0;
-    for (var base = 0u; base < total; base += TILE_PIXELS) {
-        let k = base + li;
-        if k < total {
-            var slot = 0u;
-            var keep = true;
-            if mode == 0u {
-                slot = light_objects[k];
-            } else if k < large_n {
-                slot = grid_large[k];
-            } else {
-                // The k-th item of the tile's cells, row by row; a caster listed in
-                // several of them is kept in the first only.
-                var j = k - large_n;
-                var cell = vec2<i32>(0);
-                var found = false;
-                for (var y = cells.y; y <= cells.w && !found; y += 1) {
-                    for (var x = cells.x; x <= cells.z && !found; x += 1) {
-                        let c = u32(y) * GRID_SIZE + u32(x);
-                        let n = grid.counts[c];
-                        if j < n {
-                            slot = grid_items[grid.offsets[c] + j];
-                            cell = vec2<i32>(x, y);
-                            found = true;
-                        } else {
-                            j -= n;
+    let tile = TileCone(tile_center, tile_radius, cone_end, cone_end_radius);
+
+    // The surface's own shadow, from the normal of the caster field it lies on (the
+    // triangles' facing, not a smooth or normal-mapped G-buffer normal), else from the
+    // G-buffer's; where it hides the whole light, no march.
+    var field = NO_FIELD_NORMAL;
+    if workgroupUniformLoad(&tile_reads_fields) != 0u {
+        var best = NO_FIELD_NORMAL;
+        var best_slot = 0xffffffffu;
+        for (var base = 0u; base < total; base += TILE_PIXELS) {
+            let n = list_casters(base, li, total, mode, cells, large_n, tile);
+            if surface && horizon < 1.0 {
+                for (var i = 0u; i < n; i += 1u) {
+                    let sphere = tile_spheres[i];
+                    let v = p - sphere.xyz;
+                    if sphere.w >= 0.0 && dot(v, v) <= sphere.w * sphere.w {
+                        let slot = tile_slots[i];
+                        let f = field_normal(
+                            objects[slot], p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas,
+                        );
+                        if f.w < best.w || (f.w == best.w && f.w < 3.0e38 && slot < best_slot) {
+                            best = f;
+                            best_slot = slot;
                         }
                     }
                 }
-                let glo = vec2<f32>(from_order_key(grid.bounds[0]), from_order_key(grid.bounds[1]));
-                let ghi = vec2<f32>(from_order_key(grid.bounds[2]), from_order_key(grid.bounds[3]));
-                let disc = light_space_disc(objects[slot], grid_view);
-                let own = cell_range(grid_frame(glo, ghi), disc.xy, disc.z);
-                keep = found && all(cell == max(cells.xy, own.xy));
             }
-            let o = objects[slot];
-            let sphere = bounding_sphere(o, view.camera_tile.xyz, view.camera_offset.xyz);
-            keep = keep && casts_shadows(o) && (sphere.w < 0.0
-                || round_cone_distance(sphere.xyz, tile_center, cone_end, tile_radius, cone_end_radius)
-                    < sphere.w + cull_slack(sphere.w));
-            if keep {
-                let n = atomicAdd(&tile_count, 1u);
-                tile_slots[n] = slot;
-                tile_spheres[n] = sphere;
-            }
+            workgroupBarrier();
         }
-        workgroupBarrier();
-        if li == 0u {
-            tile_n = atomicLoad(&tile_count);
-            atomicStore(&tile_count, 0u);
+        field = best;
+    }
+    if surface && any(normal != vec3<f32>(0.0)) {
+        if field.w < 3.0e38 && dot(field.xyz, normal) >= FIELD_NORMAL_MIN_AGREEMENT
+            && dot(field.xyz, ray.dir) >= FIELD_NORMAL_MIN_FACING && horizon < 1.0 {
+            normal = field.xyz;
+            horizon = 1.0;
         }
-        let n = workgroupUniformLoad(&tile_n);
+    }
+    let march = surface && horizon > 0.0;
+
+    var visibility = 1.0;
+    for (var base = 0u; base < total; base += TILE_PIXELS) {
+        let n = list_casters(base, li, total, mode, cells, large_n, tile);
         if march {
             for (var i = 0u; i < n; i += 1u) {
                 let sphere = tile_spheres[i];
@@ -377,4 +378,77 @@ fn trace(
         }
         textureStore(mask, vec2<i32>(gid.xy), vec4<f32>(out, 0.0, 0.0, 1.0));
     }
+}
+
+// The tile's round cone: from its bounding ball to the light's end ball.
+struct TileCone {
+    center: vec3<f32>,
+    radius: f32,
+    end: vec3<f32>,
+    end_radius: f32,
+}
+
+// Lists the casters `base .. base + TILE_PIXELS` of the tile's candidates (the light's
+// list, or the grid cells under the tile's shadow disc: `mode`) that cast shadows and
+// meet the tile's cone into `tile_slots` / `tile_spheres`, one per thread; returns how
+// many (uniform). Call from uniform control flow, with a barrier before the next call.
+fn list_casters(
+    base: u32,
+    li: u32,
+    total: u32,
+    mode: u32,
+    cells: vec4<i32>,
+    large_n: u32,
+    tile: TileCone,
+) -> u32 {
+    let k = base + li;
+    if k < total {
+        var slot = 0u;
+        var keep = true;
+        if mode == 0u {
+            slot = light_objects[k];
+        } else if k < large_n {
+            slot = grid_large[k];
+        } else {
+            // The k-th item of the tile's cells, row by row; a caster listed in
+            // several of them is kept in the first only.
+            var j = k - large_n;
+            var cell = vec2<i32>(0);
+            var found = false;
+            for (var y = cells.y; y <= cells.w && !found; y += 1) {
+                for (var x = cells.x; x <= cells.z && !found; x += 1) {
+                    let c = u32(y) * GRID_SIZE + u32(x);
+                    let n = grid.counts[c];
+                    if j < n {
+                        slot = grid_items[grid.offsets[c] + j];
+                        cell = vec2<i32>(x, y);
+                        found = true;
+                    } else {
+                        j -= n;
+                    }
+                }
+            }
+            let glo = vec2<f32>(from_order_key(grid.bounds[0]), from_order_key(grid.bounds[1]));
+            let ghi = vec2<f32>(from_order_key(grid.bounds[2]), from_order_key(grid.bounds[3]));
+            let disc = light_space_disc(objects[slot], grid_view);
+            let own = cell_range(grid_frame(glo, ghi), disc.xy, disc.z);
+            keep = found && all(cell == max(cells.xy, own.xy));
+        }
+        let o = objects[slot];
+        let sphere = bounding_sphere(o, view.camera_tile.xyz, view.camera_offset.xyz);
+        keep = keep && casts_shadows(o) && (sphere.w < 0.0
+            || round_cone_distance(sphere.xyz, tile.center, tile.end, tile.radius, tile.end_radius)
+                < sphere.w + cull_slack(sphere.w));
+        if keep {
+            let n = atomicAdd(&tile_count, 1u);
+            tile_slots[n] = slot;
+            tile_spheres[n] = sphere;
+        }
+    }
+    workgroupBarrier();
+    if li == 0u {
+        tile_n = atomicLoad(&tile_count);
+        atomicStore(&tile_count, 0u);
+    }
+    return workgroupUniformLoad(&tile_n);
 }
