@@ -119,7 +119,7 @@ pub const FINE_FIELD_BIAS_VOXELS: f32 = 2.0;
 /// and still take the field's own normal for its own shadow: the surface's own shadow
 /// (the light below its horizon) is decided by the caster's field where the G-buffer's
 /// smooth or normal-mapped normal hides a light the triangles face
-/// (`penumbra_reference::shadow_mask::field_normal`, `shadow.wgsl`'s `field_normal`).
+/// (`penumbra_reference::shadow_mask::field_normal`, `shadow.wgsl`'s `caster_field_normal`).
 pub const FIELD_NORMAL_REACH_VOXELS: f32 = 1.0;
 
 /// The field normal's gradient stencil (a tetrahedron of four samples), voxels from its

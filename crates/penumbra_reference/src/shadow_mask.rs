@@ -281,7 +281,7 @@ fn receiver_field_normal_counted(
 /// toward the eye: 12° median error on a torus, against 3°). `None` for
 /// analytic shapes, where `p` lies more than [`FIELD_NORMAL_REACH_VOXELS`] voxels outside
 /// the field's surface, or where the gradient's length is not a distance's
-/// ([`FIELD_NORMAL_MIN_GRADIENT`]). `shadow.wgsl`'s `field_normal`.
+/// ([`FIELD_NORMAL_MIN_GRADIENT`]). `shadow.wgsl`'s `caster_field_normal`.
 pub fn field_normal(
     r: &ObjectRecord,
     atlas: &Atlas,

@@ -220,7 +220,7 @@ const NO_FIELD_NORMAL: vec4<f32> = vec4<f32>(0.0, 0.0, 0.0, 3.0e38);
 // NO_FIELD_NORMAL where `o` is not a volume, `p` lies farther than
 // FIELD_NORMAL_REACH_VOXELS outside its surface, or the gradient's length is not a
 // distance's. CPU model: `penumbra_reference::shadow_mask::field_normal`.
-fn field_normal(
+fn caster_field_normal(
     o: DistanceFieldObject,
     p: vec3<f32>,
     side: vec3<f32>,

@@ -13,7 +13,7 @@
 #import penumbra::df::heightfield::{HeightfieldRecord, heightfield_distance}
 #import penumbra::df::shadow::{
     ShadowLight, ShadowRay, bounding_sphere, casts_shadows, cull_slack, finish_visibility, gbuffer_normal,
-    FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, NO_FIELD_NORMAL, field_normal, horizon_visibility, is_directional, march_object, march_start,
+    FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, NO_FIELD_NORMAL, caster_field_normal, horizon_visibility, is_directional, march_object, march_start,
     object_in_cone,
     round_cone_distance, shadow_ray, traces_point,
 }
@@ -327,7 +327,7 @@ fn trace(
                     let v = p - sphere.xyz;
                     if sphere.w >= 0.0 && dot(v, v) <= sphere.w * sphere.w {
                         let slot = tile_slots[i];
-                        let f = field_normal(
+                        let f = caster_field_normal(
                             objects[slot], p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas,
                         );
                         if f.w < best.w || (f.w == best.w && f.w < 3.0e38 && slot < best_slot) {
