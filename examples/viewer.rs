@@ -202,6 +202,10 @@ fn spawn_scene(mut commands: Commands, args: Res<ViewerArgs>, assets: Res<AssetS
     if !args.0.plain {
         root.insert(DistanceFieldSceneCasters {
             two_sided: args.0.two_sided,
+            caster: DistanceFieldCaster {
+                resolution_scale: args.0.resolution_scale,
+                ..default()
+            },
             ..default()
         });
     }

@@ -77,6 +77,18 @@ pub struct Args {
     /// `always` (`DistanceFieldSceneCasters::two_sided`).
     #[arg(long, value_parser = parse_two_sided, default_value = "material")]
     pub two_sided: penumbra::df::SceneTwoSided,
+    /// Every mesh caster's distance-field resolution scale
+    /// (`DistanceFieldCaster::resolution_scale`, Unreal's "distance field resolution
+    /// scale"): 2 halves the voxels' size (8× the atlas), 0.5 doubles it. 1/16 to 8.
+    #[arg(long, value_parser = parse_resolution_scale, default_value = "1")]
+    pub resolution_scale: f32,
+}
+
+fn parse_resolution_scale(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if (1.0 / 16.0..=8.0).contains(&v) => Ok(v),
+        _ => Err(format!("{s}: not a number from 0.0625 to 8")),
+    }
 }
 
 fn parse_two_sided(s: &str) -> Result<penumbra::df::SceneTwoSided, String> {
