@@ -67,7 +67,7 @@ const CORPUS: &[Case] = &[
     Case {
         file: "PalmTree/PalmTree.gltf",
         flags: &["--eye=5,4,7", "--target=0,1.8,-0.5"],
-        bounds: b(0.19, 0.03, 0.03),
+        bounds: b(0.17, 0.03, 0.03),
     },
     Case {
         file: "AlienCake/cakeBirthday.glb",
@@ -92,12 +92,12 @@ const CORPUS: &[Case] = &[
     Case {
         file: "FlightHelmet/FlightHelmet.gltf",
         flags: &[],
-        bounds: b(0.24, 0.10, 0.20),
+        bounds: b(0.23, 0.10, 0.19),
     },
     Case {
         file: "AnisotropyBarnLamp/AnisotropyBarnLamp.gltf",
         flags: &[],
-        bounds: b(0.35, 0.09, 0.10),
+        bounds: b(0.28, 0.07, 0.10),
     },
     Case {
         file: "terrain/terrain.glb",

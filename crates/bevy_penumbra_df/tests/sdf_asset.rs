@@ -38,6 +38,7 @@ fn settings() -> BakeSettings {
         grid: GridPolicy {
             resolution: Resolution::LongestAxis(24),
             border_voxels: 2,
+            thin_walls: penumbra_sdf::grid::ThinWalls::OFF,
         },
         ..default()
     }
@@ -221,6 +222,7 @@ fn slow_settings() -> BakeSettings {
         grid: GridPolicy {
             resolution: Resolution::LongestAxis(112),
             border_voxels: 2,
+            thin_walls: penumbra_sdf::grid::ThinWalls::OFF,
         },
         ..default()
     }

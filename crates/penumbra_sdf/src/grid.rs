@@ -39,6 +39,9 @@ pub struct GridPolicy {
     pub resolution: Resolution,
     /// Samples of padding outside the mesh bounds on each side (default 2).
     pub border_voxels: u32,
+    /// Finer voxels for meshes with thin walls ([`Resolution::PerUnit`] only). Default
+    /// [`ThinWalls::default`].
+    pub thin_walls: ThinWalls,
 }
 
 impl Default for GridPolicy {
@@ -51,6 +54,61 @@ impl Default for GridPolicy {
                 min_longest: DEFAULT_MIN_LONGEST,
             },
             border_voxels: 2,
+            thin_walls: ThinWalls::default(),
+        }
+    }
+}
+
+/// The thin-wall rule of [`Resolution::PerUnit`] grids: a mesh that bakes solid and whose
+/// walls (the area-weighted `quantile` of their thickness,
+/// [`crate::thickness::wall_thickness_quantile`]) are thinner than `voxels_across`
+/// voxels gets voxels that many times finer than the wall, at most `max_refine` times
+/// finer than the rule's own and within its `max` samples per axis. Walls thinner than a
+/// voxel lose their inside in a trilinear field (the thin-feature guard keeps one
+/// negative sample, not the wall's width). Measured on `../shared/scenes` (ARCHITECTURE.md,
+/// "Bake resolution"): the flight helmet's and barn lamp's parts and the palm tree's
+/// leaves have walls of 0.08–0.6 voxels at the default density (sheet metal, straps),
+/// below what any cap reaches. This rule (twice finer at most) took the scene corpus's
+/// shadows on shadowed pixels 0.169 → 0.164 (helmet; DFAO 0.141 → 0.136), 0.259 → 0.207
+/// (lamp), 0.135 → 0.118 (palm) for 0.7 → 3.9, 0.2 → 1.4 and 4.1 → 8.3 MB of atlas;
+/// every mesh four times finer brought the helmet to 0.112 (DFAO 0.098) and the lamp to
+/// 0.171 for 33 and 12 MB. Baking them two-sided instead (shells) was worse (0.200,
+/// 0.360).
+/// Cost: one ray per triangle, at most [`crate::thickness::WALL_SAMPLES`], per bake.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ThinWalls {
+    /// Voxels a wall should be across. Default 2.
+    pub voxels_across: f32,
+    /// The share of the measured area (0–1) whose walls must be that wide. Default 0.1.
+    pub quantile: f32,
+    /// How many times finer than the rule's own voxels, at most. Default 2 (8× the
+    /// samples); 1 turns the rule off.
+    pub max_refine: f32,
+}
+
+impl ThinWalls {
+    /// No thin-wall rule.
+    pub const OFF: ThinWalls = ThinWalls {
+        voxels_across: 2.0,
+        quantile: 0.1,
+        max_refine: 1.0,
+    };
+
+    /// Whether the rule can change a grid.
+    pub fn is_on(&self) -> bool {
+        self.max_refine > 1.0
+            && self.voxels_across > 0.0
+            && (0.0..=1.0).contains(&self.quantile)
+            && self.max_refine.is_finite()
+    }
+}
+
+impl Default for ThinWalls {
+    fn default() -> Self {
+        Self {
+            voxels_across: 2.0,
+            quantile: 0.1,
+            max_refine: 2.0,
         }
     }
 }
@@ -112,6 +170,50 @@ impl std::fmt::Display for GridError {
 impl std::error::Error for GridError {}
 
 impl GridPolicy {
+    /// Resolves the grid for mesh bounds `bounds` and the mesh's wall thickness `wall`
+    /// (the [`ThinWalls`] quantile, mesh units; `None`: no wall measured or the rule does
+    /// not apply), and by how much the thin-wall rule refined it (1: not).
+    pub fn resolve_with_walls(
+        &self,
+        bounds: &Aabb,
+        wall: Option<f32>,
+    ) -> Result<(GridSpec, f32), GridError> {
+        let grid = self.resolve(bounds)?;
+        let rule = self.thin_walls;
+        let Resolution::PerUnit {
+            density,
+            min,
+            max,
+            min_longest,
+        } = self.resolution
+        else {
+            return Ok((grid, 1.0));
+        };
+        let Some(wall) = wall.filter(|w| *w > 0.0 && w.is_finite()) else {
+            return Ok((grid, 1.0));
+        };
+        if !rule.is_on() || wall >= rule.voxels_across * grid.voxel_size {
+            return Ok((grid, 1.0));
+        }
+        let refine = (rule.voxels_across * grid.voxel_size / wall).min(rule.max_refine);
+        let pad = 2 * self.border_voxels + 1;
+        let longest = grid.dims.max_element().saturating_sub(pad) as f32;
+        let finer = GridPolicy {
+            resolution: Resolution::PerUnit {
+                density: density * refine,
+                min,
+                max,
+                min_longest: ((longest * refine).ceil() as u32)
+                    .saturating_add(pad)
+                    .max(min_longest)
+                    .min(max),
+            },
+            ..*self
+        };
+        let refined = finer.resolve(bounds)?;
+        Ok((refined, grid.voxel_size / refined.voxel_size))
+    }
+
     /// Resolves the grid for mesh bounds `bounds` (must be finite and non-empty).
     pub fn resolve(&self, bounds: &Aabb) -> Result<GridSpec, GridError> {
         let extent = bounds.size().max(Vec3::ZERO);
@@ -207,6 +309,7 @@ mod tests {
         let g = GridPolicy {
             resolution: Resolution::LongestAxis(64),
             border_voxels: 2,
+            thin_walls: ThinWalls::OFF,
         }
         .resolve(&b)
         .unwrap();
@@ -251,6 +354,7 @@ mod tests {
                 min_longest: 0,
             },
             border_voxels: 2,
+            thin_walls: ThinWalls::OFF,
         };
         let g = off.resolve(&bounds(Vec3::new(0.37, 0.72, 0.37))).unwrap();
         assert_eq!(g.voxel_size, 1.0 / 32.0);
@@ -291,6 +395,7 @@ mod tests {
             let e = GridPolicy {
                 resolution,
                 border_voxels: 2,
+                thin_walls: ThinWalls::OFF,
             }
             .resolve(&b)
             .unwrap_err();
@@ -302,6 +407,7 @@ mod tests {
         let e = GridPolicy {
             resolution: Resolution::LongestAxis(100_000),
             border_voxels: 2,
+            thin_walls: ThinWalls::OFF,
         }
         .resolve(&b)
         .unwrap_err();
@@ -316,6 +422,7 @@ mod tests {
                     min_longest: 0,
                 },
                 border_voxels: 2,
+                thin_walls: ThinWalls::OFF,
             }
             .resolve(&bounds(Vec3::splat(size)))
             .unwrap_err();

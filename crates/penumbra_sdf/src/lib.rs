@@ -31,6 +31,7 @@ pub mod mesh;
 pub mod obj;
 pub mod openness;
 pub mod shapes;
+pub mod thickness;
 pub mod volume;
 
 /// Version of the baking algorithm: bumped whenever [`bake()`] can produce different

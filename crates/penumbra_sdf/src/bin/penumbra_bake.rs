@@ -125,6 +125,13 @@ fn run(args: Args) -> Result<(), String> {
     let settings = BakeSettings {
         grid: GridPolicy {
             resolution: args.resolution.unwrap_or(GridPolicy::default().resolution),
+            // An explicit resolution is the grid asked for; the default one refines
+            // thin-walled meshes as runtime bakes do.
+            thin_walls: if args.resolution.is_some() {
+                penumbra_sdf::grid::ThinWalls::OFF
+            } else {
+                penumbra_sdf::grid::ThinWalls::default()
+            },
             ..Default::default()
         },
         sign: args.sign,
