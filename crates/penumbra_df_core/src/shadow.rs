@@ -136,13 +136,14 @@ pub const FIELD_NORMAL_MAX_GRADIENT: f32 = 2.0;
 /// The field's normal replaces the G-buffer's only where the two agree this well
 /// (cosine): a normal map or smooth shading tilts a normal by less; a field read at a
 /// sharp edge or across a thin part turns by more. Chosen on the scene corpus
-/// (`tests/scene_corpus.rs`): 0.5 and 0.7 against facing 0.1–0.3 (ARCHITECTURE.md).
+/// (`tests/scene_corpus.rs`): 0.5 and 0.7 against facing 0.1–0.3 (CHANGELOG.md, #45).
 pub const FIELD_NORMAL_MIN_AGREEMENT: f32 = 0.7;
 
 /// ... and only where the field faces the light by at least this cosine (a field normal
 /// is a voxel-scale estimate: within a few degrees of the terminator it guessed the
-/// triangle's side wrong on the corpus, lighting faces the light does not reach).
-pub const FIELD_NORMAL_MIN_FACING: f32 = 0.2;
+/// triangle's side wrong on the corpus, lighting faces the light does not reach; at 0.2
+/// it lit facets of the shadow bench's scanned bunny that its triangles turn away).
+pub const FIELD_NORMAL_MIN_FACING: f32 = 0.3;
 
 /// Where a march through a field of world voxel size `voxel` (0: an analytic shape)
 /// starts along the ray from a receiver of unit normal `normal` (zero: unknown) under a

@@ -68,8 +68,8 @@ impl Default for GridPolicy {
 /// negative sample, not the wall's width). Measured on `../shared/scenes` (ARCHITECTURE.md,
 /// "Bake resolution"): the flight helmet's and barn lamp's parts and the palm tree's
 /// leaves have walls of 0.08–0.6 voxels at the default density (sheet metal, straps),
-/// below what any cap reaches. This rule (twice finer at most) took the scene corpus's
-/// shadows on shadowed pixels 0.169 → 0.164 (helmet; DFAO 0.141 → 0.136), 0.259 → 0.207
+/// below what any cap reaches. When it was added, this rule (twice finer at most) took
+/// the scene corpus's shadows on shadowed pixels 0.169 → 0.164 (helmet; DFAO 0.141 → 0.136), 0.259 → 0.207
 /// (lamp), 0.135 → 0.118 (palm) for 0.7 → 3.9, 0.2 → 1.4 and 4.1 → 8.3 MB of atlas;
 /// every mesh four times finer brought the helmet to 0.112 (DFAO 0.098) and the lamp to
 /// 0.171 for 33 and 12 MB. Baking them two-sided instead (shells) was worse (0.200,

@@ -31,6 +31,7 @@ pub mod mesh;
 pub mod obj;
 pub mod openness;
 pub mod shapes;
+#[cfg(feature = "bake")]
 pub mod thickness;
 pub mod volume;
 

@@ -208,7 +208,7 @@ const FIELD_NORMAL_STEP_VOXELS: f32 = 0.5;
 const FIELD_NORMAL_MIN_GRADIENT: f32 = 0.25;
 const FIELD_NORMAL_MAX_GRADIENT: f32 = 2.0;
 const FIELD_NORMAL_MIN_AGREEMENT: f32 = 0.7;
-const FIELD_NORMAL_MIN_FACING: f32 = 0.2;
+const FIELD_NORMAL_MIN_FACING: f32 = 0.3;
 // No field normal: `w` above every distance.
 const NO_FIELD_NORMAL: vec4<f32> = vec4<f32>(0.0, 0.0, 0.0, 3.0e38);
 
