@@ -2,7 +2,10 @@
 // the light-culled objects are culled again against the round cone (the hull of the
 // tile's bounding ball and the light's end ball) that contains every pixel's shadow
 // cone, 64 at a time into workgroup memory; each pixel then marches the survivors
-// (`penumbra::df::shadow`). Terrains (`camera_tile.w` heightfield records,
+// (`penumbra::df::shadow`). A tile with a pixel whose G-buffer normal hides the light
+// lists them once more before the march, for that pixel to read the normal of the caster
+// field it lies on (`caster_field_normal`: the triangles' facing where a normal map or
+// smooth shading turned the G-buffer's away). Terrains (`camera_tile.w` heightfield records,
 // `df/heightfield.wgsl`) are marched by every pixel whose shadow ray's box, grown by the
 // cone's end radius, meets theirs. Writes visibility (1 lit, 0 shadowed) for every
 // pixel; background pixels (depth 0) get 1. CPU model:
@@ -12,10 +15,10 @@
 #import penumbra::df::object::{DistanceFieldObject, TILE_SIZE}
 #import penumbra::df::heightfield::{HeightfieldRecord, heightfield_distance}
 #import penumbra::df::shadow::{
-    ShadowLight, ShadowRay, bounding_sphere, casts_shadows, cull_slack, finish_visibility, gbuffer_normal,
-    FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, NO_FIELD_NORMAL, caster_field_normal, horizon_visibility, is_directional, march_object, march_start,
-    object_in_cone,
-    round_cone_distance, shadow_ray, traces_point,
+    FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, NO_FIELD_NORMAL, ShadowLight, ShadowRay,
+    bounding_sphere, caster_field_normal, casts_shadows, cull_slack, finish_visibility,
+    gbuffer_normal, horizon_visibility, is_directional, march_object, march_start,
+    object_in_cone, round_cone_distance, shadow_ray, traces_point,
 }
 #import penumbra::lighting::msaa::MSAA_SAMPLE_POSITIONS
 #import penumbra::df::shadow_grid::{
