@@ -69,8 +69,9 @@ impl Default for GridPolicy {
 /// "Bake resolution"): the flight helmet's and barn lamp's parts and the palm tree's
 /// leaves have walls of 0.08–0.6 voxels at the default density (sheet metal, straps),
 /// below what any cap reaches. When it was added, this rule (twice finer at most) took
-/// the scene corpus's shadows on shadowed pixels 0.169 → 0.164 (helmet; DFAO 0.141 → 0.136), 0.259 → 0.207
-/// (lamp), 0.135 → 0.118 (palm) for 0.7 → 3.9, 0.2 → 1.4 and 4.1 → 8.3 MB of atlas;
+/// the scene corpus's shadows on shadowed pixels 0.169 → 0.164 (helmet; DFAO
+/// 0.141 → 0.136), 0.259 → 0.207 (lamp), 0.135 → 0.118 (palm) for 0.7 → 3.9, 0.2 → 1.4
+/// and 4.1 → 8.3 MB of atlas;
 /// every mesh four times finer brought the helmet to 0.112 (DFAO 0.098) and the lamp to
 /// 0.171 for 33 and 12 MB. Baking them two-sided instead (shells) was worse (0.200,
 /// 0.360).
@@ -172,7 +173,9 @@ impl std::error::Error for GridError {}
 impl GridPolicy {
     /// Resolves the grid for mesh bounds `bounds` and the mesh's wall thickness `wall`
     /// (the [`ThinWalls`] quantile, mesh units; `None`: no wall measured or the rule does
-    /// not apply), and by how much the thin-wall rule refined it (1: not).
+    /// not apply), and by how much the thin-wall rule refined it (1: not). A refined grid
+    /// that cannot be made (over [`MAX_SAMPLES`]) leaves the rule's own: the rule only
+    /// ever adds detail, it never fails a bake the grid alone allows.
     pub fn resolve_with_walls(
         &self,
         bounds: &Aabb,
@@ -210,8 +213,10 @@ impl GridPolicy {
             },
             ..*self
         };
-        let refined = finer.resolve(bounds)?;
-        Ok((refined, grid.voxel_size / refined.voxel_size))
+        match finer.resolve(bounds) {
+            Ok(refined) => Ok((refined, grid.voxel_size / refined.voxel_size)),
+            Err(_) => Ok((grid, 1.0)),
+        }
     }
 
     /// Resolves the grid for mesh bounds `bounds` (must be finite and non-empty).
@@ -432,5 +437,30 @@ mod tests {
             );
             assert!(!e.to_string().is_empty());
         }
+    }
+
+    /// The thin-wall rule refines within `max` and never turns a grid that fits into one
+    /// that does not: 400 units at 1 sample per unit fit (405³ samples), twice finer
+    /// (805³) would not, so the rule's own grid stays.
+    #[test]
+    fn thin_walls_never_fail_a_grid_that_fits() {
+        let policy = GridPolicy {
+            resolution: Resolution::PerUnit {
+                density: 1.0,
+                min: 8,
+                max: 1024,
+                min_longest: 0,
+            },
+            ..GridPolicy::default()
+        };
+        let b = bounds(Vec3::splat(400.0));
+        let plain = policy.resolve(&b).unwrap();
+        let (grid, refine) = policy.resolve_with_walls(&b, Some(0.5)).unwrap();
+        assert_eq!((grid, refine), (plain, 1.0));
+        // Smaller, it is refined twice.
+        let b = bounds(Vec3::splat(100.0));
+        let (grid, refine) = policy.resolve_with_walls(&b, Some(0.5)).unwrap();
+        assert!((refine - 2.0).abs() < 0.05, "{refine}");
+        assert!(grid.voxel_size < policy.resolve(&b).unwrap().voxel_size);
     }
 }
