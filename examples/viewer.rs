@@ -797,6 +797,7 @@ fn dump_buffers(app: &mut App, args: &Args, dir: &std::path::Path) -> Result<u64
             "casters": {
                 "casters": counts.casters,
                 "two_sided": counts.two_sided,
+                "ground": counts.ground,
                 "solid_double_sided": counts.solid_double_sided,
                 "merged_primitives": counts.merged,
                 "skipped_skinned": counts.skinned,

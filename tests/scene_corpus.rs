@@ -102,7 +102,7 @@ const CORPUS: &[Case] = &[
     Case {
         file: "terrain/terrain.glb",
         flags: &[],
-        bounds: b(0.81, 0.12, 0.04),
+        bounds: b(0.78, 0.10, 0.09),
     },
     Case {
         file: "TonemappingTest/TonemappingTest.gltf",

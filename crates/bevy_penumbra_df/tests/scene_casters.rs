@@ -192,7 +192,7 @@ fn fox_is_skipped_or_cast_from_its_bind_pose() {
 }
 
 #[test]
-fn palm_tree_open_sheets_are_two_sided_and_small_meshes_are_skipped() {
+fn palm_tree_open_sheets_are_ground_and_small_meshes_are_skipped() {
     let Some(dir) = scenes_dir() else { return };
     let mut app = app(&dir);
     let root = spawn(&mut app, "PalmTree/PalmTree.gltf", coarse());
@@ -200,10 +200,10 @@ fn palm_tree_open_sheets_are_two_sided_and_small_meshes_are_skipped() {
     let c = counts(&app, root);
     // 10 meshes, one primitive each: trunk, 7 leaves, landscape, water. Every material
     // is double-sided (none alpha-masked); the leaves are closed (modelled with
-    // thickness), two meshes are open sheets.
+    // thickness), two meshes are open sheets facing up: the island and the sea, ground.
     assert_eq!(
-        (c.casters, c.two_sided, c.solid_double_sided),
-        (10, 2, 8),
+        (c.casters, c.two_sided, c.ground, c.solid_double_sided),
+        (10, 0, 2, 8),
         "{c:?}"
     );
     // A size threshold above the leaves (≈ 1.7 m) but below the trunk and the
@@ -465,4 +465,105 @@ fn a_marked_subtree_bakes_as_one_field() {
         [12, 12],
         "one union of 12 triangles per merged prop"
     );
+}
+
+/// Ground (rule 5): an open sheet facing up bakes solid below it, along the world's +y
+/// in the mesh's space — a floor quad (double-sided or not), the same quad mirrored
+/// (scale −1 in x: its twin), and a quad lying in its local xy plane under a node that
+/// turns it to face up (a Z-up export: up is the mesh's +z). A ceiling (the quad turned
+/// to face down) and an upright card stay two-sided shells.
+#[test]
+fn open_sheets_facing_up_bake_as_ground() {
+    use bevy_penumbra_df::SdfBakeRequest;
+    use penumbra_sdf::SignMethod;
+    let mut app = app(std::path::Path::new("assets"));
+    let (floor, card) = {
+        let mut meshes = app.world_mut().resource_mut::<Assets<Mesh>>();
+        (
+            meshes.add(Plane3d::default().mesh().size(4.0, 4.0).build()),
+            meshes.add(Rectangle::new(4.0, 4.0)),
+        )
+    };
+    let (single, double) = {
+        let mut materials = app.world_mut().resource_mut::<Assets<StandardMaterial>>();
+        let double = materials.add(StandardMaterial {
+            double_sided: true,
+            cull_mode: None,
+            ..default()
+        });
+        (materials.add(StandardMaterial::default()), double)
+    };
+    let cases = [
+        (
+            "floor",
+            floor.clone(),
+            double.clone(),
+            Transform::default(),
+            Some(Vec3::Y),
+        ),
+        (
+            "single-sided floor",
+            floor.clone(),
+            single,
+            Transform::default(),
+            Some(Vec3::Y),
+        ),
+        (
+            "mirrored floor",
+            floor.clone(),
+            double.clone(),
+            Transform::from_scale(Vec3::new(-1.0, 1.0, 1.0)),
+            Some(Vec3::Y),
+        ),
+        (
+            "Z-up floor",
+            card.clone(),
+            double.clone(),
+            Transform::from_rotation(Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2)),
+            Some(Vec3::Z),
+        ),
+        (
+            "ceiling",
+            floor,
+            double.clone(),
+            Transform::from_rotation(Quat::from_rotation_x(std::f32::consts::PI)),
+            None,
+        ),
+        ("upright card", card, double, Transform::default(), None),
+    ];
+    let root = app
+        .world_mut()
+        .spawn((coarse(), Transform::default(), Visibility::default()))
+        .id();
+    let entities: Vec<Entity> = cases
+        .iter()
+        .map(|(_, mesh, material, transform, _)| {
+            app.world_mut()
+                .spawn((
+                    Mesh3d(mesh.clone()),
+                    MeshMaterial3d(material.clone()),
+                    *transform,
+                    ChildOf(root),
+                ))
+                .id()
+        })
+        .collect();
+    for _ in 0..5 {
+        app.update();
+    }
+    for ((name, .., up), entity) in cases.iter().zip(entities) {
+        let caster = app.world().get::<DistanceFieldCaster>(entity).expect(name);
+        assert_eq!(caster.ground, up.is_some(), "{name}");
+        assert_eq!(caster.two_sided, up.is_none(), "{name}");
+        let request = app.world().get::<SdfBakeRequest>(entity).expect(name);
+        match (up, request.settings.sign) {
+            (Some(want), SignMethod::SolidBelow { up }) => {
+                assert!(up.abs_diff_eq(*want, 1e-3), "{name}: up {up}, want {want}");
+            }
+            (None, SignMethod::TwoSided { .. }) => {}
+            (_, sign) => panic!("{name}: {sign:?}"),
+        }
+    }
+    let c = counts(&app, root);
+    assert_eq!((c.casters, c.ground, c.two_sided), (6, 4, 2), "{c:?}");
 }

@@ -38,6 +38,15 @@ pub enum SignMethod {
         /// Shell half-thickness in voxels.
         shell_voxels: f32,
     },
+    /// Ground (`crate::ground`): an open sheet facing `up` (mesh space; any length) is
+    /// the top of a solid — inside below it, where most of three rays along `up` cross
+    /// the surface an odd number of times. The sample box reaches
+    /// [`GROUND_DEPTH_VOXELS`](crate::ground::GROUND_DEPTH_VOXELS) below the mesh.
+    /// Terrain and floors: no shell to shadow itself.
+    SolidBelow {
+        /// The sheet's up, in the mesh's space.
+        up: Vec3,
+    },
 }
 
 impl SignMethod {
@@ -189,6 +198,11 @@ pub fn bake(
                 "two-sided shell {shell_voxels} voxels not in [0, 16]"
             )));
         }
+        SignMethod::SolidBelow { up } if !up.is_finite() || up.length_squared() < 1e-12 => {
+            return Err(BakeError::Settings(format!(
+                "ground up {up} is not a finite, non-zero direction"
+            )));
+        }
         _ => {}
     }
     let t_start = std::time::Instant::now();
@@ -202,21 +216,39 @@ pub fn bake(
     local.iter_mut().for_each(|t| *t = t.map(|p| p - center));
     let bvh = Bvh::build(&local);
     // The thin-wall rule ([`crate::grid::ThinWalls`]): solid bakes only (a shell has no
-    // inside to lose).
+    // inside to lose, a ground sheet no walls).
     let rule = settings.grid.thin_walls;
     let wall_thickness = (rule.is_on()
         && matches!(
             settings.grid.resolution,
             crate::grid::Resolution::PerUnit { .. }
         )
-        && !matches!(settings.sign, SignMethod::TwoSided { .. }))
+        && matches!(
+            settings.sign,
+            SignMethod::WindingNumber | SignMethod::BackfaceRatio { .. } | SignMethod::RayParity
+        ))
     .then(|| crate::thickness::wall_thickness_quantile(&local, &bvh, rule.quantile))
     .flatten();
-    let (grid, thin_wall_refine) = settings.grid.resolve_with_walls(&bounds, wall_thickness)?;
+    let (mut grid, mut thin_wall_refine) =
+        settings.grid.resolve_with_walls(&bounds, wall_thickness)?;
+    if let SignMethod::SolidBelow { up } = settings.sign {
+        // Ground: the box reaches below the sheet (the bounds and their copy moved down).
+        let down = -up.normalize() * crate::ground::GROUND_DEPTH_VOXELS * grid.voxel_size;
+        let mut grown = bounds;
+        grown.grow(bounds.min + down);
+        grown.grow(bounds.max + down);
+        (grid, thin_wall_refine) = settings.grid.resolve_with_walls(&grown, None)?;
+    }
 
     let dims = grid.dims;
     let origin = grid.origin - center;
     let h = grid.voxel_size;
+    let ground = match settings.sign {
+        SignMethod::SolidBelow { up } => {
+            Some(crate::ground::GroundSign::new(up, &bvh, origin, h, dims))
+        }
+        _ => None,
+    };
     let position = |i: u32, j: u32, k: u32| origin + h * Vec3::new(i as f32, j as f32, k as f32);
     let slice = (dims.x * dims.y) as usize;
     let done = AtomicUsize::new(0);
@@ -300,6 +332,10 @@ pub fn bake(
                         out[index] = SdfVolume::quantize(d / h - shell_voxels);
                         continue;
                     }
+                    SignMethod::SolidBelow { .. } => ground
+                        .as_ref()
+                        .expect("computed for this method")
+                        .inside(&bvh, UVec3::new(i, j, k), p),
                     SignMethod::WindingNumber => {
                         let levels = levels.as_ref().expect("computed for this method");
                         levels.inside(&bvh, UVec3::new(i, j, k), p, d, h, &distance)
@@ -751,157 +787,4 @@ fn fibonacci_directions(n: usize) -> Vec<Vec3> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::shapes;
-
-    /// Outside the sample box a two-sided field stays a lower bound of the distance to
-    /// its shell, positive: a flat 1 m quad (the box a few voxels thick) read from above,
-    /// beside and below its box. With the margin measured from the mesh alone, the shell
-    /// reached past the shrunk box and every point outside read as inside (−0.14 m at
-    /// 0.3 m above the quad).
-    #[test]
-    fn a_flat_two_sided_field_is_outside_its_box() {
-        let quad = TriMesh {
-            positions: vec![
-                Vec3::new(-0.5, 0.0, -0.5),
-                Vec3::new(0.5, 0.0, -0.5),
-                Vec3::new(0.5, 0.0, 0.5),
-                Vec3::new(-0.5, 0.0, 0.5),
-            ],
-            triangles: vec![[0, 2, 1], [0, 3, 2]],
-            ..Default::default()
-        };
-        let settings = BakeSettings {
-            sign: SignMethod::TWO_SIDED,
-            ..BakeSettings::longest_axis(32)
-        };
-        let v = bake(&quad, &settings, None).unwrap().volume;
-        let h = f64::from(v.voxel_size);
-        let shell = 0.866 * h;
-        for p in [
-            glam::DVec3::new(0.1, 0.3, 0.0),
-            glam::DVec3::new(0.0, -0.5, 0.2),
-            glam::DVec3::new(0.2, 1.5, -0.3),
-            glam::DVec3::new(0.9, 0.05, 0.0),
-            glam::DVec3::new(-0.8, 0.4, 0.7),
-        ] {
-            // The exact distance to the quad, less the shell.
-            let c = glam::DVec3::new(p.x.clamp(-0.5, 0.5), 0.0, p.z.clamp(-0.5, 0.5));
-            let truth = (p - c).length() - shell;
-            let d = f64::from(v.sample(p));
-            assert!(d > 0.0, "{p}: {d} inside");
-            assert!(d <= truth + 0.05 * h, "{p}: {d} over the truth {truth}");
-        }
-    }
-
-    /// The thin-feature guard's triangle prefilter (skip triangles whose box holds only
-    /// settled cells) flips exactly the samples the full lattice walk flips.
-    #[test]
-    fn thin_feature_prefilter_changes_nothing() {
-        let mut plate = shapes::thin_plate(1.0, 1.0, 0.004);
-        // Between sample layers, tilted: the guard has work to do.
-        let tilt = glam::Quat::from_rotation_x(0.3) * glam::Quat::from_rotation_z(0.2);
-        plate
-            .positions
-            .iter_mut()
-            .for_each(|p| *p = tilt * *p + Vec3::splat(0.013));
-        let cases = [
-            ("plate", plate),
-            ("torus", shapes::torus(1.0, 0.05, 64, 16)),
-            ("soup", shapes::intersecting_soup()),
-            ("sphere", shapes::sphere(1.0, 32, 16)),
-        ];
-        let mut guarded = 0;
-        for (name, mesh) in cases {
-            let settings = BakeSettings {
-                keep_thin_features: false,
-                ..BakeSettings::longest_axis(24)
-            };
-            let unguarded = bake(&mesh, &settings, None).unwrap();
-            let (tris, _) = mesh.validate().unwrap();
-            let border = unguarded.grid.border;
-            let run = |skip: bool| {
-                let mut v = unguarded.volume.clone();
-                let origin = v.origin.as_vec3();
-                let n = keep_thin_features_with(&mut v, &tris, origin, border, skip);
-                (n, v.data.iter().map(|h| h.to_bits()).collect::<Vec<_>>())
-            };
-            let (with, without) = (run(true), run(false));
-            assert_eq!(with.0, without.0, "{name}: samples flipped");
-            let first = with.1.iter().zip(&without.1).position(|(a, b)| a != b);
-            assert_eq!(first, None, "{name}: first differing sample");
-            guarded += with.0;
-        }
-        assert!(guarded > 0, "no case exercised the guard");
-    }
-
-    /// The thin-wall rule (`grid::ThinWalls`): a closed plate 2 cm thick under the
-    /// default 2.3 cm voxels measures its wall and bakes with voxels twice finer (the
-    /// rule's cap), and its field is closer to the exact distance of the box near the
-    /// plate; a 1 m cube and a two-sided bake keep their grids.
-    #[test]
-    fn thin_walls_get_finer_voxels() {
-        use crate::grid::ThinWalls;
-        let plate = shapes::thin_plate(1.0, 1.0, 0.02);
-        let on = bake(&plate, &BakeSettings::default(), None).unwrap();
-        let off_settings = BakeSettings {
-            grid: GridPolicy {
-                thin_walls: ThinWalls::OFF,
-                ..GridPolicy::default()
-            },
-            ..BakeSettings::default()
-        };
-        let off = bake(&plate, &off_settings, None).unwrap();
-        let wall = on.wall_thickness.expect("a wall");
-        assert!((wall - 0.02).abs() < 1e-4, "{wall}");
-        assert!(
-            (on.thin_wall_refine - 2.0).abs() < 0.05,
-            "{}",
-            on.thin_wall_refine
-        );
-        assert_eq!(off.thin_wall_refine, 1.0);
-        let ratio = off.grid.voxel_size / on.grid.voxel_size;
-        assert!((ratio - 2.0).abs() < 0.1, "{ratio}");
-        // The exact distance of the box (half extents 0.5, 0.01, 0.5) near its faces.
-        let exact = |p: Vec3| {
-            let q = p.abs() - Vec3::new(0.5, 0.01, 0.5);
-            q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
-        };
-        let error = |b: &Bake| {
-            let (mut sum, mut n) = (0.0f64, 0);
-            for i in 0..17 {
-                for j in 0..13 {
-                    for k in 0..17 {
-                        let p = Vec3::new(
-                            -0.4 + 0.05 * i as f32,
-                            -0.03 + 0.005 * j as f32,
-                            -0.4 + 0.05 * k as f32,
-                        );
-                        let got = b.volume.sample(p.as_dvec3());
-                        sum += f64::from((got - exact(p)).abs());
-                        n += 1;
-                    }
-                }
-            }
-            sum / f64::from(n)
-        };
-        let (e_on, e_off) = (error(&on), error(&off));
-        println!("plate: mean |field − exact| {e_on:.5} m refined, {e_off:.5} m not");
-        assert!(e_on < 0.6 * e_off, "{e_on} {e_off}");
-
-        let cube = bake(
-            &shapes::cuboid(Vec3::splat(0.5)),
-            &BakeSettings::default(),
-            None,
-        )
-        .unwrap();
-        assert_eq!(cube.thin_wall_refine, 1.0);
-        let shell = BakeSettings {
-            sign: SignMethod::TWO_SIDED,
-            ..BakeSettings::default()
-        };
-        let shell = bake(&plate, &shell, None).unwrap();
-        assert_eq!((shell.wall_thickness, shell.thin_wall_refine), (None, 1.0));
-    }
-}
+mod tests;

@@ -8,7 +8,8 @@
 //!   2013) evaluated with Barill et al.'s fast approximation (SIGGRAPH 2018) by default —
 //!   correct on open meshes, soups and intersecting shells, where Unreal's back-face ratio
 //!   flips signs near sharp edges. The back-face ratio, ray parity and a two-sided shell
-//!   are available for comparison and for foliage.
+//!   are available for comparison and for foliage; ground ([`ground`]: an open sheet
+//!   facing up, solid below it) for terrain and floors.
 //! - **Grid policy** ([`GridPolicy`]): padded bounds, cubic voxels, resolution by samples
 //!   along the longest axis or per unit with clamps, and a memory guard.
 //! - **Ground truth** ([`exact`]): f64 brute force, the reference for tests and benches.
@@ -26,6 +27,7 @@ pub mod geometry;
 #[cfg(feature = "bake")]
 pub mod gltf_input;
 pub mod grid;
+pub mod ground;
 pub mod mesh;
 #[cfg(feature = "bake")]
 pub mod obj;

@@ -11,9 +11,28 @@ use {
     penumbra_sdf::{BakeSettings, GridPolicy, Resolution, SignMethod},
 };
 
-/// Bake settings of a mesh caster.
+/// The world's +y in the space of a mesh placed by `transform` (for a ground caster),
+/// rounded to 1/4096 so that float noise in a transform does not re-bake: +y when the
+/// transform is singular.
 #[cfg(feature = "bake")]
-fn bake_settings(caster: &DistanceFieldCaster) -> BakeSettings {
+fn local_up(transform: &GlobalTransform) -> Vec3 {
+    let matrix = transform.affine().matrix3;
+    let determinant = matrix.determinant();
+    if determinant.is_nan() || determinant.abs() <= 1e-12 {
+        return Vec3::Y;
+    }
+    let up = (matrix.inverse() * Vec3A::Y).normalize_or_zero();
+    let rounded = (Vec3::from(up) * 4096.0).round() / 4096.0;
+    if rounded == Vec3::ZERO || !rounded.is_finite() {
+        Vec3::Y
+    } else {
+        rounded
+    }
+}
+
+/// Bake settings of a mesh caster placed by `transform`.
+#[cfg(feature = "bake")]
+fn bake_settings(caster: &DistanceFieldCaster, transform: &GlobalTransform) -> BakeSettings {
     let scale = if caster.resolution_scale.is_finite() && caster.resolution_scale > 0.0 {
         caster.resolution_scale.clamp(1.0 / 16.0, 8.0)
     } else {
@@ -32,7 +51,11 @@ fn bake_settings(caster: &DistanceFieldCaster) -> BakeSettings {
             },
             ..GridPolicy::default()
         },
-        sign: if caster.two_sided {
+        sign: if caster.ground {
+            SignMethod::SolidBelow {
+                up: local_up(transform),
+            }
+        } else if caster.two_sided {
             SignMethod::TWO_SIDED
         } else {
             SignMethod::WindingNumber
@@ -42,7 +65,8 @@ fn bake_settings(caster: &DistanceFieldCaster) -> BakeSettings {
 }
 
 /// Mesh casters get a bake request (answered from the cache when possible) for their
-/// [`CasterMesh`](super::CasterMesh), else their `Mesh3d`.
+/// [`CasterMesh`](super::CasterMesh), else their `Mesh3d`. A moved caster is looked at
+/// again (its settings are unchanged unless it is ground and turned).
 #[cfg(feature = "bake")]
 #[allow(clippy::type_complexity)]
 pub(super) fn request_caster_bakes(
@@ -52,6 +76,7 @@ pub(super) fn request_caster_bakes(
             Entity,
             &DistanceFieldCaster,
             &Mesh3d,
+            &GlobalTransform,
             Option<&super::CasterMesh>,
             Option<&SdfBakeRequest>,
         ),
@@ -59,15 +84,16 @@ pub(super) fn request_caster_bakes(
             Changed<DistanceFieldCaster>,
             Changed<Mesh3d>,
             Changed<super::CasterMesh>,
+            Changed<GlobalTransform>,
         )>,
     >,
 ) {
-    for (entity, caster, mesh, source, request) in &casters {
+    for (entity, caster, mesh, transform, source, request) in &casters {
         if caster.source != CasterSource::Mesh {
             continue;
         }
         let mesh = source.map_or(&mesh.0, |s| &s.0);
-        let settings = bake_settings(caster);
+        let settings = bake_settings(caster, transform);
         if request.is_some_and(|r| r.mesh == *mesh && r.settings == settings) {
             continue;
         }

@@ -42,6 +42,7 @@
 mod bake_requests;
 mod cull;
 mod heightfield;
+mod mesh_shape;
 mod query;
 mod render;
 mod scene_casters;
@@ -137,6 +138,14 @@ pub struct DistanceFieldCaster {
     /// deciding inside from outside. The shell occludes like any solid. Default `false`.
     /// No run-time cost.
     pub two_sided: bool,
+    /// Ground: an open sheet facing up everywhere (terrain, a floor, a road) bakes as the
+    /// top of a solid (`SignMethod::SolidBelow`, `penumbra_sdf::ground`): inside below
+    /// it along the world's +y as the caster stands (turning it re-bakes it), the field
+    /// the distance to the sheet itself. A shell about a bumpy terrain shadows the
+    /// terrain at grazing light; a winding number has no inside to find in an open
+    /// sheet. Wins over `two_sided`. Default `false`; [`DistanceFieldSceneCasters`]
+    /// sets it by its rule. No run-time cost.
+    pub ground: bool,
     /// Shadows distance-field-shadowed lights (while visible, see
     /// [`DistanceFieldCaster::cast_hidden_shadow`]). Default `true`.
     pub casts_shadows: bool,
@@ -180,6 +189,7 @@ impl Default for DistanceFieldCaster {
             source: CasterSource::Mesh,
             resolution_scale: 1.0,
             two_sided: false,
+            ground: false,
             casts_shadows: true,
             cast_hidden_shadow: false,
             casts_occlusion: true,

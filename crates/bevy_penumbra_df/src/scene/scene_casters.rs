@@ -3,6 +3,7 @@
 //!
 //! The rule is documented on [`DistanceFieldSceneCasters`].
 
+use super::mesh_shape::{Bakes, decide, is_flat, is_ground, is_nearly_closed};
 use super::{CasterMesh, DistanceFieldCaster};
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::primitives::MeshAabb;
@@ -65,6 +66,12 @@ pub enum SceneTwoSided {
 ///    holes, 0.67) is baked solid: exporters mark most materials double-sided (Blender
 ///    does by default), and a shell about a voxel thick makes a solid box self-shadow
 ///    at grazing angles.
+///    **Ground** first: an open mesh (double-sided or not) whose triangles, in world
+///    space, face up with no overhang — at least half of its area's normal up, at most
+///    1 % of it facing down (`penumbra_sdf::ground`: terrains and floors score 0.96–1,
+///    everything else in the shared scenes 0.16 or more down, or upright) — bakes solid
+///    below it ([`DistanceFieldCaster::ground`]), not as a shell: a shell about a bumpy
+///    terrain shadows the terrain at grazing light.
 ///    Materials other than `StandardMaterial` count as opaque and single-sided.
 ///
 /// **One field per glTF mesh.** Bevy spawns one entity per glTF primitive (one per
@@ -149,6 +156,8 @@ pub struct SceneCasterCounts {
     /// Of those, solid although their material is double-sided: closed or nearly closed
     /// (open index ≤ 1.5, see rule 5 of [`DistanceFieldSceneCasters`]).
     pub solid_double_sided: u32,
+    /// Of those, ground: open sheets facing up, baked solid below them (rule 5).
+    pub ground: u32,
     /// Skipped: skinned or morphing (with [`SkinnedCasters::Skip`]).
     pub skinned: u32,
     /// Skipped: below [`DistanceFieldSceneCasters::min_size`].
@@ -164,11 +173,21 @@ pub struct SceneCasterCounts {
     pub merged: u32,
 }
 
+impl SceneCasterCounts {
+    /// Counts a caster's kind (not `casters` itself).
+    fn count(&mut self, bakes: Bakes, double_sided: bool) {
+        self.two_sided += u32::from(bakes == Bakes::TwoSided);
+        self.ground += u32::from(bakes == Bakes::Ground);
+        self.solid_double_sided += u32::from(double_sided && bakes == Bakes::Solid);
+    }
+}
+
 /// Why a mesh is or is not a caster.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Verdict {
     Caster {
-        two_sided: bool,
+        /// What it bakes as.
+        bakes: Bakes,
         /// Alpha-masked material (foliage).
         masked: bool,
         /// The material is double-sided.
@@ -196,33 +215,6 @@ type MeshQuery<'w, 's> = Query<
         Option<&'static DistanceFieldSceneCaster>,
     ),
 >;
-
-/// Whether a triangle-list mesh is closed or nearly so: its open index (boundary length
-/// over √area, `penumbra_sdf::openness`) is at most
-/// [`NEARLY_CLOSED_OPEN_INDEX`](penumbra_sdf::openness::NEARLY_CLOSED_OPEN_INDEX). Strips
-/// and meshes without `Float32x3` positions count as open.
-pub(super) fn is_nearly_closed(mesh: &Mesh) -> bool {
-    let (PrimitiveTopology::TriangleList, Ok(VertexAttributeValues::Float32x3(positions))) = (
-        mesh.primitive_topology(),
-        mesh.try_attribute(Mesh::ATTRIBUTE_POSITION),
-    ) else {
-        return false;
-    };
-    let positions: Vec<Vec3> = positions.iter().map(|p| Vec3::from(*p)).collect();
-    let indices: Vec<u32> = match mesh.indices() {
-        Some(list) => list.iter().map(|i| i as u32).collect(),
-        None => (0..positions.len() as u32).collect(),
-    };
-    penumbra_sdf::openness::open_index(&positions, &indices)
-        <= penumbra_sdf::openness::NEARLY_CLOSED_OPEN_INDEX
-}
-
-/// A flat piece (a decal, a zero-thickness quad): its local box is at most a thousandth
-/// as thick as it is long. Baked solid, an open flat piece has no inside for its sign to
-/// find; it bakes as a two-sided shell whatever its material.
-fn is_flat(half_extents: Vec3) -> bool {
-    half_extents.min_element() <= 1e-3 * half_extents.max_element()
-}
 
 fn verdict(
     settings: &DistanceFieldSceneCasters,
@@ -272,13 +264,16 @@ fn verdict(
         },
         None => (false, false),
     };
-    let two_sided = match settings.two_sided {
-        SceneTwoSided::Never => false,
-        SceneTwoSided::FromMaterial => masked || (double_sided || is_flat(half)) && !closed(mesh),
-        SceneTwoSided::Always => true,
-    };
+    let bakes = decide(
+        settings.two_sided,
+        masked,
+        double_sided,
+        is_flat(half),
+        || closed(mesh),
+        || is_ground(mesh, transform),
+    );
     Verdict::Caster {
-        two_sided,
+        bakes,
         masked,
         double_sided,
     }
@@ -442,16 +437,20 @@ pub(super) fn tag_scene_casters(
                 let closed = *closed_meshes
                     .entry(handle.id())
                     .or_insert_with(|| assets.get(&handle).is_some_and(is_nearly_closed));
-                let flat = assets
-                    .get(&handle)
-                    .and_then(Mesh::compute_aabb)
+                let union = assets.get(&handle)?;
+                let flat = union
+                    .compute_aabb()
                     .is_some_and(|b| is_flat(Vec3::from(b.half_extents)));
-                let two_sided = match settings.two_sided {
-                    SceneTwoSided::Never => false,
-                    SceneTwoSided::FromMaterial => masked || (double_sided || flat) && !closed,
-                    SceneTwoSided::Always => true,
-                };
-                (!two_sided).then_some(handle)
+                let lead = meshes.get(casting[0]).ok()?.1;
+                let bakes = decide(
+                    settings.two_sided,
+                    masked,
+                    double_sided,
+                    flat,
+                    || closed,
+                    || is_ground(union, lead),
+                );
+                (bakes != Bakes::TwoSided).then_some((handle, bakes))
             })
             .flatten();
         let lead = casting.first().copied();
@@ -463,24 +462,23 @@ pub(super) fn tag_scene_casters(
             match verdict {
                 None => tally.own = 1,
                 Some(Verdict::Caster {
-                    two_sided,
+                    bakes,
                     masked,
                     double_sided,
                 }) if merged.is_none() => {
                     tally.casters = 1;
-                    tally.two_sided = u32::from(two_sided);
-                    tally.solid_double_sided = u32::from(double_sided && !two_sided);
+                    tally.count(bakes, double_sided);
                     if ours {
                         commands.remove::<(CasterMesh, SceneMergedMesh)>();
                     }
-                    commands.insert(scene_caster(settings, two_sided, masked, root));
+                    commands.insert(scene_caster(settings, bakes, masked, root));
                 }
                 Some(Verdict::Caster { .. }) if Some(member) == lead => {
-                    let handle = merged.as_ref().expect("merged");
+                    let (handle, bakes) = merged.as_ref().expect("merged");
                     tally.casters = 1;
-                    tally.solid_double_sided = u32::from(double_sided);
+                    tally.count(*bakes, double_sided);
                     commands.insert((
-                        scene_caster(settings, false, masked, root),
+                        scene_caster(settings, *bakes, masked, root),
                         CasterMesh(handle.clone()),
                         SceneMergedMesh,
                     ));
@@ -512,7 +510,7 @@ pub(super) fn tag_scene_casters(
 /// The caster a scene root's rule makes.
 fn scene_caster(
     settings: &DistanceFieldSceneCasters,
-    two_sided: bool,
+    bakes: Bakes,
     masked: bool,
     root: Entity,
 ) -> (DistanceFieldCaster, DistanceFieldSceneCaster) {
@@ -524,7 +522,8 @@ fn scene_caster(
     (
         DistanceFieldCaster {
             source: super::CasterSource::Mesh,
-            two_sided,
+            two_sided: bakes == Bakes::TwoSided,
+            ground: bakes == Bakes::Ground,
             ao_transmission,
             ..settings.caster.clone()
         },
@@ -723,6 +722,7 @@ fn add_counts(c: &mut SceneCasterCounts, t: &SceneCasterCounts) {
     c.casters += t.casters;
     c.two_sided += t.two_sided;
     c.solid_double_sided += t.solid_double_sided;
+    c.ground += t.ground;
     c.skinned += t.skinned;
     c.small += t.small;
     c.blended += t.blended;
@@ -766,9 +766,8 @@ pub(super) fn untag_removed_roots(
 
 #[cfg(test)]
 mod tests {
-    use super::{gltf_mesh_of, is_nearly_closed};
+    use super::gltf_mesh_of;
     use bevy::asset::AssetPath;
-    use bevy::prelude::*;
 
     #[test]
     fn primitives_are_grouped_by_file_and_mesh() {
@@ -792,30 +791,5 @@ mod tests {
             assert_eq!(of(other), None, "{other}");
         }
         assert_eq!(gltf_mesh_of(None), None);
-    }
-
-    #[test]
-    fn closed_meshes_are_told_from_open_ones() {
-        // Bevy's primitives duplicate positions per face (normals): welding finds the
-        // shared edges.
-        assert!(is_nearly_closed(&Cuboid::default().into()));
-        assert!(is_nearly_closed(&Sphere::new(1.0).mesh().uv(16, 8)));
-        assert!(is_nearly_closed(&Torus::new(0.3, 0.6).into()));
-        assert!(!is_nearly_closed(&Plane3d::default().mesh().build()));
-        assert!(!is_nearly_closed(
-            &Cylinder::new(0.5, 1.0).mesh().without_caps().build()
-        ));
-        // A box missing one face (two triangles) is open: a lidless crate.
-        let mut open: Mesh = Cuboid::default().into();
-        if let Some(bevy::mesh::Indices::U32(i)) = open.indices_mut() {
-            i.truncate(i.len() - 6);
-        }
-        assert!(!is_nearly_closed(&open));
-        // A sphere missing one small triangle is nearly closed (a baked solid signs it).
-        let mut holed = Sphere::new(1.0).mesh().ico(3).unwrap();
-        if let Some(bevy::mesh::Indices::U32(i)) = holed.indices_mut() {
-            i.truncate(i.len() - 3);
-        }
-        assert!(is_nearly_closed(&holed));
     }
 }

@@ -24,7 +24,8 @@ usage: penumbra-bake MESH [--resolution N | --voxels-per-unit V] [--sign METHOD]
   --voxels-per-unit V  V samples per mesh unit, each axis clamped to 8..=256
                        (default: 32 per unit, like Unreal's defaults, and at
                        least 48 samples along the longest axis)
-  --sign METHOD        winding (default) | backface | parity | two-sided
+  --sign METHOD        winding (default) | backface | parity | two-sided |
+                       ground (an open sheet facing +y, solid below: terrain, floors)
   --two-sided          same as --sign two-sided (foliage: a thin shell around surfaces)
   --out FILE           write the field as .psdf (default: MESH with extension .psdf)
   --npy FILE           also write float32 (nz, ny, nx) .npy plus FILE.json (origin,
@@ -86,9 +87,10 @@ fn parse(args: impl IntoIterator<Item = String>) -> Result<Args, String> {
                     "backface" => SignMethod::BACKFACE_RATIO,
                     "parity" => SignMethod::RayParity,
                     "two-sided" => SignMethod::TWO_SIDED,
+                    "ground" => SignMethod::SolidBelow { up: glam::Vec3::Y },
                     other => {
                         return Err(format!(
-                            "--sign: unknown method {other:?} (winding, backface, parity, two-sided)"
+                            "--sign: unknown method {other:?} (winding, backface, parity, two-sided, ground)"
                         ));
                     }
                 }

@@ -265,6 +265,16 @@ impl Bvh {
         count
     }
 
+    /// The distances of every crossing of a ray within `(t_min, ∞)`, sorted.
+    pub fn ray_hit_distances(&self, origin: Vec3, dir: Vec3, t_min: f32) -> Vec<f32> {
+        let mut hits = Vec::new();
+        self.traverse_ray(origin, dir, t_min, f32::INFINITY, |_, hit, _| {
+            hits.push(hit.0);
+        });
+        hits.sort_by(f32::total_cmp);
+        hits
+    }
+
     /// Calls `on_hit(tree index, (t, front_facing), &mut t_max)` for every triangle the
     /// ray hits within `(t_min, t_max)`; the callback may shrink `t_max`.
     fn traverse_ray(
