@@ -145,6 +145,109 @@ pub const FIELD_NORMAL_MIN_AGREEMENT: f32 = 0.7;
 /// it lit facets of the shadow bench's scanned bunny that its triangles turn away).
 pub const FIELD_NORMAL_MIN_FACING: f32 = 0.3;
 
+/// The least step of a shadow march inside an occluder, in radii of the light's cone
+/// where it is: a march goes on through a solid occluder (distances below 0) until the
+/// cone is covered ([`penumbra_step`]).
+///
+/// **The penumbra is two-sided.** A march keeps the least ratio `d / r` of the distance
+/// to the nearest surface and the cone's radius, down to −1 (the cone's axis a radius
+/// inside), and the light's visible fraction is its smoothstep from −1 to 1
+/// ([`penumbra_visibility`]): ½ where the axis grazes a silhouette, as a disc half
+/// covered, instead of 0 — Quílez's improved soft shadow, which lets the penumbra
+/// reach into the geometric shadow. The one-sided form (`d / r` stopped at the first
+/// surface, 0 from there) darkened every penumbra's inner half; its shaping exponent
+/// (0.325) only bent it back. Inside a thin part (a leaf, a wall) the distance says
+/// nothing of how far the part reaches across the cone: a ray that leaves through the
+/// face opposite the one it entered by ([`THIN_CROSSING_COSINE`]), and any ray entering a
+/// two-sided shell, finds the cone covered, as the one-sided march did.
+pub const PENUMBRA_MIN_STEP: f32 = 0.25;
+
+/// A march outside an occluder steps at least this many of a field's voxels (and at
+/// most [`PENUMBRA_MIN_STEP`] cone radii; a hundredth of a radius for an analytic
+/// shape), so that it crosses a surface it approaches at an angle instead of creeping up
+/// to it, without stepping over a part a voxel thick.
+pub const SURFACE_STEP_VOXELS: f32 = 0.25;
+
+/// A ray through a solid part crossed a thin part, not a silhouette, where the surface
+/// normals where it went in and where it came out (the field's gradients at the last
+/// sample before and the first after) meet at a cosine below this: opposite faces of a
+/// leaf or a wall (−1), not a silhouette's grazing chord (about 1) or a box's corner (0).
+pub const THIN_CROSSING_COSINE: f32 = -0.5;
+
+/// One step of the two-sided penumbra's march, where the distance is `d` and the cone's
+/// radius `cone`, through a field of world voxel size `voxel` (0: an analytic shape),
+/// `two_sided` a shell. `entered` is the surface normal where the ray went inside
+/// (`None` outside; kept between steps); `normal_before` gives it at the previous sample
+/// and `normal_here` at this one (called only on the step in and the step out). Returns
+/// the ratio the step leaves (`d / cone`, or −1 where the cone is covered: a shell
+/// entered, a thin part crossed) and how far to step.
+pub fn penumbra_step(
+    d: f32,
+    cone: f32,
+    voxel: f32,
+    two_sided: bool,
+    entered: &mut Option<Vec3>,
+    normal_before: impl FnOnce() -> Vec3,
+    normal_here: impl FnOnce() -> Vec3,
+) -> (f32, f32) {
+    if d <= 0.0 {
+        if two_sided {
+            return (-1.0, 0.0);
+        }
+        if entered.is_none() {
+            *entered = Some(normal_before());
+        }
+        return (d / cone, (-d).max(cone * PENUMBRA_MIN_STEP));
+    }
+    if let Some(normal_in) = entered.take()
+        && normal_in.dot(normal_here()) < THIN_CROSSING_COSINE
+    {
+        return (-1.0, 0.0);
+    }
+    (d / cone, d.max(surface_step(cone, voxel)))
+}
+
+/// The least step outside an occluder ([`SURFACE_STEP_VOXELS`]).
+pub fn surface_step(cone: f32, voxel: f32) -> f32 {
+    if voxel > 0.0 {
+        (SURFACE_STEP_VOXELS * voxel).min(cone * PENUMBRA_MIN_STEP)
+    } else {
+        0.01 * cone
+    }
+}
+
+/// The gradient stencil of [`penumbra_step`]'s normals: half a voxel, or a twentieth of
+/// the cone's radius for an analytic shape.
+pub fn crossing_stencil(cone: f32, voxel: f32) -> f32 {
+    if voxel > 0.0 {
+        0.5 * voxel
+    } else {
+        0.05 * cone
+    }
+}
+
+/// The unit normal of a distance `d` at `q` from a tetrahedron of four samples `s` from
+/// it along each axis (zero where the gradient vanishes).
+pub fn tetrahedral_normal(q: Vec3, s: f32, mut d: impl FnMut(Vec3) -> f32) -> Vec3 {
+    let ks = [
+        Vec3::new(1.0, -1.0, -1.0),
+        Vec3::new(-1.0, -1.0, 1.0),
+        Vec3::new(-1.0, 1.0, -1.0),
+        Vec3::new(1.0, 1.0, 1.0),
+    ];
+    ks.iter()
+        .fold(Vec3::ZERO, |g, &k| g + k * d(q + k * s))
+        .normalize_or_zero()
+}
+
+/// The fraction of a light's disc left open where a march's least `d / r` (distance to
+/// the nearest surface over the cone's radius, [`PENUMBRA_MIN_STEP`]) is `x`: the
+/// smoothstep from −1 (covered) to 1 (open). `shadow.wgsl`'s `penumbra_visibility`.
+pub fn penumbra_visibility(x: f32) -> f32 {
+    let x = if x.is_nan() { -1.0 } else { x.clamp(-1.0, 1.0) };
+    0.25 * (1.0 + x) * (1.0 + x) * (2.0 - x)
+}
+
 /// Where a march through a field of world voxel size `voxel` (0: an analytic shape)
 /// starts along the ray from a receiver of unit normal `normal` (zero: unknown) under a
 /// light of world bias `bias`: the bias, or [`FINE_FIELD_BIAS_VOXELS`] voxels of a finer
@@ -264,6 +367,9 @@ mod tests {
             ("FIELD_NORMAL_MAX_GRADIENT", FIELD_NORMAL_MAX_GRADIENT),
             ("FIELD_NORMAL_MIN_AGREEMENT", FIELD_NORMAL_MIN_AGREEMENT),
             ("FIELD_NORMAL_MIN_FACING", FIELD_NORMAL_MIN_FACING),
+            ("PENUMBRA_MIN_STEP", PENUMBRA_MIN_STEP),
+            ("SURFACE_STEP_VOXELS", SURFACE_STEP_VOXELS),
+            ("THIN_CROSSING_COSINE", THIN_CROSSING_COSINE),
         ] {
             let line = source
                 .lines()
@@ -309,5 +415,85 @@ mod tests {
             self_shadow_start(fine, true, up, grazing)
         );
         assert_eq!(march_start(bias, h, true, up, up), bias.max(rise));
+    }
+
+    /// The two-sided penumbra: covered at −1 and below, half at a grazing silhouette,
+    /// open at 1 and above, monotonic between; NaN counts as covered.
+    #[test]
+    fn the_penumbra_is_half_open_at_a_silhouette() {
+        assert_eq!(penumbra_visibility(-1.0), 0.0);
+        assert_eq!(penumbra_visibility(-5.0), 0.0);
+        assert_eq!(penumbra_visibility(0.0), 0.5);
+        assert_eq!(penumbra_visibility(1.0), 1.0);
+        assert_eq!(penumbra_visibility(3.0), 1.0);
+        assert_eq!(penumbra_visibility(f32::NAN), 0.0);
+        let mut last = 0.0;
+        for i in -100..=100 {
+            let v = penumbra_visibility(i as f32 / 100.0);
+            assert!(v >= last, "{i}");
+            last = v;
+        }
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shaders/df/shadow.wgsl");
+        let source = std::fs::read_to_string(path).expect("shadow.wgsl");
+        assert!(
+            source.contains("return 0.25 * (1.0 + x) * (1.0 + x) * (2.0 - x);"),
+            "shadow.wgsl's penumbra_visibility is this one"
+        );
+    }
+
+    /// The march's steps: a shell entered covers the cone; a solid is marched through,
+    /// at least a quarter radius a step, and covers it where the ray leaves by the
+    /// opposite face (a thin part), not where it leaves by a side (a corner, a
+    /// silhouette); outside, a step of at least a quarter voxel (a hundredth of a radius
+    /// for analytic shapes).
+    #[test]
+    fn the_penumbra_march_covers_the_cone_through_thin_parts_only() {
+        let (cone, voxel) = (0.4, 0.1);
+        let never = || -> Vec3 { panic!("no normal needed") };
+        let near =
+            |(a, b): (f32, f32), (x, y): (f32, f32)| (a - x).abs() < 1e-6 && (b - y).abs() < 1e-6;
+        let mut entered = None;
+        assert_eq!(
+            penumbra_step(-0.01, cone, voxel, true, &mut entered, never, never),
+            (-1.0, 0.0)
+        );
+        // Outside: the distance, at least a quarter voxel (or a quarter radius).
+        assert_eq!(
+            penumbra_step(0.3, cone, voxel, false, &mut entered, never, never),
+            (0.75, 0.3)
+        );
+        assert!(near(
+            penumbra_step(0.001, cone, voxel, false, &mut entered, never, never),
+            (0.0025, SURFACE_STEP_VOXELS * voxel)
+        ));
+        assert_eq!(
+            penumbra_step(0.001, 0.2, 0.0, false, &mut entered, never, never).1,
+            0.002
+        );
+        // In: the entry normal is read once; steps of at least a quarter radius.
+        let (ratio, step) =
+            penumbra_step(-0.02, cone, voxel, false, &mut entered, || Vec3::Y, never);
+        assert!(near((ratio, step), (-0.05, 0.1)) && entered == Some(Vec3::Y));
+        let (_, step) = penumbra_step(-0.2, cone, voxel, false, &mut entered, never, never);
+        assert_eq!(step, 0.2);
+        // Out by the opposite face: a thin part, covered.
+        let mut thin = entered;
+        assert_eq!(
+            penumbra_step(0.01, cone, voxel, false, &mut thin, never, || -Vec3::Y).0,
+            -1.0
+        );
+        assert_eq!(thin, None);
+        // Out by a side (a corner) or the same side (a silhouette's chord): the ratio.
+        for out in [Vec3::X, Vec3::new(0.2, 0.98, 0.0)] {
+            let mut side = entered;
+            let (ratio, _) = penumbra_step(0.01, cone, voxel, false, &mut side, never, || out);
+            assert!((ratio - 0.025).abs() < 1e-6, "{out}: {ratio}");
+        }
+        // The normal of a plane's distance, and none where the gradient vanishes.
+        let n = tetrahedral_normal(Vec3::ONE, 0.1, |q| q.dot(Vec3::new(0.0, 0.6, 0.8)));
+        assert!(n.abs_diff_eq(Vec3::new(0.0, 0.6, 0.8), 1e-5), "{n}");
+        assert_eq!(tetrahedral_normal(Vec3::ONE, 0.1, |_| 1.0), Vec3::ZERO);
+        assert!((crossing_stencil(cone, voxel) - 0.05).abs() < 1e-7);
+        assert!((crossing_stencil(cone, 0.0) - 0.02).abs() < 1e-7);
     }
 }

@@ -90,7 +90,7 @@ fn frame() -> Frame {
         source: 0.05,
         max_distance: 0.0,
         bias: 0.04,
-        shaping: 0.325,
+        shaping: 1.25,
         range: 2.5,
         max_steps: 64,
         max_view_distance: 150.0,

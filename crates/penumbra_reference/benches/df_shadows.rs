@@ -53,10 +53,10 @@ const RESOLUTIONS: [u32; 4] = [16, 32, 64, 128];
 const DEFAULT_STEPS: u32 = 64;
 const DEFAULT_BIAS: f32 = 0.04;
 const BIASES: [f32; 5] = [0.01, 0.02, 0.04, 0.06, 0.08];
-const DEFAULT_SHAPING: f32 = 0.325;
+const DEFAULT_SHAPING: f32 = 1.25;
 /// Shaping costs nothing, so the default must be the best one at its work: swept in
-/// steps of 0.025 around it (coarser ones show the curve's shape).
-const SHAPINGS: [f32; 10] = [1.0, 0.6, 0.5, 0.4, 0.375, 0.35, 0.325, 0.3, 0.275, 0.25];
+/// steps of 0.05 around it (coarser ones show the curve's shape).
+const SHAPINGS: [f32; 10] = [2.0, 1.5, 1.4, 1.35, 1.3, 1.25, 1.2, 1.15, 1.1, 1.0];
 
 struct Scene {
     name: &'static str,

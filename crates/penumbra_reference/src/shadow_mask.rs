@@ -22,7 +22,9 @@ use penumbra_df_core::heightfield::HeightfieldTexture;
 use penumbra_df_core::object::{ObjectRecord, ShapeKind, TILE_SIZE, flags};
 use penumbra_df_core::shadow::{
     FIELD_NORMAL_MAX_GRADIENT, FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING,
-    FIELD_NORMAL_MIN_GRADIENT, FIELD_NORMAL_REACH_VOXELS, FIELD_NORMAL_STEP_VOXELS, march_start,
+    FIELD_NORMAL_MIN_GRADIENT, FIELD_NORMAL_REACH_VOXELS, FIELD_NORMAL_STEP_VOXELS,
+    PENUMBRA_MIN_STEP, crossing_stencil, march_start, penumbra_step, penumbra_visibility,
+    tetrahedral_normal,
 };
 
 pub use penumbra_df_core::shadow::{ShadowLight as MaskLight, ShadowLightKind as MaskLightKind};
@@ -193,7 +195,11 @@ pub fn pixel_visibility_with_terrain(
             t = t.max(t0);
             t_end = t_end.min(t1);
         }
+        // The least distance over the cone's radius, down to −1: the two-sided penumbra
+        // (`penumbra_df_core::shadow::PENUMBRA_MIN_STEP`, `penumbra_step`).
         let mut v = 1.0f32;
+        let mut entered = None;
+        let mut before = t;
         for _ in 0..light.max_steps {
             if t >= t_end {
                 break;
@@ -202,16 +208,37 @@ pub fn pixel_visibility_with_terrain(
             evaluations += 1;
             let cone = (t * tan_half).max(1e-6);
             // A bounded object covers at most (R / r)² of the cone's section, even when
-            // the axis runs through it.
-            let floor = sphere.map_or(0.0, |(_, radius)| 1.0 - (radius / cone).powi(2).min(1.0));
-            if d <= 0.0 {
-                v = v.min(floor);
+            // the axis runs through it: the ratio stays above 1 − 2 (R / r)².
+            let floor = sphere.map_or(-1.0, |(_, radius)| {
+                1.0 - 2.0 * (radius / cone).powi(2).min(1.0)
+            });
+            let s = crossing_stencil(cone, voxel);
+            let reads = std::cell::Cell::new(0);
+            let normal_at = |at: f32| {
+                tetrahedral_normal(p + dir * at, s, |q| {
+                    reads.set(reads.get() + 1);
+                    object_distance(r, q, camera, atlas)
+                })
+            };
+            let (ratio, step) = penumbra_step(
+                d,
+                cone,
+                voxel,
+                two_sided,
+                &mut entered,
+                || normal_at(before),
+                || normal_at(t),
+            );
+            evaluations += reads.get();
+            v = v.min(ratio.max(floor));
+            // Covered (a tiny object's floor still leaves some light).
+            if ratio <= -1.0 {
                 break;
             }
-            v = v.min((d / cone).max(floor));
-            t += d;
+            before = t;
+            t += step;
         }
-        visibility = visibility.min(v.clamp(0.0, 1.0));
+        visibility = visibility.min(penumbra_visibility(v));
     }
     let (v, e) = terrain_visibility(terrain, camera, p, (dir, t_max, tan_half), light);
     visibility = visibility.min(v);
@@ -348,14 +375,14 @@ fn terrain_visibility(
             }
             let d = terrain.distance(h, local + dir * t);
             evaluations += 1;
-            if d <= 0.0 {
-                v = 0.0;
+            let cone = (t * tan_half).max(1e-6);
+            v = v.min(d / cone);
+            if v <= -1.0 {
                 break;
             }
-            v = v.min(d / (t * tan_half).max(1e-6));
-            t += d.max(min_step);
+            t += d.abs().max(min_step).max(cone * PENUMBRA_MIN_STEP);
         }
-        visibility = visibility.min(v.clamp(0.0, 1.0));
+        visibility = visibility.min(penumbra_visibility(v));
     }
     (visibility, evaluations)
 }

@@ -109,9 +109,10 @@ fn bunny_shadow_march_against_ray_traced_ground_truth() {
          shadowed by either, max {worst:.4}"
     );
     assert!(shadowed > 20, "the bunny casts a shadow on the grid");
-    // Measured 0.040; a march that underestimates distances by 3× gives 0.139.
+    // Measured 0.0147 (0.040 with the one-sided penumbra, whose march that
+    // underestimated distances by 3× gave 0.139).
     assert!(
-        mean_affected < 0.08,
+        mean_affected < 0.03,
         "mean over shadowed points {mean_affected}"
     );
 }

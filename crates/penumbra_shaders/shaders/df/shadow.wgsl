@@ -2,11 +2,12 @@
 // scene's distance-field objects. CPU model: `penumbra_reference::shadow_mask` (same
 // culling, march, clamps and shaping, in the same order).
 //
-// Per object, sphere-trace toward the light; the object leaves `d / r(t)` of the
-// light's cone open (`r(t) = t · tan θ`); the smallest value along the ray wins, and the
-// smallest over the objects. Penumbra only: stopping inside gives 0 (or the tiny-object
-// floor), negative distances never widen the umbra. A bounded object of radius R covers at most (R / r)² of the
-// cone's section, so it never darkens below 1 − (R / r)² (tiny objects on the axis).
+// Per object, sphere-trace toward the light, through the object too, keeping the least
+// `d / r(t)` down to −1 (`r(t) = t · tan θ`); the object leaves its smoothstep from −1 to
+// 1 of the light open (the two-sided penumbra: ½ at a silhouette; `penumbra_visibility`),
+// and the smallest over the objects wins. A bounded object of radius R covers at most
+// (R / r)² of the cone's section, so its ratio stays above 1 − 2 (R / r)² (tiny objects
+// on the axis).
 #define_import_path penumbra::df::shadow
 
 #import penumbra::df::object::{
@@ -279,27 +280,117 @@ fn march_object(
         t = max(t, span.x);
         t_end = min(t_end, span.y);
     }
+    // The least distance over the cone's radius, down to −1 (inside by a radius): the
+    // two-sided penumbra (`penumbra_df_core::shadow::penumbra_step`).
     var v = 1.0;
+    var voxel = 0.0;
+    if object_kind(o) == KIND_VOLUME {
+        voxel = o.conservative_scale;
+    }
+    let two_sided = object_kind(o) == KIND_VOLUME && (o.flags & FLAG_TWO_SIDED) != 0u;
+    // Inside a solid part, and the surface's normal where the ray went in.
+    var inside = false;
+    var normal_in = vec3<f32>(0.0);
+    var before = t;
     for (var step = 0u; step < light.max_steps; step += 1u) {
         if t >= t_end {
             break;
         }
         let d = object_distance(o, p + ray.dir * t, camera_tile, camera_offset, atlas);
         let cone = max(t * ray.tan_half, 1e-6);
-        var floor_v = 0.0;
+        // A tiny object covers only (R / r)² of the cone's section, even inside it.
+        var floor_v = -1.0;
         if sphere.w >= 0.0 {
             let q = sphere.w / cone;
-            floor_v = 1.0 - min(q * q, 1.0);
+            floor_v = 1.0 - 2.0 * min(q * q, 1.0);
         }
+        let stencil = crossing_stencil(cone, voxel);
+        var ratio = d / cone;
+        var advance = 0.0;
         if d <= 0.0 {
-            // Inside: a tiny object still covers only (R / r)² of the cone's section.
-            v = min(v, floor_v);
+            if two_sided {
+                ratio = -1.0;
+            } else {
+                if !inside {
+                    inside = true;
+                    normal_in = crossing_normal(o, p + ray.dir * before, stencil, camera_tile, camera_offset, atlas);
+                }
+                advance = max(-d, cone * PENUMBRA_MIN_STEP);
+            }
+        } else {
+            if inside {
+                inside = false;
+                let normal_out = crossing_normal(o, p + ray.dir * t, stencil, camera_tile, camera_offset, atlas);
+                if dot(normal_in, normal_out) < THIN_CROSSING_COSINE {
+                    ratio = -1.0;
+                }
+            }
+            advance = max(d, surface_step(cone, voxel));
+        }
+        v = min(v, max(ratio, floor_v));
+        // Covered (a tiny object's floor still leaves some light).
+        if ratio <= -1.0 {
             break;
         }
-        v = min(v, max(d / cone, floor_v));
-        t += d;
+        before = t;
+        t += advance;
     }
-    return clamp(v, 0.0, 1.0);
+    return penumbra_visibility(v);
+}
+
+// The two-sided penumbra (`penumbra_df_core::shadow::PENUMBRA_MIN_STEP`): a march goes
+// on through a solid occluder, at least this many cone radii a step, keeping the least
+// distance over the cone's radius down to −1; the light's open fraction is its
+// smoothstep from −1 to 1 (½ where the cone's axis grazes a silhouette).
+const PENUMBRA_MIN_STEP: f32 = 0.25;
+// Outside, a step of at least this many voxels (at most PENUMBRA_MIN_STEP radii; a
+// hundredth of a radius for analytic shapes).
+const SURFACE_STEP_VOXELS: f32 = 0.25;
+
+// A ray through a solid part crossed a thin part where the normals where it went in and
+// came out meet below this cosine (`penumbra_df_core::shadow::THIN_CROSSING_COSINE`).
+const THIN_CROSSING_COSINE: f32 = -0.5;
+
+// The least step outside an occluder (`penumbra_df_core::shadow::surface_step`).
+fn surface_step(cone: f32, voxel: f32) -> f32 {
+    if voxel > 0.0 {
+        return min(SURFACE_STEP_VOXELS * voxel, cone * PENUMBRA_MIN_STEP);
+    }
+    return 0.01 * cone;
+}
+
+// The normals' stencil (`penumbra_df_core::shadow::crossing_stencil`).
+fn crossing_stencil(cone: f32, voxel: f32) -> f32 {
+    return select(0.05 * cone, 0.5 * voxel, voxel > 0.0);
+}
+
+// The unit normal of object `o`'s distance at `q` from a tetrahedron of samples `s` from
+// it (`penumbra_df_core::shadow::tetrahedral_normal`; zero where the gradient vanishes).
+fn crossing_normal(
+    o: DistanceFieldObject,
+    q: vec3<f32>,
+    s: f32,
+    camera_tile: vec3<i32>,
+    camera_offset: vec3<f32>,
+    atlas: texture_3d<f32>,
+) -> vec3<f32> {
+    let k0 = vec3<f32>(1.0, -1.0, -1.0);
+    let k1 = vec3<f32>(-1.0, -1.0, 1.0);
+    let k2 = vec3<f32>(-1.0, 1.0, -1.0);
+    let k3 = vec3<f32>(1.0, 1.0, 1.0);
+    let g = k0 * object_distance(o, q + k0 * s, camera_tile, camera_offset, atlas)
+        + k1 * object_distance(o, q + k1 * s, camera_tile, camera_offset, atlas)
+        + k2 * object_distance(o, q + k2 * s, camera_tile, camera_offset, atlas)
+        + k3 * object_distance(o, q + k3 * s, camera_tile, camera_offset, atlas);
+    let len = length(g);
+    return select(vec3<f32>(0.0), g / len, len > 0.0);
+}
+
+// The open fraction of the light's disc for a march's least ratio `x`
+// (`penumbra_df_core::shadow::penumbra_visibility`; NaN: covered).
+fn penumbra_visibility(ratio: f32) -> f32 {
+    let x = select(-1.0, clamp(ratio, -1.0, 1.0), ratio == ratio);
+    return 0.25 * (1.0 + x) * (1.0 + x) * (2.0 - x);
 }
 
 // The unit normal in a word of Bevy's deferred G-buffer (its fourth channel): 12-bit

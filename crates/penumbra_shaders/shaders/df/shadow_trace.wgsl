@@ -15,10 +15,11 @@
 #import penumbra::df::object::{DistanceFieldObject, TILE_SIZE}
 #import penumbra::df::heightfield::{HeightfieldRecord, heightfield_distance}
 #import penumbra::df::shadow::{
-    FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, NO_FIELD_NORMAL, ShadowLight, ShadowRay,
-    bounding_sphere, caster_field_normal, casts_shadows, cull_slack, finish_visibility,
-    gbuffer_normal, horizon_visibility, is_directional, march_object, march_start,
-    object_in_cone, round_cone_distance, shadow_ray, traces_point,
+    FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, NO_FIELD_NORMAL, PENUMBRA_MIN_STEP,
+    ShadowLight, ShadowRay, bounding_sphere, caster_field_normal, casts_shadows, cull_slack,
+    finish_visibility, gbuffer_normal, horizon_visibility, is_directional, march_object,
+    march_start, object_in_cone, penumbra_visibility, round_cone_distance, shadow_ray,
+    traces_point,
 }
 #import penumbra::lighting::msaa::MSAA_SAMPLE_POSITIONS
 #import penumbra::df::shadow_grid::{
@@ -184,14 +185,14 @@ fn terrain_visibility(p: vec3<f32>, ray: ShadowRay) -> f32 {
                 break;
             }
             let d = heightfield_distance(h, heights, local + ray.dir * t);
-            if d <= 0.0 {
-                v = 0.0;
+            let cone = max(t * ray.tan_half, 1e-6);
+            v = min(v, d / cone);
+            if v <= -1.0 {
                 break;
             }
-            v = min(v, d / max(t * ray.tan_half, 1e-6));
-            t += max(d, min_step);
+            t += max(max(abs(d), min_step), cone * PENUMBRA_MIN_STEP);
         }
-        visibility = min(visibility, clamp(v, 0.0, 1.0));
+        visibility = min(visibility, penumbra_visibility(v));
     }
     return visibility;
 }
