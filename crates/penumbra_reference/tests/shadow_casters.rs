@@ -326,24 +326,7 @@ fn mirrored_transform(at: Vec3, spin: Quat) -> Affine3A {
 fn a_two_sided_sheet_does_not_shadow_itself() {
     let n = 24;
     let height = |x: f32, z: f32| 0.08 * (1.3 * x).sin() * (0.9 * z).cos();
-    let mut sheet = TriMesh::default();
-    for k in 0..=n {
-        for i in 0..=n {
-            let (x, z) = (
-                -2.0 + 4.0 * i as f32 / n as f32,
-                -2.0 + 4.0 * k as f32 / n as f32,
-            );
-            sheet.positions.push(Vec3::new(x, height(x, z), z));
-        }
-    }
-    let row = n + 1;
-    for k in 0..n {
-        for i in 0..n {
-            let a = k * row + i;
-            sheet.triangles.push([a, a + row, a + 1]);
-            sheet.triangles.push([a + 1, a + row, a + row + 1]);
-        }
-    }
+    let sheet = penumbra_sdf::shapes::height_sheet(n, 2.0, height);
     let settings = BakeSettings {
         sign: SignMethod::TWO_SIDED,
         ..BakeSettings::longest_axis(64)

@@ -207,28 +207,12 @@ impl GroundSign {
 pub(crate) mod tests {
     use super::*;
 
-    /// A grid of `n × n` quads over [−1, 1]² at heights `h(x, z)`, counter-clockwise
-    /// seen from above (normals up).
+    /// A sheet of `n × n` quads over [−1, 1]² at heights `h(x, z)`, normals up: its
+    /// positions and triangle indices.
     pub(crate) fn sheet(n: u32, h: impl Fn(f32, f32) -> f32) -> (Vec<Vec3>, Vec<u32>) {
-        let mut positions = Vec::new();
-        for k in 0..=n {
-            for i in 0..=n {
-                let (x, z) = (
-                    -1.0 + 2.0 * i as f32 / n as f32,
-                    -1.0 + 2.0 * k as f32 / n as f32,
-                );
-                positions.push(Vec3::new(x, h(x, z), z));
-            }
-        }
-        let mut indices = Vec::new();
-        let at = |i: u32, k: u32| i + k * (n + 1);
-        for k in 0..n {
-            for i in 0..n {
-                let (a, b, c, d) = (at(i, k), at(i + 1, k), at(i + 1, k + 1), at(i, k + 1));
-                indices.extend_from_slice(&[a, c, b, a, d, c]);
-            }
-        }
-        (positions, indices)
+        let mesh = crate::shapes::height_sheet(n, 1.0, h);
+        let indices = mesh.triangles.iter().flatten().copied().collect();
+        (mesh.positions, indices)
     }
 
     /// A flat sheet facing up is all up; flipped, all down; a closed box half and half

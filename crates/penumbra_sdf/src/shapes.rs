@@ -98,6 +98,26 @@ pub fn cuboid(half: Vec3) -> TriMesh {
     }
 }
 
+/// An open sheet of `n × n` quads over `[−half, half]²` in x and z at heights
+/// `height(x, z)`, counter-clockwise seen from above (normals up): a terrain.
+pub fn height_sheet(n: u32, half: f32, height: impl Fn(f32, f32) -> f32) -> TriMesh {
+    let at = |i: u32| -half + 2.0 * half * i as f32 / n as f32;
+    let positions = (0..=n)
+        .flat_map(|k| (0..=n).map(move |i| (at(i), at(k))))
+        .map(|(x, z)| Vec3::new(x, height(x, z), z))
+        .collect();
+    let row = n + 1;
+    let triangles = (0..n)
+        .flat_map(|k| (0..n).map(move |i| k * row + i))
+        .flat_map(|a| [[a, a + row, a + 1], [a + 1, a + row, a + row + 1]])
+        .collect();
+    TriMesh {
+        positions,
+        triangles,
+        ..Default::default()
+    }
+}
+
 /// A closed thin plate: a box `size.x × thickness × size.z`.
 pub fn thin_plate(size_x: f32, size_z: f32, thickness: f32) -> TriMesh {
     cuboid(Vec3::new(size_x / 2.0, thickness / 2.0, size_z / 2.0))
