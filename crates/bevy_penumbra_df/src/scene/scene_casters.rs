@@ -29,7 +29,9 @@ pub enum SkinnedCasters {
 pub enum SceneTwoSided {
     /// Never: every mesh is baked as a closed solid.
     Never,
-    /// When the material is alpha-masked, or `double_sided` and the mesh open (default).
+    /// When the material is alpha-masked, or `double_sided` (or the mesh flat) and the
+    /// mesh open — unless it is ground: open and facing up, baked solid below it
+    /// (default; rule 5 of [`DistanceFieldSceneCasters`]).
     #[default]
     FromMaterial,
     /// Always: every mesh is baked as a shell.
