@@ -226,18 +226,25 @@ pub fn crossing_stencil(cone: f32, voxel: f32) -> f32 {
     }
 }
 
-/// The unit normal of a distance `d` at `q` from a tetrahedron of four samples `s` from
-/// it along each axis (zero where the gradient vanishes).
-pub fn tetrahedral_normal(q: Vec3, s: f32, mut d: impl FnMut(Vec3) -> f32) -> Vec3 {
+/// The gradient of a distance `d` at `q` from a tetrahedron of four samples `s` from it
+/// along each axis, and the samples' mean (`shadow.wgsl`'s `tetrahedral_distances` and
+/// `tetrahedral_gradient`).
+pub fn tetrahedral_gradient(q: Vec3, s: f32, mut d: impl FnMut(Vec3) -> f32) -> (Vec3, f32) {
     let ks = [
         Vec3::new(1.0, -1.0, -1.0),
         Vec3::new(-1.0, -1.0, 1.0),
         Vec3::new(-1.0, 1.0, -1.0),
         Vec3::new(1.0, 1.0, 1.0),
     ];
-    ks.iter()
-        .fold(Vec3::ZERO, |g, &k| g + k * d(q + k * s))
-        .normalize_or_zero()
+    let ds = ks.map(|k| d(q + k * s));
+    let g = (ks[0] * ds[0] + ks[1] * ds[1] + ks[2] * ds[2] + ks[3] * ds[3]) / (4.0 * s);
+    (g, 0.25 * (ds[0] + ds[1] + ds[2] + ds[3]))
+}
+
+/// The unit normal of a distance `d` at `q` ([`tetrahedral_gradient`]; zero where the
+/// gradient vanishes).
+pub fn tetrahedral_normal(q: Vec3, s: f32, d: impl FnMut(Vec3) -> f32) -> Vec3 {
+    tetrahedral_gradient(q, s, d).0.normalize_or_zero()
 }
 
 /// The fraction of a light's disc left open where a march's least `d / r` (distance to

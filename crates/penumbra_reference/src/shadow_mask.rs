@@ -24,7 +24,7 @@ use penumbra_df_core::shadow::{
     FIELD_NORMAL_MAX_GRADIENT, FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING,
     FIELD_NORMAL_MIN_GRADIENT, FIELD_NORMAL_REACH_VOXELS, FIELD_NORMAL_STEP_VOXELS,
     PENUMBRA_MIN_STEP, crossing_stencil, march_start, penumbra_step, penumbra_visibility,
-    tetrahedral_normal,
+    tetrahedral_gradient, tetrahedral_normal,
 };
 
 pub use penumbra_df_core::shadow::{ShadowLight as MaskLight, ShadowLightKind as MaskLightKind};
@@ -328,20 +328,12 @@ pub fn field_normal(
     }
     let two_sided = r.flags() & flags::TWO_SIDED != 0;
     let q = p + side * if two_sided { h } else { 0.0 };
-    let s = FIELD_NORMAL_STEP_VOXELS * h;
-    let ks = [
-        Vec3::new(1.0, -1.0, -1.0),
-        Vec3::new(-1.0, -1.0, 1.0),
-        Vec3::new(-1.0, 1.0, -1.0),
-        Vec3::new(1.0, 1.0, 1.0),
-    ];
-    let ds = ks.map(|k| d(q + k * s));
-    let g = (ks[0] * ds[0] + ks[1] * ds[1] + ks[2] * ds[2] + ks[3] * ds[3]) / (4.0 * s);
+    let (g, mean) = tetrahedral_gradient(q, FIELD_NORMAL_STEP_VOXELS * h, d);
     let len = g.length();
     if !(FIELD_NORMAL_MIN_GRADIENT..=FIELD_NORMAL_MAX_GRADIENT).contains(&len) {
         return None;
     }
-    Some((g / len, 0.25 * (ds[0] + ds[1] + ds[2] + ds[3])))
+    Some((g / len, mean))
 }
 
 /// The terrains' visibility along the shadow ray `(dir, t_max, tan_half)` from

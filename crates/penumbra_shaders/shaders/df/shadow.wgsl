@@ -240,20 +240,42 @@ fn caster_field_normal(
     let two_sided = (o.flags & FLAG_TWO_SIDED) != 0u;
     let q = p + side * select(0.0, h, two_sided);
     let s = FIELD_NORMAL_STEP_VOXELS * h;
-    let k0 = vec3<f32>(1.0, -1.0, -1.0);
-    let k1 = vec3<f32>(-1.0, -1.0, 1.0);
-    let k2 = vec3<f32>(-1.0, 1.0, -1.0);
-    let k3 = vec3<f32>(1.0, 1.0, 1.0);
-    let d0 = object_distance(o, q + k0 * s, camera_tile, camera_offset, atlas);
-    let d1 = object_distance(o, q + k1 * s, camera_tile, camera_offset, atlas);
-    let d2 = object_distance(o, q + k2 * s, camera_tile, camera_offset, atlas);
-    let d3 = object_distance(o, q + k3 * s, camera_tile, camera_offset, atlas);
-    let g = (k0 * d0 + k1 * d1 + k2 * d2 + k3 * d3) / (4.0 * s);
+    let d = tetrahedral_distances(o, q, s, camera_tile, camera_offset, atlas);
+    let g = tetrahedral_gradient(d, s);
     let len = length(g);
     if !(len >= FIELD_NORMAL_MIN_GRADIENT && len <= FIELD_NORMAL_MAX_GRADIENT) {
         return NO_FIELD_NORMAL;
     }
-    return vec4<f32>(g / len, 0.25 * (d0 + d1 + d2 + d3));
+    return vec4<f32>(g / len, 0.25 * (d.x + d.y + d.z + d.w));
+}
+
+// The tetrahedral stencil's corners (`penumbra_df_core::shadow::tetrahedral_gradient`).
+const TETRAHEDRON_0: vec3<f32> = vec3<f32>(1.0, -1.0, -1.0);
+const TETRAHEDRON_1: vec3<f32> = vec3<f32>(-1.0, -1.0, 1.0);
+const TETRAHEDRON_2: vec3<f32> = vec3<f32>(-1.0, 1.0, -1.0);
+const TETRAHEDRON_3: vec3<f32> = vec3<f32>(1.0, 1.0, 1.0);
+
+// Object `o`'s distances at the corners of a tetrahedron `s` from `q` along each axis.
+fn tetrahedral_distances(
+    o: DistanceFieldObject,
+    q: vec3<f32>,
+    s: f32,
+    camera_tile: vec3<i32>,
+    camera_offset: vec3<f32>,
+    atlas: texture_3d<f32>,
+) -> vec4<f32> {
+    return vec4<f32>(
+        object_distance(o, q + TETRAHEDRON_0 * s, camera_tile, camera_offset, atlas),
+        object_distance(o, q + TETRAHEDRON_1 * s, camera_tile, camera_offset, atlas),
+        object_distance(o, q + TETRAHEDRON_2 * s, camera_tile, camera_offset, atlas),
+        object_distance(o, q + TETRAHEDRON_3 * s, camera_tile, camera_offset, atlas),
+    );
+}
+
+// The gradient from the tetrahedron's distances `d`, `s` from its centre.
+fn tetrahedral_gradient(d: vec4<f32>, s: f32) -> vec3<f32> {
+    return (TETRAHEDRON_0 * d.x + TETRAHEDRON_1 * d.y + TETRAHEDRON_2 * d.z + TETRAHEDRON_3 * d.w)
+        / (4.0 * s);
 }
 
 // The fraction of the light's cone one object leaves open along the ray from p, the
@@ -374,14 +396,7 @@ fn crossing_normal(
     camera_offset: vec3<f32>,
     atlas: texture_3d<f32>,
 ) -> vec3<f32> {
-    let k0 = vec3<f32>(1.0, -1.0, -1.0);
-    let k1 = vec3<f32>(-1.0, -1.0, 1.0);
-    let k2 = vec3<f32>(-1.0, 1.0, -1.0);
-    let k3 = vec3<f32>(1.0, 1.0, 1.0);
-    let g = k0 * object_distance(o, q + k0 * s, camera_tile, camera_offset, atlas)
-        + k1 * object_distance(o, q + k1 * s, camera_tile, camera_offset, atlas)
-        + k2 * object_distance(o, q + k2 * s, camera_tile, camera_offset, atlas)
-        + k3 * object_distance(o, q + k3 * s, camera_tile, camera_offset, atlas);
+    let g = tetrahedral_gradient(tetrahedral_distances(o, q, s, camera_tile, camera_offset, atlas), s);
     let len = length(g);
     return select(vec3<f32>(0.0), g / len, len > 0.0);
 }
