@@ -92,7 +92,7 @@ const CORPUS: &[Case] = &[
     Case {
         file: "FlightHelmet/FlightHelmet.gltf",
         flags: &[],
-        bounds: b(0.23, 0.10, 0.19),
+        bounds: b(0.15, 0.07, 0.14),
     },
     Case {
         file: "AnisotropyBarnLamp/AnisotropyBarnLamp.gltf",

@@ -14,7 +14,7 @@
 //! The origin is f64: a mesh 10⁶ m from its frame's origin (survey or CAD coordinates)
 //! keeps its samples where they belong (f32 would round them by up to 3 cm there).
 //!
-//! Queries outside the grid's box return `√(e² + s²)` (sign of `s`): a **lower bound** of
+//! Queries outside the grid's box return `√(e² + s²)`: a **lower bound** of
 //! the true distance. Every surface point lies inside the box shrunk by the volume's
 //! [`SdfVolume::margin`] (a bake's border: the surface is at least that far inside), a
 //! convex set, so for its point `c` nearest to the query `q` and every surface point
@@ -22,7 +22,13 @@
 //! the distance is at least `√(e² + s²)`. Facing a flat side of the surface the bound is
 //! exact; far away it approaches the truth. (Adding the distance to the box to the
 //! clamped sample instead, as Unreal does, is an upper bound: a sphere-tracing step can
-//! jump past a surface that lies obliquely inside the border.)
+//! jump past a surface that lies obliquely inside the border.) The bound is negative
+//! (inside) only where both `s` and the sample at the box's own boundary nearest to `q`
+//! are: a ground sheet's solid, cut by the box, goes on below it; a field whose inside
+//! reaches the shrunk box but not the boundary is outside there. (The thin-feature
+//! guard puts a negative sample up to a voxel beyond a thin part on the mesh's bounds:
+//! with the sign of `s` alone, a metal plaque on the front of `FlightHelmet`'s base made
+//! the whole half-space in front of it read 2.8 voxels inside, and shadowed the base.)
 
 use glam::{DVec3, UVec3, Vec3};
 pub use half::f16;
@@ -216,8 +222,9 @@ impl SdfVolume {
 /// is `inside` (both in voxels), with the surface at least `margin` voxels inside the
 /// box: `inside(g)` in the box; outside, `±√(e² + s²)` with `e` the distance to the box
 /// shrunk by the margin and `s = inside(c)` at its point `c` nearest to `g` (the lower
-/// bound of the module docs). The GPU's `volume_distance` and the CPU reference model
-/// compute the same.
+/// bound of the module docs), negative only where the box's boundary sample nearest to
+/// `g` is inside too. The GPU's `volume_distance` and the CPU reference model compute
+/// the same.
 pub fn volume_distance_voxels(
     g: Vec3,
     dims: UVec3,
@@ -234,7 +241,15 @@ pub fn volume_distance_voxels(
     let c = g.clamp(Vec3::splat(m), hi - m);
     let s = inside(c);
     let r = ((g - c).length_squared() + s * s).sqrt();
-    if s < 0.0 { -r } else { r }
+    // Inside only where the field's inside reaches the box's own boundary (a ground
+    // sheet's solid, cut by the box): a sample of the shrunk box may read inside where
+    // the thin-feature guard or a sign decision put a surface's inside a voxel beyond
+    // the mesh, and the box's boundary samples are outside.
+    if s < 0.0 && inside(g.clamp(Vec3::ZERO, hi)) < 0.0 {
+        -r
+    } else {
+        r
+    }
 }
 
 #[cfg(test)]

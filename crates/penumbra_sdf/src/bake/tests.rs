@@ -43,6 +43,40 @@ fn a_flat_two_sided_field_is_outside_its_box() {
 
 /// The thin-feature guard's triangle prefilter (skip triangles whose box holds only
 /// settled cells) flips exactly the samples the full lattice walk flips.
+/// Outside its sample box a solid field is outside, even where the thin-feature guard
+/// put an inside sample on the box shrunk by the margin: a 2 mm plate in a grid of 18 mm
+/// voxels (the guard flips a sample on the plate's bounds, where the margin's box ends),
+/// read beyond every face of its box. Reading the sign at the shrunk box alone made the
+/// whole half-space beyond that face inside (a metal plaque on `FlightHelmet`'s base
+/// shadowed the base).
+#[test]
+fn a_thin_part_on_its_bounds_leaves_the_outside_outside() {
+    let plate = shapes::cuboid(Vec3::new(0.25, 0.15, 0.001));
+    let bake = bake(&plate, &BakeSettings::longest_axis(32), None).unwrap();
+    assert!(bake.thin_feature_samples > 0, "the guard flipped nothing");
+    let v = bake.volume;
+    let h = f64::from(v.voxel_size);
+    let lo = v.origin;
+    let hi = v.origin + (v.dims.as_dvec3() - glam::DVec3::ONE) * h;
+    let mut checked = 0;
+    for axis in 0..3 {
+        for side in [-1.0, 1.0] {
+            for (u, w) in [(0.0, 0.0), (0.3, -0.2), (-0.45, 0.4)] {
+                let mut p = glam::DVec3::new(u * 0.5, w * 0.3, 0.0);
+                p[axis] = if side < 0.0 { lo[axis] } else { hi[axis] } + side * 0.5 * h;
+                // The exact distance to the box.
+                let half = glam::DVec3::new(0.25, 0.15, 0.001);
+                let truth = (p.abs() - half).max(glam::DVec3::ZERO).length();
+                let d = f64::from(v.sample(p));
+                assert!(d > 0.0, "{p}: {d} inside");
+                assert!(d <= truth + 0.05 * h, "{p}: {d} over the truth {truth}");
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 18);
+}
+
 #[test]
 fn thin_feature_prefilter_changes_nothing() {
     let mut plate = shapes::thin_plate(1.0, 1.0, 0.004);

@@ -38,7 +38,9 @@ fn sample_volume(atlas: texture_3d<f32>, origin: vec3<u32>, dims: vec3<u32>, c: 
 // a lower bound of the true distance, since every surface point lies in that (convex)
 // box: |q − x|² ≥ e² + |c − x|². (The clamped sample plus the distance to the box,
 // Unreal's, is an upper bound and lets a step jump past a surface lying obliquely inside
-// the border.) CPU reference: `penumbra_sdf::volume::volume_distance_voxels`.
+// the border.) Negative only where the box's own boundary sample is too (a ground
+// sheet's solid goes on below its box). CPU reference:
+// `penumbra_sdf::volume::volume_distance_voxels`.
 fn volume_distance(
     atlas: texture_3d<f32>,
     origin: vec3<u32>,
@@ -57,7 +59,13 @@ fn volume_distance(
     let s = sample_volume(atlas, origin, dims, c);
     let e = q - c;
     let r = sqrt(dot(e, e) + s * s);
-    return select(r, -r, s < 0.0);
+    // Inside only where the inside reaches the box's own boundary (a ground sheet's
+    // solid): the shrunk box's sample may read inside a voxel beyond the mesh (the
+    // thin-feature guard) while the box's boundary is outside.
+    if s < 0.0 && sample_volume(atlas, origin, dims, clamp(q, vec3<f32>(0.0), hi)) < 0.0 {
+        return -r;
+    }
+    return r;
 }
 
 // Conservative world distance (metres) from camera-relative point `p` to `o`. Volumes'
