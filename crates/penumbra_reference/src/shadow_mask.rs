@@ -407,11 +407,12 @@ pub fn light_reaches(light: &MaskLight, p: Vec3) -> bool {
 /// How far past facing away from the eye (`−n · e`, cosine) a G-buffer normal must be
 /// to count as inverted rather than as a smooth normal past a silhouette
 /// ([`facing_the_eye`]). A vertex normal of a mesh with 16 segments around is at most
-/// 11° (cosine 0.2) from its faces. `shadow_trace.wgsl`'s `INVERTED_NORMAL_COS`.
+/// 11° (cosine 0.2) from its faces. `shadow.wgsl`'s `INVERTED_NORMAL_COS`.
 pub const INVERTED_NORMAL_COS: f32 = 0.25;
 
 /// A receiver's normal (unit or zero) turned into the hemisphere that faces the eye,
-/// for camera-relative position `p` (`shadow_trace.wgsl`'s `facing_the_eye`). A surface
+/// for camera-relative position `p` (`shadow.wgsl`'s `facing_the_eye`; the shadow and
+/// AO traces turn every G-buffer normal with it). A surface
 /// the camera sees faces it (the triangle does, or the rasterizer culled it; Bevy
 /// flips a double-sided back face's normal), but a G-buffer normal need not: normals
 /// exported opposite to their triangles' winding (the palm tree's leaves: 180° from

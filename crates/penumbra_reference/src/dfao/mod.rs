@@ -3,8 +3,10 @@
 //! `lighting/ao.wgsl`), and Monte Carlo ground truth on triangles.
 //!
 //! **The trace** ([`pixel_ao`]), after Wright 2015 and Unreal 4's DFAO: from a pixel's
-//! position, lifted `bias` along its normal, `n` cones ([`penumbra_df_core::ao`]) are
-//! marched through every occluding object near enough to matter. Per object and cone,
+//! position, lifted `bias` along its normal (for each baked field finer than that, 1.5 of
+//! its voxels: [`penumbra_df_core::ao::object_bias`]), `n` cones
+//! ([`penumbra_df_core::ao`]) are marched through every occluding object near enough to
+//! matter. Per object and cone,
 //! sphere tracing (steps of at least half the cone's radius) within the part of the
 //! cone that meets the object's bounding ball; at each sample the object leaves
 //! `d / r` of the cone open (`d` its distance, `r` the cone's radius there: Unreal's
@@ -33,10 +35,10 @@
 
 use crate::df::{Atlas, object_distance};
 use crate::df_shadow::cone_interval;
-use crate::shadow_mask::{bounding_sphere, cull_slack, position_from_depth};
+use crate::shadow_mask::{bounding_sphere, cull_slack, facing_the_eye, position_from_depth};
 use glam::{Mat3, Mat4, UVec2, Vec2, Vec3, Vec4};
 use penumbra_df_core::ao::{
-    AoTrace, MIN_STEP_FRACTION, TILE, cone_axis, cone_tan_half, cone_weight_direction,
+    AoTrace, MIN_STEP_FRACTION, TILE, cone_axis, cone_tan_half, cone_weight_direction, object_bias,
     tangent_frame,
 };
 use penumbra_df_core::cull::CameraOrigin;
@@ -79,9 +81,9 @@ fn in_reach(sphere: Option<(Vec3, f32)>, p: Vec3, influence: f32) -> bool {
     })
 }
 
-/// The visibility of one cone (origin `o`, `bias` above the receiver's tangent plane,
-/// unit `axis` rising `rise` per metre above it) through object `r`, and the distance
-/// evaluations it took. The cone's radius at a sample is capped by the sample's height
+/// The visibility of one cone (from receiver `p` of unit normal `n`, lifted
+/// [`object_bias`] along it; unit `axis` rising `rise` per metre above the receiver's
+/// tangent plane) through object `r`, and the distance evaluations it took. The cone's radius at a sample is capped by the sample's height
 /// above the plane: the part of the cone below it is not in the hemisphere, and the
 /// receiver's own surface is never nearer than that height. A two-sided field is read
 /// as its surface, not its shell (the distance plus the shell, [`SHELL_VOXELS`]): a
@@ -90,7 +92,7 @@ fn in_reach(sphere: Option<(Vec3, f32)>, p: Vec3, influence: f32) -> bool {
 fn march_cone(
     r: &ObjectRecord,
     sphere: Option<(Vec3, f32)>,
-    o: Vec3,
+    (p, n): (Vec3, Vec3),
     axis: Vec3,
     rise: f32,
     tan_half: f32,
@@ -98,7 +100,14 @@ fn march_cone(
     camera: &CameraOrigin,
     atlas: &Atlas,
 ) -> (f32, u32) {
-    let (mut t, mut t_end) = (trace.bias, trace.max_distance);
+    let voxel = if r.kind() == ShapeKind::Volume as u32 {
+        r.conservative_scale()
+    } else {
+        0.0
+    };
+    let bias = object_bias(trace.bias, voxel);
+    let o = p + n * bias;
+    let (mut t, mut t_end) = (bias, trace.max_distance);
     if let Some((center, radius)) = sphere {
         let Some((t0, t1)) = cone_interval(o - center, axis, radius, tan_half) else {
             return (1.0, 0);
@@ -126,7 +135,7 @@ fn march_cone(
             v = v.min(floor);
             break;
         }
-        let open = cone.min(trace.bias + t * rise).max(1e-6);
+        let open = cone.min(bias + t * rise).max(1e-6);
         v = v.min((surface / open).max(floor));
         t += d.max(cone * MIN_STEP_FRACTION);
     }
@@ -222,7 +231,6 @@ fn cone_visibilities(
     let count = trace.cone_count;
     let tan_half = cone_tan_half(count);
     let (t, b) = tangent_frame(n);
-    let o = p + n * trace.bias;
     let influence = trace.influence();
     let mut visibility = vec![1.0f32; count as usize];
     let mut evaluations = 0;
@@ -237,7 +245,8 @@ fn cone_visibilities(
         for (k, v) in visibility.iter_mut().enumerate() {
             let a = cone_axis(k as u32, count);
             let axis = t * a.x + b * a.y + n * a.z;
-            let (cone, e) = march_cone(r, sphere, o, axis, a.z, tan_half, trace, camera, atlas);
+            let (cone, e) =
+                march_cone(r, sphere, (p, n), axis, a.z, tan_half, trace, camera, atlas);
             *v = v.min(cone);
             evaluations += e;
         }
@@ -414,7 +423,9 @@ fn for_each_tile_texel(
                             px.as_vec2(),
                             depth,
                         );
-                        texels.push((UVec2::new(i, j), p, view.normals[k]));
+                        // Turned to face the eye (`ao_trace.wgsl`): an inverted normal
+                        // would start the cones inside the receiver's own caster.
+                        texels.push((UVec2::new(i, j), p, facing_the_eye(view.normals[k], p)));
                     }
                 }
             }

@@ -88,9 +88,9 @@ fn normals_are_turned_to_face_the_eye() {
     // The shader's twin of the threshold.
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../penumbra_shaders/shaders/df/shadow_trace.wgsl"
+        "/../penumbra_shaders/shaders/df/shadow.wgsl"
     );
-    let source = std::fs::read_to_string(path).expect("shadow_trace.wgsl");
+    let source = std::fs::read_to_string(path).expect("shadow.wgsl");
     let want = format!("const INVERTED_NORMAL_COS: f32 = {INVERTED_NORMAL_COS};");
     assert!(source.lines().any(|l| l == want), "{want}");
 }

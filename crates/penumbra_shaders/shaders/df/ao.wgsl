@@ -65,19 +65,34 @@ fn tangent_frame(n: vec3<f32>) -> mat2x3<f32> {
     );
 }
 
-// The visibility of one cone (origin `o`, `bias` above the receiver's plane, unit `axis`
-// rising `rise` per metre) through object `obj` with bounding ball `sphere` (w < 0:
-// unbounded). CPU model: `dfao::march_cone`.
+// How far along the normal and along its cones a receiver's trace through object `obj`
+// starts: the view's bias, or AO_FINE_FIELD_BIAS_VOXELS voxels of a finer field
+// (`penumbra_df_core::ao::object_bias`).
+const AO_FINE_FIELD_BIAS_VOXELS: f32 = 1.5;
+fn ao_object_bias(obj: DistanceFieldObject, bias: f32) -> f32 {
+    let voxel = obj.conservative_scale;
+    if object_kind(obj) == KIND_VOLUME && voxel > 0.0 {
+        return min(bias, AO_FINE_FIELD_BIAS_VOXELS * voxel);
+    }
+    return bias;
+}
+
+// The visibility of one cone (from receiver `p` of unit normal `n`, lifted
+// `ao_object_bias` along it; unit `axis` rising `rise` per metre) through object `obj` with
+// bounding ball `sphere` (w < 0: unbounded). CPU model: `dfao::march_cone`.
 fn march_cone(
     obj: DistanceFieldObject,
     sphere: vec4<f32>,
-    o: vec3<f32>,
+    p: vec3<f32>,
+    n: vec3<f32>,
     axis: vec3<f32>,
     rise: f32,
     view: AoTraceView,
     atlas: texture_3d<f32>,
 ) -> f32 {
-    var t = view.bias;
+    let bias = ao_object_bias(obj, view.bias);
+    let o = p + n * bias;
+    var t = bias;
     var t_end = view.max_distance;
     if sphere.w >= 0.0 {
         let interval = cone_interval(o - sphere.xyz, axis, sphere.w, view.tan_half);
@@ -107,7 +122,7 @@ fn march_cone(
             v = min(v, floor);
             break;
         }
-        let open = max(min(cone, view.bias + t * rise), 1e-6);
+        let open = max(min(cone, bias + t * rise), 1e-6);
         v = min(v, max(surface / open, floor));
         t += max(d, cone * MIN_STEP_FRACTION);
     }

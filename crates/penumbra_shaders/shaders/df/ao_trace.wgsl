@@ -19,7 +19,7 @@
 
 #import penumbra::df::object::{DistanceFieldObject, TILE_SIZE}
 #import penumbra::df::distance::object_distance
-#import penumbra::df::shadow::{bounding_sphere, cull_slack, gbuffer_normal}
+#import penumbra::df::shadow::{bounding_sphere, cull_slack, facing_the_eye, gbuffer_normal}
 #import penumbra::df::shadow_grid::{from_order_key, order_key}
 #import penumbra::df::ao::{
     AoTraceView, MAX_CONES, MIN_STEP_FRACTION, TILE_OBJECTS_SCALE, casts_occlusion, combine, cone_direction,
@@ -185,7 +185,10 @@ fn trace(
     var distance = 0.0;
     if surface {
         p = position_from_depth(pixel, depth);
-        n = gbuffer_normal(textureLoad(gbuffer, vec2<i32>(pixel), 0).a);
+        // Turned to face the eye: an inverted normal (exported against its triangles'
+        // winding, or a mirrored double-sided mesh's) would start the cones inside the
+        // receiver's own caster.
+        n = facing_the_eye(gbuffer_normal(textureLoad(gbuffer, vec2<i32>(pixel), 0).a), p);
         distance = length(p);
         atomicMin(&range_keys[0], order_key(distance));
         atomicMax(&range_keys[1], order_key(distance));
@@ -252,7 +255,7 @@ fn trace(
                 for (var k = 0u; k < count; k += 1u) {
                     let a = cone_direction(k, count);
                     let axis = frame[0] * a.x + frame[1] * a.y + n * a.z;
-                    visibility[k] = min(visibility[k], march_cone(obj, sphere, o, axis, a.z, view, atlas));
+                    visibility[k] = min(visibility[k], march_cone(obj, sphere, p, n, axis, a.z, view, atlas));
                 }
             }
         }

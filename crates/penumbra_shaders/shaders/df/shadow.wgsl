@@ -420,6 +420,28 @@ fn gbuffer_normal(word: u32) -> vec3<f32> {
     return normalize(n);
 }
 
+// A G-buffer normal this far past facing away from the eye is inverted, not a smooth
+// normal past a silhouette (`shadow_mask::INVERTED_NORMAL_COS`).
+const INVERTED_NORMAL_COS: f32 = 0.25;
+
+// `normal` turned into the hemisphere facing the eye from camera-relative `p`: negated
+// when it faces away by more than INVERTED_NORMAL_COS, reflected across the view ray's
+// normal plane when by less (a visible surface faces the camera; an inverted G-buffer
+// normal would hide a lit face from the light, or turn an AO trace into its own surface).
+// CPU model: `shadow_mask::facing_the_eye`.
+fn facing_the_eye(normal: vec3<f32>, p: vec3<f32>) -> vec3<f32> {
+    let l2 = dot(p, p);
+    if !(l2 > 0.0) {
+        return normal;
+    }
+    let to_eye = -p * inverseSqrt(l2);
+    let c = dot(normal, to_eye);
+    if c < -INVERTED_NORMAL_COS {
+        return -normal;
+    }
+    return normal - 2.0 * min(c, 0.0) * to_eye;
+}
+
 // The fraction of the light's disc above the receiver's tangent plane (unit normal `n`;
 // zero: unknown, 1): the disc of angular radius θ (tan θ = `tan_half`) centred
 // `n · dir / sin θ` radii above the plane. 1 when n · dir ≥ sin θ, 0 when ≤ −sin θ: the

@@ -17,7 +17,7 @@
 #import penumbra::df::shadow::{
     FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, NO_FIELD_NORMAL, PENUMBRA_MIN_STEP,
     ShadowLight, ShadowRay, bounding_sphere, caster_field_normal, casts_shadows, cull_slack,
-    finish_visibility, gbuffer_normal, horizon_visibility, is_directional, march_object,
+    facing_the_eye, finish_visibility, gbuffer_normal, horizon_visibility, is_directional, march_object,
     march_start, object_in_cone, penumbra_visibility, round_cone_distance, shadow_ray,
     traces_point,
 }
@@ -129,27 +129,6 @@ fn trace_point(gid: vec2<u32>, inside: bool) -> TracePoint {
     return TracePoint(vec2<f32>(pixel) + 0.5, textureLoad(depth_texture, pixel, 0).r, word, true);
 }
 #endif
-
-// A G-buffer normal this far past facing away from the eye is inverted, not a smooth
-// normal past a silhouette (`shadow_mask::INVERTED_NORMAL_COS`).
-const INVERTED_NORMAL_COS: f32 = 0.25;
-
-// `normal` turned into the hemisphere facing the eye from camera-relative `p`: negated
-// when it faces away by more than INVERTED_NORMAL_COS, reflected across the view ray's
-// normal plane when by less (a visible surface faces the camera; an inverted G-buffer
-// normal would hide a lit face from the light). CPU model: `shadow_mask::facing_the_eye`.
-fn facing_the_eye(normal: vec3<f32>, p: vec3<f32>) -> vec3<f32> {
-    let l2 = dot(p, p);
-    if !(l2 > 0.0) {
-        return normal;
-    }
-    let to_eye = -p * inverseSqrt(l2);
-    let c = dot(normal, to_eye);
-    if c < -INVERTED_NORMAL_COS {
-        return -normal;
-    }
-    return normal - 2.0 * min(c, 0.0) * to_eye;
-}
 
 // Camera-relative world position of frame-buffer point `screen` at reverse-Z `depth`.
 fn position_from_depth(screen: vec2<f32>, depth: f32) -> vec3<f32> {
