@@ -92,12 +92,12 @@ const CORPUS: &[Case] = &[
     Case {
         file: "FlightHelmet/FlightHelmet.gltf",
         flags: &[],
-        bounds: b(0.15, 0.07, 0.14),
+        bounds: b(0.13, 0.06, 0.12),
     },
     Case {
         file: "AnisotropyBarnLamp/AnisotropyBarnLamp.gltf",
         flags: &[],
-        bounds: b(0.28, 0.07, 0.10),
+        bounds: b(0.27, 0.07, 0.08),
     },
     Case {
         file: "terrain/terrain.glb",

@@ -71,10 +71,11 @@ impl Default for GridPolicy {
 /// below what any cap reaches. When it was added, this rule (twice finer at most) took
 /// the scene corpus's shadows on shadowed pixels 0.169 → 0.164 (helmet; DFAO
 /// 0.141 → 0.136), 0.259 → 0.207 (lamp), 0.135 → 0.118 (palm) for 0.7 → 3.9, 0.2 → 1.4
-/// and 4.1 → 8.3 MB of atlas;
-/// every mesh four times finer brought the helmet to 0.112 (DFAO 0.098) and the lamp to
-/// 0.171 for 33 and 12 MB. Baking them two-sided instead (shells) was worse (0.200,
-/// 0.360).
+/// and 4.1 → 8.3 MB of atlas. Baking them two-sided instead (shells) was worse (0.200,
+/// 0.360). The cap went 2 → 3 once a field read outside its box stopped turning inside
+/// (the helmet's base had hidden the gain): helmet 0.104 → 0.082 for 3.9 → 7.6 MB, lamp
+/// 0.205 → 0.195 for 1.4 → 4.3 MB, palm unchanged for 10.3 → 19.9 MB; 4 gave 0.087 and
+/// 0.170 for 14.6 and 9.6 MB.
 /// Cost: one ray per triangle, at most [`crate::thickness::WALL_SAMPLES`], per bake.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ThinWalls {
@@ -82,8 +83,8 @@ pub struct ThinWalls {
     pub voxels_across: f32,
     /// The share of the measured area (0–1) whose walls must be that wide. Default 0.1.
     pub quantile: f32,
-    /// How many times finer than the rule's own voxels, at most. Default 2 (8× the
-    /// samples); 1 turns the rule off.
+    /// How many times finer than the rule's own voxels, at most. Default 3 (up to 27×
+    /// the samples); 1 turns the rule off.
     pub max_refine: f32,
 }
 
@@ -109,7 +110,7 @@ impl Default for ThinWalls {
         Self {
             voxels_across: 2.0,
             quantile: 0.1,
-            max_refine: 2.0,
+            max_refine: 3.0,
         }
     }
 }
@@ -440,8 +441,8 @@ mod tests {
     }
 
     /// The thin-wall rule refines within `max` and never turns a grid that fits into one
-    /// that does not: 400 units at 1 sample per unit fit (405³ samples), twice finer
-    /// (805³) would not, so the rule's own grid stays.
+    /// that does not: 400 units at 1 sample per unit fit (405³ samples), finer (the cap,
+    /// three times: 1205³) would not, so the rule's own grid stays.
     #[test]
     fn thin_walls_never_fail_a_grid_that_fits() {
         let policy = GridPolicy {
@@ -457,10 +458,11 @@ mod tests {
         let plain = policy.resolve(&b).unwrap();
         let (grid, refine) = policy.resolve_with_walls(&b, Some(0.5)).unwrap();
         assert_eq!((grid, refine), (plain, 1.0));
-        // Smaller, it is refined twice.
+        // Smaller, it is refined to the cap (the wall would want four times finer).
         let b = bounds(Vec3::splat(100.0));
         let (grid, refine) = policy.resolve_with_walls(&b, Some(0.5)).unwrap();
-        assert!((refine - 2.0).abs() < 0.05, "{refine}");
+        let cap = ThinWalls::default().max_refine;
+        assert!((refine - cap).abs() < 0.05, "{refine}");
         assert!(grid.voxel_size < policy.resolve(&b).unwrap().voxel_size);
     }
 }
