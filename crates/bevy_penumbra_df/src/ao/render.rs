@@ -337,10 +337,13 @@ fn prepare_dfao_textures(
         let samples =
             sample_upsample.is_some_and(|id| pipeline_cache.get_compute_pipeline(id).is_some());
         // Without motion vectors (the prepass removed by hand) there is no temporal
-        // filter: each frame stands alone.
+        // filter: each frame stands alone. Nor on a deferred MSAA view: its motion
+        // vectors are multisampled and not read (`prepare_dfao_bind_groups`), so the
+        // lighting must read the AO as traced, not a filtered texture nothing writes.
         // The objects-per-tile view shows the trace's counts unfiltered.
         let temporal = resolved.temporal
             && motion
+            && lighting_view.msaa.is_none()
             && resolved.debug != DistanceFieldAoDebugView::ObjectsPerTile;
         let size = view.viewport.zw().max(UVec2::ONE);
         // A small view traces more of its pixels (`view_divisor`).
