@@ -154,7 +154,8 @@ pub enum DistanceFieldAoDebugView {
 pub struct DistanceFieldAmbientOcclusion {
     /// How far an occluder can be and still occlude, metres. Default 10 (Unreal's
     /// "Max Occlusion Distance"). Cost grows with it: more casters are within reach of
-    /// each pixel. Must be positive: anything else is clamped to 0.01 with a warning.
+    /// each pixel. At least 0.01 (a smaller positive value is raised to it) and finite;
+    /// zero, negative, NaN or infinite takes the default, 10. Both with a warning.
     pub max_occlusion_distance: f32,
     /// Contrast of the AO, 0 (none) to 1 (strong): an S-curve through ½. Default 0
     /// (Unreal's "Occlusion Contrast"). No cost. Clamped to `[0, 1]` with a warning.
@@ -301,7 +302,10 @@ impl DistanceFieldAmbientOcclusion {
             "max_occlusion_distance",
             self.max_occlusion_distance,
             0.01,
-            if self.max_occlusion_distance > 0.0 {
+            // Positive but under the minimum: the minimum; zero, negative, NaN or
+            // infinite (an unbounded reach would put every caster within reach of
+            // every pixel): the default.
+            if self.max_occlusion_distance.is_finite() && self.max_occlusion_distance > 0.0 {
                 0.01
             } else {
                 10.0
@@ -449,6 +453,24 @@ mod tests {
         };
         assert_eq!(negative.resolve().0.trace.max_distance, 10.0);
         assert!(problems[0].contains("max_occlusion_distance"));
+        // An unbounded reach takes the default (it took the minimum, 0.01 m: #46), a
+        // tiny one the minimum.
+        for (v, want) in [
+            (f32::INFINITY, 10.0),
+            (f32::NEG_INFINITY, 10.0),
+            (1e-4, 0.01),
+        ] {
+            let (resolved, problems) = DistanceFieldAmbientOcclusion {
+                max_occlusion_distance: v,
+                ..default()
+            }
+            .resolve();
+            assert_eq!(resolved.trace.max_distance, want, "{v}");
+            assert!(
+                problems[0].contains("max_occlusion_distance"),
+                "{v}: {problems:?}"
+            );
+        }
         // A bias beyond half the reach would leave every cone open.
         let far_bias = DistanceFieldAmbientOcclusion {
             max_occlusion_distance: 2.0,
