@@ -550,8 +550,9 @@ impl Plugin for BokehDepthOfFieldPlugin {
             .add_systems(
                 PostUpdate,
                 (
-                    timed(warn_bad_bokeh_settings),
-                    timed(prepare_bokeh_apertures),
+                    timed(warn_bad_bokeh_settings).after(bevy::camera::CameraUpdateSystems),
+                    // Its new images' events are sent this frame.
+                    timed(prepare_bokeh_apertures).before(bevy::asset::AssetEventSystems),
                     timed(configure_bokeh_depth_textures),
                 ),
             );

@@ -125,15 +125,22 @@ pub(super) fn finish(render_app: &mut SubApp) {
         .add_systems(
             Render,
             (
-                timed(prepare_bokeh_pipelines).in_set(RenderSystems::Prepare),
+                timed(prepare_bokeh_pipelines)
+                    .in_set(RenderSystems::Prepare)
+                    .before(RenderSystems::PrepareResources),
                 timed(prepare_bokeh_textures).in_set(RenderSystems::PrepareResources),
                 timed(prepare_bokeh_bind_groups).in_set(RenderSystems::PrepareBindGroups),
             ),
         )
         .add_systems(
             Core3d,
+            // Bloom first (its glow is blurred with the image, as Bevy's own depth of
+            // field does); motion blur runs before bloom. Bevy's auto exposure is not
+            // ordered against either (its system is private): it measures the image
+            // before or after the blur, the same mean luminance.
             timed(bokeh_depth_of_field)
                 .in_set(Core3dSystems::PostProcess)
+                .after(bevy::post_process::bloom::bloom)
                 .before(bevy::core_pipeline::tonemapping::tonemapping),
         );
 }

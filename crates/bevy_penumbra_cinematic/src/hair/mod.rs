@@ -378,7 +378,8 @@ impl Plugin for HairPlugin {
                 (
                     timed(remove_hair),
                     timed(build_hair),
-                    timed(warn_hair_without_msaa),
+                    timed(warn_hair_without_msaa)
+                        .after(bevy_penumbra_df::lighting::DeferredMsaaSystems::Restore),
                 )
                     .chain()
                     .after(bevy::asset::AssetEventSystems),

@@ -91,6 +91,7 @@ pub(super) fn build(app: &mut App) {
         timed(build_hair_shadows)
             .after(super::build_hair)
             .after(bevy::asset::AssetEventSystems)
+            .after(bevy::mesh::mark_3d_meshes_as_changed_if_their_assets_changed)
             .after(TransformSystems::Propagate),
     )
     .add_plugins(ExtractComponentPlugin::<HairShadowBuffers>::default());

@@ -289,7 +289,8 @@ impl Plugin for BillboardReflectionsPlugin {
             .add_systems(
                 PostUpdate,
                 (
-                    timed(warn_bad_reflection_settings),
+                    timed(warn_bad_reflection_settings)
+                        .after(bevy_penumbra_df::lighting::DeferredMsaaSystems::Restore),
                     timed(collect::collect_reflection_billboards)
                         .after(TransformSystems::Propagate)
                         .after(bevy::asset::AssetEventSystems)

@@ -130,14 +130,18 @@ pub(super) fn build(render_app: &mut SubApp) {
         .add_systems(
             Render,
             (
-                timed(prepare_reflection_scene).in_set(RenderSystems::PrepareResources),
-                timed(prepare_reflection_views).in_set(RenderSystems::PrepareResources),
+                (
+                    timed(prepare_reflection_scene),
+                    timed(prepare_reflection_views),
+                )
+                    .chain()
+                    .in_set(RenderSystems::PrepareResources),
                 timed(prepare_reflection_bind_groups).in_set(RenderSystems::PrepareBindGroups),
             ),
         )
         .add_systems(
             Core3d,
-            timed(billboard_reflections).in_set(PenumbraLightingSystems::Shading),
+            timed(billboard_reflections).in_set(PenumbraLightingSystems::Specular),
         );
 }
 

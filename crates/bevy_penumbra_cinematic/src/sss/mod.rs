@@ -336,7 +336,8 @@ impl Plugin for SubsurfaceScatteringPlugin {
                 PostUpdate,
                 (
                     timed(warn_bad_subsurface_settings),
-                    timed(warn_msaa_cameras),
+                    timed(warn_msaa_cameras)
+                        .after(bevy_penumbra_df::lighting::DeferredMsaaSystems::Restore),
                     // After the frame's material edits become events.
                     timed(render::find_scattering_meshes).after(bevy::asset::AssetEventSystems),
                 ),

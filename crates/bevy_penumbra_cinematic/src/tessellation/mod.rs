@@ -181,6 +181,7 @@ impl Plugin for TessellationPlugin {
                     .chain()
                     .after(TransformSystems::Propagate)
                     .after(bevy::asset::AssetEventSystems)
+                    .after(bevy::mesh::mark_3d_meshes_as_changed_if_their_assets_changed)
                     .before(bevy::camera::visibility::VisibilitySystems::CalculateBounds)
                     // Last frame's `ViewVisibility`, before it is reset.
                     .before(bevy::camera::visibility::VisibilitySystems::VisibilityPropagate),

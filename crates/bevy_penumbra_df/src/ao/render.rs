@@ -124,7 +124,9 @@ pub(super) fn build(render_app: &mut SubApp) {
                 timed(prepare_dfao_textures)
                     .in_set(RenderSystems::PrepareResources)
                     .after(crate::scene::DistanceFieldRenderSystems::PrepareGpu),
-                timed(prepare_dfao_bind_groups).in_set(RenderSystems::PrepareBindGroups),
+                timed(prepare_dfao_bind_groups)
+                    .in_set(RenderSystems::PrepareBindGroups)
+                    .after(crate::global_field::render::prepare_global_field_bind_groups),
             ),
         )
         .add_systems(

@@ -112,7 +112,10 @@ impl Plugin for PenumbraBufferDumpPlugin {
         app.register_type::<PenumbraBufferDump>()
             .add_plugins(ExtractComponentPlugin::<PenumbraBufferDump>::default())
             .insert_resource(DumpReceiver(Mutex::new(receiver)))
-            .add_systems(First, timed(receive_dumps));
+            .add_systems(
+                First,
+                timed(receive_dumps).after(bevy::ecs::message::MessageUpdateSystems),
+            );
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app, sender);
         }

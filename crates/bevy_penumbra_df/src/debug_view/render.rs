@@ -50,7 +50,9 @@ pub(super) fn build(render_app: &mut SubApp) {
         .add_systems(
             Render,
             (
-                timed(prepare_debug_view_pipelines).in_set(RenderSystems::Prepare),
+                timed(prepare_debug_view_pipelines)
+                    .in_set(RenderSystems::Prepare)
+                    .before(RenderSystems::PrepareResources),
                 timed(prepare_debug_view_resources)
                     .in_set(RenderSystems::PrepareResources)
                     .after(crate::scene::DistanceFieldRenderSystems::PrepareGpu),

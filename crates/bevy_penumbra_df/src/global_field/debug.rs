@@ -49,8 +49,12 @@ pub(super) fn build(render_app: &mut SubApp) {
         .add_systems(
             Render,
             (
-                timed(prepare_field_debug_pipelines).in_set(RenderSystems::Prepare),
-                timed(prepare_field_debug_resources).in_set(RenderSystems::PrepareBindGroups),
+                timed(prepare_field_debug_pipelines)
+                    .in_set(RenderSystems::Prepare)
+                    .before(RenderSystems::PrepareResources),
+                timed(prepare_field_debug_resources)
+                    .in_set(RenderSystems::PrepareBindGroups)
+                    .after(super::render::prepare_global_field_bind_groups),
             ),
         )
         .add_systems(

@@ -47,7 +47,7 @@
 
 #[cfg(feature = "debug_view")]
 mod debug;
-mod render;
+pub(crate) mod render;
 
 use crate::scene::{
     DistanceFieldFrame, DistanceFieldScene, DistanceFieldSystems, SceneHeightfields,

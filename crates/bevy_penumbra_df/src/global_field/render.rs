@@ -410,7 +410,7 @@ fn prepare_global_field_buffers(
 
 /// (Re)makes a camera's compose bind group when the object buffer, the atlas or its
 /// job buffer changed.
-fn prepare_global_field_bind_groups(
+pub(crate) fn prepare_global_field_bind_groups(
     allocations: Res<PenumbraGpuAllocations>,
     device: Res<RenderDevice>,
     pipeline_cache: Res<PipelineCache>,

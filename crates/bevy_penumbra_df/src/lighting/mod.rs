@@ -63,7 +63,7 @@ use bevy::render::RenderApp;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::sync_component::SyncComponent;
 
-pub use msaa::{DeferredMsaa, DeferredMsaaShading};
+pub use msaa::{DeferredMsaa, DeferredMsaaShading, DeferredMsaaSystems};
 pub use render::ShadowedLightKind;
 pub use render::{
     PenumbraAoInput, PenumbraLightingBindGroup, PenumbraLightingPipeline, PenumbraLightingSystems,
@@ -202,14 +202,19 @@ impl Plugin for PenumbraLightingPlugin {
             .add_plugins(ExtractComponentPlugin::<PenumbraLighting>::default())
             .add_systems(
                 PostUpdate,
-                (timed(check_render_method), timed(warn_forward_cameras)),
+                (
+                    timed(check_render_method),
+                    timed(warn_forward_cameras).after(bevy::camera::CameraUpdateSystems),
+                ),
             )
             .add_systems(
                 PostUpdate,
                 (
                     timed(msaa::hold_deferred_msaa)
+                        .in_set(DeferredMsaaSystems::Hold)
                         .before(bevy::core_pipeline::core_3d::check_msaa),
                     timed(msaa::restore_deferred_msaa)
+                        .in_set(DeferredMsaaSystems::Restore)
                         .after(bevy::core_pipeline::core_3d::check_msaa),
                 ),
             );

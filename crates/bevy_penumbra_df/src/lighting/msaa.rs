@@ -180,6 +180,18 @@ pub(crate) fn hold_deferred_msaa(
     }
 }
 
+/// Where `DeferredMsaa` cameras' `Msaa` is set aside around Bevy's `check_msaa` in
+/// `PostUpdate` (which would turn it off on deferred cameras) and put back: a system
+/// reading a camera's `Msaa` there runs after [`DeferredMsaaSystems::Restore`] to see
+/// the camera's own.
+#[derive(bevy::ecs::schedule::SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum DeferredMsaaSystems {
+    /// Before `check_msaa`: the MSAA of `DeferredMsaa` cameras is held.
+    Hold,
+    /// After `check_msaa`: it is put back.
+    Restore,
+}
+
 /// After `check_msaa`: the held MSAA is put back (what the render world extracts).
 pub(crate) fn restore_deferred_msaa(mut cameras: Query<&mut Msaa>, held: Res<HeldMsaa>) {
     for (entity, msaa) in &held.0 {

@@ -14,6 +14,7 @@ use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
 use bevy::pbr::{
     MeshPipeline, MeshPipelineKey, MeshPipelineSystems, MeshViewBindGroup,
     TONEMAPPING_LUT_SAMPLER_BINDING_INDEX, TONEMAPPING_LUT_TEXTURE_BINDING_INDEX, ViewKeyCache,
+    per_view_shadow_pass, screen_space_reflections, shared_shadow_pass,
 };
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
@@ -39,11 +40,16 @@ use std::num::NonZeroU64;
 /// Bevy's (crate-private) `IRRADIANCE_VOLUMES_ARE_USABLE`: off on the web, where they
 /// overflow the texture bindings of deferred rendering.
 const IRRADIANCE_VOLUMES_ARE_USABLE: bool = cfg!(not(target_arch = "wasm32"));
-/// Penumbra's systems in `Core3d`'s main pass, in order.
+/// Penumbra's systems in `Core3d`'s main pass, in order (each set runs after the one
+/// before it; the whole chain after Bevy's deferred lighting, and before Bevy's
+/// screen-space reflections, which reflect the lit image, and the opaque pass).
 #[derive(bevy::ecs::schedule::SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum PenumbraLightingSystems {
     /// Passes that make the lighting pass's inputs: distance-field shadow masks, AO.
     Inputs,
+    /// Passes that make the view's specular layer (`PenumbraSpecularLayer`), which the
+    /// shading draws and the lighting pass read: billboard reflections.
+    Specular,
     /// Other draws shading G-buffer samples from those inputs, before the lighting pass
     /// (which discards the lighting-id depth they test against): subsurface scattering.
     Shading,
@@ -220,8 +226,11 @@ pub(super) fn build(render_app: &mut SubApp) {
             Core3d,
             (
                 PenumbraLightingSystems::Inputs,
+                PenumbraLightingSystems::Specular,
                 PenumbraLightingSystems::Shading.after(bevy::pbr::deferred::deferred_lighting),
-                PenumbraLightingSystems::Lighting.before(main_opaque_pass_3d),
+                PenumbraLightingSystems::Lighting
+                    .before(screen_space_reflections)
+                    .before(main_opaque_pass_3d),
             )
                 .chain()
                 .in_set(Core3dSystems::MainPass),
@@ -230,13 +239,20 @@ pub(super) fn build(render_app: &mut SubApp) {
             Core3d,
             (
                 timed(penumbra_lighting).in_set(PenumbraLightingSystems::Lighting),
-                timed(msaa_render::swap_in_msaa_gbuffer).before(Core3dSystems::Prepass),
+                // The prepass textures are swapped while Bevy's shadow passes (which
+                // read them) wait: before the early ones, after the late ones.
+                timed(msaa_render::swap_in_msaa_gbuffer)
+                    .before(Core3dSystems::Prepass)
+                    .before(per_view_shadow_pass::<false>)
+                    .before(shared_shadow_pass::<false>),
                 (
                     timed(msaa_render::swap_out_msaa_gbuffer),
                     timed(msaa_render::classify_deferred_msaa),
                 )
                     .chain()
                     .after(Core3dSystems::Prepass)
+                    .after(per_view_shadow_pass::<true>)
+                    .after(shared_shadow_pass::<true>)
                     .before(Core3dSystems::MainPass),
             ),
         );

@@ -110,7 +110,9 @@ pub(super) fn build(app: &mut App) {
         .add_systems(ExtractSchedule, timed(extract_particle_field_camera))
         .add_systems(
             Render,
-            timed(prepare_particles).in_set(RenderSystems::PrepareBindGroups),
+            timed(prepare_particles)
+                .in_set(RenderSystems::PrepareBindGroups)
+                .after(crate::global_field::render::prepare_global_field_bind_groups),
         )
         .add_systems(
             RenderGraph,

@@ -418,9 +418,11 @@ impl Plugin for DistanceFieldScenePlugin {
                         timed(scene_casters::count_scene_casters),
                     )
                         .chain()
-                        .in_set(DistanceFieldSystems::TagSceneCasters),
+                        .in_set(DistanceFieldSystems::TagSceneCasters)
+                        .after(bevy::mesh::mark_3d_meshes_as_changed_if_their_assets_changed),
                     timed(bake_requests::request_caster_bakes)
-                        .in_set(DistanceFieldSystems::RequestBakes),
+                        .in_set(DistanceFieldSystems::RequestBakes)
+                        .after(bevy::mesh::mark_3d_meshes_as_changed_if_their_assets_changed),
                     (
                         timed(remove_distance_field_casters),
                         timed(update_distance_field_casters),
