@@ -46,6 +46,7 @@ shader_files! {
     "reflections/spheres.wgsl" => None,
     "reflections/trace.wgsl" => None,
     "reflections/cull.wgsl" => None,
+    "hair/samples.wgsl" => Some("penumbra::hair::samples"),
     "hair/common.wgsl" => Some("penumbra::hair::common"),
     "hair/draw.wgsl" => None,
     "hair/prepass.wgsl" => None,

@@ -152,6 +152,12 @@ impl Material for HairMaterial {
         let mut defs: Vec<ShaderDefVal> = Vec::new();
         let mut entry = None;
         if multisampled {
+            // The sample pattern tested (`hair/samples.wgsl`; 4× without a definition).
+            match key.mesh_key.msaa_samples() {
+                2 => defs.push("HAIR_SAMPLES_2".into()),
+                8 => defs.push("HAIR_SAMPLES_8".into()),
+                _ => {}
+            }
             match coverage {
                 HairCoverage::PerPixel => {}
                 HairCoverage::AlphaToCoverage if !prepass => {

@@ -1,11 +1,12 @@
-//! Hair strips: the coverage of a camera-facing strip under 4× MSAA with an alpha test
+//! Hair strips: the coverage of a camera-facing strip under MSAA with an alpha test
 //! at every sample (Samaritan's "short hair / beard"; Lottes, "Alpha-Test and MSAA"),
 //! which `bevy_penumbra_cinematic::hair`'s shader computes (`hair/common.wgsl`) and this
 //! module models.
 //!
 //! A strand segment from `a` to `b` (pixel coordinates) of half-width `h` pixels is the
 //! rectangle `a + s d + t n`, `0 ≤ s ≤ |b − a|`, `|t| ≤ h` (`d` along, `n` across). Each of
-//! a pixel's four samples (the standard 4× pattern, [`SAMPLE_POSITIONS_4X`]) is kept when
+//! a pixel's samples (the standard 2×, 4× or 8× pattern, [`sample_positions`]; 4× below
+//! unless a function says `_for` a count) is kept when
 //! it lies in the rectangle and the strand's texture alpha there reaches ½ (an alpha test
 //! at every sample: a supersampled alpha test); the resolved coverage is the kept
 //! samples' share. Strands thinner than
@@ -31,6 +32,31 @@ pub const SAMPLE_POSITIONS_4X: [Vec2; 4] = [
     Vec2::new(0.125, 0.625),
     Vec2::new(0.625, 0.875),
 ];
+
+/// The standard 2× MSAA sample positions (Vulkan's and Direct3D's).
+pub const SAMPLE_POSITIONS_2X: [Vec2; 2] = [Vec2::new(0.75, 0.75), Vec2::new(0.25, 0.25)];
+
+/// The standard 8× MSAA sample positions (Vulkan's and Direct3D's).
+pub const SAMPLE_POSITIONS_8X: [Vec2; 8] = [
+    Vec2::new(0.5625, 0.3125),
+    Vec2::new(0.4375, 0.6875),
+    Vec2::new(0.8125, 0.5625),
+    Vec2::new(0.3125, 0.1875),
+    Vec2::new(0.1875, 0.8125),
+    Vec2::new(0.0625, 0.4375),
+    Vec2::new(0.6875, 0.9375),
+    Vec2::new(0.9375, 0.0625),
+];
+
+/// The standard pattern of `count` samples (2, 4 or 8; any other count: the 4× one, as
+/// `hair/samples.wgsl`'s `hair_sample_offset`).
+pub fn sample_positions(count: u32) -> &'static [Vec2] {
+    match count {
+        2 => &SAMPLE_POSITIONS_2X,
+        8 => &SAMPLE_POSITIONS_8X,
+        _ => &SAMPLE_POSITIONS_4X,
+    }
+}
 
 /// The narrowest strand drawn, pixels: one sample spacing of the 4× pattern.
 pub const MIN_WIDTH_PX: f32 = 0.5;
@@ -63,20 +89,34 @@ pub fn clamp_width(width_px: f32) -> (f32, f32) {
 /// The four samples' alpha thresholds at `pixel`: `(k + ½) / 4` for `k = 0..4`, permuted
 /// per pixel by a hash, so that an alpha of `α` keeps `round(4 α)` samples on average.
 pub fn sample_thresholds(pixel: IVec2) -> [f32; 4] {
+    let t = sample_thresholds_for(pixel, 4);
+    [t[0], t[1], t[2], t[3]]
+}
+
+/// The thresholds of `count` samples (clamped to 1..=8; the rest 1) at `pixel`:
+/// `(k + ½) / count` for `k = 0..count`, permuted per pixel by a hash (the Lehmer code of
+/// the hash modulo `count!`), so that a fade `f` keeps about `count · f` samples
+/// (`hair/samples.wgsl`'s `hair_sample_thresholds`).
+pub fn sample_thresholds_for(pixel: IVec2, count: u32) -> [f32; 8] {
+    let n = count.clamp(1, 8);
     let mut h =
         (pixel.x as u32).wrapping_mul(0x8da6_b343) ^ (pixel.y as u32).wrapping_mul(0xd816_3841);
     h ^= h >> 13;
     h = h.wrapping_mul(0x2c1b_3c6d);
     h ^= h >> 16;
-    // One of the 24 permutations of 0..4 (Lehmer code).
-    let mut order = [0u32, 1, 2, 3];
-    let mut code = h % 24;
-    for i in 0..3 {
-        let j = i + (code % (4 - i as u32)) as usize;
-        code /= 4 - i as u32;
-        order.swap(i, j);
+    let permutations: u32 = (2..=n).product();
+    let mut order = [0u32, 1, 2, 3, 4, 5, 6, 7];
+    let mut code = h % permutations;
+    for i in 0..n - 1 {
+        let j = i + code % (n - i);
+        code /= n - i;
+        order.swap(i as usize, j as usize);
     }
-    order.map(|k| (k as f32 + 0.5) / 4.0)
+    let mut thresholds = [1.0; 8];
+    for (t, k) in thresholds.iter_mut().zip(order).take(n as usize) {
+        *t = (k as f32 + 0.5) / n as f32;
+    }
+    thresholds
 }
 
 /// The alpha a sample's texture alpha must reach: the alpha test's cutoff.
@@ -93,9 +133,21 @@ pub fn coverage_mask(
     fade: f32,
     alpha: impl Fn(Vec2) -> f32,
 ) -> u8 {
-    let thresholds = sample_thresholds(pixel);
+    coverage_mask_for(segment, pixel, fade, alpha, 4)
+}
+
+/// [`coverage_mask`] under `count`-sample MSAA (2, 4 or 8: [`sample_positions`], with
+/// [`sample_thresholds_for`] that count).
+pub fn coverage_mask_for(
+    segment: &ScreenSegment,
+    pixel: IVec2,
+    fade: f32,
+    alpha: impl Fn(Vec2) -> f32,
+    count: u32,
+) -> u8 {
+    let thresholds = sample_thresholds_for(pixel, count);
     let mut mask = 0u8;
-    for (i, offset) in SAMPLE_POSITIONS_4X.iter().enumerate() {
+    for (i, offset) in sample_positions(count).iter().enumerate() {
         if fade >= thresholds[i]
             && strip_uv(segment, pixel.as_vec2() + *offset)
                 .is_some_and(|uv| alpha(uv) >= ALPHA_CUTOFF)
@@ -198,9 +250,20 @@ pub fn coverage_mask_with(
     mask
 }
 
-/// The share of a coverage mask's samples.
+/// The share of a 4× coverage mask's samples.
 pub fn resolved(mask: u8) -> f32 {
-    (mask & 0xf).count_ones() as f32 / 4.0
+    resolved_for(mask, 4)
+}
+
+/// The share of a `count`-sample coverage mask's samples (the MSAA resolve's average).
+pub fn resolved_for(mask: u8, count: u32) -> f32 {
+    let n = count.clamp(1, 8);
+    let kept = if n == 8 {
+        mask
+    } else {
+        mask & ((1u8 << n) - 1)
+    };
+    kept.count_ones() as f32 / n as f32
 }
 
 /// The exact area of the segment's rectangle inside `pixel` (the unit square at it), by
@@ -339,6 +402,107 @@ mod tests {
         assert!(mean < 0.125, "mean width error {mean} px");
         // Measured 0.061; one sample at the pixel centre (a per-pixel test) gives more.
         assert!(per_pixel < 0.08, "per-pixel coverage error {per_pixel}");
+    }
+
+    /// The coverage of straight strands swept over widths, angles and sub-pixel offsets
+    /// under `count`-sample MSAA against the exact area: (mean |width error| in pixels,
+    /// mean per-pixel |coverage error|).
+    fn coverage_sweep(count: u32) -> (f64, f64) {
+        let (mut width_error, mut strands) = (0.0f64, 0usize);
+        let (mut pixel_error, mut pixel_count) = (0.0f64, 0usize);
+        for width in [0.5f32, 1.0, 1.5, 3.0] {
+            for angle_step in 0..24 {
+                let angle = angle_step as f32 * std::f32::consts::PI / 24.0 + 0.013;
+                for offset_step in 0..8 {
+                    let offset = offset_step as f32 / 8.0;
+                    let d = Vec2::new(angle.cos(), angle.sin());
+                    let centre = Vec2::new(20.0 + offset, 20.0 + 0.37 * offset);
+                    let s = ScreenSegment {
+                        a: centre - d * 12.0,
+                        b: centre + d * 12.0,
+                        half_width: 0.5 * width,
+                    };
+                    let (mut got, mut want) = (0.0f64, 0.0f64);
+                    for p in pixels(&s) {
+                        let mask = coverage_mask_for(&s, p, 1.0, |_| 1.0, count);
+                        let c = f64::from(resolved_for(mask, count));
+                        let e = exact_coverage(&s, p);
+                        got += c;
+                        want += e;
+                        if c > 0.0 || e > 0.0 {
+                            pixel_error += (c - e).abs();
+                            pixel_count += 1;
+                        }
+                    }
+                    width_error += ((got - want) / 24.0).abs();
+                    strands += 1;
+                }
+            }
+        }
+        (
+            width_error / strands as f64,
+            pixel_error / pixel_count as f64,
+        )
+    }
+
+    /// Under 2×, 4× and 8× MSAA each count's own pattern and thresholds: every sample
+    /// of a covered pixel is kept (8×: bits 4–7 too; the 4× pattern left them out), the
+    /// thresholds are that count's steps, and the coverage follows the area the better
+    /// the more samples (measured per pixel: 2× 0.108, 4× 0.061, 8× 0.039).
+    #[test]
+    fn every_sample_count_tests_its_own_samples() {
+        let inside = ScreenSegment {
+            a: Vec2::new(-4.0, 5.5),
+            b: Vec2::new(14.0, 5.5),
+            half_width: 3.0,
+        };
+        for (count, full) in [(2u32, 0b11u8), (4, 0xf), (8, 0xff)] {
+            assert_eq!(sample_positions(count).len(), count as usize);
+            assert!(
+                sample_positions(count)
+                    .iter()
+                    .all(|p| p.cmpgt(Vec2::ZERO).all() && p.cmplt(Vec2::ONE).all())
+            );
+            assert_eq!(
+                coverage_mask_for(&inside, IVec2::new(5, 5), 1.0, |_| 1.0, count),
+                full
+            );
+            assert_eq!(resolved_for(full, count), 1.0);
+            for y in 0..8 {
+                for x in 0..8 {
+                    let t = sample_thresholds_for(IVec2::new(x, y), count);
+                    let mut steps: Vec<f32> = t[..count as usize].to_vec();
+                    steps.sort_by(f32::total_cmp);
+                    let want: Vec<f32> = (0..count)
+                        .map(|k| (k as f32 + 0.5) / count as f32)
+                        .collect();
+                    assert_eq!(steps, want, "{count} samples at ({x}, {y})");
+                    assert!(t[count as usize..].iter().all(|&v| v == 1.0));
+                }
+            }
+            // A strand faded to 0.3 keeps round(0.3 · count) of each covered pixel's
+            // samples (the thresholds are that count's steps).
+            for y in 3..8 {
+                for x in 0..8 {
+                    let m = coverage_mask_for(&inside, IVec2::new(x, y), 0.3, |_| 1.0, count);
+                    assert_eq!(m.count_ones(), (0.3 * count as f32).round() as u32);
+                }
+            }
+        }
+        assert_eq!(
+            sample_thresholds(IVec2::new(3, 9))[..],
+            sample_thresholds_for(IVec2::new(3, 9), 4)[..4]
+        );
+        let sweeps: Vec<(f64, f64)> = [2, 4, 8].map(coverage_sweep).to_vec();
+        println!("width error, per-pixel error at 2×, 4×, 8×: {sweeps:.4?}");
+        for (count, (width, _)) in [2, 4, 8].iter().zip(&sweeps) {
+            assert!(*width < 0.125, "{count}×: mean width error {width} px");
+        }
+        assert!(
+            sweeps[2].1 < sweeps[1].1 && sweeps[1].1 < sweeps[0].1,
+            "{sweeps:?}"
+        );
+        assert!(sweeps[2].1 < 0.045, "8× per-pixel error {}", sweeps[2].1);
     }
 
     /// A faded strand keeps its share of samples: thresholds spread over the pixel's

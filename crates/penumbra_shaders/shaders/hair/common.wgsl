@@ -1,9 +1,9 @@
 // Hair strips (`bevy_penumbra_cinematic::hair`): what the main pass (`hair/draw.wgsl`)
 // and the prepass / shadow pass (`hair/prepass.wgsl`) share — the material's bindings,
 // the camera-facing expansion of a strand's centre line in screen space, the minimum
-// width with its alpha fade, and the coverage of a pixel's four samples with an alpha
-// test at each. The CPU model is `penumbra_cinematic_core::hair` (same sample positions,
-// same thresholds, same strip coordinates).
+// width with its alpha fade, and the coverage of a pixel's 2, 4 or 8 samples with an
+// alpha test at each. The CPU model is `penumbra_cinematic_core::hair` (same sample
+// positions, same thresholds, same strip coordinates).
 
 #define_import_path penumbra::hair::common
 
@@ -13,6 +13,7 @@
     mesh_view_bindings::view,
     view_transformations::position_world_to_clip,
 }
+#import penumbra::hair::samples::{hair_sample_offset, hair_sample_thresholds}
 
 struct HairParams {
     // Linear RGB at the root and at the tip (alpha unused).
@@ -38,13 +39,17 @@ const HAIR_FLAG_DEBUG_COVERAGE: u32 = 2u;
 // The narrowest strand drawn, pixels (`hair::MIN_WIDTH_PX`).
 const MIN_WIDTH_PX: f32 = 0.5;
 
-// The standard 4× pattern (`hair::SAMPLE_POSITIONS_4X`), relative to the pixel's centre.
-const SAMPLE_OFFSETS: array<vec2<f32>, 4> = array<vec2<f32>, 4>(
-    vec2<f32>(-0.125, -0.375),
-    vec2<f32>(0.375, -0.125),
-    vec2<f32>(-0.375, 0.125),
-    vec2<f32>(0.125, 0.375),
-);
+// The MSAA sample count the strips are drawn with (`HAIR_SAMPLES_2`, `HAIR_SAMPLES_8`;
+// otherwise 4, also the pattern of the fade's thresholds without MSAA).
+#ifdef HAIR_SAMPLES_8
+const HAIR_SAMPLES: u32 = 8u;
+#else
+#ifdef HAIR_SAMPLES_2
+const HAIR_SAMPLES: u32 = 2u;
+#else
+const HAIR_SAMPLES: u32 = 4u;
+#endif
+#endif
 
 struct HairVertex {
     @builtin(instance_index) instance_index: u32,
@@ -171,40 +176,27 @@ fn atlas_alpha(uv: vec2<f32>, slot: u32, ddx: vec2<f32>, ddy: vec2<f32>) -> f32 
     ).a;
 }
 
-// The four samples' alpha thresholds at a pixel (`hair::sample_thresholds`): the
-// quarters (k + ½) / 4 permuted per pixel by a hash.
-fn sample_thresholds(pixel: vec2<i32>) -> vec4<f32> {
-    var h = (bitcast<u32>(pixel.x) * 0x8da6b343u) ^ (bitcast<u32>(pixel.y) * 0xd8163841u);
-    h ^= h >> 13u;
-    h *= 0x2c1b3c6du;
-    h ^= h >> 16u;
-    var order = array<u32, 4>(0u, 1u, 2u, 3u);
-    var code = h % 24u;
-    for (var i = 0u; i < 3u; i += 1u) {
-        let j = i + code % (4u - i);
-        code /= 4u - i;
-        let t = order[i];
-        order[i] = order[j];
-        order[j] = t;
-    }
-    return (vec4(f32(order[0]), f32(order[1]), f32(order[2]), f32(order[3])) + 0.5) / 4.0;
+// The samples' alpha thresholds at a pixel (`hair::sample_thresholds_for`): the steps
+// (k + ½) / HAIR_SAMPLES permuted per pixel by a hash.
+fn sample_thresholds(pixel: vec2<i32>) -> array<f32, 8> {
+    return hair_sample_thresholds(pixel, HAIR_SAMPLES);
 }
 
 // The coverage mask of a fragment (bit i for sample i; the rasterizer keeps only the
 // samples inside the strip): sample i passes where the atlas's alpha reaches the cutoff
-// and the width fade reaches its threshold (`hair::coverage_mask`). Under 4× MSAA the
-// alpha is tested at each sample, its strip coordinates extrapolated from the pixel
+// and the width fade reaches its threshold (`hair::coverage_mask_for`). Under MSAA
+// (2×, 4×, 8×: the standard patterns) the alpha is tested at each sample, its strip coordinates extrapolated from the pixel
 // centre's by the derivatives (exact: they are affine in the pixel); otherwise
 // (`Msaa::Off`, or the per-pixel comparison) once at the centre, with the pixel's first
 // threshold.
 fn hair_coverage(in: HairVaryings) -> u32 {
     let ddx = dpdx(in.uv);
     let ddy = dpdy(in.uv);
-    let thresholds = sample_thresholds(vec2<i32>(floor(in.position.xy)));
+    var thresholds = sample_thresholds(vec2<i32>(floor(in.position.xy)));
 #ifdef HAIR_PER_SAMPLE
     var mask = 0u;
-    for (var i = 0u; i < 4u; i += 1u) {
-        let o = SAMPLE_OFFSETS[i];
+    for (var i = 0u; i < HAIR_SAMPLES; i += 1u) {
+        let o = hair_sample_offset(i, HAIR_SAMPLES);
         let alpha = atlas_alpha(in.uv + ddx * o.x + ddy * o.y, in.slot, ddx, ddy);
         if alpha >= ALPHA_CUTOFF && in.fade >= thresholds[i] {
             mask |= 1u << i;

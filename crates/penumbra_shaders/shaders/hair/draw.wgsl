@@ -249,9 +249,9 @@ fn fragment_alpha_to_coverage(in: HairVaryings) -> @location(0) vec4<f32> {
 @fragment
 fn fragment_sample_shading(in: HairVaryings, @builtin(sample_index) sample_index: u32) -> @location(0) vec4<f32> {
     let color = shade(in);
-    let thresholds = sample_thresholds(vec2<i32>(floor(in.position.xy)));
+    var thresholds = sample_thresholds(vec2<i32>(floor(in.position.xy)));
     let alpha = atlas_alpha(in.uv, in.slot, vec2(0.0), vec2(0.0));
-    if alpha < ALPHA_CUTOFF || in.fade < thresholds[sample_index & 3u] {
+    if alpha < ALPHA_CUTOFF || in.fade < thresholds[min(sample_index, 7u)] {
         discard;
     }
     return color;
