@@ -9,6 +9,7 @@
 //! - The half-resolution upsample against its model.
 //! - Skip: no billboard → no pass and no allocation; steady frames allocate nothing.
 //! - The texture array is written layer by layer (a changed image uploads one layer).
+//! - `RenderLayers`: a camera reflects only the billboards sharing its layers.
 
 mod reflections_scene;
 use reflections_scene::*;
@@ -257,6 +258,40 @@ fn half_resolution_upsamples_the_full_trace() {
     assert!(
         relative < 0.1,
         "the upsampled layer is far from the full one: {relative}"
+    );
+}
+
+/// A camera reflects the billboards its `RenderLayers` share, as Bevy draws meshes:
+/// billboards on layer 1 are not in a layer-0 camera's reflections (its layer is dark),
+/// and a camera seeing layers 0 and 1 reflects them exactly as a layer-0 camera reflects
+/// layer-0 billboards.
+#[test]
+fn billboards_reflect_in_the_cameras_sharing_their_render_layers() {
+    if !gpu_or_skip("billboards_reflect_in_the_cameras_sharing_their_render_layers") {
+        return;
+    }
+    let (reference, _app) = render(Setup::default());
+    // A reflection is bright (the signs' emissive is 4); an empty layer's debug view is
+    // under 0.03.
+    let lit = |image: &[[f32; 4]]| image.iter().filter(|p| p[0] + p[1] + p[2] > 0.2).count();
+    assert!(lit(&reference) > 800, "{} pixels reflect", lit(&reference));
+    let (hidden, _app) = render(Setup {
+        billboard_layer: 1,
+        ..default()
+    });
+    assert_eq!(
+        lit(&hidden),
+        0,
+        "a layer-0 camera reflects layer-1 billboards"
+    );
+    let (shared, _app) = render(Setup {
+        billboard_layer: 1,
+        camera_sees_layer_1: true,
+        ..default()
+    });
+    assert_eq!(
+        shared, reference,
+        "a camera seeing layer 1 reflects otherwise"
     );
 }
 

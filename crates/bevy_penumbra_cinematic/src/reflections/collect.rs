@@ -4,6 +4,7 @@
 //! billboard shows is freed, and a mip chain no billboard refers to is dropped.
 
 use super::{BillboardReflections, ReflectionBillboard};
+use bevy::camera::visibility::RenderLayers;
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use penumbra_cinematic_core::reflections::Billboard;
@@ -70,6 +71,9 @@ impl LayerSlots {
 #[derive(Resource, Default)]
 pub(super) struct ReflectionScene {
     pub(super) billboards: Vec<GpuBillboard>,
+    /// The distinct render layers of the billboards, in entity order: bit `i` of a
+    /// billboard's `layers` is group `i` (at most [`MAX_LAYER_GROUPS`]).
+    pub(super) groups: Vec<RenderLayers>,
     /// A new `Arc` whenever the array's content changes.
     pub(super) images: Option<Arc<ImageArray>>,
 }
@@ -97,7 +101,12 @@ fn linear_texels(image: &Image) -> Option<(UVec2, Vec<Vec4>)> {
 pub(super) struct Warned {
     entities: HashSet<Entity>,
     images: HashSet<AssetId<Image>>,
+    layer_groups: bool,
 }
+
+/// Distinct `RenderLayers` among the billboards told apart (a bit each in
+/// `GpuBillboard::layers`).
+pub(super) const MAX_LAYER_GROUPS: usize = 32;
 
 /// Builds [`ReflectionScene`]: every visible, valid billboard in entity order, its image
 /// a layer of the array. Skips (one warning each) zero-size or non-finite quads, images
@@ -111,6 +120,7 @@ pub(super) fn collect_reflection_billboards(
         &ReflectionBillboard,
         &GlobalTransform,
         &InheritedVisibility,
+        Option<&RenderLayers>,
     )>,
     images: Res<Assets<Image>>,
     mut image_events: MessageReader<AssetEvent<Image>>,
@@ -140,8 +150,8 @@ pub(super) fn collect_reflection_billboards(
     let mut list: Vec<_> = billboards.iter().filter(|b| b.3.get()).collect();
     list.sort_by_key(|b| b.0);
     // Valid quads whose image is loaded and readable.
-    let mut valid: Vec<(Entity, Billboard, AssetId<Image>, f32)> = Vec::new();
-    for (entity, billboard, transform, _) in list {
+    let mut valid: Vec<(Entity, Billboard, AssetId<Image>, f32, RenderLayers)> = Vec::new();
+    for (entity, billboard, transform, _, layers) in list {
         let quad = Billboard::from_transform(transform.to_matrix(), billboard.size);
         let quad = match quad {
             Ok(quad) if billboard.emissive.is_finite() => quad,
@@ -184,11 +194,18 @@ pub(super) fn collect_reflection_billboards(
             }
             continue;
         }
-        valid.push((entity, quad, id, billboard.emissive.max(0.0)));
+        valid.push((
+            entity,
+            quad,
+            id,
+            billboard.emissive.max(0.0),
+            // None: layer 0, Bevy's default.
+            layers.cloned().unwrap_or_default(),
+        ));
     }
     // The array's size: the one most billboards' images have (ties: the larger).
     let mut counts: HashMap<UVec2, usize> = HashMap::default();
-    for (_, _, id, _) in &valid {
+    for (_, _, id, _, _) in &valid {
         let c = chains[id].as_ref().expect("readable");
         *counts.entry(UVec2::new(c.width, c.height)).or_default() += 1;
     }
@@ -208,7 +225,8 @@ pub(super) fn collect_reflection_billboards(
     };
     slots.keep_only(&valid.iter().map(|v| v.2).filter(of_size).collect());
     let mut gpu = Vec::with_capacity(valid.len());
-    for (entity, quad, id, emissive) in valid {
+    let mut groups: Vec<RenderLayers> = Vec::new();
+    for (entity, quad, id, emissive, layers) in valid {
         let c = chains[&id].as_ref().expect("readable");
         if Some(UVec2::new(c.width, c.height)) != size {
             if warned.entities.insert(entity) {
@@ -234,13 +252,28 @@ pub(super) fn collect_reflection_billboards(
             continue;
         };
         warned.entities.remove(&entity);
+        let group = match groups.iter().position(|g| *g == layers) {
+            Some(i) => Some(i),
+            None if groups.len() < MAX_LAYER_GROUPS => {
+                groups.push(layers);
+                Some(groups.len() - 1)
+            }
+            None => None,
+        };
+        if group.is_none() && !warned.layer_groups {
+            warned.layer_groups = true;
+            warn!(
+                "Penumbra: ReflectionBillboards with more than {MAX_LAYER_GROUPS} distinct \
+                 RenderLayers; those past it are reflected by every camera"
+            );
+        }
         gpu.push(GpuBillboard {
             center: quad.center,
             layer: layer as u32,
             half_x: quad.half_x,
             emissive,
             half_y: quad.half_y,
-            reserved: 0,
+            layers: group.map_or(u32::MAX, |i| 1 << i),
         });
     }
     let chains_now: Vec<Option<Arc<MipChain>>> = slots
@@ -274,5 +307,8 @@ pub(super) fn collect_reflection_billboards(
     }
     if scene.billboards != gpu {
         scene.billboards = gpu;
+    }
+    if scene.groups != groups {
+        scene.groups = groups;
     }
 }

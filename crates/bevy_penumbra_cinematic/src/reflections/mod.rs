@@ -42,6 +42,13 @@
 //! The component reflects a quad; it draws nothing. Show the sign itself with a mesh on
 //! the same entity (a `Rectangle` of the same size with an emissive material), or not.
 //!
+//! **Render layers.** A camera reflects the billboards whose `RenderLayers` (none: layer
+//! 0) share one of its own, as Bevy draws meshes: each distinct set of layers among the
+//! billboards is a bit of [`GpuBillboard::layers`](penumbra_cinematic_core::reflections::pass::GpuBillboard),
+//! each view's uniform the bits it sees, and the cull and the trace skip the others. Up
+//! to 32 distinct sets; billboards past them are reflected by every camera (one
+//! warning).
+//!
 //! # Limits
 //!
 //! - Only the billboards reflect: other geometry is not in the reflection (screen-space

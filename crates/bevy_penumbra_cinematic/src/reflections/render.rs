@@ -7,6 +7,7 @@ use super::upload::{
     ReflectionGpuScene, ReflectionImageUploads, extract_reflection_scene, prepare_reflection_scene,
 };
 use super::{BillboardReflections, ReflectionDebugView};
+use bevy::camera::visibility::RenderLayers;
 use bevy::core_pipeline::schedule::Core3d;
 use bevy::pbr::{MeshPipelineKey, MeshViewBindGroup, ViewKeyCache};
 use bevy::platform::collections::HashMap;
@@ -403,6 +404,7 @@ fn prepare_reflection_bind_groups(
         &ExtractedBillboardReflections,
         &ViewReflections,
         Option<&mut ViewReflectionsBindGroup>,
+        Option<&RenderLayers>,
     )>,
     gpu: Res<ReflectionGpuScene>,
     df: Option<Res<DistanceFieldGpu>>,
@@ -434,8 +436,16 @@ fn prepare_reflection_bind_groups(
         _ => (&pipelines.no_objects, 0, &pipelines.no_atlas),
     };
     let count = gpu.billboards.len() as u32;
-    for (entity, view, settings, draw, group) in &mut views {
+    for (entity, view, settings, draw, group, view_layers) in &mut views {
         let s = &settings.0;
+        // The billboards' layer groups this camera sees (Bevy's default: layer 0).
+        let view_layers = view_layers.cloned().unwrap_or_default();
+        let view_layer_bits = gpu
+            .groups
+            .iter()
+            .enumerate()
+            .filter(|(_, g)| g.intersects(&view_layers))
+            .fold(0u32, |bits, (i, _)| bits | 1 << i);
         let origin = CameraOrigin::at(view.world_from_view.translation());
         // Tile lists: a count and `capacity` indices per tile.
         let tiles = UVec2::new(
@@ -510,6 +520,7 @@ fn prepare_reflection_bind_groups(
             tile_capacity: capacity,
             caster_capacity,
             trace_size: draw.trace_size,
+            view_layers: view_layer_bits,
             ..ReflectionUniform::new(count, images.size, gpu.mip_count)
         };
         let mut bytes = EncaseBuffer::new(Vec::new());

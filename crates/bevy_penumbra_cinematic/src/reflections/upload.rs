@@ -3,6 +3,7 @@
 //! its own layer; nothing on a steady frame).
 
 use super::collect::{ImageArray, MAX_ARRAY_BYTES, MAX_ARRAY_LAYERS, ReflectionScene};
+use bevy::camera::visibility::RenderLayers;
 use bevy::prelude::*;
 use bevy::render::Extract;
 use bevy::render::render_resource::encase::StorageBuffer;
@@ -41,6 +42,8 @@ pub(super) struct UploadedArray {
 #[derive(Resource, Default)]
 pub(super) struct ReflectionGpuScene {
     pub(super) billboards: Vec<GpuBillboard>,
+    /// The billboards' render-layer groups (`ReflectionScene::groups`).
+    pub(super) groups: Vec<RenderLayers>,
     pub(super) images: Option<Arc<ImageArray>>,
     /// Storage buffer and its capacity in billboards.
     pub(super) buffer: Option<(Buffer, usize)>,
@@ -56,6 +59,7 @@ pub(super) fn extract_reflection_scene(
 ) {
     if scene.is_changed() {
         gpu.billboards.clone_from(&scene.billboards);
+        gpu.groups.clone_from(&scene.groups);
         gpu.images.clone_from(&scene.images);
         gpu.dirty = true;
     }

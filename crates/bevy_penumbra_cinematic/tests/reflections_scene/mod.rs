@@ -11,6 +11,7 @@
 
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::Hdr;
+use bevy::camera::visibility::RenderLayers;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::image::Image;
 use bevy::pbr::DefaultOpaqueRendererMethod;
@@ -76,6 +77,10 @@ pub struct Setup {
     /// Spawn the billboards in reverse order (other entities, other list order, other
     /// texture array layers).
     pub reversed: bool,
+    /// The scene's billboards' render layer (0: no `RenderLayers`, Bevy's default).
+    pub billboard_layer: usize,
+    /// The camera renders layers 0 and 1 (otherwise Bevy's default, 0).
+    pub camera_sees_layer_1: bool,
 }
 
 impl Default for Setup {
@@ -92,6 +97,8 @@ impl Default for Setup {
             max_layers: 3,
             tile_culling: true,
             reversed: false,
+            billboard_layer: 0,
+            camera_sees_layer_1: false,
         }
     }
 }
@@ -218,7 +225,7 @@ pub fn scene(
             for (transform, size, texels) in list {
                 let image = images.add(image_of(&texels));
                 handles.push(image.clone());
-                commands.spawn((
+                let mut billboard = commands.spawn((
                     ReflectionBillboard {
                         image,
                         size,
@@ -226,6 +233,9 @@ pub fn scene(
                     },
                     transform,
                 ));
+                if setup.billboard_layer != 0 {
+                    billboard.insert(RenderLayers::layer(setup.billboard_layer));
+                }
             }
             if setup.reversed {
                 handles.reverse(); // the same images for the signs below
@@ -264,6 +274,9 @@ pub fn scene(
             bevy::camera::Exposure { ev100: 0.0 },
             Transform::from_translation(EYE).looking_at(TARGET, Vec3::Y),
         ));
+        if setup.camera_sees_layer_1 {
+            camera.insert(RenderLayers::from_layers(&[0, 1]));
+        }
         if let Some(debug_view) = setup.reflections {
             camera.insert(BillboardReflections {
                 debug_view,
@@ -394,7 +407,7 @@ pub fn model_with(setup: Setup, shadows: bool) -> Vec<Option<Vec4>> {
             half_x: quad.half_x,
             emissive: EMISSIVE,
             half_y: quad.half_y,
-            reserved: 0,
+            layers: u32::MAX,
         });
         images.push(MipChain::from_straight_alpha(IMAGE.x, IMAGE.y, &texels));
     }

@@ -53,11 +53,18 @@ pub struct GpuBillboard {
     pub emissive: f32,
     /// [`Billboard::half_y`].
     pub half_y: Vec3,
-    /// Unused.
-    pub reserved: u32,
+    /// The render-layer groups it belongs to (bit `i`: the scene's `i`-th distinct set of
+    /// render layers): a view reflects it where this meets
+    /// [`ReflectionUniform::view_layers`]. `u32::MAX`: every view.
+    pub layers: u32,
 }
 
 impl GpuBillboard {
+    /// Whether a view seeing render-layer groups `view_layers` reflects it.
+    pub fn seen_by(&self, view_layers: u32) -> bool {
+        self.layers & view_layers != 0
+    }
+
     /// Quad `quad` showing image layer `layer` at `emissive` cd/m² per texel of 1.
     pub fn new(quad: &Billboard, layer: u32, emissive: f32) -> Self {
         GpuBillboard {
@@ -66,7 +73,7 @@ impl GpuBillboard {
             half_x: quad.half_x,
             emissive,
             half_y: quad.half_y,
-            reserved: 0,
+            layers: u32::MAX,
         }
     }
 
@@ -127,6 +134,9 @@ pub struct ReflectionUniform {
     /// Shadow casters a tile's list holds (0: no caster lists; each pixel's march
     /// gathers from every object).
     pub caster_capacity: u32,
+    /// The render-layer groups the view sees ([`GpuBillboard::layers`]); a billboard
+    /// sharing none is neither listed nor traced.
+    pub view_layers: u32,
 }
 
 impl ReflectionUniform {
@@ -153,6 +163,7 @@ impl ReflectionUniform {
             trace_size: UVec2::ZERO,
             shadow_cone: SHADOW_CONE,
             caster_capacity: 0,
+            view_layers: u32::MAX,
         }
     }
 }
@@ -474,6 +485,9 @@ pub fn reflect_pixel_in_tile<F: Fn(usize, Vec3) -> f32>(
     let k = settings.max_layers.clamp(1, super::MAX_LAYERS as u32) as usize;
     let mut hits: Vec<FootprintHit> = Vec::with_capacity(k + 1);
     for (index, gpu) in billboards.iter().enumerate() {
+        if !gpu.seen_by(settings.view_layers) {
+            continue;
+        }
         let Some(hit) = footprint_hit(
             &gpu.billboard(),
             index as u32,

@@ -58,7 +58,7 @@ mod scene {
                     half_x: q.half_x,
                     emissive: EMISSIVE,
                     half_y: q.half_y,
-                    reserved: 0,
+                    layers: u32::MAX,
                 }
             })
             .collect();

@@ -43,7 +43,7 @@ fn cull(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
     if bounds.valid {
         for (var i = 0u; i < settings.billboard_count; i += 1u) {
             let reach = tile_reach(bounds, billboards[i]);
-            if reach < 0.0 {
+            if reach < 0.0 || (billboards[i].layers & settings.view_layers) == 0u {
                 continue;
             }
             march_length = max(march_length, reach);

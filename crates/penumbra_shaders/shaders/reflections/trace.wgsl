@@ -58,7 +58,7 @@ fn footprint_hit(index: u32, origin: vec3<f32>, lobe: Lobe) -> FootprintHit {
     let b = billboards[index];
     let n = cross(b.half_x, b.half_y);
     let facing = dot(lobe.dir, n);
-    if !(facing < 0.0) {
+    if !(facing < 0.0) || (b.layers & settings.view_layers) == 0u {
         return hit;
     }
     let t = dot(b.center - origin, n) / facing;

@@ -9,7 +9,9 @@ struct GpuBillboard {
     half_x: vec3<f32>,
     emissive: f32,
     half_y: vec3<f32>,
-    reserved: u32,
+    // Render-layer groups (`GpuBillboard::layers`): a view reflects it where they meet
+    // `ReflectionUniform::view_layers`.
+    layers: u32,
 }
 
 // `penumbra_cinematic_core::reflections::pass::ReflectionUniform`.
@@ -39,4 +41,6 @@ struct ReflectionUniform {
     shadow_cone: f32,
     // Shadow casters a tile's list holds (0: no caster lists).
     caster_capacity: u32,
+    // The render-layer groups the view sees.
+    view_layers: u32,
 }
