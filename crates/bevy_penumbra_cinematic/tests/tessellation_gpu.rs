@@ -6,7 +6,8 @@
 //!   tessellated for): the same levels and bias, every patch at the same place (the
 //!   output order is the patches'), every vertex's position, normal and UV.
 //! - **Crack-free on the GPU.** The GPU's triangles, welded by position bits, have as
-//!   many boundary edges as the input (none: the rock is closed).
+//!   many boundary edges as the input (none: the rock is closed), also in a pool too
+//!   small for any halving of the factors (every patch its input triangle, no holes).
 //! - **Drawn.** The entity draws its output mesh through `StandardMaterial`; removing
 //!   `Tessellated` restores the source mesh.
 
@@ -131,6 +132,15 @@ fn gpu_tessellation_is_the_reference() {
         TessellationPartitioning::Fractional,
         (64, 24),
         6_000,
+    ));
+    // A pool of the input's own size (`max_triangles` below it is raised to it): the
+    // factors halved three times still ask for more, so every patch is drawn as its
+    // input triangle (before, the patches past the pool were left out: holes).
+    contract(Config(
+        TessellationMode::PnAen,
+        TessellationPartitioning::Integer,
+        (64, 24),
+        10,
     ));
 }
 

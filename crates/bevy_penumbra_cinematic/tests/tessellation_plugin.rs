@@ -11,6 +11,8 @@
 //!   GPU's bias read back, its output within the pool), and while the camera moves every
 //!   frame — a new tessellation each frame — no Penumbra buffer, texture or bind group is
 //!   created.
+//! - **The LOD camera.** The factors follow a camera that draws the entity's
+//!   `RenderLayers`, not a higher-order camera that does not.
 //! - **A still scene is free.** Once the latest tessellation's totals are back, nothing is
 //!   read back until the view changes again; one camera step is read back until its own
 //!   totals are in.
@@ -547,6 +549,73 @@ fn a_rock_no_view_sees_keeps_its_tessellation() {
         behind.view,
         "the rock behind was tessellated again"
     );
+}
+
+/// The factors follow a camera that draws the entity: a second camera of higher order
+/// on another `RenderLayers` (a minimap, a mirror) does not steer them; with no such
+/// camera, the highest order still does; a `TessellationCamera` always does.
+#[test]
+fn the_factors_follow_a_camera_that_draws_the_entity() {
+    if !gpu_or_skip("the_factors_follow_a_camera_that_draws_the_entity") {
+        return;
+    }
+    use bevy::camera::visibility::RenderLayers;
+    use bevy_penumbra_cinematic::tessellation::TessellationCamera;
+    // (the far camera's layers, whether the near camera is marked): the camera whose
+    // position the factors are computed from (true: the near one).
+    for (far_layers, near_marked, want_near) in [
+        (RenderLayers::layer(1), false, true),
+        (RenderLayers::layer(0), false, false),
+        (RenderLayers::layer(0), true, true),
+    ] {
+        let harness = HeadlessRender::new(32, 32).frames(3);
+        let mut app = harness.app();
+        let near = Vec3::new(0.0, 0.5, 4.0);
+        let far = Vec3::new(0.0, 0.5, 40.0);
+        let layers = far_layers.clone();
+        app.add_plugins(TessellationPlugin).add_systems(
+            Startup,
+            move |mut commands: Commands,
+                  mut meshes: ResMut<Assets<Mesh>>,
+                  mut materials: ResMut<Assets<StandardMaterial>>| {
+                commands.spawn((
+                    Mesh3d(meshes.add(mesh_of(&rock(8, 3), true, true))),
+                    MeshMaterial3d(materials.add(StandardMaterial::default())),
+                    Tessellated::default(),
+                ));
+                let mut main = commands.spawn((
+                    Camera3d::default(),
+                    Transform::from_translation(near).looking_at(Vec3::ZERO, Vec3::Y),
+                ));
+                if near_marked {
+                    main.insert(TessellationCamera);
+                }
+                commands.spawn((
+                    Camera3d::default(),
+                    Camera {
+                        order: 1,
+                        ..default()
+                    },
+                    layers.clone(),
+                    Transform::from_translation(far).looking_at(Vec3::ZERO, Vec3::Y),
+                ));
+            },
+        );
+        let (_, mut app) = harness.run_keeping_app(app).expect("renders");
+        let world = app.world_mut();
+        let uniform = *world
+            .query::<&TessellationState>()
+            .single(world)
+            .expect("one tessellated rock")
+            .uniform()
+            .expect("tessellated");
+        let from = uniform.view.position;
+        let want = if want_near { near } else { far };
+        assert!(
+            from.distance(want) < 1e-3,
+            "far camera on {far_layers:?}, near marked {near_marked}: factors from {from}, want {want}"
+        );
+    }
 }
 
 /// GPU read-backs completed (any entity's).

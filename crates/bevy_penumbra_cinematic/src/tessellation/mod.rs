@@ -13,8 +13,8 @@
 //! under-tessellated); the allocation, a prefix sum over workgroups of 1,024 patches
 //! (`penumbra_cinematic_core::scan`) that picks the least *bias* (all factors halved)
 //! whose output fits the entity's pool and places every patch's output (the output's
-//! order is the patches', deterministic; if even the largest bias does not fit, the
-//! patches past the pool are dropped, in order); one workgroup per patch writing
+//! order is the patches', deterministic; the last bias draws every patch as its input
+//! triangle, which any pool holds: never holes); one workgroup per patch writing
 //! its vertices and triangles. The pool is then copied into the buffers Bevy's mesh
 //! allocator holds for the entity's output mesh. A patch is laid out as Direct3D 11's
 //! tessellator does with `fractional_odd` partitioning: each edge's own 1-D pattern
@@ -29,7 +29,8 @@
 //! on the CPU and is shared by every entity using the mesh.
 //!
 //! **When it runs.** Only in a frame where the tessellation camera (a [`TessellationCamera`],
-//! else the active 3D camera of highest order), the entity's transform, its settings or
+//! else among the active 3D cameras one that renders the entity's `RenderLayers`, then
+//! one that renders to a window, then the highest order), the entity's transform, its settings or
 //! its mesh changed: a still scene costs nothing. The totals (32 bytes) are read back
 //! only from such a frame until that tessellation's own arrive, two or three frames: none
 //! while still. A hidden entity, or one no view saw last frame (camera or shadow), keeps
@@ -53,7 +54,7 @@
 //!   after each tessellation): up to what the view asked for plus a quarter when it needed
 //!   coarser factors, down to twice the use when under an eighth is used. It never exceeds [`Tessellated::max_triangles`]
 //!   (at least the input's triangle count): a view that asks for more gets coarser
-//!   factors (one warning). The unused tail of the pool is drawn as degenerate triangles.
+//!   factors (one warning), down to the input's own triangles (never holes). The unused tail of the pool is drawn as degenerate triangles.
 //! - The output mesh has positions, normals, UV 0 and (when the input has them)
 //!   tangents; other attributes (colours, a second UV set, joints) are dropped, and
 //!   skinned or morphed meshes are not supported (one warning, left untessellated).
@@ -69,8 +70,9 @@ mod input;
 mod render;
 
 use bevy::asset::RenderAssetUsages;
+use bevy::camera::RenderTarget;
 use bevy::camera::primitives::Aabb;
-use bevy::camera::visibility::NoAutoAabb;
+use bevy::camera::visibility::{NoAutoAabb, RenderLayers};
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use bevy::render::extract_component::ExtractComponentPlugin;
@@ -158,8 +160,9 @@ impl Default for Tessellated {
     }
 }
 
-/// Marks the camera whose view drives the tessellation factors (default: the active 3D
-/// camera of highest order).
+/// Marks the camera whose view drives the tessellation factors (default: among the
+/// active 3D cameras, one that renders the entity's `RenderLayers`, then one that renders
+/// to a window, then the highest order).
 #[derive(Component, Reflect, Clone, Copy, Debug, Default)]
 #[reflect(Component, Clone, Default)]
 pub struct TessellationCamera;
@@ -346,14 +349,37 @@ fn settings_of(entity: Entity, t: &Tessellated, cache: &mut TessellationCache) -
     }
 }
 
-/// The view the factors are computed for.
+/// What [`tessellation_view`] reads of the 3D cameras.
+type TessellationCameras<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static Camera,
+        &'static GlobalTransform,
+        Has<TessellationCamera>,
+        Option<&'static RenderLayers>,
+        Option<&'static RenderTarget>,
+    ),
+    With<Camera3d>,
+>;
+
+/// The view the factors of an entity on render layers `layers` are computed for: among
+/// the active 3D cameras, a [`TessellationCamera`] first, then one that renders the
+/// entity's layers, then one that renders to a window (a render-to-texture minimap or
+/// mirror does not steer the main view's detail), then the highest order.
 fn tessellation_view(
-    cameras: &Query<(&Camera, &GlobalTransform, Has<TessellationCamera>), With<Camera3d>>,
+    cameras: &TessellationCameras,
+    layers: &RenderLayers,
 ) -> Option<TessellationView> {
-    let (camera, transform, _) = cameras
-        .iter()
-        .filter(|(c, _, _)| c.is_active)
-        .max_by_key(|(c, _, marked)| (*marked, c.order))?;
+    let (camera, transform, ..) = cameras.iter().filter(|(c, ..)| c.is_active).max_by_key(
+        |(c, _, marked, camera_layers, target)| {
+            let sees = camera_layers
+                .unwrap_or(&RenderLayers::default())
+                .intersects(layers);
+            let window = target.is_none_or(|t| matches!(t, RenderTarget::Window(_)));
+            (*marked, sees, window, c.order)
+        },
+    )?;
     let height = camera.physical_viewport_size()?.y as f32;
     Some(TessellationView::new(
         transform.to_matrix(),
@@ -416,6 +442,7 @@ type TessellatedEntity = (
     &'static GlobalTransform,
     (&'static InheritedVisibility, &'static ViewVisibility),
     Option<&'static mut TessellationState>,
+    Option<&'static RenderLayers>,
 );
 
 #[allow(clippy::too_many_arguments, reason = "a Bevy system")]
@@ -427,7 +454,7 @@ fn prepare_tessellated(
     mut meshes: ResMut<Assets<Mesh>>,
     images: Res<Assets<Image>>,
     mut buffers: ResMut<Assets<ShaderBuffer>>,
-    cameras: Query<(&Camera, &GlobalTransform, Has<TessellationCamera>), With<Camera3d>>,
+    cameras: TessellationCameras,
     mut entities: Query<TessellatedEntity>,
 ) {
     for event in mesh_events.read() {
@@ -440,10 +467,11 @@ fn prepare_tessellated(
             cache.maps.remove(id);
         }
     }
-    let view = tessellation_view(&cameras);
     let mut used_meshes = HashSet::new();
     let mut used_images = HashSet::new();
-    for (entity, tessellated, mesh3d, transform, (inherited, seen), state) in &mut entities {
+    for (entity, tessellated, mesh3d, transform, (inherited, seen), state, layers) in &mut entities
+    {
+        let view = tessellation_view(&cameras, layers.unwrap_or(&RenderLayers::default()));
         let source = match &state {
             Some(s) if mesh3d.0 == s.shown => s.source.clone(),
             _ => mesh3d.0.clone(),

@@ -27,13 +27,14 @@ use bevy::render::{Render, RenderApp, RenderStartup, RenderSystems};
 use bevy_penumbra_df::system_times::timed;
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
 use penumbra_cinematic_core::scan::ScanPlan;
+use penumbra_cinematic_core::tessellation::MAX_BIAS;
 use penumbra_cinematic_core::tessellation::uniform::{TOTALS_BYTES, TessellationUniform};
 
 /// Storage buffers the passes bind at once.
 const STORAGE_BUFFERS: u32 = 8;
 
-/// Bytes of one group's sums in the allocation: 4 biases × (vertices, indices).
-const GROUP_SUMS_BYTES: u64 = 4 * 8;
+/// Bytes of one group's sums in the allocation: `MAX_BIAS` biases × (vertices, indices).
+const GROUP_SUMS_BYTES: u64 = MAX_BIAS as u64 * 8;
 
 /// Most workgroups per dispatch dimension (WebGPU's default limit).
 const MAX_GROUPS: u32 = 65_535;
@@ -189,7 +190,7 @@ pub struct GpuTessellation {
     /// The uniform last written.
     written: Vec<u8>,
     group: Option<(BindGroup, [BufferId; 8])>,
-    /// The allocation's per-group sums (`ScanPlan::group_sums_len` × 4 biases ×
+    /// The allocation's per-group sums (`ScanPlan::group_sums_len` × `MAX_BIAS` biases ×
     /// `vec2<u32>`): grown, never shrunk.
     group_sums: Option<Buffer>,
     /// The generation and the mesh buffers last tessellated into.

@@ -60,8 +60,12 @@ pub fn edge_factor(
     }
 }
 
-/// `factor` halved `bias` times, at least 1 (exact: a power of two).
+/// `factor` halved `bias` times, at least 1 (exact: a power of two); 1 at
+/// [`UNTESSELLATED_BIAS`](super::UNTESSELLATED_BIAS) and beyond.
 pub fn biased(factor: f32, bias: u32) -> f32 {
+    if bias >= super::UNTESSELLATED_BIAS {
+        return 1.0;
+    }
     (factor / (1u32 << bias) as f32).max(1.0)
 }
 
@@ -80,7 +84,8 @@ pub fn demand(factors: impl Iterator<Item = [f32; 3]>) -> [(u64, u64); MAX_BIAS 
 }
 
 /// The smallest bias whose demand fits `(vertex_budget, index_budget)`; the largest if
-/// none does (the caller checks that level 0 always fits).
+/// none does (it fits any pool of 3 vertices and 3 indices per patch, which the plugin's
+/// always is).
 pub fn choose_bias(
     demand: &[(u64, u64); MAX_BIAS as usize],
     vertex_budget: u64,
@@ -133,5 +138,14 @@ mod tests {
         assert_eq!(choose_bias(&d, 1000, 1000), 0);
         assert_eq!(choose_bias(&d, 50, 1000), 1);
         assert_eq!(choose_bias(&d, 0, 0), MAX_BIAS - 1);
+        // The last bias: every patch its input triangle (3 vertices, 3 indices), which
+        // a pool of the input's size holds; /8 (factors 5 → 1) would too here, but a
+        // factor of 64 halved three times is still 8.
+        assert_eq!(d[MAX_BIAS as usize - 1], (9, 9));
+        assert_eq!(biased(64.0, MAX_BIAS - 2), 8.0);
+        assert_eq!(biased(64.0, MAX_BIAS - 1), 1.0);
+        let d = demand([[64.0; 3]].into_iter());
+        assert!(d[MAX_BIAS as usize - 2].0 > 3);
+        assert_eq!(choose_bias(&d, 3, 3), MAX_BIAS - 1);
     }
 }

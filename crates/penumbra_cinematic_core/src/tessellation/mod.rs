@@ -68,8 +68,14 @@ pub const MAX_LEVEL: u32 = 6;
 /// triangle's own corners), the dominant vertex of each corner (9–11).
 pub const PATCH_INDICES: usize = 12;
 
-/// Biases (each halves the factors) the GPU may apply to fit the output pool.
-pub const MAX_BIAS: u32 = 4;
+/// Biases the GPU may apply to fit the output pool: each of `0..UNTESSELLATED_BIAS`
+/// halves the factors once more; the last, [`UNTESSELLATED_BIAS`], draws every patch as
+/// its input triangle (factors 1), which any pool holds (3 vertices and 3 indices per
+/// patch), so an over-budget view gets coarser patches, never holes.
+pub const MAX_BIAS: u32 = 5;
+
+/// The bias that leaves every patch untessellated (its input triangle).
+pub const UNTESSELLATED_BIAS: u32 = MAX_BIAS - 1;
 
 /// The surface a patch evaluates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]

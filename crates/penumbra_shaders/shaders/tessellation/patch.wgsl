@@ -96,7 +96,14 @@ fn edge_factor(view: TessellationView, a: vec3<f32>, b: vec3<f32>, pixels_per_tr
     return clamp(f, 1.0, f32(1u << max_level));
 }
 
+// `factor` halved `bias` times, at least 1; 1 at the last bias, UNTESSELLATED_BIAS (every
+// patch its input triangle: any pool holds it) (`tessellation::factors::biased`).
+const UNTESSELLATED_BIAS: u32 = 4u;
+
 fn biased(factor: f32, bias: u32) -> f32 {
+    if bias >= UNTESSELLATED_BIAS {
+        return 1.0;
+    }
     return max(factor / f32(1u << bias), 1.0);
 }
 

@@ -33,7 +33,7 @@
 // then each group's first vertex and index at the chosen bias (`allocate_choose`).
 @group(0) @binding(8) var<storage, read_write> group_sums: array<vec2<u32>>;
 
-const MAX_BIAS: u32 = 4u;
+const MAX_BIAS: u32 = 5u;
 
 fn patch_index(p: u32, k: u32) -> u32 {
     return patches[p * 12u + k];
