@@ -782,6 +782,7 @@ fn dfao_temporal_pass_matches_the_model() {
             full_size,
             confidence: u32::from(steps.confidence),
             spatial_fill: u32::from(steps.spatial_fill),
+            origin: UVec2::ZERO,
         };
         let (value, state) = gpu_temporal(
             &gpu, &pipelines, &scene, &view, &uniform, &current, &history, &motion,

@@ -408,6 +408,7 @@ fn dfao_pass_times_at_512() {
                 full_size: full,
                 confidence: 1,
                 spatial_fill: 1,
+                origin: UVec2::ZERO,
             };
             let buffer = uniform(&gpu, "ao_temporal_view", &t);
             let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {

@@ -445,7 +445,7 @@ fn half_resolution_trace_and_upsample_match_the_cpu_model() {
             .to_cols_array()
             .map(f32::to_bits)
             .to_vec();
-        words.extend([half.x, half.y, full.x, full.y]);
+        words.extend([half.x, half.y, full.x, full.y, 0, 0, 0, 0]);
         let uniform = gpu.buffer(
             "upsample_view",
             &words_to_bytes(&words),

@@ -175,6 +175,10 @@ pub struct AoTraceView {
     /// Terrains (heightfield records bound) each cone also marches up to
     /// [`AoTraceView::max_distance`] (`penumbra_reference::dfao::texture_visibilities`).
     pub heightfield_count: u32,
+    /// The viewport's origin in the render target, pixels: where the view's pixels are
+    /// read from the prepass textures (the target's size; the AO textures are the
+    /// viewport's). Zero for a camera without a viewport.
+    pub origin: UVec2,
 }
 
 /// The objects-per-tile debug view stores `count / TILE_OBJECTS_SCALE` in the AO channel
@@ -216,6 +220,7 @@ impl AoTraceView {
             tile_objects_debug: 0,
             far_distance: 0.0,
             heightfield_count: 0,
+            origin: UVec2::ZERO,
         }
     }
 
@@ -276,6 +281,8 @@ pub struct AoTemporalView {
     pub confidence: u32,
     /// 1: pixels of low confidence take a spatial fill of the current frame.
     pub spatial_fill: u32,
+    /// The viewport's origin in the render target ([`AoTraceView::origin`]).
+    pub origin: UVec2,
 }
 
 /// The default fewest rows a view's trace keeps ([`view_divisor`]).
@@ -397,9 +404,10 @@ mod tests {
 
     #[test]
     fn the_uniform_has_wgsl_layout() {
-        // mat4 64 + mat3 48 + 16 + 16 + 8 + 8 + 8 + 7 words = 196, rounded up to the
-        // struct's 16-byte alignment.
-        assert_eq!(AoTraceView::min_size().get(), 208);
+        // mat4 64 + mat3 48 + 16 + 16 + 8 + 8 + 8 + 7 words, then the viewport origin
+        // (8, aligned to 8), rounded up to the struct's 16-byte alignment (the WGSL
+        // struct's size: `penumbra_shaders`' layout test).
+        assert_eq!(AoTraceView::min_size().get(), 224);
         assert_eq!(jitter(5, 2), UVec2::new(1, 1));
         assert_eq!(jitter(2, 4), UVec2::new(2, 0));
         assert_eq!(trace_size(UVec2::new(5, 4), 2), UVec2::new(3, 2));

@@ -5,7 +5,7 @@
 //! `penumbra_shaders/tests/layout.rs`.
 
 use crate::cull::CameraOrigin;
-use glam::{Mat3, Mat4, UVec2, Vec3};
+use glam::{Mat3, Mat4, UVec2, UVec4, Vec3};
 
 /// Bytes of the `ShadowLight` uniform.
 pub const SHADOW_LIGHT_BYTES: usize = 64;
@@ -17,7 +17,7 @@ pub const SHADOW_GRID_BYTES: usize = 16 + 16 + 4 * 1024 + 4 * 1025;
 /// Cells a caster may overlap before it is listed once as large.
 pub const SHADOW_GRID_MAX_CELLS: usize = 64;
 /// Bytes of the `ShadowTraceView` uniform.
-pub const SHADOW_TRACE_VIEW_BYTES: usize = 64 + 48 + 16 + 16 + 16;
+pub const SHADOW_TRACE_VIEW_BYTES: usize = 64 + 48 + 16 + 16 + 16 + 16;
 
 /// Where a shadowed light is.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -286,7 +286,10 @@ pub fn self_shadow_start(voxel: f32, two_sided: bool, normal: Vec3, dir: Vec3) -
 /// tile origin, the mask size and its stride (`1`: full resolution; `2`: half, texel
 /// `(i, j)` traces pixel `(2i, 2j)`), whether the pass's G-buffer binding holds the
 /// view's normals (then it adds the surface's own shadow), and how many terrains
-/// (heightfield records bound) each pixel also marches (the tile word's `w`).
+/// (heightfield records bound) each pixel also marches (the tile word's `w`), and the
+/// view's viewport in the frame buffer (`x, y, width, height`, full-resolution pixels:
+/// the prepass textures are the render target's size, the mask the viewport's).
+#[allow(clippy::too_many_arguments, reason = "one uniform's fields")]
 pub fn trace_view_words(
     view_from_clip: Mat4,
     world_from_view: Mat3,
@@ -295,6 +298,7 @@ pub fn trace_view_words(
     stride: u32,
     normals: bool,
     heightfields: u32,
+    viewport: UVec4,
 ) -> Vec<u32> {
     let mut words = Vec::with_capacity(SHADOW_TRACE_VIEW_BYTES / 4);
     words.extend(view_from_clip.to_cols_array().map(f32::to_bits));
@@ -313,6 +317,7 @@ pub fn trace_view_words(
     ]);
     words.extend(camera.offset.extend(0.0).to_array().map(f32::to_bits));
     words.extend([size.x, size.y, stride.max(1), u32::from(normals)]);
+    words.extend(viewport.to_array());
     words
 }
 

@@ -137,6 +137,7 @@ fn shadow_uniform_layouts_match_the_encoders() {
         ("camera_tile", 28),
         ("camera_offset", 32),
         ("size", 36),
+        ("viewport", 40),
     ];
     let want: Vec<(&str, u32)> = want.iter().map(|&(n, w)| (n, w * 4)).collect();
     assert_eq!(got, want);
@@ -204,6 +205,7 @@ fn ao_layouts_and_constants_match() {
             "tile_objects_debug",
             "far_distance",
             "heightfield_count",
+            "origin",
         ]
     );
     assert_eq!(constant(&m, "MAX_CONES") as u32, MAX_CONES);
@@ -236,6 +238,7 @@ fn ao_temporal_layout_and_constants_match() {
             "full_size",
             "confidence",
             "spatial_fill",
+            "origin",
         ]
     );
     assert_eq!(constant(&m, "HISTORY_WEIGHT") as f32, HISTORY_WEIGHT);
@@ -449,6 +452,7 @@ fn reflection_layouts_match() {
             "trace_size",
             "shadow_cone",
             "caster_capacity",
+            "view_layers",
         ]
     );
     let (_, billboard) = struct_layout(&m, "GpuBillboard");

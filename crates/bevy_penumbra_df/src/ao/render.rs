@@ -514,6 +514,7 @@ fn prepare_dfao_bind_groups(
             uniform = uniform.with_far_field(&settings.trace, settings.global_field_start);
         }
         uniform.heightfield_count = terrains.as_ref().map_or(0, |t| t.count);
+        uniform.origin = view.viewport.xy();
         let mut bytes = EncaseBuffer::new(Vec::new());
         bytes.write(&uniform).expect("fixed-size uniform");
         let temporal_uniform = AoTemporalView {
@@ -524,6 +525,7 @@ fn prepare_dfao_bind_groups(
             full_size: textures.size,
             confidence: 1,
             spatial_fill: 1,
+            origin: view.viewport.xy(),
         };
         let mut temporal_bytes = EncaseBuffer::new(Vec::new());
         temporal_bytes

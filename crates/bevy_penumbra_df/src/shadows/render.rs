@@ -584,6 +584,7 @@ fn prepare_distance_field_shadow_bind_groups(
             view_from_clip: view.clip_from_view.inverse(),
             world_from_view: rotation,
             size: masks.size,
+            origin: view.viewport.xy(),
             slots: gpu.slot_count,
             normals: gbuffer.is_some(),
             heightfields: terrains.as_ref().map_or(0, |t| t.count),

@@ -23,7 +23,7 @@ use penumbra_df_core::shadow::{
 /// this many bytes a directional light culls from its plain list instead.
 const MAX_GRID_ITEM_BYTES: u64 = 16 << 20;
 /// Bytes of `ShadowUpsampleView` (`df/shadow_upsample.wgsl`).
-pub(super) const UPSAMPLE_VIEW_BYTES: u64 = 64 + 16;
+pub(super) const UPSAMPLE_VIEW_BYTES: u64 = 64 + 16 + 16;
 /// Bytes of `ShadowCullView` (the frustum cull's `CullView` layout).
 pub(super) const CULL_VIEW_BYTES: u64 = 6 * 16 + 16 + 16 + 16;
 /// Bytes of the grid fill's per-cell cursors.
@@ -313,6 +313,7 @@ impl DistanceFieldShadowResources {
                 stride,
                 view.normals,
                 view.heightfields,
+                UVec4::new(view.origin.x, view.origin.y, view.size.x, view.size.y),
             ))
         };
         queue.write_buffer(&self.full_view, 0, &trace(1, view.size));
@@ -327,6 +328,7 @@ impl DistanceFieldShadowResources {
             .to_vec();
         let h = half_size(view.size);
         upsample.extend([h.x, h.y, view.size.x, view.size.y]);
+        upsample.extend([view.origin.x, view.origin.y, 0, 0]);
         queue.write_buffer(&self.upsample_view, 0, &words_to_bytes(&upsample));
         let views = [
             &self.full_view,
@@ -405,7 +407,10 @@ pub(super) struct ShadowViewParams {
     pub(super) frustum: Frustum,
     pub(super) view_from_clip: Mat4,
     pub(super) world_from_view: Mat3,
+    /// The viewport's size (the mask's at full resolution) and its origin in the render
+    /// target (where the prepass textures are read).
     pub(super) size: UVec2,
+    pub(super) origin: UVec2,
     pub(super) slots: u32,
     /// Whether the G-buffer binding holds the view's normals.
     pub(super) normals: bool,

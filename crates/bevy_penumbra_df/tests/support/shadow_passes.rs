@@ -6,7 +6,7 @@
 
 #![allow(dead_code, reason = "not every test binary uses every helper")]
 
-use glam::{Affine3A, Mat3, Mat4, Quat, UVec2, UVec3, Vec2, Vec3};
+use glam::{Affine3A, Mat3, Mat4, Quat, UVec2, UVec3, UVec4, Vec2, Vec3};
 use penumbra_df_core::atlas::AtlasRegion;
 use penumbra_df_core::cull::{CameraOrigin, Frustum, cull_view_words, grid_64};
 use penumbra_df_core::heightfield::{Heightfield, HeightfieldTexture};
@@ -510,6 +510,7 @@ pub fn gpu_mask_at(
             stride,
             true,
             scene.terrain.records.len() as u32,
+            UVec4::new(0, 0, WIDTH, HEIGHT),
         )),
         BufferUsages::UNIFORM,
     );

@@ -35,6 +35,9 @@ struct AoTraceView {
     far_distance: f32,
     // Terrains each cone also marches (`heightfields` of the trace).
     heightfield_count: u32,
+    // The viewport's origin in the frame buffer: where its pixels are read from the
+    // prepass textures (the render target's size; the trace is the viewport's).
+    origin: vec2<u32>,
 }
 
 // `ao::TILE_OBJECTS_SCALE`.

@@ -23,6 +23,8 @@ struct AoTemporalView {
     full_size: vec2<u32>,
     confidence: u32,
     spatial_fill: u32,
+    // The viewport's origin in the frame buffer (where the prepass textures are read).
+    origin: vec2<u32>,
 }
 
 // This frame's upsampled trace (AO, bent normal).
@@ -43,7 +45,7 @@ struct AoTemporalView {
 
 // Camera-relative world position of pixel `xy` (w = 0: background).
 fn pixel_position(xy: vec2<i32>) -> vec4<f32> {
-    let depth = textureLoad(depth_texture, xy, 0).r;
+    let depth = textureLoad(depth_texture, xy + vec2<i32>(view.origin), 0).r;
     if !(depth > 0.0) {
         return vec4<f32>(0.0);
     }
@@ -55,7 +57,7 @@ fn pixel_position(xy: vec2<i32>) -> vec4<f32> {
 }
 
 fn pixel_normal(xy: vec2<i32>) -> vec3<f32> {
-    return gbuffer_normal(textureLoad(gbuffer, xy, 0).a);
+    return gbuffer_normal(textureLoad(gbuffer, xy + vec2<i32>(view.origin), 0).a);
 }
 
 struct Reprojected {
@@ -69,7 +71,7 @@ struct Reprojected {
 fn reproject(xy: vec2<i32>, expected: f32) -> Reprojected {
     var r = Reprojected(vec4<f32>(0.0), 0.0, false);
     let size = vec2<f32>(view.full_size);
-    let uv = (vec2<f32>(xy) + 0.5) / size - textureLoad(motion_vectors, xy, 0).xy;
+    let uv = (vec2<f32>(xy) + 0.5) / size - textureLoad(motion_vectors, xy + vec2<i32>(view.origin), 0).xy;
     if !(uv.x >= 0.0 && uv.x <= 1.0 && uv.y >= 0.0 && uv.y <= 1.0) {
         return r;
     }

@@ -177,7 +177,7 @@ fn trace(
     let pixel = min(gid.xy * max(view.divisor, 1u) + view.jitter, view.full_size - vec2<u32>(1u));
     var depth = 0.0;
     if inside {
-        depth = textureLoad(depth_texture, vec2<i32>(pixel), 0).r;
+        depth = textureLoad(depth_texture, vec2<i32>(pixel + view.origin), 0).r;
     }
     let surface = inside && depth > 0.0;
     var p = vec3<f32>(0.0);
@@ -188,7 +188,7 @@ fn trace(
         // Turned to face the eye: an inverted normal (exported against its triangles'
         // winding, or a mirrored double-sided mesh's) would start the cones inside the
         // receiver's own caster.
-        n = facing_the_eye(gbuffer_normal(textureLoad(gbuffer, vec2<i32>(pixel), 0).a), p);
+        n = facing_the_eye(gbuffer_normal(textureLoad(gbuffer, vec2<i32>(pixel + view.origin), 0).a), p);
         distance = length(p);
         atomicMin(&range_keys[0], order_key(distance));
         atomicMax(&range_keys[1], order_key(distance));

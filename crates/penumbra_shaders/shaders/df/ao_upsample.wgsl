@@ -40,11 +40,11 @@ fn distance_at(screen: vec2<f32>, depth: f32) -> f32 {
 
 // Distance from the camera of pixel `xy` (0: background).
 fn pixel_distance(xy: vec2<u32>) -> f32 {
-    return distance_at(vec2<f32>(xy) + 0.5, textureLoad(depth_texture, vec2<i32>(xy), 0).r);
+    return distance_at(vec2<f32>(xy) + 0.5, textureLoad(depth_texture, vec2<i32>(xy + view.origin), 0).r);
 }
 
 fn pixel_normal(xy: vec2<u32>) -> vec3<f32> {
-    return gbuffer_normal(textureLoad(gbuffer, vec2<i32>(xy), 0).a);
+    return gbuffer_normal(textureLoad(gbuffer, vec2<i32>(xy + view.origin), 0).a);
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -103,12 +103,13 @@ fn blend(screen: vec2<f32>, d: f32, n: vec3<f32>) -> vec4<f32> {
 // per sample: the trace blended for the sample's own surface.
 @compute @workgroup_size(8, 8, 1)
 fn upsample_samples(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let pixel = vec2<i32>(gid.xy / 2u);
+    let local = vec2<i32>(gid.xy / 2u);
+    let pixel = local + vec2<i32>(view.origin);
     if any(gid.xy / 2u >= view.full_size) || textureLoad(pixel_class, pixel, 0).r != 2u {
         return;
     }
     let i = (gid.x & 1u) | ((gid.y & 1u) << 1u);
-    let screen = vec2<f32>(pixel) + MSAA_SAMPLE_POSITIONS[i];
+    let screen = vec2<f32>(local) + MSAA_SAMPLE_POSITIONS[i];
     let d = distance_at(screen, textureLoad(sample_depth, pixel, i32(i)));
     if d <= 0.0 {
         textureStore(output, vec2<i32>(gid.xy), vec4<f32>(1.0, 0.0, 0.0, 0.0));

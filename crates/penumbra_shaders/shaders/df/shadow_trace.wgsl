@@ -39,6 +39,10 @@ struct ShadowTraceView {
     // resolution, 2 half: texel (i, j) traces full-resolution pixel (2i, 2j)); w: 1 when
     // `gbuffer` holds the view's normals (the surface's own shadow), 0 when not.
     size: vec4<u32>,
+    // The view's viewport in the frame buffer: x, y (where its pixels are read from the
+    // prepass textures, which are the render target's size), width, height (full
+    // resolution; the mask is the viewport's size).
+    viewport: vec4<u32>,
 }
 
 @group(0) @binding(0) var<storage, read> objects: array<DistanceFieldObject>;
@@ -103,22 +107,24 @@ struct TracePoint {
 // Sample `(gid.x & 1) | (gid.y & 1) << 1` of pixel `gid / 2`, traced where the pixel is
 // shaded per sample.
 fn trace_point(gid: vec2<u32>, inside: bool) -> TracePoint {
-    let pixel = vec2<i32>(gid / 2u);
+    let local = vec2<i32>(gid / 2u);
+    let pixel = local + vec2<i32>(view.viewport.xy);
     let i = (gid.x & 1u) | ((gid.y & 1u) << 1u);
     if !inside || textureLoad(pixel_class, pixel, 0).r != 2u {
         return TracePoint(vec2<f32>(0.0), 0.0, 0u, false);
     }
     return TracePoint(
-        vec2<f32>(pixel) + MSAA_SAMPLE_POSITIONS[i],
+        vec2<f32>(local) + MSAA_SAMPLE_POSITIONS[i],
         textureLoad(depth_texture, pixel, i32(i)),
         textureLoad(gbuffer, pixel, i32(i)).a,
         true,
     );
 }
 #else
-// The centre of full-resolution pixel `gid × stride`.
+// The centre of the viewport's full-resolution pixel `gid × stride`.
 fn trace_point(gid: vec2<u32>, inside: bool) -> TracePoint {
-    let pixel = vec2<i32>(gid * max(view.size.z, 1u));
+    let local = vec2<i32>(gid * max(view.size.z, 1u));
+    let pixel = local + vec2<i32>(view.viewport.xy);
     if !inside {
         return TracePoint(vec2<f32>(0.0), 0.0, 0u, false);
     }
@@ -126,13 +132,13 @@ fn trace_point(gid: vec2<u32>, inside: bool) -> TracePoint {
     if view.size.w == 1u {
         word = textureLoad(gbuffer, pixel, 0).a;
     }
-    return TracePoint(vec2<f32>(pixel) + 0.5, textureLoad(depth_texture, pixel, 0).r, word, true);
+    return TracePoint(vec2<f32>(local) + 0.5, textureLoad(depth_texture, pixel, 0).r, word, true);
 }
 #endif
 
-// Camera-relative world position of frame-buffer point `screen` at reverse-Z `depth`.
+// Camera-relative world position of viewport point `screen` at reverse-Z `depth`.
 fn position_from_depth(screen: vec2<f32>, depth: f32) -> vec3<f32> {
-    let uv = screen / vec2<f32>(textureDimensions(depth_texture));
+    let uv = screen / vec2<f32>(max(view.viewport.zw, vec2<u32>(1u)));
     let ndc = vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, depth, 1.0);
     let v = view.view_from_clip * ndc;
     let q = v.xyz / v.w;

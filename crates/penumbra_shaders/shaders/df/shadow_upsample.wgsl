@@ -7,8 +7,10 @@
 
 struct ShadowUpsampleView {
     view_from_clip: mat4x4<f32>,
-    // x, y: half-resolution size; z, w: full-resolution size.
+    // x, y: half-resolution size; z, w: full-resolution size (the viewport's).
     sizes: vec4<u32>,
+    // x, y: the viewport's origin in the frame buffer (the depth texture's pixels).
+    origin: vec4<u32>,
 }
 
 @group(0) @binding(0) var half_mask: texture_2d<f32>;
@@ -19,9 +21,10 @@ struct ShadowUpsampleView {
 // Relative depth difference at which a texel's weight reaches zero.
 const DEPTH_TOLERANCE: f32 = 0.1;
 
-// Distance from the camera of full-resolution pixel `xy` (0: background or invalid).
+// Distance from the camera of the viewport's full-resolution pixel `xy` (0: background
+// or invalid).
 fn view_distance(xy: vec2<u32>) -> f32 {
-    let depth = textureLoad(depth_texture, vec2<i32>(xy), 0).r;
+    let depth = textureLoad(depth_texture, vec2<i32>(xy + view.origin.xy), 0).r;
     if !(depth > 0.0) {
         return 0.0;
     }

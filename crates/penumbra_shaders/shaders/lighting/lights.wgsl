@@ -74,12 +74,18 @@ fn receives_shadows(in: pbr_types::PbrInput) -> bool {
     return (in.flags & MESH_FLAGS_SHADOW_RECEIVER_BIT) != 0u;
 }
 
+// Frame-buffer point `frag_xy` in the view's viewport: Penumbra's masks and AO are the
+// viewport's size, the frame buffer the render target's (split screen).
+fn viewport_xy(frag_xy: vec2<f32>) -> vec2<f32> {
+    return frag_xy - view_bindings::view.viewport.xy;
+}
+
 // Visibility of clustered light `light_id` (a point light, or a spot light when
 // `spot`): Penumbra's mask when the light has one, else Bevy's shadow map.
 fn clustered_visibility(in: pbr_types::PbrInput, light_id: u32, spot: bool) -> f32 {
     let mask = clustered_light_mask(light_id);
     if mask >= 0 {
-        return mask_visibility(mask, in.frag_coord.xy);
+        return mask_visibility(mask, viewport_xy(in.frag_coord.xy));
     }
     let light = &view_bindings::clustered_lights.data[light_id];
     if !receives_shadows(in)
@@ -112,7 +118,7 @@ fn directional_visibility(in: pbr_types::PbrInput, i: u32, view_z: f32) -> f32 {
     let light = &view_bindings::lights.directional_lights[i];
     let mask = directional_light_mask((*light).direction_to_light);
     if mask >= 0 {
-        return mask_visibility(mask, in.frag_coord.xy);
+        return mask_visibility(mask, viewport_xy(in.frag_coord.xy));
     }
     if !receives_shadows(in)
             || ((*light).flags & mesh_view_types::DIRECTIONAL_LIGHT_FLAGS_SHADOWS_ENABLED_BIT) == 0u {
@@ -193,7 +199,7 @@ fn apply_lighting_with_input(in: pbr_types::PbrInput, brdf_input: lighting::Ligh
     // environment's specular unless SSR takes it; ambient. With distance-field AO: the
     // diffuse parts are sampled along the bent normal, and each term takes the smaller
     // of its SSAO and DFAO occlusion.
-    let dfao = penumbra_ao(in.frag_coord.xy, in.N);
+    let dfao = penumbra_ao(viewport_xy(in.frag_coord.xy), in.N);
     let diffuse_occlusion = min(in.diffuse_occlusion, vec3(dfao.ao));
     let specular_occlusion = min(
         in.specular_occlusion,
@@ -245,7 +251,7 @@ fn apply_lighting_with_input(in: pbr_types::PbrInput, brdf_input: lighting::Ligh
             return vec4(dfao.bent_normal * 0.5 + 0.5, 1.0);
         }
         if penumbra_lighting.ao_debug_view == 3u {
-            return vec4(penumbra_ao_tile_heat(in.frag_coord.xy), 1.0);
+            return vec4(penumbra_ao_tile_heat(viewport_xy(in.frag_coord.xy)), 1.0);
         }
     }
 

@@ -76,10 +76,11 @@ fn scatter(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
     return pbr_functions::main_pass_post_lighting_processing(pbr_input, color);
 }
 
-// The world position of pixel `j`'s centre on the surface it shows.
-fn pixel_position(j: vec2<i32>, size: vec2<f32>) -> vec3<f32> {
+// The world position of frame-buffer pixel `j`'s centre on the surface it shows (the
+// view's UVs span its viewport, `view.viewport`: split screen).
+fn pixel_position(j: vec2<i32>) -> vec3<f32> {
     let depth = textureLoad(depth_prepass_texture, j, 0);
-    let uv = (vec2<f32>(j) + 0.5) / size;
+    let uv = (vec2<f32>(j) + 0.5 - view.viewport.xy) / view.viewport.zw;
     return position_ndc_to_world(vec3(uv_to_ndc(uv), depth));
 }
 
@@ -95,7 +96,9 @@ fn scattered_irradiance(pixel: vec2<i32>, p: vec3<f32>, n: vec3<f32>, k: u32) ->
     }
     let tangents = tangent_frame(n);
     let noise = pixel_noise(vec2<u32>(pixel), subsurface.frame);
-    let size = vec2<f32>(textureDimensions(diffuse_irradiance));
+    // The view's viewport in the frame buffer (the textures are the render target's).
+    let origin = view.viewport.xy;
+    let size = view.viewport.zw;
     let id = subsurface.first_id + k;
     var sum = vec3(0.0);
     var weights = vec3(0.0);
@@ -105,17 +108,18 @@ fn scattered_irradiance(pixel: vec2<i32>, p: vec3<f32>, n: vec3<f32>, k: u32) ->
         if !(clip.w > 0.0) {
             continue;
         }
-        let xy = ndc_to_uv(clip.xy / clip.w) * size;
-        if any(xy < vec2(0.0)) || any(xy >= size) {
+        let local = ndc_to_uv(clip.xy / clip.w) * size;
+        if any(local < vec2(0.0)) || any(local >= size) {
             continue;
         }
+        let xy = origin + local;
         let j = vec2<i32>(xy);
         if textureLoad(lighting_ids, j, 0).r != id {
             continue;
         }
         // The distance between the surface points, never under the disc radius (never 0).
         let disc = max(length(o), 1e-6 * d_max);
-        let r = max(length(pixel_position(j, size) - p), disc);
+        let r = max(length(pixel_position(j) - p), disc);
         let w = sample_weight(r, disc, d, d_max);
         sum += w * textureLoad(diffuse_irradiance, j, 0).rgb;
         weights += w;

@@ -1,0 +1,92 @@
+//! Split screen: two `PenumbraLighting` cameras side by side on one render target (the
+//! `df_shadows` example's scene, its sun, lamp and small lamps shadowed by distance
+//! fields, with distance-field AO on both cameras). Each half equals that camera
+//! rendered alone at half the width: the passes read the prepass textures (the target's
+//! size) at the viewport's origin, compute positions in the viewport, and the lighting
+//! pass reads the viewport-sized masks and AO at the fragment's viewport coordinates.
+//! Before, the right-hand camera read the left camera's pixels and rendered almost black.
+
+#[path = "../examples/df_shadows.rs"]
+#[allow(dead_code, reason = "the example's main is not used here")]
+mod df_shadows;
+
+use bevy::camera::Viewport;
+use bevy::core_pipeline::tonemapping::DebandDither;
+use bevy::prelude::*;
+use penumbra::prelude::*;
+use penumbra_test::{HeadlessRender, Tolerance, assert_images_match, gpu_or_skip, image};
+
+/// One half: the size each camera renders.
+const HALF: UVec2 = UVec2::new(96, 96);
+
+/// The scene's camera with DFAO, alone at `HALF` (`split: false`) or beside a copy of
+/// itself on a target twice as wide (`split: true`: viewports left and right).
+fn render(split: bool) -> image::RgbaImage {
+    let width = if split { 2 * HALF.x } else { HALF.x };
+    let harness = HeadlessRender::new(width, HALF.y)
+        .frames(12)
+        .warm_up(df_shadows::casters_ready);
+    let mut app = harness.app();
+    df_shadows::add_scene(&mut app);
+    app.add_systems(
+        PostStartup,
+        move |mut commands: Commands, cameras: Query<(Entity, &Transform), With<Camera3d>>| {
+            let viewport = |x: u32| Viewport {
+                physical_position: UVec2::new(x, 0),
+                physical_size: HALF,
+                ..default()
+            };
+            for (entity, transform) in &cameras {
+                let mut camera = commands.entity(entity);
+                // Bevy's debanding dither follows the frame buffer's coordinates (1/255
+                // apart between the halves): off, so the halves can match exactly.
+                camera.insert((
+                    DistanceFieldAmbientOcclusion::default(),
+                    DebandDither::Disabled,
+                ));
+                if !split {
+                    continue;
+                }
+                camera.insert(Camera {
+                    viewport: Some(viewport(0)),
+                    ..default()
+                });
+                commands.spawn((
+                    Camera3d::default(),
+                    Camera {
+                        order: 1,
+                        viewport: Some(viewport(HALF.x)),
+                        // The first camera cleared the whole target.
+                        clear_color: ClearColorConfig::None,
+                        ..default()
+                    },
+                    PenumbraLighting,
+                    Msaa::Off,
+                    *transform,
+                    DistanceFieldAmbientOcclusion::default(),
+                    DebandDither::Disabled,
+                ));
+            }
+        },
+    );
+    harness.run(app).expect("renders").to_rgba8()
+}
+
+#[test]
+fn each_half_of_a_split_screen_is_its_camera_alone() {
+    if !gpu_or_skip("each_half_of_a_split_screen_is_its_camera_alone") {
+        return;
+    }
+    let alone = render(false);
+    let split = render(true);
+    for (name, x) in [("left", 0), ("right", HALF.x)] {
+        let half = image::imageops::crop_imm(&split, x, 0, HALF.x, HALF.y).to_image();
+        let cmp = assert_images_match(
+            &format!("split_screen_{name}"),
+            &half,
+            &alone,
+            &Tolerance::GOLDEN,
+        );
+        println!("{name} half against the camera alone: {cmp}");
+    }
+}
