@@ -12,6 +12,9 @@
 //!   red spreads far more than blue (a 10 times narrower profile).
 //! - A metallic plane (no diffuse light) is unchanged within the split textures' f16
 //!   rounding, shadow edge included: specular light is not scattered.
+//! - On a `DeferredMsaa` camera (no scattering there), with or without the component,
+//!   the scattering material is lit as the same material without a profile (up to the
+//!   edge classification, which sees the profile's id as another material).
 //! - No scattering material in view: the image and the GPU allocations equal the
 //!   render without the component; steady frames allocate nothing.
 
@@ -25,8 +28,8 @@ use bevy_penumbra_cinematic::{
     SubsurfaceScatteringPlugin,
 };
 use bevy_penumbra_df::{
-    PenumbraBufferDump, PenumbraBufferDumpPlugin, PenumbraBuffers, PenumbraGpuAllocations,
-    PenumbraLighting, PenumbraLightingPlugin,
+    DeferredMsaa, PenumbraBufferDump, PenumbraBufferDumpPlugin, PenumbraBuffers,
+    PenumbraGpuAllocations, PenumbraLighting, PenumbraLightingPlugin,
 };
 use penumbra_reference::camera::PerspectiveCamera;
 use penumbra_reference::sss::screen::{ScatterInput, scatter_screen};
@@ -65,6 +68,8 @@ struct Setup {
     samples: u32,
     /// `SubsurfaceScattering::temporal`.
     temporal: bool,
+    /// The camera has `DeferredMsaa` (4×) instead of `Msaa::Off`.
+    msaa: bool,
 }
 
 #[allow(clippy::type_complexity, reason = "a Bevy system's parameters")]
@@ -145,9 +150,13 @@ fn scene(
             Hdr,
             Tonemapping::None,
             PenumbraLighting,
-            Msaa::Off,
             Transform::IDENTITY,
         ));
+        if setup.msaa {
+            camera.insert(DeferredMsaa::default());
+        } else {
+            camera.insert(Msaa::Off);
+        }
         if let Some(debug_view) = setup.sss {
             camera.insert(SubsurfaceScattering {
                 debug_view,
@@ -227,6 +236,69 @@ fn scattering_mask(debug: &[[f32; 4]]) -> Vec<bool> {
     debug.iter().map(|p| p[3] > 1.5).collect()
 }
 
+/// On a deferred MSAA camera no scattering pass runs: the profile's material is shaded
+/// by the multisampled lighting pass as an ordinary `StandardMaterial` (it was not lit
+/// at all: the classification shaded only the default lighting id).
+#[test]
+fn a_scattering_material_is_lit_under_deferred_msaa() {
+    if !gpu_or_skip("a_scattering_material_is_lit_under_deferred_msaa") {
+        return;
+    }
+    let base = Setup {
+        plane: Plane::Plain,
+        sss: None,
+        square: true,
+        samples: 16,
+        temporal: false,
+        msaa: true,
+    };
+    let (plain, _app) = render(base);
+    let plane_mean = |image: &[[f32; 4]]| {
+        // The plane's middle (the square's shadow and the square itself included).
+        let (lo, hi) = (
+            project(Vec3::new(-1.0, -0.7, PLANE_Z)),
+            project(Vec3::new(1.0, 0.7, PLANE_Z)),
+        );
+        let (mut sum, mut n) = (0.0f32, 0u32);
+        for y in hi.y as u32..lo.y as u32 {
+            for x in lo.x as u32..hi.x as u32 {
+                let p = at(image, x, y);
+                sum += p[0] + p[1] + p[2];
+                n += 1;
+            }
+        }
+        sum / n as f32
+    };
+    let want = plane_mean(&plain);
+    assert!(want > 0.1, "the plain plane is dark: {want}");
+    for sss in [None, Some(SubsurfaceDebugView::None)] {
+        let (got, _app) = render(Setup {
+            plane: Plane::Scattering,
+            sss,
+            ..base
+        });
+        save(&format!("sss_msaa_{}", sss.is_some()), &got);
+        let differ = got
+            .iter()
+            .zip(&plain)
+            .filter(|(a, b)| (0..3).any(|c| (a[c] - b[c]).abs() > 0.02 * b[c].abs().max(0.05)))
+            .count();
+        let mean = plane_mean(&got);
+        println!(
+            "deferred MSAA, SubsurfaceScattering {}: plane mean {mean:.4} (plain {want:.4}); {differ} of {} pixels differ",
+            sss.is_some(),
+            got.len()
+        );
+        assert!(
+            (mean - want).abs() < 0.01 * want,
+            "plane mean {mean}, plain {want}"
+        );
+        // Only where the classification differs: the plane's outline against the square
+        // and the sky.
+        assert!(differ * 20 < got.len(), "{differ} pixels differ");
+    }
+}
+
 #[test]
 fn scatters_diffuse_light_only_on_scattering_pixels() {
     if !gpu_or_skip("scatters_diffuse_light_only_on_scattering_pixels") {
@@ -239,6 +311,7 @@ fn scatters_diffuse_light_only_on_scattering_pixels() {
             square: true,
             samples: 16,
             temporal: false,
+            msaa: false,
         })
         .0
     };
@@ -249,6 +322,7 @@ fn scatters_diffuse_light_only_on_scattering_pixels() {
             square: true,
             samples: 16,
             temporal: false,
+            msaa: false,
         })
         .0
     };
@@ -261,6 +335,7 @@ fn scatters_diffuse_light_only_on_scattering_pixels() {
         square: true,
         samples: 16,
         temporal: false,
+        msaa: false,
     })
     .0;
     save("sss_plugin_reference", &reference);
@@ -333,6 +408,7 @@ fn a_uniformly_lit_plane_keeps_its_light() {
         square: false,
         samples: 16,
         temporal: false,
+        msaa: false,
     };
     let (unscattered, _) = render(setup(None));
     let (with_sss, _) = render(setup(Some(SubsurfaceDebugView::None)));
@@ -370,6 +446,7 @@ fn specular_light_is_not_scattered() {
         square: true,
         samples: 16,
         temporal: false,
+        msaa: false,
     });
     let (with_sss, _) = render(Setup {
         plane: Plane::ScatteringMetal,
@@ -377,6 +454,7 @@ fn specular_light_is_not_scattered() {
         square: true,
         samples: 16,
         temporal: false,
+        msaa: false,
     });
     let worst = unscattered
         .iter()
@@ -405,6 +483,7 @@ fn nothing_scattering_in_view_costs_nothing() {
         square: true,
         samples: 16,
         temporal: false,
+        msaa: false,
     });
     let counts_without = app.world().resource::<PenumbraGpuAllocations>().counts();
     drop(app);
@@ -414,6 +493,7 @@ fn nothing_scattering_in_view_costs_nothing() {
         square: true,
         samples: 16,
         temporal: false,
+        msaa: false,
     });
     let allocations = app.world().resource::<PenumbraGpuAllocations>().clone();
     assert_eq!(without, with, "the image changed");
@@ -467,6 +547,7 @@ fn the_scatter_draw_equals_the_cpu_model() {
         square: true,
         samples: 16,
         temporal: false,
+        msaa: false,
     };
     let (irradiance, mut app) = render(setup(SubsurfaceDebugView::Irradiance));
     let buffers = dump(&mut app);
@@ -539,6 +620,7 @@ fn temporal_randomisation_changes_the_noise_per_frame() {
         square: true,
         samples: 16,
         temporal,
+        msaa: false,
     };
     let differ = |temporal| {
         let (a, _) = render_frames(setup(temporal), 5);
@@ -579,6 +661,7 @@ fn samples_against_time() {
         square: true,
         samples,
         temporal: false,
+        msaa: false,
     };
     for run in 0..3 {
         let mut line = format!("run {run}: none {:.1} ms", median(setup(None, 16)));

@@ -24,7 +24,7 @@
 //! Lighting ids `192..=255` are profiles 0 to 63. Cameras without the component shade
 //! such materials as ordinary `StandardMaterial`s: forward cameras and Penumbra cameras
 //! without [`SubsurfaceScattering`] alike (a draw of Penumbra's lighting pass for those
-//! ids). Bevy's own deferred lighting pass lights one id per camera, so a plain deferred
+//! ids; on `DeferredMsaa` cameras its multisampled pass shades them). Bevy's own deferred lighting pass lights one id per camera, so a plain deferred
 //! camera (no `PenumbraLighting`) leaves them unlit, as it does every custom id.
 //!
 //! # The technique
@@ -66,7 +66,9 @@
 //!   convolution; 0.0094 averaged over 8 frames). With `temporal`, a temporal
 //!   anti-aliasing filter averages it.
 //! - Not on [`DeferredMsaa`](bevy_penumbra_df::DeferredMsaa) cameras (one warning):
-//!   their scattering materials are not lit.
+//!   their scattering materials are shaded as ordinary `StandardMaterial`s there, as on
+//!   cameras without the component (the lighting pass shades the profiles' ids:
+//!   `MsaaShadedLightingIds`).
 //!
 //! Cost: nothing without the component or with no scattering material in the view. Per
 //! camera with both: two `Rgba16Float` view-sized textures (16 bytes per pixel, 33 MB at
@@ -318,7 +320,8 @@ fn warn_msaa_cameras(
         if *msaa != Msaa::Off {
             warn!(
                 "Penumbra: SubsurfaceScattering on {entity} is not supported with DeferredMsaa: \
-                 its scattering materials are not lit (set `Msaa::Off` for scattering)"
+                 its scattering materials are shaded without scattering (set `Msaa::Off` \
+                 for scattering)"
             );
         }
     }

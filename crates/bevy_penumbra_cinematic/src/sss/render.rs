@@ -27,8 +27,8 @@ use bevy::render::view::{ExtractedView, RenderVisibleEntities, ViewTarget};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
 use bevy::shader::ShaderDefVal;
 use bevy_penumbra_df::lighting::{
-    PenumbraLightingBindGroup, PenumbraLightingPipeline, PenumbraLightingSystems,
-    PenumbraLightingView, set_lighting_bind_groups, visible_meshes,
+    MsaaShadedLightingIds, PenumbraLightingBindGroup, PenumbraLightingPipeline,
+    PenumbraLightingSystems, PenumbraLightingView, set_lighting_bind_groups, visible_meshes,
 };
 use bevy_penumbra_df::system_times::timed;
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraLighting, PenumbraShaderLibrary};
@@ -258,6 +258,11 @@ struct SubsurfacePipelines {
 
 pub(super) fn build(render_app: &mut SubApp) {
     render_app
+        // Deferred MSAA cameras, where no scattering pass runs, shade the profiles'
+        // materials as ordinary ones.
+        .insert_resource(MsaaShadedLightingIds {
+            from: u32::from(FIRST_LIGHTING_ID),
+        })
         .init_resource::<SubsurfaceScene>()
         .add_systems(RenderStartup, init_subsurface_pipelines)
         .add_systems(

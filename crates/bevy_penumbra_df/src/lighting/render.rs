@@ -129,6 +129,23 @@ pub struct PenumbraAoInput {
     pub debug_view: u32,
 }
 
+/// Deferred lighting pass ids that Penumbra's lighting pass also shades, as ordinary
+/// `StandardMaterial`s, on `DeferredMsaa` views: `from..=255` (256: none, the default).
+/// Subsurface scattering's profiles register theirs (`192..`): without it those
+/// materials went unlit on deferred MSAA cameras, where no other pass draws them.
+/// Render world.
+#[derive(Resource, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MsaaShadedLightingIds {
+    /// The first such id.
+    pub from: u32,
+}
+
+impl Default for MsaaShadedLightingIds {
+    fn default() -> Self {
+        Self { from: 256 }
+    }
+}
+
 /// `PenumbraLightingUniform` (`lighting/masks.wgsl`).
 #[derive(ShaderType, Clone, Copy, Default)]
 struct PenumbraLightingUniform {
@@ -142,6 +159,8 @@ struct PenumbraLightingUniform {
     ao_debug_view: u32,
     /// `PenumbraSpecularLayer`: 0 none, 1 full resolution, 2 half; +4 debug view.
     specular_layer: u32,
+    /// [`MsaaShadedLightingIds::from`].
+    msaa_shaded_ids_from: u32,
 }
 
 /// `PenumbraMsaaUniform` (`lighting/msaa_view.wgsl`).
@@ -209,6 +228,7 @@ impl PenumbraLightingBindGroup {
 pub(super) fn build(render_app: &mut SubApp) {
     render_app
         .init_resource::<SpecializedRenderPipelines<PenumbraLightingPipeline>>()
+        .init_resource::<MsaaShadedLightingIds>()
         .add_systems(
             Render,
             (
@@ -572,7 +592,11 @@ fn prepare_penumbra_lighting_pipelines(
     }
 }
 
-#[allow(clippy::type_complexity, reason = "a Bevy system")]
+#[allow(
+    clippy::type_complexity,
+    clippy::too_many_arguments,
+    reason = "a Bevy system"
+)]
 fn prepare_penumbra_lighting_bind_groups(
     mut commands: Commands,
     allocations: Res<PenumbraGpuAllocations>,
@@ -580,6 +604,7 @@ fn prepare_penumbra_lighting_bind_groups(
     queue: Res<RenderQueue>,
     pipeline_cache: Res<PipelineCache>,
     pipeline: Option<Res<PenumbraLightingPipeline>>,
+    shaded_ids: Res<MsaaShadedLightingIds>,
     mut views: Query<(
         Entity,
         &PenumbraLightingView,
@@ -635,6 +660,7 @@ fn prepare_penumbra_lighting_bind_groups(
             ao_min_occlusion: ao.map_or(0.0, |a| a.min_occlusion),
             ao_debug_view: ao.map_or(0, |a| a.debug_view),
             specular_layer: layer.map_or(0, PenumbraSpecularLayer::mode),
+            msaa_shaded_ids_from: if msaa.is_some() { shaded_ids.from } else { 256 },
         };
         let mut bytes = bevy::render::render_resource::encase::UniformBuffer::new(Vec::new());
         bytes.write(&uniform).expect("fixed-size uniform");

@@ -31,6 +31,8 @@ struct PenumbraLightingUniform {
     // A specular layer (`PenumbraSpecularLayer`): 0 none, 1 full resolution, 2 half;
     // +4: show it instead of the lighting.
     specular_layer: u32,
+    // Deferred MSAA also shades lighting ids from this one up (`MsaaShadedLightingIds`).
+    msaa_shaded_ids_from: u32,
 }
 
 const SHADOWED_DIRECTIONAL: u32 = 0u;

@@ -40,9 +40,15 @@ fn msaa_sample_position(pixel: vec2<i32>, i: u32) -> vec2<f32> {
     return vec2<f32>(pixel) + MSAA_SAMPLE_POSITIONS[i];
 }
 
+// Whether lighting pass id `id` is this pass's: the default PBR one, or one it shades
+// as such (`MsaaShadedLightingIds`: subsurface profiles).
+fn msaa_shades_id(id: u32) -> bool {
+    return id == penumbra_lighting.depth_id || id >= penumbra_lighting.msaa_shaded_ids_from;
+}
+
 // Whether sample `i` of `pixel` holds this pass's deferred material.
 fn msaa_sample_covered(pixel: vec2<i32>, i: u32) -> bool {
-    return textureLoad(msaa_lighting_id, pixel, i32(i)).r == penumbra_lighting.depth_id;
+    return msaa_shades_id(textureLoad(msaa_lighting_id, pixel, i32(i)).r);
 }
 
 // The world normal stored for sample `i` of `pixel`.
@@ -63,7 +69,7 @@ fn msaa_sample(pixel: vec2<i32>, i: u32) -> MsaaSample {
         octahedral_decode(pbr_deferred_types::unpack_24bit_normal(packed)),
         -depth_ndc_to_view_z(depth),
         id * 2u + (flags & pbr_deferred_types::DEFERRED_FLAGS_UNLIT_BIT),
-        u32(id == penumbra_lighting.depth_id),
+        u32(msaa_shades_id(id)),
     );
 }
 
