@@ -7,6 +7,7 @@ use bevy::{
     prelude::*,
     render::{
         RenderPlugin,
+        error_handler::{RenderError, RenderErrorHandler, RenderErrorPolicy},
         gpu_readback::{Readback, ReadbackComplete},
         render_resource::{TextureFormat, TextureUsages},
         settings::{Backends, WgpuSettings},
@@ -58,6 +59,9 @@ pub enum HarnessError {
         /// Bytes received.
         got: usize,
     },
+    /// wgpu reported errors (validation, out of memory, device lost) while rendering:
+    /// rendering stopped at the first.
+    Render(Vec<String>),
 }
 
 impl std::fmt::Display for HarnessError {
@@ -75,6 +79,14 @@ impl std::fmt::Display for HarnessError {
             }
             HarnessError::ShortReadback { expected, got } => {
                 write!(f, "GPU readback returned {got} bytes, expected {expected}")
+            }
+            HarnessError::Render(errors) => {
+                write!(
+                    f,
+                    "wgpu reported {} error(s): {}",
+                    errors.len(),
+                    errors.join("; ")
+                )
             }
         }
     }
@@ -212,6 +224,27 @@ pub struct HeadlessRender {
 /// `cargo xtask test` runs one test at a time per binary (`RUST_TEST_THREADS=1`).
 static RENDER_LOCK: Mutex<()> = Mutex::new(());
 
+/// The wgpu errors of the app rendering now (the render lock's holder): the harness's
+/// [`RenderErrorHandler`] records them and stops rendering, and a run returns
+/// [`HarnessError::Render`] (Bevy's default handler quits the app, which a headless
+/// harness would only notice as a read-back timeout).
+static RENDER_ERRORS: Mutex<Vec<String>> = Mutex::new(Vec::new());
+
+/// Bevy asks again every frame while rendering is stopped: each error is kept once.
+fn record_render_error(error: &RenderError, _: &mut World, _: &mut World) -> RenderErrorPolicy {
+    let text = format!("{:?}: {}", error.ty, error.description);
+    let mut errors = RENDER_ERRORS.lock().unwrap_or_else(|e| e.into_inner());
+    if !errors.contains(&text) {
+        errors.push(text);
+    }
+    RenderErrorPolicy::StopRendering
+}
+
+/// The errors recorded since the last call.
+fn take_render_errors() -> Vec<String> {
+    std::mem::take(&mut *RENDER_ERRORS.lock().unwrap_or_else(|e| e.into_inner()))
+}
+
 /// An app kept after a headless render ([`HeadlessRender::run_keeping_app`]): use it as an
 /// [`App`]; dropping it takes the render lock, so its GPU device is never torn down while
 /// another test's app renders.
@@ -330,6 +363,7 @@ impl HeadlessRender {
         target.texture_descriptor.usage |= TextureUsages::COPY_SRC;
         let handle = app.world_mut().resource_mut::<Assets<Image>>().add(target);
         app.insert_resource(HarnessTarget(handle))
+            .insert_resource(RenderErrorHandler(record_render_error))
             .add_systems(PostStartup, retarget_window_cameras)
             .add_systems(PreUpdate, retarget_window_cameras);
         app
@@ -351,6 +385,7 @@ impl HeadlessRender {
         // the app's drop takes the lock again.
         let mut app = KeptApp(Some(app));
         let _guard = RENDER_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+        take_render_errors();
         app.finish();
         app.cleanup();
         if let Some(ready) = self.warm_up {
@@ -358,6 +393,10 @@ impl HeadlessRender {
             let mut n = 0;
             while !ready(app.world_mut()) {
                 if n == MAX_WARM_UP {
+                    let errors = take_render_errors();
+                    if !errors.is_empty() {
+                        return Err(HarnessError::Render(errors));
+                    }
                     return Err(HarnessError::WarmUpTimeout { frames: n });
                 }
                 app.update();
@@ -372,7 +411,12 @@ impl HeadlessRender {
             })
             .collect();
 
-        let mut capture = self.read_target(&mut app)?;
+        let capture = self.read_target(&mut app);
+        let errors = take_render_errors();
+        if !errors.is_empty() {
+            return Err(HarnessError::Render(errors));
+        }
+        let mut capture = capture?;
         capture.frame_times = frame_times;
         Ok((capture, app))
     }
