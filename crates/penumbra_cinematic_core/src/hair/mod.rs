@@ -363,41 +363,9 @@ mod tests {
     /// within 1/8 pixel of width; per pixel, the 4-sample estimate's error.
     #[test]
     fn per_sample_coverage_follows_the_area() {
-        let mut width_errors = Vec::new();
-        let (mut pixel_error, mut pixel_count) = (0.0f64, 0usize);
-        for width in [0.5f32, 1.0, 1.5, 3.0] {
-            for angle_step in 0..24 {
-                let angle = angle_step as f32 * std::f32::consts::PI / 24.0 + 0.013;
-                for offset_step in 0..8 {
-                    let offset = offset_step as f32 / 8.0;
-                    let d = Vec2::new(angle.cos(), angle.sin());
-                    let centre = Vec2::new(20.0 + offset, 20.0 + 0.37 * offset);
-                    let s = ScreenSegment {
-                        a: centre - d * 12.0,
-                        b: centre + d * 12.0,
-                        half_width: 0.5 * width,
-                    };
-                    let (mut got, mut want) = (0.0f64, 0.0f64);
-                    for p in pixels(&s) {
-                        let c = f64::from(resolved(coverage_mask(&s, p, 1.0, |_| 1.0)));
-                        let e = exact_coverage(&s, p);
-                        got += c;
-                        want += e;
-                        if c > 0.0 || e > 0.0 {
-                            pixel_error += (c - e).abs();
-                            pixel_count += 1;
-                        }
-                    }
-                    // Area over length: the width the samples see.
-                    width_errors.push(((got - want) / 24.0).abs());
-                }
-            }
-        }
-        let mean = width_errors.iter().sum::<f64>() / width_errors.len() as f64;
-        let worst = width_errors.iter().copied().fold(0.0, f64::max);
-        let per_pixel = pixel_error / pixel_count as f64;
+        let (mean, per_pixel) = coverage_sweep(4);
         println!(
-            "strip coverage: width error mean {mean:.4} px, worst {worst:.4} px; per pixel mean |Δ| {per_pixel:.3}"
+            "strip coverage: width error mean {mean:.4} px; per pixel mean |Δ| {per_pixel:.3}"
         );
         assert!(mean < 0.125, "mean width error {mean} px");
         // Measured 0.061; one sample at the pixel centre (a per-pixel test) gives more.
