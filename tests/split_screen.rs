@@ -5,10 +5,21 @@
 //! size) at the viewport's origin, compute positions in the viewport, and the lighting
 //! pass reads the viewport-sized masks and AO at the fragment's viewport coordinates.
 //! Before, the right-hand camera read the left camera's pixels and rendered almost black.
+//! The same holds with subsurface scattering (`subsurface` example).
+
+// Both examples include their shared `common/cli.rs` and `common/controls.rs`.
+#![allow(
+    clippy::duplicate_mod,
+    reason = "two examples' scenes in one test binary"
+)]
 
 #[path = "../examples/df_shadows.rs"]
 #[allow(dead_code, reason = "the example's main is not used here")]
 mod df_shadows;
+
+#[path = "../examples/subsurface.rs"]
+#[allow(dead_code, reason = "the example's main is not used here")]
+mod subsurface;
 
 use bevy::camera::Viewport;
 use bevy::core_pipeline::tonemapping::DebandDither;
@@ -19,24 +30,50 @@ use penumbra_test::{HeadlessRender, Tolerance, assert_images_match, gpu_or_skip,
 /// One half: the size each camera renders.
 const HALF: UVec2 = UVec2::new(96, 96);
 
-/// The scene's camera with DFAO, alone at `HALF` (`split: false`) or beside a copy of
-/// itself on a target twice as wide (`split: true`: viewports left and right).
-fn render(split: bool) -> image::RgbaImage {
+/// An example's scene.
+#[derive(Clone, Copy)]
+enum Scene {
+    /// `df_shadows`, with DFAO added.
+    Shadows,
+    /// `subsurface`: a face under DF-shadowed lights with subsurface scattering.
+    Subsurface,
+}
+
+/// The scene's camera, alone at `HALF` (`split: false`) or beside a copy of itself on a
+/// target twice as wide (`split: true`: viewports left and right).
+fn render(scene: Scene, split: bool) -> image::RgbaImage {
     let width = if split { 2 * HALF.x } else { HALF.x };
-    let harness = HeadlessRender::new(width, HALF.y)
-        .frames(12)
-        .warm_up(df_shadows::casters_ready);
+    let harness = HeadlessRender::new(width, HALF.y).frames(12);
+    let (harness, add_scene): (HeadlessRender, fn(&mut App)) = match scene {
+        Scene::Shadows => (
+            harness.warm_up(df_shadows::casters_ready),
+            df_shadows::add_scene,
+        ),
+        Scene::Subsurface => (
+            harness.warm_up(subsurface::casters_ready),
+            subsurface::add_scene,
+        ),
+    };
     let mut app = harness.app();
-    df_shadows::add_scene(&mut app);
+    add_scene(&mut app);
     app.add_systems(
         PostStartup,
-        move |mut commands: Commands, cameras: Query<(Entity, &Transform), With<Camera3d>>| {
+        move |mut commands: Commands,
+              cameras: Query<
+            (
+                Entity,
+                &Transform,
+                &Projection,
+                Option<&SubsurfaceScattering>,
+            ),
+            With<Camera3d>,
+        >| {
             let viewport = |x: u32| Viewport {
                 physical_position: UVec2::new(x, 0),
                 physical_size: HALF,
                 ..default()
             };
-            for (entity, transform) in &cameras {
+            for (entity, transform, projection, sss) in &cameras {
                 let mut camera = commands.entity(entity);
                 // Bevy's debanding dither follows the frame buffer's coordinates (1/255
                 // apart between the halves): off, so the halves can match exactly.
@@ -51,7 +88,7 @@ fn render(split: bool) -> image::RgbaImage {
                     viewport: Some(viewport(0)),
                     ..default()
                 });
-                commands.spawn((
+                let mut copy = commands.spawn((
                     Camera3d::default(),
                     Camera {
                         order: 1,
@@ -63,9 +100,13 @@ fn render(split: bool) -> image::RgbaImage {
                     PenumbraLighting,
                     Msaa::Off,
                     *transform,
+                    projection.clone(),
                     DistanceFieldAmbientOcclusion::default(),
                     DebandDither::Disabled,
                 ));
+                if let Some(sss) = sss {
+                    copy.insert(sss.clone());
+                }
             }
         },
     );
@@ -77,16 +118,25 @@ fn each_half_of_a_split_screen_is_its_camera_alone() {
     if !gpu_or_skip("each_half_of_a_split_screen_is_its_camera_alone") {
         return;
     }
-    let alone = render(false);
-    let split = render(true);
-    for (name, x) in [("left", 0), ("right", HALF.x)] {
+    halves_match(Scene::Shadows, "split_screen");
+}
+
+/// The same with subsurface scattering (its samples mapped into the viewport, its noise
+/// seeded by the pixel's place in it) on the `subsurface` example's face.
+#[test]
+fn each_half_of_a_split_screen_scatters_as_its_camera_alone() {
+    if !gpu_or_skip("each_half_of_a_split_screen_scatters_as_its_camera_alone") {
+        return;
+    }
+    halves_match(Scene::Subsurface, "split_screen_sss");
+}
+
+fn halves_match(scene: Scene, name: &str) {
+    let alone = render(scene, false);
+    let split = render(scene, true);
+    for (side, x) in [("left", 0), ("right", HALF.x)] {
         let half = image::imageops::crop_imm(&split, x, 0, HALF.x, HALF.y).to_image();
-        let cmp = assert_images_match(
-            &format!("split_screen_{name}"),
-            &half,
-            &alone,
-            &Tolerance::GOLDEN,
-        );
-        println!("{name} half against the camera alone: {cmp}");
+        let cmp = assert_images_match(&format!("{name}_{side}"), &half, &alone, &Tolerance::GOLDEN);
+        println!("{name}: {side} half against the camera alone: {cmp}");
     }
 }

@@ -95,7 +95,9 @@ fn scattered_irradiance(pixel: vec2<i32>, p: vec3<f32>, n: vec3<f32>, k: u32) ->
         return own;
     }
     let tangents = tangent_frame(n);
-    let noise = pixel_noise(vec2<u32>(pixel), subsurface.frame);
+    // Seeded by the pixel's place in the viewport: a split screen's halves match their
+    // cameras alone.
+    let noise = pixel_noise(vec2<u32>(vec2<f32>(pixel) - view.viewport.xy), subsurface.frame);
     // The view's viewport in the frame buffer (the textures are the render target's).
     let origin = view.viewport.xy;
     let size = view.viewport.zw;
