@@ -10,6 +10,7 @@
 //! - Skip: no billboard → no pass and no allocation; steady frames allocate nothing.
 //! - The texture array is written layer by layer (a changed image uploads one layer).
 //! - `RenderLayers`: a camera reflects only the billboards sharing its layers.
+//! - Deferred MSAA: the layer equals the single-sample camera's off the edges.
 
 mod reflections_scene;
 use reflections_scene::*;
@@ -163,6 +164,51 @@ fn the_layer_is_added_as_specular_only_where_it_reflects() {
     // Beyond the capture's rounding, within the layer's own f16 rounding (0.1 %): a
     // layer added without the BRDF (10× here), or with the metallic F0, fails.
     assert!(worst < 0.01, "worst relative error {worst}");
+}
+
+/// Deferred MSAA (`DeferredMsaa`): the trace reads each pixel's representative sample,
+/// so off the edges the layer equals the single-sample camera's (the representative of
+/// a flat pixel is its centre), with and without the wall's reflection shadows.
+#[test]
+fn deferred_msaa_reflects_as_a_single_sample_camera_does() {
+    if !gpu_or_skip("deferred_msaa_reflects_as_a_single_sample_camera_does") {
+        return;
+    }
+    for wall in [false, true] {
+        let setup = Setup {
+            wall,
+            ..default()
+        };
+        let (single, app) = render(setup);
+        drop(app);
+        let (msaa, app) = render(Setup { msaa: true, ..setup });
+        drop(app);
+        save(&format!("reflections_layer_msaa_wall{wall}"), &msaa);
+        let (mut sum, mut n, mut far) = (0.0f32, 0usize, 0usize);
+        for (s, m) in single.iter().zip(&msaa) {
+            let (s, m) = (Vec4::from_array(*s), Vec4::from_array(*m));
+            let scale = s.truncate().max_element();
+            if scale < 0.05 {
+                continue;
+            }
+            let e = (m - s).truncate().abs().max_element() / scale;
+            sum += e;
+            n += 1;
+            if e > 0.05 {
+                far += 1;
+            }
+        }
+        let mean = sum / n.max(1) as f32;
+        println!(
+            "wall {wall}: {n} reflecting pixels; |MSAA − single| / single mean {mean:.4}, \
+             {far} over 5 % (edges)"
+        );
+        // No reflections under MSAA (or every sample's reflection from a wrong G-buffer)
+        // fails all three.
+        assert!(n > 800, "{n} reflecting pixels");
+        assert!(mean < 0.02, "mean relative difference {mean}");
+        assert!(far * 20 < n, "{far} of {n} pixels differ by more than 5 %");
+    }
 }
 
 /// The composite does not depend on the order the billboards were spawned in (their

@@ -55,8 +55,11 @@
 //!   reflections or environment maps serve it). It occludes them through the
 //!   distance-field scene ([`BillboardReflections::reflection_shadows`]): geometry
 //!   without a `DistanceFieldCaster` does not.
-//! - Single-sample cameras: a camera with `DeferredMsaa` gets no reflections (one
-//!   warning). The clearcoat layer does not reflect billboards, and SSAO's or DFAO's
+//! - Deferred MSAA (`DeferredMsaa`): the trace runs once per pixel, from the pixel's
+//!   representative sample (the samples' mean where they agree, the first covered
+//!   sample on edges), and every sample of the pixel reads that reflection: on an edge
+//!   between a reflecting and a rough surface the rough one's samples take the other's
+//!   reflection (one pixel wide). The clearcoat layer does not reflect billboards, and SSAO's or DFAO's
 //!   specular occlusion does not dim them (their reflection shadows do).
 //! - The footprint is a box filter (mip levels and taps); GGX's long tail is not: against
 //!   the Monte Carlo truth the mean error is 2–7 % of the signs' luminance
@@ -259,27 +262,16 @@ impl BillboardReflections {
     }
 }
 
-/// Warns once per change when a camera's settings are out of range or it has deferred
-/// MSAA (unsupported).
-#[allow(clippy::type_complexity, reason = "a Bevy system")]
+/// Warns once per change when a camera's settings are out of range.
 fn warn_bad_reflection_settings(
-    cameras: Query<
-        (Entity, &BillboardReflections, Option<&Msaa>),
-        Or<(Changed<BillboardReflections>, Changed<Msaa>)>,
-    >,
+    cameras: Query<(Entity, &BillboardReflections), Changed<BillboardReflections>>,
 ) {
-    for (entity, settings, msaa) in &cameras {
+    for (entity, settings) in &cameras {
         let (_, problems) = settings.resolve();
         if !problems.is_empty() {
             warn!(
                 "Penumbra: BillboardReflections on {entity}: {}; clamped",
                 problems.join(", ")
-            );
-        }
-        if msaa.is_some_and(|m| *m != Msaa::Off) {
-            warn!(
-                "Penumbra: BillboardReflections on {entity} is not supported with MSAA: \
-                 no reflections (set `Msaa::Off`)"
             );
         }
     }
@@ -296,8 +288,7 @@ impl Plugin for BillboardReflectionsPlugin {
             .add_systems(
                 PostUpdate,
                 (
-                    timed(warn_bad_reflection_settings)
-                        .after(bevy_penumbra_df::lighting::DeferredMsaaSystems::Restore),
+                    timed(warn_bad_reflection_settings),
                     timed(collect::collect_reflection_billboards)
                         .after(TransformSystems::Propagate)
                         .after(bevy::asset::AssetEventSystems)

@@ -14,8 +14,8 @@ use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::binding_types::{
-    sampler, storage_buffer_read_only_sized, storage_buffer_sized, texture_2d_array, texture_3d,
-    uniform_buffer_sized,
+    sampler, storage_buffer_read_only_sized, storage_buffer_sized, texture_2d, texture_2d_array,
+    texture_3d, texture_depth_2d, uniform_buffer_sized,
 };
 use bevy::render::render_resource::encase::UniformBuffer as EncaseBuffer;
 use bevy::render::render_resource::{
@@ -34,7 +34,8 @@ use bevy::render::texture::{CachedTexture, TextureCache};
 use bevy::render::view::{ExtractedView, ViewTarget};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
 use bevy_penumbra_df::lighting::{
-    PenumbraLightingPipeline, PenumbraLightingSystems, PenumbraLightingView, PenumbraSpecularLayer,
+    DeferredMsaaTextures, PenumbraLightingPipeline, PenumbraLightingSystems, PenumbraLightingView,
+    PenumbraSpecularLayer,
 };
 use bevy_penumbra_df::scene::DistanceFieldGpu;
 use bevy_penumbra_df::system_times::timed;
@@ -96,6 +97,9 @@ pub struct ViewReflectionsBindGroup {
     /// The caster spheres' buffer and pass.
     spheres: ViewCasterSpheres,
     group: Option<(BindGroup, BoundResources)>,
+    /// Deferred MSAA views: group 3, the representative depth and G-buffer of each pixel
+    /// (the single-sample ones the trace reads; Bevy's are multisampled there).
+    pixel_group: Option<(BindGroup, [TextureViewId; 2])>,
 }
 
 /// Bytes of one distance-field object record.
@@ -105,6 +109,8 @@ pub(super) const OBJECT_BYTES: u64 = 128;
 #[derive(Resource)]
 pub(super) struct ReflectionPipelines {
     layout: BindGroupLayoutDescriptor,
+    /// Group 3 of deferred MSAA views: the representative depth and G-buffer.
+    pixel_layout: BindGroupLayoutDescriptor,
     shader: Handle<Shader>,
     cull_shader: Handle<Shader>,
     sampler: Sampler,
@@ -172,6 +178,13 @@ fn init_reflection_pipelines(
             ),
         ),
     );
+    let pixel_layout = BindGroupLayoutDescriptor::new(
+        "penumbra_reflections_pixel_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::FRAGMENT,
+            (texture_depth_2d(), texture_2d(TextureSampleType::Uint)),
+        ),
+    );
     let sampler = device.create_sampler(&SamplerDescriptor {
         label: Some("penumbra_reflections_sampler"),
         address_mode_u: AddressMode::ClampToEdge,
@@ -205,6 +218,7 @@ fn init_reflection_pipelines(
         .create_view(&TextureViewDescriptor::default());
     commands.insert_resource(ReflectionPipelines {
         layout,
+        pixel_layout,
         shader: library.handle("reflections/trace.wgsl"),
         cull_shader: library.handle("reflections/cull.wgsl"),
         sampler,
@@ -229,7 +243,8 @@ fn extract_reflection_cameras(
 impl ReflectionPipelines {
     /// The trace (or, with `cull`, the tile cull) pipeline of a view key, queued on
     /// first use: Penumbra's lighting pipeline (Bevy's view bind groups for the key) with
-    /// the pass's shader, group 2 and target, and no depth test.
+    /// the pass's shader, group 2 and target, and no depth test. A multisampled key
+    /// (deferred MSAA) reads each pixel's representative depth and G-buffer from group 3.
     fn get(
         &mut self,
         cache: &PipelineCache,
@@ -258,6 +273,15 @@ impl ReflectionPipelines {
             desc.layout[2] = self.layout.clone();
             desc.depth_stencil = None;
             desc.vertex.shader = shader.clone();
+            if key.msaa_samples() > 1 {
+                desc.layout.push(self.pixel_layout.clone());
+                for def in ["MULTISAMPLED", "PENUMBRA_PIXEL_PREPASS"] {
+                    desc.vertex.shader_defs.push(def.into());
+                    if let Some(fragment) = desc.fragment.as_mut() {
+                        fragment.shader_defs.push(def.into());
+                    }
+                }
+            }
             let fragment = desc.fragment.as_mut().expect("the lighting pass has one");
             fragment.shader = shader.clone();
             fragment.entry_point = Some(entry.into());
@@ -302,11 +326,9 @@ fn prepare_reflection_views(
         return;
     };
     let scene_ready = !gpu.billboards.is_empty() && gpu.array.is_some();
-    for (entity, view, lighting_view, target, settings, group, drawn) in &views {
+    for (entity, view, _, target, settings, group, drawn) in &views {
         let key = view_key_cache.get(&view.retained_view_entity);
-        let (Some(key), Some(settings), None, true) =
-            (key, settings, &lighting_view.msaa, scene_ready)
-        else {
+        let (Some(key), Some(settings), true) = (key, settings, scene_ready) else {
             if drawn {
                 commands
                     .entity(entity)
@@ -405,6 +427,7 @@ fn prepare_reflection_bind_groups(
         &ViewReflections,
         Option<&mut ViewReflectionsBindGroup>,
         Option<&RenderLayers>,
+        Option<&DeferredMsaaTextures>,
     )>,
     gpu: Res<ReflectionGpuScene>,
     df: Option<Res<DistanceFieldGpu>>,
@@ -436,7 +459,7 @@ fn prepare_reflection_bind_groups(
         _ => (&pipelines.no_objects, 0, &pipelines.no_atlas),
     };
     let count = gpu.billboards.len() as u32;
-    for (entity, view, settings, draw, group, view_layers) in &mut views {
+    for (entity, view, settings, draw, group, view_layers, msaa) in &mut views {
         let s = &settings.0;
         // The billboards' layer groups this camera sees (Bevy's default: layer 0).
         let view_layers = view_layers.cloned().unwrap_or_default();
@@ -500,6 +523,7 @@ fn prepare_reflection_bind_groups(
                 tile_words: words.next_power_of_two().max(4),
                 spheres: ViewCasterSpheres::new(&allocations, &device, 1),
                 group: None,
+                pixel_group: None,
             }),
         };
         if group.tile_words < words {
@@ -566,6 +590,19 @@ fn prepare_reflection_bind_groups(
             );
             group.group = Some((bind_group, key));
         }
+        let pixel = msaa.map(|m| (&m.pixel_depth.default_view, &m.pixel_gbuffer.default_view));
+        let pixel_key = pixel.map(|(depth, gbuffer)| [depth.id(), gbuffer.id()]);
+        if group.pixel_group.as_ref().map(|(_, k)| *k) != pixel_key {
+            group.pixel_group = pixel.zip(pixel_key).map(|((depth, gbuffer), key)| {
+                let bind_group = allocations.bind_group(
+                    &device,
+                    "penumbra_reflections_pixel_bind_group",
+                    &pipeline_cache.get_bind_group_layout(&pipelines.pixel_layout),
+                    &BindGroupEntries::sequential((depth, gbuffer)),
+                );
+                (bind_group, key)
+            });
+        }
         if let Some(fresh) = fresh {
             commands.entity(entity).insert(fresh);
         }
@@ -596,6 +633,8 @@ pub fn billboard_reflections(
     let Some((group, _)) = view_group.group.as_ref() else {
         return;
     };
+    // Deferred MSAA views' pipelines read the pixels' representative prepass (group 3).
+    let pixel_group = view_group.pixel_group.as_ref().map(|(g, _)| g);
     let Some(spheres) = view_group
         .spheres
         .ready(&pipeline_cache, &pipelines.spheres)
@@ -638,6 +677,9 @@ pub fn billboard_reflections(
         pass.set_bind_group(0, &mesh_view.main, &mesh_view.main_offsets);
         pass.set_bind_group(1, &mesh_view.binding_array, &[]);
         pass.set_bind_group(2, group, &[]);
+        if let Some(pixel_group) = pixel_group {
+            pass.set_bind_group(3, pixel_group, &[]);
+        }
         pass.draw(0..3, 0..1);
     }
     let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
@@ -660,6 +702,9 @@ pub fn billboard_reflections(
     pass.set_bind_group(0, &mesh_view.main, &mesh_view.main_offsets);
     pass.set_bind_group(1, &mesh_view.binding_array, &[]);
     pass.set_bind_group(2, group, &[]);
+    if let Some(pixel_group) = pixel_group {
+        pass.set_bind_group(3, pixel_group, &[]);
+    }
     pass.draw(0..3, 0..1);
     drop(pass);
     time_span.end(ctx.command_encoder());

@@ -21,7 +21,7 @@ use bevy_penumbra_cinematic::{
     BillboardReflections, BillboardReflectionsPlugin, ReflectionBillboard, ReflectionDebugView,
 };
 use bevy_penumbra_df::{
-    CasterSource, DistanceFieldCaster, DistanceFieldScenePlugin, PenumbraLighting,
+    CasterSource, DeferredMsaa, DistanceFieldCaster, DistanceFieldScenePlugin, PenumbraLighting,
     PenumbraLightingPlugin, SdfAssetPlugin,
 };
 use penumbra_cinematic_core::reflections::Billboard;
@@ -81,6 +81,8 @@ pub struct Setup {
     pub billboard_layer: usize,
     /// The camera renders layers 0 and 1 (otherwise Bevy's default, 0).
     pub camera_sees_layer_1: bool,
+    /// `DeferredMsaa` on the camera (otherwise `Msaa::Off`).
+    pub msaa: bool,
 }
 
 impl Default for Setup {
@@ -99,6 +101,7 @@ impl Default for Setup {
             reversed: false,
             billboard_layer: 0,
             camera_sees_layer_1: false,
+            msaa: false,
         }
     }
 }
@@ -276,6 +279,9 @@ pub fn scene(
         ));
         if setup.camera_sees_layer_1 {
             camera.insert(RenderLayers::from_layers(&[0, 1]));
+        }
+        if setup.msaa {
+            camera.insert((DeferredMsaa::default(), Msaa::Sample4));
         }
         if let Some(debug_view) = setup.reflections {
             camera.insert(BillboardReflections {

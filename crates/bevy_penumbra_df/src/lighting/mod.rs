@@ -64,6 +64,7 @@ use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::sync_component::SyncComponent;
 
 pub use msaa::{DeferredMsaa, DeferredMsaaShading, DeferredMsaaSystems};
+pub use msaa_render::DeferredMsaaTextures;
 pub use render::MsaaShadedLightingIds;
 pub use render::ShadowedLightKind;
 pub use render::{

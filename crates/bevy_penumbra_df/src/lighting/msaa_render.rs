@@ -172,16 +172,18 @@ pub(crate) fn specialize_variant(
     }
 }
 
-/// A deferred MSAA view's textures (pooled in Bevy's `TextureCache`).
+/// A deferred MSAA view's textures (pooled in Bevy's `TextureCache`). Passes that work
+/// per pixel read its representative G-buffer and depth.
 #[derive(Component)]
-pub(crate) struct DeferredMsaaTextures {
+pub struct DeferredMsaaTextures {
     /// Bevy's G-buffer words, 4×: swapped with Bevy's single-sample texture in
     /// `ViewPrepassTextures` while the deferred prepass renders.
     gbuffer: Option<ColorAttachment>,
     /// The lighting pass id, 4× (swapped likewise).
     lighting_id: Option<ColorAttachment>,
-    /// Views of the two above (kept while they are swapped out).
+    /// The multisampled G-buffer's view (kept while it is swapped out).
     pub gbuffer_view: TextureView,
+    /// The multisampled lighting id's view (likewise).
     pub lighting_id_view: TextureView,
     /// How each pixel is shaded, 4× stencil.
     stencil: CachedTexture,
@@ -190,6 +192,7 @@ pub(crate) struct DeferredMsaaTextures {
     /// The representative G-buffer texel and depth of each pixel (for the passes that
     /// trace per pixel: distance-field shadows, DFAO).
     pub pixel_gbuffer: CachedTexture,
+    /// The representative depth (`Depth32Float`, reverse Z) of each pixel.
     pub pixel_depth: CachedTexture,
 }
 

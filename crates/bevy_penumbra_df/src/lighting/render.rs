@@ -620,8 +620,6 @@ fn prepare_penumbra_lighting_bind_groups(
     };
     for (entity, view, inputs, ao, layer, msaa_textures, bind_group) in &mut views {
         let msaa = view.msaa.as_ref().zip(msaa_textures);
-        // Deferred MSAA views take no specular layer (its features warn).
-        let layer = layer.filter(|_| msaa.is_none());
         let lights = inputs.map_or(&[][..], |i| i.lights.as_slice());
         let needed = (lights.len() as u64).max(1);
         let mut fresh = None;

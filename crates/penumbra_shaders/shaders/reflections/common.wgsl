@@ -7,8 +7,10 @@
 #import bevy_pbr::{
     pbr_types::STANDARD_MATERIAL_FLAGS_UNLIT_BIT,
     pbr_deferred_functions::pbr_input_from_deferred_gbuffer,
-    mesh_view_bindings::{deferred_prepass_texture, depth_prepass_texture},
 }
+#ifndef PENUMBRA_PIXEL_PREPASS
+#import bevy_pbr::mesh_view_bindings::{deferred_prepass_texture, depth_prepass_texture}
+#endif
 #import penumbra::df::object::{DistanceFieldObject, FLAG_CASTS_SHADOWS, FLAG_LIVE, TILE_SIZE}
 #import penumbra::reflections::types::{GpuBillboard, ReflectionUniform}
 
@@ -35,6 +37,14 @@ const TILE: u32 = 16u;
 // their object slots (`caster_capacity` slots). A count over its capacity means "every
 // billboard" or "every object".
 @group(2) @binding(6) var<storage, read_write> tile_lists: array<u32>;
+
+#ifdef PENUMBRA_PIXEL_PREPASS
+// Deferred MSAA: each pixel's representative depth and G-buffer texel (the samples'
+// mean where they agree, the first covered sample on edges), which the classification
+// writes; Bevy's prepass textures are multisampled there.
+@group(3) @binding(0) var pixel_depth: texture_depth_2d;
+@group(3) @binding(1) var pixel_gbuffer: texture_2d<u32>;
+#endif
 
 // Where tile `tile`'s record starts in `tile_lists`.
 fn tile_record(tile: vec2<u32>) -> u32 {
@@ -111,12 +121,21 @@ fn surface_sample(trace_pixel: vec2<i32>) -> SurfaceSample {
     var out: SurfaceSample;
     out.valid = false;
     let pixel = trace_pixel * select(1, 2, settings.half_resolution != 0u);
+#ifdef PENUMBRA_PIXEL_PREPASS
+    let depth = textureLoad(pixel_depth, pixel, 0);
+#else
     let depth = textureLoad(depth_prepass_texture, pixel, 0);
+#endif
     if depth == 0.0 {
         return out; // the sky
     }
     let frag_coord = vec4(vec2<f32>(pixel) + 0.5, depth, 0.0);
-    let in = pbr_input_from_deferred_gbuffer(frag_coord, textureLoad(deferred_prepass_texture, pixel, 0));
+#ifdef PENUMBRA_PIXEL_PREPASS
+    let gbuffer = textureLoad(pixel_gbuffer, pixel, 0);
+#else
+    let gbuffer = textureLoad(deferred_prepass_texture, pixel, 0);
+#endif
+    let in = pbr_input_from_deferred_gbuffer(frag_coord, gbuffer);
     if (in.material.flags & STANDARD_MATERIAL_FLAGS_UNLIT_BIT) != 0u {
         return out;
     }
