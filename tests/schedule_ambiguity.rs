@@ -209,6 +209,16 @@ fn passes_that_meet_in_the_command_stream_run_in_a_fixed_order() {
             "the lighting pass reads the specular layer",
         ),
         (
+            "penumbra_lighting",
+            "subsurface_scattering_msaa",
+            "on deferred MSAA views the scatter replaces the lighting pass's shading of skin",
+        ),
+        (
+            "subsurface_scattering_msaa",
+            "main_opaque_pass_3d",
+            "forward meshes draw over the scattered skin",
+        ),
+        (
             "deferred_lighting",
             "penumbra_lighting",
             "Penumbra's pass covers Bevy's on its pixels",

@@ -175,13 +175,13 @@ fn deferred_msaa_reflects_as_a_single_sample_camera_does() {
         return;
     }
     for wall in [false, true] {
-        let setup = Setup {
-            wall,
-            ..default()
-        };
+        let setup = Setup { wall, ..default() };
         let (single, app) = render(setup);
         drop(app);
-        let (msaa, app) = render(Setup { msaa: true, ..setup });
+        let (msaa, app) = render(Setup {
+            msaa: true,
+            ..setup
+        });
         drop(app);
         save(&format!("reflections_layer_msaa_wall{wall}"), &msaa);
         let (mut sum, mut n, mut far) = (0.0f32, 0usize, 0usize);

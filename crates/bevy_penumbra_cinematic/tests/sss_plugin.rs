@@ -12,9 +12,10 @@
 //!   red spreads far more than blue (a 10 times narrower profile).
 //! - A metallic plane (no diffuse light) is unchanged within the split textures' f16
 //!   rounding, shadow edge included: specular light is not scattered.
-//! - On a `DeferredMsaa` camera (no scattering there), with or without the component,
-//!   the scattering material is lit as the same material without a profile (up to the
-//!   edge classification, which sees the profile's id as another material).
+//! - On a `DeferredMsaa` camera without the component the scattering material is lit as
+//!   the same material without a profile (up to the edge classification, which sees the
+//!   profile's id as another material); with it, it scatters as on a single-sample
+//!   camera (the same image off the edges, the shadow edge spread alike).
 //! - No scattering material in view: the image and the GPU allocations equal the
 //!   render without the component; steady frames allocate nothing.
 
@@ -236,9 +237,9 @@ fn scattering_mask(debug: &[[f32; 4]]) -> Vec<bool> {
     debug.iter().map(|p| p[3] > 1.5).collect()
 }
 
-/// On a deferred MSAA camera no scattering pass runs: the profile's material is shaded
-/// by the multisampled lighting pass as an ordinary `StandardMaterial` (it was not lit
-/// at all: the classification shaded only the default lighting id).
+/// On a deferred MSAA camera without `SubsurfaceScattering` the profile's material is
+/// shaded by the multisampled lighting pass as an ordinary `StandardMaterial` (it was
+/// not lit at all: the classification shaded only the default lighting id).
 #[test]
 fn a_scattering_material_is_lit_under_deferred_msaa() {
     if !gpu_or_skip("a_scattering_material_is_lit_under_deferred_msaa") {
@@ -271,7 +272,8 @@ fn a_scattering_material_is_lit_under_deferred_msaa() {
     };
     let want = plane_mean(&plain);
     assert!(want > 0.1, "the plain plane is dark: {want}");
-    for sss in [None, Some(SubsurfaceDebugView::None)] {
+    {
+        let sss: Option<SubsurfaceDebugView> = None;
         let (got, _app) = render(Setup {
             plane: Plane::Scattering,
             sss,
@@ -297,6 +299,78 @@ fn a_scattering_material_is_lit_under_deferred_msaa() {
         // and the sky.
         assert!(differ * 20 < got.len(), "{differ} pixels differ");
     }
+}
+
+/// With `SubsurfaceScattering` a deferred MSAA camera scatters as a single-sample one:
+/// split lighting and scatter once per pixel from its first scattering sample, written
+/// to the scattering samples. Off the edges the two images agree; across the square's
+/// shadow the red edge is spread as much (before: MSAA did not scatter at all).
+#[test]
+fn scatters_under_deferred_msaa_as_on_a_single_sample_camera() {
+    if !gpu_or_skip("scatters_under_deferred_msaa_as_on_a_single_sample_camera") {
+        return;
+    }
+    let setup = |msaa, sss| Setup {
+        plane: Plane::Scattering,
+        sss,
+        square: true,
+        samples: 16,
+        temporal: false,
+        msaa,
+    };
+    let single = render(setup(false, Some(SubsurfaceDebugView::None))).0;
+    let msaa = render(setup(true, Some(SubsurfaceDebugView::None))).0;
+    let msaa_plain = render(setup(true, None)).0;
+    let debug = render(setup(false, Some(SubsurfaceDebugView::Irradiance))).0;
+    save("sss_msaa_scattered", &msaa);
+    let mask = scattering_mask(&debug);
+    // Scattering pixels whose 3 × 3 neighbourhood scatters too (off the plane's and the
+    // square's outlines, where MSAA resolves other samples in).
+    let inner = |x: u32, y: u32| {
+        (x.max(1) - 1..=(x + 1).min(WIDTH - 1)).all(|i| {
+            (y.max(1) - 1..=(y + 1).min(HEIGHT - 1)).all(|j| mask[(j * WIDTH + i) as usize])
+        })
+    };
+    let (mut sum, mut n, mut far) = (0.0f32, 0usize, 0usize);
+    for y in 0..HEIGHT {
+        for x in 0..WIDTH {
+            if !inner(x, y) {
+                continue;
+            }
+            let (a, b) = (at(&msaa, x, y), at(&single, x, y));
+            let scale = b[0].max(b[1]).max(b[2]).max(0.05);
+            let e = (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0f32, f32::max) / scale;
+            sum += e;
+            n += 1;
+            if e > 0.03 {
+                far += 1;
+            }
+        }
+    }
+    let mean = sum / n.max(1) as f32;
+    // The red shadow edge's steepest step (9 rows through the shadow) over the lit level.
+    let rows = (project(Vec3::new(0.0, -0.45, PLANE_Z)).y as u32 - 4..).take(9);
+    let steepest = |image: &[[f32; 4]]| {
+        let profile: Vec<f32> = (0..WIDTH)
+            .map(|x| rows.clone().map(|y| at(image, x, y)[0]).sum::<f32>() / 9.0)
+            .collect();
+        let on_plane = |x: u32| rows.clone().all(|y| mask[(y * WIDTH + x) as usize]);
+        let lit = profile.iter().copied().fold(0.0f32, f32::max);
+        (1..WIDTH)
+            .filter(|&x| on_plane(x) && on_plane(x - 1))
+            .map(|x| (profile[x as usize] - profile[x as usize - 1]).abs() / lit)
+            .fold(0.0f32, f32::max)
+    };
+    let red = steepest(&msaa) / steepest(&msaa_plain);
+    println!(
+        "deferred MSAA with scattering: {n} inner pixels, |MSAA − single| / single mean \
+         {mean:.4}, {far} over 3 %; red shadow edge steepest step scattered / unscattered {red:.3}"
+    );
+    assert!(n > 3000, "{n} inner scattering pixels");
+    assert!(mean < 0.01, "mean relative difference {mean}");
+    assert!(far * 50 < n, "{far} of {n} pixels differ by more than 3 %");
+    // As on the single-sample camera (0.144 there): unscattered, 1.
+    assert!(red < 0.3, "red is not spread across the shadow edge: {red}");
 }
 
 #[test]

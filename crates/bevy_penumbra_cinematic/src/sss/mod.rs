@@ -65,10 +65,14 @@
 //!   mean error 0.0244 of the lit level across a shadow edge against a world-space
 //!   convolution; 0.0094 averaged over 8 frames). With `temporal`, a temporal
 //!   anti-aliasing filter averages it.
-//! - Not on [`DeferredMsaa`](bevy_penumbra_df::DeferredMsaa) cameras (one warning):
-//!   their scattering materials are shaded as ordinary `StandardMaterial`s there, as on
-//!   cameras without the component (the lighting pass shades the profiles' ids:
-//!   `MsaaShadedLightingIds`).
+//! - On [`DeferredMsaa`](bevy_penumbra_df::DeferredMsaa) cameras both draws run once
+//!   per pixel, after the lighting pass: split lighting from the pixel's first sample
+//!   holding a scattering material (its lighting id marks the irradiance, since the
+//!   ids are multisampled there), then the scatter, written through the sample mask to
+//!   the scattering samples only, replacing the multisampled lighting pass's ordinary
+//!   shading of them (`MsaaShadedLightingIds`: the light loop runs three times on those
+//!   pixels). A pixel's scattering samples share one colour: the edge between two
+//!   scattering materials is not antialiased; the edge against anything else is.
 //!
 //! Cost: nothing without the component or with no scattering material in the view. Per
 //! camera with both: two `Rgba16Float` view-sized textures (16 bytes per pixel, 33 MB at
@@ -304,29 +308,6 @@ fn warn_bad_subsurface_settings(
     }
 }
 
-/// A scattering camera with deferred MSAA (unsupported), once per change.
-#[allow(clippy::type_complexity, reason = "a Bevy system")]
-fn warn_msaa_cameras(
-    cameras: Query<
-        (Entity, &Msaa),
-        (
-            With<SubsurfaceScattering>,
-            With<bevy_penumbra_df::DeferredMsaa>,
-            Or<(Added<SubsurfaceScattering>, Changed<Msaa>)>,
-        ),
-    >,
-) {
-    for (entity, msaa) in &cameras {
-        if *msaa != Msaa::Off {
-            warn!(
-                "Penumbra: SubsurfaceScattering on {entity} is not supported with DeferredMsaa: \
-                 its scattering materials are shaded without scattering (set `Msaa::Off` \
-                 for scattering)"
-            );
-        }
-    }
-}
-
 impl Plugin for SubsurfaceScatteringPlugin {
     fn build(&self, app: &mut App) {
         bevy_penumbra_df::register_shader_library(app);
@@ -339,8 +320,6 @@ impl Plugin for SubsurfaceScatteringPlugin {
                 PostUpdate,
                 (
                     timed(warn_bad_subsurface_settings),
-                    timed(warn_msaa_cameras)
-                        .after(bevy_penumbra_df::lighting::DeferredMsaaSystems::Restore),
                     // After the frame's material edits become events.
                     timed(render::find_scattering_meshes).after(bevy::asset::AssetEventSystems),
                 ),

@@ -9,15 +9,17 @@ use bevy::pbr::{MeshPipelineKey, MeshViewBindGroup, ViewKeyCache};
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
-use bevy::render::render_resource::binding_types::{texture_2d, uniform_buffer_sized};
+use bevy::render::render_resource::binding_types::{
+    texture_2d, texture_2d_multisampled, uniform_buffer_sized,
+};
 use bevy::render::render_resource::encase::UniformBuffer as EncaseBuffer;
 use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
     BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites, CompareFunction, Extent3d,
-    LoadOp, Operations, PipelineCache, RenderPassColorAttachment, RenderPassDepthStencilAttachment,
-    RenderPassDescriptor, RenderPipelineDescriptor, ShaderStages, ShaderType, StoreOp,
-    TextureDescriptor, TextureDimension, TextureFormat, TextureSampleType, TextureUsages,
-    TextureViewId,
+    LoadOp, MultisampleState, Operations, PipelineCache, RenderPassColorAttachment,
+    RenderPassDepthStencilAttachment, RenderPassDescriptor, RenderPipelineDescriptor, ShaderStages,
+    ShaderType, StoreOp, TextureDescriptor, TextureDimension, TextureFormat, TextureSampleType,
+    TextureUsages, TextureViewId,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::sync_component::{SyncComponent, SyncComponentPlugin};
@@ -27,8 +29,9 @@ use bevy::render::view::{ExtractedView, RenderVisibleEntities, ViewTarget};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderStartup, RenderSystems};
 use bevy::shader::ShaderDefVal;
 use bevy_penumbra_df::lighting::{
-    MsaaShadedLightingIds, PenumbraLightingBindGroup, PenumbraLightingPipeline,
-    PenumbraLightingSystems, PenumbraLightingView, set_lighting_bind_groups, visible_meshes,
+    DeferredMsaaTextures, MsaaShadedLightingIds, PenumbraLightingBindGroup,
+    PenumbraLightingPipeline, PenumbraLightingSystems, PenumbraLightingView,
+    set_lighting_bind_groups, visible_meshes,
 };
 use bevy_penumbra_df::system_times::timed;
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraLighting, PenumbraShaderLibrary};
@@ -228,6 +231,9 @@ pub enum ViewSubsurface {
         scatter: CachedRenderPipelineId,
         rest: CachedTexture,
         diffuse: CachedTexture,
+        /// A deferred MSAA view: both draws run once per pixel after the lighting pass,
+        /// and the scatter replaces the scattering samples' shading.
+        msaa: bool,
     },
     /// No `SubsurfaceScattering`: Penumbra's lighting, unscattered.
     Plain(CachedRenderPipelineId),
@@ -237,7 +243,7 @@ pub enum ViewSubsurface {
 #[derive(Component)]
 pub struct ViewSubsurfaceBindGroup {
     uniform: Buffer,
-    group: Option<(BindGroup, [TextureViewId; 3])>,
+    group: Option<(BindGroup, [TextureViewId; 4])>,
 }
 
 /// Which draw a pipeline is for.
@@ -246,12 +252,18 @@ enum Draw {
     Split,
     Scatter,
     Plain,
+    /// The two draws on deferred MSAA views.
+    SplitMsaa,
+    ScatterMsaa,
 }
 
 /// The scatter draw's group 2 and shader, and the pipelines queued per view key.
 #[derive(Resource)]
 struct SubsurfacePipelines {
     layout: BindGroupLayoutDescriptor,
+    /// The scatter draw's group 2 on deferred MSAA views: the lighting ids and G-buffer
+    /// per sample instead of the single-sample ids.
+    msaa_layout: BindGroupLayoutDescriptor,
     scatter_shader: Handle<Shader>,
     queued: HashMap<(MeshPipelineKey, Draw), CachedRenderPipelineId>,
 }
@@ -281,7 +293,15 @@ pub(super) fn build(render_app: &mut SubApp) {
         )
         .add_systems(
             Core3d,
-            timed(subsurface_scattering).in_set(PenumbraLightingSystems::Shading),
+            (
+                timed(subsurface_scattering).in_set(PenumbraLightingSystems::Shading),
+                // Deferred MSAA: after the lighting pass, whose shading of the scattering
+                // samples the scatter replaces; before the forward opaque pass.
+                timed(subsurface_scattering_msaa)
+                    .after(PenumbraLightingSystems::Lighting)
+                    .before(bevy::core_pipeline::core_3d::main_opaque_pass_3d)
+                    .in_set(bevy::core_pipeline::Core3dSystems::MainPass),
+            ),
         );
 }
 
@@ -305,8 +325,22 @@ fn init_subsurface_pipelines(mut commands: Commands, library: Option<Res<Penumbr
             ),
         ),
     );
+    let msaa_layout = BindGroupLayoutDescriptor::new(
+        "penumbra_sss_msaa_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::VERTEX_FRAGMENT,
+            (
+                uniform_buffer_sized(false, Some(SubsurfaceUniform::min_size())),
+                float(),
+                float(),
+                texture_2d_multisampled(TextureSampleType::Uint),
+                texture_2d_multisampled(TextureSampleType::Uint),
+            ),
+        ),
+    );
     commands.insert_resource(SubsurfacePipelines {
         layout,
+        msaa_layout,
         scatter_shader: library.handle("sss/scatter.wgsl"),
         queued: HashMap::default(),
     });
@@ -361,11 +395,16 @@ impl SubsurfacePipelines {
         draw: Draw,
     ) -> CachedRenderPipelineId {
         *self.queued.entry((key, draw)).or_insert_with(|| {
+            let layout = if draw == Draw::ScatterMsaa {
+                &self.msaa_layout
+            } else {
+                &self.layout
+            };
             cache.queue_render_pipeline(descriptor(
                 lighting,
                 key,
                 draw,
-                &self.layout,
+                layout,
                 &self.scatter_shader,
             ))
         })
@@ -381,25 +420,35 @@ fn descriptor(
     layout: &BindGroupLayoutDescriptor,
     scatter_shader: &Handle<Shader>,
 ) -> RenderPipelineDescriptor {
-    let mut desc = lighting.view_descriptor(key);
+    let msaa = matches!(draw, Draw::SplitMsaa | Draw::ScatterMsaa);
+    let mut desc = if msaa {
+        lighting.msaa_view_descriptor(key)
+    } else {
+        lighting.view_descriptor(key)
+    };
     let ids_from = ShaderDefVal::UInt(
         "PENUMBRA_LIGHTING_IDS_FROM".into(),
         u32::from(FIRST_LIGHTING_ID),
     );
     desc.vertex.shader_defs.push(ids_from.clone());
-    let depth = desc
-        .depth_stencil
-        .as_mut()
-        .expect("the lighting pass has one");
-    depth.depth_compare = Some(CompareFunction::Less);
+    if let Some(depth) = desc.depth_stencil.as_mut() {
+        depth.depth_compare = Some(CompareFunction::Less);
+    }
     let fragment = desc.fragment.as_mut().expect("the lighting pass has one");
     fragment.shader_defs.push(ids_from);
     match draw {
         Draw::Plain => desc.label = Some("penumbra_sss_plain_pipeline".into()),
-        Draw::Split => {
+        Draw::Split | Draw::SplitMsaa => {
             desc.label = Some("penumbra_sss_split_pipeline".into());
             fragment.shader_defs.push("PENUMBRA_SPLIT_DIFFUSE".into());
-            fragment.entry_point = Some("split_diffuse".into());
+            fragment.entry_point = Some(
+                if msaa {
+                    "split_diffuse_msaa"
+                } else {
+                    "split_diffuse"
+                }
+                .into(),
+            );
             let target = Some(ColorTargetState {
                 format: SPLIT_FORMAT,
                 blend: None,
@@ -407,12 +456,21 @@ fn descriptor(
             });
             fragment.targets = vec![target.clone(), target];
         }
-        Draw::Scatter => {
+        Draw::Scatter | Draw::ScatterMsaa => {
             desc.label = Some("penumbra_sss_scatter_pipeline".into());
             fragment.shader = scatter_shader.clone();
-            fragment.entry_point = Some("scatter".into());
+            fragment.entry_point = Some(if msaa { "scatter_msaa" } else { "scatter" }.into());
             desc.vertex.shader = scatter_shader.clone();
             desc.layout[2] = layout.clone();
+            if msaa {
+                // Into the multisampled target, the scattering samples only.
+                fragment.shader_defs.push("PENUMBRA_SSS_MSAA".into());
+                desc.vertex.shader_defs.push("PENUMBRA_SSS_MSAA".into());
+                desc.multisample = MultisampleState {
+                    count: key.msaa_samples(),
+                    ..default()
+                };
+            }
         }
     }
     desc
@@ -449,10 +507,12 @@ fn prepare_subsurface_views(
     };
     for (entity, view, lighting_view, target, visible, scatters, drawn) in &views {
         let key = view_key_cache.get(&view.retained_view_entity);
-        // Deferred MSAA views are warned about in the main world.
-        let (Some(key), None, true) = (
+        let msaa = lighting_view.msaa.is_some();
+        // Deferred MSAA views without the component: the lighting pass shades the
+        // scattering materials (`MsaaShadedLightingIds`).
+        let (Some(key), true, true) = (
             key,
-            &lighting_view.msaa,
+            scatters || !msaa,
             !scene.meshes.is_empty() && sees_scattering(visible, &scene.meshes),
         ) else {
             if drawn {
@@ -481,11 +541,17 @@ fn prepare_subsurface_views(
                     },
                 )
             };
+            let (split, scatter) = if msaa {
+                (Draw::SplitMsaa, Draw::ScatterMsaa)
+            } else {
+                (Draw::Split, Draw::Scatter)
+            };
             ViewSubsurface::Scatter {
-                split: pipeline(Draw::Split),
-                scatter: pipeline(Draw::Scatter),
+                split: pipeline(split),
+                scatter: pipeline(scatter),
                 rest: texture("penumbra_sss_rest_light"),
                 diffuse: texture("penumbra_sss_diffuse_irradiance"),
+                msaa,
             }
         } else {
             ViewSubsurface::Plain(pipeline(Draw::Plain))
@@ -505,6 +571,7 @@ fn prepare_subsurface_bind_groups(
         &ViewSubsurface,
         &ExtractedSubsurface,
         &ViewPrepassTextures,
+        Option<&DeferredMsaaTextures>,
         &mut ViewSubsurfaceBindGroup,
     )>,
     mut fresh: Query<
@@ -537,12 +604,24 @@ fn prepare_subsurface_bind_groups(
             });
         }
     }
-    for (draw, settings, prepass, mut group) in &mut views {
-        let ViewSubsurface::Scatter { rest, diffuse, .. } = draw else {
+    for (draw, settings, prepass, msaa_textures, mut group) in &mut views {
+        let ViewSubsurface::Scatter {
+            rest,
+            diffuse,
+            msaa,
+            ..
+        } = draw
+        else {
             continue;
         };
-        let Some(ids) = &prepass.deferred_lighting_pass_id else {
-            continue;
+        // The lighting ids (and, multisampled, the G-buffer words) the scatter reads.
+        let (ids_view, gbuffer_view) = match (msaa, msaa_textures) {
+            (true, Some(m)) => (&m.lighting_id_view, Some(&m.gbuffer_view)),
+            (false, _) => match &prepass.deferred_lighting_pass_id {
+                Some(ids) => (&ids.texture.default_view, None),
+                None => continue,
+            },
+            (true, None) => continue,
         };
         let uniform = SubsurfaceUniform {
             samples: settings.samples,
@@ -559,24 +638,38 @@ fn prepare_subsurface_bind_groups(
             .write(&uniform)
             .expect("the subsurface uniform encodes");
         queue.write_buffer(&group.uniform, 0, bytes.as_ref());
-        let ids_view = &ids.texture.default_view;
         let key = [
             rest.default_view.id(),
             diffuse.default_view.id(),
             ids_view.id(),
+            gbuffer_view.unwrap_or(ids_view).id(),
         ];
         if group.group.as_ref().map(|(_, k)| k) != Some(&key) {
-            let bind_group = allocations.bind_group(
-                &device,
-                "penumbra_sss_bind_group",
-                &pipeline_cache.get_bind_group_layout(&pipelines.layout),
-                &BindGroupEntries::sequential((
-                    group.uniform.as_entire_binding(),
-                    &rest.default_view,
-                    &diffuse.default_view,
-                    ids_view,
-                )),
-            );
+            let bind_group = match gbuffer_view {
+                None => allocations.bind_group(
+                    &device,
+                    "penumbra_sss_bind_group",
+                    &pipeline_cache.get_bind_group_layout(&pipelines.layout),
+                    &BindGroupEntries::sequential((
+                        group.uniform.as_entire_binding(),
+                        &rest.default_view,
+                        &diffuse.default_view,
+                        ids_view,
+                    )),
+                ),
+                Some(gbuffer_view) => allocations.bind_group(
+                    &device,
+                    "penumbra_sss_msaa_bind_group",
+                    &pipeline_cache.get_bind_group_layout(&pipelines.msaa_layout),
+                    &BindGroupEntries::sequential((
+                        group.uniform.as_entire_binding(),
+                        &rest.default_view,
+                        &diffuse.default_view,
+                        ids_view,
+                        gbuffer_view,
+                    )),
+                ),
+            };
             group.group = Some((bind_group, key));
         }
     }
@@ -585,7 +678,7 @@ fn prepare_subsurface_bind_groups(
 /// The scattering pixels' draws, before Penumbra's lighting pass (which discards the
 /// lighting-id depth it tests against): split lighting into the two textures, then the
 /// scatter draw into the view's target — or, on a view without the component,
-/// Penumbra's lighting of those pixels.
+/// Penumbra's lighting of those pixels. Deferred MSAA views: [`subsurface_scattering_msaa`].
 #[allow(clippy::type_complexity, reason = "a Bevy system")]
 pub fn subsurface_scattering(
     view: ViewQuery<(
@@ -603,18 +696,14 @@ pub fn subsurface_scattering(
     let Some(lighting_group) = lighting.bind_group() else {
         return;
     };
-    let depth = || {
-        Some(RenderPassDepthStencilAttachment {
-            view: &ids.texture.default_view,
-            depth_ops: Some(Operations {
-                load: LoadOp::Load,
-                store: StoreOp::Store,
-            }),
-            stencil_ops: None,
-        })
+    let depth = RenderPassDepthStencilAttachment {
+        view: &ids.texture.default_view,
+        depth_ops: Some(Operations {
+            load: LoadOp::Load,
+            store: StoreOp::Store,
+        }),
+        stencil_ops: None,
     };
-    let diagnostics = ctx.diagnostic_recorder();
-    let diagnostics = diagnostics.as_deref();
     match draw {
         ViewSubsurface::Plain(id) => {
             let Some(pipeline) = pipeline_cache.get_render_pipeline(*id) else {
@@ -623,7 +712,7 @@ pub fn subsurface_scattering(
             let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
                 label: Some("penumbra_sss_plain"),
                 color_attachments: &[Some(target.get_color_attachment())],
-                depth_stencil_attachment: depth(),
+                depth_stencil_attachment: Some(depth),
                 timestamp_writes: None,
                 occlusion_query_set: None,
                 multiview_mask: None,
@@ -632,49 +721,120 @@ pub fn subsurface_scattering(
             set_lighting_bind_groups(&mut pass, mesh_view, lighting_group);
             pass.draw(0..3, 0..1);
         }
-        ViewSubsurface::Scatter {
+        ViewSubsurface::Scatter { msaa: false, .. } => {
+            let draws = ScatterDraws {
+                draw,
+                mesh_view,
+                target,
+                lighting_group,
+                group,
+            };
+            draws.record(&pipeline_cache, &mut ctx, Some(depth));
+        }
+        ViewSubsurface::Scatter { msaa: true, .. } => {}
+    }
+}
+
+/// The scattering pixels' draws on a deferred MSAA view, after Penumbra's lighting
+/// pass: split lighting once per pixel, then the scatter draw into the samples that hold
+/// a scattering material (their unscattered shading replaced).
+#[allow(clippy::type_complexity, reason = "a Bevy system")]
+pub fn subsurface_scattering_msaa(
+    view: ViewQuery<
+        (
+            &ViewSubsurface,
+            &MeshViewBindGroup,
+            &ViewTarget,
+            &PenumbraLightingBindGroup,
+            Option<&ViewSubsurfaceBindGroup>,
+        ),
+        With<DeferredMsaaTextures>,
+    >,
+    pipeline_cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    let (draw, mesh_view, target, lighting, group) = view.into_inner();
+    let (ViewSubsurface::Scatter { msaa: true, .. }, Some(lighting_group)) =
+        (draw, lighting.bind_group())
+    else {
+        return;
+    };
+    let draws = ScatterDraws {
+        draw,
+        mesh_view,
+        target,
+        lighting_group,
+        group,
+    };
+    draws.record(&pipeline_cache, &mut ctx, None);
+}
+
+/// What the split lighting and scatter draws of one view bind.
+struct ScatterDraws<'a> {
+    draw: &'a ViewSubsurface,
+    mesh_view: &'a MeshViewBindGroup,
+    target: &'a ViewTarget,
+    lighting_group: &'a BindGroup,
+    group: Option<&'a ViewSubsurfaceBindGroup>,
+}
+
+impl ScatterDraws<'_> {
+    /// Records split lighting into the two textures, then the scatter into the view's
+    /// target; both depth-tested against `depth` (the lighting ids) when given.
+    fn record(
+        &self,
+        pipeline_cache: &PipelineCache,
+        ctx: &mut RenderContext,
+        depth: Option<RenderPassDepthStencilAttachment<'_>>,
+    ) {
+        let ViewSubsurface::Scatter {
             split,
             scatter,
             rest,
             diffuse,
-        } => {
-            let (Some(split), Some(scatter), Some((group, _))) = (
-                pipeline_cache.get_render_pipeline(*split),
-                pipeline_cache.get_render_pipeline(*scatter),
-                group.and_then(|g| g.group.as_ref()),
-            ) else {
-                return; // compiling, or the first frame
-            };
-            let time_span =
-                diagnostics.time_span(ctx.command_encoder(), "penumbra_subsurface_scattering");
-            let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
-                label: Some("penumbra_sss_split"),
-                color_attachments: &[cleared(rest), cleared(diffuse)],
-                depth_stencil_attachment: depth(),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_render_pipeline(split);
-            set_lighting_bind_groups(&mut pass, mesh_view, lighting_group);
-            pass.draw(0..3, 0..1);
-            drop(pass);
-            let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
-                label: Some("penumbra_sss_scatter"),
-                color_attachments: &[Some(target.get_color_attachment())],
-                depth_stencil_attachment: depth(),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_render_pipeline(scatter);
-            pass.set_bind_group(0, &mesh_view.main, &mesh_view.main_offsets);
-            pass.set_bind_group(1, &mesh_view.binding_array, &[]);
-            pass.set_bind_group(2, group, &[]);
-            pass.draw(0..3, 0..1);
-            drop(pass);
-            time_span.end(ctx.command_encoder());
-        }
+            ..
+        } = self.draw
+        else {
+            return;
+        };
+        let (Some(split), Some(scatter), Some((group, _))) = (
+            pipeline_cache.get_render_pipeline(*split),
+            pipeline_cache.get_render_pipeline(*scatter),
+            self.group.and_then(|g| g.group.as_ref()),
+        ) else {
+            return; // compiling, or the first frame
+        };
+        let diagnostics = ctx.diagnostic_recorder();
+        let diagnostics = diagnostics.as_deref();
+        let time_span =
+            diagnostics.time_span(ctx.command_encoder(), "penumbra_subsurface_scattering");
+        let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
+            label: Some("penumbra_sss_split"),
+            color_attachments: &[cleared(rest), cleared(diffuse)],
+            depth_stencil_attachment: depth.clone(),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_render_pipeline(split);
+        set_lighting_bind_groups(&mut pass, self.mesh_view, self.lighting_group);
+        pass.draw(0..3, 0..1);
+        drop(pass);
+        let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
+            label: Some("penumbra_sss_scatter"),
+            color_attachments: &[Some(self.target.get_color_attachment())],
+            depth_stencil_attachment: depth,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_render_pipeline(scatter);
+        pass.set_bind_group(0, &self.mesh_view.main, &self.mesh_view.main_offsets);
+        pass.set_bind_group(1, &self.mesh_view.binding_array, &[]);
+        pass.set_bind_group(2, group, &[]);
+        pass.draw(0..3, 0..1);
+        drop(pass);
+        time_span.end(ctx.command_encoder());
     }
 }
 

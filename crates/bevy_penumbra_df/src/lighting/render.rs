@@ -391,6 +391,19 @@ impl PenumbraLightingPipeline {
         self.specialize((key, LightingVariant::Single))
     }
 
+    /// The deferred MSAA counterpart of [`Self::view_descriptor`], for passes that shade
+    /// a `DeferredMsaa` view's pixels another way (subsurface scattering): Bevy's
+    /// multisampled view layouts, Penumbra's MSAA group 2 (the multisampled G-buffer and
+    /// lighting ids, `lighting/msaa_view.wgsl`), `PENUMBRA_MSAA` and `MULTISAMPLED`
+    /// defined; single-sample, no depth or stencil test. Callers set the entry point,
+    /// targets and sample count.
+    pub fn msaa_view_descriptor(&self, key: MeshPipelineKey) -> RenderPipelineDescriptor {
+        let mut desc = self.specialize((key, LightingVariant::PerPixel));
+        desc.depth_stencil = None;
+        desc.multisample = default();
+        desc
+    }
+
     /// Group 2 of single-sample lighting draws.
     pub fn layout(&self) -> &BindGroupLayoutDescriptor {
         &self.layout

@@ -103,10 +103,45 @@ fn split_diffuse(in: FullscreenVertexOutput) -> SplitDiffuse {
     if !is_lit(pbr_input) {
         return SplitDiffuse(pbr_input.material.base_color, vec4(0.0, 0.0, 0.0, 1.0));
     }
+    return split_lighting(pbr_input, 1.0);
+}
+
+// The two targets of a lit sample; `marker` is the irradiance's alpha.
+fn split_lighting(pbr_input: pbr_types::PbrInput, marker: f32) -> SplitDiffuse {
     let rest = apply_lighting_with_diffuse_color(pbr_input, vec3(0.0));
     let white = apply_lighting_with_diffuse_color(pbr_input, vec3(1.0));
-    return SplitDiffuse(rest, vec4(white.rgb - rest.rgb, 1.0));
+    return SplitDiffuse(rest, vec4(white.rgb - rest.rgb, marker));
 }
+
+#ifdef PENUMBRA_MSAA
+// Deferred MSAA: the split lighting once per pixel that holds a scattering material,
+// from its first sample that does (the shadow masks and AO per pixel). The irradiance's
+// alpha is that sample's lighting id (the scatter draw's profile test: the lighting ids
+// are multisampled); pixels without one are left cleared (alpha 0).
+@fragment
+fn split_diffuse_msaa(in: FullscreenVertexOutput) -> SplitDiffuse {
+    let pixel = vec2<i32>(in.position.xy);
+    var sample = 4u;
+    var id = 0u;
+    for (var i = 3; i >= 0; i--) {
+        let sample_id = textureLoad(msaa_view::msaa_lighting_id, pixel, i).r;
+        if sample_id >= #{PENUMBRA_LIGHTING_IDS_FROM} {
+            sample = u32(i);
+            id = sample_id;
+        }
+    }
+    if sample == 4u {
+        discard;
+    }
+    let frag_coord = vec4(in.position.xy, prepass_utils::prepass_depth(in.position, sample), 0.0);
+    let gbuffer = textureLoad(msaa_view::msaa_gbuffer, pixel, i32(sample));
+    let pbr_input = with_screen_space_occlusion(pbr_input_from_deferred_gbuffer(frag_coord, gbuffer));
+    if !is_lit(pbr_input) {
+        return SplitDiffuse(pbr_input.material.base_color, vec4(0.0, 0.0, 0.0, f32(id)));
+    }
+    return split_lighting(pbr_input, f32(id));
+}
+#endif
 #endif
 
 #ifdef PENUMBRA_MSAA

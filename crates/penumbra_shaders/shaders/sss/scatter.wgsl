@@ -35,8 +35,15 @@ struct SubsurfaceUniform {
 // irradiance (exposed, before the diffuse colour).
 @group(2) @binding(1) var rest_light: texture_2d<f32>;
 @group(2) @binding(2) var diffuse_irradiance: texture_2d<f32>;
+#ifdef PENUMBRA_SSS_MSAA
+// Deferred MSAA: Bevy's lighting pass ids and G-buffer words per sample. A pixel's id
+// is the irradiance's alpha (the split lighting's first scattering sample).
+@group(2) @binding(3) var msaa_lighting_ids: texture_multisampled_2d<u32>;
+@group(2) @binding(4) var msaa_gbuffer: texture_multisampled_2d<u32>;
+#else
 // Bevy's deferred lighting pass ids (`R8Uint`): the profile is `id − first_id`.
 @group(2) @binding(3) var lighting_ids: texture_2d<u32>;
+#endif
 
 struct FullscreenVertexOutput {
     @builtin(position) position: vec4<f32>,
@@ -51,12 +58,59 @@ fn vertex(@builtin(vertex_index) vertex_index: u32) -> FullscreenVertexOutput {
     return FullscreenVertexOutput(vec4(uv * vec2(2.0, -2.0) + vec2(-1.0, 1.0), depth, 1.0));
 }
 
+#ifndef PENUMBRA_SSS_MSAA
 @fragment
 fn scatter(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
     let pixel = vec2<i32>(in.position.xy);
     let frag_coord = vec4(in.position.xy, prepass_utils::prepass_depth(in.position, 0u), 0.0);
     let pbr_input = pbr_input_from_deferred_gbuffer(frag_coord, textureLoad(deferred_prepass_texture, pixel, 0));
-    let profile = textureLoad(lighting_ids, pixel, 0).r - subsurface.first_id;
+    return scattered_color(pixel, pbr_input, pixel_id(pixel) - subsurface.first_id);
+}
+
+// The lighting pass id of frame-buffer pixel `j`.
+fn pixel_id(j: vec2<i32>) -> u32 {
+    return textureLoad(lighting_ids, j, 0).r;
+}
+#else
+struct MsaaScatterOutput {
+    @location(0) color: vec4<f32>,
+    @builtin(sample_mask) mask: u32,
+}
+
+// Deferred MSAA, drawn after the lighting pass: once per pixel, from its first
+// scattering sample, into the samples that hold a scattering material (the sample
+// mask), replacing their unscattered shading; the other samples keep theirs.
+@fragment
+fn scatter_msaa(in: FullscreenVertexOutput) -> MsaaScatterOutput {
+    let pixel = vec2<i32>(in.position.xy);
+    var mask = 0u;
+    var first = 4u;
+    for (var i = 3; i >= 0; i--) {
+        if textureLoad(msaa_lighting_ids, pixel, i).r >= subsurface.first_id {
+            mask |= 1u << u32(i);
+            first = u32(i);
+        }
+    }
+    if mask == 0u {
+        discard;
+    }
+    let frag_coord = vec4(in.position.xy, prepass_utils::prepass_depth(in.position, first), 0.0);
+    let gbuffer = textureLoad(msaa_gbuffer, pixel, i32(first));
+    let pbr_input = pbr_input_from_deferred_gbuffer(frag_coord, gbuffer);
+    let profile = pixel_id(pixel) - subsurface.first_id;
+    return MsaaScatterOutput(scattered_color(pixel, pbr_input, profile), mask);
+}
+
+// The scattering lighting id of frame-buffer pixel `j` (0: none), as the split
+// lighting marked it.
+fn pixel_id(j: vec2<i32>) -> u32 {
+    return u32(textureLoad(diffuse_irradiance, j, 0).a);
+}
+#endif
+
+// A scattering pixel's colour: the scattered irradiance times its diffuse colour, plus
+// the light that is not scattered, post-processed (or a debug view).
+fn scattered_color(pixel: vec2<i32>, pbr_input: pbr_types::PbrInput, profile: u32) -> vec4<f32> {
     let scattered = scattered_irradiance(pixel, pbr_input.world_position.xyz, pbr_input.N, profile);
     if subsurface.debug_view == 1u {
         return vec4(textureLoad(diffuse_irradiance, pixel, 0).rgb, 2.0 + f32(profile));
@@ -116,7 +170,7 @@ fn scattered_irradiance(pixel: vec2<i32>, p: vec3<f32>, n: vec3<f32>, k: u32) ->
         }
         let xy = origin + local;
         let j = vec2<i32>(xy);
-        if textureLoad(lighting_ids, j, 0).r != id {
+        if pixel_id(j) != id {
             continue;
         }
         // The distance between the surface points, never under the disc radius (never 0).
