@@ -80,8 +80,9 @@
 //! - The temporal filter trades ghosting for stability: after a caster moves, its old
 //!   occlusion fades over about ten frames (the confidence flushes large changes at
 //!   once); a camera cut or a resize starts from a single frame.
-//! - Under deferred MSAA the temporal filter is off (the motion vectors are
-//!   multisampled); the pixels shaded per sample get a per-sample upsample of the trace
+//! - Under deferred MSAA the temporal filter reads the multisampled motion vectors at
+//!   sample 0 (an edge pixel's history is kept or rejected by its representative depth);
+//!   the pixels shaded per sample get a per-sample upsample of the trace
 //!   ([`DeferredMsaa::sample_occlusion`](crate::DeferredMsaa::sample_occlusion), 32 more
 //!   bytes per pixel), which separates a sample's surface from its neighbours' only as
 //!   far as the upsample's depth and normal weights do.

@@ -45,6 +45,10 @@ struct AoPipelines {
     sample_upsample: Option<CachedComputePipelineId>,
     temporal_layout: BindGroupLayoutDescriptor,
     temporal: CachedComputePipelineId,
+    /// The temporal pass of deferred MSAA views (`MULTISAMPLED_MOTION`: the motion
+    /// vectors multisampled); queued for the first such view.
+    temporal_msaa_layout: BindGroupLayoutDescriptor,
+    temporal_msaa: Option<CachedComputePipelineId>,
     /// Bound when the scene has no SDF volume (analytic casters only).
     empty_atlas: TextureView,
 }
@@ -195,23 +199,30 @@ fn init_ao_pipelines(
         ),
     );
     let float = || texture_2d(TextureSampleType::Float { filterable: false });
-    let temporal_layout = BindGroupLayoutDescriptor::new(
-        "penumbra_dfao_temporal_layout",
-        &BindGroupLayoutEntries::sequential(
-            ShaderStages::COMPUTE,
-            (
-                float(),
-                float(),
-                float(),
-                float(),
-                texture_2d(TextureSampleType::Uint),
-                float(),
-                uniform_buffer_sized(false, Some(AoTemporalView::min_size())),
-                texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
-                texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
-                texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+    let temporal_layout_with = |label, motion| {
+        BindGroupLayoutDescriptor::new(
+            label,
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    float(),
+                    float(),
+                    float(),
+                    float(),
+                    texture_2d(TextureSampleType::Uint),
+                    motion,
+                    uniform_buffer_sized(false, Some(AoTemporalView::min_size())),
+                    texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+                    texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+                    texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+                ),
             ),
-        ),
+        )
+    };
+    let temporal_layout = temporal_layout_with("penumbra_dfao_temporal_layout", float());
+    let temporal_msaa_layout = temporal_layout_with(
+        "penumbra_dfao_temporal_msaa_layout",
+        texture_2d_multisampled(TextureSampleType::Float { filterable: false }),
     );
     let temporal = library.queue_compute(
         &pipeline_cache,
@@ -244,6 +255,8 @@ fn init_ao_pipelines(
         sample_upsample: None,
         temporal_layout,
         temporal,
+        temporal_msaa_layout,
+        temporal_msaa: None,
         empty_atlas: crate::shader_library::empty_atlas(&device),
     });
 }
@@ -261,6 +274,24 @@ fn queue_sample_upsample(
             shader: library.handle("df/ao_upsample.wgsl"),
             shader_defs: vec!["PENUMBRA_SAMPLE_UPSAMPLE".into()],
             entry_point: Some("upsample_samples".into()),
+            ..default()
+        })
+    })
+}
+
+/// Queues deferred MSAA's temporal pass (once).
+fn queue_temporal_msaa(
+    pipelines: &mut AoPipelines,
+    library: &PenumbraShaderLibrary,
+    pipeline_cache: &PipelineCache,
+) -> CachedComputePipelineId {
+    *pipelines.temporal_msaa.get_or_insert_with(|| {
+        pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
+            label: Some("penumbra_dfao_temporal_msaa".into()),
+            layout: vec![pipelines.temporal_msaa_layout.clone()],
+            shader: library.handle("df/ao_temporal.wgsl"),
+            shader_defs: vec!["MULTISAMPLED_MOTION".into()],
+            entry_point: Some("temporal".into()),
             ..default()
         })
     })
@@ -339,19 +370,30 @@ fn prepare_dfao_textures(
         let samples =
             sample_upsample.is_some_and(|id| pipeline_cache.get_compute_pipeline(id).is_some());
         // Without motion vectors (the prepass removed by hand) there is no temporal
-        // filter: each frame stands alone. Nor on a deferred MSAA view: its motion
-        // vectors are multisampled and not read (`prepare_dfao_bind_groups`), so the
-        // lighting must read the AO as traced, not a filtered texture nothing writes.
-        // The objects-per-tile view shows the trace's counts unfiltered.
+        // filter: each frame stands alone. The objects-per-tile view shows the trace's
+        // counts unfiltered.
         let temporal = resolved.temporal
             && motion
-            && lighting_view.msaa.is_none()
             && resolved.debug != DistanceFieldAoDebugView::ObjectsPerTile;
+        // Deferred MSAA views read multisampled motion vectors: their own pipeline. The
+        // lighting reads the filtered texture only once that pass can write it.
+        let temporal_compiled = match (
+            &lighting_view.msaa,
+            pipelines.as_deref_mut(),
+            library.as_deref(),
+        ) {
+            (None, ..) => compiled[2],
+            (Some(_), Some(p), Some(library)) if temporal => pipeline_cache
+                .get_compute_pipeline(queue_temporal_msaa(p, library, &pipeline_cache))
+                .is_some(),
+            _ => false,
+        };
         let size = view.viewport.zw().max(UVec2::ONE);
         // A small view traces more of its pixels (`view_divisor`).
         let divisor = view_divisor(size, resolved.divisor, resolved.min_trace_rows);
         // Only the passes this view runs need to have compiled.
-        let ready = compiled[0] && (divisor <= 1 || compiled[1]) && (!temporal || compiled[2]);
+        let ready =
+            compiled[0] && (divisor <= 1 || compiled[1]) && (!temporal || temporal_compiled);
         if !(ready && has_objects) {
             commands.entity(entity).remove::<PenumbraAoInput>();
             continue;
@@ -487,8 +529,7 @@ fn prepare_dfao_bind_groups(
                     out,
                 ]
             });
-        // Multisampled motion vectors (deferred MSAA) are not read: no temporal filter.
-        let motion = prepass.motion_vectors_view().filter(|_| msaa.is_none());
+        let motion = prepass.motion_vectors_view();
         let frame = textures.frame;
         let eye = view.world_from_view.translation();
         let view_from_clip = view.clip_from_view.inverse();
@@ -658,7 +699,11 @@ fn prepare_dfao_bind_groups(
                             allocations.bind_group(
                                 &device,
                                 "penumbra_dfao_temporal",
-                                &pipeline_cache.get_bind_group_layout(&pipelines.temporal_layout),
+                                &pipeline_cache.get_bind_group_layout(if msaa.is_some() {
+                                    &pipelines.temporal_msaa_layout
+                                } else {
+                                    &pipelines.temporal_layout
+                                }),
                                 &BindGroupEntries::sequential((
                                     textures.unfiltered(),
                                     &read[0],
@@ -685,12 +730,17 @@ fn prepare_dfao_bind_groups(
 /// The view's DFAO passes: the trace, then (above divisor 1) the upsample, then (with
 /// the temporal filter) the temporal pass. Dispatches only.
 fn distance_field_ambient_occlusion(
-    view: ViewQuery<(&ViewAoBindGroups, &ViewAoTextures, &PenumbraAoInput)>,
+    view: ViewQuery<(
+        &ViewAoBindGroups,
+        &ViewAoTextures,
+        &PenumbraAoInput,
+        Has<DeferredMsaaTextures>,
+    )>,
     pipelines: Option<Res<AoPipelines>>,
     pipeline_cache: Res<PipelineCache>,
     mut ctx: RenderContext,
 ) {
-    let (groups, textures, _) = view.into_inner();
+    let (groups, textures, _, msaa) = view.into_inner();
     let Some(pipelines) = pipelines else {
         return;
     };
@@ -703,7 +753,12 @@ fn distance_field_ambient_occlusion(
     let sample_upsample = pipelines
         .sample_upsample
         .and_then(|id| pipeline_cache.get_compute_pipeline(id));
-    let temporal = pipeline_cache.get_compute_pipeline(pipelines.temporal);
+    let temporal = if msaa {
+        pipelines.temporal_msaa
+    } else {
+        Some(pipelines.temporal)
+    }
+    .and_then(|id| pipeline_cache.get_compute_pipeline(id));
     let (Some(trace_group), Some(far_group)) = (&groups.trace, &groups.far) else {
         return;
     };

@@ -35,7 +35,13 @@ struct AoTemporalView {
 @group(0) @binding(3) var depth_texture: texture_2d<f32>;
 @group(0) @binding(4) var gbuffer: texture_2d<u32>;
 // Bevy's motion vectors: this frame's UV minus the previous frame's.
+#ifdef MULTISAMPLED_MOTION
+// Deferred MSAA: multisampled; sample 0 is read (a pixel's samples of one surface move
+// alike, and an edge pixel's history is rejected by depth where they do not).
+@group(0) @binding(5) var motion_vectors: texture_multisampled_2d<f32>;
+#else
 @group(0) @binding(5) var motion_vectors: texture_2d<f32>;
+#endif
 @group(0) @binding(6) var<uniform> view: AoTemporalView;
 @group(0) @binding(7) var out_value: texture_storage_2d<rgba16float, write>;
 @group(0) @binding(8) var out_state: texture_storage_2d<rgba16float, write>;
