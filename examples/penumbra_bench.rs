@@ -8,7 +8,8 @@
 //! ```
 //!
 //! Every scene (`--scenes`: the showcase room, `CornellBox.glb`,
-//! `DepthOfFieldExample.glb`, `FlightHelmet`, a stress scene) is rendered in each of its
+//! `DepthOfFieldExample.glb`, `FlightHelmet`, a stress scene, the flagship `samaritan`
+//! scene with every feature on one camera) is rendered in each of its
 //! variants (`bevy`, `penumbra-off`, `penumbra`, and Bevy's counterpart of a Penumbra
 //! feature: see `bench/scenes.rs`), each in a fresh app, at every `--sizes` size.
 //! A run waits for the scene to load and every distance field to bake, renders
@@ -20,6 +21,9 @@
 //! `bench.json` and `bench.md` to `--out` (the table also goes to standard output).
 //!
 //! Needs a Vulkan driver (a GPU's, or Mesa's lavapipe); nothing else, no network.
+
+// The showcase and the flagship scene each bring the examples' shared command line.
+#![allow(clippy::duplicate_mod)]
 
 use bevy::prelude::*;
 use bevy::render::diagnostic::RenderDiagnosticsPlugin;
@@ -34,6 +38,9 @@ pub mod report;
 #[path = "bench/scenes.rs"]
 pub mod scenes;
 
+#[allow(dead_code, reason = "only the flagship's scene is used")]
+#[path = "samaritan.rs"]
+mod samaritan;
 #[allow(dead_code, reason = "only the showcase's scene is used")]
 #[path = "showcase.rs"]
 mod showcase;

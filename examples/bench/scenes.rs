@@ -7,6 +7,7 @@
 //! `penumbra` (the scene's Penumbra effects), and the counterparts `bevy-ssao`,
 //! `forward-msaa4` / `deferred-msaa4`, `bevy-dof` / `scatter-bokeh`, `bevy-ssr`.
 
+use super::samaritan::SamaritanScenePlugin;
 use super::showcase::{ShowcaseCaster, ShowcaseScenePlugin};
 use bevy::camera::primitives::Aabb;
 use bevy::camera::{Exposure, Hdr, ShadowLodOrigin};
@@ -36,16 +37,20 @@ pub enum SceneKind {
     /// 1,000 mesh casters, 8 shadowed lights, DFAO with the global field, 100
     /// billboards, a head of hair and a tessellated rock.
     Stress,
+    /// The flagship scene (`examples/samaritan.rs`, built in code): every Penumbra
+    /// feature on one deferred 4× MSAA camera.
+    Samaritan,
 }
 
 impl SceneKind {
     /// Every scene, in report order.
-    pub const ALL: [SceneKind; 5] = [
+    pub const ALL: [SceneKind; 6] = [
         SceneKind::Showcase,
         SceneKind::Cornell,
         SceneKind::Dof,
         SceneKind::Helmet,
         SceneKind::Stress,
+        SceneKind::Samaritan,
     ];
 
     /// The name on the command line and in the report.
@@ -56,6 +61,7 @@ impl SceneKind {
             SceneKind::Dof => "dof",
             SceneKind::Helmet => "helmet",
             SceneKind::Stress => "stress",
+            SceneKind::Samaritan => "samaritan",
         }
     }
 
@@ -65,7 +71,7 @@ impl SceneKind {
             SceneKind::Cornell => Some("CornellBox.glb"),
             SceneKind::Dof => Some("DepthOfFieldExample.glb"),
             SceneKind::Helmet => Some("FlightHelmet/FlightHelmet.gltf"),
-            SceneKind::Showcase | SceneKind::Stress => None,
+            SceneKind::Showcase | SceneKind::Stress | SceneKind::Samaritan => None,
         }
     }
 
@@ -85,6 +91,8 @@ impl SceneKind {
             SceneKind::Cornell | SceneKind::Helmet => &[Bevy, BevyNoShadows, Penumbra, BevySsao],
             SceneKind::Dof => &[Bevy, BevyDof, ScatterBokeh, ScatterBokehHalf],
             SceneKind::Stress => &[Bevy, BevyNoShadows, Penumbra, BevySsr],
+            // Its own camera and lights: every feature, or none of Penumbra's.
+            SceneKind::Samaritan => &[PenumbraOff, Penumbra],
         }
     }
 }
@@ -227,6 +235,10 @@ pub fn add_scene(app: &mut App, run: &Run) {
             app.add_systems(PostStartup, spawn_stress)
                 .add_systems(Update, spin);
         }
+        SceneKind::Samaritan => {
+            app.add_plugins(SamaritanScenePlugin)
+                .add_systems(PostStartup, adopt_samaritan);
+        }
         _ => {
             app.add_systems(Startup, spawn_gltf);
         }
@@ -362,6 +374,41 @@ fn adopt_showcase(
     commands.insert_resource(Framed {
         scale: 1.0,
         reach: 15.0,
+    });
+}
+
+/// The flagship scene keeps its own camera (every feature on it) in place of the
+/// bench's; `penumbra-off` takes Penumbra's components off it and its lights.
+#[allow(clippy::type_complexity, reason = "a Bevy system")]
+fn adopt_samaritan(
+    mut commands: Commands,
+    run: Res<Run>,
+    theirs: Single<Entity, (With<Camera3d>, Without<BenchCamera>)>,
+    ours: Single<Entity, With<BenchCamera>>,
+    lights: Query<Entity, With<DistanceFieldShadows>>,
+) {
+    commands.entity(*ours).despawn();
+    let mut camera = commands.entity(*theirs);
+    camera.insert((BenchCamera, ShadowLodOrigin));
+    if run.variant != Variant::Penumbra {
+        camera
+            .remove::<(
+                PenumbraLighting,
+                DeferredMsaa,
+                DistanceFieldAmbientOcclusion,
+                GlobalDistanceField,
+                SubsurfaceScattering,
+                BillboardReflections,
+                BokehDepthOfField,
+            )>()
+            .insert(Msaa::Off);
+        for light in &lights {
+            commands.entity(light).remove::<DistanceFieldShadows>();
+        }
+    }
+    commands.insert_resource(Framed {
+        scale: 1.0,
+        reach: 40.0,
     });
 }
 
