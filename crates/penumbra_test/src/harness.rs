@@ -17,6 +17,51 @@ use bevy::{
 };
 use std::sync::{Arc, Mutex, OnceLock};
 
+/// Every warning and error logged in this process since the last [`take_warnings`]
+/// (target and message), recorded by the log layer the first harness app installs.
+static WARNINGS: Mutex<Vec<String>> = Mutex::new(Vec::new());
+
+/// The warnings and errors logged since the last call (`target: message`), in order.
+/// Recorded once the first [`HeadlessRender::app`] has installed Bevy's logger.
+pub fn take_warnings() -> Vec<String> {
+    std::mem::take(&mut *WARNINGS.lock().unwrap_or_else(|e| e.into_inner()))
+}
+
+/// The log layer behind [`take_warnings`].
+struct WarningRecorder;
+
+impl<S: bevy::log::tracing::Subscriber> bevy::log::tracing_subscriber::Layer<S>
+    for WarningRecorder
+{
+    fn on_event(
+        &self,
+        event: &bevy::log::tracing::Event<'_>,
+        _: bevy::log::tracing_subscriber::layer::Context<'_, S>,
+    ) {
+        if *event.metadata().level() > bevy::log::Level::WARN {
+            return; // info and below
+        }
+        struct Message(String);
+        impl bevy::log::tracing::field::Visit for Message {
+            fn record_debug(
+                &mut self,
+                field: &bevy::log::tracing::field::Field,
+                value: &dyn std::fmt::Debug,
+            ) {
+                if field.name() == "message" {
+                    self.0 = format!("{value:?}");
+                }
+            }
+        }
+        let mut message = Message(String::new());
+        event.record(&mut message);
+        WARNINGS
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(format!("{}: {}", event.metadata().target(), message.0));
+    }
+}
+
 /// Pixel format of the capture target.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum CaptureFormat {
@@ -240,8 +285,9 @@ fn record_render_error(error: &RenderError, _: &mut World, _: &mut World) -> Ren
     RenderErrorPolicy::StopRendering
 }
 
-/// The errors recorded since the last call.
-fn take_render_errors() -> Vec<String> {
+/// The wgpu errors recorded since the last call (rendering stops at the first): for
+/// tests that drive a kept app themselves ([`HeadlessRender::read_target`]).
+pub fn take_render_errors() -> Vec<String> {
     std::mem::take(&mut *RENDER_ERRORS.lock().unwrap_or_else(|e| e.into_inner()))
 }
 
@@ -337,6 +383,7 @@ impl HeadlessRender {
                          bevy_render::gpu_readback=error"
                     .into(),
                 level: bevy::log::Level::WARN,
+                custom_layer: |_| Some(Box::new(WarningRecorder)),
                 ..default()
             })
             .set(AssetPlugin {

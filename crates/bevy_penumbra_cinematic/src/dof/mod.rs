@@ -82,6 +82,8 @@
 //!   (a second main pass after the effect would be needed; not offered).
 //! - With MSAA the depth is the first sample's, as Bevy's `DepthOfField` reads it.
 //! - Perspective cameras only (one warning, then nothing, on an orthographic one).
+//! - Not with Bevy's `DepthOfField` on the same camera (two lens blurs): Penumbra's is
+//!   off while Bevy's is there (one warning).
 //!
 //! Cost: nothing without the component. Per camera: two half-resolution and two
 //! quarter-resolution layers (`Rgba32Float`, 40 bytes per half pixel for all four;
@@ -107,6 +109,7 @@ mod render;
 use bevy::asset::AssetEvent;
 use bevy::camera::{Camera3d, PhysicalCameraParameters, Projection};
 use bevy::platform::collections::HashMap;
+use bevy::post_process::dof::DepthOfField;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::render_resource::TextureUsages;
@@ -508,12 +511,23 @@ fn prepare_bokeh_apertures(
     }
 }
 
-/// Warns once per change of a camera's settings when some are out of range, or when
-/// its projection is not perspective.
+/// Warns once per change of a camera's settings when some are out of range, when its
+/// projection is not perspective, or when it also has Bevy's `DepthOfField`.
+#[allow(clippy::type_complexity, reason = "a Bevy system")]
 fn warn_bad_bokeh_settings(
-    cameras: Query<(Entity, &BokehDepthOfField, &Projection), Changed<BokehDepthOfField>>,
+    cameras: Query<
+        (Entity, &BokehDepthOfField, &Projection, Has<DepthOfField>),
+        Or<(Changed<BokehDepthOfField>, Added<DepthOfField>)>,
+    >,
 ) {
-    for (entity, settings, projection) in &cameras {
+    for (entity, settings, projection, bevy_dof) in &cameras {
+        if bevy_dof {
+            warn!(
+                "Penumbra: BokehDepthOfField on {entity}: the camera also has Bevy's \
+                 DepthOfField (two lens blurs); Penumbra's is off while Bevy's is there"
+            );
+            continue;
+        }
         let Projection::Perspective(perspective) = projection else {
             warn!(
                 "Penumbra: BokehDepthOfField on {entity}: the camera's projection is not \

@@ -151,17 +151,21 @@ type BokehCamera = (
     &'static BokehDepthOfField,
     &'static Projection,
     Option<&'static BokehApertureShape>,
+    Has<bevy::post_process::dof::DepthOfField>,
 );
 
 /// Copies each perspective bokeh camera's resolved settings and aperture to the render
 /// world; anything else loses them (and its resources).
 fn extract_bokeh_depth_of_field(mut commands: Commands, cameras: Extract<Query<BokehCamera>>) {
-    for (entity, settings, projection, aperture) in &cameras {
+    for (entity, settings, projection, aperture, bevy_dof) in &cameras {
         let Ok(mut render) = commands.get_entity(entity) else {
             continue;
         };
-        // Orthographic cameras are warned about in the main world.
-        let (Projection::Perspective(perspective), Some(aperture)) = (projection, aperture) else {
+        // Orthographic cameras and those with Bevy's depth of field are warned about in
+        // the main world.
+        let (Projection::Perspective(perspective), Some(aperture), false) =
+            (projection, aperture, bevy_dof)
+        else {
             render.remove::<<BokehDepthOfField as SyncComponent>::Target>();
             continue;
         };

@@ -43,7 +43,9 @@
 //! the samples of those pixels (the others exit at once) and a per-sample AO upsample
 //! from the per-pixel trace, each into a texture at twice the view's size (a 2×2 block
 //! of texels per pixel), which the per-sample lighting reads. Only 4× is served: `Sample2` and `Sample8` are set to `Sample4` (warned
-//! once). SSR and Bevy's SSAO stay unavailable with MSAA, as on any Bevy camera.
+//! once). SSR and Bevy's SSAO stay unavailable with MSAA, as on any Bevy camera: a
+//! `DeferredMsaa` camera with either renders without MSAA while it has them (one
+//! warning) and gets its `Msaa` back when they go.
 //!
 //! Cost: the multisampled G-buffer (4 × 17 bytes) plus the stencil (4 × 1), the class
 //! (1) and the representative G-buffer and depth (16 + 4) per pixel; one
@@ -131,18 +133,62 @@ pub(crate) struct DeferredMsaaSupport {
 #[derive(Resource, Default)]
 pub(crate) struct HeldMsaa(Vec<(Entity, Msaa)>);
 
+/// `DeferredMsaa` cameras whose MSAA is off while they have Bevy's SSR or SSAO, and
+/// the `Msaa` they had.
+#[derive(Default)]
+pub(crate) struct SuspendedMsaa(Vec<(Entity, Msaa)>);
+
+/// A camera's `DeferredMsaa`, and whether it has Bevy's SSR or SSAO (which read
+/// single-sample depth and normals: not served under deferred MSAA).
+type HoldItem = (
+    Entity,
+    &'static mut Msaa,
+    Has<DeferredMsaa>,
+    Has<bevy::pbr::ScreenSpaceReflections>,
+    Has<bevy::pbr::ScreenSpaceAmbientOcclusion>,
+);
+
 /// Before `check_msaa`: a supported `DeferredMsaa` camera's MSAA is set aside (and
 /// non-4× counts become 4×, warned once per camera); other `PenumbraLighting` cameras
-/// with MSAA are told, once, how to keep it.
+/// with MSAA are told, once, how to keep it. A `DeferredMsaa` camera with Bevy's SSR or
+/// SSAO renders without MSAA while it has them (warned once), and gets its `Msaa` back
+/// when they are gone.
 pub(crate) fn hold_deferred_msaa(
-    mut cameras: Query<(Entity, &mut Msaa, Has<DeferredMsaa>), With<PenumbraLighting>>,
+    mut cameras: Query<HoldItem, With<PenumbraLighting>>,
     support: Option<Res<DeferredMsaaSupport>>,
     mut held: ResMut<HeldMsaa>,
     mut warned: Local<Vec<Entity>>,
+    mut suspended: Local<SuspendedMsaa>,
 ) {
     held.0.clear();
-    for (entity, mut msaa, deferred_msaa) in &mut cameras {
+    suspended.0.retain(|(e, _)| cameras.contains(*e));
+    for (entity, mut msaa, deferred_msaa, ssr, ssao) in &mut cameras {
+        let screen_space = deferred_msaa && (ssr || ssao);
+        if let Some(i) = suspended.0.iter().position(|(e, _)| *e == entity) {
+            if screen_space {
+                continue;
+            }
+            let (_, kept) = suspended.0.swap_remove(i);
+            // Back, unless the app has since set its own or dropped `DeferredMsaa`.
+            if deferred_msaa && *msaa == Msaa::Off {
+                *msaa = kept;
+            }
+        }
         if *msaa == Msaa::Off {
+            continue;
+        }
+        if screen_space {
+            warn!(
+                "Penumbra: camera {entity} has DeferredMsaa and Bevy's {}, which reads \
+                 single-sample depth and normals: it renders without MSAA while it has it",
+                if ssr {
+                    "ScreenSpaceReflections"
+                } else {
+                    "ScreenSpaceAmbientOcclusion"
+                }
+            );
+            suspended.0.push((entity, *msaa));
+            *msaa = Msaa::Off;
             continue;
         }
         if !deferred_msaa {
