@@ -114,7 +114,7 @@ pub mod prelude {
     pub use bevy_penumbra_cinematic::{Hair, HairCoverage, HairStrands};
     #[cfg(feature = "sss")]
     pub use bevy_penumbra_cinematic::{
-        SubsurfaceProfile, SubsurfaceProfiles, SubsurfaceScattering,
+        ScatteringMaterialPlugin, SubsurfaceProfile, SubsurfaceProfiles, SubsurfaceScattering,
     };
     #[cfg(feature = "tessellation")]
     pub use bevy_penumbra_cinematic::{

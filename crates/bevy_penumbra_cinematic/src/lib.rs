@@ -27,8 +27,8 @@ pub use reflections::{
     BillboardReflections, BillboardReflectionsPlugin, ReflectionBillboard, ReflectionDebugView,
 };
 pub use sss::{
-    SubsurfaceDebugView, SubsurfaceProfile, SubsurfaceProfileId, SubsurfaceProfiles,
-    SubsurfaceScattering, SubsurfaceScatteringPlugin,
+    ScatteringMaterial, ScatteringMaterialPlugin, SubsurfaceDebugView, SubsurfaceProfile,
+    SubsurfaceProfileId, SubsurfaceProfiles, SubsurfaceScattering, SubsurfaceScatteringPlugin,
 };
 pub use tessellation::{
     Tessellated, TessellationCamera, TessellationMode, TessellationPartitioning, TessellationPlugin,

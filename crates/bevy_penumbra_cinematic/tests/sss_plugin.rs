@@ -22,11 +22,12 @@
 use bevy::camera::Hdr;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::light::CascadeShadowConfigBuilder;
-use bevy::pbr::DefaultOpaqueRendererMethod;
+use bevy::pbr::{DefaultOpaqueRendererMethod, ExtendedMaterial, MaterialExtension};
 use bevy::prelude::*;
+use bevy::render::render_resource::AsBindGroup;
 use bevy_penumbra_cinematic::{
-    SubsurfaceDebugView, SubsurfaceProfile, SubsurfaceProfiles, SubsurfaceScattering,
-    SubsurfaceScatteringPlugin,
+    ScatteringMaterialPlugin, SubsurfaceDebugView, SubsurfaceProfile, SubsurfaceProfiles,
+    SubsurfaceScattering, SubsurfaceScatteringPlugin,
 };
 use bevy_penumbra_df::{
     DeferredMsaa, PenumbraBufferDump, PenumbraBufferDumpPlugin, PenumbraBuffers,
@@ -56,7 +57,18 @@ enum Plane {
     ScatteringMetal,
     /// Not in view (the camera looks away from the plane, at the square only).
     Hidden,
+    /// The profile's lighting id on an `ExtendedMaterial<StandardMaterial, _>`, with
+    /// `ScatteringMaterialPlugin` for it (`false`: without).
+    Extended(bool),
 }
+
+/// A material extension that changes nothing (the base's shaders draw it).
+#[derive(Asset, AsBindGroup, Reflect, Debug, Clone, Default)]
+struct Unchanged {}
+
+impl MaterialExtension for Unchanged {}
+
+type Extended = ExtendedMaterial<StandardMaterial, Unchanged>;
 
 #[derive(Clone, Copy)]
 struct Setup {
@@ -76,9 +88,14 @@ struct Setup {
 #[allow(clippy::type_complexity, reason = "a Bevy system's parameters")]
 fn scene(
     setup: Setup,
-) -> impl Fn(Commands, ResMut<Assets<Mesh>>, ResMut<Assets<StandardMaterial>>, ResMut<SubsurfaceProfiles>)
-{
-    move |mut commands, mut meshes, mut materials, mut profiles| {
+) -> impl Fn(
+    Commands,
+    ResMut<Assets<Mesh>>,
+    ResMut<Assets<StandardMaterial>>,
+    ResMut<SubsurfaceProfiles>,
+    Option<ResMut<Assets<Extended>>>,
+) {
+    move |mut commands, mut meshes, mut materials, mut profiles, extended| {
         let skin = profiles
             .add(SubsurfaceProfile {
                 scatter_color: Color::srgb(0.9, 0.45, 0.3),
@@ -104,11 +121,21 @@ fn scene(
         } else {
             PLANE_Z
         };
-        commands.spawn((
+        let mut plane = commands.spawn((
             Mesh3d(meshes.add(Rectangle::from_size(2.0 * PLANE_HALF))),
-            MeshMaterial3d(materials.add(material)),
             Transform::from_xyz(0.0, 0.0, plane_z),
         ));
+        match (setup.plane, extended) {
+            (Plane::Extended(_), Some(mut extended)) => {
+                plane.insert(MeshMaterial3d(extended.add(Extended {
+                    base: material,
+                    extension: Unchanged {},
+                })));
+            }
+            _ => {
+                plane.insert(MeshMaterial3d(materials.add(material)));
+            }
+        }
         commands.spawn((
             if setup.square {
                 Visibility::Inherited
@@ -186,9 +213,15 @@ fn render_with(setup: Setup, harness: &HeadlessRender) -> (penumbra_test::Captur
         PenumbraLightingPlugin::default(),
         SubsurfaceScatteringPlugin,
         PenumbraBufferDumpPlugin,
-    ))
-    .insert_resource(DefaultOpaqueRendererMethod::deferred())
-    .add_systems(Startup, scene(setup));
+    ));
+    if let Plane::Extended(registered) = setup.plane {
+        app.add_plugins(MaterialPlugin::<Extended>::default());
+        if registered {
+            app.add_plugins(ScatteringMaterialPlugin::<Extended>::default());
+        }
+    }
+    app.insert_resource(DefaultOpaqueRendererMethod::deferred())
+        .add_systems(Startup, scene(setup));
     harness.run_keeping_app(app).expect("renders")
 }
 
@@ -371,6 +404,54 @@ fn scatters_under_deferred_msaa_as_on_a_single_sample_camera() {
     assert!(far * 50 < n, "{far} of {n} pixels differ by more than 3 %");
     // As on the single-sample camera (0.144 there): unscattered, 1.
     assert!(red < 0.3, "red is not spread across the shadow edge: {red}");
+}
+
+/// An `ExtendedMaterial<StandardMaterial, _>` whose base names a profile, with
+/// `ScatteringMaterialPlugin` for it: lit as the same `StandardMaterial` is on a camera
+/// without `SubsurfaceScattering`, scattered as it is with it. Without the plugin no pass
+/// finds its meshes: the plane stays unlit (black), which the test checks too.
+#[test]
+fn extended_materials_with_a_profile_are_lit_and_scattered() {
+    if !gpu_or_skip("extended_materials_with_a_profile_are_lit_and_scattered") {
+        return;
+    }
+    let setup = |plane, sss| Setup {
+        plane,
+        sss,
+        square: true,
+        samples: 16,
+        temporal: false,
+        msaa: false,
+    };
+    let mean = |image: &[[f32; 4]]| {
+        image.iter().map(|p| p[0] + p[1] + p[2]).sum::<f32>() / image.len() as f32
+    };
+    for sss in [None, Some(SubsurfaceDebugView::None)] {
+        let (standard, app) = render(setup(Plane::Scattering, sss));
+        drop(app);
+        let (extended, app) = render(setup(Plane::Extended(true), sss));
+        drop(app);
+        let (unregistered, app) = render(setup(Plane::Extended(false), sss));
+        drop(app);
+        let differ = standard
+            .iter()
+            .zip(&extended)
+            .filter(|(a, b)| (0..3).any(|c| (a[c] - b[c]).abs() > 1e-3 * a[c].abs().max(0.05)))
+            .count();
+        println!(
+            "SubsurfaceScattering {}: mean brightness standard {:.4}, extended {:.4}, \
+             extended without the plugin {:.4}; {differ} pixels differ",
+            sss.is_some(),
+            mean(&standard),
+            mean(&extended),
+            mean(&unregistered)
+        );
+        assert_eq!(differ, 0, "the extended material is shaded otherwise");
+        assert!(
+            mean(&unregistered) < 0.8 * mean(&standard),
+            "without the plugin the plane is lit anyway: the check shows nothing"
+        );
+    }
 }
 
 #[test]

@@ -394,6 +394,7 @@ fn bokeh_layouts_and_constants_match() {
             "merge",
             "capacity",
             "quarter_diameter",
+            "origin",
         ]
     );
     let (_, sprite) = struct_layout(&m, "Sprite");

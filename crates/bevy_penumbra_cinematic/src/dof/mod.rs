@@ -82,6 +82,8 @@
 //!   (a second main pass after the effect would be needed; not offered).
 //! - With MSAA the depth is the first sample's, as Bevy's `DepthOfField` reads it.
 //! - Perspective cameras only (one warning, then nothing, on an orthographic one).
+//! - A camera with a viewport (split screen) blurs its viewport only: sprites come from
+//!   its pixels and the composite leaves the rest of the target as it is.
 //! - Not with Bevy's `DepthOfField` on the same camera (two lens blurs): Penumbra's is
 //!   off while Bevy's is there (one warning).
 //!

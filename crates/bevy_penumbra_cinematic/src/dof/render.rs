@@ -187,7 +187,6 @@ fn prepare_bokeh_textures(
     mut views: Query<(
         Entity,
         &ExtractedView,
-        &ViewTarget,
         &ExtractedBokeh,
         Option<&mut ViewBokehBuffers>,
     )>,
@@ -202,9 +201,9 @@ fn prepare_bokeh_textures(
         return;
     };
     let mut used = HashSet::new();
-    for (entity, view, target, bokeh, buffers) in &mut views {
-        let size = target.main_texture().size();
-        let full = UVec2::new(size.width, size.height);
+    for (entity, view, bokeh, buffers) in &mut views {
+        // The viewport (the whole target unless split screen).
+        let full = view.viewport.zw().max(UVec2::ONE);
         let half = (full + UVec2::ONE) / 2;
         let capacity = sprite_slots(full);
         let mut entity_commands = commands.entity(entity);
@@ -312,7 +311,8 @@ fn prepare_bokeh_textures(
             view.clip_from_view.inverse(),
             full,
             capacity,
-        );
+        )
+        .at(view.viewport.xy());
         let mut bytes = EncaseBuffer::new(Vec::new());
         bytes.write(&uniform).expect("the bokeh uniform encodes");
         queue.write_buffer(&buffers.uniform, 0, bytes.as_ref());

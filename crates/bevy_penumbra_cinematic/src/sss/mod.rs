@@ -21,6 +21,11 @@
 //! }
 //! ```
 //!
+//! An `ExtendedMaterial<StandardMaterial, _>` carries the id in its base
+//! (`SubsurfaceProfileId::apply` on the base); add [`ScatteringMaterialPlugin`] for it,
+//! which finds its meshes as the plugin finds `StandardMaterial` ones (without it they
+//! are found by no pass and stay unlit on Penumbra cameras).
+//!
 //! Lighting ids `192..=255` are profiles 0 to 63. Cameras without the component shade
 //! such materials as ordinary `StandardMaterial`s: forward cameras and Penumbra cameras
 //! without [`SubsurfaceScattering`] alike (a draw of Penumbra's lighting pass for those
@@ -85,7 +90,7 @@
 mod render;
 
 use bevy::prelude::*;
-use bevy::render::RenderApp;
+use bevy::render::{ExtractSchedule, RenderApp};
 use bevy_penumbra_df::PenumbraLighting;
 use bevy_penumbra_df::system_times::timed;
 use penumbra_cinematic_core::sss::{FIRST_LIGHTING_ID, MAX_PROFILES, ScatterProfile};
@@ -308,22 +313,73 @@ fn warn_bad_subsurface_settings(
     }
 }
 
+/// A material whose meshes can carry a subsurface profile: it says which deferred
+/// lighting pass id it writes to the G-buffer. `StandardMaterial` and
+/// `ExtendedMaterial<StandardMaterial, _>` (the base's id) are; register one with
+/// [`ScatteringMaterialPlugin`].
+pub trait ScatteringMaterial: Material {
+    /// The deferred lighting pass id the material writes (`deferred_lighting_pass_id`).
+    fn lighting_pass_id(&self) -> u8;
+}
+
+impl ScatteringMaterial for StandardMaterial {
+    fn lighting_pass_id(&self) -> u8 {
+        self.deferred_lighting_pass_id
+    }
+}
+
+impl<E: bevy::pbr::MaterialExtension> ScatteringMaterial
+    for bevy::pbr::ExtendedMaterial<StandardMaterial, E>
+{
+    fn lighting_pass_id(&self) -> u8 {
+        self.base.deferred_lighting_pass_id
+    }
+}
+
+/// Lets the meshes of material `M` whose lighting id names a profile be shaded: scattered
+/// on [`SubsurfaceScattering`] cameras, lit as ordinary `StandardMaterial`s on other
+/// Penumbra cameras. [`SubsurfaceScatteringPlugin`] adds it for `StandardMaterial`; add it
+/// for an `ExtendedMaterial<StandardMaterial, _>` whose base carries a profile id
+/// (`SubsurfaceProfileId::apply`), after the material's own `MaterialPlugin`. Without
+/// it such meshes are found by no pass and stay unlit. Cost: as for `StandardMaterial`
+/// meshes (an index of the meshes by material while a profile and a Penumbra camera
+/// exist).
+pub struct ScatteringMaterialPlugin<M>(std::marker::PhantomData<fn() -> M>);
+
+impl<M> Default for ScatteringMaterialPlugin<M> {
+    fn default() -> Self {
+        Self(std::marker::PhantomData)
+    }
+}
+
+impl<M: ScatteringMaterial> Plugin for ScatteringMaterialPlugin<M> {
+    fn build(&self, app: &mut App) {
+        app.init_resource::<render::ScatteringMeshes<M>>()
+            .add_systems(
+                PostUpdate,
+                // After the frame's material edits become events.
+                timed(render::find_scattering_meshes::<M>).after(bevy::asset::AssetEventSystems),
+            );
+        if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
+            render_app.add_systems(
+                ExtractSchedule,
+                timed(render::extract_scattering_meshes::<M>),
+            );
+        }
+    }
+}
+
 impl Plugin for SubsurfaceScatteringPlugin {
     fn build(&self, app: &mut App) {
         bevy_penumbra_df::register_shader_library(app);
         app.register_type::<SubsurfaceScattering>()
             .register_type::<SubsurfaceProfiles>()
             .init_resource::<SubsurfaceProfiles>()
-            .init_resource::<render::ScatteringMeshes>()
-            .add_plugins(render::sync_plugin())
-            .add_systems(
-                PostUpdate,
-                (
-                    timed(warn_bad_subsurface_settings),
-                    // After the frame's material edits become events.
-                    timed(render::find_scattering_meshes).after(bevy::asset::AssetEventSystems),
-                ),
-            );
+            .add_plugins((
+                render::sync_plugin(),
+                ScatteringMaterialPlugin::<StandardMaterial>::default(),
+            ))
+            .add_systems(PostUpdate, timed(warn_bad_subsurface_settings));
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app);
         }
@@ -375,7 +431,8 @@ mod tests {
             .init_resource::<render::ScatteringMeshes>()
             .add_systems(
                 PostUpdate,
-                render::find_scattering_meshes.after(bevy::asset::AssetEventSystems),
+                render::find_scattering_meshes::<StandardMaterial>
+                    .after(bevy::asset::AssetEventSystems),
             );
         let world = app.world_mut();
         let skin = world
@@ -422,7 +479,8 @@ mod tests {
             .init_resource::<render::ScatteringMeshes>()
             .add_systems(
                 PostUpdate,
-                render::find_scattering_meshes.after(bevy::asset::AssetEventSystems),
+                render::find_scattering_meshes::<StandardMaterial>
+                    .after(bevy::asset::AssetEventSystems),
             );
         let world = app.world_mut();
         let skin = world

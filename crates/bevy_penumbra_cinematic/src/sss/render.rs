@@ -1,7 +1,7 @@
 //! Render-world side of subsurface scattering: which views see a scattering material,
 //! their pipelines (from Penumbra's lighting pipeline), textures, bind groups and draws.
 
-use super::{SubsurfaceDebugView, SubsurfaceProfiles, SubsurfaceScattering};
+use super::{ScatteringMaterial, SubsurfaceDebugView, SubsurfaceProfiles, SubsurfaceScattering};
 use bevy::core_pipeline::deferred::copy_lighting_id::DeferredLightingIdDepthTexture;
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::core_pipeline::schedule::Core3d;
@@ -40,17 +40,28 @@ use penumbra_cinematic_core::sss::{FIRST_LIGHTING_ID, SubsurfaceUniform};
 /// The split lighting pass's targets (HDR light before post-processing).
 const SPLIT_FORMAT: TextureFormat = TextureFormat::Rgba16Float;
 
-/// Main world: the meshes whose `StandardMaterial` names a subsurface profile (empty
-/// while no profile is registered).
-#[derive(Resource, Default)]
-pub(super) struct ScatteringMeshes {
+/// Main world: the meshes whose material `M` names a subsurface profile (empty while no
+/// profile is registered).
+#[derive(Resource)]
+pub(super) struct ScatteringMeshes<M = StandardMaterial> {
     meshes: HashSet<Entity>,
     /// Meshes the last run examined: all on a full scan, else the changed handles' and
     /// the meshes of materials with an asset event.
     examined: usize,
+    material: std::marker::PhantomData<fn() -> M>,
 }
 
-impl ScatteringMeshes {
+impl<M> Default for ScatteringMeshes<M> {
+    fn default() -> Self {
+        Self {
+            meshes: HashSet::new(),
+            examined: 0,
+            material: std::marker::PhantomData,
+        }
+    }
+}
+
+impl<M> ScatteringMeshes<M> {
     /// The meshes, sorted (for tests).
     #[cfg(test)]
     pub(super) fn sorted(&self) -> Vec<Entity> {
@@ -67,26 +78,31 @@ impl ScatteringMeshes {
 }
 
 /// Whether a material names a subsurface profile.
-fn scatters(
-    materials: &Assets<StandardMaterial>,
-    material: &MeshMaterial3d<StandardMaterial>,
-) -> bool {
+fn scatters<M: ScatteringMaterial>(materials: &Assets<M>, material: &MeshMaterial3d<M>) -> bool {
     materials
         .get(&material.0)
-        .is_some_and(|m| m.deferred_lighting_pass_id >= FIRST_LIGHTING_ID)
+        .is_some_and(|m| m.lighting_pass_id() >= FIRST_LIGHTING_ID)
 }
 
-/// The `StandardMaterial` meshes by material, and each one's, while
+/// The meshes of material `M` by material, and each one's, while
 /// [`find_scattering_meshes`] is active: a material's asset event finds its meshes.
-#[derive(Default)]
-pub(super) struct MeshesByMaterial {
-    material_of: HashMap<Entity, AssetId<StandardMaterial>>,
-    meshes_of: HashMap<AssetId<StandardMaterial>, HashSet<Entity>>,
+pub(super) struct MeshesByMaterial<M: Asset> {
+    material_of: HashMap<Entity, AssetId<M>>,
+    meshes_of: HashMap<AssetId<M>, HashSet<Entity>>,
 }
 
-impl MeshesByMaterial {
+impl<M: Asset> Default for MeshesByMaterial<M> {
+    fn default() -> Self {
+        Self {
+            material_of: HashMap::default(),
+            meshes_of: HashMap::default(),
+        }
+    }
+}
+
+impl<M: Asset> MeshesByMaterial<M> {
     /// `entity`'s material is now `material`.
-    fn set(&mut self, entity: Entity, material: AssetId<StandardMaterial>) {
+    fn set(&mut self, entity: Entity, material: AssetId<M>) {
         match self.material_of.insert(entity, material) {
             Some(old) if old == material => return,
             Some(old) => self.unlink(entity, old),
@@ -102,7 +118,7 @@ impl MeshesByMaterial {
         }
     }
 
-    fn unlink(&mut self, entity: Entity, material: AssetId<StandardMaterial>) {
+    fn unlink(&mut self, entity: Entity, material: AssetId<M>) {
         if let Some(meshes) = self.meshes_of.get_mut(&material) {
             meshes.remove(&entity);
             if meshes.is_empty() {
@@ -112,26 +128,27 @@ impl MeshesByMaterial {
     }
 }
 
-/// Keeps the set of meshes with a scattering material, while a profile exists and a
+/// Keeps the set of meshes with a scattering material `M`, while a profile exists and a
 /// Penumbra camera could shade it: a full scan when that starts, else only the meshes
-/// whose material handle changed or went away, and the meshes of a `StandardMaterial`
-/// with an asset event (its lighting id may have changed), found by an index of the
-/// meshes by material kept meanwhile.
-#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
-pub(super) fn find_scattering_meshes(
+/// whose material handle changed or went away, and the meshes of a material with an
+/// asset event (its lighting id may have changed), found by an index of the meshes by
+/// material kept meanwhile.
+#[allow(
+    clippy::too_many_arguments,
+    clippy::type_complexity,
+    reason = "a Bevy system"
+)]
+pub(super) fn find_scattering_meshes<M: ScatteringMaterial>(
     profiles: Res<SubsurfaceProfiles>,
     cameras: Query<(), With<PenumbraLighting>>,
-    materials: Res<Assets<StandardMaterial>>,
-    mut material_events: MessageReader<AssetEvent<StandardMaterial>>,
-    meshes: Query<(Entity, &MeshMaterial3d<StandardMaterial>)>,
-    changed: Query<
-        (Entity, &MeshMaterial3d<StandardMaterial>),
-        Changed<MeshMaterial3d<StandardMaterial>>,
-    >,
-    mut removed: RemovedComponents<MeshMaterial3d<StandardMaterial>>,
-    mut found: ResMut<ScatteringMeshes>,
+    materials: Res<Assets<M>>,
+    mut material_events: MessageReader<AssetEvent<M>>,
+    meshes: Query<(Entity, &MeshMaterial3d<M>)>,
+    changed: Query<(Entity, &MeshMaterial3d<M>), Changed<MeshMaterial3d<M>>>,
+    mut removed: RemovedComponents<MeshMaterial3d<M>>,
+    mut found: ResMut<ScatteringMeshes<M>>,
     // `Some` while active.
-    mut index: Local<Option<MeshesByMaterial>>,
+    mut index: Local<Option<MeshesByMaterial<M>>>,
 ) {
     if profiles.is_empty() || cameras.is_empty() {
         material_events.clear();
@@ -198,11 +215,22 @@ pub(super) fn find_scattering_meshes(
     }
 }
 
-/// Render world: the scattering meshes and the profiles' uniform data.
+/// Render world: the scattering meshes (per material type) and the profiles' uniform
+/// data.
 #[derive(Resource, Default)]
-struct SubsurfaceScene {
-    meshes: HashSet<MainEntity>,
+pub(super) struct SubsurfaceScene {
+    meshes: HashMap<std::any::TypeId, HashSet<MainEntity>>,
     uniform: SubsurfaceUniform,
+}
+
+impl SubsurfaceScene {
+    /// Whether a view shows a mesh with a scattering material.
+    fn seen_by(&self, visible: Option<&RenderVisibleEntities>) -> bool {
+        self.meshes.values().any(|m| !m.is_empty())
+            && visible.is_some_and(|v| {
+                visible_meshes(v).any(|e| self.meshes.values().any(|m| m.contains(&e)))
+            })
+    }
 }
 
 /// A scattering camera's settings in the render world.
@@ -280,7 +308,7 @@ pub(super) fn build(render_app: &mut SubApp) {
         .add_systems(
             ExtractSchedule,
             (
-                timed(extract_subsurface_scene),
+                timed(extract_subsurface_profiles),
                 timed(extract_subsurface_cameras),
             ),
         )
@@ -346,14 +374,23 @@ fn init_subsurface_pipelines(mut commands: Commands, library: Option<Res<Penumbr
     });
 }
 
-fn extract_subsurface_scene(
+/// The scattering meshes of material `M` (when they changed).
+pub(super) fn extract_scattering_meshes<M: ScatteringMaterial>(
     mut scene: ResMut<SubsurfaceScene>,
-    meshes: Extract<Res<ScatteringMeshes>>,
-    profiles: Extract<Res<SubsurfaceProfiles>>,
+    meshes: Extract<Res<ScatteringMeshes<M>>>,
 ) {
     if meshes.is_changed() {
-        scene.meshes = meshes.meshes.iter().map(|&e| MainEntity::from(e)).collect();
+        scene.meshes.insert(
+            std::any::TypeId::of::<M>(),
+            meshes.meshes.iter().map(|&e| MainEntity::from(e)).collect(),
+        );
     }
+}
+
+fn extract_subsurface_profiles(
+    mut scene: ResMut<SubsurfaceScene>,
+    profiles: Extract<Res<SubsurfaceProfiles>>,
+) {
     if profiles.is_changed() {
         let resolved: Vec<Vec4> = profiles
             .iter()
@@ -378,11 +415,6 @@ fn extract_subsurface_cameras(
             });
         }
     }
-}
-
-/// Whether a view shows a mesh with a scattering material.
-fn sees_scattering(visible: Option<&RenderVisibleEntities>, meshes: &HashSet<MainEntity>) -> bool {
-    visible.is_some_and(|v| visible_meshes(v).any(|e| meshes.contains(&e)))
 }
 
 impl SubsurfacePipelines {
@@ -510,11 +542,7 @@ fn prepare_subsurface_views(
         let msaa = lighting_view.msaa.is_some();
         // Deferred MSAA views without the component: the lighting pass shades the
         // scattering materials (`MsaaShadedLightingIds`).
-        let (Some(key), true, true) = (
-            key,
-            scatters || !msaa,
-            !scene.meshes.is_empty() && sees_scattering(visible, &scene.meshes),
-        ) else {
+        let (Some(key), true, true) = (key, scatters || !msaa, scene.seen_by(visible)) else {
             if drawn {
                 commands.entity(entity).remove::<ViewSubsurface>();
             }

@@ -165,6 +165,10 @@ pub struct BokehView {
     /// [`SpriteRule::quarter_diameter`]: sprites at least this wide (half-resolution
     /// pixels) are drawn into the quarter-resolution layers.
     pub quarter_diameter: f32,
+    /// The view's top-left pixel in the frame buffer (its viewport's origin; 0 for a
+    /// whole target): the passes read the frame-buffer textures from there, and the
+    /// composite leaves the pixels outside the viewport as they are (split screen).
+    pub origin: UVec2,
 }
 
 /// The sprite slots a view of `full_size` pixels needs: 4 per 2×2 block of its
@@ -201,6 +205,12 @@ impl BokehView {
             merge: u32::from(rule.merge),
             capacity,
             quarter_diameter: rule.quarter_diameter(),
+            origin: UVec2::ZERO,
         }
+    }
+
+    /// The uniform of a view whose viewport starts at `origin` in the frame buffer.
+    pub fn at(self, origin: UVec2) -> Self {
+        BokehView { origin, ..self }
     }
 }

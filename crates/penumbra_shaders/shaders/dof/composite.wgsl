@@ -27,7 +27,7 @@
 
 // Distance along the view axis of view pixel `p` (the sky at `view.max_depth`).
 fn pixel_distance(p: vec2<u32>) -> f32 {
-    return distance_from_depth(view, p, textureLoad(depth_texture, vec2<i32>(p), 0));
+    return distance_from_depth(view, p, textureLoad(depth_texture, vec2<i32>(p + view.origin), 0));
 }
 
 // Bilinear read of `layer` (`size` texels, each `scale` view pixels wide) at view
@@ -67,9 +67,14 @@ fn composite(p: vec2<u32>, sharp: vec3<f32>) -> vec3<f32> {
     return c;
 }
 
+// Over the whole frame buffer: the view's viewport gets its bokeh, the pixels outside
+// it (another camera's, on a split screen) are copied as they are.
 @fragment
 fn fragment(@builtin(position) position: vec4<f32>) -> @location(0) vec4<f32> {
-    let p = vec2<u32>(position.xy);
-    let sharp = textureLoad(color_texture, vec2<i32>(p), 0);
-    return vec4<f32>(composite(p, sharp.rgb), sharp.a);
+    let frame = vec2<u32>(position.xy);
+    let sharp = textureLoad(color_texture, vec2<i32>(frame), 0);
+    if any(frame < view.origin) || any(frame - view.origin >= view.full_size) {
+        return sharp;
+    }
+    return vec4<f32>(composite(frame - view.origin, sharp.rgb), sharp.a);
 }

@@ -35,7 +35,7 @@ struct HalfPixel {
 // Distance along the view axis of view pixel `p` (`f32::MAX`-capped; the sky at
 // `view.max_depth`).
 fn pixel_distance(p: vec2<u32>) -> f32 {
-    return distance_from_depth(view, p, textureLoad(depth_texture, vec2<i32>(p), 0));
+    return distance_from_depth(view, p, textureLoad(depth_texture, vec2<i32>(p + view.origin), 0));
 }
 
 fn half_pixel(h: vec2<u32>) -> HalfPixel {
@@ -43,7 +43,7 @@ fn half_pixel(h: vec2<u32>) -> HalfPixel {
     var nearest = 3.4e38;
     for (var k = 0u; k < 4u; k += 1u) {
         let p = min(2u * h + vec2<u32>(k & 1u, k >> 1u), view.full_size - vec2<u32>(1u));
-        color += textureLoad(color_texture, vec2<i32>(p), 0).rgb;
+        color += textureLoad(color_texture, vec2<i32>(p + view.origin), 0).rgb;
         nearest = min(nearest, pixel_distance(p));
     }
     return HalfPixel(color / 4.0, coc_of_distance(view, nearest), nearest);

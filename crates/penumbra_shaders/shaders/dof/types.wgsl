@@ -27,6 +27,9 @@ struct BokehView {
     capacity: u32,
     // Sprites at least this wide (half-resolution pixels) are drawn at quarter resolution.
     quarter_diameter: f32,
+    // The view's viewport origin in the frame buffer: view pixel `p` is frame-buffer
+    // pixel `p + origin`.
+    origin: vec2<u32>,
 }
 
 // One sprite: `shape` = (centre in half-resolution pixels, aperture diameter, weight:
