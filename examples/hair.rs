@@ -24,7 +24,7 @@ mod cli;
 pub use cli::{HairMode, Options};
 #[path = "common/character.rs"]
 mod character;
-use character::{HEAD, SLOTS, hair_atlas, head_strands};
+use character::{HEAD_PARTS, SLOTS, hair_atlas, head_strands};
 
 #[allow(dead_code, reason = "tests/hair_example.rs includes this file")]
 fn main() -> std::process::ExitCode {
@@ -67,33 +67,12 @@ fn spawn_scene(
     });
     let sphere = meshes.add(Sphere::new(1.0).mesh().uv(48, 32));
     // Head, nose, ears, neck and shoulders.
-    for (at, scale) in [
-        (HEAD_AT, HEAD),
-        (
-            HEAD_AT + Vec3::new(0.0, -0.01, 0.092),
-            Vec3::new(0.014, 0.026, 0.018),
-        ),
-        (
-            HEAD_AT + Vec3::new(0.079, 0.0, -0.005),
-            Vec3::new(0.01, 0.028, 0.017),
-        ),
-        (
-            HEAD_AT + Vec3::new(-0.079, 0.0, -0.005),
-            Vec3::new(0.01, 0.028, 0.017),
-        ),
-        (
-            HEAD_AT + Vec3::new(0.0, -0.16, -0.015),
-            Vec3::new(0.052, 0.09, 0.052),
-        ),
-        (
-            HEAD_AT + Vec3::new(0.0, -0.31, -0.02),
-            Vec3::new(0.21, 0.08, 0.11),
-        ),
-    ] {
+    let shoulders = (Vec3::new(0.0, -0.31, -0.02), Vec3::new(0.21, 0.08, 0.11));
+    for (offset, scale) in HEAD_PARTS.into_iter().chain([shoulders]) {
         commands.spawn((
             Mesh3d(sphere.clone()),
             MeshMaterial3d(skin.clone()),
-            Transform::from_translation(at).with_scale(scale),
+            Transform::from_translation(HEAD_AT + offset).with_scale(scale),
         ));
     }
     // A wall behind, for the shadows.

@@ -19,15 +19,16 @@
 //! The buildings and the kiosk are `DistanceFieldCaster` cuboids: they occlude
 //! reflections.
 
-use bevy::asset::RenderAssetUsages;
 use bevy::camera::Exposure;
-use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use bevy::{light::GlobalAmbientLight, pbr::DefaultOpaqueRendererMethod, prelude::*};
 use penumbra::prelude::*;
 
 #[path = "common/cli.rs"]
 mod cli;
 pub use cli::{Options, casters_ready};
+#[path = "common/street.rs"]
+mod street;
+use street::{building, sign_image};
 
 #[allow(dead_code, reason = "tests/reflections_example.rs includes this file")]
 fn main() -> std::process::ExitCode {
@@ -55,59 +56,6 @@ pub fn run_headless(options: &Options) -> Result<(), String> {
 
 /// The camera's exposure (a night street).
 const EV100: f32 = 6.0;
-
-/// All sign images share one size (one texture array).
-const SIGN: UVec2 = UVec2::new(64, 32);
-
-/// A neon sign's image: a glowing frame and bars of `colour` on transparent black (the
-/// shape cut out by alpha), straight alpha, sRGB.
-fn sign_image(colour: [u8; 3], bars: u32) -> Image {
-    let mut data = Vec::with_capacity((SIGN.x * SIGN.y * 4) as usize);
-    for y in 0..SIGN.y {
-        for x in 0..SIGN.x {
-            let frame = x < 3 || y < 3 || x >= SIGN.x - 3 || y >= SIGN.y - 3;
-            let slot = (x.saturating_sub(8)) * bars / (SIGN.x - 16);
-            let bar = (8..SIGN.x - 8).contains(&x)
-                && (9..SIGN.y - 9).contains(&y)
-                && (x - 8) % ((SIGN.x - 16) / bars) < (SIGN.x - 16) / bars / 2
-                && slot < bars;
-            let on = frame || bar;
-            let [r, g, b] = colour;
-            data.extend_from_slice(&if on { [r, g, b, 255] } else { [8, 8, 10, 0] });
-        }
-    }
-    Image::new(
-        Extent3d {
-            width: SIGN.x,
-            height: SIGN.y,
-            depth_or_array_layers: 1,
-        },
-        TextureDimension::D2,
-        data,
-        TextureFormat::Rgba8UnormSrgb,
-        RenderAssetUsages::default(),
-    )
-}
-
-/// A box that is both drawn and a distance-field caster.
-fn building(
-    size: Vec3,
-    at: Vec3,
-    material: Handle<StandardMaterial>,
-    meshes: &mut Assets<Mesh>,
-) -> impl Bundle {
-    (
-        Mesh3d(meshes.add(Cuboid::from_size(size))),
-        MeshMaterial3d(material),
-        Transform::from_translation(at),
-        DistanceFieldCaster {
-            source: CasterSource::Cuboid {
-                half_size: size * 0.5,
-            },
-            ..default()
-        },
-    )
-}
 
 fn spawn_scene(
     mut commands: Commands,

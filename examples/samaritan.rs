@@ -55,7 +55,10 @@ mod cli;
 pub use cli::{Options, casters_ready};
 #[path = "common/character.rs"]
 mod character;
-use character::{HEAD, SLOTS, hair_atlas, head_strands};
+use character::{HEAD_PARTS, SLOTS, hair_atlas, head_strands};
+#[path = "common/street.rs"]
+mod street;
+use street::{building, sign_image};
 
 #[allow(dead_code, reason = "tests/samaritan_example.rs includes this file")]
 fn main() -> std::process::ExitCode {
@@ -105,41 +108,6 @@ const HEAD_AT: Vec3 = Vec3::new(0.0, 1.62, 0.0);
 const EYE: Vec3 = Vec3::new(0.6, 1.7, 2.0);
 /// What it looks at: down the street beside him (he stands right of the centre).
 const LOOK_AT: Vec3 = Vec3::new(-0.45, 1.12, -1.0);
-/// All sign images share one size (one texture array).
-const SIGN: UVec2 = UVec2::new(64, 32);
-
-/// A neon sign's image: a glowing frame and `bars` bars of `colour` on transparent
-/// black, straight alpha, sRGB.
-fn sign_image(colour: [u8; 3], bars: u32) -> Image {
-    let mut data = Vec::with_capacity((SIGN.x * SIGN.y * 4) as usize);
-    let stride = (SIGN.x - 16) / bars;
-    for y in 0..SIGN.y {
-        for x in 0..SIGN.x {
-            let frame = x < 3 || y < 3 || x >= SIGN.x - 3 || y >= SIGN.y - 3;
-            let bar = (8..8 + stride * bars).contains(&x)
-                && (9..SIGN.y - 9).contains(&y)
-                && (x - 8) % stride < stride / 2;
-            let [r, g, b] = colour;
-            data.extend_from_slice(&if frame || bar {
-                [r, g, b, 255]
-            } else {
-                [8, 8, 10, 0]
-            });
-        }
-    }
-    Image::new(
-        Extent3d {
-            width: SIGN.x,
-            height: SIGN.y,
-            depth_or_array_layers: 1,
-        },
-        TextureDimension::D2,
-        data,
-        TextureFormat::Rgba8UnormSrgb,
-        RenderAssetUsages::default(),
-    )
-}
-
 /// The cobbles' height map: stones in running bond (rows offset by half a stone), each
 /// a rounded dome with a little tilt, mortar joints at 0.
 fn cobble_map() -> Image {
@@ -183,26 +151,6 @@ fn cobble_map() -> Image {
         data,
         TextureFormat::R8Unorm,
         RenderAssetUsages::default(),
-    )
-}
-
-/// A box that is drawn and casts (buildings, the kiosk).
-fn building(
-    size: Vec3,
-    at: Vec3,
-    material: Handle<StandardMaterial>,
-    meshes: &mut Assets<Mesh>,
-) -> impl Bundle {
-    (
-        Mesh3d(meshes.add(Cuboid::from_size(size))),
-        MeshMaterial3d(material),
-        Transform::from_translation(at),
-        DistanceFieldCaster {
-            source: CasterSource::Cuboid {
-                half_size: size * 0.5,
-            },
-            ..default()
-        },
     )
 }
 
@@ -523,29 +471,11 @@ fn spawn_man(
         Transform::from_translation(HEAD_AT + Vec3::new(0.0, -0.33, -0.02))
             .with_scale(Vec3::new(0.23, 0.09, 0.13)),
     ));
-    for (at, scale) in [
-        (
-            HEAD_AT + Vec3::new(0.0, -0.16, -0.015),
-            Vec3::new(0.052, 0.09, 0.052),
-        ),
-        (HEAD_AT, HEAD),
-        (
-            HEAD_AT + Vec3::new(0.0, -0.01, 0.092),
-            Vec3::new(0.014, 0.026, 0.018),
-        ),
-        (
-            HEAD_AT + Vec3::new(0.079, 0.0, -0.005),
-            Vec3::new(0.01, 0.028, 0.017),
-        ),
-        (
-            HEAD_AT + Vec3::new(-0.079, 0.0, -0.005),
-            Vec3::new(0.01, 0.028, 0.017),
-        ),
-    ] {
+    for (offset, scale) in HEAD_PARTS {
         commands.spawn((
             Mesh3d(sphere.clone()),
             MeshMaterial3d(skin.clone()),
-            Transform::from_translation(at).with_scale(scale),
+            Transform::from_translation(HEAD_AT + offset).with_scale(scale),
         ));
     }
     // The head's shadow and occlusion: a sphere caster (no mesh bake needed).

@@ -12,6 +12,19 @@ pub const HEAD: Vec3 = Vec3::new(0.078, 0.105, 0.092);
 /// Columns of the atlas.
 pub const SLOTS: u32 = 4;
 
+/// The head's parts as ellipsoids of skin: centre (from the head's centre) and
+/// semi-axes of the head, the nose, the ears and the neck.
+pub const HEAD_PARTS: [(Vec3, Vec3); 5] = [
+    (Vec3::ZERO, HEAD),
+    (Vec3::new(0.0, -0.01, 0.092), Vec3::new(0.014, 0.026, 0.018)),
+    (Vec3::new(0.079, 0.0, -0.005), Vec3::new(0.01, 0.028, 0.017)),
+    (
+        Vec3::new(-0.079, 0.0, -0.005),
+        Vec3::new(0.01, 0.028, 0.017),
+    ),
+    (Vec3::new(0.0, -0.16, -0.015), Vec3::new(0.052, 0.09, 0.052)),
+];
+
 /// A deterministic value in [0, 1) for `(i, salt)`.
 fn hash(i: u32, salt: u32) -> f32 {
     let mut h = i.wrapping_mul(0x9e37_79b9) ^ salt.wrapping_mul(0x85eb_ca6b);
