@@ -58,7 +58,7 @@ mod character;
 use character::{HEAD_PARTS, SLOTS, hair_atlas, head_strands};
 #[path = "common/street.rs"]
 mod street;
-use street::{building, sign_image};
+use street::{building, sign, sign_image};
 
 #[allow(dead_code, reason = "tests/samaritan_example.rs includes this file")]
 fn main() -> std::process::ExitCode {
@@ -278,25 +278,15 @@ fn spawn_scene(
         ),
     ] {
         let image = images.add(sign_image(colour, bars));
-        // Bevy's deferred G-buffer keeps emissive light unexposed: the quads carry
-        // their exposed luminance.
-        let shown = luminance * exposure;
-        commands.spawn((
-            ReflectionBillboard {
-                image: image.clone(),
-                size,
-                emissive: luminance,
-            },
-            Mesh3d(meshes.add(Rectangle::from_size(size))),
-            MeshMaterial3d(materials.add(StandardMaterial {
-                base_color: Color::BLACK,
-                emissive: LinearRgba::rgb(shown, shown, shown),
-                emissive_texture: Some(image.clone()),
-                base_color_texture: Some(image),
-                alpha_mode: AlphaMode::Mask(0.5),
-                ..default()
-            })),
-            Transform::from_translation(at).with_rotation(rotation),
+        let transform = Transform::from_translation(at).with_rotation(rotation);
+        commands.spawn(sign(
+            image,
+            size,
+            luminance,
+            exposure,
+            transform,
+            &mut meshes,
+            &mut materials,
         ));
     }
     spawn_man(

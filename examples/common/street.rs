@@ -59,3 +59,36 @@ pub fn building(
         },
     )
 }
+
+/// A lit sign: what reflects (a `ReflectionBillboard` of `luminance` cd/m²) and an
+/// emissive quad of the same image and size that shows it. Bevy's deferred G-buffer
+/// keeps emissive light unexposed (its lighting pass cannot tell
+/// `emissive_exposure_weight`): the quad carries the luminance times `exposure`.
+pub fn sign(
+    image: Handle<Image>,
+    size: Vec2,
+    luminance: f32,
+    exposure: f32,
+    transform: Transform,
+    meshes: &mut Assets<Mesh>,
+    materials: &mut Assets<StandardMaterial>,
+) -> impl Bundle {
+    let shown = luminance * exposure;
+    (
+        ReflectionBillboard {
+            image: image.clone(),
+            size,
+            emissive: luminance,
+        },
+        Mesh3d(meshes.add(Rectangle::from_size(size))),
+        MeshMaterial3d(materials.add(StandardMaterial {
+            base_color: Color::BLACK,
+            emissive: LinearRgba::rgb(shown, shown, shown),
+            emissive_texture: Some(image.clone()),
+            base_color_texture: Some(image),
+            alpha_mode: AlphaMode::Mask(0.5),
+            ..default()
+        })),
+        transform,
+    )
+}
