@@ -280,9 +280,6 @@ enum Draw {
     Split,
     Scatter,
     Plain,
-    /// The two draws on deferred MSAA views.
-    SplitMsaa,
-    ScatterMsaa,
 }
 
 /// The scatter draw's group 2 and shader, and the pipelines queued per view key.
@@ -427,7 +424,7 @@ impl SubsurfacePipelines {
         draw: Draw,
     ) -> CachedRenderPipelineId {
         *self.queued.entry((key, draw)).or_insert_with(|| {
-            let layout = if draw == Draw::ScatterMsaa {
+            let layout = if key.msaa_samples() > 1 {
                 &self.msaa_layout
             } else {
                 &self.layout
@@ -452,7 +449,9 @@ fn descriptor(
     layout: &BindGroupLayoutDescriptor,
     scatter_shader: &Handle<Shader>,
 ) -> RenderPipelineDescriptor {
-    let msaa = matches!(draw, Draw::SplitMsaa | Draw::ScatterMsaa);
+    // A multisampled key is a deferred MSAA view's: its draws run per pixel after the
+    // lighting pass (`subsurface_scattering_msaa`).
+    let msaa = key.msaa_samples() > 1;
     let mut desc = if msaa {
         lighting.msaa_view_descriptor(key)
     } else {
@@ -470,7 +469,7 @@ fn descriptor(
     fragment.shader_defs.push(ids_from);
     match draw {
         Draw::Plain => desc.label = Some("penumbra_sss_plain_pipeline".into()),
-        Draw::Split | Draw::SplitMsaa => {
+        Draw::Split => {
             desc.label = Some("penumbra_sss_split_pipeline".into());
             fragment.shader_defs.push("PENUMBRA_SPLIT_DIFFUSE".into());
             fragment.entry_point = Some(
@@ -488,7 +487,7 @@ fn descriptor(
             });
             fragment.targets = vec![target.clone(), target];
         }
-        Draw::Scatter | Draw::ScatterMsaa => {
+        Draw::Scatter => {
             desc.label = Some("penumbra_sss_scatter_pipeline".into());
             fragment.shader = scatter_shader.clone();
             fragment.entry_point = Some(if msaa { "scatter_msaa" } else { "scatter" }.into());
@@ -569,14 +568,9 @@ fn prepare_subsurface_views(
                     },
                 )
             };
-            let (split, scatter) = if msaa {
-                (Draw::SplitMsaa, Draw::ScatterMsaa)
-            } else {
-                (Draw::Split, Draw::Scatter)
-            };
             ViewSubsurface::Scatter {
-                split: pipeline(split),
-                scatter: pipeline(scatter),
+                split: pipeline(Draw::Split),
+                scatter: pipeline(Draw::Scatter),
                 rest: texture("penumbra_sss_rest_light"),
                 diffuse: texture("penumbra_sss_diffuse_irradiance"),
                 msaa,
