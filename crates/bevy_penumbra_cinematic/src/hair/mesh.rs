@@ -101,7 +101,9 @@ pub fn joints_from_skin(strands: &[Strand], skin: &Mesh) -> Option<StrandJoints>
         strands
             .iter()
             .map(|strand| {
-                let root = strand.points[0];
+                // A strand without points (dropped before drawing) binds as one at the
+                // origin would.
+                let root = strand.points.first().copied().unwrap_or(Vec3::ZERO);
                 let nearest = positions
                     .iter()
                     .enumerate()
@@ -147,5 +149,42 @@ mod tests {
         assert_eq!(strip[5], [1.0, 1.0, 0.01, 2.0]);
         assert_eq!(strip[9], [1.0, 1.0, 0.02, 0.0]);
         assert!(strip_mesh(&[], None).is_none());
+    }
+
+    /// A strand without points (a `.hair` line `strand 0.01 0`) binds without a panic
+    /// (it indexed its first point, #47); the others take their nearest vertex's joints.
+    #[test]
+    fn a_strand_without_points_binds_without_a_panic() {
+        let mut skin = Mesh::new(
+            PrimitiveTopology::TriangleList,
+            RenderAssetUsages::default(),
+        );
+        skin.insert_attribute(
+            Mesh::ATTRIBUTE_POSITION,
+            vec![[0.0f32, 0.0, 0.0], [0.0, 2.0, 0.0]],
+        );
+        skin.insert_attribute(
+            Mesh::ATTRIBUTE_JOINT_INDEX,
+            VertexAttributeValues::Uint16x4(vec![[1, 0, 0, 0], [2, 0, 0, 0]]),
+        );
+        skin.insert_attribute(
+            Mesh::ATTRIBUTE_JOINT_WEIGHT,
+            vec![[1.0f32, 0.0, 0.0, 0.0]; 2],
+        );
+        let strands = [
+            Strand {
+                points: vec![],
+                width: 0.01,
+                slot: 0,
+            },
+            Strand {
+                points: vec![Vec3::new(0.0, 1.9, 0.0), Vec3::new(0.0, 1.8, 0.1)],
+                width: 0.01,
+                slot: 0,
+            },
+        ];
+        let joints = joints_from_skin(&strands, &skin).expect("a skin");
+        assert_eq!(joints.len(), 2);
+        assert_eq!(joints[1].0, [2, 0, 0, 0]);
     }
 }
