@@ -62,17 +62,17 @@ const CORPUS: &[Case] = &[
     Case {
         file: "DepthOfFieldExample.glb",
         flags: &[],
-        bounds: b(0.12, 0.05, 0.11),
+        bounds: b(0.06, 0.03, 0.10),
     },
     Case {
         file: "PalmTree/PalmTree.gltf",
         flags: &["--eye=5,4,7", "--target=0,1.8,-0.5"],
-        bounds: b(0.17, 0.03, 0.03),
+        bounds: b(0.16, 0.03, 0.03),
     },
     Case {
         file: "AlienCake/cakeBirthday.glb",
         flags: &[],
-        bounds: b(0.08, 0.04, 0.05),
+        bounds: b(0.08, 0.03, 0.05),
     },
     Case {
         file: "AlienCake/alien.glb",
@@ -92,17 +92,17 @@ const CORPUS: &[Case] = &[
     Case {
         file: "FlightHelmet/FlightHelmet.gltf",
         flags: &[],
-        bounds: b(0.13, 0.06, 0.12),
+        bounds: b(0.12, 0.06, 0.12),
     },
     Case {
         file: "AnisotropyBarnLamp/AnisotropyBarnLamp.gltf",
         flags: &[],
-        bounds: b(0.27, 0.07, 0.08),
+        bounds: b(0.28, 0.07, 0.08),
     },
     Case {
         file: "terrain/terrain.glb",
         flags: &[],
-        bounds: b(0.78, 0.10, 0.09),
+        bounds: b(0.47, 0.06, 0.09),
     },
     Case {
         file: "TonemappingTest/TonemappingTest.gltf",

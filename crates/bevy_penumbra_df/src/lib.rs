@@ -73,8 +73,8 @@ pub use particles::{
     DistanceFieldParticlesState,
 };
 pub use scene::{
-    CasterMesh, CasterSource, DistanceFieldCaster, DistanceFieldHeightfield, DistanceFieldQuery,
-    DistanceFieldScene, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
+    CasterMesh, CasterShading, CasterSource, DistanceFieldCaster, DistanceFieldHeightfield,
+    DistanceFieldQuery, DistanceFieldScene, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
     DistanceFieldScenePlugin, DistanceFieldSceneSettings, DistanceFieldUploadStats,
     FOLIAGE_AO_TRANSMISSION, HeightfieldTerrain, MergeDistanceFieldCasters, SceneCasterCounts,
     SceneHeightfields, SceneTwoSided, SkinnedCasters, SphereHit,

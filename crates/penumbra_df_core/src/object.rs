@@ -53,6 +53,11 @@ pub mod flags {
     pub const LIVE: u32 = 1 << 5;
     /// Casts its shadow while invisible (a shadow proxy; Unreal's "Cast Hidden Shadow").
     pub const CAST_HIDDEN_SHADOW: u32 = 1 << 6;
+    /// The caster's shading normals are not its faces' (smooth vertex normals or a normal
+    /// map: `shadow::shading_apart_from_faces`): where a receiver's G-buffer normal on
+    /// it hides a light, the caster field's own normal decides whether its triangles face
+    /// the light (`shadow::FIELD_NORMAL_MIN_FACING_SHADED`).
+    pub const SHADING_APART: u32 = 1 << 7;
 
     /// Whether a record with flags `f` shadows distance-field-shadowed lights: live,
     /// [`CASTS_SHADOWS`], and visible or [`CAST_HIDDEN_SHADOW`]

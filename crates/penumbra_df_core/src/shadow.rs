@@ -139,11 +139,75 @@ pub const FIELD_NORMAL_MAX_GRADIENT: f32 = 2.0;
 /// (`tests/scene_corpus.rs`): 0.5 and 0.7 against facing 0.1–0.3 (CHANGELOG.md, #45).
 pub const FIELD_NORMAL_MIN_AGREEMENT: f32 = 0.7;
 
-/// ... and only where the field faces the light by at least this cosine (a field normal
-/// is a voxel-scale estimate: within a few degrees of the terminator it guessed the
-/// triangle's side wrong on the corpus, lighting faces the light does not reach; at 0.2
-/// it lit facets of the shadow bench's scanned bunny that its triangles turn away).
+/// ... and only where the field faces the light by at least this cosine, for a caster
+/// whose shading normals are its faces' (no [`crate::object::flags::SHADING_APART`]: a
+/// field normal is a voxel-scale estimate: within a few degrees of the terminator it
+/// guessed the triangle's side wrong on the corpus; at 0.2 it lit facets of the shadow
+/// bench's flat-shaded scanned bunny that its triangles turn away).
 pub const FIELD_NORMAL_MIN_FACING: f32 = 0.3;
+
+/// ... or by this cosine for a caster shaded apart from its faces (smooth vertex normals
+/// or a normal map: [`crate::object::flags::SHADING_APART`]), whose G-buffer normals may
+/// turn from a light its triangles face; the field normal's own horizon then shades the
+/// receiver. Never where the depth buffer shows the G-buffer normal is the face's own
+/// ([`FLAT_SHADED_SIN`]). From a sweep on the scene corpus (facing 0, 0.05, 0.1, 0.15,
+/// 0.2, 0.3; CHANGELOG.md, #45) 0 gained most: a terrain's facets face a grazing sun by
+/// 0.05–0.25 where its smooth normals turn away.
+pub const FIELD_NORMAL_MIN_FACING_SHADED: f32 = 0.0;
+
+/// A pixel's G-buffer normal is its face's own (flat-shaded, not smooth or normal-mapped)
+/// where, along each screen axis, a neighbouring depth-buffer point lies in its tangent
+/// plane within this sine (4°): `penumbra_reference::shadow_mask::flat_shaded`,
+/// `shadow_trace.wgsl`'s `flat_shaded`.
+pub const FLAT_SHADED_SIN: f32 = 0.07;
+
+/// A triangle corner whose vertex normal turns from its face's by more than this cosine
+/// (5°) is shaded apart from it.
+pub const SHADING_APART_COS: f32 = 0.996;
+
+/// A mesh is shaded apart from its faces ([`crate::object::flags::SHADING_APART`]) when
+/// at least this share of its triangles' corners is ([`SHADING_APART_COS`]).
+pub const SHADING_APART_SHARE: f32 = 0.1;
+
+/// Whether a mesh's vertex `normals` turn from its triangles' faces (smooth shading: a
+/// sphere, a terrain, a character) rather than being them (flat shading: a box, a
+/// low-poly prop): at least [`SHADING_APART_SHARE`] of the non-degenerate triangles'
+/// corners turn by more than [`SHADING_APART_COS`] from the face (either side: a normal
+/// against the winding is the face's too). `triangles` index `positions` and `normals`;
+/// indices out of range and non-finite corners are skipped; `false` without any.
+pub fn shading_apart_from_faces(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    triangles: impl IntoIterator<Item = [u32; 3]>,
+) -> bool {
+    let (mut apart, mut corners) = (0u64, 0u64);
+    for tri in triangles {
+        let Some(p) = tri
+            .map(|i| positions.get(i as usize).copied())
+            .into_iter()
+            .collect::<Option<Vec<_>>>()
+        else {
+            continue;
+        };
+        let face = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+        if face == Vec3::ZERO {
+            continue;
+        }
+        for i in tri {
+            let Some(n) = normals.get(i as usize).map(|n| n.normalize_or_zero()) else {
+                continue;
+            };
+            if n == Vec3::ZERO {
+                continue;
+            }
+            corners += 1;
+            if face.dot(n).abs() < SHADING_APART_COS {
+                apart += 1;
+            }
+        }
+    }
+    corners > 0 && apart as f64 >= f64::from(SHADING_APART_SHARE) * corners as f64
+}
 
 /// The least step of a shadow march inside an occluder, in radii of the light's cone
 /// where it is: a march goes on through a solid occluder (distances below 0) until the
@@ -361,6 +425,32 @@ pub fn grid_view_words(camera: &CameraOrigin, to_light: Vec3, enabled: bool) -> 
 mod tests {
     use super::*;
 
+    /// A cube's faces are its normals (also against the winding); smoothed corners, a
+    /// normal 10° off on every corner, are apart; degenerate triangles, missing normals
+    /// and out-of-range indices are skipped; no triangle at all is not apart.
+    #[test]
+    fn shading_apart_from_faces_tells_smooth_from_flat() {
+        let p = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(1.0, 1.0, 0.0)];
+        let tris = [[0, 1, 2], [1, 3, 2]];
+        assert!(!shading_apart_from_faces(&p, &[Vec3::Z; 4], tris));
+        assert!(!shading_apart_from_faces(&p, &[-Vec3::Z; 4], tris));
+        let off = Vec3::new(0.0, 10f32.to_radians().sin(), 10f32.to_radians().cos());
+        assert!(shading_apart_from_faces(&p, &[off; 4], tris));
+        // One corner in twelve (8 %) apart: below the share.
+        let mut some = [Vec3::Z; 4];
+        some[0] = off;
+        let six = [[0, 1, 2], [1, 3, 2], [1, 3, 2], [1, 3, 2]];
+        assert!(!shading_apart_from_faces(&p, &some, six));
+        assert!(!shading_apart_from_faces(
+            &p,
+            &[off; 4],
+            [[0, 0, 1], [0, 1, 9]]
+        ));
+        assert!(!shading_apart_from_faces(&p, &[Vec3::ZERO; 4], tris));
+        assert!(!shading_apart_from_faces(&p, &[off; 4], []));
+        assert!(!shading_apart_from_faces(&[Vec3::NAN; 4], &[off; 4], tris));
+    }
+
     /// `shadow.wgsl` uses these constants, and the shell is the baker's; solid fields,
     /// unknown normals and analytic shapes (voxel 0) get no offset; a grazing ray's start
     /// is capped.
@@ -379,6 +469,11 @@ mod tests {
             ("FIELD_NORMAL_MAX_GRADIENT", FIELD_NORMAL_MAX_GRADIENT),
             ("FIELD_NORMAL_MIN_AGREEMENT", FIELD_NORMAL_MIN_AGREEMENT),
             ("FIELD_NORMAL_MIN_FACING", FIELD_NORMAL_MIN_FACING),
+            (
+                "FIELD_NORMAL_MIN_FACING_SHADED",
+                FIELD_NORMAL_MIN_FACING_SHADED,
+            ),
+            ("FLAT_SHADED_SIN", FLAT_SHADED_SIN),
             ("PENUMBRA_MIN_STEP", PENUMBRA_MIN_STEP),
             ("SURFACE_STEP_VOXELS", SURFACE_STEP_VOXELS),
             ("THIN_CROSSING_COSINE", THIN_CROSSING_COSINE),

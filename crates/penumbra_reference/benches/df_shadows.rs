@@ -35,7 +35,8 @@ use penumbra_reference::df_shadow::{
     AreaLight, Occluder, ShadowSettings, TriangleOccluder, monte_carlo_visibility,
 };
 use penumbra_reference::shadow_mask::{
-    pack_gbuffer_normal, pixel_visibility_counted, unpack_gbuffer_normal, upsample,
+    ReceiverNormal, flat_shaded, pack_gbuffer_normal, pixel_visibility_counted,
+    unpack_gbuffer_normal, upsample,
 };
 use penumbra_sdf::BakeSettings;
 use penumbra_sdf::geometry::Aabb;
@@ -71,6 +72,10 @@ struct Scene {
     /// Their surfaces' unit normals, facing the camera (the hit triangle's; zero for
     /// the background), as the G-buffer stores them.
     normals: Vec<Vec3>,
+    /// Whether the mask pass takes each normal for its face's own (`shadow_mask::
+    /// flat_shaded` on the view's points: all of them but where a neighbour is another
+    /// face along both sides of an axis).
+    flat: Vec<bool>,
     truth: Vec<f32>,
     /// The plugin's default bake of the first mesh: samples along its longest axis.
     default_resolution: u32,
@@ -127,6 +132,22 @@ fn finish_scene(mut scene: Scene) -> Scene {
         .iter()
         .map(|&n| unpack_gbuffer_normal(pack_gbuffer_normal(n)))
         .collect();
+    let eye = scene.camera.world_from_view.w_axis.truncate();
+    let at = |x: i64, y: i64| -> Option<Vec3> {
+        let inside = (0..i64::from(SIZE)).contains(&x) && (0..i64::from(SIZE)).contains(&y);
+        inside
+            .then(|| scene.points[(y * i64::from(SIZE) + x) as usize].map(|p| p - eye))
+            .flatten()
+    };
+    scene.flat = (0..i64::from(SIZE * SIZE))
+        .map(|i| {
+            let (x, y) = (i % i64::from(SIZE), i / i64::from(SIZE));
+            at(x, y).is_some_and(|p| {
+                let neighbours = [[at(x - 1, y), at(x + 1, y)], [at(x, y - 1), at(x, y + 1)]];
+                flat_shaded(p, scene.normals[i as usize], neighbours)
+            })
+        })
+        .collect();
     let occluders: [&dyn Occluder; 1] = [&tris];
     scene.truth = scene
         .points
@@ -171,6 +192,7 @@ fn bunny() -> Option<Scene> {
         ),
         points: Vec::new(),
         normals: Vec::new(),
+        flat: Vec::new(),
         truth: Vec::new(),
         default_resolution,
     }))
@@ -201,6 +223,7 @@ fn cornell() -> Scene {
         ),
         points: Vec::new(),
         normals: Vec::new(),
+        flat: Vec::new(),
         truth: Vec::new(),
         default_resolution,
     })
@@ -284,9 +307,12 @@ fn mask(scene: &Scene, records: &[ObjectRecord], atlas: &Atlas, c: Config) -> (V
         scene.points[i].map_or(1.0, |p| {
             let p = camera.relative([0, 0, 0], p);
             let normal = if c.horizon {
-                scene.normals[i]
+                ReceiverNormal {
+                    normal: scene.normals[i],
+                    flat: scene.flat[i],
+                }
             } else {
-                Vec3::ZERO
+                ReceiverNormal::default()
             };
             let (v, n) = pixel_visibility_counted(records, atlas, &camera, p, normal, &light);
             evaluations += n as u64;

@@ -22,9 +22,9 @@ use penumbra_df_core::heightfield::HeightfieldTexture;
 use penumbra_df_core::object::{ObjectRecord, ShapeKind, TILE_SIZE, flags};
 use penumbra_df_core::shadow::{
     FIELD_NORMAL_MAX_GRADIENT, FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING,
-    FIELD_NORMAL_MIN_GRADIENT, FIELD_NORMAL_REACH_VOXELS, FIELD_NORMAL_STEP_VOXELS,
-    PENUMBRA_MIN_STEP, crossing_stencil, march_start, penumbra_step, penumbra_visibility,
-    tetrahedral_gradient, tetrahedral_normal,
+    FIELD_NORMAL_MIN_FACING_SHADED, FIELD_NORMAL_MIN_GRADIENT, FIELD_NORMAL_REACH_VOXELS,
+    FIELD_NORMAL_STEP_VOXELS, FLAT_SHADED_SIN, PENUMBRA_MIN_STEP, crossing_stencil, march_start,
+    penumbra_step, penumbra_visibility, tetrahedral_gradient, tetrahedral_normal,
 };
 
 pub use penumbra_df_core::shadow::{ShadowLight as MaskLight, ShadowLightKind as MaskLightKind};
@@ -91,7 +91,7 @@ pub fn pixel_visibility(
     atlas: &Atlas,
     camera: &CameraOrigin,
     p: Vec3,
-    normal: Vec3,
+    normal: impl Into<ReceiverNormal>,
     light: &MaskLight,
 ) -> f32 {
     pixel_visibility_counted(records, atlas, camera, p, normal, light).0
@@ -104,7 +104,7 @@ pub fn pixel_visibility_counted(
     atlas: &Atlas,
     camera: &CameraOrigin,
     p: Vec3,
-    normal: Vec3,
+    normal: impl Into<ReceiverNormal>,
     light: &MaskLight,
 ) -> (f32, u32) {
     pixel_visibility_with_terrain(
@@ -131,7 +131,7 @@ pub fn pixel_visibility_with_terrain(
     atlas: &Atlas,
     camera: &CameraOrigin,
     p: Vec3,
-    normal: Vec3,
+    normal: impl Into<ReceiverNormal>,
     light: &MaskLight,
     terrain: &HeightfieldTexture,
 ) -> (f32, u32) {
@@ -147,21 +147,31 @@ pub fn pixel_visibility_with_terrain(
         return (1.0, 0);
     }
     let (dir, t_max, tan_half) = shadow_ray(p, light);
+    let ReceiverNormal { normal, flat } = normal.into();
     let mut normal = facing_the_eye(normal, p);
     // The surface's own shadow; where it hides the whole light, no march. Where the
-    // light is below the G-buffer normal's horizon, the caster field the receiver lies
-    // on may give the triangles' own facing instead ([`receiver_field_normal`]).
+    // light is below the G-buffer normal's horizon and that normal is not the face's own
+    // ([`flat_shaded`]), the caster field the receiver lies on may give the triangles'
+    // facing instead ([`receiver_field_normal`]): from facing 0 (then its own horizon)
+    // on a caster shaded apart from its faces (`flags::SHADING_APART`), from
+    // [`FIELD_NORMAL_MIN_FACING`] (fully lit) on the others.
     let mut own = horizon(normal, dir, tan_half);
     let mut evaluations = 0;
     if normal != Vec3::ZERO && own < 1.0 {
         let (field, reads) = receiver_field_normal_counted(records, atlas, camera, p, normal);
         evaluations += reads;
-        if let Some(field) = field
+        if let Some((field, field_flags)) = field
             && field.dot(normal) >= FIELD_NORMAL_MIN_AGREEMENT
-            && field.dot(dir) >= FIELD_NORMAL_MIN_FACING
+            && !flat
         {
-            normal = field;
-            own = 1.0;
+            let facing = field.dot(dir);
+            if field_flags & flags::SHADING_APART != 0 && facing >= FIELD_NORMAL_MIN_FACING_SHADED {
+                normal = field;
+                own = horizon(normal, dir, tan_half);
+            } else if facing >= FIELD_NORMAL_MIN_FACING {
+                normal = field;
+                own = 1.0;
+            }
         }
     }
     if own <= 0.0 {
@@ -249,6 +259,76 @@ pub fn pixel_visibility_with_terrain(
     )
 }
 
+/// What the mask pass knows of a receiver's normal: its G-buffer normal (zero: unknown)
+/// and whether that normal is its face's own ([`flat_shaded`]: then a light below its
+/// horizon is the face's own shadow, and no caster field is asked). A bare `Vec3`
+/// converts with `flat: false`, the pass's answer where it cannot tell (a pixel at the
+/// viewport's edge, deferred MSAA's per-sample trace).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ReceiverNormal {
+    /// The G-buffer's unit normal, or zero when unknown.
+    pub normal: Vec3,
+    /// Whether the depth buffer about the pixel lies in `normal`'s tangent plane.
+    pub flat: bool,
+}
+
+impl From<Vec3> for ReceiverNormal {
+    fn from(normal: Vec3) -> Self {
+        ReceiverNormal {
+            normal,
+            flat: false,
+        }
+    }
+}
+
+/// Whether a pixel's G-buffer `normal` is its surface's own — a flat-shaded face, not a
+/// smooth or normal-mapped normal — as `shadow_trace.wgsl`'s `flat_shaded` decides it
+/// from the depth buffer: along each screen axis, one of the pixel's two neighbours
+/// (`neighbours[axis][side]`, camera-relative depth-buffer points; `None` outside the
+/// viewport or on the background) lies in the tangent plane at `p`, within
+/// [`FLAT_SHADED_SIN`]. One neighbour per axis, not the nearer: on a face two pixels
+/// tall each pixel's other neighbour is another face.
+pub fn flat_shaded(p: Vec3, normal: Vec3, neighbours: [[Option<Vec3>; 2]; 2]) -> bool {
+    let normal = facing_the_eye(normal, p);
+    neighbours.iter().all(|axis| {
+        axis.iter().flatten().any(|&q| {
+            let e = q - p;
+            e.dot(normal).abs() <= FLAT_SHADED_SIN * e.length()
+        })
+    })
+}
+
+/// [`flat_shaded`] for pixel `(x, y)` of a `width × height` reverse-Z depth buffer
+/// (`depth[y * width + x]`; 0 background) whose camera-relative points `position(x, y,
+/// depth)` gives, with the pixel's G-buffer `normal`.
+pub fn flat_shaded_in_depth(
+    depth: &[f32],
+    width: u32,
+    height: u32,
+    (x, y): (u32, u32),
+    normal: Vec3,
+    position: impl Fn(u32, u32, f32) -> Vec3,
+) -> bool {
+    let at = |x: i64, y: i64| -> Option<Vec3> {
+        if x < 0 || y < 0 || x >= i64::from(width) || y >= i64::from(height) {
+            return None;
+        }
+        let (x, y) = (x as u32, y as u32);
+        let d = *depth.get((y * width + x) as usize)?;
+        // The shader's `!(d > 0.0)`: background and NaN depths have no point.
+        (d > 0.0).then(|| position(x, y, d))
+    };
+    let (x, y) = (i64::from(x), i64::from(y));
+    let Some(p) = at(x, y) else {
+        return false;
+    };
+    flat_shaded(
+        p,
+        normal,
+        [[at(x - 1, y), at(x + 1, y)], [at(x, y - 1), at(x, y + 1)]],
+    )
+}
+
 /// The outward normal of the caster field that camera-relative receiver `p` lies on,
 /// seen from `side` (its G-buffer normal turned to face the eye): among the
 /// shadow-casting volumes whose bounding sphere holds `p`, each one's [`field_normal`],
@@ -261,20 +341,22 @@ pub fn receiver_field_normal(
     p: Vec3,
     side: Vec3,
 ) -> Option<Vec3> {
-    receiver_field_normal_counted(records, atlas, camera, p, side).0
+    receiver_field_normal_counted(records, atlas, camera, p, side)
+        .0
+        .map(|(n, _)| n)
 }
 
-/// [`receiver_field_normal`] and the distance evaluations it took (one, and four more
-/// where the receiver lies on the field).
+/// [`receiver_field_normal`] with the flags of the record it came from, and the distance
+/// evaluations it took (one, and four more where the receiver lies on the field).
 fn receiver_field_normal_counted(
     records: &[ObjectRecord],
     atlas: &Atlas,
     camera: &CameraOrigin,
     p: Vec3,
     side: Vec3,
-) -> (Option<Vec3>, u32) {
+) -> (Option<(Vec3, u32)>, u32) {
     let mut evaluations = 0;
-    let mut best: Option<(f32, Vec3)> = None;
+    let mut best: Option<(f32, Vec3, u32)> = None;
     for r in records {
         if !flags::casts_shadows(r.flags()) {
             continue;
@@ -291,12 +373,12 @@ fn receiver_field_normal_counted(
         }
         if let Some((n, d)) = field_normal(r, atlas, camera, p, side) {
             evaluations += 4;
-            if best.is_none_or(|(b, _)| d < b) {
-                best = Some((d, n));
+            if best.is_none_or(|(b, _, _)| d < b) {
+                best = Some((d, n, r.flags()));
             }
         }
     }
-    (best.map(|(_, n)| n), evaluations)
+    (best.map(|(_, n, f)| (n, f)), evaluations)
 }
 
 /// The outward unit normal of volume record `r`'s surface at camera-relative receiver

@@ -46,6 +46,7 @@ mod mesh_shape;
 mod query;
 mod render;
 mod scene_casters;
+mod shading;
 
 use crate::sdf_asset::{SdfBakeFailed, SdfBaked, SdfVolumeAsset};
 use crate::system_times::timed;
@@ -71,6 +72,7 @@ pub use scene_casters::{
     DistanceFieldSceneCaster, DistanceFieldSceneCasters, MergeDistanceFieldCasters,
     SceneCasterCounts, SceneTwoSided, SkinnedCasters,
 };
+pub use shading::{CasterShading, mesh_shading_apart};
 
 /// Adds distance-field casters, the atlas and the object buffer. Part of
 /// `PenumbraPlugins`; needs [`crate::SdfAssetPlugin`] for mesh casters.
@@ -393,6 +395,7 @@ impl Plugin for DistanceFieldScenePlugin {
             .register_type::<DistanceFieldSceneCaster>()
             .register_type::<MergeDistanceFieldCasters>()
             .register_type::<SceneCasterCounts>()
+            .register_type::<CasterShading>()
             .init_resource::<DistanceFieldSceneSettings>()
             .init_resource::<DistanceFieldUploadStats>()
             .init_resource::<DistanceFieldScene>()
@@ -425,6 +428,7 @@ impl Plugin for DistanceFieldScenePlugin {
                         .after(bevy::mesh::mark_3d_meshes_as_changed_if_their_assets_changed),
                     (
                         timed(remove_distance_field_casters),
+                        timed(shading::detect_caster_shading),
                         timed(update_distance_field_casters),
                         timed(finish_frame),
                     )
@@ -659,10 +663,11 @@ fn caster_shape(
 }
 
 /// The record flags of a caster.
-fn caster_flags(caster: &DistanceFieldCaster, visible: bool) -> u32 {
+fn caster_flags(caster: &DistanceFieldCaster, visible: bool, shading_apart: bool) -> u32 {
     let mut f = 0;
     for (on, bit) in [
         (visible, flags::VISIBLE),
+        (shading_apart, flags::SHADING_APART),
         (caster.casts_shadows, flags::CASTS_SHADOWS),
         (caster.casts_occlusion, flags::CASTS_OCCLUSION),
         (caster.two_sided, flags::TWO_SIDED),
@@ -692,6 +697,7 @@ fn update_distance_field_casters(
                 Changed<InheritedVisibility>,
                 Changed<SdfBaked>,
                 Added<SdfBakeFailed>,
+                Changed<CasterShading>,
             )>,
         ),
     >,
@@ -702,6 +708,7 @@ fn update_distance_field_casters(
         Option<&InheritedVisibility>,
         Option<&SdfBaked>,
         Has<SdfBakeFailed>,
+        Option<&CasterShading>,
     )>,
 ) {
     let scene = &mut *scene;
@@ -716,7 +723,8 @@ fn update_distance_field_casters(
     todo.dedup();
     let cap = settings.max_casters.min(scene.device_max_objects) as usize;
     for entity in todo {
-        let Ok((caster, transform, visibility, baked, bake_failed)) = casters.get(entity) else {
+        let Ok((caster, transform, visibility, baked, bake_failed, shading)) = casters.get(entity)
+        else {
             continue;
         };
         let Some(shape) = caster_shape(scene, &settings, &sdfs, entity, caster, baked, bake_failed)
@@ -736,7 +744,11 @@ fn update_distance_field_casters(
         let desc = ObjectDesc {
             world_from_local: transform.affine(),
             shape,
-            flags: caster_flags(caster, visibility.is_none_or(|v| v.get())),
+            flags: caster_flags(
+                caster,
+                visibility.is_none_or(|v| v.get()),
+                shading.is_some_and(|s| s.apart),
+            ),
         };
         let record = match encode(&desc) {
             Ok(record) => record,

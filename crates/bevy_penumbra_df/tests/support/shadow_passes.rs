@@ -17,7 +17,8 @@ use penumbra_df_core::shadow::{
 };
 use penumbra_reference::df::{Atlas, object_distance};
 use penumbra_reference::shadow_mask::{
-    pack_gbuffer_normal, pixel_visibility_with_terrain, position_from_depth, unpack_gbuffer_normal,
+    ReceiverNormal, flat_shaded_in_depth, pack_gbuffer_normal, pixel_visibility_with_terrain,
+    position_from_depth, unpack_gbuffer_normal,
 };
 use penumbra_sdf::{BakeSettings, bake, shapes};
 use penumbra_shaders::flatten;
@@ -262,12 +263,24 @@ pub fn reference_mask(scene: &Scene, view: &View, light: &ShadowLight) -> Vec<f3
                 depth,
             );
             let n = view.normal(i as usize);
+            // The pass's test of the G-buffer normal against the depth buffer about it.
+            let flat = flat_shaded_in_depth(
+                &view.depth,
+                WIDTH,
+                HEIGHT,
+                (i % WIDTH, i / WIDTH),
+                n,
+                |x, y, d| {
+                    let pixel = Vec2::new(x as f32, y as f32);
+                    position_from_depth(view.view_from_clip, view.world_from_view, size, pixel, d)
+                },
+            );
             pixel_visibility_with_terrain(
                 &scene.records,
                 &scene.atlas,
                 &view.camera,
                 p,
-                n,
+                ReceiverNormal { normal: n, flat },
                 light,
                 &scene.terrain,
             )

@@ -324,3 +324,37 @@ fn pass_model_equals_the_march_on_spheres() {
         assert!(worst < 2e-4, "{area:?}: worst {worst}");
     }
 }
+
+/// The depth-buffer test of a G-buffer normal: a plane's own normal is flat-shaded (also
+/// seen turned from the eye, and on a face two pixels tall whose other neighbours lie on
+/// other faces); a normal 10° off the plane (a normal map, smooth shading) is not; a
+/// pixel with no neighbour along an axis cannot tell (not flat); a NaN point is not.
+#[test]
+fn the_depth_buffer_tells_a_faces_own_normal() {
+    let n = Vec3::new(0.0, 1.0, 0.2).normalize();
+    let (u, v) = (n.any_orthonormal_pair().0, n.any_orthonormal_pair().1);
+    let p = Vec3::new(0.0, -1.0, -5.0);
+    let on = |a: f32, b: f32| Some(p + u * a + v * b);
+    let plane = [
+        [on(-0.01, 0.0), on(0.01, 0.0)],
+        [on(0.0, -0.01), on(0.0, 0.01)],
+    ];
+    assert!(flat_shaded(p, n, plane));
+    assert!(flat_shaded(p, -n, plane));
+    let tilted = glam::Quat::from_axis_angle(u, 10f32.to_radians()) * n;
+    assert!(!flat_shaded(p, tilted, plane));
+    // A face two pixels tall: one neighbour of each axis on another face.
+    let other = Some(p + n * 0.01);
+    assert!(flat_shaded(
+        p,
+        n,
+        [[on(-0.01, 0.0), other], [other, on(0.0, 0.01)]]
+    ));
+    assert!(!flat_shaded(p, n, [[other, other], [on(0.0, -0.01), None]]));
+    assert!(!flat_shaded(p, n, [[None, None], [on(0.0, -0.01), None]]));
+    assert!(!flat_shaded(
+        p,
+        n,
+        [[Some(Vec3::NAN), None], [on(0.0, -0.01), None]]
+    ));
+}

@@ -12,6 +12,7 @@ const FLAG_VISIBLE: u32 = 8u;
 const FLAG_UNBOUNDED: u32 = 16u;
 const FLAG_LIVE: u32 = 32u;
 const FLAG_CAST_HIDDEN_SHADOW: u32 = 64u;
+const FLAG_SHADING_APART: u32 = 128u;
 const KIND_SHIFT: u32 = 8u;
 const KIND_MASK: u32 = 15u;
 const AO_TRANSMISSION_SHIFT: u32 = 16u;

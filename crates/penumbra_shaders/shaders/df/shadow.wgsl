@@ -210,6 +210,11 @@ const FIELD_NORMAL_MIN_GRADIENT: f32 = 0.25;
 const FIELD_NORMAL_MAX_GRADIENT: f32 = 2.0;
 const FIELD_NORMAL_MIN_AGREEMENT: f32 = 0.7;
 const FIELD_NORMAL_MIN_FACING: f32 = 0.3;
+const FIELD_NORMAL_MIN_FACING_SHADED: f32 = 0.0;
+// A G-buffer normal is its face's own where the depth buffer lies in its tangent plane
+// within this sine (`penumbra_df_core::shadow::FLAT_SHADED_SIN`; `shadow_trace.wgsl`'s
+// `flat_shaded`).
+const FLAT_SHADED_SIN: f32 = 0.07;
 // No field normal: `w` above every distance.
 const NO_FIELD_NORMAL: vec4<f32> = vec4<f32>(0.0, 0.0, 0.0, 3.0e38);
 

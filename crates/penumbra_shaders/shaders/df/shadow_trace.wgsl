@@ -12,11 +12,13 @@
 // `penumbra_reference::shadow_mask::pixel_visibility_with_terrain`.
 #define_import_path penumbra::df::shadow_trace
 
-#import penumbra::df::object::{DistanceFieldObject, TILE_SIZE}
+#import penumbra::df::object::{DistanceFieldObject, FLAG_SHADING_APART, TILE_SIZE}
 #import penumbra::df::heightfield::{HeightfieldRecord, heightfield_distance}
 #import penumbra::df::shadow::{
-    FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, NO_FIELD_NORMAL, PENUMBRA_MIN_STEP,
-    ShadowLight, ShadowRay, bounding_sphere, caster_field_normal, casts_shadows, cull_slack,
+    FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, FIELD_NORMAL_MIN_FACING_SHADED,
+    FLAT_SHADED_SIN, NO_FIELD_NORMAL,
+    PENUMBRA_MIN_STEP, ShadowLight, ShadowRay, bounding_sphere, caster_field_normal, casts_shadows,
+    cull_slack,
     facing_the_eye, finish_visibility, gbuffer_normal, horizon_visibility, is_directional, march_object,
     march_start, object_in_cone, penumbra_visibility, round_cone_distance, shadow_ray,
     traces_point,
@@ -144,6 +146,42 @@ fn position_from_depth(screen: vec2<f32>, depth: f32) -> vec3<f32> {
     let q = v.xyz / v.w;
     return view.world_from_view[0].xyz * q.x + view.world_from_view[1].xyz * q.y
         + view.world_from_view[2].xyz * q.z;
+}
+
+// Whether the pixel's G-buffer normal (turned to face the eye) is its face's own — a
+// flat-shaded face, not a smooth or normal-mapped normal: along each screen axis one of
+// its two neighbours' depth-buffer points lies in its tangent plane, within
+// FLAT_SHADED_SIN (one, not the nearer: on a face two pixels tall each pixel's other
+// neighbour is another face). Not decided under deferred MSAA's per-sample trace
+// (false). CPU model: `shadow_mask::flat_shaded`.
+fn flat_shaded(pixel: vec2<i32>, screen: vec2<f32>, p: vec3<f32>, normal: vec3<f32>) -> bool {
+#ifdef PENUMBRA_SAMPLE_TRACE
+    return false;
+#else
+    let lo = vec2<i32>(view.viewport.xy);
+    let hi = lo + vec2<i32>(view.viewport.zw);
+    for (var axis = 0; axis < 2; axis += 1) {
+        var in_plane = false;
+        for (var s = -1; s <= 1; s += 2) {
+            var o = vec2<i32>(0);
+            o[axis] = s;
+            let q = pixel + o;
+            if any(q < lo) || any(q >= hi) {
+                continue;
+            }
+            let d = textureLoad(depth_texture, q, 0).r;
+            if !(d > 0.0) {
+                continue;
+            }
+            let e = position_from_depth(screen + vec2<f32>(o), d) - p;
+            in_plane = in_plane || abs(dot(e, normal)) <= FLAT_SHADED_SIN * length(e);
+        }
+        if !in_plane {
+            return false;
+        }
+    }
+    return true;
+#endif
 }
 
 // The terrains' visibility along `ray` from camera-relative `p`
@@ -305,6 +343,7 @@ fn trace(
     // triangles' facing, not a smooth or normal-mapped G-buffer normal), else from the
     // G-buffer's; where it hides the whole light, no march.
     var field = NO_FIELD_NORMAL;
+    var field_slot = 0u;
     if workgroupUniformLoad(&tile_reads_fields) != 0u {
         var best = NO_FIELD_NORMAL;
         var best_slot = 0xffffffffu;
@@ -329,10 +368,20 @@ fn trace(
             workgroupBarrier();
         }
         field = best;
+        field_slot = best_slot;
     }
-    if surface && any(normal != vec3<f32>(0.0)) {
-        if field.w < 3.0e38 && dot(field.xyz, normal) >= FIELD_NORMAL_MIN_AGREEMENT
-            && dot(field.xyz, ray.dir) >= FIELD_NORMAL_MIN_FACING && horizon < 1.0 {
+    // Where the G-buffer normal hides the light and is not the face's own, the field's
+    // normal decides: from facing 0 (its own horizon) on a caster shaded apart from its
+    // faces, from FIELD_NORMAL_MIN_FACING (fully lit) on the others.
+    if surface && horizon < 1.0 && any(normal != vec3<f32>(0.0)) && field.w < 3.0e38
+        && dot(field.xyz, normal) >= FIELD_NORMAL_MIN_AGREEMENT
+        && !flat_shaded(vec2<i32>(point.screen) + vec2<i32>(view.viewport.xy), point.screen, p, normal) {
+        let facing = dot(field.xyz, ray.dir);
+        let shaded = (objects[field_slot].flags & FLAG_SHADING_APART) != 0u;
+        if shaded && facing >= FIELD_NORMAL_MIN_FACING_SHADED {
+            normal = field.xyz;
+            horizon = horizon_visibility(normal, ray.dir, ray.tan_half);
+        } else if facing >= FIELD_NORMAL_MIN_FACING {
             normal = field.xyz;
             horizon = 1.0;
         }
