@@ -799,6 +799,7 @@ fn dump_buffers(app: &mut App, args: &Args, dir: &std::path::Path) -> Result<u64
                 "two_sided": counts.two_sided,
                 "ground": counts.ground,
                 "solid_double_sided": counts.solid_double_sided,
+                "shaded_apart": counts.shaded_apart,
                 "merged_primitives": counts.merged,
                 "skipped_skinned": counts.skinned,
                 "skipped_small": counts.small,

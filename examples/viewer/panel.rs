@@ -248,13 +248,14 @@ fn casters_ui(
 ) {
     if let Some(c) = counts {
         ui.label(format!(
-            "{} casters ({} two-sided, {} ground, {} double-sided but closed: solid, {} \
-             primitives merged into them); skipped: {} skinned, {} small, {} blended or glass, \
-             {} other",
+            "{} casters ({} two-sided, {} ground, {} double-sided but closed: solid, {} shaded \
+             apart from their faces, {} primitives merged into them); skipped: {} skinned, {} \
+             small, {} blended or glass, {} other",
             c.casters,
             c.two_sided,
             c.ground,
             c.solid_double_sided,
+            c.shaded_apart,
             c.merged,
             c.skinned,
             c.small,

@@ -141,6 +141,8 @@ fn cornell_box_twice_tags_every_mesh_and_shares_the_bakes() {
         (6, 4, 2, 0),
         "{ca:?}"
     );
+    // Boxes and walls: flat-shaded, their G-buffer normals are their faces'.
+    assert_eq!(ca.shaded_apart, 0, "{ca:?}");
     let all = casters(&mut app);
     assert!(all.iter().all(|(_, c)| c.resolution_scale == 0.125));
     // Shared bakes: the second instance bakes nothing; one atlas volume per distinct
@@ -206,6 +208,20 @@ fn palm_tree_open_sheets_are_ground_and_small_meshes_are_skipped() {
         (10, 0, 2, 8),
         "{c:?}"
     );
+    // The leaves are smooth-shaded (shaded apart from their faces); the low-poly trunk,
+    // island and sea are flat-shaded.
+    assert_eq!(c.shaded_apart, 7, "{c:?}");
+    {
+        let world = app.world_mut();
+        let mut q = world.query::<(&Name, &bevy_penumbra_df::CasterShading)>();
+        for (name, shading) in q.iter(world) {
+            assert_eq!(
+                shading.apart,
+                name.ends_with("Leaves"),
+                "{name}: {shading:?}"
+            );
+        }
+    }
     // A size threshold above the leaves (≈ 1.7 m) but below the trunk and the
     // landscape skips the leaves.
     app.world_mut()

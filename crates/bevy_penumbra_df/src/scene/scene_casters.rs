@@ -160,6 +160,9 @@ pub struct SceneCasterCounts {
     pub solid_double_sided: u32,
     /// Of those, ground: open sheets facing up, baked solid below them (rule 5).
     pub ground: u32,
+    /// Of those, shaded apart from their faces (smooth vertex normals or a normal map:
+    /// [`CasterShading`](super::CasterShading)), counted once their SDF has arrived.
+    pub shaded_apart: u32,
     /// Skipped: skinned or morphing (with [`SkinnedCasters::Skip`]).
     pub skinned: u32,
     /// Skipped: below [`DistanceFieldSceneCasters::min_size`].
@@ -693,26 +696,29 @@ fn merged_caster_mesh(
 
 /// Recomputes [`SceneCasterCounts`] on every root when a verdict was made or a judged
 /// mesh despawned (a respawned or hot-reloaded scene), from the meshes under it.
+#[allow(clippy::too_many_arguments, reason = "a system's queries")]
 pub(super) fn count_scene_casters(
     mut commands: Commands,
     changed: Query<(), Changed<SceneMeshVerdict>>,
+    shading_changed: Query<(), (Changed<super::CasterShading>, With<SceneMeshVerdict>)>,
     mut removed: RemovedComponents<SceneMeshVerdict>,
     roots: Query<(Entity, Option<&SceneCasterCounts>), With<DistanceFieldSceneCasters>>,
     added_roots: Query<(), Added<DistanceFieldSceneCasters>>,
     children: Query<&Children>,
-    verdicts: Query<&SceneMeshVerdict>,
+    verdicts: Query<(&SceneMeshVerdict, Option<&super::CasterShading>)>,
 ) {
     let removed = removed.read().count() > 0;
-    if changed.is_empty() && !removed && added_roots.is_empty() {
+    if changed.is_empty() && shading_changed.is_empty() && !removed && added_roots.is_empty() {
         return;
     }
     for (root, counts) in &roots {
         let mut sum = SceneCasterCounts::default();
-        for v in std::iter::once(root)
+        for (v, shading) in std::iter::once(root)
             .chain(children.iter_descendants(root))
             .filter_map(|e| verdicts.get(e).ok())
         {
             add_counts(&mut sum, &v.counts);
+            sum.shaded_apart += u32::from(v.counts.casters > 0 && shading.is_some_and(|s| s.apart));
         }
         if counts != Some(&sum) {
             commands.entity(root).insert(sum);
@@ -725,6 +731,7 @@ fn add_counts(c: &mut SceneCasterCounts, t: &SceneCasterCounts) {
     c.two_sided += t.two_sided;
     c.solid_double_sided += t.solid_double_sided;
     c.ground += t.ground;
+    c.shaded_apart += t.shaded_apart;
     c.skinned += t.skinned;
     c.small += t.small;
     c.blended += t.blended;
