@@ -171,7 +171,12 @@ fn parse_number(s: &str) -> Result<f32, String> {
     finite(v, "a number")
 }
 
-/// `X,Y,Z`, finite.
+/// The largest coordinate `--eye`, `--target` and `--point` take, metres: far beyond any
+/// scene, and small enough that the view's matrices stay finite (a finite 3·10³⁸ made a
+/// NaN view).
+pub const MAX_COORDINATE: f32 = 1.0e7;
+
+/// `X,Y,Z`, each finite and within ±[`MAX_COORDINATE`].
 pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
     let parts: Vec<&str> = s.split(',').collect();
     if parts.len() != 3 {
@@ -179,6 +184,11 @@ pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
     }
     let v: Result<Vec<f32>, String> = parts.iter().map(|p| parse_number(p)).collect();
     let v = v?;
+    if v.iter().any(|c| c.abs() > MAX_COORDINATE) {
+        return Err(format!(
+            "{s:?}: each coordinate must be within ±{MAX_COORDINATE:e}"
+        ));
+    }
     Ok(Vec3::new(v[0], v[1], v[2]))
 }
 

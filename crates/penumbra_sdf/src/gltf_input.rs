@@ -35,7 +35,16 @@ pub enum GltfError {
     Buffer(String),
     /// The selection matched nothing.
     NotFound(String),
+    /// An accessor claims more elements than are read ([`MAX_ACCESSOR_ELEMENTS`]) — a
+    /// sparse accessor needs no buffer for them, so a few hundred bytes could ask for
+    /// tens of gigabytes.
+    TooLarge(String),
 }
+
+/// The most elements read from one POSITION or index accessor, and positions from one
+/// file (2²⁶ = 67,108,864: 1.5 GiB of f64 positions; a mesh that large is far beyond what
+/// a distance field resolves).
+pub const MAX_ACCESSOR_ELEMENTS: usize = 1 << 26;
 
 impl std::fmt::Display for GltfError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -43,6 +52,7 @@ impl std::fmt::Display for GltfError {
             GltfError::Parse(e) => write!(f, "invalid glTF: {e}"),
             GltfError::Buffer(e) => write!(f, "glTF buffer: {e}"),
             GltfError::NotFound(e) => write!(f, "{e}"),
+            GltfError::TooLarge(e) => write!(f, "glTF too large: {e}"),
         }
     }
 }
@@ -218,6 +228,20 @@ fn load_uri(uri: &str, base_dir: Option<&Path>) -> Result<Vec<u8>, GltfError> {
         ))
     })?;
     let decoded = percent_decode(uri);
+    // Only files in the glTF's directory or below: an absolute path or `..` would read
+    // anything the process can (`/etc/passwd`, `../../secret`).
+    let inside = Path::new(&decoded).components().all(|c| {
+        matches!(
+            c,
+            std::path::Component::Normal(_) | std::path::Component::CurDir
+        )
+    });
+    if !inside || decoded.is_empty() {
+        return Err(GltfError::Buffer(format!(
+            "external buffer {uri:?} is not a relative path inside the file's directory \
+             (absolute paths and `..` are refused)"
+        )));
+    }
     let path = dir.join(&decoded);
     std::fs::read(&path).map_err(|e| GltfError::Buffer(format!("{}: {e}", path.display())))
 }
@@ -263,6 +287,36 @@ fn append_mesh(
             report.skipped_primitives += 1;
             continue;
         };
+        // Checked before reading: the reader reserves what an accessor claims.
+        let claims = [
+            primitive
+                .get(&gltf::Semantic::Positions)
+                .map(|a| ("POSITION", a)),
+            primitive.indices().map(|a| ("indices", a)),
+        ];
+        for (what, accessor) in claims.into_iter().flatten() {
+            let total = if what == "POSITION" {
+                out.positions.len().saturating_add(accessor.count())
+            } else {
+                accessor.count()
+            };
+            if total > MAX_ACCESSOR_ELEMENTS {
+                return Err(GltfError::TooLarge(format!(
+                    "mesh {} ({:?}) primitive {}: accessor {} ({what}) claims {} elements{}; \
+                     at most {MAX_ACCESSOR_ELEMENTS} are read",
+                    mesh.index(),
+                    mesh.name().unwrap_or(""),
+                    primitive.index(),
+                    accessor.index(),
+                    accessor.count(),
+                    if total > accessor.count() {
+                        format!(" ({total} positions with the file's earlier meshes)")
+                    } else {
+                        String::new()
+                    },
+                )));
+            }
+        }
         let base = out.positions.len() as u32;
         out.positions
             .extend(positions.map(|p| transform.transform_point3(Vec3::from_array(p).as_dvec3())));

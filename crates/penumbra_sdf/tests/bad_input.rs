@@ -198,6 +198,12 @@ fn bad_gltf_files_are_errors() {
         ),
         ("missing file", tetra_json("nope.bin", 36)),
         ("remote", tetra_json("https://example.invalid/x.bin", 36)),
+        ("absolute", tetra_json("/etc/passwd", 36)),
+        ("parent", tetra_json("../x.bin", 36)),
+        (
+            "parent, percent-encoded",
+            tetra_json("sub/%2e%2e/%2e%2e/x.bin", 36),
+        ),
         ("cycle", cycle),
         ("two parents", shared),
     ];
@@ -209,6 +215,9 @@ fn bad_gltf_files_are_errors() {
         );
         let e = r.err().unwrap_or_else(|| panic!("{name}: accepted"));
         assert!(!e.to_string().is_empty(), "{name}");
+        if name.starts_with("absolute") || name.starts_with("parent") {
+            assert!(e.to_string().contains("refused"), "{name}: {e}");
+        }
     }
     let e = load_gltf(good.as_bytes(), None, &GltfSelection::Mesh("nope".into())).unwrap_err();
     assert!(e.to_string().contains("\"tri\""), "{e}");
@@ -251,4 +260,47 @@ fn each_triangle_knows_whether_its_material_is_double_sided_or_see_through() {
             m(false, true)
         ]
     );
+}
+
+/// A 700-byte glTF whose POSITION accessor is sparse, has no buffer view and claims 2·10⁹
+/// elements was read by reserving 48 GB (`memory allocation of 48000000000 bytes
+/// failed`, an abort, #47): now an error naming the mesh, the accessor and the limit,
+/// before anything is allocated. A sparse accessor within the limit still reads.
+#[test]
+fn a_sparse_accessor_claiming_billions_of_elements_is_an_error() {
+    use base64::Engine;
+    // One sparse element: index 2 (u32), value (0, 1, 0).
+    let bytes: Vec<u8> = 2u32
+        .to_le_bytes()
+        .into_iter()
+        .chain([0.0f32, 1.0, 0.0].iter().flat_map(|f| f.to_le_bytes()))
+        .collect();
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bytes)
+    );
+    let json = |count: u64| {
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"uri":"{uri}","byteLength":16}}],
+            "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":4}},
+                           {{"buffer":0,"byteOffset":4,"byteLength":12}}],
+            "accessors":[{{"componentType":5126,"count":{count},"type":"VEC3",
+                "min":[0,0,0],"max":[1,1,0],
+                "sparse":{{"count":1,"indices":{{"bufferView":0,"componentType":5125}},
+                           "values":{{"bufferView":1}}}}}}],
+            "meshes":[{{"name":"huge","primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+            "nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#
+        )
+    };
+    let text = json(2_000_000_000);
+    assert!(text.len() < 1000, "{} bytes", text.len());
+    let e = load_gltf(text.as_bytes(), None, &GltfSelection::Scene).unwrap_err();
+    let message = e.to_string();
+    for part in ["\"huge\"", "POSITION", "2000000000", "67108864"] {
+        assert!(message.contains(part), "{part} not in: {message}");
+    }
+    // Three elements, the third set by the sparse value: one triangle.
+    let (m, _) = load_gltf(json(3).as_bytes(), None, &GltfSelection::Scene).unwrap();
+    assert_eq!(m.triangles.len(), 1);
+    assert_eq!(m.origin + m.positions[2].as_dvec3(), glam::DVec3::Y);
 }

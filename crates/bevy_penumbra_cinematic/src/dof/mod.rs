@@ -110,7 +110,7 @@ mod render;
 
 use bevy::asset::AssetEvent;
 use bevy::camera::{Camera3d, PhysicalCameraParameters, Projection};
-use bevy::platform::collections::HashMap;
+use bevy::platform::collections::{HashMap, HashSet};
 use bevy::post_process::dof::DepthOfField;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
@@ -132,8 +132,10 @@ pub enum BokehAperture {
     Hexagon,
     /// A circle (a wide-open lens).
     Circle,
-    /// A regular polygon of `sides` sides (3 or more; fewer are clamped to 3 with a
-    /// warning), a vertex at `rotation` radians from +x, counter-clockwise.
+    /// A regular polygon of `sides` sides (3 to [`MAX_APERTURE_SIDES`]; others are
+    /// clamped with a warning), a vertex at `rotation` radians from +x,
+    /// counter-clockwise (taken to 1/256 of the turn between two vertices: an animated
+    /// rotation makes at most 256 shapes per side count).
     Polygon {
         /// Blades of the aperture.
         sides: u32,
@@ -353,6 +355,11 @@ impl BokehDepthOfField {
         if let BokehAperture::Polygon { sides, rotation } = self.aperture {
             if sides < 3 {
                 problems.push(format!("aperture sides = {sides} (must be ≥ 3; using 3)"));
+            } else if sides > MAX_APERTURE_SIDES {
+                problems.push(format!(
+                    "aperture sides = {sides} (at most {MAX_APERTURE_SIDES}; using \
+                     {MAX_APERTURE_SIDES})"
+                ));
             }
             if !rotation.is_finite() {
                 problems.push(format!("aperture rotation = {rotation} (using 0)"));
@@ -374,6 +381,14 @@ pub const BUILT_IN_APERTURE_SIZE: u32 = 64;
 /// Largest aperture image accepted, texels per side.
 pub const MAX_APERTURE_IMAGE_SIZE: u32 = 1024;
 
+/// Most sides of a [`BokehAperture::Polygon`] (more are clamped, with a warning: on the
+/// 64-texel built-in image a 64-gon is already a circle, and the shape's cost grows
+/// with its sides — four billion of them hung the main world).
+pub const MAX_APERTURE_SIDES: u32 = 64;
+
+/// Steps of a polygon's rotation between two of its vertices ([`BokehAperture::Polygon`]).
+const APERTURE_ROTATION_STEPS: u32 = 256;
+
 /// A camera's aperture image, checked and normalised (main world, then extracted): `id`
 /// names its texture in the render world.
 #[derive(Component, Clone, Debug)]
@@ -389,7 +404,12 @@ pub struct BokehApertureShape {
 enum ApertureKey {
     Hexagon,
     Circle,
-    Polygon { sides: u32, rotation: u32 },
+    /// Sides, and rotation in steps of 1/`APERTURE_ROTATION_STEPS` of the turn between
+    /// two vertices.
+    Polygon {
+        sides: u32,
+        rotation: u32,
+    },
     Image(AssetId<Image>),
 }
 
@@ -398,10 +418,19 @@ impl ApertureKey {
         match aperture {
             BokehAperture::Hexagon => ApertureKey::Hexagon,
             BokehAperture::Circle => ApertureKey::Circle,
-            BokehAperture::Polygon { sides, rotation } => ApertureKey::Polygon {
-                sides: (*sides).max(3),
-                rotation: if rotation.is_finite() { *rotation } else { 0.0 }.to_bits(),
-            },
+            BokehAperture::Polygon { sides, rotation } => {
+                // A regular polygon repeats every turn between two vertices: the key is
+                // the rotation within it, in APERTURE_ROTATION_STEPS.
+                let sides = (*sides).clamp(3, MAX_APERTURE_SIDES);
+                let step = std::f32::consts::TAU / sides as f32;
+                let r = if rotation.is_finite() { *rotation } else { 0.0 };
+                let steps = APERTURE_ROTATION_STEPS as f32;
+                let k = ((r.rem_euclid(step) / step) * steps).round() as u32;
+                ApertureKey::Polygon {
+                    sides,
+                    rotation: k % APERTURE_ROTATION_STEPS,
+                }
+            }
             BokehAperture::Image(handle) => ApertureKey::Image(handle.id()),
         }
     }
@@ -469,8 +498,10 @@ fn prepare_bokeh_apertures(
             cache.shapes.remove(&ApertureKey::Image(*id));
         }
     }
+    let mut used = HashSet::new();
     for (entity, settings, current) in &cameras {
         let key = ApertureKey::of(&settings.aperture);
+        used.insert(key);
         let shape = match cache.shapes.get(&key) {
             Some(shape) => shape.clone(),
             None => match key {
@@ -478,10 +509,11 @@ fn prepare_bokeh_apertures(
                     cache.insert(key, Aperture::hexagon(BUILT_IN_APERTURE_SIZE))
                 }
                 ApertureKey::Circle => cache.insert(key, Aperture::circle(BUILT_IN_APERTURE_SIZE)),
-                ApertureKey::Polygon { sides, rotation } => cache.insert(
-                    key,
-                    Aperture::polygon(BUILT_IN_APERTURE_SIZE, sides, f32::from_bits(rotation)),
-                ),
+                ApertureKey::Polygon { sides, rotation } => {
+                    let step = std::f32::consts::TAU / sides as f32;
+                    let angle = rotation as f32 / APERTURE_ROTATION_STEPS as f32 * step;
+                    cache.insert(key, Aperture::polygon(BUILT_IN_APERTURE_SIZE, sides, angle))
+                }
                 ApertureKey::Image(id) => {
                     let Some(image) = images.get(id) else {
                         // Loading: the circle meanwhile (no warning).
@@ -511,6 +543,11 @@ fn prepare_bokeh_apertures(
             commands.entity(entity).insert(shape);
         }
     }
+    // Shapes no camera uses any more are dropped (an animated rotation made one a frame,
+    // kept for ever); the built-in ones stay.
+    cache
+        .shapes
+        .retain(|k, _| used.contains(k) || matches!(k, ApertureKey::Hexagon | ApertureKey::Circle));
 }
 
 /// Warns once per change of a camera's settings when some are out of range, when its

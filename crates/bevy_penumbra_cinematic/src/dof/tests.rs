@@ -154,3 +154,51 @@ fn aperture_images_are_read_and_bad_ones_rejected() {
     let gpu_only = aperture_from_image(&gpu_only).unwrap_err();
     assert!(gpu_only.contains("CPU copy"), "{gpu_only}");
 }
+
+/// A polygon aperture's sides are bounded (four billion sides hung the main world
+/// making its image, #47) and its rotation keyed within the turn between two vertices;
+/// an animated rotation does not keep a shape per frame (the cache kept every one).
+#[test]
+fn polygon_apertures_are_bounded_and_not_kept_for_ever() {
+    let key = |sides, rotation| ApertureKey::of(&BokehAperture::Polygon { sides, rotation });
+    assert_eq!(key(u32::MAX, 0.3), key(MAX_APERTURE_SIDES, 0.3));
+    assert_eq!(key(2, 0.3), key(3, 0.3));
+    let step = std::f32::consts::TAU / 6.0;
+    assert_eq!(key(6, 0.1), key(6, 0.1 + step));
+    assert_eq!(key(6, 0.1), key(6, 0.1 - 7.0 * step));
+    assert_ne!(key(6, 0.1), key(6, 0.2));
+    let huge = BokehDepthOfField {
+        aperture: BokehAperture::Polygon {
+            sides: u32::MAX,
+            rotation: 0.0,
+        },
+        ..default()
+    };
+    assert!(huge.problems(FOV).iter().any(|p| p.contains("sides")));
+
+    let mut app = App::new();
+    app.init_resource::<Assets<Image>>()
+        .add_message::<AssetEvent<Image>>()
+        .init_resource::<BokehApertureCache>()
+        .add_systems(Update, prepare_bokeh_apertures);
+    let camera = app.world_mut().spawn(huge).id();
+    let mut ids = HashSet::new();
+    for frame in 0..120 {
+        if let Some(mut settings) = app.world_mut().get_mut::<BokehDepthOfField>(camera) {
+            settings.aperture = BokehAperture::Polygon {
+                sides: if frame < 60 { u32::MAX } else { 6 },
+                rotation: frame as f32 * 0.02,
+            };
+        }
+        app.update();
+        let shape = app
+            .world()
+            .get::<BokehApertureShape>(camera)
+            .expect("a shape");
+        ids.insert(shape.id);
+        let cached = app.world().resource::<BokehApertureCache>().shapes.len();
+        assert!(cached <= 1, "frame {frame}: {cached} shapes cached");
+    }
+    // The rotation moved every frame: a new shape each time, none kept.
+    assert!(ids.len() > 100, "{} shapes", ids.len());
+}

@@ -83,17 +83,36 @@ pub(super) struct ReflectionScene {
 #[derive(Resource, Default)]
 pub(super) struct ReflectionMipChains(pub(super) HashMap<AssetId<Image>, Option<Arc<MipChain>>>);
 
-/// A billboard image's linear texels, or `None` when its format cannot be read.
-fn linear_texels(image: &Image) -> Option<(UVec2, Vec<Vec4>)> {
+/// A billboard image's linear texels, or why it cannot be read: its size is checked
+/// first (a 20,000² image was converted to 16 bytes a texel, ~6.4 GB, before it was
+/// refused), then its data and format.
+fn linear_texels(image: &Image) -> Result<(UVec2, Vec<Vec4>), String> {
     let size = image.size();
+    if !((1..=MAX_IMAGE_SIDE).contains(&size.x) && (1..=MAX_IMAGE_SIDE).contains(&size.y)) {
+        return Err(format!(
+            "{}×{} texels (1 to {MAX_IMAGE_SIDE} a side)",
+            size.x, size.y
+        ));
+    }
+    if image.data.is_none() {
+        return Err("no data in the main world (RenderAssetUsages::MAIN_WORLD)".into());
+    }
     let mut texels = Vec::with_capacity((size.x * size.y) as usize);
     for y in 0..size.y {
         for x in 0..size.x {
-            let c = image.get_color_at(x, y).ok()?.to_linear();
+            let c = image
+                .get_color_at(x, y)
+                .map_err(|e| {
+                    format!(
+                        "its format {:?} cannot be read texel by texel ({e})",
+                        image.texture_descriptor.format
+                    )
+                })?
+                .to_linear();
             texels.push(Vec4::new(c.red, c.green, c.blue, c.alpha));
         }
     }
-    Some((size, texels))
+    Ok((size, texels))
 }
 
 /// What was already warned about (once per entity or image until it is fixed).
@@ -174,24 +193,23 @@ pub(super) fn collect_reflection_billboards(
         let Some(image) = images.get(id) else {
             continue; // loading (or none)
         };
-        let chain = chains.entry(id).or_insert_with(|| {
-            linear_texels(image)
-                .filter(|(size, _)| {
-                    (1..=MAX_IMAGE_SIDE).contains(&size.x) && (1..=MAX_IMAGE_SIDE).contains(&size.y)
-                })
-                .map(|(size, texels)| {
-                    Arc::new(MipChain::from_straight_alpha(size.x, size.y, &texels))
-                })
-        });
+        let chain = chains
+            .entry(id)
+            .or_insert_with(|| match linear_texels(image) {
+                Ok((size, texels)) => Some(Arc::new(MipChain::from_straight_alpha(
+                    size.x, size.y, &texels,
+                ))),
+                Err(why) => {
+                    if warned.images.insert(id) {
+                        warn!(
+                            "Penumbra: ReflectionBillboard image {id:?}: {why}; its billboards \
+                             are skipped"
+                        );
+                    }
+                    None
+                }
+            });
         if chain.is_none() {
-            if warned.images.insert(id) {
-                warn!(
-                    "Penumbra: ReflectionBillboard image {id:?} ({:?}) cannot be read texel by \
-                     texel (its format, no data in the main world, or over {MAX_IMAGE_SIDE} \
-                     texels a side); its billboards are skipped",
-                    image.texture_descriptor.format
-                );
-            }
             continue;
         }
         valid.push((
@@ -310,5 +328,43 @@ pub(super) fn collect_reflection_billboards(
     }
     if scene.groups != groups {
         scene.groups = groups;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bevy::asset::RenderAssetUsages;
+    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+
+    fn image(width: u32, height: u32) -> Image {
+        Image::new_fill(
+            Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            TextureDimension::D2,
+            &[255, 128, 0, 255],
+            TextureFormat::Rgba8UnormSrgb,
+            RenderAssetUsages::all(),
+        )
+    }
+
+    /// An oversized billboard image is refused by its size before a texel is converted
+    /// (the size was checked after converting every texel to 16 bytes, #47), with the
+    /// size and the limit named; a readable one converts; one without main-world data
+    /// says so.
+    #[test]
+    fn billboard_images_are_sized_before_they_are_read() {
+        let e = linear_texels(&image(MAX_IMAGE_SIDE + 1, 1)).unwrap_err();
+        assert!(e.contains("8193×1") && e.contains("8192"), "{e}");
+        let (size, texels) = linear_texels(&image(2, 2)).unwrap();
+        assert_eq!((size, texels.len()), (UVec2::new(2, 2), 4));
+        assert!((texels[0].x - 1.0).abs() < 1e-6 && texels[0].w == 1.0);
+        let mut no_data = image(2, 2);
+        no_data.data = None;
+        let e = linear_texels(&no_data).unwrap_err();
+        assert!(e.contains("main world"), "{e}");
     }
 }

@@ -557,8 +557,15 @@ pub fn reflect_pixel_in_tile<F: Fn(usize, Vec3) -> f32>(
         colour += transmittance * texel.truncate() * (gpu.emissive * v);
         transmittance *= 1.0 - texel.w.clamp(0.0, 1.0);
     }
-    colour.extend(1.0 - transmittance)
+    colour
+        .min(Vec3::splat(MAX_REFLECTED_RADIANCE))
+        .extend(1.0 - transmittance)
 }
+
+/// The most a reflection layer holds per channel: its `Rgba16Float` texels' largest
+/// finite value (a billboard's `emissive` above it overflowed to infinity, and then to
+/// NaN in the composite, #47). `reflections/trace.wgsl`'s `reflect_billboards`.
+pub const MAX_REFLECTED_RADIANCE: f32 = 65504.0;
 
 /// Where a reflected ray meets a billboard, as the shadow march sees it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -758,10 +765,25 @@ mod tests {
         // Perceptual roughness is clamped to 0.089: a slight blur, most light kept.
         assert!(sharp.x > 1.5 && sharp.w > 0.5, "{sharp}");
         s.perceptual_roughness = 0.6;
-        let rough = reflect_pixel(&s, &[gpu], &[image], &settings);
+        let rough = reflect_pixel(&s, &[gpu], std::slice::from_ref(&image), &settings);
         assert!(
             rough.x < 0.5 * sharp.x && rough.x > 0.0,
             "{rough} vs {sharp}"
+        );
+        // An emissive beyond the layer's f16 range stays finite (it stored infinity,
+        // then NaN in the composite).
+        s.perceptual_roughness = 0.0;
+        let blinding = GpuBillboard::new(&quad, 0, 1e9);
+        let layer = reflect_pixel(&s, &[blinding], std::slice::from_ref(&image), &settings);
+        assert!(
+            layer.is_finite() && layer.max_element() <= MAX_REFLECTED_RADIANCE,
+            "{layer}"
+        );
+        assert!(
+            layer
+                .to_array()
+                .iter()
+                .all(|&c| half::f16::from_f32(c).is_finite())
         );
         // From behind the quad: nothing.
         s.position = Vec3::new(0.0, 0.0, -3.0);

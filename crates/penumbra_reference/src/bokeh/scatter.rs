@@ -73,6 +73,23 @@ pub struct Layers {
     pub far_quarter: Vec<Vec4>,
 }
 
+/// The largest finite `f16`: what the sprites and the composite take of a brighter (or
+/// infinite) pixel of the HDR target (`dof/types.wgsl`'s `scene_color`).
+pub const MAX_SCENE_COLOR: f32 = 65504.0;
+
+/// A pixel of the HDR target as the sprites take it: each channel at most
+/// [`MAX_SCENE_COLOR`], NaN as 0 — one +Inf pixel (above an `Rgba16Float` target's
+/// range) made its sprite, and the whole square it covers, NaN (#47).
+pub fn scene_color(c: Vec3) -> Vec3 {
+    Vec3::from_array(c.to_array().map(|v| {
+        if v.is_nan() {
+            0.0
+        } else {
+            v.min(MAX_SCENE_COLOR)
+        }
+    }))
+}
+
 /// Half-resolution colour (mean of each 2×2 block, edge pixels repeated) and the
 /// circle of confusion and distance of the block's nearest pixel, so a near object's
 /// blur is not diluted at its silhouette.
@@ -92,7 +109,7 @@ pub fn downsample(image: &BokehImage, lens: &Lens) -> HalfImage {
             for k in 0..4u32 {
                 let p = (UVec2::new(2 * x + (k & 1), 2 * y + (k >> 1))).min(full - UVec2::ONE);
                 let i = (p.y * full.x + p.x) as usize;
-                color += image.color[i];
+                color += scene_color(image.color[i]);
                 // The sky (and NaN) at `max_depth`, finite as on the GPU.
                 let d = image.distance[i];
                 let d = if d.is_nan() {
@@ -404,7 +421,7 @@ pub fn composite(image: &BokehImage, lens: &Lens, rule: &SpriteRule, layers: &La
         for x in 0..full.x {
             let p = UVec2::new(x, y);
             let i = (y * full.x + x) as usize;
-            let sharp = image.color[i];
+            let sharp = scene_color(image.color[i]);
             let coc = lens.coc(image.distance[i], full.y);
             let mut c = sharp;
             let far = layers_at(&layers.far, &layers.far_quarter, layers, p);

@@ -447,3 +447,30 @@ fn quarter_resolution_sprites_spread_their_weight() {
         assert!(worst[1].0 < 0.01, "{name} single pixels: {:?}", worst[1]);
     }
 }
+
+/// One infinite (or NaN) pixel of the HDR target: the output stays finite everywhere
+/// and the pixel blurs as the brightest finite one would (it made its sprite, and the
+/// square the sprite covers, NaN, #47).
+#[test]
+fn an_infinite_pixel_blurs_as_the_brightest_finite_one() {
+    let size = 64;
+    let at = UVec2::new(32, 32);
+    let lens = lens();
+    let aperture = Aperture::circle(64);
+    let rule = SpriteRule::default();
+    let finite = {
+        let mut image = bright_pixel(size, at, 12.0);
+        image.color[(at.y * size + at.x) as usize] = Vec3::splat(scatter::MAX_SCENE_COLOR);
+        depth_of_field(&image, &lens, &aperture, &rule).0
+    };
+    for bad in [f32::INFINITY, f32::NAN] {
+        let mut image = bright_pixel(size, at, 12.0);
+        image.color[(at.y * size + at.x) as usize] = Vec3::splat(bad);
+        let (out, _) = depth_of_field(&image, &lens, &aperture, &rule);
+        let non_finite = out.iter().filter(|c| !c.is_finite()).count();
+        assert_eq!(non_finite, 0, "{bad}: {non_finite} pixels not finite");
+        if bad.is_infinite() {
+            assert_eq!(out, finite, "{bad}");
+        }
+    }
+}

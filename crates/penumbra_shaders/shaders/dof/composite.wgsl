@@ -7,7 +7,7 @@
 // CPU model: `penumbra_reference::bokeh::composite`.
 #define_import_path penumbra::dof::composite
 
-#import penumbra::dof::types::{BokehView, coc_of_distance, distance_from_depth}
+#import penumbra::dof::types::{BokehView, coc_of_distance, distance_from_depth, scene_color}
 
 @group(0) @binding(0) var<uniform> view: BokehView;
 @group(0) @binding(1) var color_texture: texture_2d<f32>;
@@ -76,5 +76,5 @@ fn fragment(@builtin(position) position: vec4<f32>) -> @location(0) vec4<f32> {
     if any(frame < view.origin) || any(frame - view.origin >= view.full_size) {
         return sharp;
     }
-    return vec4<f32>(composite(frame - view.origin, sharp.rgb), sharp.a);
+    return vec4<f32>(composite(frame - view.origin, scene_color(sharp.rgb)), sharp.a);
 }

@@ -9,7 +9,8 @@
 #define_import_path penumbra::dof::sprites
 
 #import penumbra::dof::types::{
-    BokehView, Sprite, coc_of_distance, distance_from_depth, sprite_diameter, sprite_layer,
+    BokehView, Sprite, coc_of_distance, distance_from_depth, scene_color, sprite_diameter,
+    sprite_layer,
 }
 
 @group(0) @binding(0) var<uniform> view: BokehView;
@@ -43,7 +44,7 @@ fn half_pixel(h: vec2<u32>) -> HalfPixel {
     var nearest = 3.4e38;
     for (var k = 0u; k < 4u; k += 1u) {
         let p = min(2u * h + vec2<u32>(k & 1u, k >> 1u), view.full_size - vec2<u32>(1u));
-        color += textureLoad(color_texture, vec2<i32>(p + view.origin), 0).rgb;
+        color += scene_color(textureLoad(color_texture, vec2<i32>(p + view.origin), 0).rgb);
         nearest = min(nearest, pixel_distance(p));
     }
     return HalfPixel(color / 4.0, coc_of_distance(view, nearest), nearest);

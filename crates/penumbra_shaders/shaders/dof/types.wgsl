@@ -98,3 +98,10 @@ fn quarter_diameter(diameter: f32) -> f32 {
 fn sprite_layer(view: BokehView, s: Sprite) -> u32 {
     return select(1u, 0u, s.color.a > 0.5) + select(0u, 2u, s.shape.z >= view.quarter_diameter);
 }
+
+// A pixel of the HDR target as the sprites and the composite take it: at most the
+// largest f16 per channel, NaN as 0 (one +Inf pixel made its sprite, and the square it
+// covers, NaN). CPU model: `bokeh::scatter::scene_color`.
+fn scene_color(c: vec3<f32>) -> vec3<f32> {
+    return select(vec3<f32>(0.0), min(c, vec3<f32>(65504.0)), c == c);
+}

@@ -195,7 +195,9 @@ fn reflect_billboards(trace_pixel: vec2<u32>, origin: vec3<f32>, lobe: Lobe) -> 
         colour += transmittance * texel.rgb * (b.emissive * visibility[j]);
         transmittance *= 1.0 - clamp(texel.a, 0.0, 1.0);
     }
-    return vec4(colour, 1.0 - transmittance);
+    // The layer's largest f16 (`pass::MAX_REFLECTED_RADIANCE`): an emissive above it
+    // would store infinity.
+    return vec4(min(colour, vec3(65504.0)), 1.0 - transmittance);
 }
 
 // The objects a pixel's shadow march gathers from: its tile's caster list, or every
