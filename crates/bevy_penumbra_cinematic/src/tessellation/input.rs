@@ -78,15 +78,22 @@ pub(super) fn heights(image: &Image) -> Result<DisplacementMap, String> {
             };
             read(stride, &|b| f32::from(b[0]) / 255.0)
         }
-        TextureFormat::R16Unorm => read(2, &|b| f32::from(r16(b)) / 65535.0),
-        TextureFormat::Rgba16Unorm => read(8, &|b| f32::from(r16(b)) / 65535.0),
+        // 16-bit grey PNGs load as `R16Uint` (`Rg16Uint` with alpha): 0 to 65535.
+        TextureFormat::R16Unorm | TextureFormat::R16Uint => {
+            read(2, &|b| f32::from(r16(b)) / 65535.0)
+        }
+        TextureFormat::Rg16Uint => read(4, &|b| f32::from(r16(b)) / 65535.0),
+        TextureFormat::Rgba16Unorm | TextureFormat::Rgba16Uint => {
+            read(8, &|b| f32::from(r16(b)) / 65535.0)
+        }
         TextureFormat::R16Float => read(2, &|b| half::f16::from_bits(r16(b)).to_f32()),
         TextureFormat::Rgba16Float => read(8, &|b| half::f16::from_bits(r16(b)).to_f32()),
         TextureFormat::R32Float => read(4, &|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
         TextureFormat::Rgba32Float => read(16, &|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
         other => {
             return Err(format!(
-                "its displacement image's format {other:?} is not supported (8/16-bit unorm or 16/32-bit float)"
+                "its displacement image's format {other:?} is not supported (8/16-bit unorm, \
+                 16-bit uint as 16-bit PNGs load, or 16/32-bit float)"
             ));
         }
     };
@@ -149,4 +156,44 @@ pub fn shape_mesh(shape: &ShapeMesh) -> Mesh {
         shape.uvs.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
     )
     .with_inserted_indices(Indices::U32(shape.indices.clone()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bevy::render::render_resource::{Extent3d, TextureDimension};
+
+    /// A 16-bit grey PNG displacement map (Bevy's `R16Uint`; `Rg16Uint` with alpha) reads
+    /// as its unorm twin does (it was refused, #47).
+    #[test]
+    fn sixteen_bit_png_displacement_maps_read() {
+        let raw = [0u16, 32768, 65535, 16384];
+        let image = |format: TextureFormat, channels: usize| {
+            let data = raw
+                .iter()
+                .flat_map(|&x| {
+                    let mut texel = vec![0u8; 2 * channels];
+                    texel[..2].copy_from_slice(&x.to_le_bytes());
+                    texel
+                })
+                .collect();
+            Image::new(
+                Extent3d {
+                    width: 2,
+                    height: 2,
+                    depth_or_array_layers: 1,
+                },
+                TextureDimension::D2,
+                data,
+                format,
+                RenderAssetUsages::all(),
+            )
+        };
+        let want = heights(&image(TextureFormat::R16Unorm, 1)).expect("R16Unorm");
+        for (format, channels) in [(TextureFormat::R16Uint, 1), (TextureFormat::Rg16Uint, 2)] {
+            let got =
+                heights(&image(format, channels)).unwrap_or_else(|e| panic!("{format:?}: {e}"));
+            assert_eq!(got, want, "{format:?}");
+        }
+    }
 }

@@ -25,8 +25,11 @@ use std::sync::Arc;
 #[reflect(Component, Clone)]
 #[require(Transform)]
 pub struct DistanceFieldHeightfield {
-    /// The heights: `R8Unorm`, `R16Unorm` or `R32Float`, at least 2 × 2 texels, row
-    /// 0 at −z. Other formats or sizes are refused with one warning.
+    /// The heights, the image's first channel: `R8Unorm`, `R16Unorm`, `R32Float`, or as
+    /// Bevy loads PNGs — `Rgba8Unorm(Srgb)` (8-bit, grey or colour), `R16Uint` (16-bit
+    /// grey, the usual terrain heightmap), `Rg16Uint` (with alpha), `Rgba16Unorm` or
+    /// `Rgba16Uint` — at least 2 × 2 texels, row 0 at −z. Other formats or sizes are
+    /// refused with one warning.
     pub heights: Handle<Image>,
     /// World size in x and z, metres. Must be finite and positive.
     pub size: Vec2,
@@ -63,13 +66,28 @@ pub fn image_heights(image: &Image, height_scale: f32) -> Result<(UVec2, Vec<f32
     };
     let n = (size.x as usize) * (size.y as usize);
     let format = image.texture_descriptor.format;
-    let values: Vec<f32> = match format {
-        TextureFormat::R8Unorm => data.iter().take(n).map(|&b| f32::from(b) / 255.0).collect(),
-        TextureFormat::R16Unorm => data
-            .chunks_exact(2)
+    // The first channel of each texel: `stride` bytes apart.
+    let unorm8 = |stride: usize| -> Vec<f32> {
+        data.chunks_exact(stride)
+            .take(n)
+            .map(|c| f32::from(c[0]) / 255.0)
+            .collect()
+    };
+    let unorm16 = |stride: usize| -> Vec<f32> {
+        data.chunks_exact(stride)
             .take(n)
             .map(|c| f32::from(u16::from_le_bytes([c[0], c[1]])) / 65535.0)
-            .collect(),
+            .collect()
+    };
+    let values: Vec<f32> = match format {
+        TextureFormat::R8Unorm => unorm8(1),
+        // 8-bit PNGs, grey ones too (Bevy expands them to RGBA): the red byte as it is.
+        TextureFormat::Rgba8Unorm | TextureFormat::Rgba8UnormSrgb => unorm8(4),
+        // 16-bit grey PNGs (the usual terrain heightmap: Bevy loads them as `R16Uint`,
+        // with alpha as `Rg16Uint`) and 16-bit colour ones: 0 to 65535.
+        TextureFormat::R16Unorm | TextureFormat::R16Uint => unorm16(2),
+        TextureFormat::Rg16Uint => unorm16(4),
+        TextureFormat::Rgba16Unorm | TextureFormat::Rgba16Uint => unorm16(8),
         TextureFormat::R32Float => data
             .chunks_exact(4)
             .take(n)
@@ -77,7 +95,8 @@ pub fn image_heights(image: &Image, height_scale: f32) -> Result<(UVec2, Vec<f32
             .collect(),
         other => {
             return Err(format!(
-                "height image format {other:?} is not R8Unorm, R16Unorm or R32Float"
+                "height image format {other:?} is not one of R8Unorm, Rgba8Unorm(Srgb), \
+                 R16Unorm, R16Uint, Rg16Uint, Rgba16Unorm, Rgba16Uint or R32Float"
             ));
         }
     };
@@ -215,5 +234,65 @@ pub(super) fn collect_heightfields(
     }
     if changed_any {
         scene.generation += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bevy::asset::RenderAssetUsages;
+    use bevy::render::render_resource::{Extent3d, TextureDimension};
+
+    fn image(format: TextureFormat, data: Vec<u8>) -> Image {
+        Image::new(
+            Extent3d {
+                width: 2,
+                height: 2,
+                depth_or_array_layers: 1,
+            },
+            TextureDimension::D2,
+            data,
+            format,
+            RenderAssetUsages::all(),
+        )
+    }
+
+    /// 16-bit grey PNGs (Bevy's `R16Uint`, `Rg16Uint` with alpha) and 8-bit ones
+    /// (expanded to RGBA) are heightmaps too (`R16Uint` was refused, #47): the first
+    /// channel, 0 to 1, times the scale.
+    #[test]
+    fn png_heightmaps_of_every_usual_format_read() {
+        let u16s = |v: &[u16], channels: usize| -> Vec<u8> {
+            v.iter()
+                .flat_map(|&x| {
+                    let mut texel = vec![0u8; 2 * channels];
+                    texel[..2].copy_from_slice(&x.to_le_bytes());
+                    texel
+                })
+                .collect()
+        };
+        let want = [0.0, 0.5, 1.0, 0.25];
+        let raw = [0u16, 32768, 65535, 16384];
+        for (format, data) in [
+            (TextureFormat::R16Uint, u16s(&raw, 1)),
+            (TextureFormat::Rg16Uint, u16s(&raw, 2)),
+            (TextureFormat::Rgba16Unorm, u16s(&raw, 4)),
+            (TextureFormat::R16Unorm, u16s(&raw, 1)),
+        ] {
+            let (size, heights) = image_heights(&image(format, data), 2.0).unwrap();
+            assert_eq!(size, UVec2::new(2, 2));
+            for (h, w) in heights.iter().zip(want) {
+                assert!((h - 2.0 * w).abs() < 1e-4, "{format:?}: {heights:?}");
+            }
+        }
+        let rgba8 = [0u8, 128, 255, 64]
+            .iter()
+            .flat_map(|&b| [b, 0, 0, 255])
+            .collect();
+        let (_, heights) =
+            image_heights(&image(TextureFormat::Rgba8UnormSrgb, rgba8), 1.0).unwrap();
+        assert!((heights[2] - 1.0).abs() < 1e-6 && (heights[1] - 128.0 / 255.0).abs() < 1e-6);
+        let e = image_heights(&image(TextureFormat::Rg8Unorm, vec![0; 8]), 1.0).unwrap_err();
+        assert!(e.contains("Rg8Unorm") && e.contains("R16Uint"), "{e}");
     }
 }
