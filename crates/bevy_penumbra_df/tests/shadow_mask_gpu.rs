@@ -147,6 +147,38 @@ fn normals_facing_away_from_the_eye_are_turned_to_face_it() {
     }
 }
 
+/// Camera-relative point of pixel `i` of `view`.
+fn pixel_position(view: &View, i: usize) -> Vec3 {
+    let size = Vec2::new(WIDTH as f32, HEIGHT as f32);
+    let pixel = Vec2::new((i as u32 % WIDTH) as f32, (i as u32 / WIDTH) as f32);
+    position_from_depth(
+        view.view_from_clip,
+        view.world_from_view,
+        size,
+        pixel,
+        view.depth[i],
+    )
+}
+
+/// `scene`'s view with every G-buffer normal turned `degrees` away from `light`.
+fn tilted_view(scene: &Scene, light: &ShadowLight, degrees: f32) -> View {
+    let straight = view(scene, Vec3::ZERO);
+    let mut tilted = view(scene, Vec3::ZERO);
+    for (i, w) in tilted.normals.iter_mut().enumerate() {
+        if straight.depth[i] <= 0.0 {
+            continue;
+        }
+        let n = unpack_gbuffer_normal(*w);
+        let (to_light, _, _) = shadow_ray(pixel_position(&straight, i), light);
+        let axis = n.cross(to_light);
+        if axis.length() > 1e-3 {
+            let turn = Quat::from_axis_angle(axis.normalize(), -degrees.to_radians());
+            *w = pack_gbuffer_normal(turn * n);
+        }
+    }
+    tilted
+}
+
 /// A G-buffer normal tilted away from the light (a normal map, smooth shading past the
 /// terminator) gives way to the caster field's own normal for the surface's own shadow
 /// (`shadow_mask::receiver_field_normal`): with every normal tilted 35° away from the
@@ -163,30 +195,8 @@ fn a_caster_field_gives_way_where_a_tilted_gbuffer_normal_hides_the_light() {
     let scene = scene(Vec3::ZERO);
     let straight_view = view(&scene, Vec3::ZERO);
     let (light_name, light) = lights(Vec3::ZERO, EYE)[0];
-    let size = Vec2::new(WIDTH as f32, HEIGHT as f32);
-    let position = |view: &View, i: usize| {
-        let pixel = Vec2::new((i as u32 % WIDTH) as f32, (i as u32 / WIDTH) as f32);
-        position_from_depth(
-            view.view_from_clip,
-            view.world_from_view,
-            size,
-            pixel,
-            view.depth[i],
-        )
-    };
-    let mut tilted = view(&scene, Vec3::ZERO);
-    for (i, w) in tilted.normals.iter_mut().enumerate() {
-        if straight_view.depth[i] <= 0.0 {
-            continue;
-        }
-        let n = unpack_gbuffer_normal(*w);
-        let (to_light, _, _) = shadow_ray(position(&straight_view, i), &light);
-        let axis = n.cross(to_light);
-        if axis.length() > 1e-3 {
-            let turn = Quat::from_axis_angle(axis.normalize(), -35f32.to_radians());
-            *w = pack_gbuffer_normal(turn * n);
-        }
-    }
+    let position = pixel_position;
+    let tilted = tilted_view(&scene, &light, 35.0);
     let (straight, _) = gpu_mask(&gpu, &passes, &scene, &straight_view, &light);
     let (got, _) = gpu_mask(&gpu, &passes, &scene, &tilted, &light);
     let want = reference_mask(&scene, &tilted, &light);
@@ -255,30 +265,7 @@ fn a_caster_shaded_apart_from_its_faces_gives_way_from_facing_zero() {
     assert!(volumes > 0, "the scene has a baked volume");
     let straight = view(&faces, Vec3::ZERO);
     let (light_name, light) = lights(Vec3::ZERO, EYE)[0];
-    let size = Vec2::new(WIDTH as f32, HEIGHT as f32);
-    let position = |view: &View, i: usize| {
-        let pixel = Vec2::new((i as u32 % WIDTH) as f32, (i as u32 / WIDTH) as f32);
-        position_from_depth(
-            view.view_from_clip,
-            view.world_from_view,
-            size,
-            pixel,
-            view.depth[i],
-        )
-    };
-    let mut tilted = view(&faces, Vec3::ZERO);
-    for (i, w) in tilted.normals.iter_mut().enumerate() {
-        if straight.depth[i] <= 0.0 {
-            continue;
-        }
-        let n = unpack_gbuffer_normal(*w);
-        let (to_light, _, _) = shadow_ray(position(&straight, i), &light);
-        let axis = n.cross(to_light);
-        if axis.length() > 1e-3 {
-            let turn = Quat::from_axis_angle(axis.normalize(), -60f32.to_radians());
-            *w = pack_gbuffer_normal(turn * n);
-        }
-    }
+    let tilted = tilted_view(&faces, &light, 60.0);
     let mut lit = Vec::new();
     for (name, scene, view) in [
         ("faces, tilted", &faces, &tilted),

@@ -15,7 +15,7 @@ use std::sync::Arc;
 /// The most images the texture array holds (WebGPU's guaranteed array layers).
 pub(super) const MAX_ARRAY_LAYERS: usize = 256;
 /// The largest image side (WebGPU's guaranteed 2D texture size).
-const MAX_IMAGE_SIDE: u32 = 8192;
+pub(super) const MAX_IMAGE_SIDE: u32 = 8192;
 /// The most memory the texture array may take, bytes.
 pub(super) const MAX_ARRAY_BYTES: u64 = 256 << 20;
 
@@ -86,7 +86,7 @@ pub(super) struct ReflectionMipChains(pub(super) HashMap<AssetId<Image>, Option<
 /// A billboard image's linear texels, or why it cannot be read: its size is checked
 /// first (a 20,000² image was converted to 16 bytes a texel, ~6.4 GB, before it was
 /// refused), then its data and format.
-fn linear_texels(image: &Image) -> Result<(UVec2, Vec<Vec4>), String> {
+pub(super) fn linear_texels(image: &Image) -> Result<(UVec2, Vec<Vec4>), String> {
     let size = image.size();
     if !((1..=MAX_IMAGE_SIDE).contains(&size.x) && (1..=MAX_IMAGE_SIDE).contains(&size.y)) {
         return Err(format!(
@@ -328,43 +328,5 @@ pub(super) fn collect_reflection_billboards(
     }
     if scene.groups != groups {
         scene.groups = groups;
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use bevy::asset::RenderAssetUsages;
-    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
-
-    fn image(width: u32, height: u32) -> Image {
-        Image::new_fill(
-            Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            TextureDimension::D2,
-            &[255, 128, 0, 255],
-            TextureFormat::Rgba8UnormSrgb,
-            RenderAssetUsages::all(),
-        )
-    }
-
-    /// An oversized billboard image is refused by its size before a texel is converted
-    /// (the size was checked after converting every texel to 16 bytes, #47), with the
-    /// size and the limit named; a readable one converts; one without main-world data
-    /// says so.
-    #[test]
-    fn billboard_images_are_sized_before_they_are_read() {
-        let e = linear_texels(&image(MAX_IMAGE_SIDE + 1, 1)).unwrap_err();
-        assert!(e.contains("8193×1") && e.contains("8192"), "{e}");
-        let (size, texels) = linear_texels(&image(2, 2)).unwrap();
-        assert_eq!((size, texels.len()), (UVec2::new(2, 2), 4));
-        assert!((texels[0].x - 1.0).abs() < 1e-6 && texels[0].w == 1.0);
-        let mut no_data = image(2, 2);
-        no_data.data = None;
-        let e = linear_texels(&no_data).unwrap_err();
-        assert!(e.contains("main world"), "{e}");
     }
 }

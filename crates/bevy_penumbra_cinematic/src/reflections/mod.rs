@@ -321,6 +321,26 @@ mod tests {
         )
     }
 
+    /// An oversized billboard image is refused by its size before a texel is converted
+    /// (the size was checked after converting every texel to 16 bytes, #47), with the
+    /// size and the limit named; a readable one converts; one without main-world data
+    /// says so.
+    #[test]
+    fn billboard_images_are_sized_before_they_are_read() {
+        let srgb = TextureFormat::Rgba8UnormSrgb;
+        let orange = [255, 128, 0, 255];
+        let wide = image(collect::MAX_IMAGE_SIDE + 1, 1, srgb, &orange);
+        let e = collect::linear_texels(&wide).unwrap_err();
+        assert!(e.contains("8193×1") && e.contains("8192"), "{e}");
+        let (size, texels) = collect::linear_texels(&image(2, 2, srgb, &orange)).unwrap();
+        assert_eq!((size, texels.len()), (UVec2::new(2, 2), 4));
+        assert!((texels[0].x - 1.0).abs() < 1e-6 && texels[0].w == 1.0);
+        let mut no_data = image(2, 2, srgb, &orange);
+        no_data.data = None;
+        let e = collect::linear_texels(&no_data).unwrap_err();
+        assert!(e.contains("main world"), "{e}");
+    }
+
     /// The main world's list: valid billboards in entity order sharing layers by image;
     /// zero-size, non-finite, odd-sized and unreadable ones skipped; nothing without a
     /// reflecting camera.
