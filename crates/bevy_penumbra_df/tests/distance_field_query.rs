@@ -159,7 +159,9 @@ fn heightfields_from_images_answer_queries_and_bad_images_are_refused() {
         .collect();
     let mut images = app.world_mut().resource_mut::<Assets<Image>>();
     let good = images.add(height_image(3, 3, TextureFormat::R32Float, ramp));
-    let rgba = images.add(height_image(2, 2, TextureFormat::Rgba8Unorm, vec![0; 16]));
+    // Two 8-bit channels: not a format heights come in (8-bit PNGs, grey ones too,
+    // load as RGBA and are read).
+    let rg = images.add(height_image(2, 2, TextureFormat::Rg8Unorm, vec![0; 8]));
     let tiny = images.add(height_image(1, 1, TextureFormat::R8Unorm, vec![7]));
     let terrain = |heights, height_scale| {
         (
@@ -173,7 +175,7 @@ fn heightfields_from_images_answer_queries_and_bad_images_are_refused() {
     };
     let ok = app.world_mut().spawn(terrain(good.clone(), 2.0)).id();
     let refused = [
-        (app.world_mut().spawn(terrain(rgba, 1.0)).id(), "Rgba8Unorm"),
+        (app.world_mut().spawn(terrain(rg, 1.0)).id(), "Rg8Unorm"),
         (app.world_mut().spawn(terrain(tiny, 1.0)).id(), "2 × 2"),
         (
             app.world_mut().spawn(terrain(good, f32::NAN)).id(),
