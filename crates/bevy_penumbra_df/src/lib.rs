@@ -77,7 +77,7 @@ pub use scene::{
     DistanceFieldQuery, DistanceFieldScene, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
     DistanceFieldScenePlugin, DistanceFieldSceneSettings, DistanceFieldUploadStats,
     FOLIAGE_AO_TRANSMISSION, HeightfieldTerrain, MergeDistanceFieldCasters, SceneCasterCounts,
-    SceneHeightfields, SceneTwoSided, SkinnedCasters, SphereHit,
+    SceneHeightfields, SceneTwoSided, SkinnedCasters, SphereHit, mesh_shading_apart,
 };
 pub use sdf_asset::{SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset, SdfVolumeLoader};
 #[cfg(feature = "bake")]

@@ -377,7 +377,22 @@ fn a_meshs_primitives_bake_as_one_field() {
             .expect("loaded");
         assert!(union.count_vertices() > 100, "{}", union.count_vertices());
         assert!(!caster.two_sided, "the union is solid");
+        // The union carries its members' normals (it had none, so a merged caster was
+        // never taken for smooth-shaded), and its shading is decided from them.
+        let normals = union.attribute(Mesh::ATTRIBUTE_NORMAL).map(|n| n.len());
+        assert_eq!(normals, Some(union.count_vertices()));
+        let apart = bevy_penumbra_df::mesh_shading_apart(union);
+        assert_eq!(
+            world
+                .get::<bevy_penumbra_df::CasterShading>(*entity)
+                .map(|s| s.apart),
+            Some(apart)
+        );
     }
+    eprintln!(
+        "cake: {} of {} casters shaded apart",
+        c.shaded_apart, c.casters
+    );
     // One request per caster; equal unions share a bake.
     let bakes = *world.resource::<SdfBakeStats>();
     assert_eq!(bakes.failed, 0, "{bakes:?}");

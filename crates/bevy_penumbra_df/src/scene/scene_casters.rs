@@ -637,7 +637,8 @@ pub(super) struct MergedMeshes(HashMap<Vec<MergedPart>, AssetId<Mesh>>);
 type MergedPart = (AssetId<Mesh>, [u32; 12]);
 
 /// The union of `casting`'s meshes in the first one's local space (positions and
-/// triangles only: what a bake reads), a main-world mesh asset; `None` when a member is
+/// triangles, and normals when every member has them: what a bake and the shading rule
+/// read), a main-world mesh asset; `None` when a member is
 /// not a triangle list with `Float32x3` positions (each is then decided alone).
 fn merged_caster_mesh(
     casting: &[Entity],
@@ -664,6 +665,9 @@ fn merged_caster_mesh(
         return Some(handle);
     }
     let mut positions: Vec<[f32; 3]> = Vec::new();
+    // The members' normals, while every member has them: the union's shading
+    // (`CasterShading`) is its members'.
+    let mut normals: Option<Vec<[f32; 3]>> = Some(Vec::new());
     let mut indices: Vec<u32> = Vec::new();
     for (id, relative) in relatives {
         let mesh = assets.get(id)?;
@@ -678,17 +682,32 @@ fn merged_caster_mesh(
             p.iter()
                 .map(|v| relative.transform_point3(Vec3::from(*v)).to_array()),
         );
+        normals = normals.and_then(|mut out| match mesh.attribute(Mesh::ATTRIBUTE_NORMAL) {
+            Some(VertexAttributeValues::Float32x3(n)) if n.len() == p.len() => {
+                let normal_matrix = relative.matrix3.inverse().transpose();
+                out.extend(n.iter().map(|v| {
+                    (normal_matrix * Vec3A::from(*v))
+                        .normalize_or_zero()
+                        .to_array()
+                }));
+                Some(out)
+            }
+            _ => None,
+        });
         match mesh.indices() {
             Some(list) => indices.extend(list.iter().map(|i| base + i as u32)),
             None => indices.extend(base..base + p.len() as u32),
         }
     }
-    let union = Mesh::new(
+    let mut union = Mesh::new(
         PrimitiveTopology::TriangleList,
         RenderAssetUsages::MAIN_WORLD,
     )
     .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions)
     .with_inserted_indices(bevy::mesh::Indices::U32(indices));
+    if let Some(normals) = normals {
+        union.insert_attribute(Mesh::ATTRIBUTE_NORMAL, normals);
+    }
     let handle = assets.add(union);
     merges.0.insert(key, handle.id());
     Some(handle)

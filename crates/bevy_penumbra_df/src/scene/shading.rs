@@ -9,7 +9,9 @@
 //! Decided once per mesh caster when its SDF arrives (the mesh is loaded then) or its
 //! mesh or material handle changes, in one pass over the triangles
 //! ([`shading_apart_from_faces`]); a material asset edited in place (a normal map added
-//! later) is not looked at again.
+//! later) is not looked at again. A glTF mesh merged into one caster is judged by its
+//! union, which carries its primitives' normals, and by the material of the entity the
+//! caster sits on (the other primitives' normal maps are not looked at).
 
 use super::{CasterMesh, CasterSource, DistanceFieldCaster};
 use crate::sdf_asset::SdfBaked;
