@@ -262,8 +262,8 @@ pub fn pixel_visibility_with_terrain(
 /// What the mask pass knows of a receiver's normal: its G-buffer normal (zero: unknown)
 /// and whether that normal is its face's own ([`flat_shaded`]: then a light below its
 /// horizon is the face's own shadow, and no caster field is asked). A bare `Vec3`
-/// converts with `flat: false`, the pass's answer where it cannot tell (a pixel at the
-/// viewport's edge, deferred MSAA's per-sample trace).
+/// converts with `flat: false`, the pass's answer where it cannot tell (a screen axis
+/// with no neighbour on a surface, deferred MSAA's per-sample trace).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ReceiverNormal {
     /// The G-buffer's unit normal, or zero when unknown.
