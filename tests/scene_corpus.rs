@@ -62,7 +62,7 @@ const CORPUS: &[Case] = &[
     Case {
         file: "DepthOfFieldExample.glb",
         flags: &[],
-        bounds: b(0.06, 0.03, 0.10),
+        bounds: b(0.05, 0.03, 0.10),
     },
     Case {
         file: "PalmTree/PalmTree.gltf",
@@ -102,7 +102,7 @@ const CORPUS: &[Case] = &[
     Case {
         file: "terrain/terrain.glb",
         flags: &[],
-        bounds: b(0.47, 0.06, 0.09),
+        bounds: b(0.32, 0.04, 0.09),
     },
     Case {
         file: "TonemappingTest/TonemappingTest.gltf",

@@ -161,6 +161,45 @@ pub const FIELD_NORMAL_MIN_FACING_SHADED: f32 = 0.0;
 /// `shadow_trace.wgsl`'s `flat_shaded`.
 pub const FLAT_SHADED_SIN: f32 = 0.07;
 
+/// A receiver sees a solid volume caster from its inside — the back of an open surface
+/// baked solid: a terrain's or floor's underside at its cut edge, seen by a camera below
+/// its rim, the inside of an open shell closed by the winding number — where the field,
+/// read [`FROM_INSIDE_PROBE_VOXELS`] voxels along its G-buffer normal (turned to face the
+/// eye), lies at least this many voxels inside ([`seen_from_inside`]). A visible surface's
+/// own side is never inside a solid: that caster is not marched for the receiver, and
+/// its field's normal, reversed, gives the receiver's own shadow (the triangles' back
+/// face; the truth's sheet has no thickness, the field's solid does).
+pub const FROM_INSIDE_MIN_DEPTH_VOXELS: f32 = 0.25;
+
+/// The probes' distance from the receiver along its normal, in the field's voxels
+/// ([`seen_from_inside`]).
+pub const FROM_INSIDE_PROBE_VOXELS: f32 = 1.0;
+
+/// ... and where the field falls by at least this many voxels from the probe behind
+/// the receiver to the probe in front of it: the field deepens toward the eye. A floor
+/// receiver beside a solid box standing on it reads the box's field falling upward too
+/// (below the floor lies farther from the box) but outside it, so the depth test keeps it.
+pub const FROM_INSIDE_MIN_DROP_VOXELS: f32 = 0.5;
+
+/// ... and only where the receiver lies on the field's surface, within this many voxels:
+/// a floor under a caster's overhang closer than a voxel (the Stanford bunny's belly)
+/// reads the caster's field inside in front of it and deeper than behind it too, but
+/// lies off its surface by the gap (without this, the shadow bench's bunny lost contact
+/// shadows under its belly: 0.0314 → 0.0338).
+pub const FROM_INSIDE_ON_SURFACE_VOXELS: f32 = 0.25;
+
+/// Whether a receiver sees a solid field of voxel size `voxel` from its inside, from the
+/// field's distances `at` the receiver and `front` and `back` read
+/// [`FROM_INSIDE_PROBE_VOXELS`] voxels in front of it (along its normal, toward the eye)
+/// and behind it ([`FROM_INSIDE_ON_SURFACE_VOXELS`], [`FROM_INSIDE_MIN_DEPTH_VOXELS`],
+/// [`FROM_INSIDE_MIN_DROP_VOXELS`]; NaN: no). `shadow.wgsl`'s `seen_from_inside`.
+pub fn seen_from_inside(at: f32, front: f32, back: f32, voxel: f32) -> bool {
+    voxel > 0.0
+        && at.abs() <= FROM_INSIDE_ON_SURFACE_VOXELS * voxel
+        && front <= -FROM_INSIDE_MIN_DEPTH_VOXELS * voxel
+        && front - back <= -FROM_INSIDE_MIN_DROP_VOXELS * voxel
+}
+
 /// A triangle corner whose vertex normal turns from its face's by more than this cosine
 /// (5°) is shaded apart from it.
 pub const SHADING_APART_COS: f32 = 0.996;
@@ -451,6 +490,48 @@ mod tests {
         assert!(!shading_apart_from_faces(&[Vec3::NAN; 4], &[off; 4], tris));
     }
 
+    /// A ground (solid below y = 0) seen from above is not seen from inside, its
+    /// underside is, at any tilt of the normal within 60° of straight down; a floor
+    /// receiver beside a unit box standing on it (the box's field falls upward there) is
+    /// not, nor one under an overhang half a voxel above it, nor a receiver inside a field
+    /// that deepens away from the eye, nor NaN.
+    #[test]
+    fn a_solid_seen_from_its_inside() {
+        let h = 0.1;
+        let probe = FROM_INSIDE_PROBE_VOXELS * h;
+        let ground = |q: Vec3| q.y;
+        let seen = |d: &dyn Fn(Vec3) -> f32, p: Vec3, n: Vec3| {
+            seen_from_inside(d(p), d(p + n * probe), d(p - n * probe), h)
+        };
+        assert!(!seen(&ground, Vec3::ZERO, Vec3::Y));
+        for deg in [0.0f32, 30.0, 59.0] {
+            let (s, c) = deg.to_radians().sin_cos();
+            assert!(seen(&ground, Vec3::ZERO, Vec3::new(s, -c, 0.0)), "{deg}");
+        }
+        assert!(!seen(
+            &ground,
+            Vec3::ZERO,
+            Vec3::new(0.9, -0.1, 0.0).normalize()
+        ));
+        let boxed = |q: Vec3| {
+            let c = q - Vec3::new(0.0, 0.5, 0.0);
+            let e = c.abs() - Vec3::splat(0.5);
+            e.max(Vec3::ZERO).length() + e.max_element().min(0.0)
+        };
+        for x in [0.5, 0.51, 0.55, 0.6] {
+            assert!(!seen(&boxed, Vec3::new(x, 0.0, 0.0), Vec3::Y), "{x}");
+        }
+        // Deep inside, but the field deepens away from the eye.
+        assert!(!seen(&ground, Vec3::new(0.0, -1.0, 0.0), Vec3::Y));
+        assert!(!seen_from_inside(0.0, f32::NAN, 1.0, h));
+        assert!(!seen_from_inside(f32::NAN, -1.0, 1.0, h));
+        assert!(!seen_from_inside(0.0, -1.0, 1.0, 0.0));
+        // A floor under an overhang half a voxel above: off the caster's surface.
+        let gap = 0.5 * h;
+        let overhang = |q: Vec3| gap - q.y;
+        assert!(!seen(&overhang, Vec3::ZERO, Vec3::Y));
+    }
+
     /// `shadow.wgsl` uses these constants, and the shell is the baker's; solid fields,
     /// unknown normals and analytic shapes (voxel 0) get no offset; a grazing ray's start
     /// is capped.
@@ -474,6 +555,13 @@ mod tests {
                 FIELD_NORMAL_MIN_FACING_SHADED,
             ),
             ("FLAT_SHADED_SIN", FLAT_SHADED_SIN),
+            ("FROM_INSIDE_MIN_DEPTH_VOXELS", FROM_INSIDE_MIN_DEPTH_VOXELS),
+            ("FROM_INSIDE_PROBE_VOXELS", FROM_INSIDE_PROBE_VOXELS),
+            ("FROM_INSIDE_MIN_DROP_VOXELS", FROM_INSIDE_MIN_DROP_VOXELS),
+            (
+                "FROM_INSIDE_ON_SURFACE_VOXELS",
+                FROM_INSIDE_ON_SURFACE_VOXELS,
+            ),
             ("PENUMBRA_MIN_STEP", PENUMBRA_MIN_STEP),
             ("SURFACE_STEP_VOXELS", SURFACE_STEP_VOXELS),
             ("THIN_CROSSING_COSINE", THIN_CROSSING_COSINE),

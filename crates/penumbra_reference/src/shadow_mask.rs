@@ -23,8 +23,9 @@ use penumbra_df_core::object::{ObjectRecord, ShapeKind, TILE_SIZE, flags};
 use penumbra_df_core::shadow::{
     FIELD_NORMAL_MAX_GRADIENT, FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING,
     FIELD_NORMAL_MIN_FACING_SHADED, FIELD_NORMAL_MIN_GRADIENT, FIELD_NORMAL_REACH_VOXELS,
-    FIELD_NORMAL_STEP_VOXELS, FLAT_SHADED_SIN, PENUMBRA_MIN_STEP, crossing_stencil, march_start,
-    penumbra_step, penumbra_visibility, tetrahedral_gradient, tetrahedral_normal,
+    FIELD_NORMAL_STEP_VOXELS, FLAT_SHADED_SIN, FROM_INSIDE_ON_SURFACE_VOXELS,
+    FROM_INSIDE_PROBE_VOXELS, PENUMBRA_MIN_STEP, crossing_stencil, march_start, penumbra_step,
+    penumbra_visibility, seen_from_inside, tetrahedral_gradient, tetrahedral_normal,
 };
 
 pub use penumbra_df_core::shadow::{ShadowLight as MaskLight, ShadowLightKind as MaskLightKind};
@@ -148,29 +149,36 @@ pub fn pixel_visibility_with_terrain(
     }
     let (dir, t_max, tan_half) = shadow_ray(p, light);
     let ReceiverNormal { normal, flat } = normal.into();
+    let stored = normal;
     let mut normal = facing_the_eye(normal, p);
+    // Whether `normal` is the G-buffer's as stored, facing the eye (the side seen).
+    let mut as_stored = normal != Vec3::ZERO && normal == stored;
     // The surface's own shadow; where it hides the whole light, no march. Where the
     // light is below the G-buffer normal's horizon and that normal is not the face's own
     // ([`flat_shaded`]), the caster field the receiver lies on may give the triangles'
     // facing instead ([`receiver_field_normal`]): from facing 0 (then its own horizon)
     // on a caster shaded apart from its faces (`flags::SHADING_APART`), from
-    // [`FIELD_NORMAL_MIN_FACING`] (fully lit) on the others.
+    // [`FIELD_NORMAL_MIN_FACING`] (fully lit) on the others. The field must agree with
+    // the G-buffer normal as turned to face the eye or as stored (a normal map's normal
+    // past a grazing view's silhouette, which [`facing_the_eye`] negated).
     let mut own = horizon(normal, dir, tan_half);
     let mut evaluations = 0;
     if normal != Vec3::ZERO && own < 1.0 {
         let (field, reads) = receiver_field_normal_counted(records, atlas, camera, p, normal);
         evaluations += reads;
         if let Some((field, field_flags)) = field
-            && field.dot(normal) >= FIELD_NORMAL_MIN_AGREEMENT
+            && field.dot(normal).max(field.dot(stored)) >= FIELD_NORMAL_MIN_AGREEMENT
             && !flat
         {
             let facing = field.dot(dir);
             if field_flags & flags::SHADING_APART != 0 && facing >= FIELD_NORMAL_MIN_FACING_SHADED {
                 normal = field;
                 own = horizon(normal, dir, tan_half);
+                as_stored = false;
             } else if facing >= FIELD_NORMAL_MIN_FACING {
                 normal = field;
                 own = 1.0;
+                as_stored = false;
             }
         }
     }
@@ -180,6 +188,12 @@ pub fn pixel_visibility_with_terrain(
     let end = p + dir * t_max;
     let end_radius = t_max * tan_half;
     let mut visibility = 1.0f32;
+    // A solid caster the receiver sees from its inside ([`seen_from_inside`]) is not
+    // marched; its reversed field normal gives the receiver's own shadow (the least over
+    // such casters). Asked only with the G-buffer's normal as stored, facing the eye:
+    // not where [`facing_the_eye`] turned it (a normal map's at a grazing view) nor where
+    // a field's normal replaced it (the field's outside).
+    let mut inside_own: Option<f32> = None;
     for r in records {
         if !flags::casts_shadows(r.flags()) {
             continue;
@@ -204,6 +218,33 @@ pub fn pixel_visibility_with_terrain(
             };
             t = t.max(t0);
             t_end = t_end.min(t1);
+            let v = p - center;
+            if voxel > 0.0 && !two_sided && as_stored && v.dot(v) <= radius * radius {
+                // One read, two more where the receiver lies on the field's surface.
+                let at = object_distance(r, p, camera, atlas);
+                evaluations += 1;
+                let on_surface = at.abs() <= FROM_INSIDE_ON_SURFACE_VOXELS * voxel;
+                let probe = normal * (FROM_INSIDE_PROBE_VOXELS * voxel);
+                let (front, back) = if on_surface {
+                    evaluations += 2;
+                    (
+                        object_distance(r, p + probe, camera, atlas),
+                        object_distance(r, p - probe, camera, atlas),
+                    )
+                } else {
+                    (f32::NAN, f32::NAN)
+                };
+                if seen_from_inside(at, front, back, voxel) {
+                    // `field_normal`: one read, four more where the receiver lies on it.
+                    evaluations += 1;
+                    if let Some((n, _)) = field_normal(r, atlas, camera, p, normal) {
+                        evaluations += 4;
+                        let h = horizon(-n, dir, tan_half);
+                        inside_own = Some(inside_own.map_or(h, |o| o.min(h)));
+                    }
+                    continue;
+                }
+            }
         }
         // The least distance over the cone's radius, down to −1: the two-sided penumbra
         // (`penumbra_df_core::shadow::PENUMBRA_MIN_STEP`, `penumbra_step`).
@@ -253,6 +294,7 @@ pub fn pixel_visibility_with_terrain(
     let (v, e) = terrain_visibility(terrain, camera, p, (dir, t_max, tan_half), light);
     visibility = visibility.min(v);
     evaluations += e;
+    let own = inside_own.unwrap_or(own);
     (
         finish(visibility, light.shaping.clamp(0.05, 20.0)).min(own),
         evaluations,

@@ -215,6 +215,15 @@ const FIELD_NORMAL_MIN_FACING_SHADED: f32 = 0.0;
 // within this sine (`penumbra_df_core::shadow::FLAT_SHADED_SIN`; `shadow_trace.wgsl`'s
 // `flat_shaded`).
 const FLAT_SHADED_SIN: f32 = 0.07;
+// A receiver sees a solid volume from its inside (the back of an open surface baked
+// solid) where the field, read FROM_INSIDE_PROBE_VOXELS voxels along its normal toward
+// the eye, lies FROM_INSIDE_MIN_DEPTH_VOXELS inside and falls by FROM_INSIDE_MIN_DROP_VOXELS
+// from the probe behind it, the receiver within FROM_INSIDE_ON_SURFACE_VOXELS of its
+// surface (`penumbra_df_core::shadow::seen_from_inside`).
+const FROM_INSIDE_MIN_DEPTH_VOXELS: f32 = 0.25;
+const FROM_INSIDE_PROBE_VOXELS: f32 = 1.0;
+const FROM_INSIDE_MIN_DROP_VOXELS: f32 = 0.5;
+const FROM_INSIDE_ON_SURFACE_VOXELS: f32 = 0.25;
 // No field normal: `w` above every distance.
 const NO_FIELD_NORMAL: vec4<f32> = vec4<f32>(0.0, 0.0, 0.0, 3.0e38);
 
@@ -252,6 +261,35 @@ fn caster_field_normal(
         return NO_FIELD_NORMAL;
     }
     return vec4<f32>(g / len, 0.25 * (d.x + d.y + d.z + d.w));
+}
+
+// Whether the receiver at `p` (unit normal `n` turned to face the eye; zero: unknown)
+// sees solid volume `o` from its inside: then `o` is not marched for it and the field's
+// reversed normal gives its own shadow (`penumbra_df_core::shadow::seen_from_inside`).
+// One to three reads, for solid volumes whose bounding ball `sphere` holds `p`.
+fn seen_from_inside(
+    o: DistanceFieldObject,
+    sphere: vec4<f32>,
+    p: vec3<f32>,
+    n: vec3<f32>,
+    camera_tile: vec3<i32>,
+    camera_offset: vec3<f32>,
+    atlas: texture_3d<f32>,
+) -> bool {
+    let h = o.conservative_scale;
+    let v = p - sphere.xyz;
+    if object_kind(o) != KIND_VOLUME || (o.flags & FLAG_TWO_SIDED) != 0u || !(h > 0.0)
+        || all(n == vec3<f32>(0.0)) || dot(v, v) > sphere.w * sphere.w {
+        return false;
+    }
+    let at = object_distance(o, p, camera_tile, camera_offset, atlas);
+    if !(abs(at) <= FROM_INSIDE_ON_SURFACE_VOXELS * h) {
+        return false;
+    }
+    let probe = n * (FROM_INSIDE_PROBE_VOXELS * h);
+    let front = object_distance(o, p + probe, camera_tile, camera_offset, atlas);
+    let back = object_distance(o, p - probe, camera_tile, camera_offset, atlas);
+    return front <= -FROM_INSIDE_MIN_DEPTH_VOXELS * h && front - back <= -FROM_INSIDE_MIN_DROP_VOXELS * h;
 }
 
 // The tetrahedral stencil's corners (`penumbra_df_core::shadow::tetrahedral_gradient`).

@@ -16,7 +16,7 @@
 #import penumbra::df::heightfield::{HeightfieldRecord, heightfield_distance}
 #import penumbra::df::shadow::{
     FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, FIELD_NORMAL_MIN_FACING_SHADED,
-    FLAT_SHADED_SIN, NO_FIELD_NORMAL,
+    FLAT_SHADED_SIN, NO_FIELD_NORMAL, seen_from_inside,
     PENUMBRA_MIN_STEP, ShadowLight, ShadowRay, bounding_sphere, caster_field_normal, casts_shadows,
     cull_slack,
     facing_the_eye, finish_visibility, gbuffer_normal, horizon_visibility, is_directional, march_object,
@@ -255,8 +255,13 @@ fn trace(
     // may face the light where the G-buffer normal does not.
     var normal = vec3<f32>(0.0);
     var horizon = 1.0;
+    // Whether `normal` is the G-buffer's as stored, facing the eye (the side seen).
+    var as_stored = false;
+    var stored = vec3<f32>(0.0);
     if surface && view.size.w == 1u {
-        normal = facing_the_eye(gbuffer_normal(point.normal_word), p);
+        stored = gbuffer_normal(point.normal_word);
+        normal = facing_the_eye(stored, p);
+        as_stored = all(normal == stored);
         horizon = horizon_visibility(normal, ray.dir, ray.tan_half);
         if horizon < 1.0 {
             atomicStore(&tile_hidden, 1u);
@@ -372,22 +377,32 @@ fn trace(
     }
     // Where the G-buffer normal hides the light and is not the face's own, the field's
     // normal decides: from facing 0 (its own horizon) on a caster shaded apart from its
-    // faces, from FIELD_NORMAL_MIN_FACING (fully lit) on the others.
+    // faces, from FIELD_NORMAL_MIN_FACING (fully lit) on the others. The field must agree
+    // with the G-buffer normal as turned to face the eye or as stored (a normal map's
+    // normal past a grazing view's silhouette, which `facing_the_eye` negated).
     if surface && horizon < 1.0 && any(normal != vec3<f32>(0.0)) && field.w < 3.0e38
-        && dot(field.xyz, normal) >= FIELD_NORMAL_MIN_AGREEMENT
+        && max(dot(field.xyz, normal), dot(field.xyz, stored)) >= FIELD_NORMAL_MIN_AGREEMENT
         && !flat_shaded(vec2<i32>(point.screen) + vec2<i32>(view.viewport.xy), point.screen, p, normal) {
         let facing = dot(field.xyz, ray.dir);
         let shaded = (objects[field_slot].flags & FLAG_SHADING_APART) != 0u;
         if shaded && facing >= FIELD_NORMAL_MIN_FACING_SHADED {
             normal = field.xyz;
             horizon = horizon_visibility(normal, ray.dir, ray.tan_half);
+            as_stored = false;
         } else if facing >= FIELD_NORMAL_MIN_FACING {
             normal = field.xyz;
             horizon = 1.0;
+            as_stored = false;
         }
     }
     let march = surface && horizon > 0.0;
 
+    // A solid caster the receiver sees from its inside is not marched; its reversed
+    // field normal shades the receiver instead (the least over such casters; 2: none).
+    // Asked only with the G-buffer's normal as stored, facing the eye: not where
+    // `facing_the_eye` turned it (a normal map's at a grazing view) nor where a field's
+    // normal replaced it (the field's outside).
+    var inside_horizon = 2.0;
     var visibility = 1.0;
     for (var base = 0u; base < total; base += TILE_PIXELS) {
         let n = list_casters(base, li, total, mode, cells, large_n, tile);
@@ -396,6 +411,13 @@ fn trace(
                 let sphere = tile_spheres[i];
                 if object_in_cone(sphere, p, ray) {
                     let o = objects[tile_slots[i]];
+                    if as_stored && seen_from_inside(o, sphere, p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas) {
+                        let f = caster_field_normal(o, p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas);
+                        if f.w < 3.0e38 {
+                            inside_horizon = min(inside_horizon, horizon_visibility(-f.xyz, ray.dir, ray.tan_half));
+                        }
+                        continue;
+                    }
                     let v = march_object(
                         o, sphere, p, ray, light, march_start(o, normal, ray.dir, light.bias),
                         view.camera_tile.xyz, view.camera_offset.xyz, atlas,
@@ -408,6 +430,9 @@ fn trace(
     }
     if march {
         visibility = min(visibility, terrain_visibility(p, ray));
+    }
+    if inside_horizon <= 1.0 {
+        horizon = inside_horizon;
     }
     if point.store {
         var out = 1.0;
