@@ -393,6 +393,36 @@ fn a_solid_seen_from_its_inside_does_not_shadow_itself() {
     assert!(lit * 4 >= facing.len() * 3, "{lit} of {}", facing.len());
 }
 
+/// With the torus read as a solid, rays through its tube near the axis cross a thin part
+/// (`penumbra_df_core::shadow::THIN_CROSSING_COSINE`) whose edge may lie within the cone:
+/// the mask pass reads the part's rim as the model does (`thin_crossing_ratio`), for
+/// every light.
+#[test]
+fn gpu_shadow_mask_with_a_solid_torus_matches_the_cpu_model() {
+    if !gpu_or_skip("gpu_shadow_mask_with_a_solid_torus_matches_the_cpu_model") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let passes = passes(&gpu);
+    let mut scene = scene(Vec3::ZERO);
+    for r in &mut scene.records {
+        if r.kind() == penumbra_df_core::object::ShapeKind::Volume as u32 {
+            r.0[27] &= !flags::TWO_SIDED;
+        }
+    }
+    let view = view(&scene, Vec3::ZERO);
+    for (name, light) in lights(Vec3::ZERO, EYE) {
+        let (got, _) = gpu_mask(&gpu, &passes, &scene, &view, &light);
+        let want = reference_mask(&scene, &view, &light);
+        let (mean, over, max) = compare(&got, &want);
+        eprintln!(
+            "{name}, solid torus: GPU vs model mean {mean:.5}, {:.3} % over 0.05, max {max:.3}",
+            over * 100.0
+        );
+        assert!(mean < 2e-4 && over < 5e-4, "{name}: {mean} {over} {max}");
+    }
+}
+
 /// With a terrain (hills across the scene, seen only by the distance fields) every
 /// light's mask still equals the model's (`pixel_visibility_with_terrain`), near the
 /// origin and 10⁵ m away, and the terrain changes hundreds of pixels.

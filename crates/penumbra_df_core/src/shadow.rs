@@ -284,6 +284,7 @@ pub const THIN_CROSSING_COSINE: f32 = -0.5;
 /// and `normal_here` at this one (called only on the step in and the step out). Returns
 /// the ratio the step leaves (`d / cone`, or −1 where the cone is covered: a shell
 /// entered, a thin part crossed) and how far to step.
+#[allow(clippy::too_many_arguments, reason = "one step's inputs")]
 pub fn penumbra_step(
     d: f32,
     cone: f32,
@@ -292,6 +293,7 @@ pub fn penumbra_step(
     entered: &mut Option<Vec3>,
     normal_before: impl FnOnce() -> Vec3,
     normal_here: impl FnOnce() -> Vec3,
+    rim: impl FnOnce(Vec3) -> f32,
 ) -> (f32, f32) {
     if d <= 0.0 {
         if two_sided {
@@ -305,9 +307,38 @@ pub fn penumbra_step(
     if let Some(normal_in) = entered.take()
         && normal_in.dot(normal_here()) < THIN_CROSSING_COSINE
     {
-        return (-1.0, 0.0);
+        let ratio = thin_crossing_ratio(rim(normal_in), cone);
+        if ratio <= -1.0 {
+            return (-1.0, 0.0);
+        }
+        return (ratio, d.max(surface_step(cone, voxel)));
     }
     (d / cone, d.max(surface_step(cone, voxel)))
+}
+
+/// Where a march crossed a thin part (a leaf, a wall: [`THIN_CROSSING_COSINE`]), how
+/// much of the cone the part covers: `−e / r`, `e` the distance from the crossing to the
+/// part's nearest edge within the cone's radius `cone`, from `rim`, the largest field
+/// distance read [`thin_crossing_rim`]'s four points about the crossing, a radius away in
+/// the part's plane (a part across the whole cone reads about 0 there: −1, covered; an
+/// edge `e` from the crossing reads `r − e` beyond it). NaN: covered.
+pub fn thin_crossing_ratio(rim: f32, cone: f32) -> f32 {
+    let x = rim / cone - 1.0;
+    if x.is_nan() { -1.0 } else { x.clamp(-1.0, 0.0) }
+}
+
+/// The four points [`thin_crossing_ratio`] reads about crossing point `x`: `cone` away
+/// along two directions square to each other in the plane of the part whose normal
+/// where the ray went in is `normal_in`.
+pub fn thin_crossing_rim(x: Vec3, normal_in: Vec3, cone: f32) -> [Vec3; 4] {
+    let a = if normal_in.y.abs() < 0.9 {
+        Vec3::Y
+    } else {
+        Vec3::X
+    };
+    let u = normal_in.cross(a).normalize_or_zero();
+    let v = normal_in.cross(u);
+    [x + u * cone, x - u * cone, x + v * cone, x - v * cone]
 }
 
 /// The least step outside an occluder ([`SURFACE_STEP_VOXELS`]).
@@ -645,43 +676,102 @@ mod tests {
     fn the_penumbra_march_covers_the_cone_through_thin_parts_only() {
         let (cone, voxel) = (0.4, 0.1);
         let never = || -> Vec3 { panic!("no normal needed") };
+        let no_rim = |_: Vec3| -> f32 { panic!("no rim needed") };
         let near =
             |(a, b): (f32, f32), (x, y): (f32, f32)| (a - x).abs() < 1e-6 && (b - y).abs() < 1e-6;
         let mut entered = None;
         assert_eq!(
-            penumbra_step(-0.01, cone, voxel, true, &mut entered, never, never),
+            penumbra_step(-0.01, cone, voxel, true, &mut entered, never, never, no_rim),
             (-1.0, 0.0)
         );
         // Outside: the distance, at least a quarter voxel (or a quarter radius).
         assert_eq!(
-            penumbra_step(0.3, cone, voxel, false, &mut entered, never, never),
+            penumbra_step(0.3, cone, voxel, false, &mut entered, never, never, no_rim),
             (0.75, 0.3)
         );
         assert!(near(
-            penumbra_step(0.001, cone, voxel, false, &mut entered, never, never),
+            penumbra_step(
+                0.001,
+                cone,
+                voxel,
+                false,
+                &mut entered,
+                never,
+                never,
+                no_rim
+            ),
             (0.0025, SURFACE_STEP_VOXELS * voxel)
         ));
         assert_eq!(
-            penumbra_step(0.001, 0.2, 0.0, false, &mut entered, never, never).1,
+            penumbra_step(0.001, 0.2, 0.0, false, &mut entered, never, never, no_rim).1,
             0.002
         );
         // In: the entry normal is read once; steps of at least a quarter radius.
-        let (ratio, step) =
-            penumbra_step(-0.02, cone, voxel, false, &mut entered, || Vec3::Y, never);
+        let (ratio, step) = penumbra_step(
+            -0.02,
+            cone,
+            voxel,
+            false,
+            &mut entered,
+            || Vec3::Y,
+            never,
+            no_rim,
+        );
         assert!(near((ratio, step), (-0.05, 0.1)) && entered == Some(Vec3::Y));
-        let (_, step) = penumbra_step(-0.2, cone, voxel, false, &mut entered, never, never);
+        let (_, step) = penumbra_step(-0.2, cone, voxel, false, &mut entered, never, never, no_rim);
         assert_eq!(step, 0.2);
         // Out by the opposite face: a thin part, covered.
         let mut thin = entered;
         assert_eq!(
-            penumbra_step(0.01, cone, voxel, false, &mut thin, never, || -Vec3::Y).0,
+            penumbra_step(
+                0.01,
+                cone,
+                voxel,
+                false,
+                &mut thin,
+                never,
+                || -Vec3::Y,
+                |_| 0.0
+            )
+            .0,
             -1.0
         );
         assert_eq!(thin, None);
+        // ... unless the part's edge lies within the cone: a quarter radius from the
+        // crossing, the rim a radius away reads ¾ radius beyond it: −¼, and the march
+        // goes on.
+        let mut edge = entered;
+        let (ratio, step) = penumbra_step(
+            0.01,
+            cone,
+            voxel,
+            false,
+            &mut edge,
+            never,
+            || -Vec3::Y,
+            |n| {
+                assert_eq!(n, Vec3::Y);
+                0.75 * cone
+            },
+        );
+        assert!((ratio + 0.25).abs() < 1e-6 && step > 0.0, "{ratio} {step}");
+        assert_eq!(thin_crossing_ratio(f32::NAN, cone), -1.0);
+        assert_eq!(thin_crossing_ratio(2.0 * cone, cone), 0.0);
+        // The rim lies in the part's plane, a radius from the crossing.
+        for n in [Vec3::Y, Vec3::X, Vec3::new(0.6, 0.0, 0.8)] {
+            for q in thin_crossing_rim(Vec3::ONE, n, cone) {
+                let e = q - Vec3::ONE;
+                assert!(
+                    e.dot(n).abs() < 1e-6 && (e.length() - cone).abs() < 1e-6,
+                    "{n} {q}"
+                );
+            }
+        }
         // Out by a side (a corner) or the same side (a silhouette's chord): the ratio.
         for out in [Vec3::X, Vec3::new(0.2, 0.98, 0.0)] {
             let mut side = entered;
-            let (ratio, _) = penumbra_step(0.01, cone, voxel, false, &mut side, never, || out);
+            let (ratio, _) =
+                penumbra_step(0.01, cone, voxel, false, &mut side, never, || out, no_rim);
             assert!((ratio - 0.025).abs() < 1e-6, "{out}: {ratio}");
         }
         // The normal of a plane's distance, and none where the gradient vanishes.

@@ -387,7 +387,8 @@ fn march_object(
                 inside = false;
                 let normal_out = crossing_normal(o, p + ray.dir * t, stencil, camera_tile, camera_offset, atlas);
                 if dot(normal_in, normal_out) < THIN_CROSSING_COSINE {
-                    ratio = -1.0;
+                    let x = p + ray.dir * (0.5 * (before + t));
+                    ratio = thin_crossing_ratio(o, x, normal_in, cone, camera_tile, camera_offset, atlas);
                 }
             }
             advance = max(d, surface_step(cone, voxel));
@@ -442,6 +443,39 @@ fn crossing_normal(
     let g = tetrahedral_gradient(tetrahedral_distances(o, q, s, camera_tile, camera_offset, atlas), s);
     let len = length(g);
     return select(vec3<f32>(0.0), g / len, len > 0.0);
+}
+
+// Where a march crossed a thin part at `x` (its normal where the ray went in
+// `normal_in`), how much of the cone of radius `cone` it covers: −e / r, e the distance
+// to the part's nearest edge within the cone, from the largest field distance a radius
+// from `x` along two square directions in the part's plane; −1 (covered) where the part
+// spans the cone (`penumbra_df_core::shadow::{thin_crossing_ratio, thin_crossing_rim}`).
+fn thin_crossing_ratio(
+    o: DistanceFieldObject,
+    x: vec3<f32>,
+    normal_in: vec3<f32>,
+    cone: f32,
+    camera_tile: vec3<i32>,
+    camera_offset: vec3<f32>,
+    atlas: texture_3d<f32>,
+) -> f32 {
+    let a = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), abs(normal_in.y) < 0.9);
+    let c = cross(normal_in, a);
+    let len = length(c);
+    let u = select(vec3<f32>(0.0), c / len, len > 0.0);
+    let v = cross(normal_in, u);
+    let rim = max(
+        max(
+            object_distance(o, x + u * cone, camera_tile, camera_offset, atlas),
+            object_distance(o, x - u * cone, camera_tile, camera_offset, atlas),
+        ),
+        max(
+            object_distance(o, x + v * cone, camera_tile, camera_offset, atlas),
+            object_distance(o, x - v * cone, camera_tile, camera_offset, atlas),
+        ),
+    );
+    let r = rim / cone - 1.0;
+    return select(-1.0, clamp(r, -1.0, 0.0), r == r);
 }
 
 // The open fraction of the light's disc for a march's least ratio `x`
