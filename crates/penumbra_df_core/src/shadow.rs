@@ -261,8 +261,9 @@ pub fn shading_apart_from_faces(
 /// surface, 0 from there) darkened every penumbra's inner half; its shaping exponent
 /// (0.325) only bent it back. Inside a thin part (a leaf, a wall) the distance says
 /// nothing of how far the part reaches across the cone: a ray that leaves through the
-/// face opposite the one it entered by ([`THIN_CROSSING_COSINE`]), and any ray entering a
-/// two-sided shell, finds the cone covered, as the one-sided march did.
+/// face opposite the one it entered by ([`THIN_CROSSING_COSINE`]) finds the cone covered
+/// as far as the part reaches across it ([`thin_crossing_ratio`]), and any ray entering a
+/// two-sided shell finds it covered, as the one-sided march did.
 pub const PENUMBRA_MIN_STEP: f32 = 0.25;
 
 /// A march outside an occluder steps at least this many of a field's voxels (and at
@@ -282,8 +283,10 @@ pub const THIN_CROSSING_COSINE: f32 = -0.5;
 /// `two_sided` a shell. `entered` is the surface normal where the ray went inside
 /// (`None` outside; kept between steps); `normal_before` gives it at the previous sample
 /// and `normal_here` at this one (called only on the step in and the step out). Returns
-/// the ratio the step leaves (`d / cone`, or −1 where the cone is covered: a shell
-/// entered, a thin part crossed) and how far to step.
+/// the ratio the step leaves (`d / cone`; −1 where the cone is covered: a shell entered;
+/// where a thin part was crossed, [`thin_crossing_ratio`] of the largest distance `rim`
+/// reads at [`thin_crossing_rim`] given the entry normal) and how far to step (0: stop,
+/// covered).
 #[allow(clippy::too_many_arguments, reason = "one step's inputs")]
 pub fn penumbra_step(
     d: f32,
