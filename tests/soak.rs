@@ -88,6 +88,19 @@ impl Soak {
     }
 }
 
+/// The point and spot lights (not casters).
+type Lights = (
+    Or<(With<PointLight>, With<SpotLight>)>,
+    Without<DistanceFieldCaster>,
+);
+
+/// The mesh casters (not lights).
+type Casters = (
+    With<DistanceFieldCaster>,
+    Without<PointLight>,
+    Without<SpotLight>,
+);
+
 /// The process's resident set in bytes (Linux; 0 elsewhere).
 fn resident_bytes() -> u64 {
     std::fs::read_to_string("/proc/self/statm")
@@ -103,21 +116,8 @@ fn churn(
     mut keys: ResMut<ButtonInput<KeyCode>>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
-    mut lights: Query<
-        (Entity, &mut Transform),
-        (
-            Or<(With<PointLight>, With<SpotLight>)>,
-            Without<DistanceFieldCaster>,
-        ),
-    >,
-    mut casters: Query<
-        &mut Transform,
-        (
-            With<DistanceFieldCaster>,
-            Without<PointLight>,
-            Without<SpotLight>,
-        ),
-    >,
+    mut lights: Query<(Entity, &mut Transform), Lights>,
+    mut casters: Query<&mut Transform, Casters>,
     mut ao: Query<&mut DistanceFieldAmbientOcclusion>,
     allocations: Res<PenumbraGpuAllocations>,
 ) {
@@ -126,7 +126,7 @@ fn churn(
     // The example's toggles: a key pressed every 6 frames, released the next.
     if soak.frame % 6 == 1 {
         keys.release_all();
-    } else if soak.frame % 6 == 0 {
+    } else if soak.frame.is_multiple_of(6) {
         let key = KEYS[(soak.next() * KEYS.len() as f32) as usize % KEYS.len()];
         keys.press(key);
     }
@@ -168,7 +168,7 @@ fn churn(
         t.translation = soak.around(home, Vec3::splat(0.5));
     }
     // DFAO's reach.
-    if soak.frame % 10 == 0 {
+    if soak.frame.is_multiple_of(10) {
         let reach = 0.5 + 2.5 * soak.next();
         for mut settings in &mut ao {
             settings.max_occlusion_distance = reach;
