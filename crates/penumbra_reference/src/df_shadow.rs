@@ -26,7 +26,8 @@
 
 use glam::Vec3;
 use penumbra_df_core::shadow::{
-    crossing_stencil, penumbra_step, penumbra_visibility, tetrahedral_normal, thin_crossing_rim,
+    crossing_stencil, penumbra_step, penumbra_visibility, tetrahedral_normal, thin_crossing_ratio,
+    thin_crossing_rim,
 };
 
 /// An area light as seen from a shaded point.
@@ -223,12 +224,10 @@ pub fn df_visibility(
             // Exact distances: stepped as an analytic shape's.
             let s = crossing_stencil(r, 0.0);
             let normal_at = |at: f32| tetrahedral_normal(p + dir * at, s, |q| o.distance(q));
-            let rim = |normal_in: Vec3| {
+            let thin = |normal_in: Vec3| {
                 let x = p + dir * (0.5 * (before + t));
-                thin_crossing_rim(x, normal_in, r)
-                    .map(|q| o.distance(q))
-                    .into_iter()
-                    .fold(f32::NEG_INFINITY, f32::max)
+                let (points, stretch) = thin_crossing_rim(x, normal_in, dir, r);
+                thin_crossing_ratio(points.map(|q| o.distance(q)), r, stretch)
             };
             let (ratio, step) = penumbra_step(
                 d,
@@ -238,7 +237,7 @@ pub fn df_visibility(
                 &mut entered,
                 || normal_at(before),
                 || normal_at(t),
-                rim,
+                thin,
             );
             v = v.min(ratio.max(floor));
             // Covered (a tiny object's floor still leaves some light).

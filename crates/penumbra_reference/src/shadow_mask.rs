@@ -26,7 +26,7 @@ use penumbra_df_core::shadow::{
     FIELD_NORMAL_STEP_VOXELS, FLAT_SHADED_SIN, FROM_INSIDE_ON_SURFACE_VOXELS,
     FROM_INSIDE_PROBE_VOXELS, PENUMBRA_MIN_STEP, crossing_stencil, march_start, penumbra_step,
     penumbra_visibility, seen_from_inside, tetrahedral_gradient, tetrahedral_normal,
-    thin_crossing_rim,
+    thin_crossing_ratio, thin_crossing_rim,
 };
 
 pub use penumbra_df_core::shadow::{ShadowLight as MaskLight, ShadowLightKind as MaskLightKind};
@@ -272,15 +272,14 @@ pub fn pixel_visibility_with_terrain(
                     object_distance(r, q, camera, atlas)
                 })
             };
-            let rim = |normal_in: Vec3| {
+            let thin = |normal_in: Vec3| {
                 let x = p + dir * (0.5 * (before + t));
-                thin_crossing_rim(x, normal_in, cone)
-                    .map(|q| {
-                        reads.set(reads.get() + 1);
-                        object_distance(r, q, camera, atlas)
-                    })
-                    .into_iter()
-                    .fold(f32::NEG_INFINITY, f32::max)
+                let (points, stretch) = thin_crossing_rim(x, normal_in, dir, cone);
+                let rim = points.map(|q| {
+                    reads.set(reads.get() + 1);
+                    object_distance(r, q, camera, atlas)
+                });
+                thin_crossing_ratio(rim, cone, stretch)
             };
             let (ratio, step) = penumbra_step(
                 d,
@@ -290,7 +289,7 @@ pub fn pixel_visibility_with_terrain(
                 &mut entered,
                 || normal_at(before),
                 || normal_at(t),
-                rim,
+                thin,
             );
             evaluations += reads.get();
             v = v.min(ratio.max(floor));

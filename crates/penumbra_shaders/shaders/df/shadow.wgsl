@@ -388,7 +388,7 @@ fn march_object(
                 let normal_out = crossing_normal(o, p + ray.dir * t, stencil, camera_tile, camera_offset, atlas);
                 if dot(normal_in, normal_out) < THIN_CROSSING_COSINE {
                     let x = p + ray.dir * (0.5 * (before + t));
-                    ratio = thin_crossing_ratio(o, x, normal_in, cone, camera_tile, camera_offset, atlas);
+                    ratio = thin_crossing_ratio(o, x, normal_in, ray.dir, cone, camera_tile, camera_offset, atlas);
                 }
             }
             advance = max(d, surface_step(cone, voxel));
@@ -416,6 +416,9 @@ const SURFACE_STEP_VOXELS: f32 = 0.25;
 // A ray through a solid part crossed a thin part where the normals where it went in and
 // came out meet below this cosine (`penumbra_df_core::shadow::THIN_CROSSING_COSINE`).
 const THIN_CROSSING_COSINE: f32 = -0.5;
+// How far a grazing crossing's rim reaches along the light, at most, in cone radii
+// (`penumbra_df_core::shadow::THIN_CROSSING_MAX_STRETCH`).
+const THIN_CROSSING_MAX_STRETCH: f32 = 4.0;
 
 // The least step outside an occluder (`penumbra_df_core::shadow::surface_step`).
 fn surface_step(cone: f32, voxel: f32) -> f32 {
@@ -446,36 +449,63 @@ fn crossing_normal(
 }
 
 // Where a march crossed a thin part at `x` (its normal where the ray went in
-// `normal_in`), how much of the cone of radius `cone` it covers: −e / r, e the distance
-// to the part's nearest edge within the cone, from the largest field distance a radius
-// from `x` along two square directions in the part's plane; −1 (covered) where the part
-// spans the cone (`penumbra_df_core::shadow::{thin_crossing_ratio, thin_crossing_rim}`).
+// `normal_in`, the light along `dir`), how much of the cone of radius `cone` it covers,
+// as a ratio: the field read a radius from `x` across the light and a stretched radius
+// along its trace in the part's plane (the cone's section meets a tilted part in an
+// ellipse) puts the part's edges in each direction; the disc's share of the two slabs'
+// crossing is the covered fraction (`penumbra_df_core::shadow::{thin_crossing_ratio,
+// thin_crossing_rim}`). NaN: covered.
 fn thin_crossing_ratio(
     o: DistanceFieldObject,
     x: vec3<f32>,
     normal_in: vec3<f32>,
+    dir: vec3<f32>,
     cone: f32,
     camera_tile: vec3<i32>,
     camera_offset: vec3<f32>,
     atlas: texture_3d<f32>,
 ) -> f32 {
+    let across = cross(normal_in, dir);
+    let across_len2 = dot(across, across);
     let a = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), abs(normal_in.y) < 0.9);
     let c = cross(normal_in, a);
-    let len = length(c);
-    let u = select(vec3<f32>(0.0), c / len, len > 0.0);
+    let fallback = select(vec3<f32>(0.0), c / length(c), dot(c, c) > 0.0);
+    let tilted = across_len2 > 1e-8;
+    let u = select(fallback, across * inverseSqrt(max(across_len2, 1e-30)), tilted);
+    let stretch = select(1.0, min(1.0 / max(abs(dot(normal_in, dir)), 1e-6), THIN_CROSSING_MAX_STRETCH), tilted);
     let v = cross(normal_in, u);
-    let rim = max(
-        max(
-            object_distance(o, x + u * cone, camera_tile, camera_offset, atlas),
-            object_distance(o, x - u * cone, camera_tile, camera_offset, atlas),
-        ),
-        max(
-            object_distance(o, x + v * cone, camera_tile, camera_offset, atlas),
-            object_distance(o, x - v * cone, camera_tile, camera_offset, atlas),
-        ),
+    let s = cone * stretch;
+    let rim = vec4<f32>(
+        object_distance(o, x + u * cone, camera_tile, camera_offset, atlas),
+        object_distance(o, x - u * cone, camera_tile, camera_offset, atlas),
+        object_distance(o, x + v * s, camera_tile, camera_offset, atlas),
+        object_distance(o, x - v * s, camera_tile, camera_offset, atlas),
     );
-    let r = rim / cone - 1.0;
-    return select(-1.0, clamp(r, -1.0, 0.0), r == r);
+    if any(rim != rim) || !(cone > 0.0) {
+        return -1.0;
+    }
+    let e = clamp(vec4<f32>(1.0) - rim / vec4<f32>(cone, cone, s, s), vec4<f32>(0.0), vec4<f32>(1.0));
+    let covered = disc_slab(e.x, e.y) * disc_slab(e.z, e.w);
+    return clamp(visibility_ratio(1.0 - covered), -1.0, 0.0);
+}
+
+// The share of a unit disc's area between x = −b and x = a
+// (`penumbra_df_core::shadow::disc_slab`).
+fn disc_slab(a: f32, b: f32) -> f32 {
+    return clamp(disc_part(a) - disc_part(-b), 0.0, 1.0);
+}
+
+fn disc_part(x: f32) -> f32 {
+    let y = clamp(x, -1.0, 1.0);
+    return (asin(y) + y * sqrt(max(1.0 - y * y, 0.0))) * 0.31830988618;
+}
+
+// The ratio whose `penumbra_visibility` is `v`: the inverse smoothstep
+// (`penumbra_df_core::shadow::visibility_ratio`).
+fn visibility_ratio(v: f32) -> f32 {
+    let w = clamp(v, 0.0, 1.0);
+    let t = 0.5 - sin(asin(1.0 - 2.0 * w) / 3.0);
+    return 2.0 * t - 1.0;
 }
 
 // The open fraction of the light's disc for a march's least ratio `x`
