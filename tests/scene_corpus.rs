@@ -67,7 +67,7 @@ const CORPUS: &[Case] = &[
     Case {
         file: "PalmTree/PalmTree.gltf",
         flags: &["--eye=5,4,7", "--target=0,1.8,-0.5"],
-        bounds: b(0.12, 0.03, 0.03),
+        bounds: b(0.10, 0.03, 0.03),
     },
     Case {
         file: "AlienCake/cakeBirthday.glb",

@@ -73,11 +73,12 @@ pub use particles::{
     DistanceFieldParticlesState,
 };
 pub use scene::{
-    CasterMesh, CasterShading, CasterSource, DistanceFieldCaster, DistanceFieldHeightfield,
-    DistanceFieldQuery, DistanceFieldScene, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
-    DistanceFieldScenePlugin, DistanceFieldSceneSettings, DistanceFieldUploadStats,
-    FOLIAGE_AO_TRANSMISSION, HeightfieldTerrain, MergeDistanceFieldCasters, SceneCasterCounts,
-    SceneHeightfields, SceneTwoSided, SkinnedCasters, SphereHit, mesh_shading_apart,
+    CasterMesh, CasterShading, CasterSource, CasterStretch, DistanceFieldCaster,
+    DistanceFieldHeightfield, DistanceFieldQuery, DistanceFieldScene, DistanceFieldSceneCaster,
+    DistanceFieldSceneCasters, DistanceFieldScenePlugin, DistanceFieldSceneSettings,
+    DistanceFieldUploadStats, FOLIAGE_AO_TRANSMISSION, HeightfieldTerrain,
+    MergeDistanceFieldCasters, SceneCasterCounts, SceneHeightfields, SceneTwoSided, SkinnedCasters,
+    SphereHit, mesh_shading_apart,
 };
 pub use sdf_asset::{SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset, SdfVolumeLoader};
 #[cfg(feature = "bake")]

@@ -114,6 +114,7 @@ fn bakes_meshes_with_progress_shares_instances_and_caches_on_disk() {
             .spawn(SdfBakeRequest {
                 mesh: handle.clone(),
                 settings: settings(),
+                stretch: Vec3::ONE,
             })
             .id();
         // A duplicate in the same frame must not start a second bake.
@@ -122,6 +123,7 @@ fn bakes_meshes_with_progress_shares_instances_and_caches_on_disk() {
             .spawn(SdfBakeRequest {
                 mesh: handle.clone(),
                 settings: settings(),
+                stretch: Vec3::ONE,
             })
             .id();
         // A second instance of the same mesh, requested one frame later.
@@ -135,6 +137,7 @@ fn bakes_meshes_with_progress_shares_instances_and_caches_on_disk() {
             .spawn(SdfBakeRequest {
                 mesh: handle,
                 settings: settings(),
+                stretch: Vec3::ONE,
             })
             .id();
         update_until(&mut app, |app| {
@@ -198,6 +201,7 @@ fn unbakeable_meshes_fail_with_a_reason() {
                 .spawn(SdfBakeRequest {
                     mesh: handle,
                     settings: settings(),
+                    stretch: Vec3::ONE,
                 })
                 .id(),
         );
@@ -233,6 +237,7 @@ fn request(app: &mut App, mesh: &Handle<Mesh>, settings: BakeSettings) -> Entity
         .spawn(SdfBakeRequest {
             mesh: mesh.clone(),
             settings,
+            stretch: Vec3::ONE,
         })
         .id()
 }

@@ -7,22 +7,23 @@ use crate::sdf_asset::{SdfBakeFailed, SdfBaked};
 use bevy::prelude::*;
 #[cfg(feature = "bake")]
 use {
+    super::CasterStretch,
     crate::sdf_asset::SdfBakeRequest,
     penumbra_sdf::{BakeSettings, GridPolicy, Resolution, SignMethod},
 };
 
-/// The world's +y in the space of a mesh placed by `transform` (for a ground caster),
-/// rounded to 1/4096 so that float noise in a transform does not re-bake: +y when the
-/// transform is singular.
+/// The world's +y in the space of a mesh placed by `transform` and baked with
+/// `stretch` (for a ground caster), rounded to 1/4096 so that float noise in a transform
+/// does not re-bake: +y when the transform is singular.
 #[cfg(feature = "bake")]
-fn local_up(transform: &GlobalTransform) -> Vec3 {
+fn local_up(transform: &GlobalTransform, stretch: CasterStretch) -> Vec3 {
     let matrix = transform.affine().matrix3;
     let determinant = matrix.determinant();
     if determinant.is_nan() || determinant.abs() <= 1e-12 {
         return Vec3::Y;
     }
-    let up = (matrix.inverse() * Vec3A::Y).normalize_or_zero();
-    let rounded = (Vec3::from(up) * 4096.0).round() / 4096.0;
+    let up = stretch.direction(Vec3::from(matrix.inverse() * Vec3A::Y));
+    let rounded = (up * 4096.0).round() / 4096.0;
     if rounded == Vec3::ZERO || !rounded.is_finite() {
         Vec3::Y
     } else {
@@ -32,7 +33,11 @@ fn local_up(transform: &GlobalTransform) -> Vec3 {
 
 /// Bake settings of a mesh caster placed by `transform`.
 #[cfg(feature = "bake")]
-fn bake_settings(caster: &DistanceFieldCaster, transform: &GlobalTransform) -> BakeSettings {
+fn bake_settings(
+    caster: &DistanceFieldCaster,
+    transform: &GlobalTransform,
+    stretch: CasterStretch,
+) -> BakeSettings {
     let scale = if caster.resolution_scale.is_finite() && caster.resolution_scale > 0.0 {
         caster.resolution_scale.clamp(1.0 / 16.0, 8.0)
     } else {
@@ -53,7 +58,7 @@ fn bake_settings(caster: &DistanceFieldCaster, transform: &GlobalTransform) -> B
         },
         sign: if caster.ground {
             SignMethod::SolidBelow {
-                up: local_up(transform),
+                up: local_up(transform, stretch),
             }
         } else if caster.two_sided {
             SignMethod::TWO_SIDED
@@ -65,7 +70,8 @@ fn bake_settings(caster: &DistanceFieldCaster, transform: &GlobalTransform) -> B
 }
 
 /// Mesh casters get a bake request (answered from the cache when possible) for their
-/// [`CasterMesh`](super::CasterMesh), else their `Mesh3d`. A moved caster is looked at
+/// [`CasterMesh`](super::CasterMesh), else their `Mesh3d`, with the [`CasterStretch`]
+/// of their transform when they first ask (kept after). A moved caster is looked at
 /// again (its settings are unchanged unless it is ground and turned).
 #[cfg(feature = "bake")]
 #[allow(clippy::type_complexity)]
@@ -79,6 +85,7 @@ pub(super) fn request_caster_bakes(
             &GlobalTransform,
             Option<&super::CasterMesh>,
             Option<&SdfBakeRequest>,
+            Option<&CasterStretch>,
         ),
         Or<(
             Changed<DistanceFieldCaster>,
@@ -88,21 +95,30 @@ pub(super) fn request_caster_bakes(
         )>,
     >,
 ) {
-    for (entity, caster, mesh, transform, source, request) in &casters {
+    for (entity, caster, mesh, transform, source, request, stretch) in &casters {
         if caster.source != CasterSource::Mesh {
             continue;
         }
         let mesh = source.map_or(&mesh.0, |s| &s.0);
-        let settings = bake_settings(caster, transform);
-        if request.is_some_and(|r| r.mesh == *mesh && r.settings == settings) {
+        let stretch = stretch
+            .copied()
+            .unwrap_or_else(|| CasterStretch::for_transform(transform));
+        let settings = bake_settings(caster, transform, stretch);
+        if request
+            .is_some_and(|r| r.mesh == *mesh && r.settings == settings && r.stretch == stretch.0)
+        {
             continue;
         }
         // A changed request drops the old outcome (see `sdf_asset`): the caster leaves
         // the scene until its new SDF arrives.
-        commands.entity(entity).insert(SdfBakeRequest {
-            mesh: mesh.clone(),
-            settings,
-        });
+        commands.entity(entity).insert((
+            SdfBakeRequest {
+                mesh: mesh.clone(),
+                settings,
+                stretch: stretch.0,
+            },
+            stretch,
+        ));
     }
 }
 

@@ -47,6 +47,7 @@ mod query;
 mod render;
 mod scene_casters;
 mod shading;
+mod stretch;
 
 use crate::sdf_asset::{SdfBakeFailed, SdfBaked, SdfVolumeAsset};
 use crate::system_times::timed;
@@ -73,6 +74,7 @@ pub use scene_casters::{
     SceneCasterCounts, SceneTwoSided, SkinnedCasters,
 };
 pub use shading::{CasterShading, mesh_shading_apart};
+pub use stretch::{CasterStretch, STRETCH_MAX_RATIO, STRETCH_MIN_ANISOTROPY};
 
 /// Adds distance-field casters, the atlas and the object buffer. Part of
 /// `PenumbraPlugins`; needs [`crate::SdfAssetPlugin`] for mesh casters.
@@ -387,6 +389,7 @@ impl Plugin for DistanceFieldScenePlugin {
         );
         app.register_type::<DistanceFieldCaster>()
             .register_type::<CasterMesh>()
+            .register_type::<CasterStretch>()
             .register_type::<DistanceFieldHeightfield>()
             .register_type::<DistanceFieldScene>()
             .register_type::<DistanceFieldSceneSettings>()
@@ -698,6 +701,7 @@ fn update_distance_field_casters(
                 Changed<SdfBaked>,
                 Added<SdfBakeFailed>,
                 Changed<CasterShading>,
+                Changed<CasterStretch>,
             )>,
         ),
     >,
@@ -709,6 +713,7 @@ fn update_distance_field_casters(
         Option<&SdfBaked>,
         Has<SdfBakeFailed>,
         Option<&CasterShading>,
+        Option<&CasterStretch>,
     )>,
 ) {
     let scene = &mut *scene;
@@ -723,7 +728,8 @@ fn update_distance_field_casters(
     todo.dedup();
     let cap = settings.max_casters.min(scene.device_max_objects) as usize;
     for entity in todo {
-        let Ok((caster, transform, visibility, baked, bake_failed, shading)) = casters.get(entity)
+        let Ok((caster, transform, visibility, baked, bake_failed, shading, stretch)) =
+            casters.get(entity)
         else {
             continue;
         };
@@ -741,8 +747,10 @@ fn update_distance_field_casters(
                 caster.ao_transmission
             );
         }
+        // A mesh's field lies where its stretch puts it; other shapes are analytic.
+        let stretch = stretch.filter(|_| caster.source == CasterSource::Mesh);
         let desc = ObjectDesc {
-            world_from_local: transform.affine(),
+            world_from_local: stretch::world_from_field(transform, stretch),
             shape,
             flags: caster_flags(
                 caster,

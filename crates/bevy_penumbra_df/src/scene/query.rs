@@ -50,6 +50,7 @@ pub struct DistanceFieldQuery<'w, 's> {
             &'static DistanceFieldCaster,
             &'static GlobalTransform,
             Option<&'static SdfBaked>,
+            Option<&'static super::CasterStretch>,
         ),
     >,
     volumes: Res<'w, Assets<SdfVolumeAsset>>,
@@ -70,7 +71,7 @@ impl DistanceFieldQuery<'_, '_> {
         QueryScene::new(
             self.casters
                 .iter()
-                .filter_map(|(caster, transform, baked)| {
+                .filter_map(|(caster, transform, baked, stretch)| {
                     let shape = match &caster.source {
                         CasterSource::Mesh => QueryShape::Volume(self.volumes.get(&baked?.0)?),
                         CasterSource::Sdf(handle) => QueryShape::Volume(self.volumes.get(handle)?),
@@ -87,9 +88,10 @@ impl DistanceFieldQuery<'_, '_> {
                         },
                         CasterSource::Plane => QueryShape::Plane,
                     };
+                    let stretch = stretch.filter(|_| caster.source == CasterSource::Mesh);
                     Some(QueryObject {
                         shape,
-                        world_from_local: transform.affine(),
+                        world_from_local: super::stretch::world_from_field(transform, stretch),
                     })
                 })
                 .chain(terrains),

@@ -41,6 +41,10 @@ pub struct SdfBakeRequest {
     /// `penumbra_sdf` crate (reflection sees the default).
     #[reflect(ignore, clone)]
     pub settings: BakeSettings,
+    /// The mesh is baked with its positions multiplied by this, per axis
+    /// (`Vec3::ONE`: as it is). A scene caster's is its
+    /// [`CasterStretch`](crate::scene::CasterStretch).
+    pub stretch: Vec3,
 }
 
 /// The entity's request is being baked (the bake itself runs in [`SdfBakeCache`]).
@@ -239,7 +243,7 @@ fn start_sdf_bakes(
             continue; // not loaded yet: pending, tried again next frame
         };
         let tri_mesh = match mesh_to_tri_mesh(mesh) {
-            Ok(m) => m,
+            Ok(m) => stretched(m, request.stretch),
             Err(why) => {
                 warn!("SDF bake for {entity}: {why}");
                 stats.failed += 1;
@@ -270,6 +274,17 @@ fn start_sdf_bakes(
             .entity(entity)
             .insert(SdfBakeTask { progress, key });
     }
+}
+
+/// `mesh` with its positions multiplied by `stretch` (unchanged for `Vec3::ONE` or a
+/// stretch that is not finite and positive).
+fn stretched(mut mesh: TriMesh, stretch: Vec3) -> TriMesh {
+    if stretch != Vec3::ONE && stretch.is_finite() && stretch.min_element() > 0.0 {
+        for p in &mut mesh.positions {
+            *p *= stretch;
+        }
+    }
+    mesh
 }
 
 /// A bake (or a disk-cache read) on the async pool; `progress` goes from 0 to 1.
