@@ -43,7 +43,7 @@ pub struct SdfBakeRequest {
     pub settings: BakeSettings,
     /// The mesh is baked with its positions multiplied by this, per axis
     /// (`Vec3::ONE`: as it is). A scene caster's is its
-    /// [`CasterStretch`](crate::scene::CasterStretch).
+    /// [`CasterStretch`](crate::CasterStretch).
     pub stretch: Vec3,
 }
 

@@ -13,10 +13,11 @@ use glam::Vec3;
 /// ellipse that long).
 pub const THIN_CROSSING_MAX_STRETCH: f32 = 4.0;
 
-/// Where a march crossed a thin part (a leaf, a wall: [`THIN_CROSSING_COSINE`]), how
-/// much of the cone the part covers, as a ratio for [`penumbra_visibility`](super::penumbra_visibility): `rim` the
-/// field distances at [`thin_crossing_rim`]'s four points (the first two a radius
-/// `cone` across the light, the last two `stretch` radii along it). A point `rim` beyond
+/// Where a march crossed a thin part (a leaf, a wall:
+/// [`THIN_CROSSING_COSINE`](super::THIN_CROSSING_COSINE)), how much of the cone the
+/// part covers, as a ratio for [`penumbra_visibility`](super::penumbra_visibility):
+/// `rim` the field distances at [`thin_crossing_rim`]'s four points (the first two a
+/// radius `cone` across the light, the last two `stretch` radii along it). A point `rim` beyond
 /// the part's edge puts the edge `1 − rim / reach` of the way out along its direction;
 /// the part covers the slab between the two edges of each pair, and the disc's share of
 /// the two slabs' crossing is the covered fraction. NaN: covered.
@@ -39,7 +40,8 @@ pub fn disc_slab(a: f32, b: f32) -> f32 {
     (f(a) - f(-b)).clamp(0.0, 1.0)
 }
 
-/// The ratio whose [`penumbra_visibility`](super::penumbra_visibility) is `v` (the inverse smoothstep).
+/// The ratio whose [`penumbra_visibility`](super::penumbra_visibility) is `v` (the
+/// inverse smoothstep).
 pub fn visibility_ratio(v: f32) -> f32 {
     let v = v.clamp(0.0, 1.0);
     let t = 0.5 - ((1.0 - 2.0 * v).asin() / 3.0).sin();
