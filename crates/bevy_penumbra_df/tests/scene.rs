@@ -103,11 +103,9 @@ fn mesh_casters_bake_once_and_share_one_placement() {
                 .spawn((
                     Mesh3d(mesh.clone()),
                     DistanceFieldCaster::default(),
-                    Transform::from_xyz(i as f32 * 2.0, 0.0, 0.0).with_scale(Vec3::new(
-                        1.0,
-                        1.0 + i as f32 * 0.2,
-                        1.0,
-                    )),
+                    // Uniform scales (a stretch bakes its own: `stretched_casters.rs`).
+                    Transform::from_xyz(i as f32 * 2.0, 0.0, 0.0)
+                        .with_scale(Vec3::splat(1.0 + i as f32 * 0.2)),
                 ))
                 .id()
         })

@@ -112,8 +112,10 @@ fn a_stretched_cube_is_distance_exact_as_the_block_it_is() {
     app.update();
     for (&e, &(_, _, scale)) in entities.iter().zip(&blocks) {
         let stretch = app.world().get::<CasterStretch>(e).expect("a stretch").0;
+        // The exact stretch to within half an eighth of an octave.
         let want = scale.abs() / scale.abs().max_element();
-        assert!(stretch.abs_diff_eq(want, 1e-3), "{scale}: {stretch}");
+        let off = (stretch / want).to_array().map(|q| q.log2().abs());
+        assert!(off.iter().all(|o| *o <= 0.0626), "{scale}: {stretch}");
     }
     assert_eq!(
         app.world().get::<CasterStretch>(floor).map(|s| s.0),
@@ -130,4 +132,64 @@ fn a_stretched_cube_is_distance_exact_as_the_block_it_is() {
         "worst distance error {worst:.4} m over {} probes",
         probes.0.len()
     );
+}
+
+/// Instances stretched alike share one bake: a mesh scaled 1 × 1.5 × 1, 2 × 3 × 2 and
+/// 1 × 1.53 × 1 rounds to one stretch; unstretched instances share another.
+#[test]
+fn instances_stretched_alike_share_a_bake() {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        TransformPlugin,
+        AssetPlugin::default(),
+        SdfAssetPlugin,
+        DistanceFieldScenePlugin,
+    ))
+    .init_asset::<Mesh>()
+    .init_asset::<StandardMaterial>()
+    .insert_resource(SdfBakeCache::with_directory(None));
+    let cube = app
+        .world_mut()
+        .resource_mut::<Assets<Mesh>>()
+        .add(Cuboid::new(1.0, 1.0, 1.0));
+    let scales = [
+        Vec3::new(1.0, 1.5, 1.0),
+        Vec3::new(2.0, 3.0, 2.0),
+        Vec3::new(1.0, 1.53, 1.0),
+        Vec3::ONE,
+        Vec3::splat(1.7),
+    ];
+    let entities: Vec<Entity> = scales
+        .iter()
+        .enumerate()
+        .map(|(i, &s)| {
+            app.world_mut()
+                .spawn((
+                    Mesh3d(cube.clone()),
+                    Transform::from_xyz(3.0 * i as f32, 0.0, 0.0).with_scale(s),
+                    DistanceFieldCaster::default(),
+                ))
+                .id()
+        })
+        .collect();
+    for _ in 0..3000 {
+        app.update();
+        if entities
+            .iter()
+            .all(|&e| app.world().get::<SdfBaked>(e).is_some())
+        {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    let baked: Vec<AssetId<bevy_penumbra_df::SdfVolumeAsset>> = entities
+        .iter()
+        .map(|&e| app.world().get::<SdfBaked>(e).expect("baked").0.id())
+        .collect();
+    assert!(
+        baked[0] == baked[1] && baked[1] == baked[2],
+        "stretched alike"
+    );
+    assert!(baked[3] == baked[4] && baked[0] != baked[3], "unstretched");
 }

@@ -74,7 +74,7 @@ pub use scene_casters::{
     SceneCasterCounts, SceneTwoSided, SkinnedCasters,
 };
 pub use shading::{CasterShading, mesh_shading_apart};
-pub use stretch::{CasterStretch, STRETCH_MAX_RATIO, STRETCH_MIN_ANISOTROPY};
+pub use stretch::{CasterStretch, STRETCH_MAX_RATIO, STRETCH_STEPS_PER_OCTAVE};
 
 /// Adds distance-field casters, the atlas and the object buffer. Part of
 /// `PenumbraPlugins`; needs [`crate::SdfAssetPlugin`] for mesh casters.

@@ -8,24 +8,26 @@
 //! widens: exporters squash and stretch props freely (the palm tree's fronds are scaled
 //! 0.72 along their length, and their penumbrae on the ground read 28 % too close).
 //! Unreal keeps the bound. Penumbra bakes the anisotropy instead: a caster whose axis
-//! scales differ by more than [`STRETCH_MIN_ANISOTROPY`] but by at most
-//! [`STRETCH_MAX_RATIO`] bakes its mesh scaled per axis by its transform's column
-//! lengths over the largest of them, and places the field by the transform times the
-//! inverse, a uniform scale; distances are then exact at every angle. Beyond that ratio
+//! scales differ by at most [`STRETCH_MAX_RATIO`] bakes its mesh scaled per axis by its
+//! transform's column lengths over the largest of them, each rounded to an eighth of an
+//! octave ([`STRETCH_STEPS_PER_OCTAVE`]), and places the field by the transform times the
+//! inverse, all but uniform: distances are then exact at every angle to within the
+//! rounding (at most a step, 9 %, between two axes; the bound covers that much). Scales
+//! within about 4 % of each other round to none; instances whose scales jitter by a few
+//! percent round to the same stretch and share its bake. Beyond that ratio
 //! (a cube made a plank, a floor or a wall) the smallest scale is the part's thin axis,
 //! along which the bound is exact, and a stretched bake would be as coarse across it as
 //! along its length: the bound is kept. The stretch is decided when the caster first
 //! asks for a bake and kept (a caster whose scale animates is not re-baked each frame;
-//! the bound covers what its scale does later). Instances scaled alike still share one
-//! bake. Cost: a bake per distinct stretch; no more samples than the unstretched bake
-//! (its finest axes coarsen to its coarsest, by at most the ratio).
+//! the bound covers what its scale does later). Cost: a bake per distinct stretch (at
+//! most 8 steps per axis); no more samples than the unstretched bake (its finest axes
+//! coarsen to its coarsest, by at most the ratio).
 
 use bevy::math::Affine3A;
 use bevy::prelude::*;
 
-/// The least spread between a caster's axis scales (one minus its smallest over its
-/// largest column length) that is baked into its field: 3 %.
-pub const STRETCH_MIN_ANISOTROPY: f32 = 0.03;
+/// A stretch's components are powers of two in steps of an eighth of an octave (9 %).
+pub const STRETCH_STEPS_PER_OCTAVE: f32 = 8.0;
 
 /// The most a caster's largest axis scale may exceed its smallest for the spread to be
 /// baked into its field: 2 (see the module docs).
@@ -46,9 +48,10 @@ impl Default for CasterStretch {
 
 impl CasterStretch {
     /// The stretch to bake for a caster placed by `transform`: its column lengths over
-    /// the largest, rounded to 1/256, where they differ by more than
-    /// [`STRETCH_MIN_ANISOTROPY`] and at most [`STRETCH_MAX_RATIO`] times; `Vec3::ONE`
-    /// otherwise or for a degenerate or non-finite transform.
+    /// the largest, each rounded to a power of two in [`STRETCH_STEPS_PER_OCTAVE`]
+    /// steps, where they differ by at most [`STRETCH_MAX_RATIO`] times; `Vec3::ONE`
+    /// otherwise, where they all round to 1, or for a degenerate or non-finite
+    /// transform.
     pub fn for_transform(transform: &GlobalTransform) -> Self {
         let m = transform.affine().matrix3;
         let lengths = Vec3::new(m.x_axis.length(), m.y_axis.length(), m.z_axis.length());
@@ -56,13 +59,14 @@ impl CasterStretch {
         if !lengths.is_finite() || largest <= 0.0 || lengths.min_element() <= 1e-6 * largest {
             return Self::default();
         }
-        let smallest = lengths.min_element();
-        if smallest >= (1.0 - STRETCH_MIN_ANISOTROPY) * largest
-            || smallest * STRETCH_MAX_RATIO < largest
-        {
+        if lengths.min_element() * STRETCH_MAX_RATIO < largest {
             return Self::default();
         }
-        Self(((lengths / largest) * 256.0).round().max(Vec3::ONE) / 256.0)
+        let steps = STRETCH_STEPS_PER_OCTAVE;
+        let rounded = (lengths / largest)
+            .to_array()
+            .map(|r| ((r.log2() * steps).round() / steps).exp2());
+        Self(Vec3::from_array(rounded))
     }
 
     /// Where a field baked with this stretch lies for a caster placed by `transform`.
@@ -102,10 +106,10 @@ mod tests {
     #[test]
     fn a_non_uniform_scale_is_baked_and_the_rest_placed_uniformly() {
         let r = Quat::from_euler(EulerRot::XYZ, 0.3, -1.1, 0.7);
-        // Uniform, or nearly; a cube made a plank or a floor: none.
+        // Uniform, or within 4 %; a cube made a plank or a floor: none.
         for s in [
             Vec3::splat(2.0),
-            Vec3::new(1.0, 0.98, 1.0),
+            Vec3::new(1.0, 0.96, 1.0),
             Vec3::new(4.0, 1.0, 1.0),
             Vec3::new(10.0, 0.2, 10.0),
         ] {
@@ -119,18 +123,23 @@ mod tests {
         for s in [Vec3::new(0.72, 1.0, 1.0), Vec3::new(-1.6, 1.0, 0.9)] {
             let t = placed(s, r);
             let stretch = CasterStretch::for_transform(&t);
+            // Each component within half a step of the exact stretch.
             let want = s.abs() / s.abs().max_element();
+            let off = (stretch.0 / want).to_array().map(|q| q.log2().abs());
             assert!(
-                stretch.0.abs_diff_eq(want, 1.0 / 512.0),
+                off.iter()
+                    .all(|o| *o <= 0.5 / STRETCH_STEPS_PER_OCTAVE + 1e-4),
                 "{s}: {}",
                 stretch.0
             );
-            // The field's placement scales every axis alike: the world distance is the
-            // field's distance times one number.
+            assert_ne!(stretch.0, Vec3::ONE, "{s}");
+            // The field's placement scales every axis alike to within a step: the world
+            // distance is the field's distance times about one number.
             let m = stretch.world_from_field(&t).matrix3;
             let lengths = Vec3::new(m.x_axis.length(), m.y_axis.length(), m.z_axis.length());
+            let step = (-1.0 / STRETCH_STEPS_PER_OCTAVE).exp2();
             assert!(
-                lengths.max_element() - lengths.min_element() < 0.01 * lengths.max_element(),
+                lengths.min_element() >= step * lengths.max_element() - 1e-5,
                 "{s}: {lengths}"
             );
             // A point of the mesh lands where the transform puts it.
