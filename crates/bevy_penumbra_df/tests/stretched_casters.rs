@@ -26,8 +26,8 @@ fn box_distance(p: Vec3, at: Vec3, rotation: Quat, h: Vec3) -> f32 {
     q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
 }
 
-#[test]
-fn a_stretched_cube_is_distance_exact_as_the_block_it_is() {
+/// A headless app with the scene and SDF-asset plugins (no disk cache) and a unit cube.
+fn app_with_a_cube() -> (App, Handle<Mesh>) {
     let mut app = App::new();
     app.add_plugins((
         MinimalPlugins,
@@ -38,13 +38,32 @@ fn a_stretched_cube_is_distance_exact_as_the_block_it_is() {
     ))
     .init_asset::<Mesh>()
     .init_asset::<StandardMaterial>()
-    .insert_resource(SdfBakeCache::with_directory(None))
-    .init_resource::<Probes>()
-    .add_systems(Update, ask);
+    .insert_resource(SdfBakeCache::with_directory(None));
     let cube = app
         .world_mut()
         .resource_mut::<Assets<Mesh>>()
         .add(Cuboid::new(1.0, 1.0, 1.0));
+    (app, cube)
+}
+
+/// Updates `app` until every one of `entities` has its SDF (at most 3,000 frames).
+fn bake_all(app: &mut App, entities: &[Entity]) {
+    for _ in 0..3000 {
+        app.update();
+        if entities
+            .iter()
+            .all(|&e| app.world().get::<SdfBaked>(e).is_some())
+        {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+}
+
+#[test]
+fn a_stretched_cube_is_distance_exact_as_the_block_it_is() {
+    let (mut app, cube) = app_with_a_cube();
+    app.init_resource::<Probes>().add_systems(Update, ask);
     let blocks = [
         (
             Vec3::new(0.0, 1.0, 0.0),
@@ -98,17 +117,9 @@ fn a_stretched_cube_is_distance_exact_as_the_block_it_is() {
         probes.push((Vec3::new(1.0, y, -2.0), 0.1));
     }
     app.world_mut().resource_mut::<Probes>().0 = probes;
-    for _ in 0..3000 {
-        app.update();
-        if entities
-            .iter()
-            .chain([&floor])
-            .all(|&e| app.world().get::<SdfBaked>(e).is_some())
-        {
-            break;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(2));
-    }
+    let mut all = entities.clone();
+    all.push(floor);
+    bake_all(&mut app, &all);
     app.update();
     for (&e, &(_, _, scale)) in entities.iter().zip(&blocks) {
         let stretch = app.world().get::<CasterStretch>(e).expect("a stretch").0;
@@ -138,21 +149,7 @@ fn a_stretched_cube_is_distance_exact_as_the_block_it_is() {
 /// 1 × 1.53 × 1 rounds to one stretch; unstretched instances share another.
 #[test]
 fn instances_stretched_alike_share_a_bake() {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        TransformPlugin,
-        AssetPlugin::default(),
-        SdfAssetPlugin,
-        DistanceFieldScenePlugin,
-    ))
-    .init_asset::<Mesh>()
-    .init_asset::<StandardMaterial>()
-    .insert_resource(SdfBakeCache::with_directory(None));
-    let cube = app
-        .world_mut()
-        .resource_mut::<Assets<Mesh>>()
-        .add(Cuboid::new(1.0, 1.0, 1.0));
+    let (mut app, cube) = app_with_a_cube();
     let scales = [
         Vec3::new(1.0, 1.5, 1.0),
         Vec3::new(2.0, 3.0, 2.0),
@@ -173,16 +170,7 @@ fn instances_stretched_alike_share_a_bake() {
                 .id()
         })
         .collect();
-    for _ in 0..3000 {
-        app.update();
-        if entities
-            .iter()
-            .all(|&e| app.world().get::<SdfBaked>(e).is_some())
-        {
-            break;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(2));
-    }
+    bake_all(&mut app, &entities);
     let baked: Vec<AssetId<bevy_penumbra_df::SdfVolumeAsset>> = entities
         .iter()
         .map(|&e| app.world().get::<SdfBaked>(e).expect("baked").0.id())

@@ -747,10 +747,8 @@ fn update_distance_field_casters(
                 caster.ao_transmission
             );
         }
-        // A mesh's field lies where its stretch puts it; other shapes are analytic.
-        let stretch = stretch.filter(|_| caster.source == CasterSource::Mesh);
         let desc = ObjectDesc {
-            world_from_local: stretch::world_from_field(transform, stretch),
+            world_from_local: stretch::world_from_field(&caster.source, transform, stretch),
             shape,
             flags: caster_flags(
                 caster,

@@ -88,10 +88,13 @@ impl DistanceFieldQuery<'_, '_> {
                         },
                         CasterSource::Plane => QueryShape::Plane,
                     };
-                    let stretch = stretch.filter(|_| caster.source == CasterSource::Mesh);
                     Some(QueryObject {
                         shape,
-                        world_from_local: super::stretch::world_from_field(transform, stretch),
+                        world_from_local: super::stretch::world_from_field(
+                            &caster.source,
+                            transform,
+                            stretch,
+                        ),
                     })
                 })
                 .chain(terrains),

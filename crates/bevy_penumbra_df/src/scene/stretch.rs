@@ -83,12 +83,17 @@ impl CasterStretch {
     }
 }
 
-/// Where a caster's field lies: its transform, times the inverse of its stretch if any.
+/// Where a caster's shape lies: its transform, times the inverse of its stretch for a
+/// mesh's field (analytic shapes have none).
 pub(crate) fn world_from_field(
+    source: &super::CasterSource,
     transform: &GlobalTransform,
     stretch: Option<&CasterStretch>,
 ) -> Affine3A {
-    stretch.map_or_else(|| transform.affine(), |s| s.world_from_field(transform))
+    match stretch {
+        Some(s) if *source == super::CasterSource::Mesh => s.world_from_field(transform),
+        _ => transform.affine(),
+    }
 }
 
 #[cfg(test)]
