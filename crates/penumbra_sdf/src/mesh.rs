@@ -42,7 +42,22 @@ pub enum MeshError {
     },
     /// Every triangle has zero area: there is no surface.
     AllTrianglesDegenerate,
+    /// A vertex used by a triangle lies farther than [`MAX_COORDINATE`] from the mesh's
+    /// origin along an axis: squared distances across the mesh would overflow `f32`.
+    CoordinateTooLarge {
+        /// Vertex number.
+        vertex: usize,
+        /// Its largest coordinate (absolute value).
+        coordinate: f32,
+    },
 }
+
+/// The largest coordinate a vertex may have, mesh units, measured from the mesh's
+/// `origin` (a mesh read in `f64` is centred there, so this bounds its size, not where it
+/// stands): 10⁸. The closest-point test multiplies squared lengths (the fourth power of
+/// the mesh's extent), which must stay inside `f32`'s range (`cargo xtask fuzz` found a
+/// 4·10¹⁰-unit triangle that broke the sampler).
+pub const MAX_COORDINATE: f32 = 1.0e8;
 
 impl std::fmt::Display for MeshError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -68,6 +83,11 @@ impl std::fmt::Display for MeshError {
                     "every triangle has zero area: there is no surface to bake"
                 )
             }
+            MeshError::CoordinateTooLarge { vertex, coordinate } => write!(
+                f,
+                "vertex {vertex} has a coordinate of {coordinate:e}, beyond the \
+                 {MAX_COORDINATE:e} units a bake can measure"
+            ),
         }
     }
 }
@@ -193,6 +213,13 @@ impl TriMesh {
                 if !p.is_finite() {
                     return Err(MeshError::NonFinitePosition { vertex: i as usize });
                 }
+                let coordinate = p.abs().max_element();
+                if coordinate > MAX_COORDINATE {
+                    return Err(MeshError::CoordinateTooLarge {
+                        vertex: i as usize,
+                        coordinate,
+                    });
+                }
                 corners[k] = p;
             }
             let cross = (corners[1] - corners[0]).cross(corners[2] - corners[0]);
@@ -246,6 +273,17 @@ mod tests {
                     ..Default::default()
                 },
                 MeshError::NonFinitePosition { vertex: 2 },
+            ),
+            (
+                TriMesh {
+                    positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(0.0, 0.0, -2.0e8)],
+                    triangles: vec![[0, 1, 2]],
+                    ..Default::default()
+                },
+                MeshError::CoordinateTooLarge {
+                    vertex: 2,
+                    coordinate: 2.0e8,
+                },
             ),
             (
                 TriMesh {

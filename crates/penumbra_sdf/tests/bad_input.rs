@@ -51,6 +51,23 @@ fn bad_meshes_and_settings_are_errors() {
             |e| *e == BakeError::Mesh(MeshError::AllTrianglesDegenerate),
         ),
         (
+            // Found by `cargo xtask fuzz` (obj): a finite vertex so far out that squared
+            // distances overflow f32 made the sampler's nearest-triangle query fail.
+            "far vertex",
+            TriMesh {
+                positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 9.2e18, 1.0)],
+                triangles: vec![[0, 1, 2]],
+                ..Default::default()
+            },
+            settings(8),
+            |e| {
+                matches!(
+                    e,
+                    BakeError::Mesh(MeshError::CoordinateTooLarge { vertex: 2, .. })
+                )
+            },
+        ),
+        (
             "huge",
             shapes::cuboid(Vec3::ONE),
             settings(1_000_000),
@@ -206,6 +223,32 @@ fn bad_gltf_files_are_errors() {
         ),
         ("cycle", cycle),
         ("two parents", shared),
+        // The `gltf` crate panics on these (found by `cargo xtask fuzz`): they must be
+        // errors with no `catch_unwind`, which `panic = "abort"` disables.
+        (
+            "POSITION names a missing accessor",
+            good.replace(r#""POSITION":0"#, r#""POSITION":5"#),
+        ),
+        (
+            "float indices",
+            good.replace(r#""POSITION":0}"#, r#""POSITION":0},"indices":0"#),
+        ),
+        ("count 0", good.replace(r#""count":3"#, r#""count":0"#)),
+        (
+            "stride shorter than an element",
+            good.replace(
+                r#""byteLength":36}],"#,
+                r#""byteLength":36,"byteStride":4}],"#,
+            ),
+        ),
+        (
+            "elements past the view",
+            good.replace(r#""count":3"#, r#""count":4"#),
+        ),
+        (
+            "GLB length shorter than its header",
+            "glTF\u{2}\0\0\0\u{4}\0\0\0JSON".into(),
+        ),
     ];
     for (name, text) in cases {
         let r = load_gltf(
@@ -218,6 +261,18 @@ fn bad_gltf_files_are_errors() {
         if name.starts_with("absolute") || name.starts_with("parent") {
             assert!(e.to_string().contains("refused"), "{name}: {e}");
         }
+        let expected = match name {
+            "POSITION names a missing accessor" => "POSITION names accessor 5, but the file has 1",
+            "float indices" => "indices must be unsigned integer scalars",
+            "count 0" => "count 0 (1 to",
+            "stride shorter than an element" => {
+                "byteStride 4 is shorter than an element (12 bytes)"
+            }
+            "elements past the view" => "pass the end of buffer view 0 (36 bytes)",
+            "GLB length shorter than its header" => "length 4 is shorter than the 12-byte header",
+            _ => "",
+        };
+        assert!(e.to_string().contains(expected), "{name}: {e}");
     }
     let e = load_gltf(good.as_bytes(), None, &GltfSelection::Mesh("nope".into())).unwrap_err();
     assert!(e.to_string().contains("\"tri\""), "{e}");

@@ -11,6 +11,8 @@
 //! conversion to f32 ([`TriMesh::from_f64`]). A node graph that is not a forest (a
 //! cycle, or a node with two parents, both invalid glTF) is an error, never a hang.
 
+mod accessor;
+
 use crate::mesh::{Topology, TriMesh, triangles_from};
 use glam::{DMat4, DVec3, Vec3};
 use gltf::mesh::Mode;
@@ -103,15 +105,41 @@ pub fn load_gltf_with_sides(
     base_dir: Option<&Path>,
     selection: &GltfSelection,
 ) -> Result<(TriMesh, Vec<TriangleMaterial>, GltfReport), GltfError> {
-    // The gltf crate validates structure but can still panic on inconsistent accessor
-    // data; a corrupt file must be an error, never a crash.
-    std::panic::catch_unwind(|| load_gltf_unguarded(bytes, base_dir, selection)).unwrap_or_else(
-        |_| {
-            Err(GltfError::Parse(
-                "inconsistent accessor or buffer data".into(),
-            ))
-        },
-    )
+    load_gltf_unguarded(bytes, base_dir, selection)
+}
+
+/// Parses and validates the document. Two checks come first because the `gltf` crate
+/// panics without them: a GLB header whose length is shorter than the header itself
+/// (a subtraction that overflows), and a primitive whose `POSITION` names an accessor
+/// that does not exist (its validation indexes the accessors before checking).
+fn parse(bytes: &[u8]) -> Result<(gltf::Document, Option<Vec<u8>>), GltfError> {
+    if bytes.starts_with(b"glTF") && bytes.len() >= 12 {
+        let length = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
+        if length < 12 {
+            return Err(GltfError::Parse(format!(
+                "GLB header: the file's length {length} is shorter than the 12-byte header"
+            )));
+        }
+    }
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(bytes)
+        .map_err(|e| GltfError::Parse(e.to_string()))?;
+    let json = document.into_json();
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let position = gltf::json::validation::Checked::Valid(gltf::Semantic::Positions);
+            if let Some(a) = primitive.attributes.get(&position)
+                && a.value() >= json.accessors.len()
+            {
+                return Err(GltfError::Parse(format!(
+                    "mesh {m} primitive {p}: POSITION names accessor {}, but the file has {}",
+                    a.value(),
+                    json.accessors.len()
+                )));
+            }
+        }
+    }
+    let document = gltf::Document::from_json(json).map_err(|e| GltfError::Parse(e.to_string()))?;
+    Ok((document, blob))
 }
 
 fn load_gltf_unguarded(
@@ -119,12 +147,11 @@ fn load_gltf_unguarded(
     base_dir: Option<&Path>,
     selection: &GltfSelection,
 ) -> Result<(TriMesh, Vec<TriangleMaterial>, GltfReport), GltfError> {
-    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| GltfError::Parse(e.to_string()))?;
+    let (document, blob) = parse(bytes)?;
     let mut buffers = Vec::new();
-    for buffer in gltf.document.buffers() {
+    for buffer in document.buffers() {
         let data = match buffer.source() {
-            gltf::buffer::Source::Bin => gltf
-                .blob
+            gltf::buffer::Source::Bin => blob
                 .clone()
                 .ok_or_else(|| GltfError::Buffer("GLB binary chunk missing".into()))?,
             gltf::buffer::Source::Uri(uri) => load_uri(uri, base_dir)?,
@@ -141,8 +168,7 @@ fn load_gltf_unguarded(
     }
     let mut out = Triangles::default();
     let mut report = GltfReport {
-        mesh_names: gltf
-            .document
+        mesh_names: document
             .meshes()
             .map(|m| m.name().unwrap_or("").to_string())
             .collect(),
@@ -150,8 +176,7 @@ fn load_gltf_unguarded(
     };
     match selection {
         GltfSelection::Mesh(name) => {
-            let mesh = gltf
-                .document
+            let mesh = document
                 .meshes()
                 .find(|m| m.name() == Some(name.as_str()))
                 .ok_or_else(|| {
@@ -160,19 +185,25 @@ fn load_gltf_unguarded(
                         report.mesh_names
                     ))
                 })?;
-            append_mesh(&mesh, DMat4::IDENTITY, &buffers, &mut out, &mut report)?;
+            append_mesh(
+                &mesh,
+                DMat4::IDENTITY,
+                &document,
+                &buffers,
+                &mut out,
+                &mut report,
+            )?;
         }
         GltfSelection::Scene => {
-            let scene = gltf
-                .document
+            let scene = document
                 .default_scene()
-                .or_else(|| gltf.document.scenes().next())
+                .or_else(|| document.scenes().next())
                 .ok_or_else(|| GltfError::NotFound("the file has no scene".into()))?;
             let mut stack: Vec<(gltf::Node, DMat4)> =
                 scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
             // Each node is reached once in a forest; a second visit means a cycle (which
             // would never end) or a shared child.
-            let mut visited = vec![false; gltf.document.nodes().count()];
+            let mut visited = vec![false; document.nodes().count()];
             while let Some((node, parent)) = stack.pop() {
                 if std::mem::replace(&mut visited[node.index()], true) {
                     return Err(GltfError::Parse(format!(
@@ -185,7 +216,7 @@ fn load_gltf_unguarded(
                 let world = parent * DMat4::from_cols_array_2d(&local);
                 if let Some(mesh) = node.mesh() {
                     report.skinned_instances += usize::from(node.skin().is_some());
-                    append_mesh(&mesh, world, &buffers, &mut out, &mut report)?;
+                    append_mesh(&mesh, world, &document, &buffers, &mut out, &mut report)?;
                 }
                 stack.extend(node.children().map(|c| (c, world)));
             }
@@ -269,6 +300,7 @@ fn percent_decode(s: &str) -> String {
 fn append_mesh(
     mesh: &gltf::Mesh,
     transform: DMat4,
+    document: &gltf::Document,
     buffers: &[Vec<u8>],
     out: &mut Triangles,
     report: &mut GltfReport,
@@ -276,9 +308,9 @@ fn append_mesh(
     // A mirroring transform flips the winding: swap two corners to keep outside out.
     let flip = transform.determinant() < 0.0;
     for primitive in mesh.primitives() {
-        let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
-        let (Some(positions), true) = (
-            reader.read_positions(),
+        let position = primitive.get(&gltf::Semantic::Positions);
+        let (Some(position), true) = (
+            position,
             matches!(
                 primitive.mode(),
                 Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
@@ -287,12 +319,11 @@ fn append_mesh(
             report.skipped_primitives += 1;
             continue;
         };
-        // Checked before reading: the reader reserves what an accessor claims.
+        // Checked before reading: a small file can claim billions of elements.
+        let index_accessor = primitive.indices();
         let claims = [
-            primitive
-                .get(&gltf::Semantic::Positions)
-                .map(|a| ("POSITION", a)),
-            primitive.indices().map(|a| ("indices", a)),
+            Some(("POSITION", &position)),
+            index_accessor.as_ref().map(|a| ("indices", a)),
         ];
         for (what, accessor) in claims.into_iter().flatten() {
             let total = if what == "POSITION" {
@@ -317,12 +348,43 @@ fn append_mesh(
                 )));
             }
         }
+        let root = document.as_json();
+        let what = |name: &str| {
+            format!(
+                "mesh {} primitive {} {name}",
+                mesh.index(),
+                primitive.index()
+            )
+        };
         let base = out.positions.len() as u32;
-        out.positions
-            .extend(positions.map(|p| transform.transform_point3(Vec3::from_array(p).as_dvec3())));
+        accessor::for_each_element(
+            root,
+            buffers,
+            position.index(),
+            &what("POSITION"),
+            false,
+            |p| {
+                // Rounded to f32 first, as the file stores it (quantized ones included).
+                let p = Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32);
+                out.positions.push(transform.transform_point3(p.as_dvec3()));
+            },
+        )?;
         let count = out.positions.len() as u32 - base;
-        let indices: Vec<u32> = match reader.read_indices() {
-            Some(i) => i.into_u32().collect(),
+        let indices: Vec<u32> = match primitive.indices() {
+            Some(a) => {
+                let mut indices = Vec::with_capacity(a.count().min(MAX_ACCESSOR_ELEMENTS));
+                accessor::for_each_element(
+                    root,
+                    buffers,
+                    a.index(),
+                    &what("indices"),
+                    true,
+                    |i| {
+                        indices.push(i[0] as u32);
+                    },
+                )?;
+                indices
+            }
             None => (0..count).collect(),
         };
         let topology = match primitive.mode() {
