@@ -93,7 +93,7 @@ pub fn bench_pack(cargo: &std::ffi::OsStr, args: &[String]) -> Result<(), String
 }
 
 /// The target folder cargo builds into (`CARGO_TARGET_DIR` or the workspace's).
-fn target_dir(cargo: &std::ffi::OsStr, root: &Path) -> Result<PathBuf, String> {
+pub(crate) fn target_dir(cargo: &std::ffi::OsStr, root: &Path) -> Result<PathBuf, String> {
     let out = Command::new(cargo)
         .current_dir(root)
         .args(["metadata", "--format-version", "1", "--no-deps"])
@@ -166,7 +166,7 @@ fn write_script(stage: &Path) -> Result<(), String> {
     .map_err(|e| format!("README.txt: {e}"))
 }
 
-fn run(command: &mut Command) -> Result<(), String> {
+pub(crate) fn run(command: &mut Command) -> Result<(), String> {
     let status = command
         .status()
         .map_err(|e| format!("{:?}: {e}", command.get_program()))?;

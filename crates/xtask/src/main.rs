@@ -5,6 +5,8 @@
 //! - `cargo xtask bench-pack`: the GPU benchmark (`examples/penumbra_bench.rs`) built,
 //!   stripped and packed with its scenes into one archive for a machine without Rust
 //!   ([`bench_pack`]).
+//! - `cargo xtask fuzz [--seconds N]`: coverage-guided fuzzing of every input format
+//!   on stable Rust ([`fuzz`], `crates/penumbra_fuzz`).
 //! - `cargo xtask test [ARGS]`: the whole test suite (`cargo test --workspace`), closing
 //!   with a total in which tests that could not run here (no GPU adapter, no
 //!   `../shared`: `penumbra_testkit::skip`) count as skipped, not passed.
@@ -18,13 +20,17 @@ use std::path::Path;
 use std::process::{Command, ExitCode};
 
 mod bench_pack;
+mod fuzz;
 
 /// The Debian package providing lavapipe (it depends on the Vulkan loader, `libvulkan1`).
 const DRIVER_PACKAGE: &str = "mesa-vulkan-drivers";
 
-const USAGE: &str = "usage: cargo xtask <showcase|test|bench-pack> [ARGS...]
+const USAGE: &str = "usage: cargo xtask <showcase|test|bench-pack|fuzz> [ARGS...]
   bench-pack       build examples/penumbra_bench.rs, strip it, pack it with its scenes
                    (target/bench-pack/penumbra-bench.tar.gz, at most 60 MiB)
+  fuzz [--seconds N] [--target T]... [--jobs J] [--seed S]
+                   coverage-guided fuzzing of the input formats (crates/penumbra_fuzz),
+                   N seconds per target (default 60), J targets at a time (default 1)
   showcase [ARGS]  run examples/showcase.rs (ARGS go to the example: --headless --frames N --out PATH --size WxH)
   test [ARGS]      run the whole test suite: cargo test --workspace [ARGS]
                    (one test at a time per binary: RUST_TEST_THREADS=1 unless set)";
@@ -39,6 +45,16 @@ fn main() -> ExitCode {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
                 eprintln!("xtask: bench-pack: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
+    if task.as_deref() == Some("fuzz") {
+        let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+        return match fuzz::fuzz(&cargo, &rest) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("xtask: fuzz: {e}");
                 ExitCode::FAILURE
             }
         };
