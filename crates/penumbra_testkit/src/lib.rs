@@ -7,6 +7,8 @@
 //!   passed: it sets [`SKIP_LOG_ENV`] to a file each skip appends a line to.
 //! - [`shared_dir`]: `../shared/<sub>` beside the checkout, or a reported skip.
 //! - [`XorShift`]: a tiny deterministic generator for test scenes.
+//! - [`Awkward`]: values a property test throws at settings (NaN, infinities, zero,
+//!   negative, tiny, huge, the integer limits, and ordinary ones).
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -121,5 +123,66 @@ impl XorShift {
     /// The next number in `[a, b)`.
     pub fn range(&mut self, a: f32, b: f32) -> f32 {
         a + (b - a) * self.unit()
+    }
+}
+
+/// Values for property tests of settings and inputs: each call returns, with equal
+/// odds, one of the classic troublemakers (NaN, ±∞, ±0, the smallest normal and
+/// subnormal, ±`f32::MAX`, 1e-7, 1e7, −1) or an ordinary value, so a few thousand draws
+/// try every field at every kind of value (`proptest` is not in the offline registry this
+/// project builds from; this is its generator without the shrinking).
+pub struct Awkward(XorShift);
+
+impl Awkward {
+    /// A generator from `seed` (any value but 0).
+    pub fn new(seed: u32) -> Self {
+        Self(XorShift(seed.max(1)))
+    }
+
+    /// A number in `0..n`.
+    pub fn below(&mut self, n: u32) -> u32 {
+        ((self.0.unit() * n as f32) as u32).min(n.saturating_sub(1))
+    }
+
+    /// A float: a troublemaker half the time, else ordinary in `[-4, 12)`.
+    pub fn f32(&mut self) -> f32 {
+        const SPECIAL: [f32; 14] = [
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            0.0,
+            -0.0,
+            f32::MIN_POSITIVE,
+            1e-45,
+            f32::MAX,
+            f32::MIN,
+            1e-7,
+            1e7,
+            -1.0,
+            1.0,
+            0.5,
+        ];
+        if self.below(2) == 0 {
+            SPECIAL[self.below(SPECIAL.len() as u32) as usize]
+        } else {
+            self.0.range(-4.0, 12.0)
+        }
+    }
+
+    /// An integer: 0, 1, 2, a power of two, `u32::MAX` or an ordinary one below 100.
+    pub fn u32(&mut self) -> u32 {
+        match self.below(6) {
+            0 => 0,
+            1 => 1,
+            2 => 2,
+            3 => 1 << self.below(32),
+            4 => u32::MAX,
+            _ => self.below(100),
+        }
+    }
+
+    /// A coin toss.
+    pub fn bool(&mut self) -> bool {
+        self.below(2) == 0
     }
 }

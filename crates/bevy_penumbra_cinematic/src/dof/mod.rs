@@ -165,12 +165,14 @@ pub struct BokehDepthOfField {
     pub focal_distance: f32,
     /// The aperture as an f-number (focal length / aperture diameter): smaller is
     /// blurrier. Default 1 (Bevy's `PhysicalCameraParameters`). Must be positive and
-    /// finite: otherwise the default, with a warning. Cost: blurrier views draw larger
+    /// finite: otherwise the default, with a warning; below [`MIN_F_STOPS`] (0.01): that, with a
+    /// warning. Cost: blurrier views draw larger
     /// sprites.
     pub aperture_f_stops: f32,
     /// Height of the sensor, metres; with the projection's vertical field of view it gives
     /// the focal length, as for Bevy's `DepthOfField`. Default 0.01866 (Super 35). Must be
-    /// positive and finite: otherwise the default, with a warning.
+    /// positive and finite: otherwise the default, with a warning; above
+    /// [`MAX_SENSOR_HEIGHT`] (1 m): that, with a warning.
     pub sensor_height: f32,
     /// The bokeh shape. Default [`BokehAperture::Hexagon`]. No cost.
     pub aperture: BokehAperture,
@@ -231,6 +233,13 @@ impl Default for BokehDepthOfField {
     }
 }
 
+/// The smallest [`BokehDepthOfField::aperture_f_stops`] used (f/0.01: a hundred times
+/// the widest real lens; smaller ones make the aperture overflow).
+pub const MIN_F_STOPS: f32 = 0.01;
+/// The largest [`BokehDepthOfField::sensor_height`] used, metres (five times the
+/// largest film format; larger ones make the focal length overflow).
+pub const MAX_SENSOR_HEIGHT: f32 = 1.0;
+
 impl BokehDepthOfField {
     /// The settings as the passes use them, for a projection with vertical field of view
     /// `fov_y` (radians), and what was out of range (one message per setting, naming the
@@ -252,6 +261,24 @@ impl BokehDepthOfField {
             defaults.aperture_f_stops,
         );
         let sensor_height = positive("sensor_height", self.sensor_height, defaults.sensor_height);
+        // Bounds that keep the lens finite: the aperture (focal length / f-stops) and
+        // the focal length (sensor / field of view) would overflow at the extremes.
+        let f_stops = if f_stops < MIN_F_STOPS {
+            problems.push(format!(
+                "aperture_f_stops = {f_stops} (at least {MIN_F_STOPS}; using it)"
+            ));
+            MIN_F_STOPS
+        } else {
+            f_stops
+        };
+        let sensor_height = if sensor_height > MAX_SENSOR_HEIGHT {
+            problems.push(format!(
+                "sensor_height = {sensor_height} m (at most {MAX_SENSOR_HEIGHT} m; using it)"
+            ));
+            MAX_SENSOR_HEIGHT
+        } else {
+            sensor_height
+        };
         let max_depth = if self.max_depth > 0.0 {
             self.max_depth
         } else {

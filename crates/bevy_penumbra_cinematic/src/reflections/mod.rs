@@ -162,7 +162,8 @@ pub struct BillboardReflections {
     /// [`DEFAULT_LAYERS`] (3, Samaritan's). Cost: a footprint sample per layer hit.
     pub max_layers: u32,
     /// Billboards farther along the reflected ray than this are not reflected, metres.
-    /// Default 100. No cost beyond the hits it keeps.
+    /// Default 100 (also what NaN, negative or infinite values become, with a warning);
+    /// 0 reflects nothing. No cost beyond the hits it keeps.
     pub max_distance: f32,
     /// Trace at half resolution (each 2 × 2 block's top-left pixel) and upsample with
     /// depth weights in the lighting pass. Default false. A quarter of the trace's cost.
@@ -227,12 +228,12 @@ impl BillboardReflections {
             ));
             out.max_layers = self.max_layers.clamp(1, MAX_LAYERS as u32);
         }
-        if self.max_distance.is_nan() || self.max_distance <= 0.0 {
+        if !(self.max_distance.is_finite() && self.max_distance >= 0.0) {
+            out.max_distance = BillboardReflections::default().max_distance;
             problems.push(format!(
-                "max_distance {} is not positive",
-                self.max_distance
+                "max_distance {} is not a finite distance ≥ 0 (using {})",
+                self.max_distance, out.max_distance
             ));
-            out.max_distance = 0.0;
         }
         let max = penumbra_cinematic_core::reflections::pass::MAX_ANISOTROPY;
         if !(0.0..=max).contains(&self.anisotropy) {
@@ -497,7 +498,7 @@ mod tests {
         .resolve();
         assert_eq!(problems.len(), 3, "{problems:?}");
         assert_eq!(bad.max_layers, 1);
-        assert_eq!(bad.max_distance, 0.0);
+        assert_eq!(bad.max_distance, 100.0);
         assert_eq!(bad.anisotropy, 0.95);
     }
 }

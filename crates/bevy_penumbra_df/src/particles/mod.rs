@@ -65,7 +65,8 @@ pub struct DistanceFieldParticles {
     /// Memory: 32 bytes each on the GPU, plus a quad. Clamped to `1..=1_048_576` with a
     /// warning; changing it starts over.
     pub capacity: u32,
-    /// Particles emitted per second. Default 256. Negative or NaN: none.
+    /// Particles emitted per second. Default 256. Negative, NaN or infinite: none, with a
+    /// warning.
     pub rate: f32,
     /// Emission stops after this many particles (a burst). Default `None`: it goes
     /// on, each new particle replacing the oldest once `capacity` is reached.
@@ -157,6 +158,15 @@ impl DistanceFieldParticles {
         if !s.velocity_jitter.is_finite() {
             s.velocity_jitter = 0.0;
             notes.push(format!("velocity_jitter {} → 0", self.velocity_jitter));
+        }
+        if !(s.rate.is_finite() && s.rate >= 0.0) {
+            s.rate = 0.0;
+            notes.push(format!("rate {} → 0", self.rate));
+        }
+        let c = s.color.to_linear();
+        if !c.to_vec4().is_finite() {
+            s.color = Color::WHITE;
+            notes.push("color is not finite → white".into());
         }
         (s, notes)
     }

@@ -162,6 +162,83 @@ pub struct DistanceFieldShadows {
     pub half_resolution: bool,
 }
 
+impl DistanceFieldShadows {
+    /// Largest [`max_steps`](Self::max_steps).
+    pub const MAX_STEPS: u32 = 4096;
+
+    /// The settings the passes use, and a note for each value changed: the angular
+    /// diameter in `[0, 3]` radians (NaN: the default), distances and the bias `≥ 0` and
+    /// finite (NaN or infinite: the default), steps in `1..=4096`, shaping in
+    /// `[0.05, 20]` (NaN: the default).
+    pub fn resolve(&self) -> (DistanceFieldShadows, Vec<String>) {
+        let d = DistanceFieldShadows::default();
+        let mut s = self.clone();
+        let mut notes = Vec::new();
+        let mut fix = |name: &str, value: f32, fixed: &mut f32, clean: f32| {
+            if clean.to_bits() != value.to_bits() {
+                *fixed = clean;
+                notes.push(format!("{name} {value} → {clean}"));
+            }
+        };
+        let clamp_or = |v: f32, lo: f32, hi: f32, default: f32| {
+            if v.is_nan() { default } else { v.clamp(lo, hi) }
+        };
+        let length = |v: f32, default: f32| {
+            if v.is_finite() { v.max(0.0) } else { default }
+        };
+        let v = self.angular_diameter;
+        fix(
+            "angular_diameter",
+            v,
+            &mut s.angular_diameter,
+            clamp_or(v, 0.0, 3.0, d.angular_diameter),
+        );
+        let v = self.max_distance;
+        fix(
+            "max_distance",
+            v,
+            &mut s.max_distance,
+            length(v, d.max_distance),
+        );
+        let v = self.max_view_distance;
+        fix(
+            "max_view_distance",
+            v,
+            &mut s.max_view_distance,
+            length(v, d.max_view_distance),
+        );
+        let v = self.bias;
+        fix("bias", v, &mut s.bias, length(v, d.bias));
+        let v = self.shaping;
+        fix(
+            "shaping",
+            v,
+            &mut s.shaping,
+            clamp_or(v, 0.05, 20.0, d.shaping),
+        );
+        if !(1..=Self::MAX_STEPS).contains(&self.max_steps) {
+            s.max_steps = self.max_steps.clamp(1, Self::MAX_STEPS);
+            notes.push(format!("max_steps {} → {}", self.max_steps, s.max_steps));
+        }
+        (s, notes)
+    }
+}
+
+/// One warning per change of a light's settings that are out of range.
+fn warn_bad_settings(
+    lights: Query<(Entity, &DistanceFieldShadows), Changed<DistanceFieldShadows>>,
+) {
+    for (entity, settings) in &lights {
+        let (_, notes) = settings.resolve();
+        if !notes.is_empty() {
+            warn!(
+                "Penumbra: DistanceFieldShadows on {entity}: {}",
+                notes.join(", ")
+            );
+        }
+    }
+}
+
 impl Default for DistanceFieldShadows {
     fn default() -> Self {
         Self {
@@ -178,6 +255,7 @@ impl Default for DistanceFieldShadows {
 
 impl Plugin for DistanceFieldShadowsPlugin {
     fn build(&self, app: &mut App) {
+        app.add_systems(PostUpdate, warn_bad_settings);
         crate::require_plugin::<crate::DistanceFieldScenePlugin>(
             app,
             "DistanceFieldShadowsPlugin",

@@ -98,11 +98,11 @@ impl DistanceFieldShadowedLight {
     /// The light as the passes see it from a camera (or any origin) at `camera`;
     /// `None` for a light beyond the tile range.
     pub fn shadow_light(&self, camera: &CameraOrigin) -> Option<ShadowLight> {
-        let s = &self.settings;
+        let (s, _) = self.settings.resolve();
         let (kind, source, range, spot) = match self.kind {
             FrameLightKind::Directional(d) => (
                 ShadowLightKind::Directional(d),
-                (0.5 * s.angular_diameter.clamp(0.0, 3.0)).tan(),
+                (0.5 * s.angular_diameter).tan(),
                 0.0,
                 None,
             ),
@@ -126,11 +126,11 @@ impl DistanceFieldShadowedLight {
         Some(ShadowLight {
             kind,
             source,
-            max_distance: s.max_distance.max(0.0),
-            bias: s.bias.max(0.0),
+            max_distance: s.max_distance,
+            bias: s.bias,
             shaping: s.shaping,
             range,
-            max_steps: s.max_steps.min(4096),
+            max_steps: s.max_steps,
             max_view_distance: s.max_view_distance,
             spot,
         })
