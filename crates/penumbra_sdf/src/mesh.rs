@@ -50,7 +50,19 @@ pub enum MeshError {
         /// Its largest coordinate (absolute value).
         coordinate: f32,
     },
+    /// The mesh's surface spans less than [`MIN_EXTENT`] along every axis: squared
+    /// distances at its scale fall below `f32`'s normal range.
+    TooSmall {
+        /// Its largest side, mesh units.
+        extent: f32,
+    },
 }
+
+/// The smallest size a mesh may have, mesh units (its bounds' largest side over the
+/// triangles kept): 10⁻⁶ (a micrometre in metres). The closest-point test multiplies
+/// squared lengths; at 10⁻¹⁹ units (found by `cargo xtask fuzz`) they vanished and no
+/// triangle was nearest to anything.
+pub const MIN_EXTENT: f32 = 1.0e-6;
 
 /// The largest coordinate a vertex may have, mesh units, measured from the mesh's
 /// `origin` (a mesh read in `f64` is centred there, so this bounds its size, not where it
@@ -83,6 +95,11 @@ impl std::fmt::Display for MeshError {
                     "every triangle has zero area: there is no surface to bake"
                 )
             }
+            MeshError::TooSmall { extent } => write!(
+                f,
+                "the mesh is {extent:e} units across, below the {MIN_EXTENT:e} units a bake \
+                 can measure (scale it up)"
+            ),
             MeshError::CoordinateTooLarge { vertex, coordinate } => write!(
                 f,
                 "vertex {vertex} has a coordinate of {coordinate:e}, beyond the \
@@ -222,8 +239,7 @@ impl TriMesh {
                 }
                 corners[k] = p;
             }
-            let cross = (corners[1] - corners[0]).cross(corners[2] - corners[0]);
-            if cross.length_squared() > 0.0 && cross.is_finite() {
+            if !is_degenerate(corners) {
                 tris.push(corners);
             } else {
                 report.degenerate_dropped += 1;
@@ -232,10 +248,38 @@ impl TriMesh {
         if tris.is_empty() {
             return Err(MeshError::AllTrianglesDegenerate);
         }
+        let (lo, hi) = tris
+            .iter()
+            .flatten()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            });
+        let extent = (hi - lo).max_element();
+        if extent < MIN_EXTENT {
+            return Err(MeshError::TooSmall { extent });
+        }
         report.triangles = tris.len();
         Ok((tris, report))
     }
 }
+
+/// Zero area for the baker: the sine of the triangle's largest angle's complement — its
+/// area relative to its longest edge squared — at most [`MIN_RELATIVE_AREA`], measured in
+/// f64 (in f32 a 0.5 m triangle 10⁻²³ m wide passed `cross ≠ 0` and broke the sampler's
+/// closest-point test; found by `cargo xtask fuzz`).
+fn is_degenerate([a, b, c]: [Vec3; 3]) -> bool {
+    let (a, b, c) = (a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
+    let twice_area = (b - a).cross(c - a).length();
+    let longest = (b - a)
+        .length_squared()
+        .max((c - a).length_squared())
+        .max((c - b).length_squared());
+    twice_area <= MIN_RELATIVE_AREA * longest
+}
+
+/// Below this ratio of twice its area to its longest edge squared a triangle is dropped
+/// as degenerate (10⁻⁹: a 1 m needle 1 nm wide is still kept).
+pub const MIN_RELATIVE_AREA: f64 = 1e-9;
 
 #[cfg(test)]
 mod tests {
@@ -284,6 +328,28 @@ mod tests {
                     vertex: 2,
                     coordinate: 2.0e8,
                 },
+            ),
+            (
+                // A 0.5-unit sliver 6·10⁻²³ wide (found by the fuzzer, glTF).
+                TriMesh {
+                    positions: vec![
+                        Vec3::new(2.2e-44, 3.2e-23, -0.25),
+                        Vec3::new(-2.2e-44, 3.2e-23, 0.25),
+                        Vec3::new(-2.2e-44, -3.2e-23, -0.25),
+                    ],
+                    triangles: vec![[0, 1, 2]],
+                    ..Default::default()
+                },
+                MeshError::AllTrianglesDegenerate,
+            ),
+            (
+                // 10⁻¹⁹ units across (found by the fuzzer, glTF).
+                TriMesh {
+                    positions: vec![Vec3::ZERO, Vec3::X * 1e-19, Vec3::Y * 1e-19],
+                    triangles: vec![[0, 1, 2]],
+                    ..Default::default()
+                },
+                MeshError::TooSmall { extent: 1e-19 },
             ),
             (
                 TriMesh {
