@@ -17,6 +17,7 @@
 
 pub mod dof;
 pub mod hair;
+mod image_data;
 pub mod reflections;
 pub mod sss;
 pub mod tessellation;

@@ -148,3 +148,28 @@ fn scattering_settings_resolve_to_finite_profiles() {
         }
     }
 }
+
+/// Aperture images of every format, size class and data length: read or refused with a
+/// reason; never a panic, never a non-finite weight.
+#[test]
+fn aperture_images_of_every_format_and_size_are_read_or_refused() {
+    use penumbra_test::awkward_images::awkward_images;
+    let (mut read, mut refused) = (0, 0);
+    for (label, image) in awkward_images(32) {
+        match bevy_penumbra_cinematic::dof::aperture_from_image(&image) {
+            Ok(aperture) => {
+                assert!(
+                    aperture.weights().iter().all(|w| w.is_finite()) && aperture.mean().is_finite(),
+                    "{label}: non-finite weights"
+                );
+                read += 1;
+            }
+            Err(reason) => {
+                assert!(!reason.is_empty(), "{label}");
+                refused += 1;
+            }
+        }
+    }
+    println!("aperture images: {read} read, {refused} refused");
+    assert!(read > 0, "no image read at all");
+}

@@ -24,11 +24,14 @@
 //! - [`harness`]: [`HeadlessRender`], [`Capture`].
 //! - [`compare`]: [`Tolerance`], [`compare_rgba8`], [`assert_images_match`].
 //! - [`compute`]: [`GpuCompute`], a bare wgpu device for compute-shader contract tests.
+//! - [`awkward_images`]: every image format × size class × data length, for property
+//!   tests of image readers.
 //! - [`multisample`]: a 4× multisampled depth buffer and G-buffer filled sample by sample.
 
 pub use image;
 pub use wgpu;
 
+pub mod awkward_images;
 pub mod compare;
 pub mod compute;
 pub mod gpu;

@@ -497,6 +497,8 @@ pub fn aperture_from_image(image: &Image) -> Result<Aperture, String> {
         // Named by the aperture's own check below, without reading any texel.
         return Aperture::from_image(width, height, &[]).map_err(|e| e.to_string());
     }
+    crate::image_data::check_texel_data(image)
+        .map_err(|e| format!("the aperture image cannot be read: {e}"))?;
     let mut weights = Vec::with_capacity((width * height) as usize);
     for y in 0..height {
         for x in 0..width {

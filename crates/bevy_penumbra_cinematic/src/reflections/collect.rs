@@ -85,7 +85,8 @@ pub(super) struct ReflectionMipChains(pub(super) HashMap<AssetId<Image>, Option<
 
 /// A billboard image's linear texels, or why it cannot be read: its size is checked
 /// first (a 20,000² image was converted to 16 bytes a texel, ~6.4 GB, before it was
-/// refused), then its data and format.
+/// refused), then its data (as long as the size says) and format, then each texel
+/// (finite).
 pub(super) fn linear_texels(image: &Image) -> Result<(UVec2, Vec<Vec4>), String> {
     let size = image.size();
     if !((1..=MAX_IMAGE_SIDE).contains(&size.x) && (1..=MAX_IMAGE_SIDE).contains(&size.y)) {
@@ -94,9 +95,7 @@ pub(super) fn linear_texels(image: &Image) -> Result<(UVec2, Vec<Vec4>), String>
             size.x, size.y
         ));
     }
-    if image.data.is_none() {
-        return Err("no data in the main world (RenderAssetUsages::MAIN_WORLD)".into());
-    }
+    crate::image_data::check_texel_data(image)?;
     let mut texels = Vec::with_capacity((size.x * size.y) as usize);
     for y in 0..size.y {
         for x in 0..size.x {
@@ -109,7 +108,13 @@ pub(super) fn linear_texels(image: &Image) -> Result<(UVec2, Vec<Vec4>), String>
                     )
                 })?
                 .to_linear();
-            texels.push(Vec4::new(c.red, c.green, c.blue, c.alpha));
+            let texel = Vec4::new(c.red, c.green, c.blue, c.alpha);
+            if !texel.is_finite() {
+                return Err(format!(
+                    "texel ({x}, {y}) is {texel}: texels must be finite"
+                ));
+            }
+            texels.push(texel);
         }
     }
     Ok((size, texels))
@@ -328,5 +333,34 @@ pub(super) fn collect_reflection_billboards(
     }
     if scene.groups != groups {
         scene.groups = groups;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Billboard images of every format, size class and data length
+    /// (`penumbra_test::awkward_images`): one finite texel per texel of the image, or
+    /// refused with a reason; never a panic.
+    #[test]
+    fn billboard_images_of_every_format_and_size_are_read_or_refused() {
+        let (mut read, mut refused) = (0, 0);
+        for (label, image) in penumbra_test::awkward_images::awkward_images(34) {
+            match linear_texels(&image) {
+                Ok((size, texels)) => {
+                    assert_eq!(size, image.size(), "{label}");
+                    assert_eq!(texels.len(), (size.x * size.y) as usize, "{label}");
+                    assert!(texels.iter().all(|t| t.is_finite()), "{label}");
+                    read += 1;
+                }
+                Err(reason) => {
+                    assert!(!reason.is_empty(), "{label}");
+                    refused += 1;
+                }
+            }
+        }
+        println!("billboard images: {read} read, {refused} refused");
+        assert!(read > 0);
     }
 }

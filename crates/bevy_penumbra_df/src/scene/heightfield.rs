@@ -111,7 +111,19 @@ pub fn image_heights(image: &Image, height_scale: f32) -> Result<(UVec2, Vec<f32
     if !height_scale.is_finite() {
         return Err(format!("height_scale = {height_scale} is not finite"));
     }
-    Ok((size, values.into_iter().map(|v| v * height_scale).collect()))
+    let heights: Vec<f32> = values.into_iter().map(|v| v * height_scale).collect();
+    // A float image can hold NaN or infinities, and a huge height times the scale can
+    // overflow: a terrain must be finite everywhere.
+    if let Some(i) = heights.iter().position(|h| !h.is_finite()) {
+        return Err(format!(
+            "height image texel ({}, {}) is {} (after height_scale {height_scale}): heights \
+             must be finite",
+            i % size.x as usize,
+            i / size.x as usize,
+            heights[i]
+        ));
+    }
+    Ok((size, heights))
 }
 
 type HeightfieldItem = (
