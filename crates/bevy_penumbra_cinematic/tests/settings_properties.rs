@@ -153,23 +153,18 @@ fn scattering_settings_resolve_to_finite_profiles() {
 /// reason; never a panic, never a non-finite weight.
 #[test]
 fn aperture_images_of_every_format_and_size_are_read_or_refused() {
-    use penumbra_test::awkward_images::awkward_images;
-    let (mut read, mut refused) = (0, 0);
-    for (label, image) in awkward_images(32) {
-        match bevy_penumbra_cinematic::dof::aperture_from_image(&image) {
-            Ok(aperture) => {
-                assert!(
-                    aperture.weights().iter().all(|w| w.is_finite()) && aperture.mean().is_finite(),
-                    "{label}: non-finite weights"
-                );
-                read += 1;
-            }
-            Err(reason) => {
-                assert!(!reason.is_empty(), "{label}");
-                refused += 1;
-            }
-        }
-    }
-    println!("aperture images: {read} read, {refused} refused");
-    assert!(read > 0, "no image read at all");
+    penumbra_test::awkward_images::check_image_reader(
+        "aperture images",
+        32,
+        bevy_penumbra_cinematic::dof::aperture_from_image,
+        |aperture| {
+            (
+                None,
+                [aperture.mean()]
+                    .into_iter()
+                    .chain(aperture.weights().iter().copied())
+                    .collect(),
+            )
+        },
+    );
 }

@@ -7,6 +7,7 @@
 
 use bevy::asset::RenderAssetUsages;
 use bevy::image::Image;
+use bevy::math::UVec2;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use penumbra_testkit::XorShift;
 
@@ -101,8 +102,37 @@ pub fn awkward_images(seed: u32) -> Vec<(String, Image)> {
     out
 }
 
-/// Whether a reader's output is one finite value per texel of `image`.
-pub fn one_finite_value_per_texel(image: &Image, values: &[f32]) -> bool {
-    values.len() == (image.width() as usize) * (image.height() as usize)
-        && values.iter().all(|v| v.is_finite())
+/// Runs `read` on every image of [`awkward_images`]`(seed)`: each must be read — and
+/// then `values` gives the size it read (which must be the image's) and its output's
+/// numbers (which must be finite; `values` asserts how many) — or refused with a reason. Never a panic. Prints and returns how many
+/// were read and refused; at least one must be read.
+pub fn check_image_reader<T>(
+    what: &str,
+    seed: u32,
+    read: impl Fn(&Image) -> Result<T, String>,
+    values: impl Fn(&T) -> (Option<UVec2>, Vec<f32>),
+) -> (usize, usize) {
+    let (mut read_count, mut refused) = (0, 0);
+    for (label, image) in awkward_images(seed) {
+        match read(&image) {
+            Ok(output) => {
+                let (size, numbers) = values(&output);
+                if let Some(size) = size {
+                    assert_eq!(size, image.size(), "{what}, {label}: the size read");
+                }
+                assert!(
+                    numbers.iter().all(|v| v.is_finite()),
+                    "{what}, {label}: non-finite values"
+                );
+                read_count += 1;
+            }
+            Err(reason) => {
+                assert!(!reason.is_empty(), "{what}, {label}: an empty reason");
+                refused += 1;
+            }
+        }
+    }
+    println!("{what}: {read_count} read, {refused} refused");
+    assert!(read_count > 0, "{what}: no image read at all");
+    (read_count, refused)
 }
