@@ -11,7 +11,7 @@ use bevy_penumbra_df::{
     DistanceFieldAmbientOcclusion, DistanceFieldParticles, DistanceFieldShadows,
     GlobalDistanceField,
 };
-use penumbra_testkit::Awkward;
+use penumbra_testkit::{Awkward, assert_finite, has_non_finite};
 
 const DRAWS: u32 = 4000;
 
@@ -21,15 +21,6 @@ fn vec3(a: &mut Awkward) -> Vec3 {
 
 fn color(a: &mut Awkward) -> Color {
     Color::linear_rgba(a.f32(), a.f32(), a.f32(), a.f32())
-}
-
-/// No NaN and no infinity anywhere in a value's debug form.
-fn assert_finite(what: &str, value: &impl std::fmt::Debug, input: &impl std::fmt::Debug) {
-    let text = format!("{value:?}");
-    assert!(
-        !text.contains("NaN") && !text.contains("inf"),
-        "{what}: resolved to a non-finite value: {text}\n  from {input:?}"
-    );
 }
 
 /// The checks for settings whose `resolve` returns the settings themselves.
@@ -148,7 +139,7 @@ fn ao_settings_report_every_value_out_of_range() {
         }
         let text = format!("{input:?}");
         let problems = input.problems();
-        if text.contains("NaN") || text.contains("inf") {
+        if has_non_finite(&text) {
             assert!(
                 !problems.is_empty(),
                 "a non-finite setting drew no problem: {input:?}"

@@ -2,6 +2,7 @@
 //! and runs what a user's file or mesh reaches. A target returns normally for any
 //! input; a panic, a hang or an allocation over the limit is a defect.
 
+use base64::Engine;
 use glam::{Vec2, Vec3, Vec4};
 use penumbra_cinematic_core::hair::strands::{check_strands, parse_hair, strands_from_ribbons};
 use penumbra_cinematic_core::tessellation::{SourceMesh, TessellationInput};
@@ -245,7 +246,7 @@ fn triangle_gltf() -> String {
     let bytes = triangle_buffer();
     format!(
         r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0,"scale":[1,2,1]}}],"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1}}]}}],"accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}},{{"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}}],"bufferViews":[{{"buffer":0,"byteLength":36}},{{"buffer":0,"byteOffset":36,"byteLength":6}}],"buffers":[{{"byteLength":42,"uri":"data:application/octet-stream;base64,{}"}}]}}"#,
-        base64_encode(&bytes)
+        base64::engine::general_purpose::STANDARD.encode(bytes)
     )
 }
 
@@ -287,27 +288,6 @@ fn triangle_buffer() -> Vec<u8> {
         bytes.extend_from_slice(&i.to_le_bytes());
     }
     bytes
-}
-
-fn base64_encode(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::new();
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
-        for k in 0..4 {
-            if k <= chunk.len() {
-                out.push(ALPHABET[(n >> (18 - 6 * k) & 63) as usize] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
 }
 
 /// `.psdf`: the stored CRC is replaced by the right one before parsing.

@@ -8,7 +8,8 @@
 //! - [`shared_dir`]: `../shared/<sub>` beside the checkout, or a reported skip.
 //! - [`XorShift`]: a tiny deterministic generator for test scenes.
 //! - [`Awkward`]: values a property test throws at settings (NaN, infinities, zero,
-//!   negative, tiny, huge, the integer limits, and ordinary ones).
+//!   negative, tiny, huge, the integer limits, and ordinary ones), and [`assert_finite`]
+//!   for what resolving them gives.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -124,6 +125,21 @@ impl XorShift {
     pub fn range(&mut self, a: f32, b: f32) -> f32 {
         a + (b - a) * self.unit()
     }
+}
+
+/// Fails, naming `what` and the `input` it came from, when `value`'s debug form shows a
+/// NaN or an infinity (what property tests ask of every resolved setting).
+pub fn assert_finite(what: &str, value: &impl std::fmt::Debug, input: &impl std::fmt::Debug) {
+    let text = format!("{value:?}");
+    assert!(
+        !has_non_finite(&text),
+        "{what}: resolved to a non-finite value: {text}\n  from {input:?}"
+    );
+}
+
+/// Whether a value's debug form shows a NaN or an infinity.
+pub fn has_non_finite(debug: &str) -> bool {
+    debug.contains("NaN") || debug.contains("inf")
 }
 
 /// Values for property tests of settings and inputs: each call returns, with equal

@@ -230,58 +230,55 @@ pub fn fuzz(options: &Options) -> Result<Report, String> {
     let mut crash_sites: HashSet<String> = HashSet::new();
     let mut hits: Vec<(u32, u8)> = Vec::new();
 
-    let mut consider =
-        |data: Vec<u8>, report: &mut Report, corpus: &mut Vec<Entry>, force: bool| {
-            report.runs += 1;
-            match execute(target, &counters, &data) {
-                Outcome::Panicked(site) => {
-                    let key = site.split(": ").next().unwrap_or("").to_string();
-                    if crash_sites.insert(key) {
-                        let _ = std::fs::create_dir_all(&options.artifacts);
-                        let path = options
-                            .artifacts
-                            .join(format!("crash-{:016x}", hash(&data)));
-                        let _ = std::fs::write(&path, &data);
-                        eprintln!(
-                            "penumbra-fuzz: panic at {site}; input saved as {}",
-                            path.display()
-                        );
-                        report.crashes.push((site, path));
-                    }
-                }
-                Outcome::Fine => {
-                    hits.clear();
-                    let mut new = false;
-                    counters.for_each_hit(|edge, count| {
-                        let b = bucket(count);
-                        hits.push((edge as u32, b));
-                        if seen[edge] & b == 0 {
-                            new = true;
-                        }
-                    });
-                    if new || force {
-                        for &(edge, b) in &hits {
-                            seen[edge as usize] |= b;
-                        }
-                        corpus.push(Entry {
-                            data,
-                            features: hits.clone(),
-                        });
-                    }
+    let mut consider = |data: &[u8], report: &mut Report, corpus: &mut Vec<Entry>, force: bool| {
+        report.runs += 1;
+        match execute(target, &counters, data) {
+            Outcome::Panicked(site) => {
+                let key = site.split(": ").next().unwrap_or("").to_string();
+                if crash_sites.insert(key) {
+                    let _ = std::fs::create_dir_all(&options.artifacts);
+                    let path = options.artifacts.join(format!("crash-{:016x}", hash(data)));
+                    let _ = std::fs::write(&path, data);
+                    eprintln!(
+                        "penumbra-fuzz: panic at {site}; input saved as {}",
+                        path.display()
+                    );
+                    report.crashes.push((site, path));
                 }
             }
-        };
+            Outcome::Fine => {
+                hits.clear();
+                let mut new = false;
+                counters.for_each_hit(|edge, count| {
+                    let b = bucket(count);
+                    hits.push((edge as u32, b));
+                    if seen[edge] & b == 0 {
+                        new = true;
+                    }
+                });
+                if new || force {
+                    for &(edge, b) in &hits {
+                        seen[edge as usize] |= b;
+                    }
+                    corpus.push(Entry {
+                        data: data.to_vec(),
+                        features: hits.clone(),
+                    });
+                }
+            }
+        }
+    };
 
     for data in target
         .seeds()
         .into_iter()
         .chain(read_corpus(&options.corpus))
     {
-        consider(data, &mut report, &mut corpus, false);
+        consider(&data, &mut report, &mut corpus, false);
     }
     if corpus.is_empty() {
         // Every seed panicked: search from an empty input.
-        consider(Vec::new(), &mut report, &mut corpus, true);
+        consider(&[], &mut report, &mut corpus, true);
     }
     let dictionary = target.dictionary();
     let text = matches!(target, Target::Obj | Target::Gltf | Target::Hair);
@@ -296,17 +293,16 @@ pub fn fuzz(options: &Options) -> Result<Report, String> {
         };
         input.clear();
         input.extend_from_slice(&corpus[pick].data);
-        let other = &corpus[rng.below(n)].data;
-        let other = other.clone();
+        let other = rng.below(n);
         mutate::havoc(
             &mut rng,
             &mut input,
             options.max_len,
             dictionary,
-            &other,
+            &corpus[other].data,
             text,
         );
-        consider(input.clone(), &mut report, &mut corpus, false);
+        consider(&input, &mut report, &mut corpus, false);
     }
     report.seconds = start.elapsed().as_secs_f64();
     report.edges = seen.iter().filter(|&&b| b != 0).count();
