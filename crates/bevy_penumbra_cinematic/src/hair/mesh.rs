@@ -77,10 +77,11 @@ pub fn strip_mesh(strands: &[Strand], joints: Option<&StrandJoints>) -> Option<M
 
 /// Each strand's root takes the joints of the nearest vertex of `skin` (a skinned mesh
 /// with positions, joint indices and weights in the hair's space); `None` when `skin`
-/// lacks them.
+/// lacks them (or they are in the render world only).
 pub fn joints_from_skin(strands: &[Strand], skin: &Mesh) -> Option<StrandJoints> {
-    let Some(VertexAttributeValues::Float32x3(positions)) =
-        skin.attribute(Mesh::ATTRIBUTE_POSITION)
+    // Once this succeeds every attribute is readable.
+    let Ok(Some(VertexAttributeValues::Float32x3(positions))) =
+        skin.try_attribute_option(Mesh::ATTRIBUTE_POSITION)
     else {
         return None;
     };
@@ -122,6 +123,20 @@ pub fn joints_from_skin(strands: &[Strand], skin: &Mesh) -> Option<StrandJoints>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A mesh as the main world keeps it after extraction when its asset usage lacks
+    /// `MAIN_WORLD`: every CPU read of it is an error (or a panic, through the plain
+    /// accessors).
+    fn extracted(mut mesh: Mesh) -> Mesh {
+        mesh.take_gpu_data().expect("a fresh mesh has its data");
+        mesh
+    }
+
+    #[test]
+    fn a_skin_in_the_render_world_only_gives_no_joints() {
+        let skin = extracted(Sphere::new(1.0).mesh().uv(8, 4));
+        assert!(joints_from_skin(&[], &skin).is_none());
+    }
 
     #[test]
     fn a_strip_has_two_vertices_per_point_and_two_triangles_per_segment() {

@@ -110,6 +110,9 @@ pub enum HairMeshError {
     NoUvs,
     /// The mesh is not a triangle list.
     NotTriangles,
+    /// The mesh's vertex data is in the render world only (its `RenderAssetUsages`
+    /// lack `MAIN_WORLD`, and it has been extracted).
+    NotInMainWorld,
 }
 
 impl std::fmt::Display for HairMeshError {
@@ -118,6 +121,10 @@ impl std::fmt::Display for HairMeshError {
             Self::NoPositions => "the hair mesh has no positions",
             Self::NoUvs => "the hair mesh has no UVs (uv.y runs along each strip)",
             Self::NotTriangles => "the hair mesh is not a triangle list",
+            Self::NotInMainWorld => {
+                "the hair mesh's data is in the render world only: keep \
+                 RenderAssetUsages::MAIN_WORLD in its asset usage"
+            }
         })
     }
 }
@@ -137,8 +144,10 @@ impl HairStrands {
     /// equal position and UV are welded first): each connected piece is a strand, its cross-sections the vertices of equal `uv.y` (root at the
     /// smallest), its width their mean extent, its slot `⌊mean uv.x · slots⌋`.
     pub fn from_ribbon_mesh(mesh: &Mesh, slots: u32) -> Result<Self, HairMeshError> {
-        let Some(VertexAttributeValues::Float32x3(positions)) =
-            mesh.attribute(Mesh::ATTRIBUTE_POSITION)
+        // Once this succeeds every attribute and the indices are readable.
+        let Some(VertexAttributeValues::Float32x3(positions)) = mesh
+            .try_attribute_option(Mesh::ATTRIBUTE_POSITION)
+            .map_err(|_| HairMeshError::NotInMainWorld)?
         else {
             return Err(HairMeshError::NoPositions);
         };
@@ -629,6 +638,23 @@ mod tests {
     use super::*;
     use bevy::asset::RenderAssetUsages;
     use bevy::mesh::{Indices, PrimitiveTopology};
+
+    /// A mesh as the main world keeps it after extraction when its asset usage lacks
+    /// `MAIN_WORLD`: every CPU read of it is an error (or a panic, through the plain
+    /// accessors).
+    fn extracted(mut mesh: Mesh) -> Mesh {
+        mesh.take_gpu_data().expect("a fresh mesh has its data");
+        mesh
+    }
+
+    #[test]
+    fn a_ribbon_mesh_in_the_render_world_only_is_an_error() {
+        let mesh = extracted(Rectangle::new(0.01, 0.1).mesh().build());
+        assert_eq!(
+            HairStrands::from_ribbon_mesh(&mesh, 1).err(),
+            Some(HairMeshError::NotInMainWorld)
+        );
+    }
 
     /// A hair card as a glTF loader gives it: one ribbon of three cross-sections, its
     /// UVs running along the hair in `y`; slot from `x` over a 2-slot atlas.

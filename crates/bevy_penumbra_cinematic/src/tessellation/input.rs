@@ -19,6 +19,13 @@ fn f32x3(mesh: &Mesh, attribute: bevy::mesh::MeshVertexAttribute) -> Option<Vec<
 
 /// Preprocesses `mesh` (an error message when it cannot be tessellated).
 pub(super) fn preprocess(mesh: &Mesh) -> Result<TessellationInput, String> {
+    // Once this succeeds every attribute, the indices and the morph targets are readable.
+    if mesh.try_attribute_option(Mesh::ATTRIBUTE_POSITION).is_err() {
+        return Err("its mesh's data is in the render world only (keep \
+                    RenderAssetUsages::MAIN_WORLD in its asset usage, or tessellate \
+                    the source mesh, not another entity's tessellated output)"
+            .into());
+    }
     if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
         return Err(format!(
             "its mesh is a {:?}, not a triangle list",
@@ -162,6 +169,25 @@ pub fn shape_mesh(shape: &ShapeMesh) -> Mesh {
 mod tests {
     use super::*;
     use bevy::render::render_resource::{Extent3d, TextureDimension};
+
+    /// A mesh as the main world keeps it after extraction when its asset usage lacks
+    /// `MAIN_WORLD`: every CPU read of it is an error (or a panic, through the plain
+    /// accessors).
+    fn extracted(mut mesh: Mesh) -> Mesh {
+        mesh.take_gpu_data().expect("a fresh mesh has its data");
+        mesh
+    }
+
+    /// Found by the soak: a copy of a tessellated entity carries its render-world-only
+    /// output mesh; preprocessing it panicked in Bevy's `Mesh::attribute`.
+    #[test]
+    fn a_mesh_in_the_render_world_only_is_refused_with_the_reason() {
+        let mesh = extracted(Plane3d::default().mesh().subdivisions(2).build());
+        let Err(error) = preprocess(&mesh) else {
+            panic!("a render-world-only mesh was preprocessed");
+        };
+        assert!(error.contains("render world only"), "{error}");
+    }
 
     /// Displacement images of every format, size class and data length
     /// (`penumbra_test::awkward_images`): finite heights, the first level the image's

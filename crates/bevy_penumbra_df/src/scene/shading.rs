@@ -27,17 +27,21 @@ pub struct CasterShading {
     pub apart: bool,
 }
 
-/// Whether `mesh` (a triangle list with normals) is shaded apart from its faces.
+/// Whether `mesh` (a triangle list with normals) is shaded apart from its faces; `false`
+/// when its data is in the render world only.
 pub fn mesh_shading_apart(mesh: &Mesh) -> bool {
     if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
         return false;
     }
+    // Once the positions are readable, the normals and indices are too.
     let (
-        Some(VertexAttributeValues::Float32x3(positions)),
+        Ok(Some(VertexAttributeValues::Float32x3(positions))),
         Some(VertexAttributeValues::Float32x3(normals)),
     ) = (
-        mesh.attribute(Mesh::ATTRIBUTE_POSITION),
-        mesh.attribute(Mesh::ATTRIBUTE_NORMAL),
+        mesh.try_attribute_option(Mesh::ATTRIBUTE_POSITION),
+        mesh.try_attribute_option(Mesh::ATTRIBUTE_NORMAL)
+            .ok()
+            .flatten(),
     )
     else {
         return false;
@@ -111,6 +115,23 @@ pub(super) fn detect_caster_shading(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A mesh as the main world keeps it after extraction when its asset usage lacks
+    /// `MAIN_WORLD`: every CPU read of it is an error (or a panic, through the plain
+    /// accessors).
+    fn extracted(mut mesh: Mesh) -> Mesh {
+        mesh.take_gpu_data().expect("a fresh mesh has its data");
+        mesh
+    }
+
+    /// A render-world-only mesh (a caster whose data went to the GPU) is not read: not
+    /// apart, and no panic.
+    #[test]
+    fn a_mesh_in_the_render_world_only_is_not_apart() {
+        assert!(!mesh_shading_apart(&extracted(
+            Sphere::new(1.0).mesh().uv(16, 8)
+        )));
+    }
 
     /// Bevy's sphere is smooth, its cuboid flat; a cuboid whose normals were smoothed
     /// (every corner the mean of its faces) is apart.
