@@ -44,7 +44,7 @@ pub use compare::{
     output_dir,
 };
 pub use compute::{GpuCompute, storage_bytes, uniform_bytes};
-pub use gpu::{gpu_or_skip, vulkan_adapter};
+pub use gpu::{gpu_or_skip, mesa_version, vulkan_adapter};
 pub use harness::{
     Capture, CaptureFormat, HarnessError, HeadlessRender, KeptApp, take_render_errors,
     take_warnings,
