@@ -4,9 +4,9 @@
 //! headless for many frames under churn, each frame: mesh casters spawned, despawned and
 //! moved; a copy of the hair, of a tessellated mesh and of a billboard spawned, moved
 //! and despawned each cycle; the lights moved; DFAO's reach changed every 10 frames; the
-//! camera's viewport
-//! resized four times a cycle ([`VIEWPORTS`]: every per-view texture is made again, as
-//! when a window resizes; `tests/window.rs` resizes a real window); and the example's own
+//! camera's viewport resized four times a cycle ([`VIEWPORTS`]: every per-view texture is
+//! made again, as when a window resizes; `tests/window.rs` resizes a real window); and
+//! the example's own
 //! toggles (`1`–`6`: features off and on, `M`: deferred MSAA) pressed in a fixed cycle
 //! ([`CYCLE`] frames) so that every cycle passes through the same states. Checked over
 //! the last cycle against the one before: no panic, no wgpu validation error, Penumbra
@@ -15,14 +15,14 @@
 //! cycles after a warm-up of [`WARM_UP_CYCLES`] or a tenth of them; each sample read
 //! after glibc's `malloc_trim`, so that it measures what is held, not how the free lists
 //! are fragmented), as did the bytes Rust code holds (a counting global allocator: exact,
-//! and blind to the driver); then, over [`QUIET`] frames without churn, steady frames create
-//! no GPU resource at all.
+//! and blind to the driver); then, over [`QUIET`] frames without churn, steady frames
+//! create no GPU resource at all.
 //!
 //! `soak_every_feature_under_churn` runs [`FRAMES`] frames in the ordinary suite
 //! (`PENUMBRA_SOAK_FRAMES` overrides; `PENUMBRA_SOAK_CHURN` and `PENUMBRA_SOAK_KEYS`
 //! choose the churn, see [`Churn`]; `PENUMBRA_SOAK_LEAK_BYTES` leaks that many bytes a
-//! frame on purpose, to see the memory checks fail); `soak_ten_thousand_frames` (ignored) runs 10,000;
-//! `msaa_toggles_in_a_plain_scene` is the diagnosis below.
+//! frame on purpose, to see the memory checks fail); `soak_ten_thousand_frames`
+//! (ignored) runs 10,000; `msaa_toggles_in_a_plain_scene` is the diagnosis below.
 //!
 //! **Needs lavapipe from Mesa 25** (or a real GPU). Measured with the diagnosis
 //! (`msaa_toggles_in_a_plain_scene`, a cube and a sun, 96 frames): on Debian 12's Mesa
@@ -85,7 +85,7 @@ const KEY_PERIOD: u32 = 2;
 const CYCLE: usize = 2 * KEYS.len() * KEY_PERIOD as usize;
 
 /// The camera's viewport through a cycle, a quarter of it each (`None`: the whole
-/// 64×64 target; then a smaller, offset one; then a tall one): every per-view texture
+/// 64×64 target; then smaller ones, offset, wide and tall): every per-view texture
 /// Penumbra sizes to the view is made again at each change, as when a window resizes.
 const VIEWPORTS: [Option<(UVec2, UVec2)>; 4] = [
     None,
@@ -104,15 +104,17 @@ const QUIET: u32 = 12;
 const SETTLE: usize = 4;
 
 /// Cycles of warm-up before the resident-memory trend is measured (at least; a tenth of
-/// the cycles on long runs): pools and allocator arenas settle over about four (measured:
-/// 663, 684, 687, 692, 689, 693 MiB at the first cycles' ends).
+/// the cycles on long runs): pools and allocator arenas settle over two to four
+/// (measured, resident MiB at the first cycles' ends: 644, 665, 665, 666, 666 after
+/// `malloc_trim`; 663, 684, 687, 692, 689, 693 without).
 const WARM_UP_CYCLES: usize = 4;
 
 /// The most churned casters alive at once.
 const MAX_SPAWNED: usize = 12;
 
 /// Which kinds of churn run (`PENUMBRA_SOAK_CHURN`: a comma-separated list of `keys`,
-/// `casters`, `lights`, `ao`, `viewport`, `entities`; all by default), to tell which one a growth follows; and
+/// `casters`, `lights`, `ao`, `viewport`, `entities`; all by default), to tell which one
+/// a growth follows; and
 /// which of [`KEYS`] are pressed (`PENUMBRA_SOAK_KEYS`: their indices, `0`–`6`; all by
 /// default; the cycle keeps its length).
 #[derive(Clone, Copy, Debug)]
@@ -169,7 +171,7 @@ struct Soak {
     log: Vec<(u64, GpuAllocationCounts)>,
     /// Per frame: the render world's pipelines.
     pipelines: Vec<u64>,
-    /// Per frame: the bytes Rust code holds ([`CountingAllocator`]).
+    /// Per frame: the bytes Rust code holds ([`heap`]).
     heap: Vec<i64>,
     mesh: Option<Handle<Mesh>>,
     material: Option<Handle<StandardMaterial>>,
