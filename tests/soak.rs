@@ -152,6 +152,30 @@ impl Churn {
     }
 }
 
+/// What the soak logs at the end of each frame's churn.
+#[derive(Clone, Copy)]
+struct Frame {
+    /// The process's resident bytes ([`resident_bytes`]).
+    resident: u64,
+    /// Penumbra's GPU allocations so far.
+    allocations: GpuAllocationCounts,
+    /// The render world's pipelines.
+    pipelines: u64,
+    /// The bytes Rust code holds ([`heap`]).
+    heap: i64,
+}
+
+impl Frame {
+    fn now(allocations: &PenumbraGpuAllocations, pipelines: &PipelineCount) -> Self {
+        Frame {
+            resident: resident_bytes(),
+            allocations: allocations.counts(),
+            pipelines: pipelines.0.load(Ordering::Relaxed),
+            heap: heap::live_bytes(),
+        }
+    }
+}
+
 #[derive(Resource)]
 struct Soak {
     churn: Churn,
@@ -167,12 +191,8 @@ struct Soak {
     copies: Vec<Entity>,
     /// Where each light started (it wanders within 0.5 m of it).
     lights: HashMap<Entity, Vec3>,
-    /// Per frame: resident bytes and Penumbra's GPU allocations so far.
-    log: Vec<(u64, GpuAllocationCounts)>,
-    /// Per frame: the render world's pipelines.
-    pipelines: Vec<u64>,
-    /// Per frame: the bytes Rust code holds ([`heap`]).
-    heap: Vec<i64>,
+    /// One entry per frame.
+    log: Vec<Frame>,
     mesh: Option<Handle<Mesh>>,
     material: Option<Handle<StandardMaterial>>,
     /// The tessellated copies' source mesh.
@@ -193,8 +213,6 @@ impl Soak {
             copies: Vec::new(),
             lights: HashMap::new(),
             log: Vec::new(),
-            pipelines: Vec::new(),
-            heap: Vec::new(),
             mesh: None,
             material: None,
             patch: None,
@@ -337,9 +355,7 @@ fn churn(
     }
     if soak.frame > soak.churned_frames {
         keys.release_all();
-        soak.log.push((resident_bytes(), allocations.counts()));
-        soak.pipelines.push(pipelines.0.load(Ordering::Relaxed));
-        soak.heap.push(heap::live_bytes());
+        soak.log.push(Frame::now(&allocations, &pipelines));
         return;
     }
     // The example's toggles in a fixed cycle ([`CYCLE`] frames): every [`KEY_PERIOD`]
@@ -424,18 +440,10 @@ fn churn(
                 } else {
                     2
                 };
-                if soak.copies.contains(&entity) || std::mem::replace(&mut kinds_seen[kind], true) {
+                if std::mem::replace(&mut kinds_seen[kind], true) {
                     continue;
                 }
                 let at = transform.with_translation(transform.translation + Vec3::X * 0.3);
-                // A tessellated entity shows its tessellated output mesh (render world
-                // only): its copy gets a source mesh of its own.
-                let patch = soak
-                    .patch
-                    .get_or_insert_with(|| {
-                        meshes.add(Plane3d::default().mesh().size(1.0, 1.0).subdivisions(2))
-                    })
-                    .clone();
                 let mut original = commands.entity(entity);
                 let mut copy = original.clone_and_spawn_with_opt_in(|builder| {
                     builder
@@ -446,7 +454,12 @@ fn churn(
                 });
                 copy.insert(at);
                 if tessellated {
-                    copy.insert(Mesh3d(patch));
+                    // A tessellated entity shows its tessellated output mesh (render
+                    // world only): its copy gets a source mesh of its own.
+                    let patch = soak.patch.get_or_insert_with(|| {
+                        meshes.add(Plane3d::default().mesh().size(1.0, 1.0).subdivisions(2))
+                    });
+                    copy.insert(Mesh3d(patch.clone()));
                 }
                 soak.copies.push(copy.id());
             }
@@ -464,17 +477,13 @@ fn churn(
             }
         }
     }
-    soak.log.push((resident_bytes(), allocations.counts()));
-    soak.pipelines.push(pipelines.0.load(Ordering::Relaxed));
-    soak.heap.push(heap::live_bytes());
+    soak.log.push(Frame::now(&allocations, &pipelines));
 }
 
 /// What a soak logged.
 struct SoakRun {
-    /// Per frame: resident bytes and Penumbra's GPU allocations so far.
-    log: Vec<(u64, GpuAllocationCounts)>,
-    /// Per frame: the bytes Rust code holds.
-    heap: Vec<i64>,
+    /// One entry per frame.
+    log: Vec<Frame>,
     /// How many of the first frames churned (the rest are quiet).
     churned: usize,
 }
@@ -497,20 +506,21 @@ fn soak(frames: u32) -> SoakRun {
     let errors = take_render_errors();
     assert!(errors.is_empty(), "wgpu errors: {errors:#?}");
     let log = app.world().resource::<Soak>().log.clone();
-    let pipelines = &app.world().resource::<Soak>().pipelines;
-    let per_cycle: Vec<String> = (CYCLE - 1..pipelines.len())
-        .step_by(CYCLE)
-        .map(|i| pipelines[i].to_string())
-        .collect();
-    println!("pipelines at each cycle's end: {}", per_cycle.join(", "));
-    let heap = &app.world().resource::<Soak>().heap;
-    let per_cycle: Vec<String> = (CYCLE - 1..heap.len())
-        .step_by(CYCLE)
-        .map(|i| format!("{:.1}", heap[i] as f64 / 1_048_576.0))
-        .collect();
+    let at_cycle_ends = |show: &dyn Fn(&Frame) -> String| -> String {
+        log.iter()
+            .skip(CYCLE - 1)
+            .step_by(CYCLE)
+            .map(show)
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    println!(
+        "pipelines at each cycle's end: {}",
+        at_cycle_ends(&|f| f.pipelines.to_string())
+    );
     println!(
         "Rust heap at each cycle's end (MiB): {}",
-        per_cycle.join(", ")
+        at_cycle_ends(&|f| format!("{:.1}", f.heap as f64 / 1_048_576.0))
     );
     let mean_ms = capture
         .frame_times
@@ -537,7 +547,6 @@ fn soak(frames: u32) -> SoakRun {
     );
     SoakRun {
         log,
-        heap: heap.clone(),
         churned: frames as usize,
     }
 }
@@ -550,10 +559,10 @@ fn soak(frames: u32) -> SoakRun {
 /// first to the last third of the cycles after the warm-up (medians); and over the quiet frames
 /// after the churn ([`QUIET`], less [`SETTLE`]) Penumbra created nothing.
 fn check(run: SoakRun) {
-    let SoakRun { log, heap, churned } = run;
+    let SoakRun { log, churned } = run;
     let quiet = &log[churned.min(log.len())..];
     assert!(quiet.len() > SETTLE, "{} quiet frames logged", quiet.len());
-    let steady = quiet[quiet.len() - 1].1 - quiet[SETTLE].1;
+    let steady = quiet[quiet.len() - 1].allocations - quiet[SETTLE].allocations;
     println!(
         "GPU allocations over the last {} quiet frames: {steady:?}",
         quiet.len() - 1 - SETTLE
@@ -564,7 +573,6 @@ fn check(run: SoakRun) {
         "steady frames create GPU resources"
     );
     let log = &log[..churned.min(log.len())];
-    let heap = &heap[..log.len()];
     let n = log.len();
     assert!(
         n >= 3 * CYCLE,
@@ -572,7 +580,7 @@ fn check(run: SoakRun) {
     );
     let ends = [n - 1 - 2 * CYCLE, n - 1 - CYCLE, n - 1];
     let rss_at = |end: usize| {
-        let mut v: Vec<u64> = log[end - 4..=end].iter().map(|e| e.0).collect();
+        let mut v: Vec<u64> = log[end - 4..=end].iter().map(|f| f.resident).collect();
         v.sort_unstable();
         v[2]
     };
@@ -581,13 +589,13 @@ fn check(run: SoakRun) {
         .step_by(CYCLE)
         .map(|end| format!("{:.0}", mib(rss_at(end))))
         .collect();
-    let before = log[ends[1]].1 - log[ends[0]].1;
-    let last = log[ends[2]].1 - log[ends[1]].1;
+    let before = log[ends[1]].allocations - log[ends[0]].allocations;
+    let last = log[ends[2]].allocations - log[ends[1]].allocations;
     let growth = rss_at(ends[2]) as f64 / rss_at(ends[1]).max(1) as f64 - 1.0;
     println!(
         "GPU allocations: cycle before the last {before:?}; last cycle {last:?}; since start \
          {:?}; resident memory at each cycle's end (MiB): {}; last cycle {:+.2} %",
-        log[n - 1].1,
+        log[n - 1].allocations,
         trend.join(", "),
         growth * 100.0,
     );
@@ -608,7 +616,7 @@ fn check(run: SoakRun) {
         (CYCLE - 1..n).step_by(CYCLE).map(of).collect::<Vec<_>>()
     };
     let resident = cycle_ends(&|end| rss_at(end) as f64);
-    let rust_heap = cycle_ends(&|end| heap[end] as f64);
+    let rust_heap = cycle_ends(&|end| log[end].heap as f64);
     for (what, ends) in [("resident memory", resident), ("the Rust heap", rust_heap)] {
         let Some((early, late, of)) = trend_after_warm_up(&ends) else {
             println!(
