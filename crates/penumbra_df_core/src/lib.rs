@@ -21,6 +21,8 @@
 //! - [`clipmap`]: the global distance field's camera-centred clipmaps — layout,
 //!   toroidal addressing, scrolling in bricks, dirty regions, the per-frame brick budget
 //!   and which bricks are valid.
+//! - [`skin_capsules`]: capsules fitted to a skinned mesh's joints, the casters of an
+//!   animated character.
 //! - [`cull`]: frustum planes and the oriented-box test the GPU culling pass runs, as the
 //!   CPU reference the GPU output is compared with.
 //!
@@ -42,4 +44,5 @@ pub mod object;
 pub mod particles;
 pub mod query;
 pub mod shadow;
+pub mod skin_capsules;
 pub mod table;

@@ -30,6 +30,8 @@
 //!   GPU object records with its per-object cone culling.
 //! - [`scene_truth`]: ray-traced truth for a whole glTF scene through a camera — sun
 //!   visibility and ambient occlusion per pixel, as the scene viewer's `--dump` shows them.
+//! - [`posed_gltf`]: a glTF scene's triangles in an animation's pose (skinned meshes
+//!   deformed by their joints on the CPU) — the truth for characters.
 //! - [`npy`]: float32 `.npy` files (the viewer's dumps, the truth written beside them).
 //! - [`scene`]: an analytic ray-traced scene (spheres, planes, directional lights with hard
 //!   shadows) shaded with [`pbr`], the expected image of simple GPU render tests.
@@ -45,6 +47,7 @@ pub mod msaa;
 pub mod npy;
 pub mod particles;
 pub mod pbr;
+pub mod posed_gltf;
 pub mod reflections;
 pub mod scene;
 pub mod scene_truth;

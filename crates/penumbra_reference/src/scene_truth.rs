@@ -77,12 +77,18 @@ impl SceneTriangles {
     /// the depth prepass and the G-buffer the passes read, so a pixel of glass shows
     /// what lies behind it, and the scene casters skip them (a goggle's lens, a lamp's
     /// glass). [`Facing::AllFaces`], the Embree oracles' convention, keeps them.
+    ///
+    /// A file with skinned meshes is read posed instead ([`SceneTriangles::from_gltf_posed`]
+    /// at its rest pose: what Bevy draws when no animation plays).
     pub fn from_gltf(path: &Path, facing: Facing) -> Result<SceneTriangles, String> {
         use penumbra_sdf::gltf_input::{GltfSelection, load_gltf_with_sides};
         let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let (mesh, materials, _) =
+        let (mesh, materials, report) =
             load_gltf_with_sides(&bytes, path.parent(), &GltfSelection::Scene)
                 .map_err(|e| format!("{}: {e}", path.display()))?;
+        if report.skinned_instances > 0 {
+            return Self::from_gltf_posed(path, facing, None);
+        }
         let world = |i: u32| (mesh.origin + mesh.positions[i as usize].as_dvec3()).as_vec3();
         let (triangles, double_sided) = mesh
             .triangles
@@ -90,6 +96,27 @@ impl SceneTriangles {
             .zip(&materials)
             .filter(|(_, m)| facing == Facing::AllFaces || !m.see_through)
             .map(|(t, m)| (t.map(world), m.double_sided))
+            .unzip();
+        Ok(SceneTriangles::new(triangles, double_sided))
+    }
+
+    /// A glTF file's default scene in an animation's pose (`None`: the rest pose),
+    /// skinned meshes deformed by their joints ([`crate::posed_gltf`]); see-through
+    /// triangles left out in the [`Facing::Raster`] convention, as in
+    /// [`SceneTriangles::from_gltf`].
+    pub fn from_gltf_posed(
+        path: &Path,
+        facing: Facing,
+        pose: Option<crate::posed_gltf::Pose>,
+    ) -> Result<SceneTriangles, String> {
+        let posed = crate::posed_gltf::posed_triangles(path, pose)?;
+        let (triangles, double_sided) = posed
+            .triangles
+            .iter()
+            .zip(&posed.double_sided)
+            .zip(&posed.see_through)
+            .filter(|(_, see_through)| facing == Facing::AllFaces || !**see_through)
+            .map(|((t, d), _)| (*t, *d))
             .unzip();
         Ok(SceneTriangles::new(triangles, double_sided))
     }

@@ -1,0 +1,297 @@
+//! Capsules fitted to a skinned mesh's joints: the casters of an animated character.
+//!
+//! A distance field baked from a skinned mesh is right in one pose only. Unreal answers
+//! with *capsule shadows*: one capsule per bone, traced analytically, following the
+//! skeleton every frame (Unreal Engine 4.11, "Capsule Shadows"; the capsules come from
+//! the character's physics asset). Here they are fitted to the mesh itself, once per
+//! mesh and skin:
+//!
+//! 1. Each vertex belongs to the joint that weighs most in its skinning (its *dominant*
+//!    joint; ties go to the first listed). Vertices with no usable weight, an
+//!    out-of-range joint index or a non-finite position belong to none.
+//! 2. A joint's vertices are taken to its own space by its inverse bind matrix (the space
+//!    that the joint's transform carries rigidly when the skeleton moves).
+//! 3. Candidate axes: the bone, towards each child joint (its bind-pose origin in this
+//!    joint's space), and the principal axis of the vertices (their covariance's largest
+//!    eigenvector). Along each, a capsule through the vertices' centroid is fitted: its
+//!    radius covers `√coverage` of them radially, its core segment then covers all but
+//!    `(1 − √coverage) / 2` of those at each end, so that about `coverage` of the
+//!    vertices lie inside. The candidate of least volume is kept.
+//! 4. A joint with fewer than [`CapsuleFitSettings::min_vertices`] vertices, or whose
+//!    capsule is thinner than [`CapsuleFitSettings::min_radius`] of the largest one, gets
+//!    none (fingers, a tail's tip: shadows too small to see, a record each).
+//!
+//! The capsule lives in its joint's space: placed as a child of the joint it follows the
+//! joint rigidly, which is exact for vertices that one joint skins alone and an
+//! approximation where several blend (elbows, the belly). Limits: a capsule cannot bend,
+//! so a joint whose vertices curve (a hand) is covered loosely; morph targets are not
+//! seen; the fit is of the bind pose's vertices.
+
+use glam::{Mat4, Vec3};
+
+/// How capsules are fitted ([`fit_skin_capsules`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CapsuleFitSettings {
+    /// The fraction of a joint's vertices its capsule should hold, in (0, 1]. Larger
+    /// covers outliers (fur tufts, ears) with fatter capsules that shadow too much;
+    /// smaller leaves the edges of a limb out. Default 0.9.
+    pub coverage: f32,
+    /// Joints with fewer vertices get no capsule. Default 16.
+    pub min_vertices: usize,
+    /// Capsules thinner than this fraction of the largest capsule's radius are dropped.
+    /// Default 0.15.
+    pub min_radius: f32,
+}
+
+impl Default for CapsuleFitSettings {
+    fn default() -> Self {
+        Self {
+            coverage: 0.9,
+            min_vertices: 16,
+            min_radius: 0.15,
+        }
+    }
+}
+
+/// A skinned mesh, as its vertex attributes and skin give it.
+#[derive(Clone, Copy, Debug)]
+pub struct SkinInput<'a> {
+    /// Bind-pose positions, mesh space.
+    pub positions: &'a [Vec3],
+    /// Four joint indices per vertex (into `inverse_bindposes`).
+    pub joints: &'a [[u16; 4]],
+    /// Their four weights per vertex.
+    pub weights: &'a [[f32; 4]],
+    /// The skin's inverse bind matrices, one per joint: joint space from mesh space.
+    pub inverse_bindposes: &'a [Mat4],
+    /// Each joint's parent among the skin's joints, if it has one there.
+    pub parents: &'a [Option<usize>],
+}
+
+/// One fitted capsule, in its joint's space: the points within `radius` of the segment
+/// from `center − half_length · axis` to `center + half_length · axis`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FittedCapsule {
+    /// The joint (index into the skin's joints).
+    pub joint: usize,
+    /// Centre of the core segment, joint space.
+    pub center: Vec3,
+    /// Unit direction of the core segment, joint space.
+    pub axis: Vec3,
+    /// Half the core segment's length, joint-space units.
+    pub half_length: f32,
+    /// Radius, joint-space units.
+    pub radius: f32,
+    /// The joint's vertices the fit saw.
+    pub vertices: usize,
+    /// The fraction of them inside the capsule.
+    pub covered: f32,
+}
+
+impl FittedCapsule {
+    /// Distance from `p` (joint space) to the capsule's surface, negative inside.
+    pub fn distance(&self, p: Vec3) -> f32 {
+        let t = (p - self.center)
+            .dot(self.axis)
+            .clamp(-self.half_length, self.half_length);
+        (p - (self.center + t * self.axis)).length() - self.radius
+    }
+
+    /// The capsule's volume (joint-space units³).
+    pub fn volume(&self) -> f32 {
+        capsule_volume(self.radius, self.half_length)
+    }
+}
+
+fn capsule_volume(radius: f32, half_length: f32) -> f32 {
+    std::f32::consts::PI * radius * radius * (2.0 * half_length + 4.0 / 3.0 * radius)
+}
+
+/// The vertices each joint dominates: for joint `j`, the indices of the vertices whose
+/// largest skin weight is `j`'s.
+pub fn dominant_vertices(input: &SkinInput) -> Vec<Vec<usize>> {
+    let joint_count = input.inverse_bindposes.len();
+    let mut out = vec![Vec::new(); joint_count];
+    let n = input
+        .positions
+        .len()
+        .min(input.joints.len())
+        .min(input.weights.len());
+    for v in 0..n {
+        if !input.positions[v].is_finite() {
+            continue;
+        }
+        let mut best: Option<(usize, f32)> = None;
+        for k in 0..4 {
+            let (j, w) = (usize::from(input.joints[v][k]), input.weights[v][k]);
+            // A NaN weight fails `w > 0`.
+            if j < joint_count && w > 0.0 && best.is_none_or(|(_, bw)| w > bw) {
+                best = Some((j, w));
+            }
+        }
+        if let Some((j, _)) = best {
+            out[j].push(v);
+        }
+    }
+    out
+}
+
+/// Fits one capsule per joint that dominates enough vertices (see the module docs).
+/// Deterministic; `O(vertices · log vertices)`.
+pub fn fit_skin_capsules(input: &SkinInput, settings: &CapsuleFitSettings) -> Vec<FittedCapsule> {
+    let coverage = if settings.coverage.is_finite() {
+        settings.coverage.clamp(0.05, 1.0)
+    } else {
+        CapsuleFitSettings::default().coverage
+    };
+    let owned = dominant_vertices(input);
+    let mut capsules = Vec::new();
+    for (joint, vertices) in owned.iter().enumerate() {
+        if vertices.len() < settings.min_vertices.max(2) {
+            continue;
+        }
+        let to_joint = input.inverse_bindposes[joint];
+        if !to_joint.is_finite() || to_joint.determinant().abs() < 1e-12 {
+            continue;
+        }
+        let points: Vec<Vec3> = vertices
+            .iter()
+            .map(|&v| to_joint.transform_point3(input.positions[v]))
+            .filter(|p| p.is_finite())
+            .collect();
+        if points.len() < settings.min_vertices.max(2) {
+            continue;
+        }
+        let mut axes = bone_directions(input, joint);
+        axes.push(principal_axis(&points));
+        let best = axes
+            .into_iter()
+            .filter_map(|axis| fit_along(&points, axis, coverage))
+            .min_by(|a, b| a.volume().total_cmp(&b.volume()));
+        if let Some(mut capsule) = best {
+            capsule.joint = joint;
+            capsule.vertices = points.len();
+            capsules.push(capsule);
+        }
+    }
+    let largest = capsules.iter().map(|c| c.radius).fold(0.0, f32::max);
+    capsules.retain(|c| c.radius > 0.0 && c.radius >= settings.min_radius * largest);
+    capsules
+}
+
+/// Unit directions from `joint` to each of its children's bind-pose origins, in its
+/// space.
+fn bone_directions(input: &SkinInput, joint: usize) -> Vec<Vec3> {
+    input
+        .parents
+        .iter()
+        .enumerate()
+        .filter(|&(_, parent)| *parent == Some(joint))
+        .filter_map(|(child, _)| {
+            let child_origin = input
+                .inverse_bindposes
+                .get(child)?
+                .inverse()
+                .transform_point3(Vec3::ZERO);
+            let local = input.inverse_bindposes[joint].transform_point3(child_origin);
+            local.try_normalize()
+        })
+        .collect()
+}
+
+/// The unit eigenvector of the points' covariance with the largest eigenvalue (power
+/// iteration from the box's longest axis); `Vec3::Y` for a degenerate set.
+fn principal_axis(points: &[Vec3]) -> Vec3 {
+    let n = points.len() as f64;
+    let mean = points
+        .iter()
+        .fold(glam::DVec3::ZERO, |s, p| s + p.as_dvec3())
+        / n;
+    let mut cov = glam::DMat3::ZERO;
+    for p in points {
+        let d = p.as_dvec3() - mean;
+        cov += glam::DMat3::from_cols(d * d.x, d * d.y, d * d.z);
+    }
+    let cov = cov.as_mat3() / n as f32;
+    let (min, max) = points
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(*p), hi.max(*p))
+        });
+    let extent = max - min;
+    let mut v = if extent.x >= extent.y && extent.x >= extent.z {
+        Vec3::X
+    } else if extent.y >= extent.z {
+        Vec3::Y
+    } else {
+        Vec3::Z
+    };
+    for _ in 0..64 {
+        let Some(next) = (cov * v).try_normalize() else {
+            return v;
+        };
+        v = next;
+    }
+    v
+}
+
+/// The `q`-quantile (nearest rank) of `values`, which it sorts.
+fn quantile(values: &mut [f32], q: f32) -> f32 {
+    values.sort_by(f32::total_cmp);
+    let last = values.len() - 1;
+    values[((q * last as f32).round() as usize).min(last)]
+}
+
+/// A capsule along `axis` through the points' centroid holding about `coverage` of
+/// them; `None` for a degenerate axis.
+fn fit_along(points: &[Vec3], axis: Vec3, coverage: f32) -> Option<FittedCapsule> {
+    let axis = axis.try_normalize()?;
+    let centroid = points.iter().copied().sum::<Vec3>() / points.len() as f32;
+    let along: Vec<f32> = points.iter().map(|p| (*p - centroid).dot(axis)).collect();
+    let radial: Vec<f32> = points
+        .iter()
+        .zip(&along)
+        .map(|(p, t)| (*p - centroid - *t * axis).length())
+        .collect();
+    let q = coverage.sqrt();
+    let radius = quantile(&mut radial.clone(), q);
+    // Points within the radius constrain the segment: one at (t, r) is inside when an
+    // end lies within h = √(R² − r²) of t along the axis.
+    let (mut low, mut high): (Vec<f32>, Vec<f32>) = along
+        .iter()
+        .zip(&radial)
+        .filter(|(_, r)| **r <= radius)
+        .map(|(t, r)| {
+            let h = (radius * radius - r * r).max(0.0).sqrt();
+            (t + h, t - h)
+        })
+        .unzip();
+    if low.is_empty() {
+        return None;
+    }
+    let trim = (1.0 - q) * 0.5;
+    let mut start = quantile(&mut low, trim);
+    let mut end = quantile(&mut high, 1.0 - trim);
+    if start > end {
+        let mid = 0.5 * (start + end);
+        (start, end) = (mid, mid);
+    }
+    let mut capsule = FittedCapsule {
+        joint: 0,
+        center: centroid + 0.5 * (start + end) * axis,
+        axis,
+        half_length: 0.5 * (end - start),
+        radius,
+        vertices: points.len(),
+        covered: 0.0,
+    };
+    let inside = points
+        .iter()
+        .filter(|p| capsule.distance(**p) <= radius * 1e-4)
+        .count();
+    capsule.covered = inside as f32 / points.len() as f32;
+    Some(capsule)
+}
+
+#[cfg(test)]
+mod tests;

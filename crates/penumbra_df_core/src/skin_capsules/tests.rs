@@ -1,0 +1,287 @@
+use super::*;
+use glam::{DVec3, Quat};
+
+/// A tube of `radius` along x from 0 to `length` (rings of 24 vertices every 1 cm, and
+/// caps), skinned to two joints: joint 0 at the origin, joint 1 (its child) at
+/// `length / 2`; each vertex wholly to the nearer joint's side.
+struct Arm {
+    positions: Vec<Vec3>,
+    joints: Vec<[u16; 4]>,
+    weights: Vec<[f32; 4]>,
+    inverse_bindposes: Vec<Mat4>,
+    parents: Vec<Option<usize>>,
+}
+
+fn arm(radius: f32, length: f32) -> Arm {
+    let mut positions = Vec::new();
+    let rings = (length / 0.01).round() as usize;
+    for i in 0..=rings {
+        let x = length * i as f32 / rings as f32;
+        for k in 0..24 {
+            let a = std::f32::consts::TAU * k as f32 / 24.0;
+            positions.push(Vec3::new(x, radius * a.cos(), radius * a.sin()));
+        }
+    }
+    let half = length / 2.0;
+    let joints = positions
+        .iter()
+        .map(|p| {
+            if p.x < half {
+                [0, 1, 0, 0]
+            } else {
+                [1, 0, 0, 0]
+            }
+        })
+        .collect();
+    let weights = positions.iter().map(|_| [1.0, 0.0, 0.0, 0.0]).collect();
+    Arm {
+        positions,
+        joints,
+        weights,
+        inverse_bindposes: vec![
+            Mat4::IDENTITY,
+            Mat4::from_translation(Vec3::new(-half, 0.0, 0.0)),
+        ],
+        parents: vec![None, Some(0)],
+    }
+}
+
+impl Arm {
+    fn input(&self) -> SkinInput<'_> {
+        SkinInput {
+            positions: &self.positions,
+            joints: &self.joints,
+            weights: &self.weights,
+            inverse_bindposes: &self.inverse_bindposes,
+            parents: &self.parents,
+        }
+    }
+}
+
+/// Distance from `p` to the capsule, in f64 from its two end points (not through
+/// [`FittedCapsule::distance`]).
+fn distance_f64(c: &FittedCapsule, p: DVec3) -> f64 {
+    let a = (c.center - c.axis * c.half_length).as_dvec3();
+    let b = (c.center + c.axis * c.half_length).as_dvec3();
+    let ab = b - a;
+    let t = if ab.length_squared() > 0.0 {
+        ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p - (a + t * ab)).length() - f64::from(c.radius)
+}
+
+#[test]
+fn a_tube_gets_one_capsule_per_joint_along_its_bone() {
+    let arm = arm(0.1, 1.0);
+    let capsules = fit_skin_capsules(&arm.input(), &CapsuleFitSettings::default());
+    assert_eq!(capsules.len(), 2, "{capsules:?}");
+    for c in &capsules {
+        // Along x, as thick as the tube, its core as long as the joint's half of it
+        // (minus what 0.9 coverage trims at its ends), in its joint's space: both
+        // halves span x ∈ [0, 0.5) there. (The caps reach a radius further: the rims
+        // of the tube's ends lie on them.)
+        assert!(c.axis.x.abs() > 0.999, "{c:?}");
+        assert!((c.radius - 0.1).abs() < 1e-4, "{c:?}");
+        let (start, end) = (c.center.x - c.half_length, c.center.x + c.half_length);
+        assert!((0.0..0.03).contains(&start), "{c:?}");
+        assert!((0.47..0.5).contains(&end), "{c:?}");
+        // Its vertices, in joint space, within it (brute force, f64).
+        let to_joint = arm.inverse_bindposes[c.joint];
+        let (mut n, mut inside) = (0, 0);
+        for (p, j) in arm.positions.iter().zip(&arm.joints) {
+            if usize::from(j[0]) == c.joint {
+                n += 1;
+                let q = to_joint.transform_point3(*p).as_dvec3();
+                inside += usize::from(distance_f64(c, q) <= 1e-5);
+            }
+        }
+        let fraction = inside as f32 / n as f32;
+        assert!((0.85..=0.97).contains(&fraction), "{fraction} {c:?}");
+        assert!((fraction - c.covered).abs() < 0.01, "{fraction} {c:?}");
+    }
+}
+
+#[test]
+fn the_capsules_follow_their_joints_as_the_skin_does() {
+    // Bend the arm 90° at its elbow (joint 1), skin its vertices on the CPU (weights of
+    // one: each vertex moves rigidly with its joint), and place each capsule by its
+    // joint's posed transform: every posed vertex inside lies inside its capsule.
+    let arm = arm(0.1, 1.0);
+    let capsules = fit_skin_capsules(&arm.input(), &CapsuleFitSettings::default());
+    let shoulder =
+        Mat4::from_rotation_translation(Quat::from_rotation_y(0.4), Vec3::new(2.0, 1.0, -3.0));
+    let elbow = shoulder
+        * Mat4::from_rotation_translation(Quat::from_rotation_z(1.2), Vec3::new(0.5, 0.0, 0.0));
+    let joints_world = [shoulder, elbow];
+    for c in &capsules {
+        let world_from_joint = joints_world[c.joint];
+        let (mut n, mut inside) = (0, 0);
+        for (p, j) in arm.positions.iter().zip(&arm.joints) {
+            let j = usize::from(j[0]);
+            if j != c.joint {
+                continue;
+            }
+            // Linear blend skinning: world = joint_world · inverse_bind · bind position.
+            let posed = (joints_world[j] * arm.inverse_bindposes[j]).transform_point3(*p);
+            let in_joint = world_from_joint.inverse().transform_point3(posed);
+            n += 1;
+            inside += usize::from(distance_f64(c, in_joint.as_dvec3()) <= 1e-4);
+        }
+        assert!(inside as f32 / n as f32 > 0.85, "{inside}/{n} {c:?}");
+    }
+    // The elbow's capsule, in world space, lies along the bent forearm.
+    let forearm = capsules
+        .iter()
+        .find(|c| c.joint == 1)
+        .expect("a forearm capsule");
+    let axis_world = elbow.transform_vector3(forearm.axis).normalize();
+    let bone_world = shoulder
+        .transform_vector3(Quat::from_rotation_z(1.2) * Vec3::X)
+        .normalize();
+    assert!(
+        axis_world.dot(bone_world).abs() > 0.999,
+        "{axis_world} {bone_world}"
+    );
+}
+
+#[test]
+fn a_joints_vertices_are_the_ones_it_weighs_most() {
+    let positions = [Vec3::ZERO; 5];
+    let joints = [
+        [0, 1, 2, 3],
+        [0, 1, 0, 0],
+        [2, 9, 0, 0],
+        [1, 2, 0, 0],
+        [0, 1, 0, 0],
+    ];
+    let weights = [
+        [0.1, 0.2, 0.6, 0.1],
+        [0.5, 0.5, 0.0, 0.0],
+        // Joint 9 does not exist: the weight goes to the existing one.
+        [0.2, 0.8, 0.0, 0.0],
+        // A NaN weight counts for nothing.
+        [f32::NAN, 0.3, 0.0, 0.0],
+        // No weight at all: no joint.
+        [0.0, 0.0, 0.0, 0.0],
+    ];
+    let input = SkinInput {
+        positions: &positions,
+        joints: &joints,
+        weights: &weights,
+        inverse_bindposes: &[Mat4::IDENTITY; 4],
+        parents: &[None; 4],
+    };
+    assert_eq!(
+        dominant_vertices(&input),
+        vec![vec![1], vec![], vec![0, 2, 3], vec![]]
+    );
+}
+
+#[test]
+fn bad_input_fits_what_it_can_and_never_panics() {
+    let mut arm = arm(0.1, 1.0);
+    // Non-finite positions and weights, joints out of range, a singular bind matrix,
+    // and attribute arrays of different lengths.
+    arm.positions[0] = Vec3::NAN;
+    arm.weights[1] = [f32::NAN; 4];
+    arm.joints[2] = [7, 7, 7, 7];
+    arm.weights.truncate(arm.weights.len() - 3);
+    let capsules = fit_skin_capsules(&arm.input(), &CapsuleFitSettings::default());
+    assert_eq!(capsules.len(), 2);
+    assert!(
+        capsules
+            .iter()
+            .all(|c| c.radius.is_finite() && c.center.is_finite())
+    );
+    arm.inverse_bindposes[1] = Mat4::ZERO;
+    assert_eq!(
+        fit_skin_capsules(&arm.input(), &CapsuleFitSettings::default()).len(),
+        1
+    );
+    arm.inverse_bindposes[0] = Mat4::from_cols_array(&[f32::INFINITY; 16]);
+    assert!(fit_skin_capsules(&arm.input(), &CapsuleFitSettings::default()).is_empty());
+    for coverage in [f32::NAN, -1.0, 0.0, 2.0] {
+        let settings = CapsuleFitSettings {
+            coverage,
+            ..CapsuleFitSettings::default()
+        };
+        let arm = self::arm(0.1, 1.0);
+        assert_eq!(fit_skin_capsules(&arm.input(), &settings).len(), 2);
+    }
+    let empty = SkinInput {
+        positions: &[],
+        joints: &[],
+        weights: &[],
+        inverse_bindposes: &[],
+        parents: &[],
+    };
+    assert!(fit_skin_capsules(&empty, &CapsuleFitSettings::default()).is_empty());
+}
+
+#[test]
+fn small_joints_get_no_capsule() {
+    // A thin finger on the arm's end (its own joint, 1 cm across): dropped as thinner
+    // than 0.15 of the largest radius; with fewer vertices than the minimum, dropped too.
+    let mut arm = arm(0.1, 1.0);
+    arm.inverse_bindposes
+        .push(Mat4::from_translation(Vec3::new(-1.0, 0.0, 0.0)));
+    arm.parents.push(Some(1));
+    for i in 0..40 {
+        let a = std::f32::consts::TAU * i as f32 / 8.0;
+        arm.positions.push(Vec3::new(
+            1.0 + 0.002 * i as f32,
+            0.005 * a.cos(),
+            0.005 * a.sin(),
+        ));
+        arm.joints.push([2, 0, 0, 0]);
+        arm.weights.push([1.0, 0.0, 0.0, 0.0]);
+    }
+    let keep_all = CapsuleFitSettings {
+        min_radius: 0.0,
+        ..CapsuleFitSettings::default()
+    };
+    assert_eq!(fit_skin_capsules(&arm.input(), &keep_all).len(), 3);
+    assert_eq!(
+        fit_skin_capsules(&arm.input(), &CapsuleFitSettings::default()).len(),
+        2
+    );
+    let few = CapsuleFitSettings {
+        min_radius: 0.0,
+        min_vertices: 41,
+        ..CapsuleFitSettings::default()
+    };
+    assert_eq!(fit_skin_capsules(&arm.input(), &few).len(), 2);
+}
+
+#[test]
+fn the_axis_of_least_volume_wins_over_the_bone() {
+    // Vertices along z, bone along x: the principal axis wins (least volume).
+    let positions: Vec<Vec3> = (0..200)
+        .map(|i| {
+            let a = i as f32 * 2.399;
+            Vec3::new(0.05 * a.cos(), 0.05 * a.sin(), i as f32 / 200.0)
+        })
+        .collect();
+    let n = positions.len();
+    let input = SkinInput {
+        positions: &positions,
+        joints: &vec![[0, 0, 0, 0]; n],
+        weights: &vec![[1.0, 0.0, 0.0, 0.0]; n],
+        inverse_bindposes: &[Mat4::IDENTITY, Mat4::from_translation(-Vec3::X)],
+        parents: &[None, Some(0)],
+    };
+    let c = fit_skin_capsules(&input, &CapsuleFitSettings::default());
+    assert_eq!(c.len(), 1);
+    assert!(c[0].axis.z.abs() > 0.99, "{:?}", c[0]);
+    assert!(c[0].radius < 0.06, "{:?}", c[0]);
+}
+
+#[test]
+fn the_fit_is_deterministic() {
+    let arm = arm(0.07, 0.8);
+    let a = fit_skin_capsules(&arm.input(), &CapsuleFitSettings::default());
+    let b = fit_skin_capsules(&arm.input(), &CapsuleFitSettings::default());
+    assert_eq!(a, b);
+}
