@@ -247,6 +247,12 @@ pub fn pixel_visibility_with_terrain(
                 }
             }
         }
+        // A receiver inside an analytic shape is not shadowed by it: the shape stands in
+        // for the receiver's own mesh (a character's capsules).
+        if inside_analytic(r, p, camera, atlas) {
+            evaluations += 1;
+            continue;
+        }
         // The least distance over the cone's radius, down to −1: the two-sided penumbra
         // (`penumbra_df_core::shadow::PENUMBRA_MIN_STEP`, `penumbra_step`).
         let mut v = 1.0f32;
@@ -512,6 +518,13 @@ fn terrain_visibility(
         visibility = visibility.min(penumbra_visibility(v));
     }
     (visibility, evaluations)
+}
+
+/// Whether `p` lies inside object `r`'s analytic shape (a sphere, box, capsule or the
+/// solid below a plane; never a volume): such a shape stands in for the mesh the receiver
+/// is on (a character's capsules), so it neither shadows nor occludes it.
+pub fn inside_analytic(r: &ObjectRecord, p: Vec3, camera: &CameraOrigin, atlas: &Atlas) -> bool {
+    r.kind() != ShapeKind::Volume as u32 && object_distance(r, p, camera, atlas) < 0.0
 }
 
 /// Whether a point or spot light reaches camera-relative `p` at all: within its range

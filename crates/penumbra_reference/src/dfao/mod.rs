@@ -105,6 +105,11 @@ fn march_cone(
     } else {
         0.0
     };
+    // A receiver inside an analytic shape is not occluded by it: the shape stands in for
+    // the receiver's own mesh (a character's capsules).
+    if r.kind() != ShapeKind::Volume as u32 && object_distance(r, p, camera, atlas) < 0.0 {
+        return (1.0, 1);
+    }
     let bias = object_bias(trace.bias, voxel);
     let o = p + n * bias;
     let (mut t, mut t_end) = (bias, trace.max_distance);

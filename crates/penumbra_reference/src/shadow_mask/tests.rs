@@ -358,3 +358,73 @@ fn the_depth_buffer_tells_a_faces_own_normal() {
         [[Some(Vec3::NAN), None], [on(0.0, -0.01), None]]
     ));
 }
+
+/// A receiver inside an analytic shape (a character's capsule standing in for its mesh)
+/// is not shadowed by it, but still by the others: under a sun straight above, points
+/// inside a leg's capsule are lit unless the body's capsule is above them; the ground
+/// under the body is dark. (Before the rule, every point inside a capsule read 0.)
+#[test]
+fn a_receiver_inside_an_analytic_shape_is_not_shadowed_by_it() {
+    use penumbra_df_core::object::{CasterShape, ObjectDesc, encode};
+    let capsule = |center: Vec3, rotation: glam::Quat, radius: f32, half_length: f32| {
+        encode(&ObjectDesc {
+            world_from_local: glam::Affine3A::from_rotation_translation(rotation, center),
+            shape: CasterShape::Capsule {
+                radius,
+                half_length,
+            },
+            flags: flags::LIVE | flags::CASTS_SHADOWS | flags::VISIBLE,
+        })
+        .expect("encodes")
+    };
+    // A leg (vertical) at x = 0.5 and a body (lying along x) above x ∈ [−1, 0].
+    let leg = capsule(Vec3::new(0.5, 0.6, 0.0), glam::Quat::IDENTITY, 0.15, 0.4);
+    let body = capsule(
+        Vec3::new(-0.5, 1.4, 0.0),
+        glam::Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
+        0.3,
+        0.5,
+    );
+    let records = [leg, body];
+    let eye = Vec3::new(0.0, 1.0, 5.0);
+    let camera = CameraOrigin::at(eye).expect("finite");
+    let atlas = Atlas::new(glam::UVec3::ONE);
+    let sun = Vec3::Y;
+    let light = MaskLight {
+        kind: MaskLightKind::Directional(sun),
+        source: (0.02f32).tan(),
+        max_distance: 20.0,
+        bias: 0.01,
+        shaping: 1.0,
+        range: 100.0,
+        max_steps: 64,
+        max_view_distance: f32::INFINITY,
+        spot: None,
+    };
+    let at = |p: Vec3| pixel_visibility(&records, &atlas, &camera, p - eye, Vec3::ZERO, &light);
+    // Inside the leg, on its "skin" 2 cm in from the capsule's surface: lit.
+    for y in [0.3, 0.6, 0.9] {
+        for a in [0.0f32, 1.5, 3.0, 4.5] {
+            let p = Vec3::new(0.5 + 0.13 * a.cos(), y, 0.13 * a.sin());
+            assert!(inside_analytic(&leg, p - eye, &camera, &atlas));
+            assert!(at(p) > 0.99, "{p}: {}", at(p));
+        }
+    }
+    // Inside the body: lit from above; the ground under it: shadowed by it.
+    assert!(at(Vec3::new(-0.5, 1.6, 0.0)) > 0.99);
+    for x in [-0.9, -0.5, -0.1] {
+        assert!(at(Vec3::new(x, 0.0, 0.0)) < 0.05, "ground at {x}");
+    }
+    // A point inside the body's capsule, under a third capsule above it: shadowed.
+    let hat = capsule(Vec3::new(-0.5, 2.5, 0.0), glam::Quat::IDENTITY, 0.3, 0.1);
+    let records = [leg, body, hat];
+    let v = pixel_visibility(
+        &records,
+        &atlas,
+        &camera,
+        Vec3::new(-0.5, 1.6, 0.0) - eye,
+        Vec3::ZERO,
+        &light,
+    );
+    assert!(v < 0.05, "{v}");
+}

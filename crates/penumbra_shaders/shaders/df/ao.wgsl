@@ -93,6 +93,12 @@ fn march_cone(
     view: AoTraceView,
     atlas: texture_3d<f32>,
 ) -> f32 {
+    // A receiver inside an analytic shape is not occluded by it: the shape stands in for
+    // the receiver's own mesh (a character's capsules).
+    if object_kind(obj) != KIND_VOLUME
+        && object_distance(obj, p, view.camera_tile, view.camera_offset, atlas) < 0.0 {
+        return 1.0;
+    }
     let bias = ao_object_bias(obj, view.bias);
     let o = p + n * bias;
     var t = bias;

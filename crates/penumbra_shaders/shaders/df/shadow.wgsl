@@ -267,6 +267,19 @@ fn caster_field_normal(
 // sees solid volume `o` from its inside: then `o` is not marched for it and the field's
 // reversed normal gives its own shadow (`penumbra_df_core::shadow::seen_from_inside`).
 // One to three reads, for solid volumes whose bounding ball `sphere` holds `p`.
+// Whether camera-relative `p` lies inside object `o`'s analytic shape (never a volume):
+// such a shape stands in for the mesh the receiver is on (a character's capsules), so it
+// does not shadow it (`penumbra_reference::shadow_mask::inside_analytic`).
+fn inside_analytic(
+    o: DistanceFieldObject,
+    p: vec3<f32>,
+    camera_tile: vec3<i32>,
+    camera_offset: vec3<f32>,
+    atlas: texture_3d<f32>,
+) -> bool {
+    return object_kind(o) != KIND_VOLUME && object_distance(o, p, camera_tile, camera_offset, atlas) < 0.0;
+}
+
 fn seen_from_inside(
     o: DistanceFieldObject,
     sphere: vec4<f32>,

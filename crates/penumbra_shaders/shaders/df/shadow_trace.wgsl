@@ -16,7 +16,7 @@
 #import penumbra::df::heightfield::{HeightfieldRecord, heightfield_distance}
 #import penumbra::df::shadow::{
     FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, FIELD_NORMAL_MIN_FACING_SHADED,
-    FLAT_SHADED_SIN, NO_FIELD_NORMAL, seen_from_inside,
+    FLAT_SHADED_SIN, NO_FIELD_NORMAL, inside_analytic, seen_from_inside,
     PENUMBRA_MIN_STEP, ShadowLight, ShadowRay, bounding_sphere, caster_field_normal, casts_shadows,
     cull_slack,
     facing_the_eye, finish_visibility, gbuffer_normal, horizon_visibility, is_directional, march_object,
@@ -411,6 +411,12 @@ fn trace(
                 let sphere = tile_spheres[i];
                 if object_in_cone(sphere, p, ray) {
                     let o = objects[tile_slots[i]];
+                    // A receiver inside an analytic shape is not shadowed by it: the
+                    // shape stands in for the receiver's own mesh (a character's capsules;
+                    // `shadow_mask::inside_analytic`).
+                    if inside_analytic(o, p, view.camera_tile.xyz, view.camera_offset.xyz, atlas) {
+                        continue;
+                    }
                     if as_stored && seen_from_inside(o, sphere, p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas) {
                         let f = caster_field_normal(o, p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas);
                         if f.w < 3.0e38 {
