@@ -16,6 +16,7 @@
 use bevy::math::Vec3;
 use penumbra_reference::camera::PerspectiveCamera;
 use penumbra_reference::npy;
+use penumbra_reference::posed_gltf::Pose;
 use penumbra_reference::scene_truth::{self, Facing, SceneTriangles, TruthError};
 use std::path::Path;
 
@@ -82,7 +83,36 @@ pub fn check_dump(dir: &Path, facing: Facing, write: bool) -> Result<DumpCheck, 
         meta["size"][1].as_u64().ok_or("meta.json: size")? as u32,
     );
     let camera = PerspectiveCamera::looking_at(eye, target, fov.to_radians(), w, h);
-    let triangles = SceneTriangles::from_gltf(Path::new(scene), facing)?;
+    // A scene the viewer posed (`--animation`) is posed the same way here.
+    let pose = &meta["settings"]["pose"];
+    let triangles = match (pose["animation"].as_u64(), pose["time"].as_f64()) {
+        (Some(animation), Some(time)) => SceneTriangles::from_gltf_posed(
+            Path::new(scene),
+            facing,
+            Some(Pose {
+                animation: animation as usize,
+                time: time as f32,
+            }),
+        )?,
+        _ => SceneTriangles::from_gltf(Path::new(scene), facing)?,
+    };
+    // The viewer's `--ground`: a single-sided square facing up.
+    let ground = &meta["settings"]["ground"];
+    let triangles = match (vec3(&ground["center"]), ground["half_size"].as_f64()) {
+        (Some(c), Some(h)) => {
+            let h = h as f32;
+            let corner = |x: f32, z: f32| c + Vec3::new(x * h, 0.0, z * h);
+            let (a, b, cc, d) = (
+                corner(-1.0, -1.0),
+                corner(1.0, -1.0),
+                corner(1.0, 1.0),
+                corner(-1.0, 1.0),
+            );
+            // Counter-clockwise seen from above (+y): outward normal up.
+            triangles.with_extra(&[[a, d, cc], [a, cc, b]], false)
+        }
+        _ => triangles,
+    };
     let hits = scene_truth::primary_hits(&triangles, &camera, facing);
     let (_, depth) = npy::read_f32(&dir.join("depth.npy"))?;
     let mut check = DumpCheck {

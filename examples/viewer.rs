@@ -10,7 +10,9 @@
 //! ```
 //!
 //! The scene's meshes become distance-field casters (`DistanceFieldSceneCasters` on its
-//! root: skinned meshes skipped, double-sided and alpha-masked materials two-sided); the
+//! root: skinned meshes cast through capsules fitted to their joints, double-sided and
+//! alpha-masked materials two-sided; `--skinned`, `--animation N --time T` to pose them,
+//! `--ground` to stand them on something); the
 //! camera is framed on the scene's bounds (or `--eye/--target/--fov`); a sun (`--sun`,
 //! `--angle`), `--point` lights and the scene's own `KHR_lights_punctual` lights (unless
 //! `--no-scene-lights`) get `DistanceFieldShadows`; `--ao-max-distance M` puts
@@ -60,6 +62,8 @@ pub mod fallback;
 pub mod input;
 #[path = "viewer/panel.rs"]
 pub mod panel;
+#[path = "viewer/pose.rs"]
+pub mod pose;
 #[allow(dead_code, reason = "only the showcase's scene is used")]
 #[path = "showcase.rs"]
 mod showcase;
@@ -163,6 +167,7 @@ fn add_viewer(app: &mut App, args: &Args) {
         Update,
         (
             watch_load,
+            pose::pose_scene.run_if(|args: Res<ViewerArgs>| args.0.animation.is_some()),
             frame_scene.run_if(not(resource_exists::<Framing>)),
             shadow_scene_lights.run_if(resource_exists::<Framing>),
             fit_shadow_bias.run_if(resource_exists::<Framing>),
@@ -202,6 +207,14 @@ fn spawn_scene(mut commands: Commands, args: Res<ViewerArgs>, assets: Res<AssetS
     if !args.0.plain {
         root.insert(DistanceFieldSceneCasters {
             two_sided: args.0.two_sided,
+            skinned: args.0.skinned,
+            capsules: penumbra::df::SkinCapsuleFit {
+                coverage: args
+                    .0
+                    .capsule_coverage
+                    .unwrap_or(penumbra::df::SkinCapsuleFit::default().coverage),
+                ..default()
+            },
             caster: DistanceFieldCaster {
                 resolution_scale: args.0.resolution_scale,
                 ..default()
@@ -339,6 +352,8 @@ fn frame_scene(
         With<ViewerCamera>,
     >,
     mut waited: Local<u32>,
+    mut meshes_assets: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
 ) {
     let (root, handle, counts) = *root;
     let loaded = handle.is_none_or(|h| scene_loaded(&assets, h.0.id()));
@@ -415,6 +430,37 @@ fn frame_scene(
         }
     }
     spawn_lights(&mut commands, args, &framing);
+    if args.ground {
+        let ground = ViewerGround {
+            center: Vec3::new(center.x, lo.y, center.z),
+            half_size: 2.0 * radius,
+        };
+        commands.insert_resource(ground);
+        commands.spawn((
+            Name::new("viewer ground"),
+            Mesh3d(meshes_assets.add(Plane3d::new(Vec3::Y, Vec2::splat(ground.half_size)))),
+            MeshMaterial3d(materials.add(StandardMaterial {
+                base_color: Color::srgb(0.6, 0.6, 0.6),
+                perceptual_roughness: 0.9,
+                ..default()
+            })),
+            Transform::from_translation(ground.center),
+            DistanceFieldCaster {
+                source: CasterSource::Plane,
+                ..default()
+            },
+        ));
+    }
+}
+
+/// `--ground`: the square under the scene (its centre on the bounds' bottom, half its
+/// side).
+#[derive(Resource, Clone, Copy, Debug)]
+pub struct ViewerGround {
+    /// Centre of the square, world space.
+    pub center: Vec3,
+    /// Half its side.
+    pub half_size: f32,
 }
 
 /// The world-space box of a local box.
@@ -562,7 +608,11 @@ fn fit_shadow_bias(
     mut fitted: Local<Option<f32>>,
     mut clock: ResMut<BakeClock>,
 ) {
-    if casters.iter().any(|(_, baked, _)| baked.is_none()) {
+    // Mesh casters wait for their bake; analytic ones (capsules, `--ground`) for nothing.
+    if casters
+        .iter()
+        .any(|(c, baked, _)| baked.is_none() && c.source == CasterSource::Mesh)
+    {
         return;
     }
     if clock.1.is_none() {
@@ -615,13 +665,12 @@ fn scene_ready(world: &mut World) -> bool {
     if !world.contains_resource::<Framing>() {
         return false;
     }
+    // Mesh casters wait for their bake; analytic ones (a skinned mesh's capsules) for
+    // nothing.
     let pending = world
-        .query_filtered::<(), (
-            With<DistanceFieldCaster>,
-            Without<SdfBaked>,
-            Without<SdfBakeFailed>,
-        )>()
+        .query_filtered::<&DistanceFieldCaster, (Without<SdfBaked>, Without<SdfBakeFailed>)>()
         .iter(world)
+        .filter(|c| c.source == CasterSource::Mesh)
         .count();
     pending == 0
 }
@@ -794,6 +843,14 @@ fn dump_buffers(app: &mut App, args: &Args, dir: &std::path::Path) -> Result<u64
         fov_deg: framing.fov_deg,
         lights,
         settings: serde_json::json!({
+            "ground": world.get_resource::<ViewerGround>().map(|g| serde_json::json!({
+                "center": g.center.to_array(),
+                "half_size": g.half_size,
+            })),
+            "pose": args.animation.map(|animation| serde_json::json!({
+                "animation": animation,
+                "time": args.time.unwrap_or(0.0),
+            })),
             "casters": {
                 "casters": counts.casters,
                 "two_sided": counts.two_sided,
@@ -801,6 +858,8 @@ fn dump_buffers(app: &mut App, args: &Args, dir: &std::path::Path) -> Result<u64
                 "solid_double_sided": counts.solid_double_sided,
                 "shaded_apart": counts.shaded_apart,
                 "merged_primitives": counts.merged,
+                "capsule_meshes": counts.capsule_meshes,
+                "capsules": counts.capsules,
                 "skipped_skinned": counts.skinned,
                 "skipped_small": counts.small,
                 "skipped_blended": counts.blended,

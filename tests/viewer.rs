@@ -350,13 +350,14 @@ fn viewer_renders_every_shared_scene_and_dumps_its_buffers() {
     );
     let s = check_run("palm_tree", &r, 10);
     assert!(s[0].1 > 0.005, "{s:?}");
-    // The fox is skinned: no caster, nothing breaks.
+    // The fox is skinned: no mesh caster; capsules fitted to its joints cast instead.
     let r = run("fox", &[&scene("Fox.glb")]);
     check_run("fox", &r, 0);
-    assert_eq!(
-        r.meta["settings"]["casters"]["skipped_skinned"].as_u64(),
-        Some(1)
-    );
+    let c = &r.meta["settings"]["casters"];
+    assert_eq!(c["skipped_skinned"].as_u64(), Some(0), "{c}");
+    assert_eq!(c["capsule_meshes"].as_u64(), Some(1), "{c}");
+    let capsules = c["capsules"].as_u64().unwrap_or(0);
+    assert!((6..=24).contains(&capsules), "{c}");
 }
 
 /// The examples' golden-image tolerance.

@@ -82,6 +82,52 @@ pub struct Args {
     /// scale"): 2 halves the voxels' size (8× the atlas), 0.5 doubles it. 1/16 to 8.
     #[arg(long, value_parser = parse_resolution_scale, default_value = "1")]
     pub resolution_scale: f32,
+    /// How skinned meshes cast (`DistanceFieldSceneCasters::skinned`): `capsules` fitted
+    /// to their joints (the default), their `bind-pose` field, or `skip`.
+    #[arg(long, value_parser = parse_skinned, default_value = "capsules")]
+    pub skinned: penumbra::df::SkinnedCasters,
+    /// The fraction of each joint's vertices its fitted capsule holds, in (0, 1]
+    /// (`SkinCapsuleFit::coverage`). Default: the fit's.
+    #[arg(long, value_parser = parse_coverage, allow_hyphen_values = true)]
+    pub capsule_coverage: Option<f32>,
+    /// Pose the scene in its glTF animation N (0-based) at `--time`, held still (the
+    /// nodes' transforms sampled by `penumbra_reference::posed_gltf`, the same pose the
+    /// ray-traced truth uses). Default: the rest pose.
+    #[arg(long, allow_hyphen_values = true)]
+    pub animation: Option<usize>,
+    /// A ground under the scene: a square at the bottom of its bounds, four bounds'
+    /// radii across, casting as a `CasterSource::Plane` (for a character or a prop that
+    /// stands on nothing in its file). `--dump`'s `meta.json` describes it; the truth
+    /// adds its two triangles.
+    #[arg(long)]
+    pub ground: bool,
+    /// Seconds into `--animation`, ≥ 0. Default 0.
+    #[arg(long, value_parser = parse_time, allow_hyphen_values = true)]
+    pub time: Option<f32>,
+}
+
+fn parse_skinned(s: &str) -> Result<penumbra::df::SkinnedCasters, String> {
+    use penumbra::df::SkinnedCasters;
+    match s {
+        "skip" => Ok(SkinnedCasters::Skip),
+        "bind-pose" => Ok(SkinnedCasters::BindPose),
+        "capsules" => Ok(SkinnedCasters::Capsules),
+        _ => Err(format!("{s}: not skip, bind-pose or capsules")),
+    }
+}
+
+fn parse_coverage(s: &str) -> Result<f32, String> {
+    match parse_number(s)? {
+        c if c > 0.0 && c <= 1.0 => Ok(c),
+        c => Err(format!("{c}: a coverage is in (0, 1]")),
+    }
+}
+
+fn parse_time(s: &str) -> Result<f32, String> {
+    match parse_number(s)? {
+        t if t >= 0.0 => Ok(t),
+        t => Err(format!("{t}: a time must be ≥ 0")),
+    }
 }
 
 fn parse_resolution_scale(s: &str) -> Result<f32, String> {
@@ -142,6 +188,12 @@ impl Args {
         }
         if self.ao_max_distance.is_some() && self.plain {
             return err("--ao-max-distance is Penumbra's: not with --plain".into());
+        }
+        if self.time.is_some() && self.animation.is_none() {
+            return err("--time needs --animation".into());
+        }
+        if self.animation.is_some() && self.scene.is_none() {
+            return err("--animation poses a glTF scene: give one".into());
         }
         if self.dump.is_some() && self.plain {
             return err("--dump reads Penumbra's buffers: not with --plain".into());

@@ -249,14 +249,17 @@ fn casters_ui(
     if let Some(c) = counts {
         ui.label(format!(
             "{} casters ({} two-sided, {} ground, {} double-sided but closed: solid, {} shaded \
-             apart from their faces, {} primitives merged into them); skipped: {} skinned, {} \
-             small, {} blended or glass, {} other",
+             apart from their faces, {} primitives merged into them); {} skinned meshes \
+             cast through {} capsules; skipped: {} skinned, {} small, {} blended or glass, {} \
+             other",
             c.casters,
             c.two_sided,
             c.ground,
             c.solid_double_sided,
             c.shaded_apart,
             c.merged,
+            c.capsule_meshes,
+            c.capsules,
             c.skinned,
             c.small,
             c.blended,
@@ -269,6 +272,7 @@ fn casters_ui(
         ui.label("skinned:");
         ui.radio_value(&mut edit.skinned, SkinnedCasters::Skip, "skip");
         ui.radio_value(&mut edit.skinned, SkinnedCasters::BindPose, "bind pose");
+        ui.radio_value(&mut edit.skinned, SkinnedCasters::Capsules, "capsules");
     });
     ui.horizontal(|ui| {
         ui.label("two-sided:");

@@ -77,8 +77,8 @@ pub use scene::{
     DistanceFieldHeightfield, DistanceFieldQuery, DistanceFieldScene, DistanceFieldSceneCaster,
     DistanceFieldSceneCasters, DistanceFieldScenePlugin, DistanceFieldSceneSettings,
     DistanceFieldUploadStats, FOLIAGE_AO_TRANSMISSION, HeightfieldTerrain,
-    MergeDistanceFieldCasters, SceneCasterCounts, SceneHeightfields, SceneTwoSided, SkinnedCasters,
-    SphereHit, mesh_shading_apart,
+    MergeDistanceFieldCasters, SceneCasterCounts, SceneHeightfields, SceneTwoSided, SkinCapsule,
+    SkinCapsuleFit, SkinCapsules, SkinnedCasters, SphereHit, mesh_shading_apart,
 };
 pub use sdf_asset::{SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset, SdfVolumeLoader};
 #[cfg(feature = "bake")]

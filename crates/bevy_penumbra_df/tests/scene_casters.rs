@@ -1,6 +1,6 @@
 //! `DistanceFieldSceneCasters` on real glTF files (`../shared/scenes`): the caster count
 //! and the skip rule per scene, shared bakes across instances of a scene, the skinned Fox
-//! skipped or cast from its bind pose, re-tagging when the settings change, untagging
+//! skipped or cast from its bind pose (`skin_capsules.rs` has its capsules), re-tagging when the settings change, untagging
 //! when the component is removed. Main world only (no GPU): Bevy's renderer is built
 //! with no backend.
 
@@ -9,7 +9,7 @@ use bevy::render::RenderPlugin;
 use bevy::render::settings::{RenderCreation, WgpuSettings};
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_penumbra_df::{
-    DistanceFieldCaster, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
+    CasterSource, DistanceFieldCaster, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
     DistanceFieldScenePlugin, DistanceFieldUploadStats, FOLIAGE_AO_TRANSMISSION,
     MergeDistanceFieldCasters, SceneCasterCounts, SdfAssetPlugin, SdfBakeCache, SdfBakeStats,
     SdfBaked, SkinnedCasters,
@@ -66,7 +66,8 @@ fn spawn(app: &mut App, file: &str, settings: DistanceFieldSceneCasters) -> Enti
         .id()
 }
 
-/// Runs until every tagged caster has its SDF (or 20 s pass).
+/// Runs until every tagged mesh caster has its SDF (or 20 s pass; analytic casters, a
+/// skinned mesh's capsules, have none).
 fn settle(app: &mut App) {
     let start = std::time::Instant::now();
     let mut quiet = 0;
@@ -78,8 +79,9 @@ fn settle(app: &mut App) {
             .iter(world)
             .count();
         let waiting = world
-            .query_filtered::<(), (With<DistanceFieldCaster>, Without<SdfBaked>)>()
+            .query_filtered::<&DistanceFieldCaster, Without<SdfBaked>>()
             .iter(world)
+            .filter(|c| c.source == CasterSource::Mesh)
             .count();
         quiet = if meshes > 0 && waiting == 0 {
             quiet + 1
@@ -164,7 +166,11 @@ fn cornell_box_twice_tags_every_mesh_and_shares_the_bakes() {
 fn fox_is_skipped_or_cast_from_its_bind_pose() {
     let Some(dir) = scenes_dir() else { return };
     let mut app = app(&dir);
-    let root = spawn(&mut app, "Fox.glb", coarse());
+    let skip = DistanceFieldSceneCasters {
+        skinned: SkinnedCasters::Skip,
+        ..coarse()
+    };
+    let root = spawn(&mut app, "Fox.glb", skip);
     settle(&mut app);
     let c = counts(&app, root);
     assert_eq!((c.casters, c.skinned), (0, 1), "{c:?}");
@@ -257,7 +263,11 @@ fn blended_and_transmissive_glass_casts_nothing() {
 fn a_respawned_scene_is_tagged_again_and_counted_once() {
     let Some(dir) = scenes_dir() else { return };
     let mut app = app(&dir);
-    let root = spawn(&mut app, "Fox.glb", coarse());
+    let skip = DistanceFieldSceneCasters {
+        skinned: SkinnedCasters::Skip,
+        ..coarse()
+    };
+    let root = spawn(&mut app, "Fox.glb", skip);
     settle(&mut app);
     assert_eq!(counts(&app, root).skinned, 1);
     // The root's scene is replaced (as a hot reload respawns it): the old instance is

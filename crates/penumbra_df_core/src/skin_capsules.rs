@@ -34,7 +34,10 @@ use glam::{Mat4, Vec3};
 pub struct CapsuleFitSettings {
     /// The fraction of a joint's vertices its capsule should hold, in (0, 1]. Larger
     /// covers outliers (fur tufts, ears) with fatter capsules that shadow too much;
-    /// smaller leaves the edges of a limb out. Default 0.9.
+    /// smaller leaves the edges of a limb out. Default 0.6: the least shadow error on
+    /// the Fox over four poses against ray tracing (mean error on shadowed pixels 0.274 /
+    /// 0.205 / 0.187 / 0.197 / 0.204 at 0.3 / 0.45 / 0.6 / 0.75 / 0.9; same capsule
+    /// count).
     pub coverage: f32,
     /// Joints with fewer vertices get no capsule. Default 16.
     pub min_vertices: usize,
@@ -46,7 +49,7 @@ pub struct CapsuleFitSettings {
 impl Default for CapsuleFitSettings {
     fn default() -> Self {
         Self {
-            coverage: 0.9,
+            coverage: 0.6,
             min_vertices: 16,
             min_radius: 0.15,
         }
@@ -175,7 +178,12 @@ pub fn fit_skin_capsules(input: &SkinInput, settings: &CapsuleFitSettings) -> Ve
         }
     }
     let largest = capsules.iter().map(|c| c.radius).fold(0.0, f32::max);
-    capsules.retain(|c| c.radius > 0.0 && c.radius >= settings.min_radius * largest);
+    let min_radius = if settings.min_radius.is_finite() {
+        settings.min_radius.max(0.0)
+    } else {
+        CapsuleFitSettings::default().min_radius
+    };
+    capsules.retain(|c| c.radius > 0.0 && c.radius >= min_radius * largest);
     capsules
 }
 
@@ -200,7 +208,8 @@ fn bone_directions(input: &SkinInput, joint: usize) -> Vec<Vec3> {
 }
 
 /// The unit eigenvector of the points' covariance with the largest eigenvalue (power
-/// iteration from the box's longest axis); `Vec3::Y` for a degenerate set.
+/// iteration from a direction near the box's diagonal, off every axis, so that it starts
+/// on no other eigenvector of an axis-aligned set); `Vec3::Y` for a degenerate set.
 fn principal_axis(points: &[Vec3]) -> Vec3 {
     let n = points.len() as f64;
     let mean = points
@@ -219,13 +228,9 @@ fn principal_axis(points: &[Vec3]) -> Vec3 {
             (lo.min(*p), hi.max(*p))
         });
     let extent = max - min;
-    let mut v = if extent.x >= extent.y && extent.x >= extent.z {
-        Vec3::X
-    } else if extent.y >= extent.z {
-        Vec3::Y
-    } else {
-        Vec3::Z
-    };
+    let mut v = (extent + Vec3::new(0.013, 0.029, 0.041) * extent.max_element())
+        .try_normalize()
+        .unwrap_or(Vec3::Y);
     for _ in 0..64 {
         let Some(next) = (cov * v).try_normalize() else {
             return v;

@@ -83,6 +83,9 @@ fn sample(
         if times.is_empty() {
             continue;
         }
+        if times.iter().any(|t| !t.is_finite()) || times.windows(2).any(|w| w[0] > w[1]) {
+            return Err("sampler input times not finite and increasing".into());
+        }
         let cubic = channel.sampler().interpolation() == Interpolation::CubicSpline;
         // Cubic splines store (in-tangent, value, out-tangent) per key.
         let value = |k: usize| if cubic { values[3 * k + 1] } else { values[k] };
@@ -263,6 +266,9 @@ pub fn posed_triangles(path: &Path, pose: Option<Pose>) -> Result<PosedTriangles
                         .ok_or("a skinned primitive without WEIGHTS_0")?
                         .into_f32()
                         .collect();
+                    if j.len() < points.len() || w.len() < points.len() {
+                        return Err("JOINTS_0 or WEIGHTS_0 shorter than POSITION".into());
+                    }
                     for (i, p) in points.iter_mut().enumerate() {
                         let mut posed = DVec3::ZERO;
                         for k in 0..4 {

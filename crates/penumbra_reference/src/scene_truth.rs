@@ -121,6 +121,15 @@ impl SceneTriangles {
         Ok(SceneTriangles::new(triangles, double_sided))
     }
 
+    /// These triangles and `extra` (each with `double_sided`), on a new BVH.
+    pub fn with_extra(self, extra: &[[Vec3; 3]], double_sided: bool) -> SceneTriangles {
+        let mut triangles = self.triangles;
+        let mut sides = self.double_sided;
+        triangles.extend_from_slice(extra);
+        sides.extend(std::iter::repeat_n(double_sided, extra.len()));
+        SceneTriangles::new(triangles, sides)
+    }
+
     /// Number of triangles.
     pub fn len(&self) -> usize {
         self.triangles.len()

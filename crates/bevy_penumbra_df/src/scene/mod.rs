@@ -9,8 +9,9 @@
 //!   [`crate::sdf_asset`]; instances of one mesh share one SDF), from an explicit
 //!   [`SdfVolumeAsset`] handle, or from an analytic shape (sphere, box, capsule, plane).
 //!   [`DistanceFieldSceneCasters`] on a glTF scene's root makes every mesh under it a
-//!   caster, by a documented rule (skinned, small and alpha-blended meshes skipped;
-//!   open double-sided and alpha-masked ones two-sided).
+//!   caster, by a documented rule (skinned meshes cast through capsules fitted to their
+//!   joints; small and alpha-blended meshes skipped; open double-sided and alpha-masked
+//!   ones two-sided).
 //! - Every SDF in use is placed once in a 3D `R16Float` **atlas** under a memory budget
 //!   ([`DistanceFieldSceneSettings::atlas_budget_bytes`]); freed space is reused. When a
 //!   volume does not fit, one warning is logged and the volume is halved in resolution
@@ -33,7 +34,8 @@
 //! are as precise as near it. Non-uniform scale is safe: distances are scaled by the
 //! transform's smallest singular value (conservative).
 //!
-//! Limits: skinned and morphing meshes use their bind-pose SDF; the atlas is never
+//! Limits: a skinned mesh's capsules are rigid per joint (no bending within a joint, no
+//! morph targets); its bind-pose SDF, if asked for, does not move with it; the atlas is never
 //! defragmented and holds at most 1024 × 1024 × 4096 voxels (the records' coordinates);
 //! casters are capped ([`DistanceFieldSceneSettings::max_casters`], and the device's
 //! storage-binding limit: 2²⁰ at 128 MiB), the ones beyond it skipped with one warning
@@ -47,6 +49,7 @@ mod query;
 mod render;
 mod scene_casters;
 mod shading;
+mod skin_capsules;
 mod stretch;
 
 use crate::sdf_asset::{SdfBakeFailed, SdfBaked, SdfVolumeAsset};
@@ -74,6 +77,7 @@ pub use scene_casters::{
     SceneCasterCounts, SceneTwoSided, SkinnedCasters,
 };
 pub use shading::{CasterShading, mesh_shading_apart};
+pub use skin_capsules::{SkinCapsule, SkinCapsuleFit, SkinCapsules};
 pub use stretch::{CasterStretch, STRETCH_MAX_RATIO, STRETCH_STEPS_PER_OCTAVE};
 
 /// Adds distance-field casters, the atlas and the object buffer. Part of
@@ -399,6 +403,7 @@ impl Plugin for DistanceFieldScenePlugin {
             .register_type::<MergeDistanceFieldCasters>()
             .register_type::<SceneCasterCounts>()
             .register_type::<CasterShading>()
+            .register_type::<SkinCapsule>()
             .init_resource::<DistanceFieldSceneSettings>()
             .init_resource::<DistanceFieldUploadStats>()
             .init_resource::<DistanceFieldScene>()
@@ -421,6 +426,9 @@ impl Plugin for DistanceFieldScenePlugin {
                     (
                         timed(scene_casters::untag_removed_roots),
                         timed(scene_casters::tag_scene_casters),
+                        timed(skin_capsules::fit_skin_capsule_casters)
+                            .run_if(skin_capsules::skin_assets_exist),
+                        timed(skin_capsules::sync_skin_capsule_visibility),
                         timed(scene_casters::count_scene_casters),
                     )
                         .chain()

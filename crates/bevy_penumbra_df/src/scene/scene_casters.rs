@@ -16,11 +16,16 @@ use bevy::prelude::*;
 /// What [`DistanceFieldSceneCasters`] does with skinned and morphing meshes.
 #[derive(Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum SkinnedCasters {
-    /// Not casters (default): their SDF would not follow the animation.
-    #[default]
+    /// Not casters: a baked field would not follow the animation.
     Skip,
-    /// Casters baked from the bind pose, placed at the mesh entity's transform.
+    /// Casters baked from the bind pose, placed at the mesh entity's transform: right
+    /// for a statue, wrong once it moves.
     BindPose,
+    /// Skinned meshes cast through capsules fitted to their joints, which follow the
+    /// skeleton (default; [`SkinCapsuleFit`](super::SkinCapsuleFit),
+    /// `penumbra_df_core::skin_capsules`). Morphing meshes without a skin are skipped.
+    #[default]
+    Capsules,
 }
 
 /// When [`DistanceFieldSceneCasters`] bakes a mesh two-sided (a shell around every
@@ -45,9 +50,12 @@ pub enum SceneTwoSided {
 /// appears — the scene instanced, spawned later, or respawned by a hot reload — and to
 /// all of them again when the root's settings change:
 ///
-/// 1. **Skinned or morphed** meshes (`SkinnedMesh`, `MeshMorphWeights`): skipped, or cast
-///    from their bind pose ([`SkinnedCasters`]). A bind-pose SDF does not follow the
-///    animation: right for a statue, wrong for a running fox.
+/// 1. **Skinned or morphed** meshes (`SkinnedMesh`, `MeshMorphWeights`): skinned ones cast
+///    through capsules fitted to their joints, following the skeleton (default); or
+///    skipped, or cast from their bind pose ([`SkinnedCasters`]). A bind-pose SDF does
+///    not follow the animation: right for a statue, wrong for a running fox. The
+///    skinned primitives of one glTF mesh are fitted together, on the first
+///    ([`SkinCapsules`](super::SkinCapsules)).
 /// 2. **Not triangles** (lines, points) or no `Float32x3` positions: skipped.
 /// 3. **Small**: the largest side of the mesh's world-space bounding box below
 ///    [`DistanceFieldSceneCasters::min_size`]: skipped (a pebble is not worth a trace).
@@ -101,8 +109,10 @@ pub enum SceneTwoSided {
 #[derive(Component, Reflect, Clone, Debug)]
 #[reflect(Component, Clone, Default)]
 pub struct DistanceFieldSceneCasters {
-    /// Skinned and morphing meshes. Default [`SkinnedCasters::Skip`].
+    /// Skinned and morphing meshes. Default [`SkinnedCasters::Capsules`].
     pub skinned: SkinnedCasters,
+    /// How capsules are fitted to skinned meshes ([`SkinnedCasters::Capsules`]).
+    pub capsules: super::SkinCapsuleFit,
     /// Meshes whose world-space bounding box's largest side is below this many metres
     /// are skipped. Default 0.05 m. 0 keeps every mesh.
     pub min_size: f32,
@@ -120,7 +130,8 @@ pub struct DistanceFieldSceneCasters {
 impl Default for DistanceFieldSceneCasters {
     fn default() -> Self {
         Self {
-            skinned: SkinnedCasters::Skip,
+            skinned: SkinnedCasters::Capsules,
+            capsules: super::SkinCapsuleFit::default(),
             min_size: 0.05,
             two_sided: SceneTwoSided::FromMaterial,
             masked_ao_transmission: super::FOLIAGE_AO_TRANSMISSION,
@@ -163,8 +174,14 @@ pub struct SceneCasterCounts {
     /// Of those, shaded apart from their faces (smooth vertex normals or a normal map:
     /// [`CasterShading`](super::CasterShading)), counted once their SDF has arrived.
     pub shaded_apart: u32,
-    /// Skipped: skinned or morphing (with [`SkinnedCasters::Skip`]).
+    /// Skipped: skinned or morphing (with [`SkinnedCasters::Skip`]), or morphing without
+    /// a skin (with [`SkinnedCasters::Capsules`]).
     pub skinned: u32,
+    /// Skinned meshes cast through fitted capsules ([`SkinnedCasters::Capsules`]; the
+    /// primitives of one glTF mesh count once).
+    pub capsule_meshes: u32,
+    /// The capsule casters made for them, counted once fitted.
+    pub capsules: u32,
     /// Skipped: below [`DistanceFieldSceneCasters::min_size`].
     pub small: u32,
     /// Skipped: alpha-blended or transmissive material.
@@ -199,6 +216,8 @@ enum Verdict {
         double_sided: bool,
     },
     Skinned,
+    /// Cast through capsules fitted to its skin.
+    Capsules,
     Small,
     Blended,
     Unsupported,
@@ -226,11 +245,15 @@ fn verdict(
     mesh: Option<&Mesh>,
     transform: &GlobalTransform,
     material: Option<Option<&StandardMaterial>>,
-    animated: bool,
+    (skinned, morphed): (bool, bool),
     closed: impl FnOnce(&Mesh) -> bool,
 ) -> Verdict {
-    if animated && settings.skinned == SkinnedCasters::Skip {
-        return Verdict::Skinned;
+    match settings.skinned {
+        SkinnedCasters::Capsules if skinned => return Verdict::Capsules,
+        SkinnedCasters::Skip | SkinnedCasters::Capsules if skinned || morphed => {
+            return Verdict::Skinned;
+        }
+        _ => {}
     }
     let Some(mesh) = mesh else {
         return Verdict::Wait;
@@ -321,6 +344,7 @@ pub(super) fn tag_scene_casters(
     drawn_through: Query<(), (With<CasterMesh>, Without<SceneMergedMesh>)>,
     mut merges: Local<MergedMeshes>,
     merge_nodes: Query<(Entity, Ref<MergeDistanceFieldCasters>)>,
+    skins: Query<&SkinnedMesh>,
 ) {
     // No root: nothing to tag (and no ancestor walk for every new mesh).
     if roots.is_empty() {
@@ -404,7 +428,7 @@ pub(super) fn tag_scene_casters(
                     mesh_assets.as_deref().and_then(|a| a.get(&mesh.0)),
                     transform,
                     material,
-                    skinned || morphed,
+                    (skinned, morphed),
                     closed,
                 ))
             };
@@ -459,11 +483,37 @@ pub(super) fn tag_scene_casters(
             })
             .flatten();
         let lead = casting.first().copied();
+        // Skinned primitives cast through capsules fitted over all of them that share a
+        // skeleton, on the first of each skeleton.
+        let mut skeletons: Vec<Vec<Entity>> = Vec::new();
+        let skeleton = |e: Entity| {
+            skins
+                .get(e)
+                .ok()
+                .map(|s| (&s.joints, s.inverse_bindposes.id()))
+        };
+        for (e, _, _) in judged
+            .iter()
+            .filter(|(_, v, _)| *v == Some(Verdict::Capsules))
+        {
+            match skeletons
+                .iter_mut()
+                .find(|g| skeleton(g[0]) == skeleton(*e))
+            {
+                Some(group) => group.push(*e),
+                None => skeletons.push(vec![*e]),
+            }
+        }
         for (member, verdict, tagged) in judged {
             let mut tally = SceneCasterCounts::default();
             // Its `CasterMesh`, if any, is the rule's (a union), not another plugin's.
             let ours = !drawn_through.contains(member);
             let mut commands = commands.entity(member);
+            // Capsules already made are made again (the settings may have changed).
+            commands.remove::<(
+                super::SkinCapsules,
+                super::skin_capsules::SkinCapsuleRequest,
+            )>();
             match verdict {
                 None => tally.own = 1,
                 Some(Verdict::Caster {
@@ -491,6 +541,18 @@ pub(super) fn tag_scene_casters(
                 Some(Verdict::Caster { .. }) => {
                     tally.merged = 1;
                     untag(&mut commands, ours);
+                }
+                Some(Verdict::Capsules) => {
+                    if tagged {
+                        untag(&mut commands, ours);
+                    }
+                    if let Some(group) = skeletons.iter().find(|g| g[0] == member) {
+                        tally.capsule_meshes = 1;
+                        commands.insert(super::skin_capsules::SkinCapsuleRequest {
+                            root,
+                            meshes: group.clone(),
+                        });
+                    }
                 }
                 Some(skipped) => {
                     match skipped {
@@ -724,20 +786,31 @@ pub(super) fn count_scene_casters(
     roots: Query<(Entity, Option<&SceneCasterCounts>), With<DistanceFieldSceneCasters>>,
     added_roots: Query<(), Added<DistanceFieldSceneCasters>>,
     children: Query<&Children>,
-    verdicts: Query<(&SceneMeshVerdict, Option<&super::CasterShading>)>,
+    verdicts: Query<(
+        &SceneMeshVerdict,
+        Option<&super::CasterShading>,
+        Option<&super::SkinCapsules>,
+    )>,
+    capsules_changed: Query<(), (Changed<super::SkinCapsules>, With<SceneMeshVerdict>)>,
 ) {
     let removed = removed.read().count() > 0;
-    if changed.is_empty() && shading_changed.is_empty() && !removed && added_roots.is_empty() {
+    if changed.is_empty()
+        && shading_changed.is_empty()
+        && capsules_changed.is_empty()
+        && !removed
+        && added_roots.is_empty()
+    {
         return;
     }
     for (root, counts) in &roots {
         let mut sum = SceneCasterCounts::default();
-        for (v, shading) in std::iter::once(root)
+        for (v, shading, capsules) in std::iter::once(root)
             .chain(children.iter_descendants(root))
             .filter_map(|e| verdicts.get(e).ok())
         {
             add_counts(&mut sum, &v.counts);
             sum.shaded_apart += u32::from(v.counts.casters > 0 && shading.is_some_and(|s| s.apart));
+            sum.capsules += capsules.map_or(0, |c| c.0.len() as u32);
         }
         if counts != Some(&sum) {
             commands.entity(root).insert(sum);
@@ -752,6 +825,8 @@ fn add_counts(c: &mut SceneCasterCounts, t: &SceneCasterCounts) {
     c.ground += t.ground;
     c.shaded_apart += t.shaded_apart;
     c.skinned += t.skinned;
+    c.capsule_meshes += t.capsule_meshes;
+    c.capsules += t.capsules;
     c.small += t.small;
     c.blended += t.blended;
     c.unsupported += t.unsupported;
@@ -779,10 +854,14 @@ pub(super) fn untag_removed_roots(
             }
         }
     }
-    // Verdicts under a root that is no longer one are stale.
+    // Verdicts under a root that is no longer one are stale, and its capsules go.
     for (entity, verdict) in &judged {
         if removed.contains(&verdict.root) {
-            commands.entity(entity).remove::<SceneMeshVerdict>();
+            commands.entity(entity).remove::<(
+                SceneMeshVerdict,
+                super::SkinCapsules,
+                super::skin_capsules::SkinCapsuleRequest,
+            )>();
         }
     }
     for root in removed {

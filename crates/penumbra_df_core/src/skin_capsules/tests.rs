@@ -1,8 +1,8 @@
 use super::*;
 use glam::{DVec3, Quat};
 
-/// A tube of `radius` along x from 0 to `length` (rings of 24 vertices every 1 cm, and
-/// caps), skinned to two joints: joint 0 at the origin, joint 1 (its child) at
+/// A tube of `radius` along x from 0 to `length` (rings of 24 vertices every 1 cm),
+/// skinned to two joints: joint 0 at the origin, joint 1 (its child) at
 /// `length / 2`; each vertex wholly to the nearer joint's side.
 struct Arm {
     positions: Vec<Vec3>,
@@ -72,10 +72,18 @@ fn distance_f64(c: &FittedCapsule, p: DVec3) -> f64 {
     (p - (a + t * ab)).length() - f64::from(c.radius)
 }
 
+/// Nine tenths of the vertices, as `coverage: 0.9` asks.
+fn nine_tenths() -> CapsuleFitSettings {
+    CapsuleFitSettings {
+        coverage: 0.9,
+        ..CapsuleFitSettings::default()
+    }
+}
+
 #[test]
 fn a_tube_gets_one_capsule_per_joint_along_its_bone() {
     let arm = arm(0.1, 1.0);
-    let capsules = fit_skin_capsules(&arm.input(), &CapsuleFitSettings::default());
+    let capsules = fit_skin_capsules(&arm.input(), &nine_tenths());
     assert_eq!(capsules.len(), 2, "{capsules:?}");
     for c in &capsules {
         // Along x, as thick as the tube, its core as long as the joint's half of it
@@ -105,45 +113,65 @@ fn a_tube_gets_one_capsule_per_joint_along_its_bone() {
 
 #[test]
 fn the_capsules_follow_their_joints_as_the_skin_does() {
-    // Bend the arm 90° at its elbow (joint 1), skin its vertices on the CPU (weights of
-    // one: each vertex moves rigidly with its joint), and place each capsule by its
-    // joint's posed transform: every posed vertex inside lies inside its capsule.
-    let arm = arm(0.1, 1.0);
-    let capsules = fit_skin_capsules(&arm.input(), &CapsuleFitSettings::default());
+    // Blend the weights across the elbow (vertices within 5 cm of it weigh both
+    // joints), bend the elbow 90°, skin the vertices on the CPU (linear blend skinning)
+    // and place each capsule in world space by its joint's posed transform: most of each
+    // joint's vertices lie within 2 cm of its capsule, measured in world space.
+    let mut arm = arm(0.1, 1.0);
+    for (i, p) in arm.positions.iter().enumerate() {
+        let w1 = ((p.x - 0.45) / 0.1).clamp(0.0, 1.0);
+        arm.joints[i] = [0, 1, 0, 0];
+        arm.weights[i] = [1.0 - w1, w1, 0.0, 0.0];
+    }
+    let capsules = fit_skin_capsules(&arm.input(), &nine_tenths());
+    assert_eq!(capsules.len(), 2);
     let shoulder =
         Mat4::from_rotation_translation(Quat::from_rotation_y(0.4), Vec3::new(2.0, 1.0, -3.0));
     let elbow = shoulder
-        * Mat4::from_rotation_translation(Quat::from_rotation_z(1.2), Vec3::new(0.5, 0.0, 0.0));
+        * Mat4::from_rotation_translation(
+            Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
+            Vec3::new(0.5, 0.0, 0.0),
+        );
     let joints_world = [shoulder, elbow];
-    for c in &capsules {
-        let world_from_joint = joints_world[c.joint];
-        let (mut n, mut inside) = (0, 0);
-        for (p, j) in arm.positions.iter().zip(&arm.joints) {
-            let j = usize::from(j[0]);
-            if j != c.joint {
-                continue;
-            }
-            // Linear blend skinning: world = joint_world · inverse_bind · bind position.
-            let posed = (joints_world[j] * arm.inverse_bindposes[j]).transform_point3(*p);
-            let in_joint = world_from_joint.inverse().transform_point3(posed);
-            n += 1;
-            inside += usize::from(distance_f64(c, in_joint.as_dvec3()) <= 1e-4);
-        }
-        assert!(inside as f32 / n as f32 > 0.85, "{inside}/{n} {c:?}");
-    }
-    // The elbow's capsule, in world space, lies along the bent forearm.
-    let forearm = capsules
+    let posed: Vec<Vec3> = arm
+        .positions
         .iter()
-        .find(|c| c.joint == 1)
-        .expect("a forearm capsule");
-    let axis_world = elbow.transform_vector3(forearm.axis).normalize();
-    let bone_world = shoulder
-        .transform_vector3(Quat::from_rotation_z(1.2) * Vec3::X)
-        .normalize();
-    assert!(
-        axis_world.dot(bone_world).abs() > 0.999,
-        "{axis_world} {bone_world}"
-    );
+        .zip(&arm.weights)
+        .map(|(p, w)| {
+            (0..2)
+                .map(|j| w[j] * (joints_world[j] * arm.inverse_bindposes[j]).transform_point3(*p))
+                .sum()
+        })
+        .collect();
+    let owners = dominant_vertices(&arm.input());
+    for c in &capsules {
+        // The capsule's ends in world space.
+        let m = joints_world[c.joint];
+        let (a, b) = (
+            m.transform_point3(c.center - c.axis * c.half_length),
+            m.transform_point3(c.center + c.axis * c.half_length),
+        );
+        let world = FittedCapsule {
+            center: (a + b) * 0.5,
+            axis: (b - a).normalize_or(Vec3::X),
+            half_length: (b - a).length() * 0.5,
+            ..*c
+        };
+        let near = owners[c.joint]
+            .iter()
+            .filter(|&&v| distance_f64(&world, posed[v].as_dvec3()) <= 0.02)
+            .count();
+        let fraction = near as f32 / owners[c.joint].len() as f32;
+        assert!(fraction > 0.85, "joint {}: {fraction} {c:?}", c.joint);
+    }
+    // The forearm's capsule lies along the bent forearm (world space), the upper arm's
+    // along the upper arm.
+    let direction = |c: &FittedCapsule| joints_world[c.joint].transform_vector3(c.axis).normalize();
+    let bone = |j: usize| joints_world[j].transform_vector3(Vec3::X).normalize();
+    for c in &capsules {
+        assert!(direction(c).dot(bone(c.joint)).abs() > 0.999, "{c:?}");
+    }
+    assert!(bone(0).dot(bone(1)).abs() < 1e-3, "the elbow is bent 90°");
 }
 
 #[test]

@@ -2,8 +2,9 @@ use super::*;
 use base64::Engine;
 
 /// A glTF with one triangle skinned to joint 1 (child of joint 0, 1 m up the x axis),
-/// whose animation turns joint 1 about z from 0 to 90° over one second, with the given
-/// interpolation. The mesh's own node is translated far away (ignored when skinned).
+/// whose animation turns joint 1 about z from 0 to 90° over `KEY_INTERVAL` seconds, with
+/// the given interpolation (cubic spline: the tangents of [`TANGENTS`]). The mesh's own
+/// node is translated far away (ignored when skinned).
 fn arm_gltf(interpolation: &str) -> Vec<u8> {
     let mut bin: Vec<u8> = Vec::new();
     let mut views = Vec::new();
@@ -36,16 +37,13 @@ fn arm_gltf(interpolation: &str) -> Vec<u8> {
     ]);
     push(f32s(&ibm));
     // 4: times; 5: rotations (quaternions about z: 0°, 90°).
-    push(f32s(&[0.0, 1.0]));
-    let h = std::f32::consts::FRAC_1_SQRT_2;
-    let keys = [[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, h, h]];
+    push(f32s(&[0.0, KEY_INTERVAL]));
     let rotations: Vec<f32> = if interpolation == "CUBICSPLINE" {
-        // Zero tangents: a smoothstep between the keys.
-        keys.iter()
-            .flat_map(|k| [[0.0; 4], *k, [0.0; 4]].concat())
-            .collect()
+        // (in-tangent, value, out-tangent) per key.
+        let [in0, out0, in1, out1] = TANGENTS;
+        [in0, KEYS[0], out0, in1, KEYS[1], out1].concat()
     } else {
-        keys.concat()
+        KEYS.concat()
     };
     push(f32s(&rotations));
     let views_json: Vec<String> = views
@@ -66,7 +64,7 @@ fn arm_gltf(interpolation: &str) -> Vec<u8> {
           {{"bufferView":1,"componentType":5123,"count":3,"type":"VEC4"}},
           {{"bufferView":2,"componentType":5126,"count":3,"type":"VEC4"}},
           {{"bufferView":3,"componentType":5126,"count":2,"type":"MAT4"}},
-          {{"bufferView":4,"componentType":5126,"count":2,"type":"SCALAR","min":[0],"max":[1]}},
+          {{"bufferView":4,"componentType":5126,"count":2,"type":"SCALAR","min":[0],"max":[{KEY_INTERVAL}]}},
           {{"bufferView":5,"componentType":5126,"count":{n_rot},"type":"VEC4"}}],
         "bufferViews":[{}],
         "buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{}"}}]}}"#,
@@ -76,6 +74,27 @@ fn arm_gltf(interpolation: &str) -> Vec<u8> {
     );
     json.into_bytes()
 }
+
+/// The two keys' rotations: 0° and 90° about z.
+const KEYS: [[f32; 4]; 2] = [
+    [0.0, 0.0, 0.0, 1.0],
+    [
+        0.0,
+        0.0,
+        std::f32::consts::FRAC_1_SQRT_2,
+        std::f32::consts::FRAC_1_SQRT_2,
+    ],
+];
+/// Seconds between the keys.
+const KEY_INTERVAL: f32 = 2.0;
+/// Cubic-spline tangents (per second), all different: key 0's in and out, key 1's in and
+/// out. Only key 0's out and key 1's in shape the curve between them.
+const TANGENTS: [[f32; 4]; 4] = [
+    [9.0, 9.0, 9.0, 9.0],
+    [0.0, 0.0, 0.3, 0.0],
+    [0.0, 0.0, -0.2, 0.1],
+    [-9.0, 9.0, -9.0, 9.0],
+];
 
 fn posed(interpolation: &str, time: Option<f32>) -> Vec<Vec3> {
     let dir = std::env::temp_dir().join(format!("penumbra_posed_{}", std::process::id()));
@@ -113,21 +132,30 @@ fn a_skinned_triangle_follows_its_animated_joint() {
     // Rest pose = bind pose: the mesh as stored (its node's translation ignored).
     assert_near(&posed("LINEAR", None), &turned(0.0));
     // Linear: slerp, 45° at half time; clamped past the last key.
-    assert_near(&posed("LINEAR", Some(0.5)), &turned(45.0));
-    assert_near(&posed("LINEAR", Some(0.25)), &turned(22.5));
+    assert_near(&posed("LINEAR", Some(1.0)), &turned(45.0));
+    assert_near(&posed("LINEAR", Some(0.5)), &turned(22.5));
     assert_near(&posed("LINEAR", Some(7.0)), &turned(90.0));
     // Step: the key before.
-    assert_near(&posed("STEP", Some(0.99)), &turned(0.0));
-    assert_near(&posed("STEP", Some(1.0)), &turned(90.0));
-    // Cubic spline with zero tangents: a smoothstep of the quaternion, normalized:
-    // at a quarter, the components blend by 3s² − 2s³ = 0.15625.
-    let s = 0.15625f32;
-    let h = std::f32::consts::FRAC_1_SQRT_2;
-    let q = glam::Quat::from_xyzw(0.0, 0.0, s * h, 1.0 - s + s * h).normalize();
+    assert_near(&posed("STEP", Some(1.99)), &turned(0.0));
+    assert_near(&posed("STEP", Some(2.0)), &turned(90.0));
+    // Cubic spline (glTF 2.0 Appendix C): at s = t / Δ, Δ = 2 s,
+    // (2s³ − 3s² + 1) v₀ + Δ (s³ − 2s² + s) b₀ + (−2s³ + 3s²) v₁ + Δ (s³ − s²) a₁, with
+    // key 0's out-tangent b₀ and key 1's in-tangent a₁; then normalized.
+    let (dt, s) = (KEY_INTERVAL, 0.25f32);
+    let h = [
+        2.0 * s.powi(3) - 3.0 * s * s + 1.0,
+        dt * (s.powi(3) - 2.0 * s * s + s),
+        -2.0 * s.powi(3) + 3.0 * s * s,
+        dt * (s.powi(3) - s * s),
+    ];
+    let q: [f32; 4] = std::array::from_fn(|i| {
+        h[0] * KEYS[0][i] + h[1] * TANGENTS[1][i] + h[2] * KEYS[1][i] + h[3] * TANGENTS[2][i]
+    });
+    let q = glam::Quat::from_array(q).normalize();
     let (axis, angle) = q.to_axis_angle();
-    assert!(axis.z > 0.999);
+    assert!(axis.z > 0.999, "{q:?}");
     assert_near(
-        &posed("CUBICSPLINE", Some(0.25)),
+        &posed("CUBICSPLINE", Some(s * dt)),
         &turned(angle.to_degrees()),
     );
 }
@@ -148,7 +176,7 @@ fn a_bad_animation_index_is_an_error() {
         &path,
         Pose {
             animation: 0,
-            time: 0.5,
+            time: 1.0,
         },
     )
     .unwrap();
