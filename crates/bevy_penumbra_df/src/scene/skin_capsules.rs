@@ -163,20 +163,8 @@ pub(super) fn fit_skin_capsule_casters(
     mut skin_events: MessageReader<AssetEvent<SkinnedMeshInverseBindposes>>,
 ) {
     // A reloaded mesh or skin is fitted again.
-    let stale: Vec<AssetId<Mesh>> = mesh_events
-        .read()
-        .filter_map(|e| match e {
-            AssetEvent::Modified { id } | AssetEvent::Removed { id } => Some(*id),
-            _ => None,
-        })
-        .collect();
-    let stale_skins: Vec<AssetId<SkinnedMeshInverseBindposes>> = skin_events
-        .read()
-        .filter_map(|e| match e {
-            AssetEvent::Modified { id } | AssetEvent::Removed { id } => Some(*id),
-            _ => None,
-        })
-        .collect();
+    let stale = changed_assets(&mut mesh_events);
+    let stale_skins = changed_assets(&mut skin_events);
     if !stale.is_empty() || !stale_skins.is_empty() {
         fits.retain(|(meshes, skin, _), _| {
             !stale_skins.contains(skin) && !meshes.iter().any(|m| stale.contains(m))
@@ -317,6 +305,17 @@ pub(super) fn sync_skin_capsule_visibility(
             }
         }
     }
+}
+
+/// The assets modified or removed since the last read.
+fn changed_assets<A: Asset>(events: &mut MessageReader<AssetEvent<A>>) -> Vec<AssetId<A>> {
+    events
+        .read()
+        .filter_map(|e| match e {
+            AssetEvent::Modified { id } | AssetEvent::Removed { id } => Some(*id),
+            _ => None,
+        })
+        .collect()
 }
 
 /// Whether the app has meshes and skins (headless logic apps may have neither).
