@@ -23,6 +23,8 @@
 //!   and which bricks are valid.
 //! - [`skin_capsules`]: capsules fitted to a skinned mesh's joints, the casters of an
 //!   animated character.
+//! - [`rebake`]: the GPU re-bake of a posed mesh (a hero character) into its atlas
+//!   volume: the cube it fills, the pass's uniform and output layout.
 //! - [`cull`]: frustum planes and the oriented-box test the GPU culling pass runs, as the
 //!   CPU reference the GPU output is compared with.
 //!
@@ -43,6 +45,7 @@ pub mod msaa;
 pub mod object;
 pub mod particles;
 pub mod query;
+pub mod rebake;
 pub mod shadow;
 pub mod skin_capsules;
 pub mod table;

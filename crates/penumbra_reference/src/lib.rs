@@ -32,6 +32,8 @@
 //!   visibility and ambient occlusion per pixel, as the scene viewer's `--dump` shows them.
 //! - [`posed_gltf`]: a glTF scene's triangles in an animation's pose (skinned meshes
 //!   deformed by their joints on the CPU) — the truth for characters.
+//! - [`rebake`]: the GPU re-bake of a posed mesh — exact distances to its triangles,
+//!   signed by their winding number — on `penumbra_df_core::rebake`'s grid.
 //! - [`npy`]: float32 `.npy` files (the viewer's dumps, the truth written beside them).
 //! - [`scene`]: an analytic ray-traced scene (spheres, planes, directional lights with hard
 //!   shadows) shaded with [`pbr`], the expected image of simple GPU render tests.
@@ -48,6 +50,7 @@ pub mod npy;
 pub mod particles;
 pub mod pbr;
 pub mod posed_gltf;
+pub mod rebake;
 pub mod reflections;
 pub mod scene;
 pub mod scene_truth;

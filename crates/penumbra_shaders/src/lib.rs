@@ -71,6 +71,7 @@ shader_files! {
     "df/global_field.wgsl" => Some("penumbra::df::global_field"),
     "df/heightfield.wgsl" => Some("penumbra::df::heightfield"),
     "df/particles.wgsl" => Some("penumbra::df::particles"),
+    "df/rebake.wgsl" => Some("penumbra::df::rebake"),
     "df/particles_draw.wgsl" => None,
     "df/global_field_debug.wgsl" => Some("penumbra::df::global_field_debug"),
     "lighting/masks.wgsl" => Some("penumbra::lighting::masks"),

@@ -365,6 +365,38 @@ fn particle_layouts_match() {
     );
 }
 
+/// The posed-mesh re-bake: `RebakeParams` laid out by `encase` as the WGSL struct, and
+/// the tile and workgroup the Rust side dispatches by.
+#[test]
+fn rebake_layout_and_constants_match() {
+    use encase::ShaderType;
+    use penumbra_df_core::rebake::{RebakeParams, TRIANGLE_TILE, WORKGROUP_SAMPLES};
+    let m = parse("#import penumbra::df::rebake\n");
+    let (members, size) = struct_layout(&m, "RebakeParams");
+    assert_eq!(u64::from(size), RebakeParams::min_size().get());
+    let names: Vec<&str> = members.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        ["voxel_size", "resolution", "triangles", "row_words"]
+    );
+    assert_eq!(constant(&m, "TRIANGLE_TILE") as u32, TRIANGLE_TILE);
+    let entry = m
+        .entry_points
+        .iter()
+        .find(|e| e.name == "rebake")
+        .expect("entry point");
+    // Two samples along x per invocation.
+    assert_eq!(
+        [
+            2 * entry.workgroup_size[0],
+            entry.workgroup_size[1],
+            entry.workgroup_size[2]
+        ],
+        WORKGROUP_SAMPLES.to_array()
+    );
+    assert_eq!(entry.workgroup_size.iter().product::<u32>(), TRIANGLE_TILE);
+}
+
 #[test]
 fn bokeh_layouts_and_constants_match() {
     use encase::ShaderType;
