@@ -91,11 +91,17 @@ fn rebake_matches_the_model() {
     // More than one tile of triangles, the last one partial. Far from the origin,
     // as a character in a large level is.
     let far = Vec3::new(4000.0, 12.0, -2500.0);
-    let mut triangles = sphere(far + Vec3::new(-0.4, 0.0, 0.0), 0.35, 6, 10);
-    triangles.extend(open_box(
-        far + Vec3::new(0.4, 0.0, 0.1),
-        Vec3::new(0.3, 0.25, 0.3),
-    ));
+    let mut triangles = placed(
+        &shapes::sphere(0.35, 10, 6),
+        far + Vec3::new(-0.4, 0.0, 0.0),
+    );
+    // A box with its top left open.
+    let h = Vec3::new(0.3, 0.25, 0.3);
+    triangles.extend(
+        placed(&shapes::cuboid(h), far + Vec3::new(0.4, 0.0, 0.1))
+            .into_iter()
+            .filter(|t| t.iter().any(|v| v.y < far.y + h.y - 1e-3)),
+    );
     triangles.push([Vec3::NAN, far, far + Vec3::X]);
     let (lo, hi) = bounds(&triangles).expect("bounds");
     let grid = RebakeGrid::around(lo, hi, 24).expect("grid");
