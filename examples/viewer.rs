@@ -174,6 +174,27 @@ fn add_viewer(app: &mut App, args: &Args) {
         )
             .chain(),
     );
+    if let Some(resolution) = args.rebake {
+        // Every skinned mesh re-baked on the GPU from its pose.
+        app.add_systems(
+            Update,
+            move |mut commands: Commands,
+                  skinned: Query<
+                Entity,
+                (
+                    With<bevy::mesh::skinning::SkinnedMesh>,
+                    Without<DistanceFieldRebake>,
+                ),
+            >| {
+                for entity in &skinned {
+                    commands.entity(entity).insert(DistanceFieldRebake {
+                        resolution,
+                        ..default()
+                    });
+                }
+            },
+        );
+    }
     if args.scene.is_none() {
         app.add_plugins(showcase::ShowcaseScenePlugin)
             .add_systems(PostStartup, adopt_showcase);
@@ -207,7 +228,11 @@ fn spawn_scene(mut commands: Commands, args: Res<ViewerArgs>, assets: Res<AssetS
     if !args.0.plain {
         root.insert(DistanceFieldSceneCasters {
             two_sided: args.0.two_sided,
-            skinned: args.0.skinned,
+            skinned: if args.0.rebake.is_some() {
+                penumbra::df::SkinnedCasters::Skip
+            } else {
+                args.0.skinned
+            },
             capsules: penumbra::df::SkinCapsuleFit {
                 coverage: args
                     .0
@@ -861,6 +886,10 @@ fn dump_buffers(app: &mut App, args: &Args, dir: &std::path::Path) -> Result<u64
                 "capsule_meshes": counts.capsule_meshes,
                 "capsules": counts.capsules,
                 "skipped_skinned": counts.skinned,
+                "rebaked": world
+                    .query_filtered::<(), With<penumbra::df::RebakedFrom>>()
+                    .iter(world)
+                    .count(),
                 "skipped_small": counts.small,
                 "skipped_blended": counts.blended,
                 "skipped_other": counts.unsupported,

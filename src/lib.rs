@@ -122,10 +122,11 @@ pub mod prelude {
     };
     pub use bevy_penumbra_df::{
         CasterSource, DeferredMsaa, DeferredMsaaShading, DistanceFieldCaster,
-        DistanceFieldHeightfield, DistanceFieldParticles, DistanceFieldQuery, DistanceFieldScene,
-        DistanceFieldSceneCasters, DistanceFieldSceneSettings, DistanceFieldUploadStats,
-        GlobalDistanceField, GlobalDistanceFieldStats, MergeDistanceFieldCasters, PenumbraLighting,
-        PenumbraLightingPlugin, SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset,
+        DistanceFieldHeightfield, DistanceFieldParticles, DistanceFieldQuery, DistanceFieldRebake,
+        DistanceFieldScene, DistanceFieldSceneCasters, DistanceFieldSceneSettings,
+        DistanceFieldUploadStats, GlobalDistanceField, GlobalDistanceFieldStats,
+        MergeDistanceFieldCasters, PenumbraLighting, PenumbraLightingPlugin, SdfAssetPlugin,
+        SdfBakeFailed, SdfBaked, SdfVolumeAsset,
     };
     #[cfg(feature = "ao")]
     pub use bevy_penumbra_df::{

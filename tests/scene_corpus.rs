@@ -1,5 +1,6 @@
 //! The scene corpus: every scene in `../shared/scenes` rendered by the scene viewer
-//! headless (the skinned Fox walking, on a ground, cast by its fitted capsules, #48), with a fixed sun per scene and the viewer's
+//! headless (the skinned Fox walking, on a ground, cast by its fitted capsules and, again,
+//! by its field re-baked on the GPU from the pose, #48), with a fixed sun per scene and the viewer's
 //! framed camera, its sun visibility and DFAO dumps compared with ray-traced truth on the
 //! scene's triangles (`examples/scene_truth.rs`, `penumbra_reference::scene_truth`, the
 //! raster convention: what Bevy draws).
@@ -45,6 +46,16 @@ struct Case {
     file: &'static str,
     flags: &'static [&'static str],
     bounds: Bounds,
+}
+
+impl Case {
+    /// The table's name for it: the file, and the re-bake's resolution where it has one.
+    fn label(&self) -> String {
+        match self.flags.iter().position(|f| *f == "--rebake") {
+            Some(i) => format!("{} (re-baked {}³)", self.file, self.flags[i + 1]),
+            None => self.file.to_string(),
+        }
+    }
 }
 
 const fn b(shadowed: f64, all: f64, ao: f64) -> Bounds {
@@ -117,6 +128,20 @@ const CORPUS: &[Case] = &[
         flags: &["--ground", "--animation", "1", "--time", "0.35"],
         bounds: b(0.25, 0.06, 0.05),
     },
+    // #48: the same Fox re-baked on the GPU from its pose (`DistanceFieldRebake`, 48³).
+    Case {
+        file: "Fox.glb",
+        flags: &[
+            "--ground",
+            "--animation",
+            "1",
+            "--time",
+            "0.35",
+            "--rebake",
+            "48",
+        ],
+        bounds: b(0.12, 0.04, 0.03),
+    },
     Case {
         file: "faces.glb",
         flags: &[],
@@ -143,7 +168,7 @@ fn every_shared_scene_shadows_and_occludes_as_ray_tracing_says() {
     let mut failures = Vec::new();
     for case in CORPUS {
         let scene = dir.join(case.file);
-        let name = case.file.replace(['/', '.'], "_");
+        let name = case.label().replace(['/', '.', ' ', '(', ')', '³'], "_");
         let dump = out.join(&name);
         let _ = std::fs::remove_dir_all(&dump);
         let (scene_s, dump_s) = (scene.display().to_string(), dump.display().to_string());
@@ -179,7 +204,7 @@ fn every_shared_scene_shadows_and_occludes_as_ray_tracing_says() {
         writeln!(
             table,
             "| {} | {:.3} | {:.0} % | {:.3} | {:.2} / {:.2} | {:.3} | {:.2} / {:.2} | {:.0} | {} |",
-            case.file,
+            case.label(),
             got.shadowed,
             check.shading_turned_away.unwrap_or(0.0) * 100.0,
             got.all,
@@ -195,7 +220,8 @@ fn every_shared_scene_shadows_and_occludes_as_ray_tracing_says() {
         if !within(case.bounds) {
             failures.push(format!(
                 "{}: {got:?} beyond its bounds {:?}",
-                case.file, case.bounds
+                case.label(),
+                case.bounds
             ));
         }
     }

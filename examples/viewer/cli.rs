@@ -86,6 +86,11 @@ pub struct Args {
     /// to their joints (the default), their `bind-pose` field, or `skip`.
     #[arg(long, value_parser = parse_skinned, default_value = "capsules")]
     pub skinned: penumbra::df::SkinnedCasters,
+    /// Re-bake every skinned mesh's distance field on the GPU from its pose, a cube of
+    /// R³ samples (`DistanceFieldRebake`, R a multiple of 8 in 16–128), instead of
+    /// `--skinned`. Default: off.
+    #[arg(long, value_name = "R")]
+    pub rebake: Option<u32>,
     /// The fraction of each joint's vertices its fitted capsule holds, in (0, 1]
     /// (`SkinCapsuleFit::coverage`). Default: the fit's.
     #[arg(long, value_parser = parse_coverage, allow_hyphen_values = true)]

@@ -5,44 +5,23 @@
 //! with no backend.
 
 use bevy::prelude::*;
-use bevy::render::RenderPlugin;
-use bevy::render::settings::{RenderCreation, WgpuSettings};
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_penumbra_df::{
     CasterSource, DistanceFieldCaster, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
-    DistanceFieldScenePlugin, DistanceFieldUploadStats, FOLIAGE_AO_TRANSMISSION,
-    MergeDistanceFieldCasters, SceneCasterCounts, SdfAssetPlugin, SdfBakeCache, SdfBakeStats,
-    SdfBaked, SkinnedCasters,
+    DistanceFieldUploadStats, FOLIAGE_AO_TRANSMISSION, MergeDistanceFieldCasters,
+    SceneCasterCounts, SdfBakeStats, SdfBaked, SkinnedCasters,
 };
 use std::path::PathBuf;
 
+#[path = "support/scenes_app.rs"]
+mod support;
+
 fn scenes_dir() -> Option<PathBuf> {
-    let dir = penumbra_testkit::shared_dir("scene_casters", env!("CARGO_MANIFEST_DIR"), "scenes")?;
-    Some(dir.canonicalize().expect("scenes dir"))
+    support::scenes_dir("scene_casters")
 }
 
 fn app(dir: &std::path::Path) -> App {
-    let mut app = App::new();
-    app.add_plugins(
-        DefaultPlugins
-            .set(AssetPlugin {
-                file_path: dir.to_string_lossy().into_owned(),
-                ..default()
-            })
-            .set(RenderPlugin {
-                render_creation: RenderCreation::from(WgpuSettings {
-                    backends: None,
-                    ..default()
-                }),
-                ..default()
-            })
-            .disable::<bevy::winit::WinitPlugin>(),
-    )
-    .insert_resource(SdfBakeCache::with_directory(None))
-    .add_plugins((SdfAssetPlugin, DistanceFieldScenePlugin));
-    app.finish();
-    app.cleanup();
-    app
+    support::scenes_app_at(dir)
 }
 
 /// Coarse bakes: the tests are about tagging, not accuracy.

@@ -6,42 +6,19 @@
 //! moved, hide with the mesh, and go with the settings or the root. Main world only (no
 //! GPU).
 
-use bevy::mesh::VertexAttributeValues;
-use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
+use bevy::mesh::skinning::SkinnedMesh;
 use bevy::prelude::*;
-use bevy::render::RenderPlugin;
-use bevy::render::settings::{RenderCreation, WgpuSettings};
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_penumbra_df::{
-    CasterSource, DistanceFieldCaster, DistanceFieldSceneCasters, DistanceFieldScenePlugin,
-    DistanceFieldUploadStats, SceneCasterCounts, SdfAssetPlugin, SdfBakeCache, SkinCapsule,
-    SkinCapsules, SkinnedCasters,
+    CasterSource, DistanceFieldCaster, DistanceFieldSceneCasters, DistanceFieldUploadStats,
+    SceneCasterCounts, SkinCapsule, SkinCapsules, SkinnedCasters,
 };
 
+#[path = "support/scenes_app.rs"]
+mod support;
+
 fn app() -> Option<App> {
-    let dir = penumbra_testkit::shared_dir("skin_capsules", env!("CARGO_MANIFEST_DIR"), "scenes")?;
-    let dir = dir.canonicalize().expect("scenes dir");
-    let mut app = App::new();
-    app.add_plugins(
-        DefaultPlugins
-            .set(AssetPlugin {
-                file_path: dir.to_string_lossy().into_owned(),
-                ..default()
-            })
-            .set(RenderPlugin {
-                render_creation: RenderCreation::from(WgpuSettings {
-                    backends: None,
-                    ..default()
-                }),
-                ..default()
-            })
-            .disable::<bevy::winit::WinitPlugin>(),
-    )
-    .insert_resource(SdfBakeCache::with_directory(None))
-    .add_plugins((SdfAssetPlugin, DistanceFieldScenePlugin));
-    app.finish();
-    app.cleanup();
-    Some(app)
+    support::scenes_app("skin_capsules")
 }
 
 /// Spawns the Fox and runs until its capsules exist (or 20 s pass); the root and the
@@ -91,54 +68,6 @@ fn capsules(app: &mut App) -> Vec<(Entity, Entity, f32, f32, GlobalTransform)> {
         .collect()
 }
 
-/// The mesh's vertices skinned as Bevy skins them (world space), with each vertex's
-/// dominant joint entity.
-fn skinned_vertices(app: &App, mesh_entity: Entity) -> Vec<(Vec3, Entity)> {
-    let world = app.world();
-    let skin = world.get::<SkinnedMesh>(mesh_entity).expect("skinned");
-    let mesh = world
-        .resource::<Assets<Mesh>>()
-        .get(&world.get::<Mesh3d>(mesh_entity).unwrap().0)
-        .expect("mesh");
-    let inverse = world
-        .resource::<Assets<SkinnedMeshInverseBindposes>>()
-        .get(&skin.inverse_bindposes)
-        .expect("bindposes");
-    let Some(VertexAttributeValues::Float32x3(p)) = mesh.attribute(Mesh::ATTRIBUTE_POSITION) else {
-        panic!("positions")
-    };
-    let Some(VertexAttributeValues::Uint16x4(j)) = mesh.attribute(Mesh::ATTRIBUTE_JOINT_INDEX)
-    else {
-        panic!("joints")
-    };
-    let Some(VertexAttributeValues::Float32x4(w)) = mesh.attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT)
-    else {
-        panic!("weights")
-    };
-    let matrices: Vec<Mat4> = skin
-        .joints
-        .iter()
-        .zip(inverse.iter())
-        .map(|(joint, inv)| world.get::<GlobalTransform>(*joint).unwrap().to_matrix() * *inv)
-        .collect();
-    p.iter()
-        .zip(j)
-        .zip(w)
-        .map(|((p, j), w)| {
-            let mut posed = Vec3::ZERO;
-            let mut best = (0, f32::NEG_INFINITY);
-            for k in 0..4 {
-                let joint = usize::from(j[k]);
-                posed += w[k] * matrices[joint].transform_point3(Vec3::from(*p));
-                if w[k] > best.1 {
-                    best = (joint, w[k]);
-                }
-            }
-            (posed, skin.joints[best.0])
-        })
-        .collect()
-}
-
 /// Distance from world point `p` to a capsule (local y axis) placed by `g`, in the
 /// capsule's local units scaled by `g`'s mean scale.
 fn capsule_distance(g: &GlobalTransform, radius: f32, half_length: f32, p: Vec3) -> f32 {
@@ -151,7 +80,7 @@ fn capsule_distance(g: &GlobalTransform, radius: f32, half_length: f32, p: Vec3)
 /// For each capsule, the fraction of its joint's vertices (posed) within `slack` of its
 /// radius of it (world space).
 fn coverage(app: &mut App, mesh: Entity, slack: f32) -> Vec<f32> {
-    let vertices = skinned_vertices(app, mesh);
+    let vertices = support::skinned_vertices(app, mesh);
     capsules(app)
         .iter()
         .map(|(_, joint, radius, half, g)| {

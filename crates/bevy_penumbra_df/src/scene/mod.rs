@@ -46,6 +46,8 @@ mod cull;
 mod heightfield;
 mod mesh_shape;
 mod query;
+mod rebake;
+mod rebake_render;
 mod render;
 mod scene_casters;
 mod shading;
@@ -67,6 +69,7 @@ pub use heightfield::{
     DistanceFieldHeightfield, HeightfieldTerrain, SceneHeightfields, image_heights,
 };
 pub use query::{DistanceFieldQuery, SphereHit};
+pub use rebake::{DistanceFieldRebake, RebakeCaster, RebakedFrom};
 pub(crate) use render::apply_distance_field_deltas;
 pub(crate) use render::no_heightfields;
 pub use render::{
@@ -337,6 +340,11 @@ pub struct DistanceFieldScene {
 }
 
 impl DistanceFieldScene {
+    /// Where `volume` is in the atlas, if placed (re-baked fields are written there).
+    pub(crate) fn volume_region(&self, volume: AssetId<SdfVolumeAsset>) -> Option<AtlasRegion> {
+        self.volumes.get(&volume).map(|p| p.region)
+    }
+
     /// Live casters.
     pub fn len(&self) -> usize {
         self.table.len()
@@ -404,6 +412,9 @@ impl Plugin for DistanceFieldScenePlugin {
             .register_type::<SceneCasterCounts>()
             .register_type::<CasterShading>()
             .register_type::<SkinCapsule>()
+            .register_type::<DistanceFieldRebake>()
+            .register_type::<RebakedFrom>()
+            .init_resource::<rebake::RebakeJobs>()
             .init_resource::<DistanceFieldSceneSettings>()
             .init_resource::<DistanceFieldUploadStats>()
             .init_resource::<DistanceFieldScene>()
@@ -429,6 +440,9 @@ impl Plugin for DistanceFieldScenePlugin {
                         timed(skin_capsules::fit_skin_capsule_casters)
                             .run_if(skin_capsules::skin_assets_exist),
                         timed(skin_capsules::sync_skin_capsule_visibility),
+                        timed(rebake::drop_rebake_casters),
+                        timed(rebake::rebake_skinned_meshes)
+                            .run_if(skin_capsules::skin_assets_exist),
                         timed(scene_casters::count_scene_casters),
                     )
                         .chain()
@@ -457,6 +471,7 @@ impl Plugin for DistanceFieldScenePlugin {
             );
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app);
+            rebake_render::build(render_app);
         }
     }
 
@@ -474,6 +489,7 @@ impl Plugin for DistanceFieldScenePlugin {
         });
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::finish(render_app);
+            rebake_render::finish(render_app);
         }
     }
 }

@@ -68,6 +68,11 @@ impl DistanceFieldGpu {
         self.generation
     }
 
+    /// Counts a change of the atlas's contents made by a pass (a re-bake).
+    pub(crate) fn touch(&mut self) {
+        self.generation += 1;
+    }
+
     /// Whether object writes are held back (the delta pipeline compiling): the object
     /// buffer is then behind the main world's records.
     pub fn deltas_held_back(&self) -> bool {
@@ -101,7 +106,7 @@ pub struct DistanceFieldPipelines {
 }
 
 #[derive(Resource, Default)]
-struct ExtractedDistanceFieldFrame(DistanceFieldFrame);
+pub(super) struct ExtractedDistanceFieldFrame(DistanceFieldFrame);
 
 /// Render-world system sets of the distance-field scene.
 #[derive(SystemSet, Clone, Debug, PartialEq, Eq, Hash)]
@@ -237,7 +242,7 @@ fn extract_distance_field_frame(
 /// Grows the object buffer, creates the atlas on first use, writes the frame's atlas
 /// uploads, and uploads the frame's record writes into the pooled delta buffers (kept
 /// pending while the delta pipeline compiles).
-fn prepare_distance_field_gpu(
+pub(super) fn prepare_distance_field_gpu(
     allocations: Res<PenumbraGpuAllocations>,
     frame: Res<ExtractedDistanceFieldFrame>,
     mut gpu: ResMut<DistanceFieldGpu>,

@@ -237,6 +237,7 @@ type MeshQuery<'w, 's> = Query<
         Has<MeshMorphWeights>,
         Option<&'static DistanceFieldCaster>,
         Option<&'static DistanceFieldSceneCaster>,
+        Has<super::DistanceFieldRebake>,
     ),
 >;
 
@@ -408,12 +409,13 @@ pub(super) fn tag_scene_casters(
         decided.extend(group.iter().copied());
         let mut judged = Vec::with_capacity(group.len());
         for &member in &group {
-            let Ok((mesh, transform, material, skinned, morphed, caster, tag)) = meshes.get(member)
+            let Ok((mesh, transform, material, skinned, morphed, caster, tag, rebaked)) =
+                meshes.get(member)
             else {
                 continue;
             };
-            let verdict = if caster.is_some() && tag.is_none() {
-                None // its own caster: left alone
+            let verdict = if (caster.is_some() || rebaked) && tag.is_none() {
+                None // its own caster, or re-baked: left alone
             } else {
                 let material = material
                     .zip(materials.as_deref())

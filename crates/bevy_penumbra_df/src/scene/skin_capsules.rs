@@ -114,7 +114,7 @@ type FitKey = (
 
 /// The skinned vertices of `mesh` appended to the arrays; `Err` with the reason when
 /// the mesh has no usable skinning attributes.
-fn append_skin(
+pub(super) fn append_skin(
     mesh: &Mesh,
     positions: &mut Vec<Vec3>,
     joints: &mut Vec<[u16; 4]>,

@@ -1,0 +1,177 @@
+//! The GPU re-bake's main-world side (`DistanceFieldRebake`) on the Fox of
+//! `../shared/scenes`: the mesh gets a caster entity instead of capsules; the caster's
+//! cube (its transform maps voxels to the world) holds every vertex skinned as Bevy
+//! skins it, with the margin; a turned joint moves the cube on the next bake, and only
+//! on a bake frame (`interval`); a new resolution makes a new caster; removing the
+//! component or despawning the mesh despawns the caster. Main world only (no GPU);
+//! `rebake_gpu.rs` checks the pass, the scene corpus the shadows it casts.
+
+use bevy::mesh::skinning::SkinnedMesh;
+use bevy::prelude::*;
+use bevy::world_serialization::WorldAssetRoot;
+use bevy_penumbra_df::{
+    CasterSource, DistanceFieldCaster, DistanceFieldRebake, DistanceFieldSceneCasters,
+    RebakeCaster, RebakedFrom, SkinCapsules,
+};
+use penumbra_df_core::rebake::REBAKE_MARGIN;
+
+#[path = "support/scenes_app.rs"]
+mod support;
+
+/// Spawns the Fox (scene casters at their defaults) and runs until its skinned mesh
+/// exists; inserts `rebake` on it and runs until its caster exists. The mesh entity.
+fn fox(app: &mut App, rebake: DistanceFieldRebake) -> Entity {
+    let scene = app
+        .world()
+        .resource::<AssetServer>()
+        .load(GltfAssetLabel::Scene(0).from_asset("Fox.glb"));
+    app.world_mut()
+        .spawn((WorldAssetRoot(scene), DistanceFieldSceneCasters::default()));
+    let start = std::time::Instant::now();
+    let mut mesh = None;
+    while start.elapsed().as_secs() < 20 {
+        let world = app.world_mut();
+        if mesh.is_none() {
+            mesh = world
+                .query_filtered::<Entity, With<SkinnedMesh>>()
+                .iter(world)
+                .next();
+            if let Some(m) = mesh {
+                world.entity_mut(m).insert(rebake.clone());
+            }
+        }
+        if let Some(m) = mesh
+            && world.get::<RebakeCaster>(m).is_some()
+        {
+            app.update();
+            return m;
+        }
+        app.update();
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    panic!("the fox got no re-baked caster in 20 s");
+}
+
+/// The caster entity, its resolution (from its volume's cube) and its transform.
+fn caster(app: &App, mesh: Entity) -> (Entity, Transform) {
+    let world = app.world();
+    let caster = world.get::<RebakeCaster>(mesh).expect("re-baked").entity();
+    assert_eq!(world.get::<RebakedFrom>(caster), Some(&RebakedFrom(mesh)));
+    let source = &world
+        .get::<DistanceFieldCaster>(caster)
+        .expect("a caster")
+        .source;
+    assert!(matches!(source, CasterSource::Sdf(_)), "{source:?}");
+    (caster, *world.get::<Transform>(caster).expect("placed"))
+}
+
+/// Every skinned vertex lies in the cube `[margin, resolution − 1 − margin]` voxels.
+fn assert_cube_holds(app: &App, mesh: Entity, resolution: u32) {
+    let (_, transform) = caster(app, mesh);
+    let voxel = transform.scale.x;
+    let lo = REBAKE_MARGIN - 1e-3;
+    let hi = (resolution - 1) as f32 - REBAKE_MARGIN + 1e-3;
+    let mut touches = 0;
+    for (v, _) in support::skinned_vertices(app, mesh) {
+        let i = (v - transform.translation) / voxel;
+        assert!(
+            i.cmpge(Vec3::splat(lo)).all() && i.cmple(Vec3::splat(hi)).all(),
+            "vertex {v} at voxel {i}, outside the cube's margin"
+        );
+        touches += usize::from(i.min_element() < lo + 0.01 || i.max_element() > hi - 0.01);
+    }
+    // The cube is as tight as its margin allows along the pose's longest side.
+    assert!(touches >= 1, "no vertex touches the cube's margin");
+}
+
+#[test]
+fn the_fox_rebakes_into_a_cube_that_follows_its_pose() {
+    let Some(mut app) = support::scenes_app("the_fox_rebakes_into_a_cube_that_follows_its_pose")
+    else {
+        return;
+    };
+    let mesh = fox(
+        &mut app,
+        DistanceFieldRebake {
+            resolution: 24,
+            interval: 3,
+            ..default()
+        },
+    );
+    // Re-baked meshes get no capsules.
+    let world = app.world_mut();
+    assert_eq!(
+        world
+            .query::<&SkinCapsules>()
+            .iter(world)
+            .filter(|c| !c.entities().is_empty())
+            .count(),
+        0
+    );
+    assert_cube_holds(&app, mesh, 24);
+    // Turn the first joint with children (the root of the legs and spine) a quarter turn:
+    // the cube follows on the next bake, not before.
+    let skin = app.world().get::<SkinnedMesh>(mesh).unwrap().clone();
+    let joint = skin.joints[1];
+    let (_, before) = caster(&app, mesh);
+    app.world_mut()
+        .get_mut::<Transform>(joint)
+        .unwrap()
+        .rotate_local_x(std::f32::consts::FRAC_PI_2);
+    let mut moved_at = None;
+    for frame in 1..=3 {
+        app.update();
+        let (_, now) = caster(&app, mesh);
+        if now != before {
+            moved_at.get_or_insert(frame);
+        }
+    }
+    let moved_at = moved_at.expect("the cube follows the turned joint within an interval");
+    assert_cube_holds(&app, mesh, 24);
+    // Still: the cube stays between bakes and at them.
+    let (_, settled) = caster(&app, mesh);
+    for _ in 0..4 {
+        app.update();
+        assert_eq!(caster(&app, mesh).1, settled);
+    }
+    eprintln!("the cube moved {moved_at} frame(s) after the joint turned (interval 3)");
+    // A new resolution: a new caster, the old one gone.
+    let (old, _) = caster(&app, mesh);
+    app.world_mut()
+        .get_mut::<DistanceFieldRebake>(mesh)
+        .unwrap()
+        .resolution = 40;
+    app.update();
+    app.update();
+    let (new, _) = caster(&app, mesh);
+    assert_ne!(new, old);
+    assert!(app.world().get_entity(old).is_err(), "the old caster stays");
+    assert_cube_holds(&app, mesh, 40);
+    // Removing the component lets the caster go.
+    app.world_mut()
+        .entity_mut(mesh)
+        .remove::<DistanceFieldRebake>();
+    app.update();
+    app.update();
+    assert!(
+        app.world().get_entity(new).is_err(),
+        "the caster outlives its component"
+    );
+    assert!(app.world().get::<RebakeCaster>(mesh).is_none());
+}
+
+#[test]
+fn a_despawned_fox_takes_its_rebaked_caster_along() {
+    let Some(mut app) = support::scenes_app("a_despawned_fox_takes_its_rebaked_caster_along")
+    else {
+        return;
+    };
+    let mesh = fox(&mut app, DistanceFieldRebake::default());
+    let (caster, _) = caster(&app, mesh);
+    app.world_mut().entity_mut(mesh).despawn();
+    app.update();
+    assert!(
+        app.world().get_entity(caster).is_err(),
+        "the caster outlives its mesh"
+    );
+}
