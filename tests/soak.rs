@@ -213,7 +213,10 @@ impl Soak {
             spawned: Vec::new(),
             copies: Vec::new(),
             lights: HashMap::new(),
-            log: Vec::new(),
+            // Made at full size at once: the log is the test's own state, and a Vec
+            // doubling as it fills showed in the Rust heap's trend (+0.9 MB over the
+            // 10,000 frames).
+            log: Vec::with_capacity(churned_frames as usize + QUIET as usize + 1),
             mesh: None,
             material: None,
             patch: None,
@@ -610,7 +613,8 @@ fn check(run: SoakRun) {
         "GPU allocations grow: {before:?} then {last:?}"
     );
     // The trends after the warm-up: the bytes Rust code holds (exact: Penumbra's and
-    // Bevy's side alone), and the resident set.
+    // Bevy's side alone), and the resident set; both reported before either fails.
+    let mut failures = Vec::new();
     for (what, ends, noise_allowed) in [
         ("the Rust heap", rust_heap, false),
         ("resident memory", resident, true),
@@ -637,22 +641,24 @@ fn check(run: SoakRun) {
         } else {
             trend.growth - GROWTH_BOUND
         };
-        assert!(
-            excess < 0.0,
-            "{what} grew {:+.2} % ± {:.2} % after the warm-up (bound {:.0} %{})",
-            trend.growth * 100.0,
-            trend.standard_error * 100.0,
-            GROWTH_BOUND * 100.0,
-            if noise_allowed {
-                format!(
-                    " beyond {NOISE_SIGMAS} standard errors, at most {:.0} % in all",
-                    GROWTH_CAP * 100.0
-                )
-            } else {
-                String::new()
-            }
-        );
+        failures.extend((excess >= 0.0).then(|| {
+            format!(
+                "{what} grew {:+.2} % ± {:.2} % after the warm-up (bound {:.0} %{})",
+                trend.growth * 100.0,
+                trend.standard_error * 100.0,
+                GROWTH_BOUND * 100.0,
+                if noise_allowed {
+                    format!(
+                        " beyond {NOISE_SIGMAS} standard errors, at most {:.0} % in all",
+                        GROWTH_CAP * 100.0
+                    )
+                } else {
+                    String::new()
+                }
+            )
+        }));
     }
+    assert!(failures.is_empty(), "{}", failures.join("; "));
 }
 
 /// The growth memory may show after the warm-up, as a fraction of where it started.
