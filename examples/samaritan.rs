@@ -359,6 +359,9 @@ fn spawn_scene(
             restitution: 0.25,
             friction: 0.3,
             color: Color::srgb(0.6, 0.7, 0.85),
+            // Fixed, so the reference image does not move with the app's entity count
+            // (this is the id the emitter had when the reference was made).
+            seed: Some(4_294_967_051),
             ..default()
         },
         Transform::from_xyz(0.0, 4.0, -1.5),

@@ -62,6 +62,7 @@ fn particle_settings_resolve_to_finite_settings_with_a_note_per_change() {
             friction: a.f32(),
             gravity: vec3(&mut a),
             color: color(&mut a),
+            seed: a.bool().then(|| u64::from(a.u32())),
         };
         check_settings(
             "DistanceFieldParticles",

@@ -51,10 +51,32 @@ struct RebakeGpu {
     dispatches: Vec<(Entity, RebakeJob, AtlasRegion)>,
 }
 
+/// The pass's layout, and its pipeline once queued: that waits for the first bake, so
+/// an app without re-baked meshes compiles nothing (and its other pipelines' compile
+/// order is unchanged).
 #[derive(Resource)]
 struct RebakePipeline {
     layout: BindGroupLayoutDescriptor,
-    pipeline: CachedComputePipelineId,
+    pipeline: Option<CachedComputePipelineId>,
+}
+
+impl RebakePipeline {
+    /// The pipeline, queued on the first call.
+    fn queue(
+        &mut self,
+        library: &PenumbraShaderLibrary,
+        pipeline_cache: &PipelineCache,
+    ) -> CachedComputePipelineId {
+        *self.pipeline.get_or_insert_with(|| {
+            library.queue_compute(
+                pipeline_cache,
+                "penumbra_df_rebake",
+                &self.layout,
+                "df/rebake.wgsl",
+                "rebake",
+            )
+        })
+    }
 }
 
 pub(super) fn build(render_app: &mut SubApp) {
@@ -83,14 +105,7 @@ pub(super) fn finish(render_app: &mut SubApp) {
     render_app.add_systems(RenderStartup, init_rebake_pipeline);
 }
 
-fn init_rebake_pipeline(
-    mut commands: Commands,
-    pipeline_cache: Res<PipelineCache>,
-    library: Option<Res<PenumbraShaderLibrary>>,
-) {
-    let Some(library) = library else {
-        return;
-    };
+fn init_rebake_pipeline(mut commands: Commands) {
     let layout = BindGroupLayoutDescriptor::new(
         "penumbra_df_rebake_layout",
         &BindGroupLayoutEntries::sequential(
@@ -102,14 +117,10 @@ fn init_rebake_pipeline(
             ),
         ),
     );
-    let pipeline = library.queue_compute(
-        &pipeline_cache,
-        "penumbra_df_rebake",
-        &layout,
-        "df/rebake.wgsl",
-        "rebake",
-    );
-    commands.insert_resource(RebakePipeline { layout, pipeline });
+    commands.insert_resource(RebakePipeline {
+        layout,
+        pipeline: None,
+    });
 }
 
 /// The bakes whose volume has its full cube in the atlas (a volume placed at a reduced
@@ -138,7 +149,8 @@ fn prepare_rebakes(
     extracted: Res<ExtractedRebakes>,
     mut rebakes: ResMut<RebakeGpu>,
     mut gpu: ResMut<DistanceFieldGpu>,
-    pipeline: Option<Res<RebakePipeline>>,
+    pipeline: Option<ResMut<RebakePipeline>>,
+    library: Option<Res<PenumbraShaderLibrary>>,
     pipeline_cache: Res<PipelineCache>,
     allocations: Res<PenumbraGpuAllocations>,
     device: Res<RenderDevice>,
@@ -151,15 +163,16 @@ fn prepare_rebakes(
             .buffers
             .retain(|mesh, _| extracted.live.contains(mesh));
     }
-    let (Some(pipeline), false, Some(_)) =
-        (pipeline, extracted.jobs.is_empty(), gpu.atlas.as_ref())
-    else {
+    let (Some(mut pipeline), Some(library), false, Some(_)) = (
+        pipeline,
+        library,
+        extracted.jobs.is_empty(),
+        gpu.atlas.as_ref(),
+    ) else {
         return;
     };
-    if pipeline_cache
-        .get_compute_pipeline(pipeline.pipeline)
-        .is_none()
-    {
+    let id = pipeline.queue(&library, &pipeline_cache);
+    if pipeline_cache.get_compute_pipeline(id).is_none() {
         return; // compiling: the fields wait
     }
     let layout = pipeline_cache.get_bind_group_layout(&pipeline.layout);
@@ -243,7 +256,10 @@ fn rebake_fields(
     else {
         return;
     };
-    let Some(compute) = pipeline_cache.get_compute_pipeline(pipeline.pipeline) else {
+    let Some(compute) = pipeline
+        .pipeline
+        .and_then(|id| pipeline_cache.get_compute_pipeline(id))
+    else {
         return;
     };
     let diagnostics = ctx.diagnostic_recorder();
