@@ -12,7 +12,7 @@
 //! The scene's meshes become distance-field casters (`DistanceFieldSceneCasters` on its
 //! root: skinned meshes cast through capsules fitted to their joints, double-sided and
 //! alpha-masked materials two-sided; `--skinned`, `--animation N --time T` to pose them,
-//! `--ground` to stand them on something); the
+//! a ground under them unless `--no-ground`, `--ground` for any scene); the
 //! camera is framed on the scene's bounds (or `--eye/--target/--fov`); a sun (`--sun`,
 //! `--angle`), `--point` lights and the scene's own `KHR_lights_punctual` lights (unless
 //! `--no-scene-lights`) get `DistanceFieldShadows`; `--ao-max-distance M` puts
@@ -366,6 +366,7 @@ fn frame_scene(
     root: Single<RootQuery, With<ViewerScene>>,
     children: Query<&Children>,
     meshes: Query<(&GlobalTransform, &Aabb), With<Mesh3d>>,
+    skinned: Query<(), With<bevy::mesh::skinning::SkinnedMesh>>,
     assets: Res<AssetServer>,
     camera: Single<
         (
@@ -455,7 +456,8 @@ fn frame_scene(
         }
     }
     spawn_lights(&mut commands, args, &framing);
-    if args.ground {
+    let character = children.iter_descendants(root).any(|e| skinned.contains(e));
+    if args.ground || (character && !args.no_ground) {
         let ground = ViewerGround {
             center: Vec3::new(center.x, lo.y, center.z),
             half_size: 2.0 * radius,

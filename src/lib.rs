@@ -123,10 +123,10 @@ pub mod prelude {
     pub use bevy_penumbra_df::{
         CasterSource, DeferredMsaa, DeferredMsaaShading, DistanceFieldCaster,
         DistanceFieldHeightfield, DistanceFieldParticles, DistanceFieldQuery, DistanceFieldRebake,
-        DistanceFieldScene, DistanceFieldSceneCasters, DistanceFieldSceneSettings,
-        DistanceFieldUploadStats, GlobalDistanceField, GlobalDistanceFieldStats,
-        MergeDistanceFieldCasters, PenumbraLighting, PenumbraLightingPlugin, SdfAssetPlugin,
-        SdfBakeFailed, SdfBaked, SdfVolumeAsset,
+        DistanceFieldRebakeStats, DistanceFieldScene, DistanceFieldSceneCasters,
+        DistanceFieldSceneSettings, DistanceFieldUploadStats, GlobalDistanceField,
+        GlobalDistanceFieldStats, MergeDistanceFieldCasters, PenumbraLighting,
+        PenumbraLightingPlugin, SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset,
     };
     #[cfg(feature = "ao")]
     pub use bevy_penumbra_df::{

@@ -350,14 +350,23 @@ fn viewer_renders_every_shared_scene_and_dumps_its_buffers() {
     );
     let s = check_run("palm_tree", &r, 10);
     assert!(s[0].1 > 0.005, "{s:?}");
-    // The fox is skinned: no mesh caster; capsules fitted to its joints cast instead.
+    // The fox is skinned: no mesh caster; capsules fitted to its joints cast instead,
+    // on a ground the viewer stands it on (a character stands on nothing in its file).
     let r = run("fox", &[&scene("Fox.glb")]);
-    check_run("fox", &r, 0);
+    let s = check_run("fox", &r, 0);
     let c = &r.meta["settings"]["casters"];
     assert_eq!(c["skipped_skinned"].as_u64(), Some(0), "{c}");
     assert_eq!(c["capsule_meshes"].as_u64(), Some(1), "{c}");
     let capsules = c["capsules"].as_u64().unwrap_or(0);
     assert!((6..=24).contains(&capsules), "{c}");
+    assert!(r.meta["settings"]["ground"].is_object(), "fox: no ground");
+    assert!(s[0].1 > 0.02, "fox: no shadow on its ground: {s:?}");
+    // `--no-ground`: the fox alone against the sky.
+    let r = run("fox_no_ground", &[&scene("Fox.glb"), "--no-ground"]);
+    assert!(
+        r.meta["settings"]["ground"].is_null(),
+        "fox: a ground anyway"
+    );
 }
 
 /// The examples' golden-image tolerance.

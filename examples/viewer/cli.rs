@@ -103,9 +103,13 @@ pub struct Args {
     /// A ground under the scene: a square at the bottom of its bounds, four bounds'
     /// radii across, casting as a `CasterSource::Plane` (for a character or a prop that
     /// stands on nothing in its file). `--dump`'s `meta.json` describes it; the truth
-    /// adds its two triangles.
-    #[arg(long)]
+    /// adds its two triangles. Default: on for a scene with a skinned mesh (a character
+    /// casts its shadow on it), off otherwise.
+    #[arg(long, overrides_with = "no_ground")]
     pub ground: bool,
+    /// No ground, even under a skinned mesh.
+    #[arg(long, overrides_with = "ground")]
+    pub no_ground: bool,
     /// Seconds into `--animation`, ≥ 0. Default 0.
     #[arg(long, value_parser = parse_time, allow_hyphen_values = true)]
     pub time: Option<f32>,

@@ -74,12 +74,12 @@ pub use particles::{
 };
 pub use scene::{
     CasterMesh, CasterShading, CasterSource, CasterStretch, DistanceFieldCaster,
-    DistanceFieldHeightfield, DistanceFieldQuery, DistanceFieldRebake, DistanceFieldScene,
-    DistanceFieldSceneCaster, DistanceFieldSceneCasters, DistanceFieldScenePlugin,
-    DistanceFieldSceneSettings, DistanceFieldUploadStats, FOLIAGE_AO_TRANSMISSION,
-    HeightfieldTerrain, MergeDistanceFieldCasters, RebakeCaster, RebakedFrom, SceneCasterCounts,
-    SceneHeightfields, SceneTwoSided, SkinCapsule, SkinCapsuleFit, SkinCapsules, SkinnedCasters,
-    SphereHit, mesh_shading_apart,
+    DistanceFieldHeightfield, DistanceFieldQuery, DistanceFieldRebake, DistanceFieldRebakeStats,
+    DistanceFieldScene, DistanceFieldSceneCaster, DistanceFieldSceneCasters,
+    DistanceFieldScenePlugin, DistanceFieldSceneSettings, DistanceFieldUploadStats,
+    FOLIAGE_AO_TRANSMISSION, HeightfieldTerrain, MergeDistanceFieldCasters, RebakeCaster,
+    RebakedFrom, SceneCasterCounts, SceneHeightfields, SceneTwoSided, SkinCapsule, SkinCapsuleFit,
+    SkinCapsules, SkinnedCasters, SphereHit, mesh_shading_apart,
 };
 pub use sdf_asset::{SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset, SdfVolumeLoader};
 #[cfg(feature = "bake")]

@@ -3,15 +3,18 @@
 //! cube (its transform maps voxels to the world) holds every vertex skinned as Bevy
 //! skins it, with the margin; a turned joint moves the cube on the next bake, and only
 //! on a bake frame (`interval`); a new resolution makes a new caster; removing the
-//! component or despawning the mesh despawns the caster. Main world only (no GPU);
+//! component or despawning the mesh despawns the caster; a still pose is not baked again,
+//! and a new one marks its cube dirty in the global field even where the cube stays.
+//! Main world only (no GPU);
 //! `rebake_gpu.rs` checks the pass, the scene corpus the shadows it casts.
 
 use bevy::mesh::skinning::SkinnedMesh;
 use bevy::prelude::*;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_penumbra_df::{
-    CasterSource, DistanceFieldCaster, DistanceFieldRebake, DistanceFieldSceneCasters,
-    RebakeCaster, RebakedFrom, SkinCapsules,
+    CasterSource, DistanceFieldCaster, DistanceFieldRebake, DistanceFieldRebakeStats,
+    DistanceFieldSceneCasters, GlobalDistanceField, GlobalDistanceFieldPlugin,
+    GlobalDistanceFieldStats, RebakeCaster, RebakedFrom, SkinCapsules,
 };
 use penumbra_df_core::rebake::REBAKE_MARGIN;
 
@@ -174,4 +177,67 @@ fn a_despawned_fox_takes_its_rebaked_caster_along() {
         app.world().get_entity(caster).is_err(),
         "the caster outlives its mesh"
     );
+}
+
+#[test]
+fn a_still_fox_is_not_baked_again_and_a_new_pose_dirties_the_global_field() {
+    let test = "a_still_fox_is_not_baked_again_and_a_new_pose_dirties_the_global_field";
+    let Some(dir) = support::scenes_dir(test) else {
+        return;
+    };
+    let mut app = support::scenes_app_with(&dir, |app| {
+        app.add_plugins(GlobalDistanceFieldPlugin);
+    });
+    app.world_mut().spawn((
+        Transform::from_xyz(0.0, 40.0, 60.0),
+        GlobalDistanceField::default(),
+    ));
+    let mesh = fox(&mut app, DistanceFieldRebake::default());
+    // Until the new camera's clipmaps are composed.
+    for _ in 0..100 {
+        if app.world().resource::<GlobalDistanceFieldStats>().pending == 0 {
+            break;
+        }
+        app.update();
+    }
+    let rebakes = |app: &App| app.world().resource::<DistanceFieldRebakeStats>().clone();
+    // The Fox stands in its rest pose (nothing plays its animations): after its first
+    // bake, frame after frame, nothing is baked and nothing is dirtied.
+    for _ in 0..3 {
+        app.update();
+        let stats = rebakes(&app);
+        assert_eq!(
+            stats,
+            DistanceFieldRebakeStats {
+                meshes: 1,
+                bakes: 0,
+                still: 1,
+                triangles: 0
+            }
+        );
+        let field = app.world().resource::<GlobalDistanceFieldStats>();
+        assert_eq!(field.dirty_regions, 0, "{field:?}");
+    }
+    // A turned joint: one bake of every triangle, and the global field told of its
+    // cube: one region for the bake, plus where the caster's record was and is if the
+    // cube moved.
+    let skin = app.world().get::<SkinnedMesh>(mesh).unwrap().clone();
+    let (_, before) = caster(&app, mesh);
+    app.world_mut()
+        .get_mut::<Transform>(skin.joints[skin.joints.len() / 2])
+        .unwrap()
+        .rotate_local_z(0.2);
+    app.update();
+    let stats = rebakes(&app);
+    assert_eq!((stats.bakes, stats.still), (1, 0), "{stats:?}");
+    assert!(stats.triangles > 500, "{stats:?}");
+    let moved = caster(&app, mesh).1 != before;
+    let field = app.world().resource::<GlobalDistanceFieldStats>();
+    assert_eq!(
+        field.dirty_regions,
+        1 + 2 * usize::from(moved),
+        "cube moved: {moved}; {field:?}"
+    );
+    assert!(field.dirtied > 0, "no brick composed again: {field:?}");
+    eprintln!("a turned joint: {stats:?}, cube moved: {moved}, {field:?}");
 }

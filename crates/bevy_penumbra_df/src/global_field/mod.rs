@@ -182,7 +182,7 @@ pub struct GlobalDistanceFieldStats {
     pub dirtied: usize,
     /// Bricks still pending after this frame.
     pub pending: usize,
-    /// Dirty regions from changed records.
+    /// Dirty regions from changed records, terrains and re-baked fields.
     pub dirty_regions: usize,
 }
 
@@ -267,6 +267,7 @@ fn update_global_distance_fields(
     scene: Res<DistanceFieldScene>,
     frame: Res<DistanceFieldFrame>,
     terrains: Res<SceneHeightfields>,
+    rebakes: Res<crate::scene::RebakeJobs>,
     mut seen: ResMut<SeenRecords>,
     mut stats: ResMut<GlobalDistanceFieldStats>,
     mut cameras: Query<(
@@ -300,7 +301,9 @@ fn update_global_distance_fields(
         terrains
             .dirty()
             .iter()
-            .map(|&(min, max)| DirtyBox { min, max }),
+            .copied()
+            .chain(rebakes.dirty_boxes())
+            .map(|(min, max)| DirtyBox { min, max }),
     );
     stats.dirty_regions = dirty.len();
     for (entity, settings, transform, state) in &mut cameras {

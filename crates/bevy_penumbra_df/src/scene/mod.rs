@@ -69,7 +69,8 @@ pub use heightfield::{
     DistanceFieldHeightfield, HeightfieldTerrain, SceneHeightfields, image_heights,
 };
 pub use query::{DistanceFieldQuery, SphereHit};
-pub use rebake::{DistanceFieldRebake, RebakeCaster, RebakedFrom};
+pub(crate) use rebake::RebakeJobs;
+pub use rebake::{DistanceFieldRebake, DistanceFieldRebakeStats, RebakeCaster, RebakedFrom};
 pub(crate) use render::apply_distance_field_deltas;
 pub(crate) use render::no_heightfields;
 pub use render::{
@@ -414,7 +415,9 @@ impl Plugin for DistanceFieldScenePlugin {
             .register_type::<SkinCapsule>()
             .register_type::<DistanceFieldRebake>()
             .register_type::<RebakedFrom>()
-            .init_resource::<rebake::RebakeJobs>()
+            .register_type::<DistanceFieldRebakeStats>()
+            .init_resource::<RebakeJobs>()
+            .init_resource::<DistanceFieldRebakeStats>()
             .init_resource::<DistanceFieldSceneSettings>()
             .init_resource::<DistanceFieldUploadStats>()
             .init_resource::<DistanceFieldScene>()

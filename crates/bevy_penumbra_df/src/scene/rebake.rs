@@ -11,6 +11,11 @@
 //! companion caster entity ([`RebakedFrom`]) whose transform maps the cube's voxels to
 //! the world: only its record and the cube change, the atlas placement never does.
 //!
+//! A pose that has not changed since the last bake (its joints' matrices and its mesh
+//! the same) is not baked again: a character standing still costs nothing. Each bake
+//! marks its cube dirty in the global field's clipmaps, so occlusion far away follows the
+//! pose even while the cube stays where it was.
+//!
 //! Limits: the mesh's asset must keep its main-world data
 //! (`RenderAssetUsages::MAIN_WORLD`); morph targets are not applied; the cube spans the
 //! pose's longest side, so a character lying down or with arms spread gets coarser
@@ -70,6 +75,8 @@ pub struct RebakeCaster {
     caster: Entity,
     volume: Handle<SdfVolumeAsset>,
     resolution: u32,
+    /// What the last bake was made from: the mesh and its joints' skinning matrices.
+    baked: (AssetId<Mesh>, Vec<Mat4>),
 }
 
 impl RebakeCaster {
@@ -100,6 +107,10 @@ pub(crate) struct RebakeJob {
     pub(crate) corners: Arc<Vec<[f32; 4]>>,
     /// The mesh entity (the render world pools its buffers by it).
     pub(crate) mesh: Entity,
+    /// Counts the bakes of the app: a later job has a larger number.
+    pub(crate) sequence: u64,
+    /// The field goes into the global field (occludes, opaque to AO).
+    pub(crate) composes: bool,
 }
 
 /// This frame's bakes, and every re-baked mesh alive (main world; extracted).
@@ -107,6 +118,35 @@ pub(crate) struct RebakeJob {
 pub(crate) struct RebakeJobs {
     pub(crate) jobs: Vec<RebakeJob>,
     pub(crate) live: Vec<Entity>,
+    sequence: u64,
+}
+
+impl RebakeJobs {
+    /// The world boxes of this frame's bakes that go into the global field: their
+    /// distances change though their records may not.
+    pub(crate) fn dirty_boxes(&self) -> impl Iterator<Item = (Vec3, Vec3)> + '_ {
+        self.jobs.iter().filter(|j| j.composes).map(|j| {
+            let g = &j.grid;
+            let far = g.origin + Vec3::splat(g.voxel_size * (g.resolution - 1) as f32);
+            (g.origin, far)
+        })
+    }
+}
+
+/// This frame's re-bakes (main world): what [`DistanceFieldRebake`] costs.
+#[derive(Resource, Reflect, Clone, Debug, Default, PartialEq, Eq)]
+#[reflect(Resource, Clone, Default)]
+pub struct DistanceFieldRebakeStats {
+    /// Meshes with [`DistanceFieldRebake`].
+    pub meshes: usize,
+    /// Bakes handed to the GPU this frame.
+    pub bakes: usize,
+    /// Meshes due a bake this frame whose pose had not changed since their last: not
+    /// baked again.
+    pub still: usize,
+    /// Triangles uploaded for this frame's bakes (48 bytes each); the GPU evaluates
+    /// `resolution³` samples against each.
+    pub triangles: usize,
 }
 
 /// The volume a re-baked field is placed with: the cube, in voxel units (the caster's
@@ -135,35 +175,51 @@ type RebakeItem<'a> = (
     &'a DistanceFieldRebake,
     &'a Mesh3d,
     &'a SkinnedMesh,
-    Option<&'a RebakeCaster>,
+    Option<&'a mut RebakeCaster>,
     &'a InheritedVisibility,
 );
 
 /// Poses the re-baked meshes due this frame, spawns their casters on first sight, moves
-/// each caster onto its new cube, and lists the bakes for the render world. Runs after
+/// each caster onto its new cube, and lists the bakes for the render world (none for a
+/// pose unchanged since its last bake). Runs after
 /// transform propagation (the joints are where they are drawn) and before the objects
 /// are encoded (the caster's record follows in the same frame).
 #[allow(clippy::too_many_arguments, reason = "a Bevy system")]
 pub(super) fn rebake_skinned_meshes(
     mut commands: Commands,
-    meshes: Query<RebakeItem>,
+    mut meshes: Query<RebakeItem>,
     joints: Query<&GlobalTransform, Without<RebakedFrom>>,
     casters: Query<(&Transform, &Visibility), With<RebakedFrom>>,
     mesh_assets: Res<Assets<Mesh>>,
     bindposes: Res<Assets<SkinnedMeshInverseBindposes>>,
     mut volumes: ResMut<Assets<SdfVolumeAsset>>,
     mut jobs: ResMut<RebakeJobs>,
+    mut stats: ResMut<DistanceFieldRebakeStats>,
     mut frame: Local<u64>,
     mut warned: Local<bevy::platform::collections::HashSet<Entity>>,
 ) {
     *frame += 1;
     jobs.jobs.clear();
     jobs.live.clear();
-    for (entity, settings, mesh, skin, current, visible) in &meshes {
+    *stats = DistanceFieldRebakeStats::default();
+    for (entity, settings, mesh, skin, mut current, visible) in &mut meshes {
         jobs.live.push(entity);
+        stats.meshes += 1;
         let resolution = clamp_resolution(settings.resolution);
         let interval = u64::from(settings.interval.max(1));
-        let fresh = current.is_none_or(|c| c.resolution != resolution);
+        let fresh = current.as_ref().is_none_or(|c| c.resolution != resolution);
+        let shown = if visible.get() {
+            Visibility::Inherited
+        } else {
+            Visibility::Hidden
+        };
+        if let Some(c) = current.as_ref()
+            && !fresh
+            && let Ok((_, v)) = casters.get(c.caster)
+            && *v != shown
+        {
+            commands.entity(c.caster).insert(shown);
+        }
         if !fresh && !(*frame + u64::from(entity.index_u32())).is_multiple_of(interval) {
             continue;
         }
@@ -197,6 +253,14 @@ pub(super) fn rebake_skinned_meshes(
                     .map_or(Mat4::NAN, |g| g.to_matrix() * *inverse)
             })
             .collect();
+        if !fresh
+            && let Some(c) = current.as_ref()
+            && c.baked.0 == mesh.id()
+            && c.baked.1 == joint_from_bind
+        {
+            stats.still += 1;
+            continue; // the pose of its last bake: that field stands
+        }
         let triangles = skinned_triangles(
             &positions,
             &indices,
@@ -214,26 +278,20 @@ pub(super) fn rebake_skinned_meshes(
             .flatten()
             .map(|v| (*v - grid.origin).extend(0.0).to_array())
             .collect();
-        let shown = if visible.get() {
-            Visibility::Inherited
-        } else {
-            Visibility::Hidden
-        };
         let transform = grid_transform(&grid);
-        let volume = match current {
+        let volume = match current.as_deref_mut() {
             Some(c) if !fresh => {
                 // Placed through commands, applied before the records are encoded this
-                // frame (transforms have propagated already); a still pose keeps its
-                // record, nothing is uploaded for it.
-                if let Ok((t, v)) = casters.get(c.caster) {
-                    let mut caster = commands.entity(c.caster);
-                    if *t != transform {
-                        caster.insert((transform, GlobalTransform::from(transform)));
-                    }
-                    if *v != shown {
-                        caster.insert(shown);
-                    }
+                // frame (transforms have propagated already); a cube that stays keeps
+                // its record, nothing is uploaded for it.
+                if let Ok((t, _)) = casters.get(c.caster)
+                    && *t != transform
+                {
+                    commands
+                        .entity(c.caster)
+                        .insert((transform, GlobalTransform::from(transform)));
                 }
+                c.baked = (mesh.id(), joint_from_bind);
                 c.volume.id()
             }
             _ => {
@@ -260,15 +318,24 @@ pub(super) fn rebake_skinned_meshes(
                     caster,
                     volume,
                     resolution,
+                    baked: (mesh.id(), joint_from_bind),
                 });
                 id
             }
         };
+        jobs.sequence += 1;
+        stats.bakes += 1;
+        stats.triangles += triangles.len();
+        let caster = &settings.caster;
+        let sequence = jobs.sequence;
         jobs.jobs.push(RebakeJob {
             volume,
             grid,
             corners: Arc::new(corners),
             mesh: entity,
+            sequence,
+            composes: caster.casts_occlusion
+                && (caster.ao_transmission.is_nan() || caster.ao_transmission <= 0.0),
         });
     }
 }

@@ -106,7 +106,7 @@ pub struct DistanceFieldPipelines {
 }
 
 #[derive(Resource, Default)]
-pub(super) struct ExtractedDistanceFieldFrame(DistanceFieldFrame);
+pub(super) struct ExtractedDistanceFieldFrame(pub(super) DistanceFieldFrame);
 
 /// Render-world system sets of the distance-field scene.
 #[derive(SystemSet, Clone, Debug, PartialEq, Eq, Hash)]

@@ -19,6 +19,11 @@ pub fn scenes_dir(test: &str) -> Option<PathBuf> {
 
 /// The app, reading assets from `dir`; finished and cleaned up.
 pub fn scenes_app_at(dir: &Path) -> App {
+    scenes_app_with(dir, |_| {})
+}
+
+/// [`scenes_app_at`] with more plugins, added by `more` before the app is finished.
+pub fn scenes_app_with(dir: &Path, more: impl FnOnce(&mut App)) -> App {
     let mut app = App::new();
     app.add_plugins(
         DefaultPlugins
@@ -37,6 +42,7 @@ pub fn scenes_app_at(dir: &Path) -> App {
     )
     .insert_resource(SdfBakeCache::with_directory(None))
     .add_plugins((SdfAssetPlugin, DistanceFieldScenePlugin));
+    more(&mut app);
     app.finish();
     app.cleanup();
     app
