@@ -9,7 +9,8 @@
 //!
 //! Every scene (`--scenes`: the showcase room, `CornellBox.glb`,
 //! `DepthOfFieldExample.glb`, `FlightHelmet`, a stress scene, the flagship `samaritan`
-//! scene with every feature on one camera) is rendered in each of its
+//! scene with every feature on one camera, `--characters` walking Foxes cast by capsules
+//! or by re-baked fields) is rendered in each of its
 //! variants (`bevy`, `penumbra-off`, `penumbra`, and Bevy's counterpart of a Penumbra
 //! feature: see `bench/scenes.rs`), each in a fresh app, at every `--sizes` size.
 //! A run waits for the scene to load and every distance field to bake, renders
@@ -31,6 +32,8 @@ use clap::Parser;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+#[path = "bench/characters.rs"]
+pub mod characters;
 #[path = "bench/measure.rs"]
 pub mod measure;
 #[path = "bench/report.rs"]
@@ -83,6 +86,9 @@ pub struct Args {
     /// Also save each run's last frame as `<scene>-<variant>-<W>x<H>.png` in `--out`.
     #[arg(long)]
     pub screenshots: bool,
+    /// Foxes in the characters scene, 1–1000 (each posed anew every frame).
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub characters: u32,
     /// Seconds one run (setup, warm-up and measured frames) may take before the bench
     /// gives up: it keeps the report of the runs before it and exits with status 3 (a
     /// GPU hang, or a pass far over budget, must not eat a lent machine's time). 0: no
@@ -131,6 +137,10 @@ pub struct RunResult {
     pub diagnostics: Vec<(String, Stats)>,
     /// GPU memory at the end of the run.
     pub memory: Memory,
+    /// Object records uploaded per measured frame (Penumbra's apps).
+    pub records: Option<Stats>,
+    /// Distance fields re-baked per measured frame (`DistanceFieldRebake`).
+    pub rebakes: Option<Stats>,
     /// Seconds from startup to ready (loads, bakes).
     pub setup_s: f64,
     /// Updates until ready.
@@ -190,7 +200,12 @@ fn main() -> ExitCode {
                 if !args.variants.is_empty() && !args.variants.contains(&variant) {
                     continue;
                 }
-                let run = Run { scene, variant };
+                let run = Run {
+                    scene,
+                    variant,
+                    characters: args.characters,
+                    scenes_dir: scenes_dir.clone(),
+                };
                 eprintln!(
                     "penumbra-bench: {} / {} at {}x{} …",
                     scene.name(),
@@ -320,7 +335,7 @@ fn run_one(
     let mut app = render.app();
     app.add_plugins(RenderDiagnosticsPlugin);
     measure::add_measurement(&mut app);
-    scenes::add_scene(&mut app, run);
+    scenes::add_scene(&mut app, run)?;
     app.finish();
     app.cleanup();
     let result = measure_run(args, run, size, &render, &mut app);
@@ -362,11 +377,19 @@ fn measure_run(
     gpu_times.0.lock().expect("not poisoned").clear();
     let mut cpu = Vec::with_capacity(args.frames as usize);
     let mut systems = measure::SystemSeries::start();
+    let (mut records, mut rebakes) = (Vec::new(), Vec::new());
     for _ in 0..args.frames {
         let t = std::time::Instant::now();
         app.update();
         cpu.push(t.elapsed().as_secs_f64() * 1e3);
         systems.take_frame();
+        let world = app.world();
+        if let Some(u) = world.get_resource::<penumbra::prelude::DistanceFieldUploadStats>() {
+            records.push(u.frame_records as f64);
+        }
+        if let Some(r) = world.get_resource::<penumbra::prelude::DistanceFieldRebakeStats>() {
+            rebakes.push(r.bakes as f64);
+        }
     }
     let (penumbra_cpu, systems_cpu) = systems.finish();
     // Render diagnostics arrive a few frames late: keep taking them, not the frames.
@@ -409,6 +432,8 @@ fn measure_run(
         frame_gpu: Stats::of(&frame_gpu),
         diagnostics,
         memory: memory.unwrap_or_default(),
+        records: Stats::of(&records),
+        rebakes: Stats::of(&rebakes),
         setup_s,
         setup_frames,
     })

@@ -225,6 +225,8 @@ pub fn json(meta: &Meta, results: &[RunResult]) -> Value {
                     .into_iter()
                     .map(|(span, kind, s)| json!({ "span": span, "kind": kind, "median": s.median, "p95": s.p95 }))
                     .collect::<Vec<_>>(),
+                "records_per_frame": r.records.map(|s| json!({ "median": s.median, "p95": s.p95, "mean": s.mean })),
+                "rebakes_per_frame": r.rebakes.map(|s| json!({ "median": s.median, "p95": s.p95, "mean": s.mean })),
                 "penumbra_gpu_bytes": r.memory.penumbra_bytes,
                 "penumbra_gpu_allocations": r.memory.penumbra_allocations,
                 "total_gpu_bytes": r.memory.total_bytes,
@@ -370,6 +372,21 @@ pub fn markdown(meta: &Meta, results: &[RunResult]) -> String {
                             .map_or("–".into(), |(_, _, s)| format!("{:.3}", s.median * 1e-6))
                     })
                     .collect(),
+            );
+        }
+        let count = |s: Option<Stats>| s.map_or("–".into(), |s| format!("{:.0}", s.median));
+        if runs.iter().any(|r| r.records.is_some_and(|s| s.mean > 0.0)) {
+            row(
+                &mut md,
+                "object records uploaded per frame (median)",
+                runs.iter().map(|r| count(r.records)).collect(),
+            );
+        }
+        if runs.iter().any(|r| r.rebakes.is_some_and(|s| s.mean > 0.0)) {
+            row(
+                &mut md,
+                "fields re-baked per frame (median)",
+                runs.iter().map(|r| count(r.rebakes)).collect(),
             );
         }
         row(

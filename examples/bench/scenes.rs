@@ -40,17 +40,21 @@ pub enum SceneKind {
     /// The flagship scene (`examples/samaritan.rs`, built in code): every Penumbra
     /// feature on one deferred 4× MSAA camera.
     Samaritan,
+    /// `--characters N` walking Foxes (`Fox.glb`) on a ground: capsules or re-bakes
+    /// (`bench/characters.rs`).
+    Characters,
 }
 
 impl SceneKind {
     /// Every scene, in report order.
-    pub const ALL: [SceneKind; 6] = [
+    pub const ALL: [SceneKind; 7] = [
         SceneKind::Showcase,
         SceneKind::Cornell,
         SceneKind::Dof,
         SceneKind::Helmet,
         SceneKind::Stress,
         SceneKind::Samaritan,
+        SceneKind::Characters,
     ];
 
     /// The name on the command line and in the report.
@@ -62,6 +66,7 @@ impl SceneKind {
             SceneKind::Helmet => "helmet",
             SceneKind::Stress => "stress",
             SceneKind::Samaritan => "samaritan",
+            SceneKind::Characters => "characters",
         }
     }
 
@@ -71,6 +76,7 @@ impl SceneKind {
             SceneKind::Cornell => Some("CornellBox.glb"),
             SceneKind::Dof => Some("DepthOfFieldExample.glb"),
             SceneKind::Helmet => Some("FlightHelmet/FlightHelmet.gltf"),
+            SceneKind::Characters => Some(super::characters::FILE),
             SceneKind::Showcase | SceneKind::Stress | SceneKind::Samaritan => None,
         }
     }
@@ -93,6 +99,7 @@ impl SceneKind {
             SceneKind::Stress => &[Bevy, BevyNoShadows, Penumbra, BevySsr],
             // Its own camera and lights: every feature, or none of Penumbra's.
             SceneKind::Samaritan => &[PenumbraOff, Penumbra],
+            SceneKind::Characters => &[Bevy, BevyNoShadows, Penumbra, PenumbraRebake],
         }
     }
 }
@@ -109,8 +116,11 @@ pub enum Variant {
     PenumbraOff,
     /// The scene's Penumbra effects: distance-field shadows on every light, DFAO
     /// (the stress scene: with the global field, billboard reflections, hair,
-    /// tessellation).
+    /// tessellation; the characters: cast by fitted capsules).
     Penumbra,
+    /// `penumbra` with every skinned mesh's field re-baked on the GPU from its pose
+    /// (`DistanceFieldRebake`), the characters scene's.
+    PenumbraRebake,
     /// Plain Bevy with its SSAO.
     BevySsao,
     /// Bevy's forward renderer with 4× MSAA.
@@ -136,6 +146,7 @@ impl Variant {
             Variant::BevyNoShadows => "bevy-no-shadows",
             Variant::PenumbraOff => "penumbra-off",
             Variant::Penumbra => "penumbra",
+            Variant::PenumbraRebake => "penumbra-rebake",
             Variant::BevySsao => "bevy-ssao",
             Variant::ForwardMsaa4 => "forward-msaa4",
             Variant::DeferredMsaa4 => "deferred-msaa4",
@@ -152,6 +163,7 @@ impl Variant {
             self,
             Variant::PenumbraOff
                 | Variant::Penumbra
+                | Variant::PenumbraRebake
                 | Variant::DeferredMsaa4
                 | Variant::ScatterBokeh
                 | Variant::ScatterBokehHalf
@@ -160,7 +172,7 @@ impl Variant {
 
     /// Whether lights get `DistanceFieldShadows` and meshes become casters.
     pub fn distance_fields(self) -> bool {
-        self == Variant::Penumbra
+        matches!(self, Variant::Penumbra | Variant::PenumbraRebake)
     }
 }
 
@@ -171,6 +183,10 @@ pub struct Run {
     pub scene: SceneKind,
     /// The variant.
     pub variant: Variant,
+    /// The characters scene's count.
+    pub characters: u32,
+    /// Where the glTF scenes are.
+    pub scenes_dir: PathBuf,
 }
 
 /// The benchmark's camera.
@@ -206,8 +222,9 @@ fn spin(mut spinning: Query<&mut Transform, With<Spin>>) {
 struct Configured;
 
 /// Adds `run`'s scene in `run`'s variant to `app` (built by the headless harness),
-/// reading glTF scenes from the app's asset folder.
-pub fn add_scene(app: &mut App, run: &Run) {
+/// reading glTF scenes from the app's asset folder; `Err` when a scene's file cannot be
+/// read.
+pub fn add_scene(app: &mut App, run: &Run) -> Result<(), String> {
     if run.variant.penumbra_plugins() {
         // Penumbra's defaults, as a user gets them (the atlas budget included).
         app.add_plugins(PenumbraPlugins);
@@ -239,10 +256,12 @@ pub fn add_scene(app: &mut App, run: &Run) {
             app.add_plugins(SamaritanScenePlugin)
                 .add_systems(PostStartup, adopt_samaritan);
         }
+        SceneKind::Characters => super::characters::add(app, run, &run.scenes_dir)?,
         _ => {
             app.add_systems(Startup, spawn_gltf);
         }
     }
+    Ok(())
 }
 
 /// Casters not yet in the distance-field scene (analytic ones enter at once, mesh
@@ -297,7 +316,7 @@ fn spawn_camera(mut commands: Commands, run: Res<Run>) {
         }
         v => {
             camera.insert((Msaa::Off, deferred));
-            if v == Variant::Penumbra {
+            if v.distance_fields() {
                 camera.insert((
                     PenumbraLighting,
                     DistanceFieldAmbientOcclusion {

@@ -4,7 +4,7 @@
 //!
 //! The archive (`target/bench-pack/penumbra-bench.tar.gz`, at most [`MAX_ARCHIVE_BYTES`])
 //! unpacks to `penumbra-bench/`: the binary, `scenes/` (from `../shared/scenes`:
-//! `CornellBox.glb`, `DepthOfFieldExample.glb`, `FlightHelmet/`), `run.sh` (runs the
+//! `CornellBox.glb`, `DepthOfFieldExample.glb`, `FlightHelmet/`, `Fox.glb`), `run.sh` (runs the
 //! binary from any folder, passing its arguments; `bench_run.sh`), `lib/libvulkan.so.1`
 //! (the build machine's Vulkan loader, used only where the GPU machine has none) and
 //! `README.txt`. The dev profile is
@@ -18,7 +18,12 @@ use std::process::Command;
 pub const MAX_ARCHIVE_BYTES: u64 = 60 << 20;
 
 /// The glTF files and folders the benchmark reads, under `../shared/scenes`.
-const SCENES: &[&str] = &["CornellBox.glb", "DepthOfFieldExample.glb", "FlightHelmet"];
+const SCENES: &[&str] = &[
+    "CornellBox.glb",
+    "DepthOfFieldExample.glb",
+    "FlightHelmet",
+    "Fox.glb",
+];
 
 /// Builds, strips and packs; prints the command that runs it elsewhere.
 pub fn bench_pack(cargo: &std::ffi::OsStr, args: &[String]) -> Result<(), String> {
