@@ -5,8 +5,10 @@
 //! - **Deferred shading with 4× MSAA** (`DeferredMsaa`): every feature below on the same
 //!   multisampled `PenumbraLighting` camera.
 //! - **Distance-field soft shadows** from the moon (directional), the street lamp over
-//!   him (spot) and a shop window's glow (point); the buildings, the kiosk, the lamp post
-//!   and the man (capsules and a sphere) are analytic distance-field casters.
+//!   him (spot) and a shop window's glow (point); the buildings, the kiosk and the lamp
+//!   post are analytic distance-field casters; the man's body is a **skinned character**
+//!   (one mesh on a swaying skeleton, `examples/common/skinned_body.rs`) cast by capsules
+//!   fitted to its joints that follow it every frame, his head by a sphere.
 //! - **Distance-field AO** with its temporal filter, traced through the camera's
 //!   **global distance field** beyond 1 m.
 //! - **Subsurface scattering** on his skin (a skin profile), **hair and beard strips**
@@ -36,14 +38,15 @@
 //! `assets/reference/samaritan.png` by `tests/samaritan_example.rs`; the README's first
 //! picture is its 1280×720 render (`--frames 6`, saved as `assets/readme/samaritan.jpg`).
 //!
-//! Built in code (no asset files), so it runs on a fresh clone. The man is made of
-//! ellipsoids and capsules: the scene shows the effects together, not a character
-//! pipeline (skinned characters: Penumbra's capsule shadows).
+//! Built in code (no asset files), so it runs on a fresh clone. The man's coat is a
+//! skinned mesh of merged capsules, his head ellipsoids: the scene shows the effects
+//! together, and a skinned character among them, not a character pipeline.
 
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::{Exposure, Hdr, ShadowLodOrigin};
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::light::GlobalAmbientLight;
+use bevy::mesh::skinning::SkinnedMeshInverseBindposes;
 use bevy::pbr::DefaultOpaqueRendererMethod;
 use bevy::prelude::*;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
@@ -56,6 +59,8 @@ pub use cli::{Options, casters_ready};
 #[path = "common/character.rs"]
 mod character;
 use character::{HEAD_PARTS, SLOTS, hair_atlas, head_strands};
+#[path = "common/skinned_body.rs"]
+mod skinned_body;
 #[path = "common/street.rs"]
 mod street;
 use street::{building, sign, sign_image};
@@ -96,7 +101,8 @@ impl Plugin for SamaritanScenePlugin {
                 ..default()
             })
             .add_systems(Startup, spawn_scene)
-            .add_systems(Update, (toggle_features, show_features).chain());
+            .add_systems(Update, (toggle_features, show_features).chain())
+            .add_systems(Update, skinned_body::move_body);
     }
 }
 
@@ -154,7 +160,7 @@ fn cobble_map() -> Image {
     )
 }
 
-/// A capsule that is drawn and casts (the man's legs and body, the lamp post).
+/// A capsule that is drawn and casts (the lamp post).
 fn capsule(
     radius: f32,
     length: f32,
@@ -184,6 +190,7 @@ fn spawn_scene(
     mut images: ResMut<Assets<Image>>,
     mut strands: ResMut<Assets<HairStrands>>,
     mut profiles: ResMut<SubsurfaceProfiles>,
+    mut bindposes: ResMut<Assets<SkinnedMeshInverseBindposes>>,
 ) {
     let mut material = |color: Color, roughness: f32| {
         materials.add(StandardMaterial {
@@ -289,6 +296,7 @@ fn spawn_scene(
             &mut materials,
         ));
     }
+    skinned_body::spawn_body(&mut commands, &mut meshes, &mut bindposes, coat.clone());
     spawn_man(
         &mut commands,
         &mut meshes,
@@ -411,8 +419,8 @@ fn skin_profile() -> SubsurfaceProfile {
     }
 }
 
-/// The man: legs and body (capsules, in a coat), shoulders, neck and head (ellipsoids of
-/// skin; the head also a sphere caster), his hair and beard.
+/// The man above his skinned body (`skinned_body`): shoulders (the coat), neck and head
+/// (ellipsoids of skin; the head also a sphere caster), his hair and beard.
 fn spawn_man(
     commands: &mut Commands,
     meshes: &mut Assets<Mesh>,
@@ -422,33 +430,6 @@ fn spawn_man(
     profiles: &mut SubsurfaceProfiles,
     coat: Handle<StandardMaterial>,
 ) {
-    for x in [-0.1, 0.1] {
-        commands.spawn(capsule(
-            0.075,
-            0.7,
-            Transform::from_xyz(x, 0.43, 0.0),
-            coat.clone(),
-            meshes,
-        ));
-    }
-    commands.spawn(capsule(
-        0.19,
-        0.42,
-        Transform::from_xyz(0.0, 1.02, -0.01).with_scale(Vec3::new(1.0, 1.0, 0.72)),
-        coat.clone(),
-        meshes,
-    ));
-    // Arms hanging a little out from the body.
-    for side in [-1.0, 1.0] {
-        commands.spawn(capsule(
-            0.055,
-            0.55,
-            Transform::from_xyz(side * 0.25, 1.0, 0.0)
-                .with_rotation(Quat::from_rotation_z(side * 0.12)),
-            coat.clone(),
-            meshes,
-        ));
-    }
     let skin: SubsurfaceProfileId = profiles.add(skin_profile()).expect("the first profile");
     let skin = materials.add(skin.apply(StandardMaterial {
         base_color: Color::srgb(0.8, 0.58, 0.48),

@@ -1,7 +1,8 @@
 //! The `samaritan` example (every Penumbra feature on one deferred 4× MSAA camera) runs
 //! headless (in process) and its screenshot matches the reference kept in
 //! `assets/reference/samaritan.png`; with `--plain` (no distance-field shadows or DFAO)
-//! it does not.
+//! it does not. The man's body is a skinned character cast by capsules fitted to its
+//! joints, which follow it as it moves.
 //!
 //! To accept a deliberate change: `PENUMBRA_BLESS=1 cargo test --test samaritan_example`,
 //! then look at the new reference before committing it.
@@ -10,7 +11,11 @@
 #[allow(dead_code, reason = "the example's main is not used here")]
 mod samaritan;
 
-use penumbra_test::{Tolerance, check_golden, compare_rgba8, gpu_or_skip, image, output_dir};
+use bevy::prelude::*;
+use penumbra::df::{SceneCasterCounts, SkinCapsules};
+use penumbra_test::{
+    HeadlessRender, Tolerance, check_golden, compare_rgba8, gpu_or_skip, image, output_dir,
+};
 use samaritan::Options;
 use std::path::PathBuf;
 
@@ -48,4 +53,56 @@ fn samaritan_example_matches_reference() {
         !cmp.passed,
         "the distance-field effects changed nothing: {cmp}"
     );
+}
+
+/// The capsule casters' places.
+fn capsule_places(app: &mut App) -> Vec<Vec3> {
+    let world = app.world_mut();
+    let capsules: Vec<Entity> = world
+        .query::<&SkinCapsules>()
+        .iter(world)
+        .flat_map(|c| c.entities().to_vec())
+        .collect();
+    capsules
+        .iter()
+        .filter_map(|&e| world.get::<GlobalTransform>(e))
+        .map(GlobalTransform::translation)
+        .collect()
+}
+
+#[test]
+fn the_flagships_man_is_a_skinned_character_cast_by_capsules() {
+    if !gpu_or_skip("the_flagships_man_is_a_skinned_character_cast_by_capsules") {
+        return;
+    }
+    let render = HeadlessRender::new(64, 64).frames(2);
+    let mut app = render.app();
+    samaritan::add_scene(&mut app);
+    let (_, mut app) = render.run_keeping_app(app).expect("headless render");
+    let world = app.world_mut();
+    let counts: Vec<SceneCasterCounts> = world
+        .query::<&SceneCasterCounts>()
+        .iter(world)
+        .copied()
+        .collect();
+    assert_eq!(counts.len(), 1, "one scene-caster root: {counts:?}");
+    let c = counts[0];
+    // Legs, body and arms (the hips hold no vertex).
+    assert_eq!(
+        (c.capsule_meshes, c.capsules, c.skinned),
+        (1, 5, 0),
+        "{c:?}"
+    );
+    let before = capsule_places(&mut app);
+    assert_eq!(before.len(), 5);
+    for _ in 0..3 {
+        app.update();
+    }
+    let after = capsule_places(&mut app);
+    let moved = before
+        .iter()
+        .zip(&after)
+        .filter(|(a, b)| a.distance(**b) > 1e-3)
+        .count();
+    assert!(moved >= 4, "{moved} of 5 capsules follow the skeleton");
 }
