@@ -229,20 +229,6 @@ pub(super) fn rebake_skinned_meshes(
         ) else {
             continue; // loading
         };
-        let (mut positions, mut joint_indices, mut weights) = (Vec::new(), Vec::new(), Vec::new());
-        if let Err(reason) = append_skin(asset, &mut positions, &mut joint_indices, &mut weights) {
-            if warned.insert(entity) {
-                warn!(
-                    "Penumbra: skinned mesh {entity} is not re-baked: {reason}. Keep its \
-                     asset in the main world (RenderAssetUsages::MAIN_WORLD)."
-                );
-            }
-            continue;
-        }
-        let indices: Vec<u32> = match asset.indices() {
-            Some(i) => i.iter().map(|i| i as u32).collect(),
-            None => (0..positions.len() as u32).collect(),
-        };
         let joint_from_bind: Vec<Mat4> = skin
             .joints
             .iter()
@@ -261,6 +247,20 @@ pub(super) fn rebake_skinned_meshes(
             stats.still += 1;
             continue; // the pose of its last bake: that field stands
         }
+        let (mut positions, mut joint_indices, mut weights) = (Vec::new(), Vec::new(), Vec::new());
+        if let Err(reason) = append_skin(asset, &mut positions, &mut joint_indices, &mut weights) {
+            if warned.insert(entity) {
+                warn!(
+                    "Penumbra: skinned mesh {entity} is not re-baked: {reason}. Keep its \
+                     asset in the main world (RenderAssetUsages::MAIN_WORLD)."
+                );
+            }
+            continue;
+        }
+        let indices: Vec<u32> = match asset.indices() {
+            Some(i) => i.iter().map(|i| i as u32).collect(),
+            None => (0..positions.len() as u32).collect(),
+        };
         let triangles = skinned_triangles(
             &positions,
             &indices,
