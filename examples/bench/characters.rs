@@ -119,15 +119,7 @@ fn spawn_characters(
             ..default()
         });
     }
-    commands.spawn((
-        Name::new("sun"),
-        DirectionalLight {
-            illuminance: 8_000.0,
-            shadow_maps_enabled: true,
-            ..default()
-        },
-        Transform::default().looking_to(Vec3::new(-0.4, -1.0, -0.3), Vec3::Y),
-    ));
+    commands.spawn(super::scenes::sun());
     commands.insert_resource(GlobalAmbientLight {
         color: Color::srgb(0.7, 0.8, 1.0),
         brightness: 120.0,

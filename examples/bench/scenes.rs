@@ -513,7 +513,16 @@ fn frame_gltf(
     } else {
         reach += camera.translation.distance(center);
     }
-    commands.spawn((
+    commands.spawn(sun());
+    commands.insert_resource(Framed {
+        scale: (radius / 10.0).max(1.0),
+        reach,
+    });
+}
+
+/// The glTF scenes' and the characters' sun (its shadows are set by the variant).
+pub fn sun() -> impl Bundle {
+    (
         Name::new("sun"),
         DirectionalLight {
             illuminance: 8_000.0,
@@ -521,11 +530,7 @@ fn frame_gltf(
             ..default()
         },
         Transform::default().looking_to(Vec3::new(-0.4, -1.0, -0.3), Vec3::Y),
-    ));
-    commands.insert_resource(Framed {
-        scale: (radius / 10.0).max(1.0),
-        reach,
-    });
+    )
 }
 
 /// Every light casts shadows (none in `bevy-no-shadows`): shadow maps, or
