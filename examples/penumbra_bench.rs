@@ -9,8 +9,8 @@
 //!
 //! Every scene (`--scenes`: the showcase room, `CornellBox.glb`,
 //! `DepthOfFieldExample.glb`, `FlightHelmet`, a stress scene, the flagship `samaritan`
-//! scene with every feature on one camera, `--characters` walking Foxes cast by capsules
-//! or by re-baked fields) is rendered in each of its
+//! scene with every feature on one camera, `--characters` walking Foxes cast by capsules,
+//! by re-baked fields, by their bind-pose field or not at all) is rendered in each of its
 //! variants (`bevy`, `penumbra-off`, `penumbra`, and Bevy's counterpart of a Penumbra
 //! feature: see `bench/scenes.rs`), each in a fresh app, at every `--sizes` size.
 //! A run waits for the scene to load and every distance field to bake, renders

@@ -126,7 +126,8 @@ pub mod prelude {
         DistanceFieldRebakeStats, DistanceFieldScene, DistanceFieldSceneCasters,
         DistanceFieldSceneSettings, DistanceFieldUploadStats, GlobalDistanceField,
         GlobalDistanceFieldStats, MergeDistanceFieldCasters, PenumbraLighting,
-        PenumbraLightingPlugin, SdfAssetPlugin, SdfBakeFailed, SdfBaked, SdfVolumeAsset,
+        PenumbraLightingPlugin, SceneCasterCounts, SdfAssetPlugin, SdfBakeFailed, SdfBaked,
+        SdfVolumeAsset, SkinnedCasters,
     };
     #[cfg(feature = "ao")]
     pub use bevy_penumbra_df::{

@@ -5,11 +5,14 @@
 //! the walk's 0.708 s and cycled, so every frame poses every Fox anew (as an animated crowd does) at
 //! no cost the measurement would count.
 //!
-//! Variants: `bevy` (shadow maps), `bevy-no-shadows`, `penumbra` (each Fox cast by
-//! capsules fitted to its joints, the default of `DistanceFieldSceneCasters`) and
-//! `penumbra-rebake` (each Fox's own field re-baked on the GPU from its pose every
-//! frame, `DistanceFieldRebake` at its defaults). The report gives per variant the
-//! records uploaded and the re-bakes per frame beside the passes' GPU times.
+//! Variants: `bevy` (shadow maps), `bevy-no-shadows`, `penumbra-skip` (Penumbra's
+//! shadows and DFAO with the Foxes not cast: `SkinnedCasters::Skip`),
+//! `penumbra-bind-pose` (each Fox cast by one field baked in its bind pose, once:
+//! `SkinnedCasters::BindPose`), `penumbra` (each Fox cast by capsules fitted to its
+//! joints, the default of `DistanceFieldSceneCasters`) and `penumbra-rebake` (each
+//! Fox's own field re-baked on the GPU from its pose every frame, `DistanceFieldRebake`
+//! at its defaults). The report gives per variant the records uploaded and the
+//! re-bakes per frame beside the passes' GPU times.
 
 use super::scenes::{BenchCamera, Framed, Run, Variant};
 use bevy::mesh::skinning::SkinnedMesh;
@@ -100,7 +103,14 @@ fn spawn_characters(
             WorldAssetRoot(scene.clone()),
         ));
         if run.variant.distance_fields() {
-            fox.insert(DistanceFieldSceneCasters::default());
+            fox.insert(DistanceFieldSceneCasters {
+                skinned: match run.variant {
+                    Variant::PenumbraSkip => SkinnedCasters::Skip,
+                    Variant::PenumbraBindPose => SkinnedCasters::BindPose,
+                    _ => SkinnedCasters::Capsules,
+                },
+                ..default()
+            });
         }
     }
     let extent = half + SPACING;

@@ -99,7 +99,14 @@ impl SceneKind {
             SceneKind::Stress => &[Bevy, BevyNoShadows, Penumbra, BevySsr],
             // Its own camera and lights: every feature, or none of Penumbra's.
             SceneKind::Samaritan => &[PenumbraOff, Penumbra],
-            SceneKind::Characters => &[Bevy, BevyNoShadows, Penumbra, PenumbraRebake],
+            SceneKind::Characters => &[
+                Bevy,
+                BevyNoShadows,
+                PenumbraSkip,
+                PenumbraBindPose,
+                Penumbra,
+                PenumbraRebake,
+            ],
         }
     }
 }
@@ -121,6 +128,13 @@ pub enum Variant {
     /// `penumbra` with every skinned mesh's field re-baked on the GPU from its pose
     /// (`DistanceFieldRebake`), the characters scene's.
     PenumbraRebake,
+    /// `penumbra` with every skinned mesh's field baked once in its bind pose
+    /// (`SkinnedCasters::BindPose`), the characters scene's: what a static field costs
+    /// (and misses) on a moving character.
+    PenumbraBindPose,
+    /// `penumbra` with skinned meshes not cast at all (`SkinnedCasters::Skip`), the
+    /// characters scene's: the floor of the other methods' cost.
+    PenumbraSkip,
     /// Plain Bevy with its SSAO.
     BevySsao,
     /// Bevy's forward renderer with 4× MSAA.
@@ -147,6 +161,8 @@ impl Variant {
             Variant::PenumbraOff => "penumbra-off",
             Variant::Penumbra => "penumbra",
             Variant::PenumbraRebake => "penumbra-rebake",
+            Variant::PenumbraBindPose => "penumbra-bind-pose",
+            Variant::PenumbraSkip => "penumbra-skip",
             Variant::BevySsao => "bevy-ssao",
             Variant::ForwardMsaa4 => "forward-msaa4",
             Variant::DeferredMsaa4 => "deferred-msaa4",
@@ -164,6 +180,8 @@ impl Variant {
             Variant::PenumbraOff
                 | Variant::Penumbra
                 | Variant::PenumbraRebake
+                | Variant::PenumbraBindPose
+                | Variant::PenumbraSkip
                 | Variant::DeferredMsaa4
                 | Variant::ScatterBokeh
                 | Variant::ScatterBokehHalf
@@ -172,7 +190,13 @@ impl Variant {
 
     /// Whether lights get `DistanceFieldShadows` and meshes become casters.
     pub fn distance_fields(self) -> bool {
-        matches!(self, Variant::Penumbra | Variant::PenumbraRebake)
+        matches!(
+            self,
+            Variant::Penumbra
+                | Variant::PenumbraRebake
+                | Variant::PenumbraBindPose
+                | Variant::PenumbraSkip
+        )
     }
 }
 
@@ -271,10 +295,22 @@ fn pending_casters(world: &mut World) -> usize {
         .query_filtered::<Entity, (With<DistanceFieldCaster>, Without<SdfBakeFailed>)>()
         .iter(world)
         .collect();
+    // A glTF root under `DistanceFieldSceneCasters` whose meshes have not been judged yet
+    // (its counts are all zero until they are), or whose skinned meshes' capsules are
+    // not fitted yet.
+    let roots = world
+        .query_filtered::<Option<&SceneCasterCounts>, With<DistanceFieldSceneCasters>>()
+        .iter(world)
+        .filter(|c| {
+            c.is_none_or(|c| {
+                *c == SceneCasterCounts::default() || (c.capsule_meshes > 0 && c.capsules == 0)
+            })
+        })
+        .count();
     let Some(scene) = world.get_resource::<DistanceFieldScene>() else {
-        return casters.len();
+        return casters.len() + roots;
     };
-    casters.iter().filter(|&&e| scene.slot(e).is_none()).count()
+    casters.iter().filter(|&&e| scene.slot(e).is_none()).count() + roots
 }
 
 /// Whether the scene is framed and every caster is in the distance-field scene (or
