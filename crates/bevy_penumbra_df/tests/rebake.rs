@@ -3,7 +3,8 @@
 //! cube (its transform maps voxels to the world) holds every vertex skinned as Bevy
 //! skins it, with the margin; a turned joint moves the cube on the next bake, and only
 //! on a bake frame (`interval`); a new resolution makes a new caster; removing the
-//! component or despawning the mesh despawns the caster; a still pose is not baked again,
+//! component or despawning the mesh despawns the caster, and the scene's rule casts the
+//! mesh again (capsules, or its bind-pose field); a still pose is not baked again,
 //! and a new one marks its cube dirty in the global field even where the cube stays.
 //! Main world only (no GPU);
 //! `rebake_gpu.rs` checks the pass, the scene corpus the shadows it casts.
@@ -14,7 +15,7 @@ use bevy::world_serialization::WorldAssetRoot;
 use bevy_penumbra_df::{
     CasterSource, DistanceFieldCaster, DistanceFieldRebake, DistanceFieldRebakeStats,
     DistanceFieldSceneCasters, GlobalDistanceField, GlobalDistanceFieldPlugin,
-    GlobalDistanceFieldStats, RebakeCaster, RebakedFrom, SkinCapsules,
+    GlobalDistanceFieldStats, RebakeCaster, RebakedFrom, SkinCapsules, SkinnedCasters,
 };
 use penumbra_df_core::rebake::REBAKE_MARGIN;
 
@@ -161,6 +162,83 @@ fn the_fox_rebakes_into_a_cube_that_follows_its_pose() {
         "the caster outlives its component"
     );
     assert!(app.world().get::<RebakeCaster>(mesh).is_none());
+}
+
+/// Runs until `done` holds (at most 20 s of updates); panics with `what` otherwise.
+fn run_until(app: &mut App, what: &str, mut done: impl FnMut(&mut World) -> bool) {
+    let start = std::time::Instant::now();
+    while start.elapsed().as_secs() < 20 {
+        app.update();
+        if done(app.world_mut()) {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    panic!("{what} within 20 s");
+}
+
+/// Capsule casters under the mesh's `SkinCapsules`.
+fn capsules(world: &World, mesh: Entity) -> usize {
+    world
+        .get::<SkinCapsules>(mesh)
+        .map_or(0, |c| c.entities().len())
+}
+
+#[test]
+fn a_mesh_whose_rebake_goes_casts_by_the_rule_again() {
+    let test = "a_mesh_whose_rebake_goes_casts_by_the_rule_again";
+    // Capsules (the default): they go while re-baked and come back after.
+    let Some(mut app) = support::scenes_app(test) else {
+        return;
+    };
+    let mesh = fox(&mut app, DistanceFieldRebake::default());
+    assert_eq!(
+        capsules(app.world(), mesh),
+        0,
+        "capsules beside the re-bake"
+    );
+    app.world_mut()
+        .entity_mut(mesh)
+        .remove::<DistanceFieldRebake>();
+    run_until(&mut app, "no capsules came back", |w| {
+        capsules(w, mesh) > 0 && w.get::<RebakeCaster>(mesh).is_none()
+    });
+    // The bind-pose field: it goes while re-baked (no field cast twice) and comes back.
+    let Some(mut app) = support::scenes_app(test) else {
+        return;
+    };
+    let scene = app
+        .world()
+        .resource::<AssetServer>()
+        .load(GltfAssetLabel::Scene(0).from_asset("Fox.glb"));
+    app.world_mut().spawn((
+        WorldAssetRoot(scene),
+        DistanceFieldSceneCasters {
+            skinned: SkinnedCasters::BindPose,
+            ..default()
+        },
+    ));
+    let bind_pose = |w: &mut World| {
+        w.query_filtered::<Entity, (With<SkinnedMesh>, With<DistanceFieldCaster>)>()
+            .iter(w)
+            .next()
+    };
+    run_until(&mut app, "no bind-pose caster", |w| bind_pose(w).is_some());
+    let mesh = bind_pose(app.world_mut()).unwrap();
+    app.world_mut()
+        .entity_mut(mesh)
+        .insert(DistanceFieldRebake::default());
+    run_until(
+        &mut app,
+        "the bind-pose field stayed beside the re-bake",
+        |w| w.get::<RebakeCaster>(mesh).is_some() && w.get::<DistanceFieldCaster>(mesh).is_none(),
+    );
+    app.world_mut()
+        .entity_mut(mesh)
+        .remove::<DistanceFieldRebake>();
+    run_until(&mut app, "no bind-pose field came back", |w| {
+        w.get::<RebakeCaster>(mesh).is_none() && w.get::<DistanceFieldCaster>(mesh).is_some()
+    });
 }
 
 #[test]

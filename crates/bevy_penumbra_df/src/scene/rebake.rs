@@ -37,7 +37,8 @@ use std::sync::Arc;
 /// Re-bakes a skinned mesh's distance field on the GPU from its pose (module docs).
 /// Put it on the entity with the `SkinnedMesh`;
 /// [`DistanceFieldSceneCasters`](super::DistanceFieldSceneCasters) then leaves that mesh
-/// to it (no capsules).
+/// to it (no capsules, no bind-pose field), and decides it again by its rule when the
+/// component is removed.
 #[derive(Component, Reflect, Clone, Debug)]
 #[reflect(Component, Clone, Default)]
 pub struct DistanceFieldRebake {

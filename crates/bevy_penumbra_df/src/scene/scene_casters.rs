@@ -188,7 +188,8 @@ pub struct SceneCasterCounts {
     pub blended: u32,
     /// Skipped: not triangles, or no usable positions.
     pub unsupported: u32,
-    /// Left alone: the entity has its own `DistanceFieldCaster`.
+    /// Left alone: the entity has its own `DistanceFieldCaster`, or its field is
+    /// re-baked ([`DistanceFieldRebake`](super::DistanceFieldRebake)).
     pub own: u32,
     /// Primitives baked into a sibling's field: the primitives of one glTF mesh are one
     /// caster (counted once in `casters`, on its first primitive).
@@ -346,7 +347,12 @@ pub(super) fn tag_scene_casters(
     mut merges: Local<MergedMeshes>,
     merge_nodes: Query<(Entity, Ref<MergeDistanceFieldCasters>)>,
     skins: Query<&SkinnedMesh>,
+    rebake_added: Query<Entity, Added<super::DistanceFieldRebake>>,
+    mut rebake_removed: RemovedComponents<super::DistanceFieldRebake>,
 ) {
+    // A mesh that gained or lost a re-bake is decided again: its capsules or bind-pose
+    // field give way to the re-baked field, and come back when the re-bake goes.
+    let rebake_changed: Vec<Entity> = rebake_added.iter().chain(rebake_removed.read()).collect();
     // No root: nothing to tag (and no ancestor walk for every new mesh).
     if roots.is_empty() {
         waiting.clear();
@@ -377,7 +383,10 @@ pub(super) fn tag_scene_casters(
             );
         }
     }
-    let candidates = new_meshes.iter().chain(std::mem::take(&mut *waiting));
+    let candidates = new_meshes
+        .iter()
+        .chain(std::mem::take(&mut *waiting))
+        .chain(rebake_changed);
     for entity in candidates {
         if let Some(root) = scene_root(entity, &parents, &roots)
             && !roots.get(root).is_ok_and(|(_, s)| s.is_changed())
@@ -414,8 +423,8 @@ pub(super) fn tag_scene_casters(
             else {
                 continue;
             };
-            let verdict = if (caster.is_some() || rebaked) && tag.is_none() {
-                None // its own caster, or re-baked: left alone
+            let verdict = if rebaked || (caster.is_some() && tag.is_none()) {
+                None // re-baked, or its own caster: left alone
             } else {
                 let material = material
                     .zip(materials.as_deref())
@@ -517,7 +526,13 @@ pub(super) fn tag_scene_casters(
                 super::skin_capsules::SkinCapsuleRequest,
             )>();
             match verdict {
-                None => tally.own = 1,
+                None => {
+                    tally.own = 1;
+                    // Re-baked now: the rule's field of it goes.
+                    if tagged {
+                        untag(&mut commands, ours);
+                    }
+                }
                 Some(Verdict::Caster {
                     bakes,
                     masked,
