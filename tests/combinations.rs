@@ -1,6 +1,6 @@
 //! The combination matrix (#46): Penumbra's camera features in every pair on one camera,
-//! and each with Bevy's bloom, distance fog, SSR, SSAO, `DepthOfField`, HDR off and an
-//! orthographic projection. One app renders them all: each configuration's components go
+//! and each with Bevy's bloom, distance fog, SSR, SSAO, `DepthOfField`, TAA, HDR off and
+//! an orthographic projection. One app renders them all: each configuration's components go
 //! on the camera (distance-field shadows on the sun), a few frames render, the image is
 //! read back.
 //!
@@ -13,11 +13,13 @@
 //! - no warning is logged but the documented ones (`DOCUMENTED`: the combinations that
 //!   cannot work, ARCHITECTURE.md's table), and no wgpu error.
 //!
-//! Bevy's TAA is not in the matrix: its crate (`bevy_anti_alias`) is not among this
-//! project's dependencies.
+//! Bevy's TAA (`TemporalAntiAliasing`) is a context like the others; it is removed with
+//! the jitter and mip bias it requires so that the next configuration does not inherit
+//! them (its motion-vector prepass stays, as DFAO's does).
 //!
 //! `cargo test --test combinations -- --nocapture` prints each configuration's figures.
 
+use bevy::anti_alias::taa::TemporalAntiAliasing;
 use bevy::camera::{Hdr, ScalingMode};
 use bevy::core_pipeline::tonemapping::DebandDither;
 use bevy::light::GlobalAmbientLight;
@@ -28,6 +30,7 @@ use bevy::pbr::{
 use bevy::post_process::bloom::Bloom;
 use bevy::post_process::dof::DepthOfField;
 use bevy::prelude::*;
+use bevy::render::camera::{MipBias, TemporalJitter};
 use penumbra::prelude::*;
 use penumbra_test::{
     HeadlessRender, gpu_or_skip, image::RgbaImage, output_dir, take_render_errors, take_warnings,
@@ -85,18 +88,20 @@ enum Context {
     Ssr,
     Ssao,
     BevyDof,
+    Taa,
     HdrOff,
     Ortho,
 }
 
 impl Context {
-    const ALL: [Context; 8] = [
+    const ALL: [Context; 9] = [
         Context::None,
         Context::Bloom,
         Context::Fog,
         Context::Ssr,
         Context::Ssao,
         Context::BevyDof,
+        Context::Taa,
         Context::HdrOff,
         Context::Ortho,
     ];
@@ -117,6 +122,12 @@ const DOCUMENTED: &[(Feature, Context, &str, &str)] = &[
         Context::Ssao,
         "has DeferredMsaa and Bevy's ScreenSpaceAmbientOcclusion",
         "Bevy's SSAO reads single-sample depth and normals: MSAA is off while it is on",
+    ),
+    (
+        Feature::Msaa,
+        Context::Taa,
+        "has DeferredMsaa and a TemporalJitter",
+        "Bevy's TAA resolves edges over frames and renders nothing while MSAA is on: MSAA is off while it is on",
     ),
     (
         Feature::Bokeh,
@@ -288,6 +299,9 @@ fn apply(world: &mut World, features: &BTreeSet<Feature>, context: Context) {
         DepthOfField,
         Hdr,
     )>()
+    // Not `MotionVectorPrepass`: Bevy 0.19 keeps a camera's background motion-vector
+    // pipeline after the prepass is removed (a wgpu error); DFAO adds it anyway.
+    .remove::<(TemporalAntiAliasing, TemporalJitter, MipBias)>()
     .insert((Msaa::Off, Projection::Perspective(default())));
     for feature in features {
         match feature {
@@ -346,6 +360,9 @@ fn apply(world: &mut World, features: &BTreeSet<Feature>, context: Context) {
                 aperture_f_stops: 0.25,
                 ..default()
             });
+        }
+        Context::Taa => {
+            c.insert(TemporalAntiAliasing::default());
         }
         Context::Ortho => {
             c.insert(Projection::Orthographic(OrthographicProjection {

@@ -43,9 +43,9 @@
 //! the samples of those pixels (the others exit at once) and a per-sample AO upsample
 //! from the per-pixel trace, each into a texture at twice the view's size (a 2×2 block
 //! of texels per pixel), which the per-sample lighting reads. Only 4× is served: `Sample2` and `Sample8` are set to `Sample4` (warned
-//! once). SSR and Bevy's SSAO stay unavailable with MSAA, as on any Bevy camera: a
-//! `DeferredMsaa` camera with either renders without MSAA while it has them (one
-//! warning) and gets its `Msaa` back when they go.
+//! once). SSR, Bevy's SSAO and its TAA stay unavailable with MSAA, as on any Bevy
+//! camera: a `DeferredMsaa` camera with any of them (TAA: a `TemporalJitter`) renders
+//! without MSAA while it has them (one warning) and gets its `Msaa` back when they go.
 //!
 //! Cost: the multisampled G-buffer (4 × 17 bytes) plus the stencil (4 × 1), the class
 //! (1) and the representative G-buffer and depth (16 + 4) per pixel; one
@@ -138,21 +138,24 @@ pub(crate) struct HeldMsaa(Vec<(Entity, Msaa)>);
 #[derive(Default)]
 pub(crate) struct SuspendedMsaa(Vec<(Entity, Msaa)>);
 
-/// A camera's `DeferredMsaa`, and whether it has Bevy's SSR or SSAO (which read
-/// single-sample depth and normals: not served under deferred MSAA).
+/// A camera's `DeferredMsaa`, whether it has Bevy's SSR or SSAO (which read
+/// single-sample depth and normals: not served under deferred MSAA), and whether its
+/// projection is jittered for temporal anti-aliasing (Bevy's `TemporalAntiAliasing`
+/// requires `TemporalJitter`, and renders nothing while MSAA is on).
 type HoldItem = (
     Entity,
     &'static mut Msaa,
     Has<DeferredMsaa>,
     Has<bevy::pbr::ScreenSpaceReflections>,
     Has<bevy::pbr::ScreenSpaceAmbientOcclusion>,
+    Has<bevy::render::camera::TemporalJitter>,
 );
 
 /// Before `check_msaa`: a supported `DeferredMsaa` camera's MSAA is set aside (and
 /// non-4× counts become 4×, warned once per camera); other `PenumbraLighting` cameras
-/// with MSAA are told, once, how to keep it. A `DeferredMsaa` camera with Bevy's SSR or
-/// SSAO renders without MSAA while it has them (warned once), and gets its `Msaa` back
-/// when they are gone.
+/// with MSAA are told, once, how to keep it. A `DeferredMsaa` camera with Bevy's SSR,
+/// SSAO or temporal anti-aliasing renders without MSAA while it has them (warned once),
+/// and gets its `Msaa` back when they are gone.
 pub(crate) fn hold_deferred_msaa(
     mut cameras: Query<HoldItem, With<PenumbraLighting>>,
     support: Option<Res<DeferredMsaaSupport>>,
@@ -162,8 +165,8 @@ pub(crate) fn hold_deferred_msaa(
 ) {
     held.0.clear();
     suspended.0.retain(|(e, _)| cameras.contains(*e));
-    for (entity, mut msaa, deferred_msaa, ssr, ssao) in &mut cameras {
-        let screen_space = deferred_msaa && (ssr || ssao);
+    for (entity, mut msaa, deferred_msaa, ssr, ssao, jitter) in &mut cameras {
+        let screen_space = deferred_msaa && (ssr || ssao || jitter);
         if let Some(i) = suspended.0.iter().position(|(e, _)| *e == entity) {
             if screen_space {
                 continue;
@@ -178,15 +181,23 @@ pub(crate) fn hold_deferred_msaa(
             continue;
         }
         if screen_space {
-            warn!(
-                "Penumbra: camera {entity} has DeferredMsaa and Bevy's {}, which reads \
-                 single-sample depth and normals: it renders without MSAA while it has it",
-                if ssr {
-                    "ScreenSpaceReflections"
-                } else {
-                    "ScreenSpaceAmbientOcclusion"
-                }
-            );
+            if ssr || ssao {
+                warn!(
+                    "Penumbra: camera {entity} has DeferredMsaa and Bevy's {}, which reads \
+                     single-sample depth and normals: it renders without MSAA while it has it",
+                    if ssr {
+                        "ScreenSpaceReflections"
+                    } else {
+                        "ScreenSpaceAmbientOcclusion"
+                    }
+                );
+            } else {
+                warn!(
+                    "Penumbra: camera {entity} has DeferredMsaa and a TemporalJitter (Bevy's \
+                     TemporalAntiAliasing), which resolves edges over frames and needs MSAA \
+                     off: it renders without MSAA while it has it"
+                );
+            }
             suspended.0.push((entity, *msaa));
             *msaa = Msaa::Off;
             continue;
