@@ -2,8 +2,9 @@
 //! scene (distance-field shadows from a sun, a lamp and two small lamps), a
 //! render-to-texture camera with DFAO, bokeh depth of field and billboard reflections is
 //! spawned late, its image resized, then despawned; a second camera on the main target
-//! with a viewport is spawned, turned off and despawned; the main camera's viewport
-//! comes and goes. No panic and no wgpu error (the harness fails a run on any); after
+//! with a viewport is spawned, turned off and despawned; a camera with those features
+//! renders into a minimized (0×0) window that is restored and minimized again, then
+//! both go; the main camera's viewport comes and goes. No panic and no wgpu error (the harness fails a run on any); after
 //! the churn the main camera's image equals the same scene rendered without it, and
 //! steady frames create no GPU resource.
 
@@ -29,6 +30,19 @@ struct Extra;
 #[derive(Resource)]
 struct Texture(Handle<Image>);
 
+/// A window that is minimized (0×0, as winit reports a minimized window on Windows and
+/// Bevy writes into `Window::resolution`), restored and minimized again, and the camera
+/// with Penumbra's features that renders into it. No display here: the window has no
+/// surface, so what is checked is everything up to presenting (the main world's and
+/// the render world's handling of a camera whose target has no pixels, and of its
+/// target growing and shrinking).
+#[derive(Component)]
+struct Minimized;
+
+fn set_physical_size(window: &mut Window, size: UVec2) {
+    window.resolution.set_physical_resolution(size.x, size.y);
+}
+
 /// Penumbra's camera features, on the extra cameras.
 fn features() -> impl Bundle {
     (
@@ -45,14 +59,73 @@ fn churn(
     mut commands: Commands,
     mut images: ResMut<Assets<Image>>,
     texture: Option<Res<Texture>>,
-    mut main: Query<&mut Camera, (With<Camera3d>, Without<Extra>)>,
+    mut main: Query<&mut Camera, (With<Camera3d>, Without<Extra>, Without<Minimized>)>,
     mut extra: Query<(Entity, &mut Camera), With<Extra>>,
-    transforms: Query<&Transform, (With<Camera3d>, Without<Extra>)>,
+    transforms: Query<&Transform, (With<Camera3d>, Without<Extra>, Without<Minimized>)>,
+    mut minimized: Query<
+        (Entity, Option<&mut Window>, Option<&Camera>),
+        (With<Minimized>, Without<Extra>),
+    >,
+    mut resized: MessageWriter<bevy::window::WindowResized>,
 ) {
     *frame += 1;
     let Ok(transform) = transforms.single().copied() else {
         return;
     };
+    // The minimized window: 0×0 at 3, restored to 64×48 at 5, 0×0 again at 7, gone
+    // with its camera at 10 (each resize told as winit tells it: `WindowResized`).
+    let mut resize_window = |size: UVec2| {
+        for (entity, window, _) in &mut minimized {
+            if let Some(mut window) = window {
+                set_physical_size(&mut window, size);
+                resized.write(bevy::window::WindowResized {
+                    window: entity,
+                    width: window.width(),
+                    height: window.height(),
+                });
+            }
+        }
+    };
+    match *frame {
+        3 => {
+            let mut window = Window::default();
+            set_physical_size(&mut window, UVec2::ZERO);
+            let window = commands.spawn((Minimized, window)).id();
+            commands.spawn((
+                Minimized,
+                Camera3d::default(),
+                Camera {
+                    order: 3,
+                    ..default()
+                },
+                RenderTarget::Window(bevy::window::WindowRef::Entity(window)),
+                PenumbraLighting,
+                Msaa::Off,
+                transform,
+                features(),
+            ));
+        }
+        5 => resize_window(UVec2::new(64, 48)),
+        7 => resize_window(UVec2::ZERO),
+        4 | 6 | 8 => {
+            // The camera sees its window's size (nothing to render while minimized).
+            let size = minimized
+                .iter()
+                .find_map(|(_, _, camera)| camera.map(Camera::physical_target_size));
+            let expected = if *frame == 6 {
+                Some(UVec2::new(64, 48))
+            } else {
+                Some(UVec2::ZERO)
+            };
+            assert_eq!(size, Some(expected), "frame {}", *frame);
+        }
+        10 => {
+            for (entity, ..) in &minimized {
+                commands.entity(entity).despawn();
+            }
+        }
+        _ => {}
+    }
     match *frame {
         2 => {
             let mut image = Image::new_target_texture(64, 48, TextureFormat::Rgba16Float, None);
