@@ -229,7 +229,7 @@ fn spawn_scene(mut commands: Commands, args: Res<ViewerArgs>, assets: Res<AssetS
         root.insert(DistanceFieldSceneCasters {
             two_sided: args.0.two_sided,
             skinned: if args.0.rebake.is_some() {
-                penumbra::df::SkinnedCasters::Skip
+                SkinnedCasters::Skip
             } else {
                 args.0.skinned
             },
