@@ -307,10 +307,18 @@ fn pending_casters(world: &mut World) -> usize {
             })
         })
         .count();
+    // A re-baked mesh whose field's caster is not made yet (at its first bake).
+    let rebakes = world
+        .query_filtered::<(), (
+            With<DistanceFieldRebake>,
+            Without<penumbra::df::RebakeCaster>,
+        )>()
+        .iter(world)
+        .count();
     let Some(scene) = world.get_resource::<DistanceFieldScene>() else {
-        return casters.len() + roots;
+        return casters.len() + roots + rebakes;
     };
-    casters.iter().filter(|&&e| scene.slot(e).is_none()).count() + roots
+    casters.iter().filter(|&&e| scene.slot(e).is_none()).count() + roots + rebakes
 }
 
 /// Whether the scene is framed and every caster is in the distance-field scene (or
