@@ -4,8 +4,8 @@
 //! spawned late, its image resized, then despawned; a second camera on the main target
 //! with a viewport is spawned, turned off and despawned; a camera with those features
 //! renders into a minimized (0×0) window that is restored and minimized again, then
-//! both go; the main camera's viewport comes and goes. No panic and no wgpu error (the harness fails a run on any); after
-//! the churn the main camera's image equals the same scene rendered without it, and
+//! both go; the main camera's viewport comes and goes. No panic and no wgpu error (the
+//! harness fails a run on any); after the churn the main camera's image equals the same scene rendered without it, and
 //! steady frames create no GPU resource.
 
 #[path = "../examples/df_shadows.rs"]

@@ -127,7 +127,7 @@ const DOCUMENTED: &[(Feature, Context, &str, &str)] = &[
         Feature::Msaa,
         Context::Taa,
         "has DeferredMsaa and a TemporalJitter",
-        "Bevy's TAA resolves edges over frames and renders nothing while MSAA is on: MSAA is off while it is on",
+        "Bevy's TAA pass skips a camera whose MSAA is on: MSAA is off while TAA is on",
     ),
     (
         Feature::Bokeh,

@@ -141,7 +141,7 @@ pub(crate) struct SuspendedMsaa(Vec<(Entity, Msaa)>);
 /// A camera's `DeferredMsaa`, whether it has Bevy's SSR or SSAO (which read
 /// single-sample depth and normals: not served under deferred MSAA), and whether its
 /// projection is jittered for temporal anti-aliasing (Bevy's `TemporalAntiAliasing`
-/// requires `TemporalJitter`, and renders nothing while MSAA is on).
+/// requires `TemporalJitter`, and its pass skips a camera whose MSAA is on).
 type HoldItem = (
     Entity,
     &'static mut Msaa,
@@ -166,9 +166,10 @@ pub(crate) fn hold_deferred_msaa(
     held.0.clear();
     suspended.0.retain(|(e, _)| cameras.contains(*e));
     for (entity, mut msaa, deferred_msaa, ssr, ssao, jitter) in &mut cameras {
-        let screen_space = deferred_msaa && (ssr || ssao || jitter);
+        // Bevy's passes that cannot work on a multisampled camera.
+        let single_sample = deferred_msaa && (ssr || ssao || jitter);
         if let Some(i) = suspended.0.iter().position(|(e, _)| *e == entity) {
-            if screen_space {
+            if single_sample {
                 continue;
             }
             let (_, kept) = suspended.0.swap_remove(i);
@@ -180,7 +181,7 @@ pub(crate) fn hold_deferred_msaa(
         if *msaa == Msaa::Off {
             continue;
         }
-        if screen_space {
+        if single_sample {
             if ssr || ssao {
                 warn!(
                     "Penumbra: camera {entity} has DeferredMsaa and Bevy's {}, which reads \

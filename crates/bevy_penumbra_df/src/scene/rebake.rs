@@ -22,7 +22,7 @@
 //! voxels. Cost per bake: `resolution³ × triangles` point–triangle evaluations on the
 //! GPU (the Fox, 576 triangles at 48³: 64 M) and an upload of 48 bytes per triangle.
 
-use super::skin_capsules::{SkinCapsuleRequest, SkinCapsules, append_skin};
+use super::skin_capsules::append_skin;
 use super::{CasterSource, DistanceFieldCaster};
 use crate::sdf_asset::SdfVolumeAsset;
 use bevy::ecs::lifecycle::HookContext;
@@ -348,26 +348,14 @@ fn bounds(triangles: &[[Vec3; 3]]) -> Option<(Vec3, Vec3)> {
     Some(corners.fold((first, first), |(lo, hi), v| (lo.min(*v), hi.max(*v))))
 }
 
-/// A mesh that lost its [`DistanceFieldRebake`] lets its caster go; a mesh that gained
-/// one lets its capsules go (its scene's casters were decided before).
-#[allow(clippy::type_complexity, reason = "Bevy queries")]
+/// A mesh that lost its [`DistanceFieldRebake`] lets its caster go (its capsules or
+/// bind-pose field, gone while it was re-baked, come back by the scene's rule:
+/// `tag_scene_casters` decides it again).
 pub(super) fn drop_rebake_casters(
     mut commands: Commands,
     orphans: Query<Entity, (With<RebakeCaster>, Without<DistanceFieldRebake>)>,
-    capsuled: Query<
-        Entity,
-        (
-            Added<DistanceFieldRebake>,
-            Or<(With<SkinCapsules>, With<SkinCapsuleRequest>)>,
-        ),
-    >,
 ) {
     for entity in &orphans {
         commands.entity(entity).remove::<RebakeCaster>();
-    }
-    for entity in &capsuled {
-        commands
-            .entity(entity)
-            .remove::<(SkinCapsules, SkinCapsuleRequest)>();
     }
 }
