@@ -92,7 +92,8 @@ pub struct Args {
     #[arg(long, value_name = "R")]
     pub rebake: Option<u32>,
     /// The fraction of each joint's vertices its fitted capsule holds, in (0, 1]
-    /// (`SkinCapsuleFit::coverage`). Default: the fit's.
+    /// (`SkinCapsuleFit::coverage`; only a mesh without usable triangles is fitted by
+    /// its vertices, the rest by volume). Default: the fit's.
     #[arg(long, value_parser = parse_coverage, allow_hyphen_values = true)]
     pub capsule_coverage: Option<f32>,
     /// Pose the scene in its glTF animation N (0-based) at `--time`, held still (the

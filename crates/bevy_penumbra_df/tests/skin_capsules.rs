@@ -128,11 +128,11 @@ fn the_fox_casts_through_capsules_that_follow_its_joints() {
         );
         assert!(radius.is_finite() && *radius > 0.0 && half.is_finite() && *half >= 0.0);
     }
-    // In the rest pose: each capsule holds many of its joint's skinned vertices (the fit
-    // covers 60 % of them in the bind pose; a capsule in the wrong space holds none),
-    // with 5 % of its radius to spare.
-    let rest = coverage(&mut app, mesh, 0.05);
-    assert!(rest.iter().all(|&f| f > 0.4), "{rest:?}");
+    // In the rest pose: each capsule lies on its joint's skinned vertices (fitted to the
+    // volume they skin, most are within half its radius of its surface, 62–100 % on the
+    // Fox; a capsule in the wrong space holds none).
+    let rest = coverage(&mut app, mesh, 0.5);
+    assert!(rest.iter().all(|&f| f > 0.5), "{rest:?}");
 
     // Nothing moves: no record is uploaded.
     app.update();
@@ -167,8 +167,8 @@ fn the_fox_casts_through_capsules_that_follow_its_joints() {
             .frame_records,
         moved
     );
-    let posed = coverage(&mut app, mesh, 0.05);
-    assert!(posed.iter().all(|&f| f > 0.4), "{posed:?}");
+    let posed = coverage(&mut app, mesh, 0.5);
+    assert!(posed.iter().all(|&f| f > 0.5), "{posed:?}");
 
     // Hiding the mesh hides its capsules.
     app.world_mut().entity_mut(mesh).insert(Visibility::Hidden);

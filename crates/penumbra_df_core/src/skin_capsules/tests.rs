@@ -54,6 +54,7 @@ impl Arm {
             weights: &self.weights,
             inverse_bindposes: &self.inverse_bindposes,
             parents: &self.parents,
+            triangles: &[],
         }
     }
 }
@@ -200,6 +201,7 @@ fn a_joints_vertices_are_the_ones_it_weighs_most() {
         weights: &weights,
         inverse_bindposes: &[Mat4::IDENTITY; 4],
         parents: &[None; 4],
+        triangles: &[],
     };
     assert_eq!(
         dominant_vertices(&input),
@@ -244,6 +246,7 @@ fn bad_input_fits_what_it_can_and_never_panics() {
         weights: &[],
         inverse_bindposes: &[],
         parents: &[],
+        triangles: &[],
     };
     assert!(fit_skin_capsules(&empty, &CapsuleFitSettings::default()).is_empty());
 }
@@ -299,6 +302,7 @@ fn the_axis_of_least_volume_wins_over_the_bone() {
         weights: &vec![[1.0, 0.0, 0.0, 0.0]; n],
         inverse_bindposes: &[Mat4::IDENTITY, Mat4::from_translation(-Vec3::X)],
         parents: &[None, Some(0)],
+        triangles: &[],
     };
     let c = fit_skin_capsules(&input, &CapsuleFitSettings::default());
     assert_eq!(c.len(), 1);
@@ -312,4 +316,169 @@ fn the_fit_is_deterministic() {
     let a = fit_skin_capsules(&arm.input(), &CapsuleFitSettings::default());
     let b = fit_skin_capsules(&arm.input(), &CapsuleFitSettings::default());
     assert_eq!(a, b);
+}
+
+/// A closed tube along x of `radius` (24 sides) with rings at `xs` and a cap at each
+/// end, skinned wholly to joint 0 (the identity), its triangles facing out.
+fn closed_tube(radius: f32, xs: &[f32]) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut positions = Vec::new();
+    for &x in xs {
+        for k in 0..24 {
+            let a = std::f32::consts::TAU * k as f32 / 24.0;
+            positions.push(Vec3::new(x, radius * a.cos(), radius * a.sin()));
+        }
+    }
+    let mut triangles = Vec::new();
+    for r in 0..xs.len() as u32 - 1 {
+        for k in 0..24 {
+            let (a, b) = (r * 24 + k, r * 24 + (k + 1) % 24);
+            let (c, d) = (a + 24, b + 24);
+            triangles.push([a, b, d]);
+            triangles.push([a, d, c]);
+        }
+    }
+    let first = positions.len() as u32;
+    positions.push(Vec3::new(xs[0], 0.0, 0.0));
+    positions.push(Vec3::new(xs[xs.len() - 1], 0.0, 0.0));
+    let last_ring = (xs.len() as u32 - 1) * 24;
+    for k in 0..24 {
+        triangles.push([first, (k + 1) % 24, k]);
+        triangles.push([first + 1, last_ring + k, last_ring + (k + 1) % 24]);
+    }
+    (positions, triangles)
+}
+
+/// The volume (m³) where the capsules and the tube `radius` over `[x0, x1]` disagree,
+/// by a 64³ midpoint rule over a box around both (exact inside tests, f64): the
+/// independent truth of a fit.
+fn disagreement(capsules: &[FittedCapsule], radius: f32, x0: f32, x1: f32) -> f64 {
+    let (lo, hi) = (
+        DVec3::new(f64::from(x0) - 0.2, -0.2, -0.2),
+        DVec3::new(f64::from(x1) + 0.2, 0.2, 0.2),
+    );
+    let n = 64;
+    let step = (hi - lo) / f64::from(n);
+    let mut wrong = 0usize;
+    for i in 0..n {
+        for j in 0..n {
+            for k in 0..n {
+                let p = lo + (DVec3::new(f64::from(i), f64::from(j), f64::from(k)) + 0.5) * step;
+                let tube = p.x >= f64::from(x0)
+                    && p.x <= f64::from(x1)
+                    && p.y.hypot(p.z) <= f64::from(radius);
+                let caps = capsules.iter().any(|c| distance_f64(c, p) <= 0.0);
+                wrong += usize::from(tube != caps);
+            }
+        }
+    }
+    wrong as f64 * step.x * step.y * step.z
+}
+
+fn tube_input<'a>(
+    positions: &'a [Vec3],
+    triangles: &'a [[u32; 3]],
+    joints: &'a [[u16; 4]],
+    weights: &'a [[f32; 4]],
+) -> SkinInput<'a> {
+    SkinInput {
+        positions,
+        joints,
+        weights,
+        inverse_bindposes: &[Mat4::IDENTITY],
+        parents: &[None],
+        triangles,
+    }
+}
+
+#[test]
+fn with_its_triangles_a_limb_is_fitted_to_its_volume() {
+    // A tube 5 cm across and 40 cm long: the capsule that best covers it is as wide as
+    // the tube and a little shorter (its round ends leave the rim out).
+    let xs: Vec<f32> = (0..=40).map(|i| i as f32 * 0.01).collect();
+    let (positions, triangles) = closed_tube(0.05, &xs);
+    let n = positions.len();
+    let (joints, weights) = (vec![[0u16; 4]; n], vec![[1.0, 0.0, 0.0, 0.0]; n]);
+    let input = tube_input(&positions, &triangles, &joints, &weights);
+    let c = fit_skin_capsules(&input, &CapsuleFitSettings::default());
+    assert_eq!(c.len(), 1);
+    let cell = 0.5 / volume::CELLS_ALONG_LONGEST as f32;
+    assert!(c[0].axis.x.abs() > 0.99, "{:?}", c[0]);
+    assert!((c[0].radius - 0.05).abs() < 1.5 * cell, "{:?}", c[0]);
+    assert!(
+        c[0].center.distance(Vec3::new(0.2, 0.0, 0.0)) < 2.0 * cell,
+        "{:?}",
+        c[0]
+    );
+    assert!(c[0].half_length > 0.15, "{:?}", c[0]);
+    // Against the exact solid: within a quarter of the tube's volume (π·0.05²·0.4); the
+    // best capsule (radius 0.05 reaching both ends) leaves out ⅔π·0.05³, 8 %.
+    let tube = std::f64::consts::PI * 0.05f64.powi(2) * 0.4;
+    let wrong = disagreement(&c, 0.05, 0.0, 0.4);
+    assert!(wrong < 0.25 * tube, "{wrong} of {tube}");
+}
+
+#[test]
+fn crowded_vertices_do_not_pull_the_volume_fit() {
+    // The same tube tessellated finely over its first 8 cm (a paw's detail) and coarsely
+    // after: the vertex fit crowds to the fine end, the volume fit covers the limb.
+    let mut xs: Vec<f32> = (0..=32).map(|i| i as f32 * 0.0025).collect();
+    xs.extend([0.24, 0.4]);
+    let (positions, triangles) = closed_tube(0.05, &xs);
+    let n = positions.len();
+    let (joints, weights) = (vec![[0u16; 4]; n], vec![[1.0, 0.0, 0.0, 0.0]; n]);
+    let by_volume = fit_skin_capsules(
+        &tube_input(&positions, &triangles, &joints, &weights),
+        &CapsuleFitSettings::default(),
+    );
+    let by_vertices = fit_skin_capsules(
+        &tube_input(&positions, &[], &joints, &weights),
+        &CapsuleFitSettings::default(),
+    );
+    let tube = std::f64::consts::PI * 0.05f64.powi(2) * 0.4;
+    let (volume, vertices) = (
+        disagreement(&by_volume, 0.05, 0.0, 0.4),
+        disagreement(&by_vertices, 0.05, 0.0, 0.4),
+    );
+    assert!(volume < 0.25 * tube, "volume fit: {volume} of {tube}");
+    assert!(
+        volume < 0.5 * vertices,
+        "volume fit {volume}, vertex fit {vertices}"
+    );
+}
+
+#[test]
+fn unusable_triangles_fall_back_to_the_vertex_fit() {
+    let arm = arm(0.07, 0.8);
+    let vertex_fit = fit_skin_capsules(&arm.input(), &CapsuleFitSettings::default());
+    let huge = u32::MAX;
+    let n = arm.positions.len() as u32;
+    for triangles in [
+        vec![[0, 1, huge]],
+        vec![[0, 0, 0], [1, 1, 1]],
+        vec![[0, 1, n]],
+    ] {
+        let input = SkinInput {
+            triangles: &triangles,
+            ..arm.input()
+        };
+        assert_eq!(
+            fit_skin_capsules(&input, &CapsuleFitSettings::default()),
+            vertex_fit,
+            "{triangles:?}"
+        );
+    }
+    // Non-finite corners are left out, not read.
+    let (mut positions, triangles) = closed_tube(0.05, &[0.0, 0.2, 0.4]);
+    positions[3] = Vec3::NAN;
+    let n = positions.len();
+    let (joints, weights) = (vec![[0u16; 4]; n], vec![[1.0, 0.0, 0.0, 0.0]; n]);
+    let c = fit_skin_capsules(
+        &tube_input(&positions, &triangles, &joints, &weights),
+        &CapsuleFitSettings::default(),
+    );
+    assert!(
+        c.iter()
+            .all(|c| c.radius.is_finite() && c.center.is_finite()),
+        "{c:?}"
+    );
 }
