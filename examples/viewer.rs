@@ -692,14 +692,18 @@ fn scene_ready(world: &mut World) -> bool {
     if !world.contains_resource::<Framing>() {
         return false;
     }
-    // Mesh casters wait for their bake; analytic ones (a skinned mesh's capsules) for
-    // nothing.
+    // Mesh casters wait for their bake; a skinned mesh for its capsules' fit.
     let pending = world
         .query_filtered::<&DistanceFieldCaster, (Without<SdfBaked>, Without<SdfBakeFailed>)>()
         .iter(world)
         .filter(|c| c.source == CasterSource::Mesh)
         .count();
-    pending == 0
+    let fitting = world
+        .query::<&SceneCasterCounts>()
+        .iter(world)
+        .filter(|c| c.capsule_meshes > 0 && c.capsules == 0)
+        .count();
+    pending == 0 && fitting == 0
 }
 
 /// Renders headless (see the module docs); the error says why not.

@@ -127,7 +127,7 @@ const CORPUS: &[Case] = &[
     Case {
         file: "Fox.glb",
         flags: &["--ground", "--animation", "1", "--time", "0.35"],
-        bounds: b(0.17, 0.05, 0.03),
+        bounds: b(0.13, 0.04, 0.03),
     },
     // #48: the same Fox re-baked on the GPU from its pose (`DistanceFieldRebake`, 48³).
     Case {

@@ -358,7 +358,8 @@ fn viewer_renders_every_shared_scene_and_dumps_its_buffers() {
     assert_eq!(c["skipped_skinned"].as_u64(), Some(0), "{c}");
     assert_eq!(c["capsule_meshes"].as_u64(), Some(1), "{c}");
     let capsules = c["capsules"].as_u64().unwrap_or(0);
-    assert!((6..=24).contains(&capsules), "{c}");
+    // At least a few joints, at most four capsules a joint (24 joints).
+    assert!((6..=96).contains(&capsules), "{c}");
     assert!(r.meta["settings"]["ground"].is_object(), "fox: no ground");
     assert!(s[0].1 > 0.02, "fox: no shadow on its ground: {s:?}");
     // `--no-ground`: the fox alone against the sky.

@@ -352,9 +352,24 @@ fn closed_tube(radius: f32, xs: &[f32]) -> (Vec<Vec3>, Vec<[u32; 3]>) {
 /// by a 64³ midpoint rule over a box around both (exact inside tests, f64): the
 /// independent truth of a fit.
 fn disagreement(capsules: &[FittedCapsule], radius: f32, x0: f32, x1: f32) -> f64 {
+    let r = f64::from(radius);
+    let (x0, x1) = (f64::from(x0), f64::from(x1));
+    disagreement_with(capsules, x0, x1, |p| {
+        p.x >= x0 && p.x <= x1 && p.y.hypot(p.z) <= r
+    })
+}
+
+/// The volume where the capsules and the solid `inside` disagree, over `x0 − 0.2 ..
+/// x1 + 0.2` by ±0.2 in y and z (64³ midpoints).
+fn disagreement_with(
+    capsules: &[FittedCapsule],
+    x0: f64,
+    x1: f64,
+    inside: impl Fn(DVec3) -> bool,
+) -> f64 {
     let (lo, hi) = (
-        DVec3::new(f64::from(x0) - 0.2, -0.2, -0.2),
-        DVec3::new(f64::from(x1) + 0.2, 0.2, 0.2),
+        DVec3::new(x0 - 0.2, -0.2, -0.2),
+        DVec3::new(x1 + 0.2, 0.2, 0.2),
     );
     let n = 64;
     let step = (hi - lo) / f64::from(n);
@@ -363,11 +378,8 @@ fn disagreement(capsules: &[FittedCapsule], radius: f32, x0: f32, x1: f32) -> f6
         for j in 0..n {
             for k in 0..n {
                 let p = lo + (DVec3::new(f64::from(i), f64::from(j), f64::from(k)) + 0.5) * step;
-                let tube = p.x >= f64::from(x0)
-                    && p.x <= f64::from(x1)
-                    && p.y.hypot(p.z) <= f64::from(radius);
                 let caps = capsules.iter().any(|c| distance_f64(c, p) <= 0.0);
-                wrong += usize::from(tube != caps);
+                wrong += usize::from(inside(p) != caps);
             }
         }
     }
@@ -480,5 +492,45 @@ fn unusable_triangles_fall_back_to_the_vertex_fit() {
         c.iter()
             .all(|c| c.radius.is_finite() && c.center.is_finite()),
         "{c:?}"
+    );
+}
+
+#[test]
+fn a_part_the_joints_capsule_leaves_out_gets_its_own() {
+    // The tube with an ear on top (a closed tube 5 cm across standing from y = 3 cm to
+    // 17 cm at x = 0.2), all one joint: the limb's capsule leaves the ear out, and the
+    // ear, a connected piece of the joint's cells, gets a capsule of its own.
+    let xs: Vec<f32> = (0..=40).map(|i| i as f32 * 0.01).collect();
+    let (mut positions, mut triangles) = closed_tube(0.05, &xs);
+    let ys: Vec<f32> = (0..=14).map(|i| i as f32 * 0.01).collect();
+    let (ear, ear_triangles) = closed_tube(0.025, &ys);
+    let first = positions.len() as u32;
+    // A quarter turn about z (x → y), then up and along: the ear stands on the limb.
+    positions.extend(ear.iter().map(|p| Vec3::new(0.2 - p.y, 0.03 + p.x, p.z)));
+    triangles.extend(ear_triangles.iter().map(|t| t.map(|i| i + first)));
+    let n = positions.len();
+    let (joints, weights) = (vec![[0u16; 4]; n], vec![[1.0, 0.0, 0.0, 0.0]; n]);
+    let c = fit_skin_capsules(
+        &tube_input(&positions, &triangles, &joints, &weights),
+        &CapsuleFitSettings::default(),
+    );
+    assert_eq!(c.len(), 2, "{c:?}");
+    assert!(
+        c[1].center.distance(Vec3::new(0.2, 0.11, 0.0)) < 0.03,
+        "{:?}",
+        c[1]
+    );
+    let solid = |p: DVec3| {
+        (p.x >= 0.0 && p.x <= 0.4 && p.y.hypot(p.z) <= 0.05)
+            || (p.y >= 0.03 && p.y <= 0.17 && (p.x - 0.2).hypot(p.z) <= 0.025)
+    };
+    let (both, limb) = (
+        disagreement_with(&c, 0.0, 0.4, solid),
+        disagreement_with(&c[..1], 0.0, 0.4, solid),
+    );
+    // The ear above the limb is about π·0.025²·0.12 = 2.4e-4 m³.
+    assert!(
+        both < limb - 1.2e-4,
+        "with the ear's capsule {both}, without {limb}"
     );
 }
