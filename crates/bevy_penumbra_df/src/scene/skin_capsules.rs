@@ -2,8 +2,7 @@
 //! ([`SkinnedCasters::Capsules`](super::SkinnedCasters::Capsules), the default of
 //! [`DistanceFieldSceneCasters`]), as Unreal's capsule shadows.
 //!
-//! The fit (`penumbra_df_core::skin_capsules`) is made once per mesh and skin, on the
-//! `AsyncComputeTaskPool`, and cached;
+//! The fit (`penumbra_df_core::skin_capsules`) is made once per mesh and skin and cached;
 //! each capsule is an analytic [`DistanceFieldCaster`] spawned as a child of its joint,
 //! so transform propagation carries it with the skeleton and the object buffer uploads
 //! only the records of capsules whose joints moved (a still character uploads nothing).
@@ -16,7 +15,6 @@ use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::mesh::{PrimitiveTopology, VertexAttributeValues};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
-use bevy::tasks::{AsyncComputeTaskPool, Task, futures::check_ready};
 use penumbra_df_core::skin_capsules::{
     CapsuleFitSettings, FittedCapsule, SkinInput, fit_skin_capsules,
 };
@@ -28,11 +26,12 @@ use std::sync::Arc;
 /// Cost: one capsule record per kept joint and per piece fitted apart (the Fox: 31
 /// capsules on 20 of its 24 joints), uploaded
 /// when its joint moves; each capsule is an object the shadow and DFAO passes trace
-/// analytically (no atlas memory). The fit runs once per mesh and skin, on the
-/// `AsyncComputeTaskPool` (the capsules appear the frame it is ready): fitted to the
-/// volume the joints skin (a grid of about 96 cells along the mesh), the Fox takes
-/// about 65 ms with `penumbra_df_core` optimised (opt-level 3); a mesh without triangles
-/// falls back to the vertex fit (under a millisecond).
+/// analytically (no atlas memory). The fit runs once per mesh and skin, on the main
+/// thread, so that the capsules appear on a frame that does not depend on thread
+/// timing (deterministic captures): fitted to the volume the joints skin (a grid of
+/// about 96 cells along the mesh), the Fox takes about 65 ms with `penumbra_df_core`
+/// optimised (opt-level 3); a mesh without triangles falls back to the vertex fit
+/// (under a millisecond).
 #[derive(Reflect, Clone, Copy, Debug, PartialEq)]
 pub struct SkinCapsuleFit {
     /// The vertex fit only (a mesh whose triangles enclose nothing; a triangle mesh is
@@ -113,14 +112,6 @@ pub(super) struct SkinCapsuleRequest {
     pub(super) meshes: Vec<Entity>,
 }
 
-/// The fits made and being made (on the `AsyncComputeTaskPool`), by meshes, skin and
-/// settings: instances share a fit.
-#[derive(Default)]
-pub(super) struct CapsuleFits {
-    done: HashMap<FitKey, Arc<Vec<FittedCapsule>>>,
-    running: HashMap<FitKey, Task<Vec<FittedCapsule>>>,
-}
-
 /// Fits by the meshes, their skin and the settings: instances share a fit.
 type FitKey = (
     Vec<AssetId<Mesh>>,
@@ -193,7 +184,7 @@ pub(super) fn fit_skin_capsule_casters(
     bindposes: Res<Assets<SkinnedMeshInverseBindposes>>,
     parents: Query<&ChildOf>,
     visibility: Query<&InheritedVisibility>,
-    mut fits: Local<CapsuleFits>,
+    mut fits: Local<HashMap<FitKey, Arc<Vec<FittedCapsule>>>>,
     mut mesh_events: MessageReader<AssetEvent<Mesh>>,
     mut skin_events: MessageReader<AssetEvent<SkinnedMeshInverseBindposes>>,
 ) {
@@ -201,11 +192,9 @@ pub(super) fn fit_skin_capsule_casters(
     let stale = changed_assets(&mut mesh_events);
     let stale_skins = changed_assets(&mut skin_events);
     if !stale.is_empty() || !stale_skins.is_empty() {
-        let fresh = |(meshes, skin, _): &FitKey| {
+        fits.retain(|(meshes, skin, _), _| {
             !stale_skins.contains(skin) && !meshes.iter().any(|m| stale.contains(m))
-        };
-        fits.done.retain(|key, _| fresh(key));
-        fits.running.retain(|key, _| fresh(key));
+        });
     }
     for (entity, request) in &requests {
         let Ok(settings) = roots.get(request.root) else {
@@ -238,16 +227,8 @@ pub(super) fn fit_skin_capsule_casters(
                 fit.min_radius.to_bits(),
             ],
         );
-        let capsules = if let Some(found) = fits.done.get(&key) {
+        let capsules = if let Some(found) = fits.get(&key) {
             found.clone()
-        } else if let Some(task) = fits.running.get_mut(&key) {
-            let Some(fitted) = check_ready(task) else {
-                continue; // still fitting
-            };
-            fits.running.remove(&key);
-            let fitted = Arc::new(fitted);
-            fits.done.insert(key, fitted.clone());
-            fitted
         } else {
             let Some(meshes) = members
                 .iter()
@@ -279,22 +260,19 @@ pub(super) fn fit_skin_capsule_casters(
                     lead.joints.iter().position(|&j| j == parent)
                 })
                 .collect();
-            let inverse = inverse.to_vec();
-            let task = AsyncComputeTaskPool::get().spawn(async move {
-                fit_skin_capsules(
-                    &SkinInput {
-                        positions: &positions,
-                        joints: &joints,
-                        weights: &weights,
-                        inverse_bindposes: &inverse,
-                        parents: &joint_parents,
-                        triangles: &triangles,
-                    },
-                    &fit,
-                )
-            });
-            fits.running.insert(key, task);
-            continue; // spawned the frame its fit is ready
+            let fitted = Arc::new(fit_skin_capsules(
+                &SkinInput {
+                    positions: &positions,
+                    joints: &joints,
+                    weights: &weights,
+                    inverse_bindposes: inverse,
+                    parents: &joint_parents,
+                    triangles: &triangles,
+                },
+                &fit,
+            ));
+            fits.insert(key, fitted.clone());
+            fitted
         };
         // A hidden mesh's capsules are hidden from the start.
         let shown = if visibility.get(entity).is_ok_and(|v| !v.get()) {
