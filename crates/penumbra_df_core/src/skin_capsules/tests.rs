@@ -534,3 +534,29 @@ fn a_part_the_joints_capsule_leaves_out_gets_its_own() {
         "with the ear's capsule {both}, without {limb}"
     );
 }
+
+#[test]
+fn stray_vertices_and_tiny_meshes_do_not_break_the_volume_fit() {
+    // A vertex far off every triangle (no triangle uses it) seeds no cell of the grid.
+    let (mut positions, triangles) = closed_tube(0.05, &[0.0, 0.2, 0.4]);
+    positions.push(Vec3::splat(-1.0e6));
+    let n = positions.len();
+    let (joints, weights) = (vec![[0u16; 4]; n], vec![[1.0, 0.0, 0.0, 0.0]; n]);
+    let c = fit_skin_capsules(
+        &tube_input(&positions, &triangles, &joints, &weights),
+        &CapsuleFitSettings::default(),
+    );
+    assert_eq!(c.len(), 1, "{c:?}");
+    assert!((c[0].radius - 0.05).abs() < 0.01, "{c:?}");
+    // A mesh too small for f32 cells falls back to the vertex fit, finite.
+    let tiny: Vec<Vec3> = positions.iter().map(|p| *p * 1.0e-44).collect();
+    let c = fit_skin_capsules(
+        &tube_input(&tiny, &triangles, &joints, &weights),
+        &CapsuleFitSettings::default(),
+    );
+    assert!(
+        c.iter()
+            .all(|c| c.radius.is_finite() && c.center.is_finite()),
+        "{c:?}"
+    );
+}

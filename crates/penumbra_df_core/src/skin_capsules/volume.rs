@@ -8,6 +8,9 @@
 //! A joint's capsule then minimises the volume it gets wrong: its own inside cells left
 //! out plus outside cells taken in ([`fit_volume_along`]). Cells inside the solid but
 //! skinned to other joints cost nothing either way (the union of capsules covers them).
+//! What a joint's capsule leaves out and no other joint's capsule holds, in pieces
+//! connected through cell faces, may get capsules of its own ([`piece_capsules`]): a
+//! capsule per joint cannot hold two ears, or a paw bent from its leg.
 //!
 //! This is the quantity a shadow sees (the caster's occupied space), where the vertex
 //! fit counts vertices, which crowd where a mesh is finely tessellated (a face, paws)
@@ -67,9 +70,16 @@ impl SolidSamples {
             return None;
         }
         let cell = extent / CELLS_ALONG_LONGEST as f32;
+        if !cell.is_normal() {
+            return None; // a mesh too small for f32 cells
+        }
         // One cell of margin on every side: the outside around the mesh is sampled too.
         let origin = lo - Vec3::splat(cell);
-        let dims = ((hi - lo) / cell).ceil().as_uvec3() + glam::UVec3::splat(3);
+        let dims = ((hi - lo) / cell)
+            .ceil()
+            .min(Vec3::splat(CELLS_ALONG_LONGEST as f32))
+            .as_uvec3()
+            + glam::UVec3::splat(3);
         let [nx, ny, nz] = dims.to_array().map(|d| d as usize);
         let centre = |x: usize, y: usize, z: usize| {
             origin + (Vec3::new(x as f32, y as f32, z as f32) + 0.5) * cell
@@ -128,6 +138,9 @@ impl SolidSamples {
                 continue;
             }
             let g = ((*p - origin) / cell).floor();
+            if g.cmplt(Vec3::ZERO).any() {
+                continue; // a vertex no triangle uses, off the grid
+            }
             let (x, y, z) = (g.x as usize, g.y as usize, g.z as usize);
             if x < nx && y < ny && z < nz && joint[index(x, y, z)] == usize::MAX {
                 joint[index(x, y, z)] = *j;
