@@ -165,7 +165,7 @@ pub fn dominant_vertices(input: &SkinInput) -> Vec<Vec<usize>> {
 /// Fits one capsule per joint that skins enough of the mesh (see the module docs).
 /// Deterministic. The vertex fit is `O(vertices · log vertices)`; the volume fit adds
 /// `O(triangles · columns they cover + cells · joints)` over a grid of about 96 cells
-/// along the mesh's longest side (the Fox's 576 triangles and 24 joints: about 65 ms at
+/// along the mesh's longest side (the Fox's 576 triangles and 24 joints: 43–55 ms at
 /// opt-level 3).
 pub fn fit_skin_capsules(input: &SkinInput, settings: &CapsuleFitSettings) -> Vec<FittedCapsule> {
     let coverage = if settings.coverage.is_finite() {

@@ -29,7 +29,7 @@ use std::sync::Arc;
 /// analytically (no atlas memory). The fit runs once per mesh and skin, on the main
 /// thread, so that the capsules appear on a frame that does not depend on thread
 /// timing (deterministic captures): fitted to the volume the joints skin (a grid of
-/// about 96 cells along the mesh), the Fox takes about 65 ms with `penumbra_df_core`
+/// about 96 cells along the mesh), the Fox takes 43–55 ms with `penumbra_df_core`
 /// optimised (opt-level 3); a mesh without triangles falls back to the vertex fit
 /// (under a millisecond).
 #[derive(Reflect, Clone, Copy, Debug, PartialEq)]
