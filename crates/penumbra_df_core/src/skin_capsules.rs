@@ -16,8 +16,9 @@
 //! 4. **With the mesh's triangles** ([`SkinInput::triangles`], what the Bevy side gives),
 //!    each capsule is fitted to the *volume* its joint skins: the bind-pose solid is
 //!    sampled on a grid (96 cells along its longest side; inside by the signed count of
-//!    the faces a ray along +z crosses), each inside cell belongs to the joint of its nearest vertex, and along each
-//!    candidate axis (and the principal axis of the joint's cells) the radius and the two
+//!    the faces a ray along +z crosses), each inside cell belongs to the joint of its
+//!    nearest vertex, and along each candidate axis (and the principal axis of the
+//!    joint's cells) the radius and the two
 //!    ends minimise the cells it gets wrong: its own inside cells left out (×2) plus
 //!    outside cells taken in. The least wrong capsule wins. A joint is kept when it owns
 //!    at least 8 cells. Then what a joint's capsule leaves out and no other joint's
@@ -41,8 +42,9 @@
 //! The capsule lives in its joint's space: placed as a child of the joint it follows the
 //! joint rigidly, which is exact for vertices that one joint skins alone and an
 //! approximation where several blend (elbows, the belly). Limits: a capsule cannot bend,
-//! so a joint whose vertices curve (a hand) is covered loosely; thin flat parts (ears, a
-//! fin) are left out by the volume fit (little volume, a large shadow seen flat); morph
+//! so a joint whose vertices curve (a hand) is covered loosely; thin flat parts (a fin,
+//! a cape) are covered loosely by the volume fit (little volume, a large shadow seen
+//! flat); morph
 //! targets are not seen; the fit is of the bind pose.
 
 use glam::{Mat4, Vec3};

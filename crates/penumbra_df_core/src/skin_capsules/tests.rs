@@ -386,20 +386,20 @@ fn disagreement_with(
     wrong as f64 * step.x * step.y * step.z
 }
 
-fn tube_input<'a>(
-    positions: &'a [Vec3],
-    triangles: &'a [[u32; 3]],
-    joints: &'a [[u16; 4]],
-    weights: &'a [[f32; 4]],
-) -> SkinInput<'a> {
-    SkinInput {
+/// The capsules fitted (default settings) to a mesh skinned wholly to joint 0 (the
+/// identity), by volume when `triangles` are given.
+fn fit_one_joint(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<FittedCapsule> {
+    let n = positions.len();
+    let (joints, weights) = (vec![[0u16; 4]; n], vec![[1.0, 0.0, 0.0, 0.0]; n]);
+    let input = SkinInput {
         positions,
-        joints,
-        weights,
+        joints: &joints,
+        weights: &weights,
         inverse_bindposes: &[Mat4::IDENTITY],
         parents: &[None],
         triangles,
-    }
+    };
+    fit_skin_capsules(&input, &CapsuleFitSettings::default())
 }
 
 #[test]
@@ -408,10 +408,7 @@ fn with_its_triangles_a_limb_is_fitted_to_its_volume() {
     // the tube and a little shorter (its round ends leave the rim out).
     let xs: Vec<f32> = (0..=40).map(|i| i as f32 * 0.01).collect();
     let (positions, triangles) = closed_tube(0.05, &xs);
-    let n = positions.len();
-    let (joints, weights) = (vec![[0u16; 4]; n], vec![[1.0, 0.0, 0.0, 0.0]; n]);
-    let input = tube_input(&positions, &triangles, &joints, &weights);
-    let c = fit_skin_capsules(&input, &CapsuleFitSettings::default());
+    let c = fit_one_joint(&positions, &triangles);
     assert_eq!(c.len(), 1);
     let cell = 0.5 / volume::CELLS_ALONG_LONGEST as f32;
     assert!(c[0].axis.x.abs() > 0.99, "{:?}", c[0]);
@@ -436,16 +433,8 @@ fn crowded_vertices_do_not_pull_the_volume_fit() {
     let mut xs: Vec<f32> = (0..=32).map(|i| i as f32 * 0.0025).collect();
     xs.extend([0.24, 0.4]);
     let (positions, triangles) = closed_tube(0.05, &xs);
-    let n = positions.len();
-    let (joints, weights) = (vec![[0u16; 4]; n], vec![[1.0, 0.0, 0.0, 0.0]; n]);
-    let by_volume = fit_skin_capsules(
-        &tube_input(&positions, &triangles, &joints, &weights),
-        &CapsuleFitSettings::default(),
-    );
-    let by_vertices = fit_skin_capsules(
-        &tube_input(&positions, &[], &joints, &weights),
-        &CapsuleFitSettings::default(),
-    );
+    let by_volume = fit_one_joint(&positions, &triangles);
+    let by_vertices = fit_one_joint(&positions, &[]);
     let tube = std::f64::consts::PI * 0.05f64.powi(2) * 0.4;
     let (volume, vertices) = (
         disagreement(&by_volume, 0.05, 0.0, 0.4),
@@ -482,12 +471,7 @@ fn unusable_triangles_fall_back_to_the_vertex_fit() {
     // Non-finite corners are left out, not read.
     let (mut positions, triangles) = closed_tube(0.05, &[0.0, 0.2, 0.4]);
     positions[3] = Vec3::NAN;
-    let n = positions.len();
-    let (joints, weights) = (vec![[0u16; 4]; n], vec![[1.0, 0.0, 0.0, 0.0]; n]);
-    let c = fit_skin_capsules(
-        &tube_input(&positions, &triangles, &joints, &weights),
-        &CapsuleFitSettings::default(),
-    );
+    let c = fit_one_joint(&positions, &triangles);
     assert!(
         c.iter()
             .all(|c| c.radius.is_finite() && c.center.is_finite()),
@@ -508,12 +492,7 @@ fn a_part_the_joints_capsule_leaves_out_gets_its_own() {
     // A quarter turn about z (x → y), then up and along: the ear stands on the limb.
     positions.extend(ear.iter().map(|p| Vec3::new(0.2 - p.y, 0.03 + p.x, p.z)));
     triangles.extend(ear_triangles.iter().map(|t| t.map(|i| i + first)));
-    let n = positions.len();
-    let (joints, weights) = (vec![[0u16; 4]; n], vec![[1.0, 0.0, 0.0, 0.0]; n]);
-    let c = fit_skin_capsules(
-        &tube_input(&positions, &triangles, &joints, &weights),
-        &CapsuleFitSettings::default(),
-    );
+    let c = fit_one_joint(&positions, &triangles);
     assert_eq!(c.len(), 2, "{c:?}");
     assert!(
         c[1].center.distance(Vec3::new(0.2, 0.11, 0.0)) < 0.03,
@@ -540,20 +519,12 @@ fn stray_vertices_and_tiny_meshes_do_not_break_the_volume_fit() {
     // A vertex far off every triangle (no triangle uses it) seeds no cell of the grid.
     let (mut positions, triangles) = closed_tube(0.05, &[0.0, 0.2, 0.4]);
     positions.push(Vec3::splat(-1.0e6));
-    let n = positions.len();
-    let (joints, weights) = (vec![[0u16; 4]; n], vec![[1.0, 0.0, 0.0, 0.0]; n]);
-    let c = fit_skin_capsules(
-        &tube_input(&positions, &triangles, &joints, &weights),
-        &CapsuleFitSettings::default(),
-    );
+    let c = fit_one_joint(&positions, &triangles);
     assert_eq!(c.len(), 1, "{c:?}");
     assert!((c[0].radius - 0.05).abs() < 0.01, "{c:?}");
     // A mesh too small for f32 cells falls back to the vertex fit, finite.
     let tiny: Vec<Vec3> = positions.iter().map(|p| *p * 1.0e-44).collect();
-    let c = fit_skin_capsules(
-        &tube_input(&tiny, &triangles, &joints, &weights),
-        &CapsuleFitSettings::default(),
-    );
+    let c = fit_one_joint(&tiny, &triangles);
     assert!(
         c.iter()
             .all(|c| c.radius.is_finite() && c.center.is_finite()),

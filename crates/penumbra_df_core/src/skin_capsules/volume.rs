@@ -356,7 +356,7 @@ fn best_capsule(
 }
 
 /// The `members` (indices into `cells`) in pieces connected through cell faces, each
-/// in the order of `members`; pieces in the order of their first member.
+/// sorted; pieces in the order of their first member in `members`.
 fn pieces(members: &[usize], cells: &[usize], dims: [usize; 3]) -> Vec<Vec<usize>> {
     let [nx, ny, nz] = dims;
     let at: std::collections::HashMap<usize, usize> =
