@@ -108,7 +108,7 @@ const CORPUS: &[Case] = &[
     Case {
         file: "AnisotropyBarnLamp/AnisotropyBarnLamp.gltf",
         flags: &[],
-        bounds: b(0.28, 0.07, 0.08),
+        bounds: b(0.24, 0.06, 0.08),
     },
     Case {
         file: "terrain/terrain.glb",

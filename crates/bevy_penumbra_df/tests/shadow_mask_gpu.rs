@@ -15,7 +15,8 @@ use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind, words_to_bytes};
 use penumbra_reference::df::object_distance;
 use penumbra_reference::shadow_mask::{
     facing_the_eye, field_normal, horizon, pack_gbuffer_normal, pixel_visibility,
-    position_from_depth, receiver_field_normal, shadow_ray, unpack_gbuffer_normal,
+    position_from_depth, receiver_field_normal, receiver_normal_in_depth, shadow_ray,
+    unpack_gbuffer_normal,
 };
 use penumbra_test::wgpu::{self, BufferUsages};
 use penumbra_test::{GpuCompute, gpu_or_skip};
@@ -304,6 +305,94 @@ fn a_caster_shaded_apart_from_its_faces_gives_way_from_facing_zero() {
         given.len()
     );
     assert!(given.len() >= 20 && right * 10 >= given.len() * 9 && taken == 0);
+}
+
+/// A G-buffer normal tilted a little away from the light (a smooth normal just past the
+/// terminator of facets that face it) gives way to the face normal the depth buffer about
+/// the pixel gives (`shadow_mask::face_normal`) on a caster shaded apart from its faces
+/// and on receivers with no caster field: with every normal tilted 15° from the sun and
+/// the torus flagged `SHADING_APART`, the GPU's mask equals the model's; of the pixels the
+/// tilt hides the sun from that the other rules leave dark, at least 40 % (and 20) are lit
+/// again, none that the true normals leave dark, and none is darkened. With the torus not
+/// flagged (a flat-shaded scan), the face changes no pixel whose field normal is read.
+#[test]
+fn a_normal_just_past_the_terminator_gives_way_to_the_depth_buffers_face() {
+    if !gpu_or_skip("a_normal_just_past_the_terminator_gives_way_to_the_depth_buffers_face") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let passes = passes(&gpu);
+    // The torus, shaded apart from its faces (the rule's only receivers), and the rest.
+    let mut scene = scene(Vec3::ZERO);
+    for r in &mut scene.records {
+        if r.kind() == penumbra_df_core::object::ShapeKind::Volume as u32 {
+            r.0[27] |= flags::SHADING_APART;
+        }
+    }
+    let straight_view = view(&scene, Vec3::ZERO);
+    let (light_name, light) = lights(Vec3::ZERO, EYE)[0];
+    let tilted = tilted_view(&scene, &light, 15.0);
+    // The model without the depth buffer's face: what the other rules give.
+    let faceless = reference_mask_by(&scene, &tilted, &light, false);
+    let (straight, _) = gpu_mask(&gpu, &passes, &scene, &straight_view, &light);
+    let (got, _) = gpu_mask(&gpu, &passes, &scene, &tilted, &light);
+    let want = reference_mask(&scene, &tilted, &light);
+    let (mean, over, max) = compare(&got, &want);
+    // The pixels lit by their true normals that the tilt hides the sun from and the
+    // other rules leave dark (the caster field's normal gives way from facing 0 on this
+    // caster): how many the face lights. And the pixels it lights that the true normals
+    // leave dark, or that it darkens.
+    let (mut left, mut given, mut wrong, mut darkened) = (0, 0, 0, 0);
+    for i in 0..(WIDTH * HEIGHT) as usize {
+        if straight_view.depth[i] <= 0.0 {
+            continue;
+        }
+        let p = pixel_position(&straight_view, i);
+        let (dir, _, _) = shadow_ray(p, &light);
+        let hides = facing_the_eye(unpack_gbuffer_normal(tilted.normals[i]), p).dot(dir) < 0.0;
+        let lit = straight[i] > 0.5;
+        if hides && lit && faceless[i] <= 0.5 {
+            left += 1;
+            given += usize::from(got[i] > 0.5);
+        }
+        wrong += usize::from(!lit && faceless[i] <= 0.5 && got[i] > 0.5);
+        darkened += usize::from(faceless[i] > 0.5 && got[i] <= 0.5);
+    }
+    eprintln!(
+        "{light_name}: GPU vs model mean {mean:.5}, {:.3} % over 0.05, max {max:.3}; of \
+         {left} pixels lit by their true normals that the 15° tilt hides the sun from and \
+         the other rules leave dark, the depth buffer's face lights {given}; {wrong} lit \
+         that the true normals leave dark, {darkened} darkened",
+        over * 100.0
+    );
+    assert!(mean < 2e-4 && over < 5e-4, "{mean} {over} {max}");
+    assert!(
+        given >= 20 && given * 5 >= left * 2,
+        "{given} of {left} given back"
+    );
+    assert_eq!((wrong, darkened), (0, 0));
+    // The torus not shaded apart (a flat-shaded scan's pixel-sized facets): where its
+    // field's normal is read, the face is not asked; elsewhere it still is.
+    let plain = self::scene(Vec3::ZERO);
+    let with = reference_mask_by(&plain, &tilted, &light, true);
+    let without = reference_mask_by(&plain, &tilted, &light, false);
+    let (mut on_field, mut off_field) = (0, 0);
+    for i in 0..(WIDTH * HEIGHT) as usize {
+        if tilted.depth[i] <= 0.0 || with[i] == without[i] {
+            continue;
+        }
+        let p = pixel_position(&tilted, i);
+        let n = facing_the_eye(unpack_gbuffer_normal(tilted.normals[i]), p);
+        if receiver_field_normal(&plain.records, &plain.atlas, &tilted.camera, p, n).is_some() {
+            on_field += 1;
+        } else {
+            off_field += 1;
+        }
+    }
+    eprintln!(
+        "not shaded apart: the face changes {on_field} pixels on the field, {off_field} off it"
+    );
+    assert!(on_field == 0 && off_field > 0, "{on_field} {off_field}");
 }
 
 /// A receiver that sees a solid caster from its inside (the back of an open surface
@@ -604,7 +693,25 @@ fn half_resolution_trace_and_upsample_match_the_cpu_model() {
             .map(|i| {
                 let (x, y) = (2 * (i % half.x), 2 * (i / half.x));
                 position(x, y).map_or(1.0, |p| {
-                    let n = view.normal((y * WIDTH + x) as usize);
+                    // The traced pixel's full-resolution depth neighbours, as the pass
+                    // reads them.
+                    let n = receiver_normal_in_depth(
+                        &view.depth,
+                        WIDTH,
+                        HEIGHT,
+                        (x, y),
+                        view.normal((y * WIDTH + x) as usize),
+                        |x, y, d| {
+                            let pixel = Vec2::new(x as f32, y as f32);
+                            position_from_depth(
+                                view.view_from_clip,
+                                view.world_from_view,
+                                size,
+                                pixel,
+                                d,
+                            )
+                        },
+                    );
                     pixel_visibility(&scene.records, &scene.atlas, &view.camera, p, n, &light)
                 })
             })

@@ -35,7 +35,7 @@ use penumbra_reference::df_shadow::{
     AreaLight, Occluder, ShadowSettings, TriangleOccluder, monte_carlo_visibility,
 };
 use penumbra_reference::shadow_mask::{
-    ReceiverNormal, flat_shaded, pack_gbuffer_normal, pixel_visibility_counted,
+    ReceiverNormal, pack_gbuffer_normal, pixel_visibility_counted, receiver_normal,
     unpack_gbuffer_normal, upsample,
 };
 use penumbra_sdf::BakeSettings;
@@ -72,10 +72,10 @@ struct Scene {
     /// Their surfaces' unit normals, facing the camera (the hit triangle's; zero for
     /// the background), as the G-buffer stores them.
     normals: Vec<Vec3>,
-    /// Whether the mask pass takes each normal for its face's own (`shadow_mask::
-    /// flat_shaded` on the view's points: all of them but where a neighbour is another
-    /// face along both sides of an axis).
-    flat: Vec<bool>,
+    /// What the mask pass knows of each normal from the depth buffer about it
+    /// (`shadow_mask::receiver_normal` on the view's points: flat-shaded at all of them
+    /// but where a neighbour is another face along both sides of an axis).
+    receivers: Vec<ReceiverNormal>,
     truth: Vec<f32>,
     /// The plugin's default bake of the first mesh: samples along its longest axis.
     default_resolution: u32,
@@ -139,12 +139,13 @@ fn finish_scene(mut scene: Scene) -> Scene {
             .then(|| scene.points[(y * i64::from(SIZE) + x) as usize].map(|p| p - eye))
             .flatten()
     };
-    scene.flat = (0..i64::from(SIZE * SIZE))
+    scene.receivers = (0..i64::from(SIZE * SIZE))
         .map(|i| {
             let (x, y) = (i % i64::from(SIZE), i / i64::from(SIZE));
-            at(x, y).is_some_and(|p| {
+            let normal = scene.normals[i as usize];
+            at(x, y).map_or(ReceiverNormal::from(normal), |p| {
                 let neighbours = [[at(x - 1, y), at(x + 1, y)], [at(x, y - 1), at(x, y + 1)]];
-                flat_shaded(p, scene.normals[i as usize], neighbours)
+                receiver_normal(p, normal, neighbours)
             })
         })
         .collect();
@@ -192,7 +193,7 @@ fn bunny() -> Option<Scene> {
         ),
         points: Vec::new(),
         normals: Vec::new(),
-        flat: Vec::new(),
+        receivers: Vec::new(),
         truth: Vec::new(),
         default_resolution,
     }))
@@ -223,7 +224,7 @@ fn cornell() -> Scene {
         ),
         points: Vec::new(),
         normals: Vec::new(),
-        flat: Vec::new(),
+        receivers: Vec::new(),
         truth: Vec::new(),
         default_resolution,
     })
@@ -307,10 +308,7 @@ fn mask(scene: &Scene, records: &[ObjectRecord], atlas: &Atlas, c: Config) -> (V
         scene.points[i].map_or(1.0, |p| {
             let p = camera.relative([0, 0, 0], p);
             let normal = if c.horizon {
-                ReceiverNormal {
-                    normal: scene.normals[i],
-                    flat: scene.flat[i],
-                }
+                scene.receivers[i]
             } else {
                 ReceiverNormal::default()
             };

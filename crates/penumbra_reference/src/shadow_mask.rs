@@ -21,12 +21,12 @@ use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::heightfield::HeightfieldTexture;
 use penumbra_df_core::object::{ObjectRecord, ShapeKind, TILE_SIZE, flags};
 use penumbra_df_core::shadow::{
-    FIELD_NORMAL_MAX_GRADIENT, FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING,
-    FIELD_NORMAL_MIN_FACING_SHADED, FIELD_NORMAL_MIN_GRADIENT, FIELD_NORMAL_REACH_VOXELS,
-    FIELD_NORMAL_STEP_VOXELS, FLAT_SHADED_SIN, FROM_INSIDE_ON_SURFACE_VOXELS,
-    FROM_INSIDE_PROBE_VOXELS, PENUMBRA_MIN_STEP, crossing_stencil, march_start, penumbra_step,
-    penumbra_visibility, seen_from_inside, tetrahedral_gradient, tetrahedral_normal,
-    thin_crossing_ratio, thin_crossing_rim,
+    FACE_NORMAL_MIN_AGREEMENT, FACE_NORMAL_PLANE_SIN, FIELD_NORMAL_MAX_GRADIENT,
+    FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, FIELD_NORMAL_MIN_FACING_SHADED,
+    FIELD_NORMAL_MIN_GRADIENT, FIELD_NORMAL_REACH_VOXELS, FIELD_NORMAL_STEP_VOXELS,
+    FLAT_SHADED_SIN, FROM_INSIDE_ON_SURFACE_VOXELS, FROM_INSIDE_PROBE_VOXELS, PENUMBRA_MIN_STEP,
+    crossing_stencil, march_start, penumbra_step, penumbra_visibility, seen_from_inside,
+    tetrahedral_gradient, tetrahedral_normal, thin_crossing_ratio, thin_crossing_rim,
 };
 
 pub use penumbra_df_core::shadow::{ShadowLight as MaskLight, ShadowLightKind as MaskLightKind};
@@ -149,7 +149,7 @@ pub fn pixel_visibility_with_terrain(
         return (1.0, 0);
     }
     let (dir, t_max, tan_half) = shadow_ray(p, light);
-    let ReceiverNormal { normal, flat } = normal.into();
+    let ReceiverNormal { normal, flat, face } = normal.into();
     let stored = normal;
     let mut normal = facing_the_eye(normal, p);
     // Whether `normal` is the G-buffer's as stored, facing the eye (the side seen).
@@ -164,9 +164,13 @@ pub fn pixel_visibility_with_terrain(
     // past a grazing view's silhouette, which [`facing_the_eye`] negated).
     let mut own = horizon(normal, dir, tan_half);
     let mut evaluations = 0;
+    // Whether the receiver's shading may part from its faces: it lies on a caster field
+    // shaded apart from its faces, or on none whose normal could be read.
+    let mut shaded_apart = true;
     if normal != Vec3::ZERO && own < 1.0 {
         let (field, reads) = receiver_field_normal_counted(records, atlas, camera, p, normal);
         evaluations += reads;
+        shaded_apart = field.is_none_or(|(_, f)| f & flags::SHADING_APART != 0);
         if let Some((field, field_flags)) = field
             && field.dot(normal).max(field.dot(stored)) >= FIELD_NORMAL_MIN_AGREEMENT
             && !flat
@@ -182,6 +186,22 @@ pub fn pixel_visibility_with_terrain(
                 as_stored = false;
             }
         }
+    }
+    // Still hidden and still the G-buffer's own (not a flat-shaded face's), on a caster
+    // shaded apart from its faces or on no caster field: the depth buffer's face normal,
+    // where it agrees, gives the triangles' facing ([`FACE_NORMAL_MIN_AGREEMENT`]; a
+    // smooth normal just past the terminator of facets that face the light). Not on
+    // other casters: a scanned mesh's pixel-sized facets make the depth buffer's plane
+    // no face's, and its G-buffer normals are its faces'.
+    if own < 1.0
+        && as_stored
+        && !flat
+        && shaded_apart
+        && face.dot(normal) >= FACE_NORMAL_MIN_AGREEMENT
+    {
+        normal = face;
+        own = horizon(normal, dir, tan_half);
+        as_stored = false;
     }
     if own <= 0.0 {
         return (0.0, evaluations);
@@ -318,17 +338,22 @@ pub fn pixel_visibility_with_terrain(
     )
 }
 
-/// What the mask pass knows of a receiver's normal: its G-buffer normal (zero: unknown)
-/// and whether that normal is its face's own ([`flat_shaded`]: then a light below its
-/// horizon is the face's own shadow, and no caster field is asked). A bare `Vec3`
-/// converts with `flat: false`, the pass's answer where it cannot tell (a screen axis
-/// with no neighbour on a surface, deferred MSAA's per-sample trace).
+/// What the mask pass knows of a receiver's normal: its G-buffer normal (zero: unknown),
+/// whether that normal is its face's own ([`flat_shaded`]: then a light below its
+/// horizon is the face's own shadow, and no caster field is asked), and the face normal
+/// the depth buffer about it gives ([`face_normal`]; zero: none). A bare `Vec3` converts
+/// with `flat: false` and no face normal, the pass's answer where it cannot tell (a
+/// screen axis with no neighbour on a surface, deferred MSAA's per-sample trace).
+/// [`receiver_normal`] and [`receiver_normal_in_depth`] decide both as the pass does.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ReceiverNormal {
     /// The G-buffer's unit normal, or zero when unknown.
     pub normal: Vec3,
     /// Whether the depth buffer about the pixel lies in `normal`'s tangent plane.
     pub flat: bool,
+    /// The unit normal of the plane the depth buffer about the pixel lies in, on the
+    /// side `normal` (turned to face the eye) faces, or zero where none is trusted.
+    pub face: Vec3,
 }
 
 impl From<Vec3> for ReceiverNormal {
@@ -336,8 +361,58 @@ impl From<Vec3> for ReceiverNormal {
         ReceiverNormal {
             normal,
             flat: false,
+            face: Vec3::ZERO,
         }
     }
+}
+
+/// [`ReceiverNormal`] of camera-relative point `p` with G-buffer `normal`, from its
+/// depth-buffer neighbours (`neighbours[axis][side]`, camera-relative; `None` outside the
+/// viewport or on the background): [`flat_shaded`] and [`face_normal`].
+pub fn receiver_normal(
+    p: Vec3,
+    normal: Vec3,
+    neighbours: [[Option<Vec3>; 2]; 2],
+) -> ReceiverNormal {
+    ReceiverNormal {
+        normal,
+        flat: flat_shaded(p, normal, neighbours),
+        face: face_normal(p, normal, neighbours),
+    }
+}
+
+/// The normal of the face a pixel sees, from the depth buffer as `shadow_trace.wgsl`'s
+/// `depth_face_normal` finds it: along each screen axis the central difference of the
+/// two neighbours (the one neighbour's difference where the other is missing), their
+/// cross product turned to the side of `normal` (the G-buffer's, turned to face the
+/// eye); zero where an axis has no neighbour, the points are degenerate, or any
+/// neighbour lies further than [`FACE_NORMAL_PLANE_SIN`] from the plane through `p` (a
+/// crease or a silhouette between them).
+pub fn face_normal(p: Vec3, normal: Vec3, neighbours: [[Option<Vec3>; 2]; 2]) -> Vec3 {
+    let normal = facing_the_eye(normal, p);
+    let mut edges = [Vec3::ZERO; 2];
+    for (axis, [before, after]) in neighbours.iter().enumerate() {
+        edges[axis] = match (before, after) {
+            (Some(a), Some(b)) => *b - *a,
+            (Some(a), None) => p - *a,
+            (None, Some(b)) => *b - p,
+            (None, None) => return Vec3::ZERO,
+        };
+    }
+    let c = edges[0].cross(edges[1]);
+    // The shader's `!(dot(c, c) > 1e-30)`: degenerate (or NaN) points give no face.
+    if c.is_nan() || c.length_squared() <= 1e-30 {
+        return Vec3::ZERO;
+    }
+    let mut n = c.normalize();
+    if n.dot(normal) < 0.0 {
+        n = -n;
+    }
+    let in_plane = neighbours.iter().flatten().flatten().all(|&q| {
+        let e = q - p;
+        e.dot(n).abs() <= FACE_NORMAL_PLANE_SIN * e.length()
+    });
+    if in_plane { n } else { Vec3::ZERO }
 }
 
 /// Whether a pixel's G-buffer `normal` is its surface's own — a flat-shaded face, not a
@@ -357,17 +432,18 @@ pub fn flat_shaded(p: Vec3, normal: Vec3, neighbours: [[Option<Vec3>; 2]; 2]) ->
     })
 }
 
-/// [`flat_shaded`] for pixel `(x, y)` of a `width × height` reverse-Z depth buffer
+/// [`receiver_normal`] for pixel `(x, y)` of a `width × height` reverse-Z depth buffer
 /// (`depth[y * width + x]`; 0 background) whose camera-relative points `position(x, y,
-/// depth)` gives, with the pixel's G-buffer `normal`.
-pub fn flat_shaded_in_depth(
+/// depth)` gives, with the pixel's G-buffer `normal` (no flat test, no face normal on
+/// the background).
+pub fn receiver_normal_in_depth(
     depth: &[f32],
     width: u32,
     height: u32,
     (x, y): (u32, u32),
     normal: Vec3,
     position: impl Fn(u32, u32, f32) -> Vec3,
-) -> bool {
+) -> ReceiverNormal {
     let at = |x: i64, y: i64| -> Option<Vec3> {
         if x < 0 || y < 0 || x >= i64::from(width) || y >= i64::from(height) {
             return None;
@@ -379,9 +455,9 @@ pub fn flat_shaded_in_depth(
     };
     let (x, y) = (i64::from(x), i64::from(y));
     let Some(p) = at(x, y) else {
-        return false;
+        return ReceiverNormal::from(normal);
     };
-    flat_shaded(
+    receiver_normal(
         p,
         normal,
         [[at(x - 1, y), at(x + 1, y)], [at(x, y - 1), at(x, y + 1)]],

@@ -17,8 +17,8 @@ use penumbra_df_core::shadow::{
 };
 use penumbra_reference::df::{Atlas, object_distance};
 use penumbra_reference::shadow_mask::{
-    ReceiverNormal, flat_shaded_in_depth, pack_gbuffer_normal, pixel_visibility_with_terrain,
-    position_from_depth, unpack_gbuffer_normal,
+    pack_gbuffer_normal, pixel_visibility_with_terrain, position_from_depth,
+    receiver_normal_in_depth, unpack_gbuffer_normal,
 };
 use penumbra_sdf::{BakeSettings, bake, shapes};
 use penumbra_shaders::flatten;
@@ -247,6 +247,12 @@ pub fn march(
 }
 
 pub fn reference_mask(scene: &Scene, view: &View, light: &ShadowLight) -> Vec<f32> {
+    reference_mask_by(scene, view, light, true)
+}
+
+/// [`reference_mask`], with the depth buffer's face normal (`ReceiverNormal::face`)
+/// or without it (`face: false`: what the other rules give).
+pub fn reference_mask_by(scene: &Scene, view: &View, light: &ShadowLight, face: bool) -> Vec<f32> {
     let size = Vec2::new(WIDTH as f32, HEIGHT as f32);
     (0..WIDTH * HEIGHT)
         .map(|i| {
@@ -263,8 +269,8 @@ pub fn reference_mask(scene: &Scene, view: &View, light: &ShadowLight) -> Vec<f3
                 depth,
             );
             let n = view.normal(i as usize);
-            // The pass's test of the G-buffer normal against the depth buffer about it.
-            let flat = flat_shaded_in_depth(
+            // The pass's tests of the G-buffer normal against the depth buffer about it.
+            let mut receiver = receiver_normal_in_depth(
                 &view.depth,
                 WIDTH,
                 HEIGHT,
@@ -275,12 +281,15 @@ pub fn reference_mask(scene: &Scene, view: &View, light: &ShadowLight) -> Vec<f3
                     position_from_depth(view.view_from_clip, view.world_from_view, size, pixel, d)
                 },
             );
+            if !face {
+                receiver.face = Vec3::ZERO;
+            }
             pixel_visibility_with_terrain(
                 &scene.records,
                 &scene.atlas,
                 &view.camera,
                 p,
-                ReceiverNormal { normal: n, flat },
+                receiver,
                 light,
                 &scene.terrain,
             )

@@ -215,6 +215,12 @@ const FIELD_NORMAL_MIN_FACING_SHADED: f32 = 0.0;
 // within this sine (`penumbra_df_core::shadow::FLAT_SHADED_SIN`; `shadow_trace.wgsl`'s
 // `flat_shaded`).
 const FLAT_SHADED_SIN: f32 = 0.07;
+// Where the G-buffer normal still hides the light, the depth buffer's face normal
+// decides if every neighbour lies within this sine of its plane and it agrees with the
+// G-buffer normal by this cosine (`penumbra_df_core::shadow::FACE_NORMAL_*`;
+// `shadow_trace.wgsl`'s `depth_face_normal`).
+const FACE_NORMAL_PLANE_SIN: f32 = 0.2;
+const FACE_NORMAL_MIN_AGREEMENT: f32 = 0.9;
 // A receiver sees a solid volume from its inside (the back of an open surface baked
 // solid) where the field, read FROM_INSIDE_PROBE_VOXELS voxels along its normal toward
 // the eye, lies FROM_INSIDE_MIN_DEPTH_VOXELS inside and falls by FROM_INSIDE_MIN_DROP_VOXELS

@@ -16,7 +16,8 @@
 #import penumbra::df::heightfield::{HeightfieldRecord, heightfield_distance}
 #import penumbra::df::shadow::{
     FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, FIELD_NORMAL_MIN_FACING_SHADED,
-    FLAT_SHADED_SIN, NO_FIELD_NORMAL, inside_analytic, seen_from_inside,
+    FACE_NORMAL_MIN_AGREEMENT, FACE_NORMAL_PLANE_SIN, FLAT_SHADED_SIN, NO_FIELD_NORMAL,
+    inside_analytic, seen_from_inside,
     PENUMBRA_MIN_STEP, ShadowLight, ShadowRay, bounding_sphere, caster_field_normal, casts_shadows,
     cull_slack,
     facing_the_eye, finish_visibility, gbuffer_normal, horizon_visibility, is_directional, march_object,
@@ -148,40 +149,88 @@ fn position_from_depth(screen: vec2<f32>, depth: f32) -> vec3<f32> {
         + view.world_from_view[2].xyz * q.z;
 }
 
-// Whether the pixel's G-buffer normal (turned to face the eye) is its face's own — a
-// flat-shaded face, not a smooth or normal-mapped normal: along each screen axis one of
-// its two neighbours' depth-buffer points lies in its tangent plane, within
-// FLAT_SHADED_SIN (one, not the nearer: on a face two pixels tall each pixel's other
-// neighbour is another face). Not decided under deferred MSAA's per-sample trace
-// (false). CPU model: `shadow_mask::flat_shaded`.
-fn flat_shaded(pixel: vec2<i32>, screen: vec2<f32>, p: vec3<f32>, normal: vec3<f32>) -> bool {
-#ifdef PENUMBRA_SAMPLE_TRACE
-    return false;
-#else
+// The depth-buffer points of viewport pixel `pixel`'s four neighbours (x−, x+, y−, y+)
+// less its own point `p`; w: 1 where the neighbour lies in the viewport on a surface,
+// else 0. None under deferred MSAA's per-sample trace (its samples are no pixel grid).
+fn depth_neighbours(pixel: vec2<i32>, screen: vec2<f32>, p: vec3<f32>) -> array<vec4<f32>, 4> {
+    var out: array<vec4<f32>, 4>;
+#ifndef PENUMBRA_SAMPLE_TRACE
     let lo = vec2<i32>(view.viewport.xy);
     let hi = lo + vec2<i32>(view.viewport.zw);
+    for (var i = 0; i < 4; i += 1) {
+        var o = vec2<i32>(0);
+        o[i / 2] = select(-1, 1, (i & 1) == 1);
+        let q = pixel + o;
+        if any(q < lo) || any(q >= hi) {
+            continue;
+        }
+        let d = textureLoad(depth_texture, q, 0).r;
+        if !(d > 0.0) {
+            continue;
+        }
+        out[i] = vec4<f32>(position_from_depth(screen + vec2<f32>(o), d) - p, 1.0);
+    }
+#endif
+    return out;
+}
+
+// Whether the pixel's G-buffer normal (turned to face the eye) is its face's own — a
+// flat-shaded face, not a smooth or normal-mapped normal: along each screen axis one of
+// its two neighbours' depth-buffer points (`depth_neighbours`) lies in its tangent plane,
+// within FLAT_SHADED_SIN (one, not the nearer: on a face two pixels tall each pixel's
+// other neighbour is another face). CPU model: `shadow_mask::flat_shaded`.
+fn flat_shaded(neighbours: array<vec4<f32>, 4>, normal: vec3<f32>) -> bool {
+    var nb = neighbours;
     for (var axis = 0; axis < 2; axis += 1) {
         var in_plane = false;
-        for (var s = -1; s <= 1; s += 2) {
-            var o = vec2<i32>(0);
-            o[axis] = s;
-            let q = pixel + o;
-            if any(q < lo) || any(q >= hi) {
-                continue;
-            }
-            let d = textureLoad(depth_texture, q, 0).r;
-            if !(d > 0.0) {
-                continue;
-            }
-            let e = position_from_depth(screen + vec2<f32>(o), d) - p;
-            in_plane = in_plane || abs(dot(e, normal)) <= FLAT_SHADED_SIN * length(e);
+        for (var side = 0; side < 2; side += 1) {
+            let e = nb[axis * 2 + side];
+            in_plane = in_plane || (e.w > 0.0 && abs(dot(e.xyz, normal)) <= FLAT_SHADED_SIN * length(e.xyz));
         }
         if !in_plane {
             return false;
         }
     }
     return true;
-#endif
+}
+
+// The normal of the face the pixel sees, from its depth-buffer neighbours: along each
+// screen axis the central difference of the two (the one neighbour's difference where
+// the other is missing), their cross product turned to `normal`'s side; zero where an
+// axis has no neighbour, the points are degenerate, or a neighbour lies further than
+// FACE_NORMAL_PLANE_SIN from the plane (a crease or silhouette between them). CPU model:
+// `shadow_mask::face_normal`.
+fn depth_face_normal(neighbours: array<vec4<f32>, 4>, normal: vec3<f32>) -> vec3<f32> {
+    var nb = neighbours;
+    var edges: array<vec3<f32>, 2>;
+    for (var axis = 0; axis < 2; axis += 1) {
+        let a = nb[axis * 2];
+        let b = nb[axis * 2 + 1];
+        if a.w > 0.0 && b.w > 0.0 {
+            edges[axis] = b.xyz - a.xyz;
+        } else if a.w > 0.0 {
+            edges[axis] = -a.xyz;
+        } else if b.w > 0.0 {
+            edges[axis] = b.xyz;
+        } else {
+            return vec3<f32>(0.0);
+        }
+    }
+    let c = cross(edges[0], edges[1]);
+    if !(dot(c, c) > 1e-30) {
+        return vec3<f32>(0.0);
+    }
+    var n = normalize(c);
+    if dot(n, normal) < 0.0 {
+        n = -n;
+    }
+    for (var i = 0; i < 4; i += 1) {
+        let e = nb[i];
+        if e.w > 0.0 && abs(dot(e.xyz, n)) > FACE_NORMAL_PLANE_SIN * length(e.xyz) {
+            return vec3<f32>(0.0);
+        }
+    }
+    return n;
 }
 
 // The terrains' visibility along `ray` from camera-relative `p`
@@ -380,9 +429,14 @@ fn trace(
     // faces, from FIELD_NORMAL_MIN_FACING (fully lit) on the others. The field must agree
     // with the G-buffer normal as turned to face the eye or as stored (a normal map's
     // normal past a grazing view's silhouette, which `facing_the_eye` negated).
+    var neighbours: array<vec4<f32>, 4>;
+    if surface && horizon < 1.0 && any(normal != vec3<f32>(0.0)) {
+        neighbours = depth_neighbours(vec2<i32>(point.screen) + vec2<i32>(view.viewport.xy), point.screen, p);
+    }
+    let flat = flat_shaded(neighbours, normal);
     if surface && horizon < 1.0 && any(normal != vec3<f32>(0.0)) && field.w < 3.0e38
         && max(dot(field.xyz, normal), dot(field.xyz, stored)) >= FIELD_NORMAL_MIN_AGREEMENT
-        && !flat_shaded(vec2<i32>(point.screen) + vec2<i32>(view.viewport.xy), point.screen, p, normal) {
+        && !flat {
         let facing = dot(field.xyz, ray.dir);
         let shaded = (objects[field_slot].flags & FLAG_SHADING_APART) != 0u;
         if shaded && facing >= FIELD_NORMAL_MIN_FACING_SHADED {
@@ -392,6 +446,21 @@ fn trace(
         } else if facing >= FIELD_NORMAL_MIN_FACING {
             normal = field.xyz;
             horizon = 1.0;
+            as_stored = false;
+        }
+    }
+    // Still hidden and still the G-buffer's own normal (not a flat-shaded face's), on a
+    // caster shaded apart from its faces or on no caster field: the depth buffer's face
+    // normal, where it agrees, gives the triangles' facing (a smooth normal just past
+    // the terminator of facets that face the light). Not on other casters: a scanned
+    // mesh's pixel-sized facets make the depth buffer's plane no face's, and its
+    // G-buffer normals are its faces'.
+    let shaded_apart = field.w >= 3.0e38 || (objects[field_slot].flags & FLAG_SHADING_APART) != 0u;
+    if surface && horizon < 1.0 && as_stored && !flat && shaded_apart {
+        let face = depth_face_normal(neighbours, normal);
+        if dot(face, normal) >= FACE_NORMAL_MIN_AGREEMENT {
+            normal = face;
+            horizon = horizon_visibility(normal, ray.dir, ray.tan_half);
             as_stored = false;
         }
     }
