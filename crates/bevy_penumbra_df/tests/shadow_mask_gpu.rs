@@ -182,6 +182,53 @@ fn tilted_view(scene: &Scene, light: &ShadowLight, degrees: f32) -> View {
     tilted
 }
 
+/// The contract scene with its baked volume's (the torus's) record flags `set` and
+/// `clear`ed: `SHADING_APART` (shaded apart from its faces), or `TWO_SIDED` cleared (read
+/// as a solid, not a shell).
+fn scene_with_torus_flags(set: u32, clear: u32) -> Scene {
+    let mut scene = scene(Vec3::ZERO);
+    let mut volumes = 0;
+    for r in &mut scene.records {
+        if r.kind() == penumbra_df_core::object::ShapeKind::Volume as u32 {
+            r.0[27] = (r.0[27] | set) & !clear;
+            volumes += 1;
+        }
+    }
+    assert!(volumes > 0, "the scene has a baked volume");
+    scene
+}
+
+/// The scene's first light and its masks with every G-buffer normal tilted `degrees`
+/// away from it ([`tilted_view`]): the straight and tilted views, the GPU's mask of each
+/// and the model's of the tilted one.
+struct TiltedRun {
+    light_name: &'static str,
+    light: ShadowLight,
+    straight_view: View,
+    tilted: View,
+    straight: Vec<f32>,
+    got: Vec<f32>,
+    want: Vec<f32>,
+}
+
+fn tilted_run(gpu: &GpuCompute, passes: &Passes, scene: &Scene, degrees: f32) -> TiltedRun {
+    let straight_view = view(scene, Vec3::ZERO);
+    let (light_name, light) = lights(Vec3::ZERO, EYE)[0];
+    let tilted = tilted_view(scene, &light, degrees);
+    let (straight, _) = gpu_mask(gpu, passes, scene, &straight_view, &light);
+    let (got, _) = gpu_mask(gpu, passes, scene, &tilted, &light);
+    let want = reference_mask(scene, &tilted, &light);
+    TiltedRun {
+        light_name,
+        light,
+        straight_view,
+        tilted,
+        straight,
+        got,
+        want,
+    }
+}
+
 /// A G-buffer normal tilted away from the light (a normal map, smooth shading past the
 /// terminator) gives way to the caster field's own normal for the surface's own shadow
 /// (`shadow_mask::receiver_field_normal`): with every normal tilted 35° away from the
@@ -196,13 +243,16 @@ fn a_caster_field_gives_way_where_a_tilted_gbuffer_normal_hides_the_light() {
     let gpu = GpuCompute::new().expect("adapter");
     let passes = passes(&gpu);
     let scene = scene(Vec3::ZERO);
-    let straight_view = view(&scene, Vec3::ZERO);
-    let (light_name, light) = lights(Vec3::ZERO, EYE)[0];
     let position = pixel_position;
-    let tilted = tilted_view(&scene, &light, 35.0);
-    let (straight, _) = gpu_mask(&gpu, &passes, &scene, &straight_view, &light);
-    let (got, _) = gpu_mask(&gpu, &passes, &scene, &tilted, &light);
-    let want = reference_mask(&scene, &tilted, &light);
+    let TiltedRun {
+        light_name,
+        light,
+        tilted,
+        straight,
+        got,
+        want,
+        ..
+    } = tilted_run(&gpu, &passes, &scene, 35.0);
     let (mean, _, max) = compare(&got, &want);
     // The torus's pixels: those the field reads.
     let (mut on_field, mut lit_straight, mut lit_tilted, mut hidden) = (0, 0, 0, 0);
@@ -257,15 +307,7 @@ fn a_caster_shaded_apart_from_its_faces_gives_way_from_facing_zero() {
     let gpu = GpuCompute::new().expect("adapter");
     let passes = passes(&gpu);
     let faces = scene(Vec3::ZERO);
-    let mut apart = scene(Vec3::ZERO);
-    let mut volumes = 0;
-    for r in &mut apart.records {
-        if r.kind() == penumbra_df_core::object::ShapeKind::Volume as u32 {
-            r.0[27] |= flags::SHADING_APART;
-            volumes += 1;
-        }
-    }
-    assert!(volumes > 0, "the scene has a baked volume");
+    let apart = scene_with_torus_flags(flags::SHADING_APART, 0);
     let straight = view(&faces, Vec3::ZERO);
     let (light_name, light) = lights(Vec3::ZERO, EYE)[0];
     let tilted = tilted_view(&faces, &light, 60.0);
@@ -323,34 +365,25 @@ fn a_normal_just_past_the_terminator_gives_way_to_the_depth_buffers_face() {
     let gpu = GpuCompute::new().expect("adapter");
     let passes = passes(&gpu);
     // The torus, shaded apart from its faces (the rule's only receivers), and the rest.
-    let mut scene = scene(Vec3::ZERO);
-    for r in &mut scene.records {
-        if r.kind() == penumbra_df_core::object::ShapeKind::Volume as u32 {
-            r.0[27] |= flags::SHADING_APART;
-        }
-    }
-    let straight_view = view(&scene, Vec3::ZERO);
-    let (light_name, light) = lights(Vec3::ZERO, EYE)[0];
-    let tilted = tilted_view(&scene, &light, 15.0);
+    let scene = scene_with_torus_flags(flags::SHADING_APART, 0);
+    let run = tilted_run(&gpu, &passes, &scene, 15.0);
+    let (light, tilted, got) = (&run.light, &run.tilted, &run.got);
+    let (mean, over, max) = compare(got, &run.want);
     // The model without the depth buffer's face: what the other rules give.
-    let faceless = reference_mask_by(&scene, &tilted, &light, false);
-    let (straight, _) = gpu_mask(&gpu, &passes, &scene, &straight_view, &light);
-    let (got, _) = gpu_mask(&gpu, &passes, &scene, &tilted, &light);
-    let want = reference_mask(&scene, &tilted, &light);
-    let (mean, over, max) = compare(&got, &want);
+    let faceless = reference_mask_by(&scene, tilted, light, false);
     // The pixels lit by their true normals that the tilt hides the sun from and the
     // other rules leave dark (the caster field's normal gives way from facing 0 on this
     // caster): how many the face lights. And the pixels it lights that the true normals
     // leave dark, or that it darkens.
     let (mut left, mut given, mut wrong, mut darkened) = (0, 0, 0, 0);
     for i in 0..(WIDTH * HEIGHT) as usize {
-        if straight_view.depth[i] <= 0.0 {
+        if run.straight_view.depth[i] <= 0.0 {
             continue;
         }
-        let p = pixel_position(&straight_view, i);
-        let (dir, _, _) = shadow_ray(p, &light);
+        let p = pixel_position(&run.straight_view, i);
+        let (dir, _, _) = shadow_ray(p, light);
         let hides = facing_the_eye(unpack_gbuffer_normal(tilted.normals[i]), p).dot(dir) < 0.0;
-        let lit = straight[i] > 0.5;
+        let lit = run.straight[i] > 0.5;
         if hides && lit && faceless[i] <= 0.5 {
             left += 1;
             given += usize::from(got[i] > 0.5);
@@ -359,10 +392,11 @@ fn a_normal_just_past_the_terminator_gives_way_to_the_depth_buffers_face() {
         darkened += usize::from(faceless[i] > 0.5 && got[i] <= 0.5);
     }
     eprintln!(
-        "{light_name}: GPU vs model mean {mean:.5}, {:.3} % over 0.05, max {max:.3}; of \
+        "{}: GPU vs model mean {mean:.5}, {:.3} % over 0.05, max {max:.3}; of \
          {left} pixels lit by their true normals that the 15° tilt hides the sun from and \
          the other rules leave dark, the depth buffer's face lights {given}; {wrong} lit \
          that the true normals leave dark, {darkened} darkened",
+        run.light_name,
         over * 100.0
     );
     assert!(mean < 2e-4 && over < 5e-4, "{mean} {over} {max}");
@@ -374,14 +408,14 @@ fn a_normal_just_past_the_terminator_gives_way_to_the_depth_buffers_face() {
     // The torus not shaded apart (a flat-shaded scan's pixel-sized facets): where its
     // field's normal is read, the face is not asked; elsewhere it still is.
     let plain = self::scene(Vec3::ZERO);
-    let with = reference_mask_by(&plain, &tilted, &light, true);
-    let without = reference_mask_by(&plain, &tilted, &light, false);
+    let with = reference_mask_by(&plain, tilted, light, true);
+    let without = reference_mask_by(&plain, tilted, light, false);
     let (mut on_field, mut off_field) = (0, 0);
     for i in 0..(WIDTH * HEIGHT) as usize {
         if tilted.depth[i] <= 0.0 || with[i] == without[i] {
             continue;
         }
-        let p = pixel_position(&tilted, i);
+        let p = pixel_position(tilted, i);
         let n = facing_the_eye(unpack_gbuffer_normal(tilted.normals[i]), p);
         if receiver_field_normal(&plain.records, &plain.atlas, &tilted.camera, p, n).is_some() {
             on_field += 1;
@@ -412,12 +446,7 @@ fn a_solid_seen_from_its_inside_does_not_shadow_itself() {
     let gpu = GpuCompute::new().expect("adapter");
     let passes = passes(&gpu);
     // The scene's torus, baked solid, read as a solid (not a two-sided shell).
-    let mut scene = scene(Vec3::ZERO);
-    for r in &mut scene.records {
-        if r.kind() == penumbra_df_core::object::ShapeKind::Volume as u32 {
-            r.0[27] &= !flags::TWO_SIDED;
-        }
-    }
+    let scene = scene_with_torus_flags(0, flags::TWO_SIDED);
     let (light_name, light) = lights(Vec3::ZERO, EYE)[0];
     let mut back = view(&scene, Vec3::ZERO);
     let torus = scene
@@ -493,12 +522,7 @@ fn gpu_shadow_mask_with_a_solid_torus_matches_the_cpu_model() {
     }
     let gpu = GpuCompute::new().expect("adapter");
     let passes = passes(&gpu);
-    let mut scene = scene(Vec3::ZERO);
-    for r in &mut scene.records {
-        if r.kind() == penumbra_df_core::object::ShapeKind::Volume as u32 {
-            r.0[27] &= !flags::TWO_SIDED;
-        }
-    }
+    let scene = scene_with_torus_flags(0, flags::TWO_SIDED);
     let view = view(&scene, Vec3::ZERO);
     for (name, light) in lights(Vec3::ZERO, EYE) {
         let (got, _) = gpu_mask(&gpu, &passes, &scene, &view, &light);

@@ -389,18 +389,7 @@ fn a_receiver_inside_an_analytic_shape_is_not_shadowed_by_it() {
     let eye = Vec3::new(0.0, 1.0, 5.0);
     let camera = CameraOrigin::at(eye).expect("finite");
     let atlas = Atlas::new(glam::UVec3::ONE);
-    let sun = Vec3::Y;
-    let light = MaskLight {
-        kind: MaskLightKind::Directional(sun),
-        source: (0.02f32).tan(),
-        max_distance: 20.0,
-        bias: 0.01,
-        shaping: 1.0,
-        range: 100.0,
-        max_steps: 64,
-        max_view_distance: f32::INFINITY,
-        spot: None,
-    };
+    let light = sun(Vec3::Y, 0.02f32.tan());
     let at = |p: Vec3| pixel_visibility(&records, &atlas, &camera, p - eye, Vec3::ZERO, &light);
     // Inside the leg, on its "skin" 2 cm in from the capsule's surface: lit.
     for y in [0.3, 0.6, 0.9] {
@@ -471,17 +460,7 @@ fn the_depth_buffer_gives_the_face_a_smooth_normal_hides() {
     }
     // Past the terminator: the face faces the sun by 0.1, the smooth normal hides it.
     let to_sun = (n * 0.1 + u * (1.0f32 - 0.01).sqrt()).normalize();
-    let light = MaskLight {
-        kind: MaskLightKind::Directional(to_sun),
-        source: (1.5f32.to_radians()).tan(),
-        max_distance: 20.0,
-        bias: 0.01,
-        shaping: 1.0,
-        range: 100.0,
-        max_steps: 64,
-        max_view_distance: f32::INFINITY,
-        spot: None,
-    };
+    let light = sun(to_sun, 1.5f32.to_radians().tan());
     let smooth = glam::Quat::from_axis_angle(v, -(8f32.to_radians())) * n;
     assert!(
         smooth.dot(to_sun) < -0.02,
@@ -501,4 +480,20 @@ fn the_depth_buffer_gives_the_face_a_smooth_normal_hides() {
         }),
         0.0
     );
+}
+
+/// A sun toward `to_light` whose disc's half angle has tangent `tan_half`: a 20 m march
+/// of 64 steps from a 1 cm bias.
+fn sun(to_light: Vec3, tan_half: f32) -> MaskLight {
+    MaskLight {
+        kind: MaskLightKind::Directional(to_light),
+        source: tan_half,
+        max_distance: 20.0,
+        bias: 0.01,
+        shaping: 1.0,
+        range: 100.0,
+        max_steps: 64,
+        max_view_distance: f32::INFINITY,
+        spot: None,
+    }
 }
