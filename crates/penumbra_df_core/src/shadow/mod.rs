@@ -171,8 +171,8 @@ pub const FLAT_SHADED_SIN: f32 = 0.07;
 /// apart from its faces ([`crate::object::flags::SHADING_APART`]) or on no caster field
 /// (on a flat-shaded caster it took the shadow bench's scanned bunny 0.0318 → 0.0380:
 /// pixel-sized facets whose G-buffer normals are their faces'), the depth buffer
-/// does: the face normal through the pixel's neighbours (per screen axis the one nearer
-/// the G-buffer normal's tangent plane), trusted only where every neighbour on a surface
+/// does: the face normal through the pixel's neighbours (per screen axis the central
+/// difference of the two, or the one's), trusted only where every neighbour on a surface
 /// lies within this sine (11.5°) of its plane — not across a crease or a silhouette —
 /// and where it agrees with the G-buffer normal by at least [`FACE_NORMAL_MIN_AGREEMENT`]
 /// (a smooth or normal-mapped normal a little past the terminator of facets that face the
