@@ -30,10 +30,7 @@ pub fn bench_pack(cargo: &std::ffi::OsStr, args: &[String]) -> Result<(), String
     if let Some(a) = args.first() {
         return Err(format!("bench-pack takes no arguments (got `{a}`)"));
     }
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let root = root
-        .canonicalize()
-        .map_err(|e| format!("{}: {e}", root.display()))?;
+    let root = crate::workspace_root()?;
     let scenes = root.join("../shared/scenes");
     if !scenes.is_dir() {
         return Err(format!(

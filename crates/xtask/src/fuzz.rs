@@ -6,7 +6,6 @@
 //! New corpus entries land in `crates/penumbra_fuzz/corpus/`; failing inputs in
 //! `crates/penumbra_fuzz/artifacts/` (copy a fixed one to `regressions/` to replay it).
 
-use std::path::Path;
 use std::process::{Command, Stdio};
 
 const TARGETS: [&str; 6] = ["psdf", "obj", "gltf", "hair", "ribbons", "tessellation"];
@@ -58,10 +57,7 @@ pub fn fuzz(cargo: &std::ffi::OsStr, args: &[String]) -> Result<(), String> {
     if targets.is_empty() {
         targets = TARGETS.iter().map(|t| t.to_string()).collect();
     }
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let root = root
-        .canonicalize()
-        .map_err(|e| format!("{}: {e}", root.display()))?;
+    let root = crate::workspace_root()?;
     let target_dir = crate::bench_pack::target_dir(cargo, &root)?.join("fuzz");
     let wrapper = root.join("crates/penumbra_fuzz/sancov-rustc.sh");
     crate::bench_pack::run(

@@ -16,11 +16,24 @@
 //! `mesa-vulkan-drivers`). When it is missing and this runs as root with apt, it installs
 //! the package; otherwise it stops at once, naming the package.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
 mod bench_pack;
 mod fuzz;
+
+/// The workspace root: two levels above `CARGO_MANIFEST_DIR` as `cargo run` sets it for
+/// this run (the clone being worked in), else as compiled in. A target directory shared
+/// by several clones (`.ci/run`'s default, `~/.cache/penumbra/target`) may hold an xtask
+/// binary that another clone built and cargo takes as fresh; its compiled-in path is
+/// that clone's (`bench-pack` failed reading a clone that no longer existed).
+pub(crate) fn workspace_root() -> Result<PathBuf, String> {
+    let manifest = std::env::var_os("CARGO_MANIFEST_DIR")
+        .map_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")), PathBuf::from);
+    let root = manifest.join("../..");
+    root.canonicalize()
+        .map_err(|e| format!("{}: {e}", root.display()))
+}
 
 /// The Debian package providing lavapipe (it depends on the Vulkan loader, `libvulkan1`).
 const DRIVER_PACKAGE: &str = "mesa-vulkan-drivers";
@@ -310,6 +323,15 @@ fn ensure_vulkan_driver() -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::Totals;
+
+    /// Under `cargo test` as under `cargo run`, the root is this workspace's.
+    #[test]
+    fn the_workspace_root_is_this_clones() {
+        let root = super::workspace_root().expect("the root exists");
+        let manifest = std::fs::read_to_string(root.join("Cargo.toml")).expect("Cargo.toml");
+        assert!(manifest.contains("[workspace]"), "{}", root.display());
+        assert!(root.join("crates/xtask").is_dir());
+    }
 
     #[test]
     fn totals_sum_cargo_result_lines() {
