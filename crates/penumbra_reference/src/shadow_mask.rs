@@ -171,12 +171,13 @@ pub fn pixel_visibility_with_terrain(
         let (field, reads) = receiver_field_normal_counted(records, atlas, camera, p, normal);
         evaluations += reads;
         shaded_apart = field.is_none_or(|(_, f)| f & flags::SHADING_APART != 0);
-        if let Some((field, field_flags)) = field
+        if let Some((field, _)) = field
             && field.dot(normal).max(field.dot(stored)) >= FIELD_NORMAL_MIN_AGREEMENT
             && !flat
         {
             let facing = field.dot(dir);
-            if field_flags & flags::SHADING_APART != 0 && facing >= FIELD_NORMAL_MIN_FACING_SHADED {
+            // A field was read: `shaded_apart` is its caster's flag.
+            if shaded_apart && facing >= FIELD_NORMAL_MIN_FACING_SHADED {
                 normal = field;
                 own = horizon(normal, dir, tan_half);
                 as_stored = false;

@@ -434,12 +434,13 @@ fn trace(
         neighbours = depth_neighbours(vec2<i32>(point.screen) + vec2<i32>(view.viewport.xy), point.screen, p);
     }
     let flat = flat_shaded(neighbours, normal);
+    // Whether the field the receiver lies on is a caster's shaded apart from its faces.
+    let field_apart = field.w < 3.0e38 && (objects[field_slot].flags & FLAG_SHADING_APART) != 0u;
     if surface && horizon < 1.0 && any(normal != vec3<f32>(0.0)) && field.w < 3.0e38
         && max(dot(field.xyz, normal), dot(field.xyz, stored)) >= FIELD_NORMAL_MIN_AGREEMENT
         && !flat {
         let facing = dot(field.xyz, ray.dir);
-        let shaded = (objects[field_slot].flags & FLAG_SHADING_APART) != 0u;
-        if shaded && facing >= FIELD_NORMAL_MIN_FACING_SHADED {
+        if field_apart && facing >= FIELD_NORMAL_MIN_FACING_SHADED {
             normal = field.xyz;
             horizon = horizon_visibility(normal, ray.dir, ray.tan_half);
             as_stored = false;
@@ -455,8 +456,7 @@ fn trace(
     // the terminator of facets that face the light). Not on other casters: a scanned
     // mesh's pixel-sized facets make the depth buffer's plane no face's, and its
     // G-buffer normals are its faces'.
-    let shaded_apart = field.w >= 3.0e38 || (objects[field_slot].flags & FLAG_SHADING_APART) != 0u;
-    if surface && horizon < 1.0 && as_stored && !flat && shaded_apart {
+    if surface && horizon < 1.0 && as_stored && !flat && (field.w >= 3.0e38 || field_apart) {
         let face = depth_face_normal(neighbours, normal);
         if dot(face, normal) >= FACE_NORMAL_MIN_AGREEMENT {
             normal = face;
