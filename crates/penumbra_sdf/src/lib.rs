@@ -19,6 +19,7 @@
 
 #[cfg(feature = "bake")]
 pub mod bake;
+pub mod bricks;
 #[cfg(feature = "bake")]
 pub mod bvh;
 pub mod exact;

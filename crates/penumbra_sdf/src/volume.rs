@@ -162,7 +162,7 @@ impl SdfVolume {
     }
 
     /// Trilinear interpolation at grid coordinates `g` (inside `[0, dims − 1]`), voxels.
-    fn trilinear_voxels(&self, g: Vec3) -> f32 {
+    pub(crate) fn trilinear_voxels(&self, g: Vec3) -> f32 {
         let max = (self.dims - UVec3::splat(2)).as_vec3();
         let base = g.floor().clamp(Vec3::ZERO, max);
         let f = (g - base).clamp(Vec3::ZERO, Vec3::ONE);

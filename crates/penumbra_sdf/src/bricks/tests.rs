@@ -1,0 +1,139 @@
+use super::*;
+use glam::DVec3;
+
+/// A sphere of `radius` voxels centred in a `dims` grid, sampled exactly.
+fn sphere(dims: UVec3, radius: f32) -> SdfVolume {
+    let centre = (dims - UVec3::ONE).as_vec3() * 0.5;
+    let mut d = Vec::new();
+    for k in 0..dims.z {
+        for j in 0..dims.y {
+            for i in 0..dims.x {
+                d.push((UVec3::new(i, j, k).as_vec3() - centre).length() - radius);
+            }
+        }
+    }
+    let mut v = SdfVolume::from_distances(dims, DVec3::ZERO, 1.0, d);
+    v.margin = 2.0;
+    v
+}
+
+/// Deterministic points of `[0, dims − 1]` (a 3-D Halton set).
+fn points(dims: UVec3, n: u32) -> impl Iterator<Item = Vec3> {
+    fn radical(mut i: u32, base: u32) -> f32 {
+        let (mut r, mut f) = (0.0, 1.0 / base as f32);
+        while i > 0 {
+            r += f * (i % base) as f32;
+            i /= base;
+            f /= base as f32;
+        }
+        r
+    }
+    let hi = (dims - UVec3::ONE).as_vec3();
+    (1..=n).map(move |i| Vec3::new(radical(i, 2), radical(i, 3), radical(i, 5)) * hi)
+}
+
+fn dense(v: &SdfVolume, c: Vec3) -> f32 {
+    v.trilinear_voxels(c)
+}
+
+/// With every brick stored, the bricked field is the dense one everywhere, on a grid
+/// whose sides are not whole bricks (the last brick overhangs; a span of 8 instead of
+/// 7, or bricks that did not overlap, fail here).
+#[test]
+fn every_brick_stored_is_the_dense_field() {
+    let v = sphere(UVec3::new(23, 9, 16), 5.0);
+    let b = BrickedVolume::from_volume(&v, f32::INFINITY);
+    assert_eq!(b.grid, UVec3::new(4, 2, 3));
+    assert_eq!(b.stored(), 24);
+    let mut worst = 0.0f32;
+    for c in points(v.dims, 4000).chain([Vec3::ZERO, (v.dims - UVec3::ONE).as_vec3()]) {
+        worst = worst.max((b.sample_voxels(c) - dense(&v, c)).abs());
+    }
+    assert!(worst < 1e-4, "bricked differs from dense by {worst} voxels");
+}
+
+/// Within the band the bricked field is the dense one; beyond it, never farther from
+/// zero and of the same sign (a conservative distance); and a sphere's bricks take a
+/// small share of its grid.
+#[test]
+fn bricks_keep_the_band_and_bound_the_rest() {
+    let v = sphere(UVec3::splat(200), 80.0);
+    let b = BrickedVolume::from_volume(&v, DEFAULT_BAND_VOXELS);
+    let share = b.bytes() as f64 / b.dense_bytes() as f64;
+    assert!(share < 0.3, "bricked bytes are {share:.3} of dense");
+    let (mut near, mut far, mut worst_near, mut lowest_far) = (0, 0, 0.0f32, f32::INFINITY);
+    for c in points(v.dims, 20_000) {
+        let (d, s) = (dense(&v, c), b.sample_voxels(c));
+        assert!(
+            d.signum() == s.signum() && s.abs() <= d.abs() + 1e-4,
+            "at {c}: bricked {s}, dense {d}"
+        );
+        if d.abs() < DEFAULT_BAND_VOXELS - 1.0 {
+            near += 1;
+            worst_near = worst_near.max((s - d).abs());
+        } else {
+            far += 1;
+            lowest_far = lowest_far.min(s.abs() / d.abs());
+        }
+    }
+    assert!(near > 500 && far > 5000, "near {near}, far {far}");
+    assert!(
+        worst_near < 1e-4,
+        "bricked differs from dense by {worst_near} in the band"
+    );
+    // Empty bricks read their nearest sample: at least the band.
+    assert!(
+        lowest_far > 0.2,
+        "far reads as low as {lowest_far} of the dense field"
+    );
+}
+
+/// Sphere tracing the bricked field toward a sphere's centre stops at the analytic
+/// surface (independent truth), as the dense field does, from every direction.
+#[test]
+fn sphere_tracing_the_bricks_finds_the_analytic_surface() {
+    let dims = UVec3::splat(100);
+    let radius = 30.0;
+    let v = sphere(dims, radius);
+    let b = BrickedVolume::from_volume(&v, DEFAULT_BAND_VOXELS);
+    let centre = Vec3::splat(49.5);
+    let (mut steps_dense, mut steps_bricked) = (0, 0);
+    for (n, dir) in points(UVec3::splat(3), 200).enumerate() {
+        let dir = (dir - Vec3::ONE).normalize_or(Vec3::X);
+        let start = centre + dir * 48.0;
+        let trace = |f: &dyn Fn(Vec3) -> f32, steps: &mut u32| {
+            let mut t = 0.0;
+            for _ in 0..256 {
+                *steps += 1;
+                let d = f(start - dir * t);
+                if d < 0.01 {
+                    break;
+                }
+                t += d;
+            }
+            t
+        };
+        let t_dense = trace(&|c| dense(&v, c), &mut steps_dense);
+        let t_bricked = trace(&|c| b.sample_voxels(c), &mut steps_bricked);
+        let truth = 48.0 - radius;
+        assert!(
+            (t_bricked - truth).abs() < 0.05 && (t_bricked - t_dense).abs() < 0.02,
+            "direction {n}: bricked hit at {t_bricked}, dense {t_dense}, truth {truth}"
+        );
+    }
+    assert!(steps_bricked >= steps_dense && steps_bricked < 4 * steps_dense);
+}
+
+/// A band of zero keeps only the bricks the surface crosses; a NaN band stores all.
+#[test]
+fn degenerate_bands() {
+    let v = sphere(UVec3::splat(40), 12.0);
+    let crossing = BrickedVolume::from_volume(&v, 0.0);
+    assert!(crossing.stored() > 0 && crossing.stored() < crossing.bricks.len());
+    let all = BrickedVolume::from_volume(&v, f32::NAN);
+    assert_eq!(all.stored(), all.bricks.len());
+    let tiny = sphere(UVec3::splat(2), 0.1);
+    let t = BrickedVolume::from_volume(&tiny, 4.0);
+    assert_eq!(t.grid, UVec3::ONE);
+    assert!((t.sample_voxels(Vec3::splat(0.5)) - dense(&tiny, Vec3::splat(0.5))).abs() < 1e-4);
+}
