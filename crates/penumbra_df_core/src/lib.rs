@@ -38,6 +38,7 @@
 
 pub mod ao;
 pub mod atlas;
+pub mod bricks;
 pub mod clipmap;
 pub mod cull;
 pub mod heightfield;

@@ -58,6 +58,10 @@ pub mod flags {
     /// it hides a light, the caster field's own normal decides whether its triangles face
     /// the light (`shadow::FIELD_NORMAL_MIN_FACING_SHADED`).
     pub const SHADING_APART: u32 = 1 << 7;
+    /// A volume stored as sparse bricks ([`crate::bricks`]): `params.x` is its first
+    /// entry in the brick table, not an atlas origin. Set by [`super::encode`] for
+    /// [`super::CasterShape::BrickedVolume`] and cleared for every other shape.
+    pub const BRICKED: u32 = 1 << 12;
 
     /// Whether a record with flags `f` shadows distance-field-shadowed lights: live,
     /// [`CASTS_SHADOWS`], and visible or [`CAST_HIDDEN_SHADOW`]
@@ -127,6 +131,21 @@ pub enum CasterShape {
         /// distance outside the box is a lower bound measured to the box shrunk by it.
         margin: f32,
     },
+    /// A baked SDF volume stored as sparse bricks ([`crate::bricks`]): kind
+    /// [`ShapeKind::Volume`] with [`flags::BRICKED`]. `params` = the index of its first
+    /// brick-table entry, packed `dims − 1` (10/10/12 bits), `margin` (f32 bits).
+    BrickedVolume {
+        /// Index of its first entry in the brick table (one entry per brick, x fastest).
+        table_offset: u32,
+        /// The dense grid's samples along each axis (its shape space is that grid's).
+        dims: UVec3,
+        /// Local position of sample (0, 0, 0).
+        local_origin: Vec3,
+        /// Sample spacing in local units.
+        voxel_size: f32,
+        /// As [`CasterShape::Volume`]'s.
+        margin: f32,
+    },
     /// A sphere of `radius` around the local origin. `params.x` = radius (f32 bits).
     Sphere {
         /// Radius, local units.
@@ -153,7 +172,7 @@ impl CasterShape {
     /// Its kind.
     pub fn kind(&self) -> ShapeKind {
         match self {
-            CasterShape::Volume { .. } => ShapeKind::Volume,
+            CasterShape::Volume { .. } | CasterShape::BrickedVolume { .. } => ShapeKind::Volume,
             CasterShape::Sphere { .. } => ShapeKind::Sphere,
             CasterShape::Cuboid { .. } => ShapeKind::Cuboid,
             CasterShape::Capsule { .. } => ShapeKind::Capsule,
@@ -166,6 +185,9 @@ impl CasterShape {
         match *self {
             CasterShape::Volume { region, .. } => {
                 Some((Vec3::ZERO, (region.dims - UVec3::ONE).as_vec3()))
+            }
+            CasterShape::BrickedVolume { dims, .. } => {
+                Some((Vec3::ZERO, (dims - UVec3::ONE).as_vec3()))
             }
             CasterShape::Sphere { radius } => Some((Vec3::splat(-radius), Vec3::splat(radius))),
             CasterShape::Cuboid { half_extents } => Some((-half_extents, half_extents)),
@@ -383,6 +405,41 @@ fn smallest_symmetric_eigenvalue(a: &DMat3) -> f64 {
     q + 2.0 * p * (phi + 2.0 * std::f64::consts::PI / 3.0).cos()
 }
 
+/// A volume's shape-from-local transform, params and distance scale: `first` (atlas
+/// origin or brick-table offset), packed `dims − 1`, margin.
+fn volume_params(
+    first: u32,
+    dims: UVec3,
+    local_origin: Vec3,
+    voxel_size: f32,
+    margin: f32,
+    scale: f32,
+) -> Result<(Affine3A, [u32; 3], f32), ObjectError> {
+    let valid = voxel_size.is_finite()
+        && voxel_size > 0.0
+        && local_origin.is_finite()
+        && margin.is_finite()
+        && margin >= 0.0;
+    if !valid {
+        return Err(ObjectError::BadShape);
+    }
+    Ok((
+        Affine3A::from_scale_rotation_translation(
+            Vec3::splat(voxel_size),
+            glam::Quat::IDENTITY,
+            local_origin,
+        ),
+        [
+            first,
+            pack_10_10_12(dims.saturating_sub(UVec3::ONE))
+                .ok_or(ObjectError::AtlasRegionOutOfRange)?,
+            margin.to_bits(),
+        ],
+        // Shape-space distances are voxels.
+        scale * voxel_size,
+    ))
+}
+
 /// Encodes a caster. Errors (skip the caster, warn once) for non-finite or singular
 /// transforms, bad shape parameters and positions beyond the tile range.
 pub fn encode(desc: &ObjectDesc) -> Result<ObjectRecord, ObjectError> {
@@ -410,30 +467,21 @@ pub fn encode(desc: &ObjectDesc) -> Result<ObjectRecord, ObjectError> {
             local_origin,
             voxel_size,
             margin,
-        } => {
-            let valid = voxel_size.is_finite()
-                && voxel_size > 0.0
-                && local_origin.is_finite()
-                && positive(margin);
-            if !valid {
-                return Err(ObjectError::BadShape);
-            }
-            (
-                Affine3A::from_scale_rotation_translation(
-                    Vec3::splat(voxel_size),
-                    glam::Quat::IDENTITY,
-                    local_origin,
-                ),
-                [
-                    pack_10_10_12(region.origin).ok_or(ObjectError::AtlasRegionOutOfRange)?,
-                    pack_10_10_12(region.dims.saturating_sub(UVec3::ONE))
-                        .ok_or(ObjectError::AtlasRegionOutOfRange)?,
-                    margin.to_bits(),
-                ],
-                // Shape-space distances are voxels.
-                scale * voxel_size,
-            )
-        }
+        } => volume_params(
+            pack_10_10_12(region.origin).ok_or(ObjectError::AtlasRegionOutOfRange)?,
+            region.dims,
+            local_origin,
+            voxel_size,
+            margin,
+            scale,
+        )?,
+        CasterShape::BrickedVolume {
+            table_offset,
+            dims,
+            local_origin,
+            voxel_size,
+            margin,
+        } => volume_params(table_offset, dims, local_origin, voxel_size, margin, scale)?,
         CasterShape::Sphere { radius } if positive(radius) => {
             (Affine3A::IDENTITY, [radius.to_bits(), 0, 0], scale)
         }
@@ -479,8 +527,12 @@ pub fn encode(desc: &ObjectDesc) -> Result<ObjectRecord, ObjectError> {
     words[25] = tile[1] as u32;
     words[26] = tile[2] as u32;
     let kind = desc.shape.kind() as u32;
-    let mut f = desc.flags & !(flags::KIND_MASK << flags::KIND_SHIFT) | flags::LIVE;
+    let mut f =
+        desc.flags & !(flags::KIND_MASK << flags::KIND_SHIFT | flags::BRICKED) | flags::LIVE;
     f |= kind << flags::KIND_SHIFT;
+    if matches!(desc.shape, CasterShape::BrickedVolume { .. }) {
+        f |= flags::BRICKED;
+    }
     if desc.shape.bounds().is_none() {
         f |= flags::UNBOUNDED;
     }

@@ -12,8 +12,9 @@
 //! Bevy crate's tests.
 
 use glam::{Mat4, UVec3, Vec2, Vec3, Vec4};
+use penumbra_df_core::bricks::{self, BRICK_SAMPLES};
 use penumbra_df_core::cull::CameraOrigin;
-use penumbra_df_core::object::{ObjectRecord, ShapeKind, TILE_SIZE, unpack_10_10_12};
+use penumbra_df_core::object::{ObjectRecord, ShapeKind, TILE_SIZE, flags, unpack_10_10_12};
 
 /// The atlas texture's content: `R16Float` texels as f32, x fastest.
 #[derive(Clone, Debug)]
@@ -22,6 +23,9 @@ pub struct Atlas {
     pub size: UVec3,
     /// Texel values.
     pub texels: Vec<f32>,
+    /// The brick table's entries (`penumbra_df_core::bricks`): the `R32Uint` table
+    /// texture's texels in index order.
+    pub table: Vec<u32>,
 }
 
 impl Atlas {
@@ -30,7 +34,29 @@ impl Atlas {
         Atlas {
             size,
             texels: vec![0.0; (size.x * size.y * size.z) as usize],
+            table: Vec::new(),
         }
+    }
+
+    /// Places a bricked volume: its pool at atlas voxel `pool_origin` (a block corner),
+    /// its entries at the end of the table. Returns its first entry's index (the
+    /// record's `table_offset`), `None` when the pool lies beyond the largest atlas.
+    pub fn place_bricked(
+        &mut self,
+        bricked: &penumbra_sdf::bricks::BrickedVolume,
+        pool_origin: UVec3,
+    ) -> Option<u32> {
+        use penumbra_sdf::bricks::Brick;
+        let cells = bricked.bricks.iter().map(|b| match b {
+            Brick::Stored(_) => None,
+            Brick::Empty(m) => Some(m.to_bits()),
+        });
+        let samples: Vec<u16> = bricked.samples.iter().map(|h| h.to_bits()).collect();
+        let l = bricks::layout(cells, &samples, pool_origin)?;
+        self.write(pool_origin, l.pool_dims, &l.pool);
+        let offset = self.table.len() as u32;
+        self.table.extend_from_slice(&l.entries);
+        Some(offset)
     }
 
     /// Copies `f16` bits (x fastest) into the box at `origin` of `dims` texels.
@@ -97,6 +123,35 @@ fn sample_volume(atlas: &Atlas, origin: UVec3, dims: UVec3, c: Vec3) -> f32 {
     y0 + (y1 - y0) * f.z
 }
 
+/// A bricked volume's field at grid coordinates `c` (inside `[0, dims − 1]`) from its
+/// brick-table entries at `table_offset` (`sample_bricked` in `shaders/df/
+/// distance.wgsl`): the brick's eight samples in its atlas block, or an empty brick's
+/// value. An entry past the table reads as an empty brick at distance 0.
+fn sample_bricked(atlas: &Atlas, table_offset: u32, dims: UVec3, c: Vec3) -> f32 {
+    let span = (BRICK_SAMPLES - 1) as f32;
+    let grid = (dims - UVec3::ONE + UVec3::splat(BRICK_SAMPLES - 2)) / (BRICK_SAMPLES - 1);
+    let b = (c / span)
+        .floor()
+        .max(Vec3::ZERO)
+        .as_uvec3()
+        .min(grid - UVec3::ONE);
+    let index = table_offset + b.x + grid.x * (b.y + grid.y * b.z);
+    let entry = atlas
+        .table
+        .get(index as usize)
+        .copied()
+        .unwrap_or(bricks::EMPTY);
+    match bricks::decode(entry) {
+        Err(least) => f16_to_f32(least),
+        Ok(block) => sample_volume(
+            atlas,
+            block * BRICK_SAMPLES,
+            UVec3::splat(BRICK_SAMPLES),
+            c - b.as_vec3() * span,
+        ),
+    }
+}
+
 /// Conservative world distance (metres) from camera-relative `p` to the object (for
 /// volumes, the trilinear field itself inside the box).
 pub fn object_distance(r: &ObjectRecord, p: Vec3, camera: &CameraOrigin, atlas: &Atlas) -> f32 {
@@ -115,9 +170,15 @@ pub fn object_distance(r: &ObjectRecord, p: Vec3, camera: &CameraOrigin, atlas: 
             // box, the lower bound √(e² + s²) to the box shrunk by the margin (f.z).
             let dims = unpack_10_10_12(p1) + UVec3::ONE;
             let origin = unpack_10_10_12(p0);
-            penumbra_sdf::volume::volume_distance_voxels(q, dims, f.z, |c| {
-                sample_volume(atlas, origin, dims, c)
-            })
+            if r.flags() & flags::BRICKED != 0 {
+                penumbra_sdf::volume::volume_distance_voxels(q, dims, f.z, |c| {
+                    sample_bricked(atlas, p0, dims, c)
+                })
+            } else {
+                penumbra_sdf::volume::volume_distance_voxels(q, dims, f.z, |c| {
+                    sample_volume(atlas, origin, dims, c)
+                })
+            }
         }
         k if k == ShapeKind::Sphere as u32 => q.length() - f.x,
         k if k == ShapeKind::Cuboid as u32 => {
