@@ -82,6 +82,10 @@ pub struct Args {
     /// scale"): 2 halves the voxels' size (8× the atlas), 0.5 doubles it. 1/16 to 8.
     #[arg(long, value_parser = parse_resolution_scale, default_value = "1")]
     pub resolution_scale: f32,
+    /// Keep every distance field dense in the atlas, none as sparse bricks
+    /// (`DistanceFieldSceneSettings::sparse_min_bytes` = `u64::MAX`).
+    #[arg(long)]
+    pub dense: bool,
     /// How skinned meshes cast (`DistanceFieldSceneCasters::skinned`): `capsules` fitted
     /// to their joints (the default), their `bind-pose` field, or `skip`.
     #[arg(long, value_parser = parse_skinned, default_value = "capsules")]

@@ -94,6 +94,33 @@ pub fn empty_atlas(
         .create_view(&TextureViewDescriptor::default())
 }
 
+/// A 1×1 `R32Uint` brick table for passes bound before any volume is placed as bricks
+/// (no record reads it then).
+pub fn empty_brick_table(
+    device: &bevy::render::renderer::RenderDevice,
+) -> bevy::render::render_resource::TextureView {
+    use bevy::render::render_resource::{
+        Extent3d, TextureDescriptor, TextureDimension, TextureFormat, TextureUsages,
+        TextureViewDescriptor,
+    };
+    device
+        .create_texture(&TextureDescriptor {
+            label: Some("penumbra_df_empty_brick_table"),
+            size: Extent3d {
+                width: 1,
+                height: 1,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: TextureDimension::D2,
+            format: TextureFormat::R32Uint,
+            usage: TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        })
+        .create_view(&TextureViewDescriptor::default())
+}
+
 /// Registers the shader library once (idempotent) and mirrors it into the render world,
 /// with the GPU allocation counters (`gpu_allocations`). Cost: one small asset per
 /// module at startup; nothing per frame.

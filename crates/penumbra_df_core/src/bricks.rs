@@ -3,8 +3,10 @@
 //!
 //! A bricked volume's record ([`crate::object::CasterShape::BrickedVolume`], flag
 //! [`crate::object::flags::BRICKED`]) holds the index of its first entry in one shared
-//! table of `u32` entries, one per brick, x fastest over the volume's brick grid
-//! (`penumbra_sdf::bricks::brick_grid` of its dims). An entry is either
+//! table of `u32` entries: a header ([`HEADER_ENTRIES`]: the atlas origin of its coarse
+//! grid, packed 10/10/12 — `penumbra_sdf::bricks`' samples at the bricks' corners, a
+//! small dense volume of its own), then one entry per brick, x fastest over the volume's
+//! brick grid (`penumbra_sdf::bricks::brick_grid` of its dims). A brick's entry is either
 //! - **stored**: the atlas block (8³ voxels, [`crate::atlas::BLOCK`]) holding the brick's
 //!   8³ samples, as block coordinates 7/7/9 bits (the largest atlas,
 //!   [`crate::atlas::MAX_ATLAS_SIZE`], is 128 × 128 × 512 blocks); or
@@ -17,6 +19,9 @@
 //! `penumbra_reference::df::Atlas::table`; WGSL: `shaders/df/distance.wgsl`.
 
 use glam::{UVec2, UVec3};
+
+/// Entries before a volume's brick entries: its coarse grid's atlas origin.
+pub const HEADER_ENTRIES: u32 = 1;
 
 /// Texels per row of the brick-table texture.
 pub const TABLE_WIDTH: u32 = 4096;
@@ -80,14 +85,15 @@ pub struct BrickLayout {
 }
 
 /// Lays out a bricked volume whose pool will sit at atlas voxel `pool_origin` (a block
-/// corner): `bricks` has one item per brick in table order, `None` for a stored brick
-/// (the next 8³ of `samples`, half bits, x fastest) and `Some(half bits)` of an empty
-/// brick's sample of smallest magnitude. `None` when the pool would lie beyond the
-/// largest atlas.
+/// corner) and its coarse grid at `coarse_origin`: `bricks` has one item per brick in
+/// table order, `None` for a stored brick (the next 8³ of `samples`, half bits, x
+/// fastest) and `Some(half bits)` of an empty brick's sample of smallest magnitude.
+/// `None` when the pool or the coarse grid would lie beyond the largest atlas.
 pub fn layout(
     bricks: impl IntoIterator<Item = Option<u16>>,
     samples: &[u16],
     pool_origin: UVec3,
+    coarse_origin: UVec3,
 ) -> Option<BrickLayout> {
     let len = (BRICK_SAMPLES * BRICK_SAMPLES * BRICK_SAMPLES) as usize;
     let stored = (samples.len() / len) as u32;
@@ -95,7 +101,7 @@ pub fn layout(
     let pool_dims = blocks * BRICK_SAMPLES;
     let mut pool = vec![0u16; (pool_dims.x * pool_dims.y * pool_dims.z) as usize];
     let first = pool_origin / BRICK_SAMPLES;
-    let mut entries = Vec::new();
+    let mut entries = vec![crate::object::pack_10_10_12(coarse_origin)?];
     let mut next = 0u32;
     for brick in bricks {
         let entry = match brick {
@@ -170,11 +176,14 @@ mod tests {
         let samples: Vec<u16> = (0..3 * len as u16).collect();
         let bricks = [None, Some(0x4400), None, None, Some(0xc400)];
         let origin = UVec3::new(16, 8, 24);
-        let l = layout(bricks, &samples, origin).expect("fits");
-        assert_eq!(l.entries.len(), 5);
-        assert_eq!(decode(l.entries[1]), Err(0x4400));
-        assert_eq!(decode(l.entries[4]), Err(0xc400));
-        for (k, e) in [l.entries[0], l.entries[2], l.entries[3]]
+        let coarse = UVec3::new(40, 0, 8);
+        let l = layout(bricks, &samples, origin, coarse).expect("fits");
+        assert_eq!(l.entries.len(), 6);
+        assert_eq!(crate::object::unpack_10_10_12(l.entries[0]), coarse);
+        let e = &l.entries[HEADER_ENTRIES as usize..];
+        assert_eq!(decode(e[1]), Err(0x4400));
+        assert_eq!(decode(e[4]), Err(0xc400));
+        for (k, e) in [e[0], e[2], e[3]]
             .into_iter()
             .enumerate()
         {
@@ -185,7 +194,8 @@ mod tests {
                 assert_eq!(l.pool[at], samples[k * len + n as usize]);
             }
         }
-        assert!(layout([None], &samples[..10], origin).is_none());
-        assert!(layout([None], &samples, UVec3::new(1024, 0, 0)).is_none());
+        assert!(layout([None], &samples[..10], origin, coarse).is_none());
+        assert!(layout([None], &samples, UVec3::new(1024, 0, 0), coarse).is_none());
+        assert!(layout([None], &samples, origin, UVec3::new(1024, 0, 0)).is_none());
     }
 }

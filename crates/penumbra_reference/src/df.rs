@@ -39,12 +39,14 @@ impl Atlas {
     }
 
     /// Places a bricked volume: its pool at atlas voxel `pool_origin` (a block corner),
-    /// its entries at the end of the table. Returns its first entry's index (the
-    /// record's `table_offset`), `None` when the pool lies beyond the largest atlas.
+    /// its coarse grid at `coarse_origin`, its entries at the end of the table. Returns
+    /// its first entry's index (the record's `table_offset`), `None` when the pool or
+    /// the coarse grid lies beyond the largest atlas.
     pub fn place_bricked(
         &mut self,
         bricked: &penumbra_sdf::bricks::BrickedVolume,
         pool_origin: UVec3,
+        coarse_origin: UVec3,
     ) -> Option<u32> {
         use penumbra_sdf::bricks::Brick;
         let cells = bricked.bricks.iter().map(|b| match b {
@@ -52,8 +54,10 @@ impl Atlas {
             Brick::Empty(m) => Some(m.to_bits()),
         });
         let samples: Vec<u16> = bricked.samples.iter().map(|h| h.to_bits()).collect();
-        let l = bricks::layout(cells, &samples, pool_origin)?;
+        let l = bricks::layout(cells, &samples, pool_origin, coarse_origin)?;
         self.write(pool_origin, l.pool_dims, &l.pool);
+        let coarse: Vec<u16> = bricked.coarse.iter().map(|h| h.to_bits()).collect();
+        self.write(coarse_origin, bricked.coarse_dims(), &coarse);
         let offset = self.table.len() as u32;
         self.table.extend_from_slice(&l.entries);
         Some(offset)
@@ -126,28 +130,29 @@ fn sample_volume(atlas: &Atlas, origin: UVec3, dims: UVec3, c: Vec3) -> f32 {
 /// A bricked volume's field at grid coordinates `c` (inside `[0, dims − 1]`) from its
 /// brick-table entries at `table_offset` (`sample_bricked` in `shaders/df/
 /// distance.wgsl`): the brick's eight samples in its atlas block, or an empty brick's
-/// value. An entry past the table reads as an empty brick at distance 0.
+/// distance from its nearest sample and the coarse grid
+/// (`penumbra_sdf::bricks::empty_distance`). Entries past the table read as zeros.
 fn sample_bricked(atlas: &Atlas, table_offset: u32, dims: UVec3, c: Vec3) -> f32 {
-    let span = (BRICK_SAMPLES - 1) as f32;
-    let grid = (dims - UVec3::ONE + UVec3::splat(BRICK_SAMPLES - 2)) / (BRICK_SAMPLES - 1);
-    let b = (c / span)
-        .floor()
-        .max(Vec3::ZERO)
-        .as_uvec3()
-        .min(grid - UVec3::ONE);
-    let index = table_offset + b.x + grid.x * (b.y + grid.y * b.z);
-    let entry = atlas
-        .table
-        .get(index as usize)
-        .copied()
-        .unwrap_or(bricks::EMPTY);
-    match bricks::decode(entry) {
-        Err(least) => f16_to_f32(least),
+    let span = BRICK_SAMPLES - 1;
+    let grid = (dims - UVec3::ONE + UVec3::splat(span - 1)) / span;
+    let b = (c / span as f32).floor().max(Vec3::ZERO).as_uvec3().min(grid - UVec3::ONE);
+    let local = c - (b * span).as_vec3();
+    let entry = |i: u32| atlas.table.get(i as usize).copied().unwrap_or(0);
+    let index = table_offset + bricks::HEADER_ENTRIES + b.x + grid.x * (b.y + grid.y * b.z);
+    match bricks::decode(entry(index)) {
+        Err(least) => {
+            // The brick's far corners are the grid's last samples where it overhangs.
+            let coarse_origin = unpack_10_10_12(entry(table_offset));
+            let width = (dims - UVec3::ONE - b * span).min(UVec3::splat(span));
+            let at = b.as_vec3() + local / width.as_vec3();
+            let coarse = sample_volume(atlas, coarse_origin, grid + UVec3::ONE, at);
+            penumbra_sdf::bricks::empty_distance(f16_to_f32(least), coarse)
+        }
         Ok(block) => sample_volume(
             atlas,
             block * BRICK_SAMPLES,
             UVec3::splat(BRICK_SAMPLES),
-            c - b.as_vec3() * span,
+            local,
         ),
     }
 }

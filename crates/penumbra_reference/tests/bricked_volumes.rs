@@ -70,7 +70,7 @@ fn a_bricked_volume_reads_as_its_dense_twin_near_the_surface_and_below_it_elsewh
     atlas.write(region.origin, region.dims, &bits);
     atlas.table.extend([0xdead_beef; 5]); // another volume's entries first
     let table_offset = atlas
-        .place_bricked(&bricked, UVec3::new(0, 0, 80))
+        .place_bricked(&bricked, UVec3::new(0, 0, 80), UVec3::new(64, 0, 80))
         .expect("the pool fits");
     assert_eq!(table_offset, 5);
 
@@ -121,6 +121,12 @@ fn a_bricked_volume_reads_as_its_dense_twin_near_the_surface_and_below_it_elsewh
             d.signum() == s.signum() && s.abs() <= d.abs() + 1e-5,
             "{local}: bricked {s}, dense {d}"
         );
+        // Inside the box the model reads what `BrickedVolume` says.
+        let g = ((local - v.origin) / voxel_size as f64).as_vec3();
+        if g.cmpge(Vec3::ZERO).all() && g.cmple((v.dims - UVec3::ONE).as_vec3()).all() {
+            let want = bricked.sample_voxels(g) as f64 * voxel;
+            assert!((s - want).abs() < 1e-5, "{local}: model {s}, BrickedVolume {want}");
+        }
         if d.abs() < (DEFAULT_BAND_VOXELS as f64 - 1.0) * voxel {
             near += 1;
             worst_twin = worst_twin.max((s - d).abs());

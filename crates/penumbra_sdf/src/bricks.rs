@@ -11,17 +11,24 @@
 //! are never weighted. A brick is **stored** when any of its samples lies within the
 //! band (`band` voxels) of the surface, or its samples change sign; otherwise it is
 //! **empty** and keeps only the sample of smallest magnitude, `m` (signed: every sample
-//! in an empty brick has the same sign).
+//! in an empty brick has the same sign). A **coarse grid** holds the dense grid's
+//! samples at the bricks' corners (every [`BRICK_SPAN`]-th sample; where the last brick
+//! overhangs the grid, its far corners are the grid's last samples, and its cell of the
+//! coarse grid is that much narrower).
 //!
 //! # Sampling ([`BrickedVolume::sample_voxels`])
 //! In a stored brick: the dense grid's own trilinear interpolation (the same eight
-//! samples). In an empty brick: `m`. The dense trilinear value there is a convex
-//! combination of eight samples of one sign, each at least `|m|` in magnitude, so `m` is
-//! never farther from zero than the dense field: sphere tracing on the bricked field is
-//! as conservative as on the dense one, and finds the same surface, since every cell
-//! within `band` voxels of it is stored. Far from the surface (more than `band` voxels)
-//! distances read low by up to a brick's diagonal (12 voxels): more steps, and a soft
-//! shadow's or a cone's occlusion estimate there reads the occluder that much nearer.
+//! samples), so every cell within `band` voxels of the surface reads as dense. In an
+//! empty brick: the coarse grid's trilinear value moved [`COARSE_SLACK_VOXELS`] toward
+//! zero, but never nearer zero than `m` ([`empty_distance`]). `m` alone is a bound that
+//! never reads farther from zero than the dense field (which is a convex combination of
+//! samples at least `|m|` from zero there), but reads low by up to a brick's diagonal
+//! (12 voxels), which a cone's occlusion or a soft shadow's penumbra far from the
+//! surface sees as a nearer occluder (a terrain's ambient occlusion error rose from
+//! 0.057 to 0.087 with it). The coarse grid is exact for a plane and within about
+//! `7² / (8R)` voxels of a surface of curvature radius `R` voxels; the slack keeps a
+//! convex surface's overestimate (trilinear interpolation of a convex function lies
+//! above it) from lengthening a step.
 //!
 //! The GPU reads the same layout: `shaders/df/distance.wgsl` (`sample_bricked`), with
 //! the bricks in the atlas and one `u32` per brick in the brick table
@@ -44,6 +51,19 @@ pub const BRICK_LEN: usize = (BRICK_SAMPLES * BRICK_SAMPLES * BRICK_SAMPLES) as 
 /// surface, the field normal's central differences) with a voxel to spare.
 pub const DEFAULT_BAND_VOXELS: f32 = 4.0;
 
+/// Voxels an empty brick's coarse distance is moved toward zero ([`empty_distance`]).
+pub const COARSE_SLACK_VOXELS: f32 = 1.0;
+
+/// An empty brick's distance, voxels, from its sample of smallest magnitude `least` and
+/// the coarse grid's trilinear value `coarse` (module docs).
+pub fn empty_distance(least: f32, coarse: f32) -> f32 {
+    if least >= 0.0 {
+        least.max(coarse - COARSE_SLACK_VOXELS)
+    } else {
+        least.min(coarse + COARSE_SLACK_VOXELS)
+    }
+}
+
 /// One brick of a [`BrickedVolume`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Brick {
@@ -64,6 +84,9 @@ pub struct BrickedVolume {
     pub bricks: Vec<Brick>,
     /// The stored bricks' samples, voxels, [`BRICK_LEN`] per brick, x fastest in each.
     pub samples: Vec<f16>,
+    /// The dense grid's samples at the bricks' corners, voxels: `grid + 1` along each
+    /// axis, x fastest (module docs).
+    pub coarse: Vec<f16>,
     /// The band the bricks were chosen with, voxels.
     pub band: f32,
 }
@@ -113,13 +136,29 @@ impl BrickedVolume {
                 }
             }
         }
+        let cd = grid + UVec3::ONE;
+        let mut coarse = Vec::with_capacity((cd.x * cd.y * cd.z) as usize);
+        for k in 0..cd.z {
+            for j in 0..cd.y {
+                for i in 0..cd.x {
+                    let p = (UVec3::new(i, j, k) * BRICK_SPAN).min(dims - UVec3::ONE);
+                    coarse.push(volume.data[volume.index(p.x, p.y, p.z)]);
+                }
+            }
+        }
         BrickedVolume {
             dims,
             grid,
             bricks,
             samples,
+            coarse,
             band,
         }
+    }
+
+    /// The coarse grid's samples along each axis.
+    pub fn coarse_dims(&self) -> UVec3 {
+        self.grid + UVec3::ONE
     }
 
     /// Stored bricks.
@@ -127,10 +166,10 @@ impl BrickedVolume {
         self.samples.len() / BRICK_LEN
     }
 
-    /// Bytes the GPU holds for it: the stored bricks' f16 samples and one `u32` table
-    /// entry per brick.
+    /// Bytes the GPU holds for it: the stored bricks' and the coarse grid's f16 samples
+    /// and one `u32` table entry per brick.
     pub fn bytes(&self) -> u64 {
-        2 * self.samples.len() as u64 + 4 * self.bricks.len() as u64
+        2 * (self.samples.len() + self.coarse.len()) as u64 + 4 * self.bricks.len() as u64
     }
 
     /// Bytes of the dense grid it stands for (f16 samples).
@@ -156,26 +195,38 @@ impl BrickedVolume {
     pub fn sample_voxels(&self, c: Vec3) -> f32 {
         let (b, local) = self.locate(c);
         match self.bricks[(b.x + self.grid.x * (b.y + self.grid.y * b.z)) as usize] {
-            Brick::Empty(m) => m.to_f32(),
+            Brick::Empty(m) => {
+                // The brick's far corners are the grid's last samples where it overhangs.
+                let width = (self.dims - UVec3::ONE - b * BRICK_SPAN).min(UVec3::splat(BRICK_SPAN));
+                let at = b.as_vec3() + local / width.as_vec3();
+                let coarse = trilinear(&self.coarse, self.coarse_dims(), at);
+                empty_distance(m.to_f32(), coarse)
+            }
             Brick::Stored(i) => {
                 let samples = &self.samples[BRICK_LEN * i as usize..][..BRICK_LEN];
-                let i0 = local.floor().min(Vec3::splat(BRICK_SPAN as f32 - 1.0));
-                let f = local - i0;
-                let i0 = i0.as_uvec3();
-                let s = |x: u32, y: u32, z: u32| {
-                    let n = (i0.x + x) + BRICK_SAMPLES * ((i0.y + y) + BRICK_SAMPLES * (i0.z + z));
-                    samples[n as usize].to_f32()
-                };
-                let x00 = s(0, 0, 0) + (s(1, 0, 0) - s(0, 0, 0)) * f.x;
-                let x10 = s(0, 1, 0) + (s(1, 1, 0) - s(0, 1, 0)) * f.x;
-                let x01 = s(0, 0, 1) + (s(1, 0, 1) - s(0, 0, 1)) * f.x;
-                let x11 = s(0, 1, 1) + (s(1, 1, 1) - s(0, 1, 1)) * f.x;
-                let y0 = x00 + (x10 - x00) * f.y;
-                let y1 = x01 + (x11 - x01) * f.y;
-                y0 + (y1 - y0) * f.z
+                trilinear(samples, UVec3::splat(BRICK_SAMPLES), local)
             }
         }
     }
+}
+
+/// Trilinear interpolation of `samples` (a `dims` grid, x fastest) at grid coordinates
+/// `c` (inside `[0, dims − 1]`), with the GPU's arithmetic (`sample_volume`).
+fn trilinear(samples: &[f16], dims: UVec3, c: Vec3) -> f32 {
+    let i0 = c.floor().min((dims - UVec3::splat(2)).as_vec3()).max(Vec3::ZERO);
+    let f = c - i0;
+    let i0 = i0.as_uvec3();
+    let s = |x: u32, y: u32, z: u32| {
+        let n = (i0.x + x) + dims.x * ((i0.y + y) + dims.y * (i0.z + z));
+        samples[n as usize].to_f32()
+    };
+    let x00 = s(0, 0, 0) + (s(1, 0, 0) - s(0, 0, 0)) * f.x;
+    let x10 = s(0, 1, 0) + (s(1, 1, 0) - s(0, 1, 0)) * f.x;
+    let x01 = s(0, 0, 1) + (s(1, 0, 1) - s(0, 0, 1)) * f.x;
+    let x11 = s(0, 1, 1) + (s(1, 1, 1) - s(0, 1, 1)) * f.x;
+    let y0 = x00 + (x10 - x00) * f.y;
+    let y1 = x01 + (x11 - x01) * f.y;
+    y0 + (y1 - y0) * f.z
 }
 
 #[cfg(test)]

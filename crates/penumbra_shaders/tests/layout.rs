@@ -74,6 +74,7 @@ fn shared_constants_match() {
         ("FLAG_UNBOUNDED", flags::UNBOUNDED as f64),
         ("FLAG_LIVE", flags::LIVE as f64),
         ("FLAG_CAST_HIDDEN_SHADOW", flags::CAST_HIDDEN_SHADOW as f64),
+        ("FLAG_BRICKED", flags::BRICKED as f64),
         ("KIND_SHIFT", flags::KIND_SHIFT as f64),
         ("KIND_MASK", flags::KIND_MASK as f64),
         ("KIND_VOLUME", ShapeKind::Volume as u32 as f64),
@@ -85,6 +86,19 @@ fn shared_constants_match() {
     for (name, want) in cases {
         assert_eq!(constant(&m, name), want, "{name}");
     }
+    let distance = parse("#import penumbra::df::distance\n");
+    for (name, want) in [
+        ("BRICK_TABLE_WIDTH", penumbra_df_core::bricks::TABLE_WIDTH),
+        ("BRICK_EMPTY", penumbra_df_core::bricks::EMPTY),
+        ("BRICK_SAMPLES", penumbra_df_core::bricks::BRICK_SAMPLES),
+        ("BRICK_HEADER_ENTRIES", penumbra_df_core::bricks::HEADER_ENTRIES),
+    ] {
+        assert_eq!(constant(&distance, name), want as f64, "{name}");
+    }
+    assert_eq!(
+        constant(&distance, "BRICK_COARSE_SLACK"),
+        penumbra_sdf::bricks::COARSE_SLACK_VOXELS as f64
+    );
     let deltas = parse("#import penumbra::df::apply_deltas\n");
     assert_eq!(
         constant(&deltas, "WRITE_WORDS") as usize,

@@ -45,7 +45,8 @@ use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_resource::binding_types::{
-    storage_buffer_read_only_sized, storage_buffer_sized, texture_3d, uniform_buffer_sized,
+    storage_buffer_read_only_sized, storage_buffer_sized, texture_2d, texture_3d,
+    uniform_buffer_sized,
 };
 use bevy::render::render_resource::encase::UniformBuffer;
 use bevy::render::render_resource::{
@@ -292,8 +293,8 @@ impl ExtractComponent for HairShadowBuffers {
     }
 }
 
-/// What a bind group binds: objects, atlas, points, visibility.
-type BoundIds = (BufferId, TextureViewId, BufferId, BufferId);
+/// What a bind group binds: objects, atlas and brick table, points, visibility.
+type BoundIds = (BufferId, [TextureViewId; 2], BufferId, BufferId);
 
 /// A hair entity's pooled GPU state.
 #[derive(Component)]
@@ -325,6 +326,8 @@ struct HairShadowPipeline {
     trace: CachedComputePipelineId,
     /// Bound while the scene has no SDF volume (analytic casters only).
     no_atlas: TextureView,
+    /// Bound while no volume is placed as bricks.
+    no_brick_table: TextureView,
 }
 
 fn init_hair_shadow_pipeline(
@@ -350,6 +353,7 @@ fn init_hair_shadow_pipeline(
                     false,
                     NonZeroU64::new((SHADOW_LIGHT_BYTES * MAX_HAIR_SHADOW_LIGHTS) as u64),
                 ),
+                texture_2d(TextureSampleType::Uint),
             ),
         ),
     );
@@ -365,6 +369,7 @@ fn init_hair_shadow_pipeline(
         layout,
         trace,
         no_atlas,
+        no_brick_table: bevy_penumbra_df::shader_library::empty_brick_table(&device),
     });
 }
 
@@ -413,7 +418,16 @@ fn prepare_hair_shadows(
             .atlas
             .as_ref()
             .map_or(&pipeline.no_atlas, |(_, view, _)| view);
-        Some((objects, atlas, df.slot_count, df.generation()))
+        let brick_table = df
+            .brick_table
+            .as_ref()
+            .map_or(&pipeline.no_brick_table, |(_, view, _)| view);
+        Some((
+            objects,
+            (atlas, brick_table),
+            df.slot_count,
+            df.generation(),
+        ))
     });
     let all_lights = lights.as_deref().map_or(&[][..], |l| l.lights());
     for (entity, hair, gpu) in &mut hairs {
@@ -472,7 +486,7 @@ fn prepare_hair_shadows(
             changed = true;
         }
         gpu.dispatch = [0; 3];
-        if let (true, Some(origin), Some((objects, atlas, slot_count, generation))) =
+        if let (true, Some(origin), Some((objects, (atlas, brick_table), slot_count, generation))) =
             (traced, origin, scene)
         {
             let origin_world = IVec3::from_array(origin.tile).as_dvec3() * f64::from(TILE_SIZE)
@@ -511,7 +525,7 @@ fn prepare_hair_shadows(
             }
             let ids = (
                 objects.id(),
-                atlas.id(),
+                [atlas.id(), brick_table.id()],
                 points.buffer.id(),
                 shadows.buffer.id(),
             );
@@ -527,6 +541,7 @@ fn prepare_hair_shadows(
                         shadows.buffer.as_entire_binding(),
                         gpu.params.as_entire_binding(),
                         gpu.lights.as_entire_binding(),
+                        brick_table,
                     )),
                 );
                 gpu.group = Some((group, ids));

@@ -84,8 +84,8 @@ pub struct ViewReflections {
 }
 
 /// What a group 2 binds: the uniform, billboard, object, tile-list and sphere buffers;
-/// the array and atlas.
-type BoundResources = ([BufferId; 5], [TextureViewId; 2]);
+/// the array, atlas and brick table.
+type BoundResources = ([BufferId; 5], [TextureViewId; 3]);
 
 /// A reflecting view's uniform and group 2 (remade when a bound resource changes).
 #[derive(Component)]
@@ -117,6 +117,8 @@ pub(super) struct ReflectionPipelines {
     /// Bound while the scene has no distance-field objects: one free record, one voxel.
     no_objects: Buffer,
     no_atlas: TextureView,
+    /// Bound while no volume is placed as bricks.
+    no_brick_table: TextureView,
     queued: HashMap<(MeshPipelineKey, bool), CachedRenderPipelineId>,
     /// The caster spheres' pass (reflection shadows).
     spheres: SpheresPipeline,
@@ -175,6 +177,7 @@ fn init_reflection_pipelines(
                 texture_3d(TextureSampleType::Float { filterable: false }),
                 storage_buffer_sized(false, NonZeroU64::new(4)),
                 storage_buffer_read_only_sized(false, NonZeroU64::new(SPHERE_BYTES)),
+                texture_2d(TextureSampleType::Uint),
             ),
         ),
     );
@@ -224,6 +227,7 @@ fn init_reflection_pipelines(
         sampler,
         no_objects,
         no_atlas,
+        no_brick_table: bevy_penumbra_df::shader_library::empty_brick_table(&device),
         queued: HashMap::default(),
         spheres: SpheresPipeline::new(&pipeline_cache, library.handle("reflections/spheres.wgsl")),
     });
@@ -443,11 +447,12 @@ fn prepare_reflection_bind_groups(
         return;
     };
     // The distance-field scene, or placeholders (no reflection shadows).
-    let (objects, object_count, df_atlas) = match df.as_deref() {
+    let (objects, object_count, df_atlas, brick_table) = match df.as_deref() {
         Some(DistanceFieldGpu {
             objects: Some(objects),
             slot_count,
             atlas,
+            brick_table,
             ..
         }) => (
             objects,
@@ -455,8 +460,16 @@ fn prepare_reflection_bind_groups(
             atlas
                 .as_ref()
                 .map_or(&pipelines.no_atlas, |(_, view, _)| view),
+            brick_table
+                .as_ref()
+                .map_or(&pipelines.no_brick_table, |(_, view, _)| view),
         ),
-        _ => (&pipelines.no_objects, 0, &pipelines.no_atlas),
+        _ => (
+            &pipelines.no_objects,
+            0,
+            &pipelines.no_atlas,
+            &pipelines.no_brick_table,
+        ),
     };
     let count = gpu.billboards.len() as u32;
     for (entity, view, settings, draw, group, view_layers, msaa) in &mut views {
@@ -570,7 +583,7 @@ fn prepare_reflection_bind_groups(
                 group.tile_lists.id(),
                 group.spheres.buffer.id(),
             ],
-            [array.id(), df_atlas.id()],
+            [array.id(), df_atlas.id(), brick_table.id()],
         );
         if group.group.as_ref().map(|(_, k)| k) != Some(&key) {
             let bind_group = allocations.bind_group(
@@ -586,6 +599,7 @@ fn prepare_reflection_bind_groups(
                     df_atlas,
                     group.tile_lists.as_entire_binding(),
                     group.spheres.buffer.as_entire_binding(),
+                    brick_table,
                 )),
             );
             group.group = Some((bind_group, key));

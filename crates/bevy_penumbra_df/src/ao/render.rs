@@ -51,6 +51,8 @@ struct AoPipelines {
     temporal_msaa: Option<CachedComputePipelineId>,
     /// Bound when the scene has no SDF volume (analytic casters only).
     empty_atlas: TextureView,
+    /// Bound when no volume is placed as bricks.
+    empty_brick_table: TextureView,
 }
 
 /// A view's AO textures: the trace's (at the divisor's size), above divisor 1 the
@@ -92,7 +94,7 @@ impl ViewAoTextures {
 /// per-sample upsample's depth, G-buffer, classes and output.
 type BindKey = (
     [BufferId; 2],
-    [TextureViewId; 5],
+    [TextureViewId; 6],
     Option<TextureViewId>,
     Option<[TextureViewId; 2]>,
     Option<[TextureViewId; 4]>,
@@ -167,6 +169,7 @@ fn init_ao_pipelines(
                 texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
                 storage_buffer_read_only_sized(false, None),
                 texture_2d(TextureSampleType::Float { filterable: false }),
+                texture_2d(TextureSampleType::Uint),
             ),
         ),
     );
@@ -258,6 +261,7 @@ fn init_ao_pipelines(
         temporal_msaa_layout,
         temporal_msaa: None,
         empty_atlas: crate::shader_library::empty_atlas(&device),
+        empty_brick_table: crate::shader_library::empty_brick_table(&device),
     });
 }
 
@@ -504,6 +508,10 @@ fn prepare_dfao_bind_groups(
         .atlas
         .as_ref()
         .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
+    let brick_table = gpu
+        .brick_table
+        .as_ref()
+        .map_or(&pipelines.empty_brick_table, |(_, view, _)| view);
     for (entity, view, ExtractedDfao(settings), mut textures, prepass, msaa, groups, field) in
         &mut views
     {
@@ -634,6 +642,7 @@ fn prepare_dfao_bind_groups(
                 gbuffer.id(),
                 textures.trace.id(),
                 heights.id(),
+                brick_table.id(),
             ],
             textures.full.as_ref().map(TextureView::id),
             motion.zip(history).map(|(m, h)| [m.id(), h[0][0].id()]),
@@ -653,6 +662,7 @@ fn prepare_dfao_bind_groups(
                     &textures.trace,
                     terrain_records.as_entire_binding(),
                     heights,
+                    brick_table,
                 )),
             ));
             groups.upsample = textures.full.as_ref().map(|full| {

@@ -10,7 +10,7 @@ use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::binding_types::{
-    storage_buffer_read_only_sized, texture_3d, uniform_buffer_sized,
+    storage_buffer_read_only_sized, texture_2d, texture_3d, uniform_buffer_sized,
 };
 use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
@@ -35,14 +35,16 @@ struct DebugViewPipelines {
     by_format: HashMap<TextureFormat, CachedRenderPipelineId>,
     /// Bound when no SDF volume exists (analytic-only scenes).
     empty_atlas: TextureView,
+    /// Bound when no volume is placed as bricks.
+    empty_brick_table: TextureView,
 }
 
 /// A debug view's uniform and bind group (render world), reused across frames.
 #[derive(Component)]
 struct DebugViewResources {
     uniform: Buffer,
-    /// The bind group and the object buffer, culled list and atlas it binds.
-    bind_group: Option<(BindGroup, [BufferId; 2], TextureViewId)>,
+    /// The bind group and the object buffer, culled list, atlas and brick table it binds.
+    bind_group: Option<(BindGroup, [BufferId; 2], [TextureViewId; 2])>,
 }
 
 pub(super) fn build(render_app: &mut SubApp) {
@@ -91,6 +93,7 @@ fn init_debug_view_pipelines(
                 storage_buffer_read_only_sized(false, None),
                 texture_3d(TextureSampleType::Float { filterable: false }),
                 uniform_buffer_sized(false, NonZeroU64::new(DEBUG_VIEW_BYTES)),
+                texture_2d(TextureSampleType::Uint),
             ),
         ),
     );
@@ -99,6 +102,7 @@ fn init_debug_view_pipelines(
         shader: library.handle("df/debug_view.wgsl"),
         by_format: HashMap::default(),
         empty_atlas: crate::shader_library::empty_atlas(&device),
+        empty_brick_table: crate::shader_library::empty_brick_table(&device),
     });
 }
 
@@ -257,8 +261,15 @@ fn prepare_debug_view_bind_groups(
         .atlas
         .as_ref()
         .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
+    let brick_table = gpu
+        .brick_table
+        .as_ref()
+        .map_or(&pipelines.empty_brick_table, |(_, view, _)| view);
     for (culled, mut resources) in &mut views {
-        let key = ([objects.id(), culled.list.id()], atlas.id());
+        let key = (
+            [objects.id(), culled.list.id()],
+            [atlas.id(), brick_table.id()],
+        );
         if resources.bind_group.as_ref().map(|(_, b, a)| (*b, *a)) == Some(key) {
             continue;
         }
@@ -272,6 +283,7 @@ fn prepare_debug_view_bind_groups(
                 culled.count.as_entire_binding(),
                 atlas,
                 resources.uniform.as_entire_binding(),
+                brick_table,
             )),
         );
         resources.bind_group = Some((bind_group, key.0, key.1));

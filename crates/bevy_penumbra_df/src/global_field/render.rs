@@ -64,8 +64,15 @@ impl ExtractedGlobalField {
     }
 }
 
-/// What a camera's compose bind group binds: the object buffer, the atlas and the jobs.
-type ComposeKey = (BufferId, TextureViewId, BufferId, BufferId, TextureViewId);
+/// What a camera's compose bind group binds: the object buffer, the atlas and brick
+/// table, the jobs, the terrains.
+type ComposeKey = (
+    BufferId,
+    [TextureViewId; 2],
+    BufferId,
+    BufferId,
+    TextureViewId,
+);
 
 /// A camera's clipmaps on the GPU (pooled: made again only when the layout changes).
 #[derive(Component)]
@@ -128,6 +135,8 @@ pub(crate) struct GlobalFieldPipelines {
     compose: CachedComputePipelineId,
     /// Bound as the atlas where no SDF volume exists.
     empty_atlas: TextureView,
+    /// Bound where no volume is placed as bricks.
+    empty_brick_table: TextureView,
 }
 
 /// The layout of the bind group passes reading the field use as their group 1
@@ -232,6 +241,7 @@ fn init_global_field_pipelines(
                 storage_buffer_sized(false, None),
                 storage_buffer_read_only_sized(false, None),
                 texture_2d(TextureSampleType::Float { filterable: false }),
+                texture_2d(TextureSampleType::Uint),
             ),
         ),
     );
@@ -246,6 +256,7 @@ fn init_global_field_pipelines(
         compose_layout,
         compose,
         empty_atlas: crate::shader_library::empty_atlas(&device),
+        empty_brick_table: crate::shader_library::empty_brick_table(&device),
     });
 }
 
@@ -426,6 +437,10 @@ pub(crate) fn prepare_global_field_bind_groups(
         .atlas
         .as_ref()
         .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
+    let brick_table = gpu
+        .brick_table
+        .as_ref()
+        .map_or(&pipelines.empty_brick_table, |(_, view, _)| view);
     for mut buffers in &mut views {
         if buffers.dispatch == 0 {
             continue;
@@ -438,7 +453,7 @@ pub(crate) fn prepare_global_field_bind_groups(
         );
         let key = (
             objects.id(),
-            atlas.id(),
+            [atlas.id(), brick_table.id()],
             buffers.jobs.id(),
             records.id(),
             heights.id(),
@@ -462,6 +477,7 @@ pub(crate) fn prepare_global_field_bind_groups(
                 buffers.field.as_entire_binding(),
                 records.as_entire_binding(),
                 heights,
+                brick_table,
             )),
         );
         buffers.compose_group = Some((group, key));

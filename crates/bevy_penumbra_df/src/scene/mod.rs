@@ -42,6 +42,7 @@
 //! until slots free up.
 
 mod bake_requests;
+mod bricks;
 mod cull;
 mod heightfield;
 mod mesh_shape;
@@ -224,6 +225,12 @@ pub struct DistanceFieldSceneSettings {
     /// skipped — those that arrive when it is full, in entity order; casters already in
     /// the buffer are never evicted — with one warning, and join as slots free up.
     pub max_casters: u32,
+    /// Volumes whose dense grid holds at least this many bytes are placed as sparse
+    /// bricks (`penumbra_sdf::bricks`: only the 8³ bricks within 4 voxels of the
+    /// surface) when that at least halves them. Default 1 MiB (a 80³ grid); `u64::MAX`
+    /// keeps every volume dense. Cost: one pass over the grid when it is placed, and a
+    /// table read per distance sample of a bricked volume.
+    pub sparse_min_bytes: u64,
 }
 
 impl Default for DistanceFieldSceneSettings {
@@ -231,6 +238,7 @@ impl Default for DistanceFieldSceneSettings {
         Self {
             atlas_budget_bytes: 64 << 20,
             max_casters: 1 << 20,
+            sparse_min_bytes: 1 << 20,
         }
     }
 }
@@ -259,6 +267,11 @@ pub struct DistanceFieldUploadStats {
     pub atlas_volumes: usize,
     /// SDFs placed at reduced resolution because the atlas was full (since startup).
     pub atlas_downsampled: usize,
+    /// SDFs in the atlas as sparse bricks
+    /// ([`DistanceFieldSceneSettings::sparse_min_bytes`]).
+    pub atlas_bricked: usize,
+    /// Bytes of the brick table (their one entry per brick).
+    pub brick_table_bytes: u64,
     /// SDFs whose casters are skipped: they fit nowhere, even at quarter resolution
     /// (tried again when atlas space is freed).
     pub atlas_skipped: usize,
@@ -270,7 +283,12 @@ pub struct DistanceFieldUploadStats {
 /// One SDF placed in the atlas.
 #[derive(Clone, Debug)]
 struct PlacedVolume {
+    /// The dense volume, or the pool of a bricked one.
     region: AtlasRegion,
+    /// The dense grid's samples along each axis.
+    dims: UVec3,
+    /// A bricked volume's range of the brick table and its coarse grid's region.
+    table: Option<(std::ops::Range<u32>, AtlasRegion)>,
     local_origin: Vec3,
     voxel_size: f32,
     /// `SdfVolume::margin`, voxels.
@@ -326,6 +344,12 @@ pub struct DistanceFieldScene {
     waiting: HashSet<Entity>,
     #[reflect(ignore)]
     uploads: Vec<AtlasUpload>,
+    /// The brick table of volumes placed as bricks.
+    #[reflect(ignore)]
+    brick_table: bricks::BrickTable,
+    /// Volumes placed as bricks.
+    #[reflect(ignore)]
+    bricked: usize,
     max_texture_3d: u32,
     /// The atlas has been reported full once (later overflows are only counted).
     #[reflect(ignore)]
@@ -343,7 +367,11 @@ pub struct DistanceFieldScene {
 impl DistanceFieldScene {
     /// Where `volume` is in the atlas, if placed (re-baked fields are written there).
     pub(crate) fn volume_region(&self, volume: AssetId<SdfVolumeAsset>) -> Option<AtlasRegion> {
-        self.volumes.get(&volume).map(|p| p.region)
+        // Bricked volumes are never re-baked (they have a surface; placeholders do not).
+        self.volumes
+            .get(&volume)
+            .filter(|p| p.table.is_none())
+            .map(|p| p.region)
     }
 
     /// Live casters.
@@ -378,6 +406,8 @@ pub(crate) struct DistanceFieldFrame {
     pub(crate) deltas: Deltas,
     pub(crate) uploads: Vec<AtlasUpload>,
     pub(crate) atlas_size: Option<UVec3>,
+    /// The whole brick table, when it changed this frame.
+    pub(crate) brick_table: Option<std::sync::Arc<[u32]>>,
 }
 
 /// System sets of the scene's main-world work, in `PostUpdate` after transform
@@ -507,7 +537,15 @@ fn release_volume(scene: &mut DistanceFieldScene, entity: Entity) {
     placed.users -= 1;
     if placed.users == 0 {
         let region = placed.region;
+        let bricks = placed.table.clone();
         scene.volumes.remove(&id);
+        if let Some((range, coarse)) = bricks {
+            scene.brick_table.free(range);
+            scene.bricked -= 1;
+            if let Some(atlas) = scene.atlas.as_mut() {
+                atlas.free(&coarse);
+            }
+        }
         if let Some(atlas) = scene.atlas.as_mut() {
             atlas.free(&region);
             scene.atlas_freed = true;
@@ -569,6 +607,31 @@ fn place_volume(
         }
     }
     let atlas = scene.atlas.as_mut().expect("created above");
+    let sparse_min = settings.sparse_min_bytes;
+    if let Some(b) = bricks::place_bricked(&asset.volume, sparse_min, atlas, &mut scene.brick_table)
+    {
+        scene.uploads.push(AtlasUpload {
+            region: b.pool,
+            data: b.pool_texels,
+        });
+        scene.uploads.push(AtlasUpload {
+            region: b.coarse,
+            data: b.coarse_texels,
+        });
+        scene.bricked += 1;
+        let v = &asset.volume;
+        let placed = PlacedVolume {
+            region: b.pool,
+            dims: v.dims,
+            table: Some((b.table, b.coarse)),
+            local_origin: v.origin.as_vec3(),
+            margin: v.margin,
+            voxel_size: v.voxel_size,
+            users: 1,
+        };
+        scene.volumes.insert(id, placed.clone());
+        return Some(placed);
+    }
     let mut volume = std::borrow::Cow::Borrowed(&asset.volume);
     let mut halvings = 0;
     let region = loop {
@@ -607,6 +670,8 @@ fn place_volume(
     });
     let placed = PlacedVolume {
         region,
+        dims: region.dims,
+        table: None,
         local_origin: volume.origin.as_vec3(),
         margin: volume.margin,
         voxel_size: volume.voxel_size,
@@ -639,11 +704,20 @@ fn caster_shape(
     if volume_handle.is_none() && previous.is_some() {
         release_volume(scene, entity);
     }
-    let volume_shape = |placed: &PlacedVolume| CasterShape::Volume {
-        region: placed.region,
-        local_origin: placed.local_origin,
-        voxel_size: placed.voxel_size,
-        margin: placed.margin,
+    let volume_shape = |placed: &PlacedVolume| match &placed.table {
+        Some((table, _)) => CasterShape::BrickedVolume {
+            table_offset: table.start,
+            dims: placed.dims,
+            local_origin: placed.local_origin,
+            voxel_size: placed.voxel_size,
+            margin: placed.margin,
+        },
+        None => CasterShape::Volume {
+            region: placed.region,
+            local_origin: placed.local_origin,
+            voxel_size: placed.voxel_size,
+            margin: placed.margin,
+        },
     };
     match (&caster.source, volume_handle) {
         (CasterSource::Sphere { radius }, _) => Some(CasterShape::Sphere { radius: *radius }),
@@ -833,11 +907,14 @@ fn finish_frame(
     stats.atlas_used_bytes = scene.atlas.as_ref().map_or(0, AtlasAllocator::used_bytes);
     stats.atlas_volumes = scene.volumes.len();
     stats.atlas_downsampled = scene.downsampled;
+    stats.atlas_bricked = scene.bricked;
+    stats.brick_table_bytes = 4 * scene.brick_table.len() as u64;
     stats.atlas_skipped = scene.unplaceable.len();
     stats.over_cap = scene.over_cap.len();
     *frame = DistanceFieldFrame {
         deltas,
         uploads,
         atlas_size: scene.atlas_size(),
+        brick_table: scene.brick_table.take_changed(),
     };
 }

@@ -46,6 +46,9 @@ pub struct DistanceFieldGpu {
     pub slot_count: u32,
     /// The atlas (`R16Float`, 3D) and its size in voxels.
     pub atlas: Option<(Texture, TextureView, UVec3)>,
+    /// The brick table (`R32Uint`, 2D, `penumbra_df_core::bricks::TABLE_WIDTH` wide) and
+    /// its rows, once a volume has been placed as bricks.
+    pub brick_table: Option<(Texture, TextureView, u32)>,
     /// Writes not yet applied (kept while the delta pipeline compiles).
     pending: BTreeMap<u32, ObjectRecord>,
     /// The delta pass's pooled buffers and bind groups.
@@ -287,8 +290,12 @@ pub(super) fn prepare_distance_field_gpu(
             write_atlas(&queue, texture, upload);
         }
     }
+    if let Some(table) = &frame.brick_table {
+        write_brick_table(gpu, table, &allocations, &device, &queue);
+    }
     let after = (gpu.objects.as_ref().map(Buffer::id), gpu.atlas.is_some());
-    if before != after || (gpu.atlas.is_some() && !frame.uploads.is_empty()) {
+    let changed = !frame.uploads.is_empty() || frame.brick_table.is_some();
+    if before != after || (gpu.atlas.is_some() && changed) {
         gpu.generation += 1;
     }
     for w in &frame.deltas.writes {
@@ -439,6 +446,65 @@ fn grow_object_buffer(
     }
     gpu.objects = Some(buffer);
     gpu.capacity = capacity;
+}
+
+/// Writes the whole brick table, growing its texture (in powers of two rows) when the
+/// table outgrew it.
+fn write_brick_table(
+    gpu: &mut DistanceFieldGpu,
+    table: &[u32],
+    allocations: &PenumbraGpuAllocations,
+    device: &RenderDevice,
+    queue: &RenderQueue,
+) {
+    let width = penumbra_df_core::bricks::TABLE_WIDTH;
+    let rows = (table.len() as u32).div_ceil(width).max(1);
+    if gpu.brick_table.as_ref().is_none_or(|(_, _, r)| *r < rows) {
+        let rows = rows.next_power_of_two();
+        let texture = allocations.texture(
+            device,
+            &TextureDescriptor {
+                label: Some("penumbra_df_brick_table"),
+                size: Extent3d {
+                    width,
+                    height: rows,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: TextureDimension::D2,
+                format: TextureFormat::R32Uint,
+                usage: TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_DST,
+                view_formats: &[],
+            },
+        );
+        let view = texture.create_view(&TextureViewDescriptor::default());
+        gpu.brick_table = Some((texture, view, rows));
+    }
+    let Some((texture, _, _)) = &gpu.brick_table else {
+        return;
+    };
+    let mut bytes: Vec<u8> = table.iter().flat_map(|e| e.to_le_bytes()).collect();
+    bytes.resize((rows * width * 4) as usize, 0);
+    queue.write_texture(
+        TexelCopyTextureInfo {
+            texture,
+            mip_level: 0,
+            origin: Origin3d::ZERO,
+            aspect: TextureAspect::All,
+        },
+        &bytes,
+        TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(width * 4),
+            rows_per_image: Some(rows),
+        },
+        Extent3d {
+            width,
+            height: rows,
+            depth_or_array_layers: 1,
+        },
+    );
 }
 
 fn write_atlas(queue: &RenderQueue, texture: &Texture, upload: &AtlasUpload) {

@@ -52,6 +52,7 @@ pub(super) fn sample_trace_layout() -> BindGroupLayoutDescriptor {
                 storage_buffer_read_only_sized(false, None),
                 texture_2d(TextureSampleType::Float { filterable: false }),
                 texture_2d(TextureSampleType::Uint),
+                texture_2d(TextureSampleType::Uint),
             ),
         ),
     )

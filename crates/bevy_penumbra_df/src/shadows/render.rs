@@ -183,6 +183,8 @@ pub(super) struct ShadowPipelines {
     grid: [CachedComputePipelineId; 5],
     /// Bound when the scene has no SDF volume (analytic casters only).
     empty_atlas: TextureView,
+    /// Bound when no volume is placed as bricks.
+    empty_brick_table: TextureView,
     /// Bound when the view has no deferred G-buffer (no normals: no own-shadow term).
     empty_gbuffer: TextureView,
 }
@@ -262,6 +264,7 @@ fn init_shadow_pipelines(
                 texture_2d(TextureSampleType::Uint),
                 storage_buffer_read_only_sized(false, None),
                 texture_2d(TextureSampleType::Float { filterable: false }),
+                texture_2d(TextureSampleType::Uint),
             ),
         ),
     );
@@ -344,6 +347,7 @@ fn init_shadow_pipelines(
         grid_layout,
         grid,
         empty_atlas: crate::shader_library::empty_atlas(&device),
+        empty_brick_table: crate::shader_library::empty_brick_table(&device),
         empty_gbuffer: device
             .create_texture(&TextureDescriptor {
                 label: Some("penumbra_df_empty_gbuffer"),
@@ -556,6 +560,10 @@ fn prepare_distance_field_shadow_bind_groups(
         .atlas
         .as_ref()
         .map_or(&pipelines.empty_atlas, |(_, view, _)| view);
+    let brick_table = gpu
+        .brick_table
+        .as_ref()
+        .map_or(&pipelines.empty_brick_table, |(_, view, _)| view);
     for (view, masks, prepass, msaa, mut resources) in &mut views {
         let (depth, gbuffer) = pixel_prepass(prepass, msaa);
         let samples = masks
@@ -599,6 +607,7 @@ fn prepare_distance_field_shadow_bind_groups(
         let textures = ViewTextures {
             objects,
             atlas,
+            brick_table,
             depth,
             gbuffer: gbuffer.unwrap_or(&pipelines.empty_gbuffer),
             terrain: (&terrain_records, &heights),

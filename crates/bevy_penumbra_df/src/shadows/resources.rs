@@ -85,6 +85,7 @@ pub(super) struct LightBindGroups {
 struct BindKey {
     objects: BufferId,
     atlas: TextureViewId,
+    brick_table: TextureViewId,
     depth: TextureViewId,
     gbuffer: TextureViewId,
     layer: TextureViewId,
@@ -98,6 +99,7 @@ struct BindKey {
 pub(super) struct ViewTextures<'a> {
     pub(super) objects: &'a Buffer,
     pub(super) atlas: &'a TextureView,
+    pub(super) brick_table: &'a TextureView,
     pub(super) depth: &'a TextureView,
     pub(super) gbuffer: &'a TextureView,
     /// The terrains' records and heights (`GpuHeightfields`, or none).
@@ -358,6 +360,7 @@ impl DistanceFieldShadowResources {
             let key = BindKey {
                 objects: textures.objects.id(),
                 atlas: textures.atlas.id(),
+                brick_table: textures.brick_table.id(),
                 depth: textures.depth.id(),
                 gbuffer: textures.gbuffer.id(),
                 layer: layer.id(),
@@ -485,6 +488,7 @@ fn bind_groups(
             t.gbuffer,
             t.terrain.0.as_entire_binding(),
             t.terrain.1,
+            t.brick_table,
         )),
     );
     let upsample = half.map(|(_, sampled)| {
@@ -523,6 +527,7 @@ fn bind_groups(
                 t.terrain.0.as_entire_binding(),
                 t.terrain.1,
                 s.class,
+                t.brick_table,
             )),
         ))
     });

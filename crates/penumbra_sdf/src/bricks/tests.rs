@@ -62,6 +62,7 @@ fn bricks_keep_the_band_and_bound_the_rest() {
     let share = b.bytes() as f64 / b.dense_bytes() as f64;
     assert!(share < 0.3, "bricked bytes are {share:.3} of dense");
     let (mut near, mut far, mut worst_near, mut lowest_far) = (0, 0, 0.0f32, f32::INFINITY);
+    let mut far_ratio = 0.0f64;
     for c in points(v.dims, 20_000) {
         let (d, s) = (dense(&v, c), b.sample_voxels(c));
         assert!(
@@ -74,6 +75,7 @@ fn bricks_keep_the_band_and_bound_the_rest() {
         } else {
             far += 1;
             lowest_far = lowest_far.min(s.abs() / d.abs());
+            far_ratio += (s / d) as f64;
         }
     }
     assert!(near > 500 && far > 5000, "near {near}, far {far}");
@@ -81,11 +83,11 @@ fn bricks_keep_the_band_and_bound_the_rest() {
         worst_near < 1e-4,
         "bricked differs from dense by {worst_near} in the band"
     );
-    // Empty bricks read their nearest sample: at least the band.
-    assert!(
-        lowest_far > 0.2,
-        "far reads as low as {lowest_far} of the dense field"
-    );
+    // Empty bricks read the coarse grid less a voxel, at least their nearest sample (the
+    // nearest sample alone reads as low as 0.25 and 0.78 on average here).
+    let mean = far_ratio / far as f64;
+    println!("far from the surface: bricked / dense ≥ {lowest_far:.3}, mean {mean:.3}");
+    assert!(lowest_far > 0.6 && mean > 0.95, "far reads {lowest_far} (mean {mean}) of dense");
 }
 
 /// Sphere tracing the bricked field toward a sphere's centre stops at the analytic
@@ -136,4 +138,39 @@ fn degenerate_bands() {
     let t = BrickedVolume::from_volume(&tiny, 4.0);
     assert_eq!(t.grid, UVec3::ONE);
     assert!((t.sample_voxels(Vec3::splat(0.5)) - dense(&tiny, Vec3::splat(0.5))).abs() < 1e-4);
+}
+
+/// A plane's field is linear: empty bricks read it to within the slack (the coarse
+/// grid is exact, also where the last bricks overhang the grid); stored bricks exactly.
+#[test]
+fn a_plane_reads_exactly_less_the_slack_far_from_it() {
+    let dims = UVec3::new(40, 60, 30);
+    let n = Vec3::new(0.3, 0.9, 0.2).normalize();
+    let mut d = Vec::new();
+    for k in 0..dims.z {
+        for j in 0..dims.y {
+            for i in 0..dims.x {
+                d.push(n.dot(UVec3::new(i, j, k).as_vec3()) - 25.0);
+            }
+        }
+    }
+    let v = SdfVolume::from_distances(dims, DVec3::ZERO, 1.0, d);
+    let b = BrickedVolume::from_volume(&v, DEFAULT_BAND_VOXELS);
+    assert!(b.stored() < b.bricks.len() / 2, "{} of {}", b.stored(), b.bricks.len());
+    for c in points(dims, 5000) {
+        let (want, got) = (dense(&v, c), b.sample_voxels(c));
+        let (brick, _) = b.locate(c);
+        let i = (brick.x + b.grid.x * (brick.y + b.grid.y * brick.z)) as usize;
+        let slack = match b.bricks[i] {
+            Brick::Stored(_) => 0.0,
+            Brick::Empty(_) => COARSE_SLACK_VOXELS,
+        };
+        // Between the dense value and it less the slack (an empty brick's nearest sample
+        // may lie nearer the plane than that); f16 samples: 0.02-voxel steps.
+        let (got, want) = (got * want.signum(), want.abs());
+        assert!(
+            got <= want + 0.05 && got >= want - slack - 0.05,
+            "at {c}: {got}, dense {want}"
+        );
+    }
 }

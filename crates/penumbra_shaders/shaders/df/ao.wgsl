@@ -92,11 +92,12 @@ fn march_cone(
     rise: f32,
     view: AoTraceView,
     atlas: texture_3d<f32>,
+    brick_table: texture_2d<u32>,
 ) -> f32 {
     // A receiver inside an analytic shape is not occluded by it: the shape stands in for
     // the receiver's own mesh (a character's capsules).
     if object_kind(obj) != KIND_VOLUME
-        && object_distance(obj, p, view.camera_tile, view.camera_offset, atlas) < 0.0 {
+        && object_distance(obj, p, view.camera_tile, view.camera_offset, atlas, brick_table) < 0.0 {
         return 1.0;
     }
     let bias = ao_object_bias(obj, view.bias);
@@ -120,7 +121,7 @@ fn march_cone(
         if t >= t_end {
             break;
         }
-        let d = object_distance(obj, o + axis * t, view.camera_tile, view.camera_offset, atlas);
+        let d = object_distance(obj, o + axis * t, view.camera_tile, view.camera_offset, atlas, brick_table);
         let cone = max(t * view.tan_half, 1e-6);
         var floor = 0.0;
         if sphere.w >= 0.0 {

@@ -30,6 +30,7 @@
 
 @group(0) @binding(0) var<storage, read> objects: array<DistanceFieldObject>;
 @group(0) @binding(1) var atlas: texture_3d<f32>;
+@group(0) @binding(8) var brick_table: texture_2d<u32>;
 // Reverse-Z prepass depth, as an unfilterable float texture.
 @group(0) @binding(2) var depth_texture: texture_2d<f32>;
 // Bevy's deferred G-buffer (Rgba32Uint; the octahedral normal in `.a`).
@@ -87,7 +88,7 @@ fn tile_keeps(o: DistanceFieldObject, sphere: vec4<f32>, ball: vec4<f32>) -> boo
             return false;
         }
     }
-    let d = object_distance(o, ball.xyz, view.camera_tile, view.camera_offset, atlas);
+    let d = object_distance(o, ball.xyz, view.camera_tile, view.camera_offset, atlas, brick_table);
     return d - ball.w < view.influence + cull_slack(ball.w + view.influence);
 }
 
@@ -255,7 +256,7 @@ fn trace(
                 for (var k = 0u; k < count; k += 1u) {
                     let a = cone_direction(k, count);
                     let axis = frame[0] * a.x + frame[1] * a.y + n * a.z;
-                    visibility[k] = min(visibility[k], march_cone(obj, sphere, p, n, axis, a.z, view, atlas));
+                    visibility[k] = min(visibility[k], march_cone(obj, sphere, p, n, axis, a.z, view, atlas, brick_table));
                 }
             }
         }

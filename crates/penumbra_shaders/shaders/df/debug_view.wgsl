@@ -21,6 +21,7 @@ struct DebugView {
 @group(0) @binding(1) var<storage, read> culled: array<u32>;
 @group(0) @binding(2) var<storage, read> culled_count: array<u32>;
 @group(0) @binding(3) var atlas: texture_3d<f32>;
+@group(0) @binding(5) var brick_table: texture_2d<u32>;
 @group(0) @binding(4) var<uniform> view: DebugView;
 
 // What Bevy's fullscreen vertex shader (`FullscreenShader`) outputs: uv (0, 0) at the
@@ -37,7 +38,7 @@ fn scene_distance(p: vec3<f32>) -> f32 {
     var d = view.max_distance;
     let count = culled_count[0];
     for (var i = 0u; i < count; i += 1u) {
-        d = min(d, object_distance(objects[culled[i]], p, view.camera_tile.xyz, view.camera_offset.xyz, atlas));
+        d = min(d, object_distance(objects[culled[i]], p, view.camera_tile.xyz, view.camera_offset.xyz, atlas, brick_table));
     }
     return d;
 }

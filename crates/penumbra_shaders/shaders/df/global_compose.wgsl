@@ -42,6 +42,7 @@ struct ComposeParams {
 
 @group(0) @binding(0) var<storage, read> objects: array<DistanceFieldObject>;
 @group(0) @binding(1) var atlas: texture_3d<f32>;
+@group(0) @binding(7) var brick_table: texture_2d<u32>;
 @group(0) @binding(2) var<storage, read> jobs: array<ComposeJob>;
 @group(0) @binding(3) var<uniform> params: ComposeParams;
 @group(0) @binding(4) var<storage, read_write> field: array<u32>;
@@ -131,7 +132,7 @@ fn compose(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
             let o = objects[kept[k]];
             for (var i = 0u; i < 4u; i++) {
                 let p = job.first + vec3<f32>(base + vec3<u32>(i, 0u, 0u)) * texel;
-                d[i] = min(d[i], object_distance(o, p, job.tile, vec3<f32>(0.0), atlas));
+                d[i] = min(d[i], object_distance(o, p, job.tile, vec3<f32>(0.0), atlas, brick_table));
             }
         }
         workgroupBarrier();

@@ -13,6 +13,7 @@ const FLAG_UNBOUNDED: u32 = 16u;
 const FLAG_LIVE: u32 = 32u;
 const FLAG_CAST_HIDDEN_SHADOW: u32 = 64u;
 const FLAG_SHADING_APART: u32 = 128u;
+const FLAG_BRICKED: u32 = 4096u;
 const KIND_SHIFT: u32 = 8u;
 const KIND_MASK: u32 = 15u;
 const AO_TRANSMISSION_SHIFT: u32 = 16u;
@@ -32,7 +33,8 @@ struct DistanceFieldObject {
     // World position = tile × TILE_SIZE + tile-relative position.
     tile: vec3<i32>,
     flags: u32,
-    // Per kind: volume (atlas origin 10/10/12, dims − 1 10/10/12, voxel size bits),
+    // Per kind: volume (atlas origin 10/10/12 — with FLAG_BRICKED, its first brick-table
+    // entry — dims − 1 10/10/12, margin bits),
     // sphere (radius), cuboid (half extents), capsule (radius, half length).
     params: vec3<u32>,
     // World metres per shape-space distance unit (smallest singular value).

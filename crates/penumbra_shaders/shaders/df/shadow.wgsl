@@ -248,19 +248,20 @@ fn caster_field_normal(
     camera_tile: vec3<i32>,
     camera_offset: vec3<f32>,
     atlas: texture_3d<f32>,
+    brick_table: texture_2d<u32>,
 ) -> vec4<f32> {
     let h = o.conservative_scale;
     if object_kind(o) != KIND_VOLUME || !(h > 0.0) {
         return NO_FIELD_NORMAL;
     }
-    if !(object_distance(o, p, camera_tile, camera_offset, atlas) <= FIELD_NORMAL_REACH_VOXELS * h) {
+    if !(object_distance(o, p, camera_tile, camera_offset, atlas, brick_table) <= FIELD_NORMAL_REACH_VOXELS * h) {
         return NO_FIELD_NORMAL;
     }
     // A two-sided field's shell is symmetric about its sheet: read it on the side seen.
     let two_sided = (o.flags & FLAG_TWO_SIDED) != 0u;
     let q = p + side * select(0.0, h, two_sided);
     let s = FIELD_NORMAL_STEP_VOXELS * h;
-    let d = tetrahedral_distances(o, q, s, camera_tile, camera_offset, atlas);
+    let d = tetrahedral_distances(o, q, s, camera_tile, camera_offset, atlas, brick_table);
     let g = tetrahedral_gradient(d, s);
     let len = length(g);
     if !(len >= FIELD_NORMAL_MIN_GRADIENT && len <= FIELD_NORMAL_MAX_GRADIENT) {
@@ -282,8 +283,9 @@ fn inside_analytic(
     camera_tile: vec3<i32>,
     camera_offset: vec3<f32>,
     atlas: texture_3d<f32>,
+    brick_table: texture_2d<u32>,
 ) -> bool {
-    return object_kind(o) != KIND_VOLUME && object_distance(o, p, camera_tile, camera_offset, atlas) < 0.0;
+    return object_kind(o) != KIND_VOLUME && object_distance(o, p, camera_tile, camera_offset, atlas, brick_table) < 0.0;
 }
 
 fn seen_from_inside(
@@ -294,6 +296,7 @@ fn seen_from_inside(
     camera_tile: vec3<i32>,
     camera_offset: vec3<f32>,
     atlas: texture_3d<f32>,
+    brick_table: texture_2d<u32>,
 ) -> bool {
     let h = o.conservative_scale;
     let v = p - sphere.xyz;
@@ -301,13 +304,13 @@ fn seen_from_inside(
         || all(n == vec3<f32>(0.0)) || dot(v, v) > sphere.w * sphere.w {
         return false;
     }
-    let at = object_distance(o, p, camera_tile, camera_offset, atlas);
+    let at = object_distance(o, p, camera_tile, camera_offset, atlas, brick_table);
     if !(abs(at) <= FROM_INSIDE_ON_SURFACE_VOXELS * h) {
         return false;
     }
     let probe = n * (FROM_INSIDE_PROBE_VOXELS * h);
-    let front = object_distance(o, p + probe, camera_tile, camera_offset, atlas);
-    let back = object_distance(o, p - probe, camera_tile, camera_offset, atlas);
+    let front = object_distance(o, p + probe, camera_tile, camera_offset, atlas, brick_table);
+    let back = object_distance(o, p - probe, camera_tile, camera_offset, atlas, brick_table);
     return front <= -FROM_INSIDE_MIN_DEPTH_VOXELS * h && front - back <= -FROM_INSIDE_MIN_DROP_VOXELS * h;
 }
 
@@ -325,12 +328,13 @@ fn tetrahedral_distances(
     camera_tile: vec3<i32>,
     camera_offset: vec3<f32>,
     atlas: texture_3d<f32>,
+    brick_table: texture_2d<u32>,
 ) -> vec4<f32> {
     return vec4<f32>(
-        object_distance(o, q + TETRAHEDRON_0 * s, camera_tile, camera_offset, atlas),
-        object_distance(o, q + TETRAHEDRON_1 * s, camera_tile, camera_offset, atlas),
-        object_distance(o, q + TETRAHEDRON_2 * s, camera_tile, camera_offset, atlas),
-        object_distance(o, q + TETRAHEDRON_3 * s, camera_tile, camera_offset, atlas),
+        object_distance(o, q + TETRAHEDRON_0 * s, camera_tile, camera_offset, atlas, brick_table),
+        object_distance(o, q + TETRAHEDRON_1 * s, camera_tile, camera_offset, atlas, brick_table),
+        object_distance(o, q + TETRAHEDRON_2 * s, camera_tile, camera_offset, atlas, brick_table),
+        object_distance(o, q + TETRAHEDRON_3 * s, camera_tile, camera_offset, atlas, brick_table),
     );
 }
 
@@ -352,6 +356,7 @@ fn march_object(
     camera_tile: vec3<i32>,
     camera_offset: vec3<f32>,
     atlas: texture_3d<f32>,
+    brick_table: texture_2d<u32>,
 ) -> f32 {
     var t = start;
     var t_end = ray.t_max;
@@ -380,7 +385,7 @@ fn march_object(
         if t >= t_end {
             break;
         }
-        let d = object_distance(o, p + ray.dir * t, camera_tile, camera_offset, atlas);
+        let d = object_distance(o, p + ray.dir * t, camera_tile, camera_offset, atlas, brick_table);
         let cone = max(t * ray.tan_half, 1e-6);
         // A tiny object covers only (R / r)² of the cone's section, even inside it.
         var floor_v = -1.0;
@@ -397,17 +402,17 @@ fn march_object(
             } else {
                 if !inside {
                     inside = true;
-                    normal_in = crossing_normal(o, p + ray.dir * before, stencil, camera_tile, camera_offset, atlas);
+                    normal_in = crossing_normal(o, p + ray.dir * before, stencil, camera_tile, camera_offset, atlas, brick_table);
                 }
                 advance = max(-d, cone * PENUMBRA_MIN_STEP);
             }
         } else {
             if inside {
                 inside = false;
-                let normal_out = crossing_normal(o, p + ray.dir * t, stencil, camera_tile, camera_offset, atlas);
+                let normal_out = crossing_normal(o, p + ray.dir * t, stencil, camera_tile, camera_offset, atlas, brick_table);
                 if dot(normal_in, normal_out) < THIN_CROSSING_COSINE {
                     let x = p + ray.dir * (0.5 * (before + t));
-                    ratio = thin_crossing_ratio(o, x, normal_in, ray.dir, cone, camera_tile, camera_offset, atlas);
+                    ratio = thin_crossing_ratio(o, x, normal_in, ray.dir, cone, camera_tile, camera_offset, atlas, brick_table);
                 }
             }
             advance = max(d, surface_step(cone, voxel));
@@ -461,8 +466,9 @@ fn crossing_normal(
     camera_tile: vec3<i32>,
     camera_offset: vec3<f32>,
     atlas: texture_3d<f32>,
+    brick_table: texture_2d<u32>,
 ) -> vec3<f32> {
-    let g = tetrahedral_gradient(tetrahedral_distances(o, q, s, camera_tile, camera_offset, atlas), s);
+    let g = tetrahedral_gradient(tetrahedral_distances(o, q, s, camera_tile, camera_offset, atlas, brick_table), s);
     let len = length(g);
     return select(vec3<f32>(0.0), g / len, len > 0.0);
 }
@@ -483,6 +489,7 @@ fn thin_crossing_ratio(
     camera_tile: vec3<i32>,
     camera_offset: vec3<f32>,
     atlas: texture_3d<f32>,
+    brick_table: texture_2d<u32>,
 ) -> f32 {
     let across = cross(normal_in, dir);
     let across_len2 = dot(across, across);
@@ -495,10 +502,10 @@ fn thin_crossing_ratio(
     let v = cross(normal_in, u);
     let s = cone * stretch;
     let rim = vec4<f32>(
-        object_distance(o, x + u * cone, camera_tile, camera_offset, atlas),
-        object_distance(o, x - u * cone, camera_tile, camera_offset, atlas),
-        object_distance(o, x + v * s, camera_tile, camera_offset, atlas),
-        object_distance(o, x - v * s, camera_tile, camera_offset, atlas),
+        object_distance(o, x + u * cone, camera_tile, camera_offset, atlas, brick_table),
+        object_distance(o, x - u * cone, camera_tile, camera_offset, atlas, brick_table),
+        object_distance(o, x + v * s, camera_tile, camera_offset, atlas, brick_table),
+        object_distance(o, x - v * s, camera_tile, camera_offset, atlas, brick_table),
     );
     if any(rim != rim) || !(cone > 0.0) {
         return -1.0;

@@ -60,11 +60,14 @@ struct ShadowTraceView {
 @group(0) @binding(4) var depth_texture: texture_depth_multisampled_2d;
 @group(0) @binding(12) var gbuffer: texture_multisampled_2d<u32>;
 @group(0) @binding(15) var pixel_class: texture_2d<u32>;
+// The brick table of bricked volumes (`penumbra::df::distance`).
+@group(0) @binding(16) var brick_table: texture_2d<u32>;
 #else
 // Reverse-Z depth (the prepass depth, bound as an unfilterable float texture).
 @group(0) @binding(4) var depth_texture: texture_2d<f32>;
 // Bevy's deferred G-buffer (Rgba32Uint; the normal in `.a`), read when `view.size.w` is 1.
 @group(0) @binding(12) var gbuffer: texture_2d<u32>;
+@group(0) @binding(15) var brick_table: texture_2d<u32>;
 #endif
 @group(0) @binding(5) var<uniform> view: ShadowTraceView;
 @group(0) @binding(6) var<uniform> light: ShadowLight;
@@ -410,7 +413,7 @@ fn trace(
                     if sphere.w >= 0.0 && dot(v, v) <= sphere.w * sphere.w {
                         let slot = tile_slots[i];
                         let f = caster_field_normal(
-                            objects[slot], p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas,
+                            objects[slot], p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas, brick_table,
                         );
                         if f.w < best.w || (f.w == best.w && f.w < 3.0e38 && slot < best_slot) {
                             best = f;
@@ -483,11 +486,11 @@ fn trace(
                     // A receiver inside an analytic shape is not shadowed by it: the
                     // shape stands in for the receiver's own mesh (a character's capsules;
                     // `shadow_mask::inside_analytic`).
-                    if inside_analytic(o, p, view.camera_tile.xyz, view.camera_offset.xyz, atlas) {
+                    if inside_analytic(o, p, view.camera_tile.xyz, view.camera_offset.xyz, atlas, brick_table) {
                         continue;
                     }
-                    if as_stored && seen_from_inside(o, sphere, p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas) {
-                        let f = caster_field_normal(o, p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas);
+                    if as_stored && seen_from_inside(o, sphere, p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas, brick_table) {
+                        let f = caster_field_normal(o, p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas, brick_table);
                         if f.w < 3.0e38 {
                             inside_horizon = min(inside_horizon, horizon_visibility(-f.xyz, ray.dir, ray.tan_half));
                         }
@@ -495,7 +498,7 @@ fn trace(
                     }
                     let v = march_object(
                         o, sphere, p, ray, light, march_start(o, normal, ray.dir, light.bias),
-                        view.camera_tile.xyz, view.camera_offset.xyz, atlas,
+                        view.camera_tile.xyz, view.camera_offset.xyz, atlas, brick_table,
                     );
                     visibility = min(visibility, v);
                 }

@@ -31,6 +31,7 @@ struct HairShadowParams {
 
 @group(0) @binding(0) var<storage, read> objects: array<DistanceFieldObject>;
 @group(0) @binding(1) var atlas: texture_3d<f32>;
+@group(0) @binding(6) var brick_table: texture_2d<u32>;
 // The centre-line points, hair space (xyz).
 @group(0) @binding(2) var<storage, read> points: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> shadows: HairShadows;
@@ -57,7 +58,7 @@ fn point_visibility(p: vec3<f32>, light: ShadowLight) -> f32 {
             v = min(v, march_object(
                 o, sphere, p, ray, light, light.bias, params.origin_tile.xyz,
                 params.origin_offset.xyz,
-                atlas,
+                atlas, brick_table,
             ));
         }
     }

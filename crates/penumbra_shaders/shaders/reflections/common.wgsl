@@ -29,6 +29,7 @@ const TILE: u32 = 16u;
 // The distance-field scene (reflection shadows): its objects and atlas.
 @group(2) @binding(4) var<storage, read> objects: array<DistanceFieldObject>;
 @group(2) @binding(5) var atlas: texture_3d<f32>;
+@group(2) @binding(8) var brick_table: texture_2d<u32>;
 // Per object slot, its bounding sphere relative to the camera for the shadow casters
 // (w −1: unbounded), w −2 for the rest (`reflections/spheres.wgsl`, run before the cull).
 @group(2) @binding(7) var<storage, read> spheres: array<vec4<f32>>;

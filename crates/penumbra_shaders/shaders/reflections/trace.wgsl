@@ -10,7 +10,7 @@
 // no result, and its shadow march gathers from its tile's casters. CPU model: `penumbra_cinematic_core::reflections::pass::reflect_pixel`.
 
 #import penumbra::reflections::common::{
-    Lobe, MAX_LAYERS, MAX_TAPS, MIN_SHADOW_STEP, TILE, atlas, billboards, camera_position,
+    Lobe, MAX_LAYERS, MAX_TAPS, MIN_SHADOW_STEP, TILE, atlas, billboards, brick_table, camera_position,
     caster_record, casts, images, images_sampler, objects, settings, spheres,
     surface_sample, tile_lists, tile_record,
 }
@@ -284,14 +284,14 @@ fn scene_distance(
         for (var m = 0u; m < c.count; m += 1u) {
             let i = candidate(c, m);
             if casts(i) {
-                d = min(d, object_distance(objects[i], relative, settings.camera_tile, settings.camera_offset, atlas));
+                d = min(d, object_distance(objects[i], relative, settings.camera_tile, settings.camera_offset, atlas, brick_table));
             }
         }
         return d;
     }
     for (var k = 0u; k < count; k += 1u) {
         let o = objects[(*list)[k]];
-        d = min(d, object_distance(o, relative, settings.camera_tile, settings.camera_offset, atlas));
+        d = min(d, object_distance(o, relative, settings.camera_tile, settings.camera_offset, atlas, brick_table));
     }
     return d;
 }
