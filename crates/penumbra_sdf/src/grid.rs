@@ -110,7 +110,7 @@ impl Default for ThinWalls {
         Self {
             voxels_across: 2.0,
             quantile: 0.1,
-            max_refine: 3.0,
+            max_refine: 6.0,
         }
     }
 }
