@@ -158,7 +158,11 @@ fn add_viewer(app: &mut App, args: &Args) {
     // atlas halving their resolution.
     .insert_resource(DistanceFieldSceneSettings {
         atlas_budget_bytes: 256 << 20,
-        sparse_min_bytes: if args.dense { u64::MAX } else { DistanceFieldSceneSettings::default().sparse_min_bytes },
+        sparse_min_bytes: if args.dense {
+            u64::MAX
+        } else {
+            DistanceFieldSceneSettings::default().sparse_min_bytes
+        },
         ..default()
     })
     .init_resource::<ViewerError>()

@@ -165,6 +165,7 @@ fn gpu_ao_far(
     let uniform_buffer = gpu.buffer("ao_view", bytes.as_ref(), BufferUsages::UNIFORM);
     let ViewInputs {
         atlas,
+        brick_table,
         depth,
         gbuffer,
     } = view_inputs(gpu, scene, view);
@@ -178,11 +179,12 @@ fn gpu_ao_far(
         &[],
     );
     let view_of = |t: &wgpu::Texture| t.create_view(&Default::default());
-    let (atlas_view, depth_view, gbuffer_view, traced_view) = (
+    let (atlas_view, depth_view, gbuffer_view, traced_view, table_view) = (
         view_of(&atlas),
         view_of(&depth),
         view_of(&gbuffer),
         view_of(&traced),
+        view_of(&brick_table),
     );
     let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("ao_trace"),
@@ -196,6 +198,7 @@ fn gpu_ao_far(
             entry(5, wgpu::BindingResource::TextureView(&traced_view)),
             entry(6, terrain_records.as_entire_binding()),
             entry(7, wgpu::BindingResource::TextureView(&heights)),
+            entry(8, wgpu::BindingResource::TextureView(&table_view)),
         ],
     });
     let far_group = far.bind_group(gpu, &pipelines.trace);
@@ -254,6 +257,10 @@ fn compare(got: &[Vec4], want: &[Vec4]) -> (f32, f32, f32) {
 }
 
 fn check(name: &str, offset: Vec3) {
+    check_scene(name, offset, scene);
+}
+
+fn check_scene(name: &str, offset: Vec3, scene: fn(Vec3) -> Scene) {
     if !gpu_or_skip(name) {
         return;
     }
@@ -586,6 +593,17 @@ fn dfao_turns_normals_facing_away_from_the_eye() {
 #[test]
 fn dfao_passes_match_the_model_near_the_origin() {
     check("dfao_passes_match_the_model_near_the_origin", Vec3::ZERO);
+}
+
+/// The torus placed as sparse bricks: the passes read its brick table and pool as the
+/// model does (`penumbra_reference::df`).
+#[test]
+fn dfao_passes_match_the_model_with_a_bricked_torus() {
+    check_scene(
+        "dfao_passes_match_the_model_with_a_bricked_torus",
+        Vec3::ZERO,
+        bricked_scene,
+    );
 }
 
 #[test]

@@ -209,6 +209,18 @@ fn empty_atlas(gpu: &GpuCompute) -> wgpu::Texture {
     )
 }
 
+/// A one-texel brick table (no volume here is bricked).
+fn empty_brick_table(gpu: &GpuCompute) -> wgpu::Texture {
+    gpu.texture(
+        "brick_table",
+        extent(1, 1, 1),
+        wgpu::TextureDimension::D2,
+        wgpu::TextureFormat::R32Uint,
+        4,
+        &[0; 4],
+    )
+}
+
 fn extent(w: u32, h: u32, d: u32) -> wgpu::Extent3d {
     wgpu::Extent3d {
         width: w,
@@ -307,6 +319,7 @@ fn dfao_pass_times_at_512() {
         )
     };
     let atlas = empty_atlas(&gpu);
+    let brick_table = empty_brick_table(&gpu).create_view(&Default::default());
     eprintln!(
         "| casters | cones / steps / divisor | trace | upsample | temporal |\n|---|---|---|---|---|"
     );
@@ -384,6 +397,7 @@ fn dfao_pass_times_at_512() {
                 entry(5, tv(3)),
                 entry(6, no_terrain.0.as_entire_binding()),
                 entry(7, wgpu::BindingResource::TextureView(&no_terrain.1)),
+                entry(8, wgpu::BindingResource::TextureView(&brick_table)),
             ],
         });
         let upsample_bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -584,6 +598,7 @@ fn dfao_far_field_figures_at_512() {
         gbuffer,
     } = gpu_inputs(&gpu, &records, &inputs);
     let atlas_texture = empty_atlas(&gpu);
+    let brick_table = empty_brick_table(&gpu).create_view(&Default::default());
     let divisor = 4;
     let small = trace_size(full, divisor);
     let traced = texture("traced", small, wgpu::TextureFormat::Rgba16Float, 8, &[]);
@@ -642,6 +657,7 @@ fn dfao_far_field_figures_at_512() {
                 entry(5, tv(3)),
                 entry(6, no_terrain.0.as_entire_binding()),
                 entry(7, wgpu::BindingResource::TextureView(&no_terrain.1)),
+                entry(8, wgpu::BindingResource::TextureView(&brick_table)),
             ],
         });
         let groups = UVec2::new(small.x.div_ceil(8), small.y.div_ceil(8));

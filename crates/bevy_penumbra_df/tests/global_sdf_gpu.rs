@@ -37,6 +37,7 @@ struct Gpu {
     gpu: GpuCompute,
     pipeline: wgpu::ComputePipeline,
     atlas: wgpu::TextureView,
+    brick_table: wgpu::TextureView,
     field: wgpu::Buffer,
     terrain_records: wgpu::Buffer,
     terrain_count: u32,
@@ -55,6 +56,8 @@ impl Gpu {
             "compose",
         );
         let atlas = support::atlas_texture(&gpu, scene).create_view(&Default::default());
+        let brick_table =
+            support::brick_table_texture(&gpu, &scene.atlas).create_view(&Default::default());
         let field = gpu.zeroed("field", field_words(layout) * 4, BufferUsages::empty());
         let (terrain_records, heights) = support::terrain_inputs(&gpu, terrain);
         let terrain_count = terrain.records.len() as u32;
@@ -62,6 +65,7 @@ impl Gpu {
             gpu,
             pipeline,
             atlas,
+            brick_table,
             field,
             terrain_records,
             terrain_count,
@@ -104,6 +108,10 @@ impl Gpu {
                 wgpu::BindGroupEntry {
                     binding: 6,
                     resource: wgpu::BindingResource::TextureView(&self.heights),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 7,
+                    resource: wgpu::BindingResource::TextureView(&self.brick_table),
                 },
             ],
         });

@@ -536,6 +536,49 @@ fn gpu_shadow_mask_with_a_solid_torus_matches_the_cpu_model() {
     }
 }
 
+/// The torus (72 samples) placed as sparse bricks (`penumbra_sdf::bricks`, with stored
+/// and empty bricks): every light's mask equals the model's, and the model's equals the
+/// dense torus's but where a penumbra reads an empty brick's distance (its coarse grid
+/// less a voxel).
+#[test]
+fn gpu_shadow_mask_with_a_bricked_torus_matches_the_cpu_model() {
+    if !gpu_or_skip("gpu_shadow_mask_with_a_bricked_torus_matches_the_cpu_model") {
+        return;
+    }
+    let gpu = GpuCompute::new().expect("adapter");
+    let passes = passes(&gpu);
+    let (dense, scene) = (scene_with(Vec3::ZERO, 72, false), bricked_scene(Vec3::ZERO));
+    assert!(
+        scene
+            .records
+            .iter()
+            .any(|r| r.flags() & flags::BRICKED != 0)
+    );
+    let table = &scene.atlas.table;
+    let empty = table
+        .iter()
+        .filter(|&&e| e & penumbra_df_core::bricks::EMPTY != 0)
+        .count();
+    eprintln!("{empty} of {} bricks empty", table.len() - 1);
+    assert!(empty > 10, "the torus has empty bricks");
+    let view = view(&scene, Vec3::ZERO);
+    for (name, light) in lights(Vec3::ZERO, EYE) {
+        let (got, _) = gpu_mask(&gpu, &passes, &scene, &view, &light);
+        let want = reference_mask(&scene, &view, &light);
+        let (mean, over, max) = compare(&got, &want);
+        let (dense_mean, _, dense_max) = compare(&want, &reference_mask(&dense, &view, &light));
+        eprintln!(
+            "{name}, bricked torus: GPU vs model mean {mean:.5}, max {max:.3}; model vs \
+             the dense torus's mean {dense_mean:.5}, max {dense_max:.3}"
+        );
+        assert!(mean < 1e-4 && max < 0.05, "{name}: {mean} {over} {max}");
+        assert!(
+            dense_mean < 2e-3,
+            "{name}: bricks moved the mask by {dense_mean}"
+        );
+    }
+}
+
 /// With a terrain (hills across the scene, seen only by the distance fields) every
 /// light's mask still equals the model's (`pixel_visibility_with_terrain`), near the
 /// origin and 10⁵ m away, and the terrain changes hundreds of pixels.

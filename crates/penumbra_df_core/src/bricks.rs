@@ -183,10 +183,7 @@ mod tests {
         let e = &l.entries[HEADER_ENTRIES as usize..];
         assert_eq!(decode(e[1]), Err(0x4400));
         assert_eq!(decode(e[4]), Err(0xc400));
-        for (k, e) in [e[0], e[2], e[3]]
-            .into_iter()
-            .enumerate()
-        {
+        for (k, e) in [e[0], e[2], e[3]].into_iter().enumerate() {
             let block = decode(e).expect("stored") * BRICK_SAMPLES - origin;
             for n in [0u32, 1, 8, 64, 511] {
                 let v = block + UVec3::new(n % 8, (n / 8) % 8, n / 64);

@@ -135,7 +135,11 @@ fn sample_volume(atlas: &Atlas, origin: UVec3, dims: UVec3, c: Vec3) -> f32 {
 fn sample_bricked(atlas: &Atlas, table_offset: u32, dims: UVec3, c: Vec3) -> f32 {
     let span = BRICK_SAMPLES - 1;
     let grid = (dims - UVec3::ONE + UVec3::splat(span - 1)) / span;
-    let b = (c / span as f32).floor().max(Vec3::ZERO).as_uvec3().min(grid - UVec3::ONE);
+    let b = (c / span as f32)
+        .floor()
+        .max(Vec3::ZERO)
+        .as_uvec3()
+        .min(grid - UVec3::ONE);
     let local = c - (b * span).as_vec3();
     let entry = |i: u32| atlas.table.get(i as usize).copied().unwrap_or(0);
     let index = table_offset + bricks::HEADER_ENTRIES + b.x + grid.x * (b.y + grid.y * b.z);

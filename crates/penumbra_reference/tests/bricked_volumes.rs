@@ -125,7 +125,10 @@ fn a_bricked_volume_reads_as_its_dense_twin_near_the_surface_and_below_it_elsewh
         let g = ((local - v.origin) / voxel_size as f64).as_vec3();
         if g.cmpge(Vec3::ZERO).all() && g.cmple((v.dims - UVec3::ONE).as_vec3()).all() {
             let want = bricked.sample_voxels(g) as f64 * voxel;
-            assert!((s - want).abs() < 1e-5, "{local}: model {s}, BrickedVolume {want}");
+            assert!(
+                (s - want).abs() < 1e-5,
+                "{local}: model {s}, BrickedVolume {want}"
+            );
         }
         if d.abs() < (DEFAULT_BAND_VOXELS as f64 - 1.0) * voxel {
             near += 1;

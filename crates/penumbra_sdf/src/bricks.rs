@@ -213,7 +213,10 @@ impl BrickedVolume {
 /// Trilinear interpolation of `samples` (a `dims` grid, x fastest) at grid coordinates
 /// `c` (inside `[0, dims − 1]`), with the GPU's arithmetic (`sample_volume`).
 fn trilinear(samples: &[f16], dims: UVec3, c: Vec3) -> f32 {
-    let i0 = c.floor().min((dims - UVec3::splat(2)).as_vec3()).max(Vec3::ZERO);
+    let i0 = c
+        .floor()
+        .min((dims - UVec3::splat(2)).as_vec3())
+        .max(Vec3::ZERO);
     let f = c - i0;
     let i0 = i0.as_uvec3();
     let s = |x: u32, y: u32, z: u32| {

@@ -91,7 +91,10 @@ fn shared_constants_match() {
         ("BRICK_TABLE_WIDTH", penumbra_df_core::bricks::TABLE_WIDTH),
         ("BRICK_EMPTY", penumbra_df_core::bricks::EMPTY),
         ("BRICK_SAMPLES", penumbra_df_core::bricks::BRICK_SAMPLES),
-        ("BRICK_HEADER_ENTRIES", penumbra_df_core::bricks::HEADER_ENTRIES),
+        (
+            "BRICK_HEADER_ENTRIES",
+            penumbra_df_core::bricks::HEADER_ENTRIES,
+        ),
     ] {
         assert_eq!(constant(&distance, name), want as f64, "{name}");
     }

@@ -96,11 +96,13 @@ pub fn trace_layout(gpu: &GpuCompute, samples: bool) -> wgpu::BindGroupLayout {
             texture_entry(4, T::Depth, D::D2, true),
             texture_entry(12, T::Uint, D::D2, true),
             texture_entry(15, T::Uint, D::D2, false),
+            texture_entry(16, T::Uint, D::D2, false),
         ]);
     } else {
         entries.extend([
             float_entry(4, D::D2),
             texture_entry(12, T::Uint, D::D2, false),
+            texture_entry(15, T::Uint, D::D2, false),
         ]);
     }
     gpu.device

@@ -46,17 +46,73 @@ pub struct Scene {
 }
 
 pub fn scene(offset: Vec3) -> Scene {
+    scene_with(offset, 36, false)
+}
+
+/// [`scene`] with its torus baked at 72 samples and placed as sparse bricks
+/// (`penumbra_sdf::bricks`): its pool and coarse grid in the atlas above the dense
+/// torus, its entries in the brick table.
+pub fn bricked_scene(offset: Vec3) -> Scene {
+    scene_with(offset, 72, true)
+}
+
+/// [`scene`] with its torus baked at `samples` along its longest axis, dense or placed
+/// as sparse bricks.
+pub fn scene_with(offset: Vec3, samples: u32, bricked: bool) -> Scene {
     let torus = bake(
         &shapes::torus(0.5, 0.18, 48, 24),
-        &BakeSettings::longest_axis(36),
+        &BakeSettings::longest_axis(samples),
         None,
     )
     .expect("torus bakes")
     .volume;
     let dims = torus.dims;
     let bits: Vec<u16> = torus.data.iter().map(|h| h.to_bits()).collect();
-    let mut atlas = Atlas::new(dims);
+    let sparse = penumbra_sdf::bricks::BrickedVolume::from_volume(
+        &torus,
+        penumbra_sdf::bricks::DEFAULT_BAND_VOXELS,
+    );
+    let round8 = |v: u32| v.div_ceil(8) * 8;
+    let pool = penumbra_df_core::bricks::pool_blocks(sparse.stored() as u32) * 8;
+    let pool_origin = UVec3::new(0, 0, round8(dims.z));
+    let coarse_origin = UVec3::new(0, 0, pool_origin.z + pool.z);
+    let size = if bricked {
+        dims.max(pool)
+            .max(sparse.coarse_dims())
+            .with_z(coarse_origin.z + sparse.coarse_dims().z)
+    } else {
+        dims
+    };
+    let mut atlas = Atlas::new(size);
     atlas.write(UVec3::ZERO, dims, &bits);
+    let torus_shape = if bricked {
+        let table_offset = atlas
+            .place_bricked(&sparse, pool_origin, coarse_origin)
+            .expect("fits");
+        CasterShape::BrickedVolume {
+            table_offset,
+            dims,
+            local_origin: torus.origin.as_vec3(),
+            voxel_size: torus.voxel_size,
+            margin: torus.margin,
+        }
+    } else {
+        CasterShape::Volume {
+            region: AtlasRegion {
+                origin: UVec3::ZERO,
+                dims,
+            },
+            local_origin: torus.origin.as_vec3(),
+            voxel_size: torus.voxel_size,
+            margin: torus.margin,
+        }
+    };
+    // The atlas's texels came from f16 samples: converting back is exact.
+    let bits: Vec<u16> = atlas
+        .texels
+        .iter()
+        .map(|&t| penumbra_sdf::volume::f16::from_f32(t).to_bits())
+        .collect();
     let live = flags::LIVE | flags::CASTS_SHADOWS | flags::CASTS_OCCLUSION | flags::VISIBLE;
     let at = |p: Vec3| Affine3A::from_translation(p + offset);
     let descs = [
@@ -97,15 +153,7 @@ pub fn scene(offset: Vec3) -> Scene {
                 Quat::from_rotation_x(1.2),
                 Vec3::new(0.1, 0.75, 0.6) + offset,
             ),
-            shape: CasterShape::Volume {
-                region: AtlasRegion {
-                    origin: UVec3::ZERO,
-                    dims,
-                },
-                local_origin: torus.origin.as_vec3(),
-                voxel_size: torus.voxel_size,
-                margin: torus.margin,
-            },
+            shape: torus_shape,
             // Foliage-like: lets 40 % of the sky through in DFAO (shadows ignore it).
             flags: live | flags::TWO_SIDED | flags::ao_transmission_bits(0.4),
         },
@@ -140,7 +188,7 @@ pub fn scene(offset: Vec3) -> Scene {
     Scene {
         records: descs.iter().map(|d| encode(d).expect("encodes")).collect(),
         atlas,
-        atlas_size: dims,
+        atlas_size: size,
         atlas_bits: bits,
         terrain: HeightfieldTexture::default(),
     }
@@ -503,6 +551,7 @@ pub fn gpu_mask_at(
     };
     let ViewInputs {
         atlas,
+        brick_table,
         depth,
         gbuffer,
     } = view_inputs(gpu, scene, view);
@@ -546,6 +595,7 @@ pub fn gpu_mask_at(
         view_of(depth),
         view_of(&mask),
         view_of(gbuffer),
+        view_of(&brick_table),
     ];
     let class = options.samples.map(|t| view_of(&t.class));
     let texture = wgpu::BindingResource::TextureView;
@@ -566,8 +616,9 @@ pub fn gpu_mask_at(
         (13, terrain_records.as_entire_binding()),
         (14, texture(&heights)),
     ];
-    if let Some(class) = &class {
-        entries.push((15, texture(class)));
+    match &class {
+        Some(class) => entries.extend([(15, texture(class)), (16, texture(&views[4]))]),
+        None => entries.push((15, texture(&views[4]))),
     }
     let (pipeline, layout) = match options.samples {
         Some(t) => (&t.pipeline, &t.layout),
@@ -608,6 +659,8 @@ pub fn gpu_mask_at(
 /// buffer (`R32Float`) and the G-buffer (`Rgba32Uint`, the packed normal in `.a`).
 pub struct ViewInputs {
     pub atlas: wgpu::Texture,
+    /// The brick table (`R32Uint`, `penumbra_df_core::bricks::TABLE_WIDTH` wide).
+    pub brick_table: wgpu::Texture,
     pub depth: wgpu::Texture,
     pub gbuffer: wgpu::Texture,
 }
@@ -641,6 +694,7 @@ pub fn view_inputs(gpu: &GpuCompute, scene: &Scene, view: &View) -> ViewInputs {
         depth_or_array_layers: d,
     };
     let atlas = atlas_texture(gpu, scene);
+    let brick_table = brick_table_texture(gpu, &scene.atlas);
     let depth_bytes: Vec<u8> = view.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
     let depth = gpu.texture(
         "depth",
@@ -666,9 +720,30 @@ pub fn view_inputs(gpu: &GpuCompute, scene: &Scene, view: &View) -> ViewInputs {
     );
     ViewInputs {
         atlas,
+        brick_table,
         depth,
         gbuffer,
     }
+}
+
+/// The model atlas's brick table as the GPU's `R32Uint` texture (one row at least).
+pub fn brick_table_texture(gpu: &GpuCompute, atlas: &Atlas) -> wgpu::Texture {
+    let width = penumbra_df_core::bricks::TABLE_WIDTH;
+    let rows = (atlas.table.len() as u32).div_ceil(width).max(1);
+    let mut bytes: Vec<u8> = atlas.table.iter().flat_map(|e| e.to_le_bytes()).collect();
+    bytes.resize((width * rows * 4) as usize, 0);
+    gpu.texture(
+        "brick_table",
+        wgpu::Extent3d {
+            width,
+            height: rows,
+            depth_or_array_layers: 1,
+        },
+        wgpu::TextureDimension::D2,
+        wgpu::TextureFormat::R32Uint,
+        4,
+        &bytes,
+    )
 }
 
 pub fn floats_u32(bytes: &[u8]) -> Vec<u32> {

@@ -87,7 +87,10 @@ fn bricks_keep_the_band_and_bound_the_rest() {
     // nearest sample alone reads as low as 0.25 and 0.78 on average here).
     let mean = far_ratio / far as f64;
     println!("far from the surface: bricked / dense ≥ {lowest_far:.3}, mean {mean:.3}");
-    assert!(lowest_far > 0.6 && mean > 0.95, "far reads {lowest_far} (mean {mean}) of dense");
+    assert!(
+        lowest_far > 0.6 && mean > 0.95,
+        "far reads {lowest_far} (mean {mean}) of dense"
+    );
 }
 
 /// Sphere tracing the bricked field toward a sphere's centre stops at the analytic
@@ -156,7 +159,12 @@ fn a_plane_reads_exactly_less_the_slack_far_from_it() {
     }
     let v = SdfVolume::from_distances(dims, DVec3::ZERO, 1.0, d);
     let b = BrickedVolume::from_volume(&v, DEFAULT_BAND_VOXELS);
-    assert!(b.stored() < b.bricks.len() / 2, "{} of {}", b.stored(), b.bricks.len());
+    assert!(
+        b.stored() < b.bricks.len() / 2,
+        "{} of {}",
+        b.stored(),
+        b.bricks.len()
+    );
     for c in points(dims, 5000) {
         let (want, got) = (dense(&v, c), b.sample_voxels(c));
         let (brick, _) = b.locate(c);
