@@ -103,12 +103,12 @@ const CORPUS: &[Case] = &[
     Case {
         file: "FlightHelmet/FlightHelmet.gltf",
         flags: &[],
-        bounds: b(0.12, 0.06, 0.12),
+        bounds: b(0.10, 0.03, 0.08),
     },
     Case {
         file: "AnisotropyBarnLamp/AnisotropyBarnLamp.gltf",
         flags: &[],
-        bounds: b(0.24, 0.06, 0.08),
+        bounds: b(0.10, 0.03, 0.08),
     },
     Case {
         file: "terrain/terrain.glb",

@@ -386,3 +386,75 @@ fn uploads_follow_changes_only() {
     assert_eq!(stats.frame_records, 8, "7 moved + 1 removed");
     assert_eq!(stats.objects, 199);
 }
+
+/// A volume of at least `sparse_min_bytes` is placed as sparse bricks when that halves
+/// it (its record flagged `BRICKED`, `params.x` its brick-table offset); a small one
+/// stays dense; freeing it frees its pool, coarse grid and table range, which the next
+/// bricked volume reuses; `u64::MAX` keeps every volume dense.
+#[test]
+fn large_volumes_are_placed_as_bricks_and_freed() {
+    let mut app = app(DistanceFieldSceneSettings::default());
+    let (big, small, other) = {
+        let mut sdfs = app.world_mut().resource_mut::<Assets<SdfVolumeAsset>>();
+        (
+            sdfs.add(volume(128)),
+            sdfs.add(volume(32)),
+            sdfs.add(volume_of(UVec3::new(128, 120, 128))),
+        )
+    };
+    let (a, b) = (sdf_caster(&mut app, &big), sdf_caster(&mut app, &small));
+    update_until(&mut app, |app| stats(app).objects == 2);
+    let s = stats(&app);
+    let dense_bytes = 2 * 128u64.pow(3) + 2 * 32u64.pow(3);
+    println!(
+        "bricked {}: atlas {} of {dense_bytes} dense bytes, table {} bytes",
+        s.atlas_bricked, s.atlas_used_bytes, s.brick_table_bytes
+    );
+    assert_eq!(s.atlas_bricked, 1);
+    assert!(
+        s.brick_table_bytes > 0 && s.atlas_used_bytes * 2 < dense_bytes,
+        "{s:?}"
+    );
+    let record = |app: &App, e: Entity| {
+        let scene = app.world().resource::<DistanceFieldScene>();
+        scene.records()[scene.slot(e).expect("placed") as usize]
+    };
+    let (ra, rb) = (record(&app, a), record(&app, b));
+    assert_ne!(ra.flags() & flags::BRICKED, 0);
+    assert_eq!(rb.flags() & flags::BRICKED, 0);
+    assert_eq!(ra.kind(), ShapeKind::Volume as u32);
+    assert_eq!(
+        (ra.params()[0], unpack_10_10_12(ra.params()[1])),
+        (0, UVec3::splat(127))
+    );
+    let table_bytes = s.brick_table_bytes;
+    app.world_mut().despawn(a);
+    app.update();
+    let s = stats(&app);
+    assert_eq!(
+        (s.atlas_bricked, s.atlas_used_bytes),
+        (0, 2 * 32u64.pow(3)),
+        "{s:?}"
+    );
+    let c = sdf_caster(&mut app, &other);
+    update_until(&mut app, |app| stats(app).objects == 2);
+    assert_eq!(
+        record(&app, c).params()[0],
+        0,
+        "the freed table range is reused"
+    );
+    assert!(stats(&app).brick_table_bytes <= table_bytes);
+
+    let mut dense = self::app(DistanceFieldSceneSettings {
+        sparse_min_bytes: u64::MAX,
+        ..default()
+    });
+    let big = dense
+        .world_mut()
+        .resource_mut::<Assets<SdfVolumeAsset>>()
+        .add(volume(128));
+    let d = sdf_caster(&mut dense, &big);
+    update_until(&mut dense, |app| stats(app).objects == 1);
+    assert_eq!(stats(&dense).atlas_bricked, 0);
+    assert_eq!(record(&dense, d).flags() & flags::BRICKED, 0);
+}

@@ -126,7 +126,8 @@ impl BrickedVolume {
                             least = *s;
                         }
                     }
-                    let near = least.to_f32().abs() < band || !(band >= 0.0);
+                    // A NaN band stores every brick.
+                    let near = least.to_f32().abs() < band || band.is_nan();
                     if near || (negative && positive) {
                         bricks.push(Brick::Stored((samples.len() / BRICK_LEN) as u32));
                         samples.extend_from_slice(&brick);

@@ -75,7 +75,12 @@ impl Default for GridPolicy {
 /// 0.360). The cap went 2 → 3 once a field read outside its box stopped turning inside
 /// (the helmet's base had hidden the gain): helmet 0.104 → 0.082 for 3.9 → 7.6 MB, lamp
 /// 0.205 → 0.195 for 1.4 → 4.3 MB, palm unchanged for 10.3 → 19.9 MB; 4 gave 0.087 and
-/// 0.170 for 14.6 and 9.6 MB.
+/// 0.170 for 14.6 and 9.6 MB. Once large fields are placed as sparse bricks
+/// ([`crate::bricks`]: the atlas holds only the bricks near the surface), the cap went
+/// 3 → 6: lamp 0.169 → 0.084 (its 1–2 mm studs cast) for 4.4 → 5.4 MB of atlas (28.3
+/// dense), helmet 0.075 → 0.068 for 7.8 → 12.0 MB (37.7 dense), palm 0.096 → 0.090 for
+/// 16.3 → 12.6 MB. The bake itself and the disk cache hold the dense grid (the lamp's
+/// bake 3.0 → 6.1 s in a debug build).
 /// Cost: one ray per triangle, at most [`crate::thickness::WALL_SAMPLES`], per bake.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ThinWalls {
@@ -83,8 +88,8 @@ pub struct ThinWalls {
     pub voxels_across: f32,
     /// The share of the measured area (0–1) whose walls must be that wide. Default 0.1.
     pub quantile: f32,
-    /// How many times finer than the rule's own voxels, at most. Default 3 (up to 27×
-    /// the samples); 1 turns the rule off.
+    /// How many times finer than the rule's own voxels, at most. Default 6 (up to 216×
+    /// the samples, within the grid's cap); 1 turns the rule off.
     pub max_refine: f32,
 }
 

@@ -17,6 +17,10 @@
 //!   volume does not fit, one warning is logged and the volume is halved in resolution
 //!   (up to twice); if it still does not fit its casters are skipped until atlas space
 //!   is freed (then tried again; a volume placed at reduced resolution stays so).
+//!   Large volumes ([`DistanceFieldSceneSettings::sparse_min_bytes`]) are placed as
+//!   sparse bricks: only the 8³ bricks near the surface, a coarse grid for the rest, and
+//!   their entries in a brick table the passes bind beside the atlas
+//!   (`penumbra_sdf::bricks`; ARCHITECTURE.md, "Sparse bricks").
 //! - Every caster instance is one 128-byte record in the GPU **object buffer**
 //!   (`penumbra_df_core::object`). The CPU keeps a mirror; change detection on
 //!   `GlobalTransform`, `InheritedVisibility`, the caster and its SDF turns a frame's
