@@ -79,7 +79,18 @@ fn display_or_skip(test: &str) -> Option<Display> {
     if std::env::var("DISPLAY").is_ok_and(|d| !d.is_empty()) {
         return Some(Display(None));
     }
-    let number = 90 + std::process::id() % 100;
+    // A display number no server holds: a stale lock or socket (an `Xvfb` killed
+    // earlier) made Xvfb exit at once while the old socket passed the wait below, and
+    // winit failed to open the display.
+    let free = |n: &u32| {
+        !std::path::Path::new(&format!("/tmp/.X{n}-lock")).exists()
+            && !std::path::Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
+    };
+    let first = std::process::id() % 100;
+    let number = (0..200)
+        .map(|i| 90 + (first + i) % 200)
+        .find(free)
+        .unwrap_or(90 + first);
     let child = Command::new("Xvfb")
         .args([
             &format!(":{number}"),
