@@ -67,31 +67,42 @@ impl PenumbraShaderLibrary {
     }
 }
 
+/// A placeholder texture of `size` texels (bound where a pass's input does not exist yet).
+fn placeholder(
+    device: &bevy::render::renderer::RenderDevice,
+    label: &'static str,
+    size: bevy::render::render_resource::Extent3d,
+    dimension: bevy::render::render_resource::TextureDimension,
+    format: bevy::render::render_resource::TextureFormat,
+) -> bevy::render::render_resource::TextureView {
+    use bevy::render::render_resource::{TextureDescriptor, TextureUsages, TextureViewDescriptor};
+    device
+        .create_texture(&TextureDescriptor {
+            label: Some(label),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension,
+            format,
+            usage: TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        })
+        .create_view(&TextureViewDescriptor::default())
+}
+
 /// An empty 3D `R16Float` texture (2×2×2), bound as the atlas where no SDF volume exists
 /// (analytic casters only).
 pub fn empty_atlas(
     device: &bevy::render::renderer::RenderDevice,
 ) -> bevy::render::render_resource::TextureView {
-    use bevy::render::render_resource::{
-        Extent3d, TextureDescriptor, TextureDimension, TextureFormat, TextureUsages,
-        TextureViewDescriptor,
+    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+    let size = Extent3d {
+        width: 2,
+        height: 2,
+        depth_or_array_layers: 2,
     };
-    device
-        .create_texture(&TextureDescriptor {
-            label: Some("penumbra_df_empty_atlas"),
-            size: Extent3d {
-                width: 2,
-                height: 2,
-                depth_or_array_layers: 2,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: TextureDimension::D3,
-            format: TextureFormat::R16Float,
-            usage: TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        })
-        .create_view(&TextureViewDescriptor::default())
+    let (d3, r16) = (TextureDimension::D3, TextureFormat::R16Float);
+    placeholder(device, "penumbra_df_empty_atlas", size, d3, r16)
 }
 
 /// A 1×1 `R32Uint` brick table for passes bound before any volume is placed as bricks
@@ -99,26 +110,15 @@ pub fn empty_atlas(
 pub fn empty_brick_table(
     device: &bevy::render::renderer::RenderDevice,
 ) -> bevy::render::render_resource::TextureView {
-    use bevy::render::render_resource::{
-        Extent3d, TextureDescriptor, TextureDimension, TextureFormat, TextureUsages,
-        TextureViewDescriptor,
-    };
-    device
-        .create_texture(&TextureDescriptor {
-            label: Some("penumbra_df_empty_brick_table"),
-            size: Extent3d {
-                width: 1,
-                height: 1,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: TextureDimension::D2,
-            format: TextureFormat::R32Uint,
-            usage: TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        })
-        .create_view(&TextureViewDescriptor::default())
+    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+    let (d2, r32) = (TextureDimension::D2, TextureFormat::R32Uint);
+    placeholder(
+        device,
+        "penumbra_df_empty_brick_table",
+        Extent3d::default(),
+        d2,
+        r32,
+    )
 }
 
 /// Registers the shader library once (idempotent) and mirrors it into the render world,

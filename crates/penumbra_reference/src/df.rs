@@ -117,14 +117,8 @@ fn sample_volume(atlas: &Atlas, origin: UVec3, dims: UVec3, c: Vec3) -> f32 {
     let i0 = c.floor().min(hi - Vec3::ONE);
     let f = c - i0;
     let base = origin.as_ivec3() + i0.as_ivec3();
-    let l = |x: i32, y: i32, z: i32| atlas.load(base + glam::IVec3::new(x, y, z));
-    let x00 = l(0, 0, 0) + (l(1, 0, 0) - l(0, 0, 0)) * f.x;
-    let x10 = l(0, 1, 0) + (l(1, 1, 0) - l(0, 1, 0)) * f.x;
-    let x01 = l(0, 0, 1) + (l(1, 0, 1) - l(0, 0, 1)) * f.x;
-    let x11 = l(0, 1, 1) + (l(1, 1, 1) - l(0, 1, 1)) * f.x;
-    let y0 = x00 + (x10 - x00) * f.y;
-    let y1 = x01 + (x11 - x01) * f.y;
-    y0 + (y1 - y0) * f.z
+    let l = |x: u32, y: u32, z: u32| atlas.load(base + UVec3::new(x, y, z).as_ivec3());
+    penumbra_sdf::volume::trilinear_corners(l, f)
 }
 
 /// A bricked volume's field at grid coordinates `c` (inside `[0, dims − 1]`) from its

@@ -22,17 +22,8 @@ fn record(shape: CasterShape, world: Affine3A) -> ObjectRecord {
 
 /// Points of the box `[lo, hi]` grown by `grow` (a 3-D Halton set).
 fn points(lo: DVec3, hi: DVec3, grow: f64, n: u32) -> impl Iterator<Item = DVec3> {
-    fn radical(mut i: u32, base: u32) -> f64 {
-        let (mut r, mut f) = (0.0, 1.0 / base as f64);
-        while i > 0 {
-            r += f * (i % base) as f64;
-            i /= base;
-            f /= base as f64;
-        }
-        r
-    }
     let (lo, hi) = (lo - grow, hi + grow);
-    (1..=n).map(move |i| lo + (hi - lo) * DVec3::new(radical(i, 2), radical(i, 3), radical(i, 5)))
+    (1..=n).map(move |i| lo + (hi - lo) * DVec3::from(penumbra_testkit::halton3(i)))
 }
 
 #[test]

@@ -224,13 +224,7 @@ fn trilinear(samples: &[f16], dims: UVec3, c: Vec3) -> f32 {
         let n = (i0.x + x) + dims.x * ((i0.y + y) + dims.y * (i0.z + z));
         samples[n as usize].to_f32()
     };
-    let x00 = s(0, 0, 0) + (s(1, 0, 0) - s(0, 0, 0)) * f.x;
-    let x10 = s(0, 1, 0) + (s(1, 1, 0) - s(0, 1, 0)) * f.x;
-    let x01 = s(0, 0, 1) + (s(1, 0, 1) - s(0, 0, 1)) * f.x;
-    let x11 = s(0, 1, 1) + (s(1, 1, 1) - s(0, 1, 1)) * f.x;
-    let y0 = x00 + (x10 - x00) * f.y;
-    let y1 = x01 + (x11 - x01) * f.y;
-    y0 + (y1 - y0) * f.z
+    crate::volume::trilinear_corners(s, f)
 }
 
 #[cfg(test)]

@@ -167,14 +167,7 @@ impl SdfVolume {
         let base = g.floor().clamp(Vec3::ZERO, max);
         let f = (g - base).clamp(Vec3::ZERO, Vec3::ONE);
         let (i, j, k) = (base.x as u32, base.y as u32, base.z as u32);
-        let c = |di: u32, dj: u32, dk: u32| self.get_voxels(i + di, j + dj, k + dk);
-        let x00 = c(0, 0, 0) + (c(1, 0, 0) - c(0, 0, 0)) * f.x;
-        let x10 = c(0, 1, 0) + (c(1, 1, 0) - c(0, 1, 0)) * f.x;
-        let x01 = c(0, 0, 1) + (c(1, 0, 1) - c(0, 0, 1)) * f.x;
-        let x11 = c(0, 1, 1) + (c(1, 1, 1) - c(0, 1, 1)) * f.x;
-        let y0 = x00 + (x10 - x00) * f.y;
-        let y1 = x01 + (x11 - x01) * f.y;
-        y0 + (y1 - y0) * f.z
+        trilinear_corners(|di, dj, dk| self.get_voxels(i + di, j + dj, k + dk), f)
     }
 
     /// Gradient of [`SdfVolume::sample`] by central differences of half a voxel
@@ -216,6 +209,21 @@ impl SdfVolume {
             margin: 0.5 * self.margin,
         }
     }
+}
+
+/// The trilinear interpolation at fractions `f` of a cell whose corner `(i, j, k)` (each
+/// 0 or 1) holds `corner(i, j, k)`: x first, then y, then z, the GPU's `sample_volume`
+/// order (so that the CPU models round as the shaders do).
+#[inline]
+pub fn trilinear_corners(corner: impl Fn(u32, u32, u32) -> f32, f: Vec3) -> f32 {
+    let c = corner;
+    let x00 = c(0, 0, 0) + (c(1, 0, 0) - c(0, 0, 0)) * f.x;
+    let x10 = c(0, 1, 0) + (c(1, 1, 0) - c(0, 1, 0)) * f.x;
+    let x01 = c(0, 0, 1) + (c(1, 0, 1) - c(0, 0, 1)) * f.x;
+    let x11 = c(0, 1, 1) + (c(1, 1, 1) - c(0, 1, 1)) * f.x;
+    let y0 = x00 + (x10 - x00) * f.y;
+    let y1 = x01 + (x11 - x01) * f.y;
+    y0 + (y1 - y0) * f.z
 }
 
 /// The distance at grid coordinates `g` of a `dims` grid whose trilinear interpolation

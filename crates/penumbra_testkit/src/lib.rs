@@ -202,3 +202,25 @@ impl Awkward {
         self.below(2) == 0
     }
 }
+
+/// The radical inverse of `i` in `base`: the `i`-th point of the van der Corput sequence,
+/// in `[0, 1)`. Three bases (2, 3, 5) give a 3-D Halton set: deterministic points that
+/// cover a box evenly, for tests that sample a field.
+pub fn radical_inverse(mut i: u32, base: u32) -> f64 {
+    let (mut r, mut f) = (0.0, 1.0 / base as f64);
+    while i > 0 {
+        r += f * (i % base) as f64;
+        i /= base;
+        f /= base as f64;
+    }
+    r
+}
+
+/// The `i`-th point (from 1) of the 3-D Halton set (bases 2, 3, 5), in `[0, 1)³`.
+pub fn halton3(i: u32) -> [f64; 3] {
+    [
+        radical_inverse(i, 2),
+        radical_inverse(i, 3),
+        radical_inverse(i, 5),
+    ]
+}

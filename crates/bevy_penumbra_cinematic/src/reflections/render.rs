@@ -24,8 +24,7 @@ use bevy::render::render_resource::{
     ColorWrites, Extent3d, FilterMode, LoadOp, MipmapFilterMode, Operations, PipelineCache,
     RenderPassColorAttachment, RenderPassDescriptor, RenderPipelineDescriptor, Sampler,
     SamplerBindingType, SamplerDescriptor, ShaderStages, ShaderType, StoreOp, TextureDescriptor,
-    TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
-    TextureViewDescriptor, TextureViewId,
+    TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView, TextureViewId,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::sync_component::{SyncComponent, SyncComponentPlugin};
@@ -203,22 +202,7 @@ fn init_reflection_pipelines(
         usage: BufferUsages::STORAGE,
         mapped_at_creation: false,
     });
-    let no_atlas = device
-        .create_texture(&TextureDescriptor {
-            label: Some("penumbra_reflections_no_atlas"),
-            size: Extent3d {
-                width: 1,
-                height: 1,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: TextureDimension::D3,
-            format: TextureFormat::R16Float,
-            usage: TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        })
-        .create_view(&TextureViewDescriptor::default());
+    let no_atlas = bevy_penumbra_df::shader_library::empty_atlas(&device);
     commands.insert_resource(ReflectionPipelines {
         layout,
         pixel_layout,

@@ -19,17 +19,8 @@ fn sphere(dims: UVec3, radius: f32) -> SdfVolume {
 
 /// Deterministic points of `[0, dims − 1]` (a 3-D Halton set).
 fn points(dims: UVec3, n: u32) -> impl Iterator<Item = Vec3> {
-    fn radical(mut i: u32, base: u32) -> f32 {
-        let (mut r, mut f) = (0.0, 1.0 / base as f32);
-        while i > 0 {
-            r += f * (i % base) as f32;
-            i /= base;
-            f /= base as f32;
-        }
-        r
-    }
     let hi = (dims - UVec3::ONE).as_vec3();
-    (1..=n).map(move |i| Vec3::new(radical(i, 2), radical(i, 3), radical(i, 5)) * hi)
+    (1..=n).map(move |i| DVec3::from(penumbra_testkit::halton3(i)).as_vec3() * hi)
 }
 
 fn dense(v: &SdfVolume, c: Vec3) -> f32 {
