@@ -22,6 +22,10 @@ use penumbra_sdf::bricks::{Brick, BrickedVolume, DEFAULT_BAND_VOXELS};
 use std::ops::Range;
 use std::sync::Arc;
 
+/// The most entries the brick table holds: 2,048 rows of its texture (the smallest 2D
+/// texture size a device may limit to). A volume whose entries would not fit stays dense.
+pub(crate) const MAX_TABLE_ENTRIES: usize = penumbra_df_core::bricks::TABLE_WIDTH as usize * 2048;
+
 /// The brick table's CPU mirror and free ranges.
 #[derive(Default)]
 pub(crate) struct BrickTable {
@@ -31,6 +35,11 @@ pub(crate) struct BrickTable {
 }
 
 impl BrickTable {
+    /// Whether `len` more entries fit (in a freed range or within [`MAX_TABLE_ENTRIES`]).
+    fn fits(&self, len: usize) -> bool {
+        self.entries.len() + len <= MAX_TABLE_ENTRIES || self.free.iter().any(|r| r.len() >= len)
+    }
+
     /// A range of `len` entries holding `entries` (first fit in freed ranges, else at the
     /// end).
     fn insert(&mut self, entries: &[u32]) -> Range<u32> {
@@ -104,7 +113,8 @@ pub(crate) fn place_bricked(
         return None;
     }
     let bricked = BrickedVolume::from_volume(volume, DEFAULT_BAND_VOXELS);
-    if bricked.stored() == 0 || 2 * bricked.bytes() > dense_bytes {
+    let entries = bricked.bricks.len() + penumbra_df_core::bricks::HEADER_ENTRIES as usize;
+    if bricked.stored() == 0 || 2 * bricked.bytes() > dense_bytes || !table.fits(entries) {
         return None;
     }
     let cells = bricked.bricks.iter().map(|b| match b {
@@ -157,5 +167,6 @@ mod tests {
         assert_eq!(t.insert(&[8; 5]), 0..5);
         assert_eq!(t.len(), 5);
         assert_eq!(&*t.take_changed().expect("changed"), &[8; 5]);
+        assert!(t.fits(5) && t.fits(MAX_TABLE_ENTRIES - 5) && !t.fits(MAX_TABLE_ENTRIES));
     }
 }
