@@ -128,7 +128,7 @@ fn sample_volume(atlas: &Atlas, origin: UVec3, dims: UVec3, c: Vec3) -> f32 {
 /// (`penumbra_sdf::bricks::empty_distance`). Entries past the table read as zeros.
 fn sample_bricked(atlas: &Atlas, table_offset: u32, dims: UVec3, c: Vec3) -> f32 {
     let span = BRICK_SAMPLES - 1;
-    let grid = (dims - UVec3::ONE + UVec3::splat(span - 1)) / span;
+    let grid = penumbra_sdf::bricks::brick_grid(dims);
     let b = (c / span as f32)
         .floor()
         .max(Vec3::ZERO)

@@ -6,9 +6,9 @@
 //! at least halves it: its bricks within [`DEFAULT_BAND_VOXELS`] of the surface go into
 //! one pool of whole atlas blocks, its coarse grid (the samples at the bricks' corners)
 //! into a small dense region, and a header and one entry per brick into the brick table
-//! (`penumbra_df_core::bricks`). Fine fields of small detailed props (2–4× finer
-//! voxels than a dense budget allows) are the case: 10–15 % of a 256-sample field's
-//! bricks lie near its surface. Volumes without a surface (a skinned mesh's re-bake
+//! (`penumbra_df_core::bricks`). Fine fields of small detailed props (the thin-wall rule
+//! refines up to 6×) are the case: 10–15 % of a 256-sample field's bricks lie near its
+//! surface. Volumes without a surface (a skinned mesh's re-bake
 //! placeholder, written on the GPU as a dense field) stay dense.
 //!
 //! The table is a CPU mirror sent whole to the render world when it changes (only when

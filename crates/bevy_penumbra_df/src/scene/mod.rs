@@ -255,7 +255,8 @@ pub struct DistanceFieldUploadStats {
     pub frame_object_bytes: usize,
     /// Records written this frame.
     pub frame_records: usize,
-    /// Atlas bytes uploaded this frame (new SDF placements).
+    /// Atlas bytes uploaded this frame (new SDF placements; with a bricked volume's, the
+    /// whole brick table).
     pub frame_atlas_bytes: usize,
     /// Object-buffer and atlas bytes uploaded since startup.
     pub total_bytes: u64,
@@ -274,7 +275,8 @@ pub struct DistanceFieldUploadStats {
     /// SDFs in the atlas as sparse bricks
     /// ([`DistanceFieldSceneSettings::sparse_min_bytes`]).
     pub atlas_bricked: usize,
-    /// Bytes of the brick table (their one entry per brick).
+    /// Bytes of the brick table: a header and one entry per brick of every bricked
+    /// volume placed (freed ranges included, reused first).
     pub brick_table_bytes: u64,
     /// SDFs whose casters are skipped: they fit nowhere, even at quarter resolution
     /// (tried again when atlas space is freed).
@@ -900,7 +902,10 @@ fn finish_frame(
 ) {
     let deltas = scene.table.take_deltas();
     let uploads = std::mem::take(&mut scene.uploads);
-    let atlas_bytes: usize = uploads.iter().map(|u| u.data.len() * 2).sum();
+    let brick_table = scene.brick_table.take_changed();
+    // A bricked volume's placement also sends the whole brick table.
+    let atlas_bytes: usize = uploads.iter().map(|u| u.data.len() * 2).sum::<usize>()
+        + brick_table.as_ref().map_or(0, |t| 4 * t.len());
     stats.frame_object_bytes = deltas.bytes();
     stats.frame_records = deltas.writes.len();
     stats.frame_atlas_bytes = atlas_bytes;
@@ -919,6 +924,6 @@ fn finish_frame(
         deltas,
         uploads,
         atlas_size: scene.atlas_size(),
-        brick_table: scene.brick_table.take_changed(),
+        brick_table,
     };
 }
