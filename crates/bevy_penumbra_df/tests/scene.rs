@@ -4,6 +4,7 @@
 //! are skipped, uploads follow changes only ("skip what is not needed"), and the memory
 //! of a 1,000-instance / 50-asset scene.
 
+use bevy::math::DVec3;
 use bevy::prelude::*;
 use bevy_penumbra_df::{
     CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldScenePlugin,
@@ -457,4 +458,60 @@ fn large_volumes_are_placed_as_bricks_and_freed() {
     update_until(&mut dense, |app| stats(app).objects == 1);
     assert_eq!(stats(&dense).atlas_bricked, 0);
     assert_eq!(record(&dense, d).flags() & flags::BRICKED, 0);
+}
+
+/// A floor-like SDF of `dims` samples: the plane through the middle of y, 1 cm voxels.
+fn plane_of(dims: UVec3) -> SdfVolumeAsset {
+    let mid = (dims.y - 1) as f32 * 0.5;
+    let distances =
+        (0..dims.element_product()).map(|i| (((i / dims.x) % dims.y) as f32 - mid) * 0.01);
+    SdfVolumeAsset {
+        volume: SdfVolume::from_distances(dims, DVec3::ZERO, 0.01, distances),
+    }
+}
+
+/// A volume that finds no free box dense — a slab as wide as the atlas, one block column
+/// of which another volume holds — is placed as sparse bricks at full resolution, not
+/// downsampled (the Cornell box's 256-wide walls at the default budget); with every
+/// volume kept dense it is halved.
+#[test]
+fn a_volume_with_no_free_box_goes_bricked_before_it_is_halved() {
+    // An atlas of 256 × 256 × 64 voxels.
+    let budget = 256 * 256 * 64 * 2;
+    let placed = |sparse_min_bytes: u64| {
+        let mut app = app(DistanceFieldSceneSettings {
+            atlas_budget_bytes: budget,
+            sparse_min_bytes,
+            ..default()
+        });
+        let (column, slab) = {
+            let mut sdfs = app.world_mut().resource_mut::<Assets<SdfVolumeAsset>>();
+            (
+                sdfs.add(plane_of(UVec3::new(8, 256, 64))),
+                sdfs.add(plane_of(UVec3::new(256, 8, 64))),
+            )
+        };
+        // The column first, at the atlas's x = 0.
+        let c = sdf_caster(&mut app, &column);
+        update_until(&mut app, |app| stats(app).objects == 1);
+        let s = sdf_caster(&mut app, &slab);
+        update_until(&mut app, |app| stats(app).objects == 2);
+        let scene = app.world().resource::<DistanceFieldScene>();
+        let record = |e: Entity| scene.records()[scene.slot(e).expect("placed") as usize];
+        assert_eq!(record(c).flags() & flags::BRICKED, 0, "the column is dense");
+        let r = record(s);
+        (
+            r.flags() & flags::BRICKED != 0,
+            unpack_10_10_12(r.params()[1]) + UVec3::ONE,
+            stats(&app),
+        )
+    };
+    let (bricked, dims, s) = placed(DistanceFieldSceneSettings::default().sparse_min_bytes);
+    assert!(bricked, "{s:?}");
+    assert_eq!(dims, UVec3::new(256, 8, 64));
+    assert_eq!((s.atlas_bricked, s.atlas_downsampled), (1, 0), "{s:?}");
+    let (bricked, dims, s) = placed(u64::MAX);
+    assert!(!bricked);
+    assert_eq!(dims, UVec3::new(129, 5, 33), "halved");
+    assert_eq!((s.atlas_bricked, s.atlas_downsampled), (0, 1), "{s:?}");
 }

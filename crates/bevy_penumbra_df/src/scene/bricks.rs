@@ -11,6 +11,11 @@
 //! surface. Volumes without a surface (a skinned mesh's re-bake
 //! placeholder, written on the GPU as a dense field) stay dense.
 //!
+//! A volume that finds no free box dense (the atlas fragmented: a 256-wide slab needs a
+//! free band across the whole atlas) is placed as bricks whatever its size before it is
+//! downsampled ([`Placement::Fallback`]): its pool is a near-cube of whole blocks, which
+//! fits between other volumes where the slab does not.
+//!
 //! The table is a CPU mirror sent whole to the render world when it changes (only when
 //! a bricked volume is placed: a few hundred kilobytes for a large prop), which keeps
 //! the GPU texture's growth simple; freed ranges are reused first-fit.
@@ -100,21 +105,39 @@ pub(crate) struct PlacedBricks {
     pub(crate) table: Range<u32>,
 }
 
-/// Places `volume` as bricks if it qualifies (module docs) and its pool fits the atlas;
-/// `None` places it dense.
+/// When a volume goes bricked.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Placement {
+    /// First choice: bricks when the dense grid holds at least this many bytes and
+    /// bricks at least halve it.
+    Sparse {
+        /// `DistanceFieldSceneSettings::sparse_min_bytes`.
+        min_bytes: u64,
+    },
+    /// The dense grid found no free box: bricks whatever their size, rather than a
+    /// downsampled grid.
+    Fallback,
+}
+
+/// Places `volume` as bricks if it qualifies (module docs, `placement`) and its pool fits
+/// the atlas; `None` places it dense.
 pub(crate) fn place_bricked(
     volume: &SdfVolume,
-    min_bytes: u64,
+    placement: Placement,
     atlas: &mut AtlasAllocator,
     table: &mut BrickTable,
 ) -> Option<PlacedBricks> {
     let dense_bytes = 2 * volume.data.len() as u64;
-    if dense_bytes < min_bytes.max(1) {
+    if let Placement::Sparse { min_bytes } = placement
+        && dense_bytes < min_bytes.max(1)
+    {
         return None;
     }
     let bricked = BrickedVolume::from_volume(volume, DEFAULT_BAND_VOXELS);
     let entries = bricked.bricks.len() + penumbra_df_core::bricks::HEADER_ENTRIES as usize;
-    if bricked.stored() == 0 || 2 * bricked.bytes() > dense_bytes || !table.fits(entries) {
+    let halves = 2 * bricked.bytes() <= dense_bytes;
+    let sparse = matches!(placement, Placement::Sparse { .. });
+    if bricked.stored() == 0 || (sparse && !halves) || !table.fits(entries) {
         return None;
     }
     let cells = bricked.bricks.iter().map(|b| match b {

@@ -14,9 +14,11 @@
 //!   ones two-sided).
 //! - Every SDF in use is placed once in a 3D `R16Float` **atlas** under a memory budget
 //!   ([`DistanceFieldSceneSettings::atlas_budget_bytes`]); freed space is reused. When a
-//!   volume does not fit, one warning is logged and the volume is halved in resolution
-//!   (up to twice); if it still does not fit its casters are skipped until atlas space
-//!   is freed (then tried again; a volume placed at reduced resolution stays so).
+//!   volume does not fit, one warning is logged and the volume is placed as sparse
+//!   bricks at full resolution if they fit (a near-cube pool fits between volumes where
+//!   a wide slab does not), else halved in resolution (up to twice); if it still does
+//!   not fit its casters are skipped until atlas space is freed (then tried again; a
+//!   volume placed at reduced resolution stays so).
 //!   Large volumes ([`DistanceFieldSceneSettings::sparse_min_bytes`]) are placed as
 //!   sparse bricks: only the 8³ bricks near the surface, a coarse grid for the rest, and
 //!   their entries in a brick table the passes bind beside the atlas
@@ -231,8 +233,9 @@ pub struct DistanceFieldSceneSettings {
     pub max_casters: u32,
     /// Volumes whose dense grid holds at least this many bytes are placed as sparse
     /// bricks (`penumbra_sdf::bricks`: only the 8³ bricks within 4 voxels of the
-    /// surface) when that at least halves them. Default 1 MiB (a 80³ grid); `u64::MAX`
-    /// keeps every volume dense. Cost: one pass over the grid when it is placed, and a
+    /// surface) when that at least halves them, and any volume that finds no free box
+    /// dense (before it is downsampled). Default 1 MiB (a 80³ grid); `u64::MAX` keeps
+    /// every volume dense. Cost: one pass over the grid when it is placed, and a
     /// table read per distance sample of a bricked volume.
     pub sparse_min_bytes: u64,
 }
@@ -612,44 +615,35 @@ fn place_volume(
             }
         }
     }
-    let atlas = scene.atlas.as_mut().expect("created above");
-    let sparse_min = settings.sparse_min_bytes;
-    if let Some(b) = bricks::place_bricked(&asset.volume, sparse_min, atlas, &mut scene.brick_table)
-    {
-        scene.uploads.push(AtlasUpload {
-            region: b.pool,
-            data: b.pool_texels,
-        });
-        scene.uploads.push(AtlasUpload {
-            region: b.coarse,
-            data: b.coarse_texels,
-        });
-        scene.bricked += 1;
-        let v = &asset.volume;
-        let placed = PlacedVolume {
-            region: b.pool,
-            dims: v.dims,
-            table: Some((b.table, b.coarse)),
-            local_origin: v.origin.as_vec3(),
-            margin: v.margin,
-            voxel_size: v.voxel_size,
-            users: 1,
-        };
-        scene.volumes.insert(id, placed.clone());
+    let sparse = bricks::Placement::Sparse {
+        min_bytes: settings.sparse_min_bytes,
+    };
+    if let Some(placed) = place_as_bricks(scene, id, &asset.volume, sparse) {
         return Some(placed);
     }
     let mut volume = std::borrow::Cow::Borrowed(&asset.volume);
     let mut halvings = 0;
     let region = loop {
+        let atlas = scene.atlas.as_mut().expect("created above");
         match atlas.allocate(volume.dims) {
             Ok(region) => break region,
             Err(e @ (AtlasError::Full { .. } | AtlasError::TooLarge { .. })) if halvings < 2 => {
+                // No free box for the dense grid: its bricks may fit between the other
+                // volumes at full resolution (unless every volume is to stay dense).
+                if halvings == 0
+                    && settings.sparse_min_bytes != u64::MAX
+                    && let Some(placed) =
+                        place_as_bricks(scene, id, &asset.volume, bricks::Placement::Fallback)
+                {
+                    return Some(placed);
+                }
                 if !scene.warned_full {
                     warn!(
                         "Penumbra: distance-field {e} (budget {} bytes, see \
                          DistanceFieldSceneSettings::atlas_budget_bytes): volumes that do not fit \
-                         are placed at half, then quarter resolution, else their casters are \
-                         skipped; counts in DistanceFieldUploadStats. Reported once.",
+                         are placed as sparse bricks, else at half, then quarter resolution, \
+                         else their casters are skipped; counts in DistanceFieldUploadStats. \
+                         Reported once.",
                         settings.atlas_budget_bytes
                     );
                     scene.warned_full = true;
@@ -678,6 +672,38 @@ fn place_volume(
         region,
         dims: region.dims,
         table: None,
+        local_origin: volume.origin.as_vec3(),
+        margin: volume.margin,
+        voxel_size: volume.voxel_size,
+        users: 1,
+    };
+    scene.volumes.insert(id, placed.clone());
+    Some(placed)
+}
+
+/// Places `volume` (asset `id`) as sparse bricks when `placement` allows and it fits
+/// (`bricks::place_bricked`), queuing its uploads.
+fn place_as_bricks(
+    scene: &mut DistanceFieldScene,
+    id: AssetId<SdfVolumeAsset>,
+    volume: &penumbra_sdf::SdfVolume,
+    placement: bricks::Placement,
+) -> Option<PlacedVolume> {
+    let atlas = scene.atlas.as_mut()?;
+    let b = bricks::place_bricked(volume, placement, atlas, &mut scene.brick_table)?;
+    scene.uploads.push(AtlasUpload {
+        region: b.pool,
+        data: b.pool_texels,
+    });
+    scene.uploads.push(AtlasUpload {
+        region: b.coarse,
+        data: b.coarse_texels,
+    });
+    scene.bricked += 1;
+    let placed = PlacedVolume {
+        region: b.pool,
+        dims: volume.dims,
+        table: Some((b.table, b.coarse)),
         local_origin: volume.origin.as_vec3(),
         margin: volume.margin,
         voxel_size: volume.voxel_size,
