@@ -8,12 +8,18 @@
 //! samples (max and p99 in voxels, sign errors where the exact winding number is
 //! decisive, |w − ½| > 0.3); and the time ratios. Then how Penumbra's time scales with
 //! samples (32…256 along the longest axis) and with triangles (spheres of 1k…64k
-//! triangles). Needs `../shared/meshes` for the bunny parts.
+//! triangles). Then sparse bricks (`penumbra_sdf::bricks`): for the bunny at 64…256
+//! samples, the time to cut a baked grid into bricks (the scene's main thread pays it when
+//! a large volume is placed), bytes against dense, and both fields' errors against f64
+//! brute force (bricks read exactly the dense grid within their band and a lower bound
+//! beyond it, so their far-field error is larger by design). Needs `../shared/meshes`
+//! for the bunny parts.
 
 #![allow(missing_docs, reason = "criterion_group! generates undocumented items")]
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{UVec3, Vec3};
+use penumbra_sdf::bricks::{BrickedVolume, DEFAULT_BAND_VOXELS};
 use penumbra_sdf::{BakeSettings, SdfVolume, TriMesh, bake, exact, obj, shapes};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -248,5 +254,36 @@ fn scaling(_c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, comparison, scaling);
+fn bricks(_c: &mut Criterion) {
+    let Some(mesh) = bunny() else { return };
+    let (tris, _) = mesh.validate().unwrap();
+    println!(
+        "\nbunny as sparse bricks (band {DEFAULT_BAND_VOXELS} voxels; errors in voxels against f64 brute force, 3,000 random samples):"
+    );
+    println!(
+        "| n | dense bytes | bricks bytes | ratio | bricking time | dense max / p99 | bricks max / p99 |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for n in [64, 128, 256] {
+        let v = bake(&mesh, &settings(n), None).unwrap().volume;
+        let runs = if n >= 256 { 3 } else { 5 };
+        let (t, b) = time(|| BrickedVolume::from_volume(&v, DEFAULT_BAND_VOXELS), runs);
+        let h = v.voxel_size;
+        let dense = errors(&tris, mesh.origin, &v, |c| v.get(c.x, c.y, c.z));
+        let sparse = errors(&tris, mesh.origin, &v, |c| b.sample_voxels(c.as_vec3()) * h);
+        println!(
+            "| {n} | {} | {} | {:.3} | {:.1} ms | {:.3} / {:.3} | {:.3} / {:.3} |",
+            b.dense_bytes(),
+            b.bytes(),
+            b.bytes() as f64 / b.dense_bytes() as f64,
+            t.as_secs_f64() * 1e3,
+            dense.max,
+            dense.p99,
+            sparse.max,
+            sparse.p99
+        );
+    }
+}
+
+criterion_group!(benches, comparison, scaling, bricks);
 criterion_main!(benches);

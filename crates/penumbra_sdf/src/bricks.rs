@@ -104,26 +104,45 @@ impl BrickedVolume {
         let mut bricks = Vec::with_capacity((grid.x * grid.y * grid.z) as usize);
         let mut samples = Vec::new();
         let mut brick = vec![f16::ZERO; BRICK_LEN];
+        let last = dims - UVec3::ONE;
+        let row_len = BRICK_SAMPLES as usize;
         for bz in 0..grid.z {
             for by in 0..grid.y {
                 for bx in 0..grid.x {
                     let base = UVec3::new(bx, by, bz) * BRICK_SPAN;
+                    // The brick's samples, x fastest, a row at a time (past the grid's far
+                    // faces, the face's sample); the least magnitude and the signs from
+                    // the half-float bits (a NaN counts as neither sign, never least).
                     let mut least = f16::INFINITY;
+                    let mut least_magnitude = f16::INFINITY.to_bits();
                     let (mut negative, mut positive) = (false, false);
-                    for (n, s) in brick.iter_mut().enumerate() {
-                        let n = n as u32;
-                        let local = UVec3::new(
-                            n % BRICK_SAMPLES,
-                            (n / BRICK_SAMPLES) % BRICK_SAMPLES,
-                            n / (BRICK_SAMPLES * BRICK_SAMPLES),
-                        );
-                        let p = (base + local).min(dims - UVec3::ONE);
-                        *s = volume.data[volume.index(p.x, p.y, p.z)];
-                        let v = s.to_f32();
-                        negative |= v < 0.0;
-                        positive |= v >= 0.0;
-                        if v.abs() < least.to_f32().abs() {
-                            least = *s;
+                    let whole_rows = base.x + BRICK_SAMPLES <= dims.x;
+                    for (r, out) in brick.chunks_exact_mut(row_len).enumerate() {
+                        let r = r as u32;
+                        let y = (base.y + r % BRICK_SAMPLES).min(last.y);
+                        let z = (base.z + r / BRICK_SAMPLES).min(last.z);
+                        let row = volume.index(0, y, z);
+                        if whole_rows {
+                            let start = row + base.x as usize;
+                            out.copy_from_slice(&volume.data[start..start + row_len]);
+                        } else {
+                            for (x, s) in out.iter_mut().enumerate() {
+                                *s = volume.data[row + (base.x + x as u32).min(last.x) as usize];
+                            }
+                        }
+                        for s in out.iter() {
+                            let bits = s.to_bits();
+                            let magnitude = bits & 0x7fff;
+                            if magnitude > f16::INFINITY.to_bits() {
+                                continue;
+                            }
+                            let below = bits & 0x8000 != 0 && magnitude != 0;
+                            negative |= below;
+                            positive |= !below;
+                            if magnitude < least_magnitude {
+                                least_magnitude = magnitude;
+                                least = *s;
+                            }
                         }
                     }
                     // A NaN band stores every brick.

@@ -173,3 +173,90 @@ fn a_plane_reads_exactly_less_the_slack_far_from_it() {
         );
     }
 }
+
+/// The row-at-a-time scan over half-float bits picks the same bricks, empty values and
+/// samples as the definition (every sample in turn, as `f32`), on a grid whose last
+/// bricks overhang every axis and whose samples include ±0, ±∞, NaN and ties of
+/// magnitude between signs.
+#[test]
+fn the_brick_scan_follows_the_definition() {
+    let dims = UVec3::new(28, 12, 17);
+    let mut s = 0x2545_f491_4f6c_dd1du64;
+    let special = [
+        0.0f32,
+        -0.0,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NAN,
+        2.5,
+        -2.5,
+    ];
+    let data: Vec<f16> = (0..dims.element_product())
+        .map(|i| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            let noise = ((s >> 16) % 4000) as f32 * 0.01;
+            // Beyond x = 13, positive and at least 6 from zero: empty bricks for the
+            // smaller bands, negative ones too beyond x = 20.
+            let far = [f32::INFINITY, f32::NEG_INFINITY, f32::NAN, -f32::NAN];
+            let v = match i % dims.x {
+                // Rare non-finite samples among the far ones: a NaN of either sign
+                // counts as neither sign, −∞ as negative.
+                x if x > 13 && s % 97 == 0 => far[(s >> 8) as usize % far.len()],
+                x if x > 20 => -6.0 - noise,
+                x if x > 13 => 6.0 + noise,
+                _ if s % 11 == 0 => special[(s >> 8) as usize % special.len()],
+                _ => noise - 20.0,
+            };
+            f16::from_f32(v)
+        })
+        .collect();
+    let mut v = SdfVolume::from_distances(dims, DVec3::ZERO, 1.0, vec![0.0; data.len()]);
+    v.data = data;
+    for band in [0.5, DEFAULT_BAND_VOXELS, 9.0] {
+        let b = BrickedVolume::from_volume(&v, band);
+        let mut stored = 0u32;
+        for (n, brick) in b.bricks.iter().enumerate() {
+            let n = n as u32;
+            let base = UVec3::new(
+                n % b.grid.x,
+                (n / b.grid.x) % b.grid.y,
+                n / (b.grid.x * b.grid.y),
+            ) * BRICK_SPAN;
+            let mut expected = Vec::with_capacity(BRICK_LEN);
+            let mut least = f16::INFINITY;
+            let (mut negative, mut positive) = (false, false);
+            for l in 0..BRICK_LEN as u32 {
+                let local = UVec3::new(l % 8, (l / 8) % 8, l / 64);
+                let p = (base + local).min(dims - UVec3::ONE);
+                let sample = v.data[v.index(p.x, p.y, p.z)];
+                let x = sample.to_f32();
+                negative |= x < 0.0;
+                positive |= x >= 0.0;
+                if x.abs() < least.to_f32().abs() {
+                    least = sample;
+                }
+                expected.push(sample);
+            }
+            if least.to_f32().abs() < band || (negative && positive) {
+                assert_eq!(*brick, Brick::Stored(stored), "brick {n}, band {band}");
+                let got = &b.samples[stored as usize * BRICK_LEN..][..BRICK_LEN];
+                assert!(
+                    got.iter()
+                        .zip(&expected)
+                        .all(|(a, e)| a.to_bits() == e.to_bits()),
+                    "brick {n}'s samples"
+                );
+                stored += 1;
+            } else {
+                assert_eq!(brick.clone(), Brick::Empty(least), "brick {n}, band {band}");
+            }
+        }
+        let empty = b.bricks.len() - stored as usize;
+        assert!(
+            stored > 0 && (band > 6.0 || empty > 0),
+            "band {band}: {stored} stored"
+        );
+    }
+}
