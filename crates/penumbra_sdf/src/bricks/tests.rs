@@ -203,10 +203,10 @@ fn the_brick_scan_follows_the_definition() {
             let v = match i % dims.x {
                 // Rare non-finite samples among the far ones: a NaN of either sign
                 // counts as neither sign, −∞ as negative.
-                x if x > 13 && s % 97 == 0 => far[(s >> 8) as usize % far.len()],
+                x if x > 13 && s.is_multiple_of(97) => far[(s >> 8) as usize % far.len()],
                 x if x > 20 => -6.0 - noise,
                 x if x > 13 => 6.0 + noise,
-                _ if s % 11 == 0 => special[(s >> 8) as usize % special.len()],
+                _ if s.is_multiple_of(11) => special[(s >> 8) as usize % special.len()],
                 _ => noise - 20.0,
             };
             f16::from_f32(v)
