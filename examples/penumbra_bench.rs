@@ -141,10 +141,30 @@ pub struct RunResult {
     pub records: Option<Stats>,
     /// Distance fields re-baked per measured frame (`DistanceFieldRebake`).
     pub rebakes: Option<Stats>,
+    /// The distance-field atlas at the end of the run (Penumbra's apps with casters).
+    pub atlas: Option<AtlasSummary>,
     /// Seconds from startup to ready (loads, bakes).
     pub setup_s: f64,
     /// Updates until ready.
     pub setup_frames: u32,
+}
+
+/// How the scene's distance fields sit in the atlas: a field halved or skipped for want
+/// of room changes both the run time and the error, so the report says so.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct AtlasSummary {
+    /// Bytes the fields fill.
+    pub used_bytes: u64,
+    /// The atlas texture's bytes.
+    pub texture_bytes: u64,
+    /// Fields placed.
+    pub volumes: usize,
+    /// Of them, as sparse bricks.
+    pub bricked: usize,
+    /// Of them, at reduced resolution.
+    pub downsampled: usize,
+    /// Fields that found no room (their casters skipped).
+    pub skipped: usize,
 }
 
 fn main() -> ExitCode {
@@ -400,6 +420,18 @@ fn measure_run(
         app.update();
         memory = memory.or_else(|| probe.take());
     }
+    let atlas = app
+        .world()
+        .get_resource::<penumbra::prelude::DistanceFieldUploadStats>()
+        .filter(|u| u.atlas_bytes > 0)
+        .map(|u| AtlasSummary {
+            used_bytes: u.atlas_used_bytes,
+            texture_bytes: u.atlas_bytes,
+            volumes: u.atlas_volumes,
+            bricked: u.atlas_bricked,
+            downsampled: u.atlas_downsampled,
+            skipped: u.atlas_skipped,
+        });
     let samples = std::mem::take(&mut app.world_mut().resource_mut::<Samples>().series);
     let mut frame_gpu = std::mem::take(&mut *gpu_times.0.lock().expect("not poisoned"));
     frame_gpu.truncate(args.frames as usize);
@@ -434,6 +466,7 @@ fn measure_run(
         memory: memory.unwrap_or_default(),
         records: Stats::of(&records),
         rebakes: Stats::of(&rebakes),
+        atlas,
         setup_s,
         setup_frames,
     })

@@ -230,6 +230,14 @@ pub fn json(meta: &Meta, results: &[RunResult]) -> Value {
                 "penumbra_gpu_bytes": r.memory.penumbra_bytes,
                 "penumbra_gpu_allocations": r.memory.penumbra_allocations,
                 "total_gpu_bytes": r.memory.total_bytes,
+                "atlas": r.atlas.map(|a| json!({
+                    "used_bytes": a.used_bytes,
+                    "texture_bytes": a.texture_bytes,
+                    "volumes": a.volumes,
+                    "bricked": a.bricked,
+                    "downsampled": a.downsampled,
+                    "skipped": a.skipped,
+                })),
                 "setup_seconds": r.setup_s,
                 "setup_updates": r.setup_frames,
             })
@@ -407,6 +415,27 @@ pub fn markdown(meta: &Meta, results: &[RunResult]) -> String {
             "all GPU memory, MiB",
             runs.iter().map(|r| mib(r.memory.total_bytes)).collect(),
         );
+        if runs.iter().any(|r| r.atlas.is_some()) {
+            row(
+                &mut md,
+                "distance-field atlas: MiB filled of texture; fields (bricked, halved, skipped)",
+                runs.iter()
+                    .map(|r| {
+                        r.atlas.map_or("–".into(), |a| {
+                            format!(
+                                "{} of {}; {} ({}, {}, {})",
+                                mib(a.used_bytes),
+                                mib(a.texture_bytes),
+                                a.volumes,
+                                a.bricked,
+                                a.downsampled,
+                                a.skipped
+                            )
+                        })
+                    })
+                    .collect(),
+            );
+        }
         md.push('\n');
         busiest_systems(&mut md, &runs);
     }
