@@ -96,65 +96,90 @@ pub fn brick_grid(dims: UVec3) -> UVec3 {
     (dims.max(UVec3::splat(2)) - UVec3::ONE + UVec3::splat(BRICK_SPAN - 1)) / BRICK_SPAN
 }
 
+/// The bricks of slab `bz` (every brick with that z index, x fastest) of `volume`'s brick
+/// grid `grid`: stored ones numbered from 0 within the slab, with their samples.
+fn scan_slab(volume: &SdfVolume, grid: UVec3, bz: u32, band: f32) -> (Vec<Brick>, Vec<f16>) {
+    let dims = volume.dims;
+    let mut bricks = Vec::with_capacity((grid.x * grid.y) as usize);
+    let mut samples = Vec::new();
+    let mut brick = vec![f16::ZERO; BRICK_LEN];
+    let last = dims - UVec3::ONE;
+    let row_len = BRICK_SAMPLES as usize;
+    for by in 0..grid.y {
+        for bx in 0..grid.x {
+            let base = UVec3::new(bx, by, bz) * BRICK_SPAN;
+            // The brick's samples, x fastest, a row at a time (past the grid's far faces,
+            // the face's sample); the least magnitude and the signs from the half-float
+            // bits (a NaN counts as neither sign, never least).
+            let mut least = f16::INFINITY;
+            let mut least_magnitude = f16::INFINITY.to_bits();
+            let (mut negative, mut positive) = (false, false);
+            let whole_rows = base.x + BRICK_SAMPLES <= dims.x;
+            for (r, out) in brick.chunks_exact_mut(row_len).enumerate() {
+                let r = r as u32;
+                let y = (base.y + r % BRICK_SAMPLES).min(last.y);
+                let z = (base.z + r / BRICK_SAMPLES).min(last.z);
+                let row = volume.index(0, y, z);
+                if whole_rows {
+                    let start = row + base.x as usize;
+                    out.copy_from_slice(&volume.data[start..start + row_len]);
+                } else {
+                    for (x, s) in out.iter_mut().enumerate() {
+                        *s = volume.data[row + (base.x + x as u32).min(last.x) as usize];
+                    }
+                }
+                for s in out.iter() {
+                    let bits = s.to_bits();
+                    let magnitude = bits & 0x7fff;
+                    if magnitude > f16::INFINITY.to_bits() {
+                        continue;
+                    }
+                    let below = bits & 0x8000 != 0 && magnitude != 0;
+                    negative |= below;
+                    positive |= !below;
+                    if magnitude < least_magnitude {
+                        least_magnitude = magnitude;
+                        least = *s;
+                    }
+                }
+            }
+            // A NaN band stores every brick.
+            let near = least.to_f32().abs() < band || band.is_nan();
+            if near || (negative && positive) {
+                bricks.push(Brick::Stored((samples.len() / BRICK_LEN) as u32));
+                samples.extend_from_slice(&brick);
+            } else {
+                bricks.push(Brick::Empty(least));
+            }
+        }
+    }
+    (bricks, samples)
+}
+
 impl BrickedVolume {
     /// The bricks of `volume` that lie within `band` voxels of its surface (module docs).
     pub fn from_volume(volume: &SdfVolume, band: f32) -> BrickedVolume {
         let dims = volume.dims;
         let grid = brick_grid(dims);
+        // One slab of bricks (a z row of the brick grid) per task, joined in order: the
+        // same bricks for any thread count.
+        let slab = |bz| scan_slab(volume, grid, bz, band);
+        #[cfg(feature = "bake")]
+        let slabs: Vec<(Vec<Brick>, Vec<f16>)> = {
+            use rayon::prelude::*;
+            (0..grid.z).into_par_iter().map(slab).collect()
+        };
+        #[cfg(not(feature = "bake"))]
+        let slabs: Vec<(Vec<Brick>, Vec<f16>)> = (0..grid.z).map(slab).collect();
         let mut bricks = Vec::with_capacity((grid.x * grid.y * grid.z) as usize);
-        let mut samples = Vec::new();
-        let mut brick = vec![f16::ZERO; BRICK_LEN];
-        let last = dims - UVec3::ONE;
-        let row_len = BRICK_SAMPLES as usize;
-        for bz in 0..grid.z {
-            for by in 0..grid.y {
-                for bx in 0..grid.x {
-                    let base = UVec3::new(bx, by, bz) * BRICK_SPAN;
-                    // The brick's samples, x fastest, a row at a time (past the grid's far
-                    // faces, the face's sample); the least magnitude and the signs from
-                    // the half-float bits (a NaN counts as neither sign, never least).
-                    let mut least = f16::INFINITY;
-                    let mut least_magnitude = f16::INFINITY.to_bits();
-                    let (mut negative, mut positive) = (false, false);
-                    let whole_rows = base.x + BRICK_SAMPLES <= dims.x;
-                    for (r, out) in brick.chunks_exact_mut(row_len).enumerate() {
-                        let r = r as u32;
-                        let y = (base.y + r % BRICK_SAMPLES).min(last.y);
-                        let z = (base.z + r / BRICK_SAMPLES).min(last.z);
-                        let row = volume.index(0, y, z);
-                        if whole_rows {
-                            let start = row + base.x as usize;
-                            out.copy_from_slice(&volume.data[start..start + row_len]);
-                        } else {
-                            for (x, s) in out.iter_mut().enumerate() {
-                                *s = volume.data[row + (base.x + x as u32).min(last.x) as usize];
-                            }
-                        }
-                        for s in out.iter() {
-                            let bits = s.to_bits();
-                            let magnitude = bits & 0x7fff;
-                            if magnitude > f16::INFINITY.to_bits() {
-                                continue;
-                            }
-                            let below = bits & 0x8000 != 0 && magnitude != 0;
-                            negative |= below;
-                            positive |= !below;
-                            if magnitude < least_magnitude {
-                                least_magnitude = magnitude;
-                                least = *s;
-                            }
-                        }
-                    }
-                    // A NaN band stores every brick.
-                    let near = least.to_f32().abs() < band || band.is_nan();
-                    if near || (negative && positive) {
-                        bricks.push(Brick::Stored((samples.len() / BRICK_LEN) as u32));
-                        samples.extend_from_slice(&brick);
-                    } else {
-                        bricks.push(Brick::Empty(least));
-                    }
-                }
-            }
+        let mut samples = Vec::with_capacity(slabs.iter().map(|s| s.1.len()).sum());
+        for (slab_bricks, slab_samples) in slabs {
+            let first = (samples.len() / BRICK_LEN) as u32;
+            bricks.extend(slab_bricks.into_iter().map(|b| match b {
+                Brick::Stored(i) => Brick::Stored(first + i),
+                empty => empty,
+            }));
+            samples.extend_from_slice(&slab_samples);
         }
         let cd = grid + UVec3::ONE;
         let mut coarse = Vec::with_capacity((cd.x * cd.y * cd.z) as usize);
