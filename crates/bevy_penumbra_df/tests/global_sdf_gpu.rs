@@ -9,7 +9,8 @@
 //! that forgets the conservative quantum differs in 3 texels of 4) — composed whole,
 //! then after the camera moves and a caster moves
 //! (only the bricks the update hands out are recomposed on both sides), near the origin
-//! and 10⁵ m away; a heightfield (hills across the scene, `df/heightfield.wgsl`) joins
+//! and 10⁵ m away, and with the torus occluding and placed as sparse bricks (read
+//! through the brick table; reading it as dense differs by 3 steps in 239 texels); a heightfield (hills across the scene, `df/heightfield.wgsl`) joins
 //! the objects (`compose_records_and_terrain`), and changes thousands of texels. And DFAO's far-field march (`df/global_field.wgsl`) through the
 //! composed clipmaps equals the model's (`penumbra_reference::dfao::march_field`) per
 //! cone (on lavapipe to the last bit; forgetting the dilation in the penumbra, the
@@ -157,7 +158,10 @@ fn check(name: &str, offset: Vec3) {
     if !gpu_or_skip(name) {
         return;
     }
-    let mut scene = scene(offset);
+    check_scene(name, offset, scene(offset));
+}
+
+fn check_scene(name: &str, offset: Vec3, mut scene: Scene) {
     // Two levels of 32³ (64 bricks each), 0.2 and 0.4 m texels.
     let layout = ClipmapLayout::new(2, 32, 6.4, 2.0).0;
     let terrain = hills(offset);
@@ -230,6 +234,40 @@ fn compose_pass_matches_the_model() {
 #[test]
 fn compose_pass_matches_the_model_far_from_the_origin() {
     check("global_sdf_gpu_far", Vec3::new(1.0e5, 0.0, -1.0e5));
+}
+
+/// The scene's torus occluding (so composed), baked at 72 samples and placed as sparse
+/// bricks: the compose pass reads it through the brick table as the model does, and it
+/// shapes the field (thousands of texels differ from the field without it).
+#[test]
+fn compose_pass_matches_the_model_with_a_bricked_torus() {
+    let name = "global_sdf_gpu_bricked";
+    if !gpu_or_skip(name) {
+        return;
+    }
+    let scene = support::scene_with_torus(Vec3::ZERO, 72, true, None);
+    assert_ne!(scene.records[4].flags() & flags::BRICKED, 0);
+    let layout = ClipmapLayout::new(2, 32, 6.4, 2.0).0;
+    let jobs = ClipmapState::new(layout)
+        .update(Vec3::new(0.3, 1.5, 0.2), &[], usize::MAX)
+        .jobs;
+    let (mut with, mut without) = (
+        GlobalField::new(layout, ClipmapFormat::Unorm8),
+        GlobalField::new(layout, ClipmapFormat::Unorm8),
+    );
+    let mut others = scene.records.clone();
+    others.remove(4);
+    for &j in &jobs {
+        with.compose_records(j, &scene.records, &scene.atlas);
+        without.compose_records(j, &others, &scene.atlas);
+    }
+    let torus_texels = (with.texels.iter().flatten())
+        .zip(without.texels.iter().flatten())
+        .filter(|(a, b)| (*a - *b).abs() > 0.05)
+        .count();
+    eprintln!("{name}: {torus_texels} texels from the torus");
+    assert!(torus_texels > 1000, "{torus_texels}");
+    check_scene(name, Vec3::ZERO, scene);
 }
 
 fn entry(binding: u32, b: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {

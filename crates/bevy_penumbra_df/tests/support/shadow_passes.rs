@@ -59,6 +59,17 @@ pub fn bricked_scene(offset: Vec3) -> Scene {
 /// [`scene`] with its torus baked at `samples` along its longest axis, dense or placed
 /// as sparse bricks.
 pub fn scene_with(offset: Vec3, samples: u32, bricked: bool) -> Scene {
+    scene_with_torus(offset, samples, bricked, Some(0.4))
+}
+
+/// [`scene_with`], the torus letting `ao_transmission` of the sky through in DFAO
+/// (`None`: it occludes, so that the global field composes it too).
+pub fn scene_with_torus(
+    offset: Vec3,
+    samples: u32,
+    bricked: bool,
+    ao_transmission: Option<f32>,
+) -> Scene {
     let torus = bake(
         &shapes::torus(0.5, 0.18, 48, 24),
         &BakeSettings::longest_axis(samples),
@@ -155,7 +166,7 @@ pub fn scene_with(offset: Vec3, samples: u32, bricked: bool) -> Scene {
             ),
             shape: torus_shape,
             // Foliage-like: lets 40 % of the sky through in DFAO (shadows ignore it).
-            flags: live | flags::TWO_SIDED | flags::ao_transmission_bits(0.4),
+            flags: live | flags::TWO_SIDED | ao_transmission.map_or(0, flags::ao_transmission_bits),
         },
         ObjectDesc {
             world_from_local: at(Vec3::new(0.9, 2.6, 1.0)),
