@@ -1,6 +1,7 @@
 //! The distance-field scene's main-world behaviour (no GPU): mesh casters are baked
-//! once per mesh and share one atlas placement, freed space is reused, an over-budget
-//! atlas falls back to half resolution and then skips with a warning, bad transforms
+//! once per mesh and share one atlas placement, freed space is reused, a volume that
+//! finds no free box goes bricked, an over-budget atlas falls back to half resolution
+//! and then skips with a warning, large volumes go bricked, bad transforms
 //! are skipped, uploads follow changes only ("skip what is not needed"), and the memory
 //! of a 1,000-instance / 50-asset scene.
 

@@ -14,11 +14,11 @@
 //!   ones two-sided).
 //! - Every SDF in use is placed once in a 3D `R16Float` **atlas** under a memory budget
 //!   ([`DistanceFieldSceneSettings::atlas_budget_bytes`]); freed space is reused. When a
-//!   volume does not fit, one warning is logged and the volume is placed as sparse
-//!   bricks at full resolution if they fit (a near-cube pool fits between volumes where
-//!   a wide slab does not), else halved in resolution (up to twice); if it still does
-//!   not fit its casters are skipped until atlas space is freed (then tried again; a
-//!   volume placed at reduced resolution stays so).
+//!   volume does not fit, it is placed as sparse bricks at full resolution if they fit
+//!   (a near-cube pool fits between volumes where a wide slab does not); else one
+//!   warning is logged and the volume is halved in resolution (up to twice); if it still
+//!   does not fit its casters are skipped until atlas space is freed (then tried again;
+//!   a volume placed at reduced resolution stays so).
 //!   Large volumes ([`DistanceFieldSceneSettings::sparse_min_bytes`]) are placed as
 //!   sparse bricks: only the 8³ bricks near the surface, a coarse grid for the rest, and
 //!   their entries in a brick table the passes bind beside the atlas
