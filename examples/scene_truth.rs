@@ -46,6 +46,10 @@ pub struct DumpCheck {
     /// darkens them, ray tracing lights them, and shading (`n · l ≤ 0` with that
     /// normal) leaves them unlit either way. `None` without a sun or a `normal` buffer.
     pub shading_turned_away: Option<f64>,
+    /// Of the sun's error on shadowed pixels, the share on pixels where the camera sees a
+    /// triangle's back (an open double-sided sheet's underside, as at a terrain's cut
+    /// edge): a solid field has its inside there. `None` without a sun.
+    pub back_faces: Option<f64>,
 }
 
 fn vec3(v: &serde_json::Value) -> Option<Vec3> {
@@ -151,6 +155,10 @@ pub fn check_dump(dir: &Path, facing: Facing, write: bool) -> Result<DumpCheck, 
                 turned_away,
             ));
         }
+        let back = |i: usize| hits[i].is_some_and(|h| h.back);
+        check.back_faces = Some(scene_truth::shadowed_error_share(
+            &ours, &truth, &depth, back,
+        ));
         check.lit = (mean_where(&ours, surface), mean_where(&truth, surface));
         if write {
             npy::write_f32(
@@ -214,6 +222,7 @@ fn main() {
                     "triangles": c.triangles,
                     "atlas_used_bytes": c.atlas_used_bytes,
                     "shading_turned_away": c.shading_turned_away.map(round),
+                    "back_faces": c.back_faces.map(round),
                 })
             );
         }

@@ -163,8 +163,8 @@ fn every_shared_scene_shadows_and_occludes_as_ray_tracing_says() {
     let out = output_dir().join("scene_corpus");
     std::fs::create_dir_all(&out).unwrap();
     let mut table = String::from(
-        "| scene | shadows: shadowed px | of it, shading normal turned away | shadows: all px | lit ours / truth | DFAO | AO ours / truth | atlas KiB | meets #45 |\n\
-         |---|---|---|---|---|---|---|---|---|\n",
+        "| scene | shadows: shadowed px | of it, shading normal turned away | of it, back faces seen | shadows: all px | lit ours / truth | DFAO | AO ours / truth | atlas KiB | meets #45 |\n\
+         |---|---|---|---|---|---|---|---|---|---|\n",
     );
     let mut failures = Vec::new();
     for case in CORPUS {
@@ -204,10 +204,11 @@ fn every_shared_scene_shadows_and_occludes_as_ray_tracing_says() {
         };
         writeln!(
             table,
-            "| {} | {:.3} | {:.0} % | {:.3} | {:.2} / {:.2} | {:.3} | {:.2} / {:.2} | {:.0} | {} |",
+            "| {} | {:.3} | {:.0} % | {:.0} % | {:.3} | {:.2} / {:.2} | {:.3} | {:.2} / {:.2} | {:.0} | {} |",
             case.label(),
             got.shadowed,
             check.shading_turned_away.unwrap_or(0.0) * 100.0,
+            check.back_faces.unwrap_or(0.0) * 100.0,
             got.all,
             check.lit.0,
             check.lit.1,

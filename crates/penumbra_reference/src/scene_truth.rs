@@ -162,6 +162,9 @@ pub struct SurfaceHit {
     pub normal: Vec3,
     /// The normal shadows test against ([`Facing`]).
     pub shadow_normal: Vec3,
+    /// The camera sees the triangle's back (a double-sided one, or any with
+    /// [`Facing::AllFaces`]): an open sheet's underside.
+    pub back: bool,
 }
 
 /// Per pixel (row-major, row 0 at the top), the first surface the camera ray sees.
@@ -198,6 +201,7 @@ fn primary_hit(scene: &SceneTriangles, eye: Vec3, dir: Vec3, facing: Facing) -> 
             depth: t,
             position: eye + dir * t,
             normal: toward_camera,
+            back: face.dot(dir) > 0.0,
             shadow_normal: match facing {
                 Facing::Raster => toward_camera,
                 Facing::AllFaces => face,

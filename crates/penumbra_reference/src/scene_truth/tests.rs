@@ -47,6 +47,7 @@ fn at(position: Vec3) -> Option<SurfaceHit> {
         position,
         normal: Vec3::Y,
         shadow_normal: Vec3::Y,
+        back: false,
     })
 }
 
@@ -83,6 +84,7 @@ fn a_square_casts_its_shadow_and_half_the_sun_reaches_its_edge() {
         position: Vec3::new(3.0, 0.0, 0.0),
         normal: -Vec3::Y,
         shadow_normal: -Vec3::Y,
+        back: false,
     })];
     assert_eq!(sun_visibility(&s, &hits, -Vec3::Y, angle, 64)[0], 0.0);
 }
@@ -121,10 +123,13 @@ fn the_raster_camera_sees_past_culled_back_faces_and_turns_double_sided_ones() {
     let hit = centre(Facing::Raster, false);
     assert!((hit.depth - 5.0).abs() < 1e-2, "{hit:?}");
     assert_eq!(hit.shadow_normal, Vec3::Y);
-    // Double-sided: seen, its normal turned to the camera for shading and shadows.
+    assert!(!hit.back, "the floor's front");
+    // Double-sided: seen, its normal turned to the camera for shading and shadows, and
+    // known to be its back.
     let hit = centre(Facing::Raster, true);
     assert!((hit.depth - 4.0).abs() < 1e-2, "{hit:?}");
     assert!(hit.normal.abs_diff_eq(Vec3::Y, 1e-5) && hit.shadow_normal == hit.normal);
+    assert!(hit.back);
     // The oracles' convention: every face is seen; shadows test the face's own normal.
     let hit = centre(Facing::AllFaces, false);
     assert!((hit.depth - 4.0).abs() < 1e-2, "{hit:?}");
