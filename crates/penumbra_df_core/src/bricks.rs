@@ -113,15 +113,13 @@ pub fn layout(
                     next / (blocks.x * blocks.y),
                 );
                 let src = samples.get(len * next as usize..)?.get(..len)?;
-                for (n, &h) in src.iter().enumerate() {
-                    let n = n as u32;
-                    let v = b * BRICK_SAMPLES
-                        + UVec3::new(
-                            n % BRICK_SAMPLES,
-                            (n / BRICK_SAMPLES) % BRICK_SAMPLES,
-                            n / (BRICK_SAMPLES * BRICK_SAMPLES),
-                        );
-                    pool[(v.x + pool_dims.x * (v.y + pool_dims.y * v.z)) as usize] = h;
+                // A row of the brick (x fastest) is a row of the pool.
+                let row = BRICK_SAMPLES as usize;
+                for (r, src_row) in src.chunks_exact(row).enumerate() {
+                    let r = r as u32;
+                    let v = b * BRICK_SAMPLES + UVec3::new(0, r % BRICK_SAMPLES, r / BRICK_SAMPLES);
+                    let start = (v.x + pool_dims.x * (v.y + pool_dims.y * v.z)) as usize;
+                    pool[start..start + row].copy_from_slice(src_row);
                 }
                 next += 1;
                 stored_entry(first + b)?
