@@ -668,17 +668,30 @@ fn place_volume(
         region,
         data: volume.data.iter().map(|h| h.to_bits()).collect(),
     });
+    Some(insert_placed(scene, id, &volume, region, region.dims, None))
+}
+
+/// Records `volume` (asset `id`) as placed at `region` (its pool when bricked, with its
+/// `table` range and coarse grid) with one user.
+fn insert_placed(
+    scene: &mut DistanceFieldScene,
+    id: AssetId<SdfVolumeAsset>,
+    volume: &penumbra_sdf::SdfVolume,
+    region: AtlasRegion,
+    dims: UVec3,
+    table: Option<(std::ops::Range<u32>, AtlasRegion)>,
+) -> PlacedVolume {
     let placed = PlacedVolume {
         region,
-        dims: region.dims,
-        table: None,
+        dims,
+        table,
         local_origin: volume.origin.as_vec3(),
         margin: volume.margin,
         voxel_size: volume.voxel_size,
         users: 1,
     };
     scene.volumes.insert(id, placed.clone());
-    Some(placed)
+    placed
 }
 
 /// Places `volume` (asset `id`) as sparse bricks when `placement` allows and it fits
@@ -700,17 +713,8 @@ fn place_as_bricks(
         data: b.coarse_texels,
     });
     scene.bricked += 1;
-    let placed = PlacedVolume {
-        region: b.pool,
-        dims: volume.dims,
-        table: Some((b.table, b.coarse)),
-        local_origin: volume.origin.as_vec3(),
-        margin: volume.margin,
-        voxel_size: volume.voxel_size,
-        users: 1,
-    };
-    scene.volumes.insert(id, placed.clone());
-    Some(placed)
+    let table = Some((b.table, b.coarse));
+    Some(insert_placed(scene, id, volume, b.pool, volume.dims, table))
 }
 
 /// The shape a caster's record gets now, placing its SDF in the atlas if needed (and
