@@ -154,6 +154,14 @@ fn compare(
     (worst, apart, count)
 }
 
+/// Texels where two models' fields differ by more than 0.05 m: what one caster adds.
+fn texels_apart(a: &GlobalField, b: &GlobalField) -> usize {
+    (a.texels.iter().flatten())
+        .zip(b.texels.iter().flatten())
+        .filter(|(x, y)| (*x - *y).abs() > 0.05)
+        .count()
+}
+
 fn check(name: &str, offset: Vec3) {
     if !gpu_or_skip(name) {
         return;
@@ -195,10 +203,7 @@ fn check_scene(name: &str, offset: Vec3, mut scene: Scene) {
     for &j in &jobs {
         objects_only.compose_records(j, &scene.records, &scene.atlas);
     }
-    let terrain_texels = (model.texels.iter().flatten())
-        .zip(objects_only.texels.iter().flatten())
-        .filter(|(a, b)| (*a - *b).abs() > 0.05)
-        .count();
+    let terrain_texels = texels_apart(&model, &objects_only);
     eprintln!("{name}: {terrain_texels} texels from the terrain");
     assert!(terrain_texels > 5000, "{terrain_texels}");
 
@@ -261,10 +266,7 @@ fn compose_pass_matches_the_model_with_a_bricked_torus() {
         with.compose_records(j, &scene.records, &scene.atlas);
         without.compose_records(j, &others, &scene.atlas);
     }
-    let torus_texels = (with.texels.iter().flatten())
-        .zip(without.texels.iter().flatten())
-        .filter(|(a, b)| (*a - *b).abs() > 0.05)
-        .count();
+    let torus_texels = texels_apart(&with, &without);
     eprintln!("{name}: {torus_texels} texels from the torus");
     assert!(torus_texels > 1000, "{torus_texels}");
     check_scene(name, Vec3::ZERO, scene);
