@@ -11,6 +11,9 @@
 //!   points — checked against the model on the strands' fully covered rows. The second
 //!   entity's points sit after the first's in Bevy's vertex slab (a point index that
 //!   ignored the mesh's first vertex would read the first entity's).
+//! - **Bricked volumes.** The sphere as a volume placed as sparse bricks gives the
+//!   points the visibility it gives placed dense (the hair's pass binds the scene's
+//!   brick table; bound empty, the points are off by up to 0.65).
 //! - **Shadow maps.** The hair carries `ReadsNoShadowMaps` (the sun's shadow map is not
 //!   kept for it), beside five more distance-field-shadowed point lights out of its reach
 //!   (more lights than it takes, none of which lights it).
@@ -21,6 +24,7 @@ mod hair_scene;
 use hair_scene::*;
 
 use bevy::light::GlobalAmbientLight;
+use bevy::math::DVec3;
 use bevy::prelude::*;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy_penumbra_cinematic::hair::{
@@ -29,13 +33,15 @@ use bevy_penumbra_cinematic::hair::{
 };
 use bevy_penumbra_df::{
     CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldScenePlugin,
-    DistanceFieldShadows, DistanceFieldShadowsPlugin, PenumbraLightingPlugin, ReadsNoShadowMaps,
-    SdfAssetPlugin,
+    DistanceFieldSceneSettings, DistanceFieldShadows, DistanceFieldShadowsPlugin,
+    DistanceFieldUploadStats, PenumbraLightingPlugin, ReadsNoShadowMaps, SdfAssetPlugin,
+    SdfVolumeAsset,
 };
 use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind};
 use penumbra_reference::df::Atlas;
 use penumbra_reference::shadow_mask::pixel_visibility;
+use penumbra_sdf::SdfVolume;
 use penumbra_test::{CaptureFormat, HeadlessRender, KeptApp, gpu_or_skip};
 
 const SIZE: u32 = 64;
@@ -74,8 +80,39 @@ struct ReadBack(Option<Vec<u8>>);
 #[derive(Resource)]
 struct Entities([Entity; 2]);
 
-fn scene(df: bool) -> impl FnMut(Commands, ResMut<Assets<HairStrands>>) {
-    move |mut commands, mut strands| {
+/// The caster: the analytic sphere, or the same sphere as a volume placed in the atlas
+/// dense or as sparse bricks.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum SphereAs {
+    Analytic,
+    Volume { bricked: bool },
+}
+
+/// The sphere as a volume: its exact distance every 0.25 units in a box reaching 1.6
+/// radii from its centre, so that most of the grid's 8³ bricks lie far from the surface
+/// (a fifth of them are stored: it bricks when allowed).
+fn sphere_volume() -> SdfVolumeAsset {
+    let (half, voxel) = (1.6 * RADIUS, 0.25);
+    let n = (2.0 * half / voxel) as u32 + 1;
+    let distances = (0..n * n * n).map(|i| {
+        let c = UVec3::new(i % n, (i / n) % n, i / (n * n));
+        (c.as_vec3() * voxel - half).length() - RADIUS
+    });
+    SdfVolumeAsset {
+        volume: SdfVolume::from_distances(
+            UVec3::splat(n),
+            DVec3::splat(-f64::from(half)),
+            voxel,
+            distances,
+        ),
+    }
+}
+
+fn scene(
+    df: bool,
+    sphere: SphereAs,
+) -> impl FnMut(Commands, ResMut<Assets<HairStrands>>, ResMut<Assets<SdfVolumeAsset>>) {
+    move |mut commands, mut strands, mut sdfs| {
         let mut hairs = [Entity::PLACEHOLDER; 2];
         for (k, hair) in hairs.iter_mut().enumerate() {
             let rows = ROWS.iter().skip(k).step_by(2).map(|&r| strand(r)).collect();
@@ -111,9 +148,13 @@ fn scene(df: bool) -> impl FnMut(Commands, ResMut<Assets<HairStrands>>) {
                 ));
             }
         }
+        let source = match sphere {
+            SphereAs::Analytic => CasterSource::Sphere { radius: RADIUS },
+            SphereAs::Volume { .. } => CasterSource::Sdf(sdfs.add(sphere_volume())),
+        };
         commands.spawn((
             DistanceFieldCaster {
-                source: CasterSource::Sphere { radius: RADIUS },
+                source,
                 ..default()
             },
             Transform::from_translation(SPHERE),
@@ -148,11 +189,11 @@ fn word(bytes: &[u8], i: usize) -> u32 {
 }
 
 fn render(df: bool) -> (Vec<[f32; 4]>, KeptApp) {
-    render_with(df, true)
+    render_with(df, true, SphereAs::Analytic)
 }
 
 /// [`render`]; `pipelined: false` keeps the render world reachable.
-fn render_with(df: bool, pipelined: bool) -> (Vec<[f32; 4]>, KeptApp) {
+fn render_with(df: bool, pipelined: bool, sphere: SphereAs) -> (Vec<[f32; 4]>, KeptApp) {
     let mut harness = HeadlessRender::new(SIZE, SIZE)
         .format(CaptureFormat::LinearF16)
         .frames(4);
@@ -179,8 +220,15 @@ fn render_with(df: bool, pipelined: bool) -> (Vec<[f32; 4]>, KeptApp) {
         brightness: 0.0,
         ..default()
     })
+    .insert_resource(DistanceFieldSceneSettings {
+        sparse_min_bytes: match sphere {
+            SphereAs::Volume { bricked: true } => 0,
+            _ => u64::MAX,
+        },
+        ..default()
+    })
     .init_resource::<ReadBack>()
-    .add_systems(Startup, scene(df))
+    .add_systems(Startup, scene(df, sphere))
     .add_systems(Update, read_back);
     let (capture, app) = harness.run_keeping_app(app).expect("renders");
     (capture.to_linear(), app)
@@ -329,6 +377,55 @@ fn hair_takes_distance_field_shadows() {
     assert!(mean < 2e-3 && diffs[n - 1] < 0.02, "mean {mean}");
 }
 
+/// The first hair entity's traced visibilities (its points, strand by strand).
+fn traced_points(app: &App) -> Vec<f32> {
+    let bytes = app
+        .world()
+        .resource::<ReadBack>()
+        .0
+        .clone()
+        .expect("read back");
+    let n = word(&bytes, 1) as usize;
+    (0..n)
+        .map(|i| f32::from_bits(word(&bytes, HAIR_SHADOWS_HEADER_BYTES / 4 + 4 * i)))
+        .collect()
+}
+
+/// With the sphere's volume placed as sparse bricks, the hair's visibility equals that
+/// of the same field placed dense (the brick table bound, read through it), but where a
+/// penumbra reads an empty brick's lower bound.
+#[test]
+fn hair_reads_bricked_volumes() {
+    if !gpu_or_skip("hair_reads_bricked_volumes") {
+        return;
+    }
+    let bricked_of = |app: &App| {
+        app.world()
+            .resource::<DistanceFieldUploadStats>()
+            .atlas_bricked
+    };
+    let (_, dense_app) = render_with(true, true, SphereAs::Volume { bricked: false });
+    let (_, bricked_app) = render_with(true, true, SphereAs::Volume { bricked: true });
+    assert_eq!((bricked_of(&dense_app), bricked_of(&bricked_app)), (0, 1));
+    let (dense, bricked) = (traced_points(&dense_app), traced_points(&bricked_app));
+    assert_eq!(dense.len(), bricked.len());
+    let shadowed = dense.iter().filter(|&&v| v < 0.5).count();
+    let diffs: Vec<f32> = dense
+        .iter()
+        .zip(&bricked)
+        .map(|(a, b)| (a - b).abs())
+        .collect();
+    let mean = diffs.iter().sum::<f32>() / diffs.len() as f32;
+    let max = diffs.iter().copied().fold(0.0, f32::max);
+    println!(
+        "{} points ({shadowed} shadowed by the dense sphere): |bricked − dense| mean {mean:.2e}, \
+         max {max:.2e}",
+        dense.len()
+    );
+    assert!(shadowed >= 10, "{shadowed}");
+    assert!(mean < 2e-3 && max < 0.05, "mean {mean}, max {max}");
+}
+
 /// The cost measurement's scene: `strands` strands of 9 points (16 triangles) scattered
 /// over a 512² view, `casters` spheres on a grid above them, the sun with or without
 /// `DistanceFieldShadows`.
@@ -347,7 +444,7 @@ fn still_hair_is_not_traced_again() {
     if !gpu_or_skip("still_hair_is_not_traced_again") {
         return;
     }
-    let (_, mut app) = render_with(true, false);
+    let (_, mut app) = render_with(true, false, SphereAs::Analytic);
     let traces = |app: &App| {
         app.sub_app(bevy::render::RenderApp)
             .world()

@@ -11,6 +11,7 @@
 //! - The texture array is written layer by layer (a changed image uploads one layer).
 //! - `RenderLayers`: a camera reflects only the billboards sharing its layers.
 //! - Deferred MSAA: the layer equals the single-sample camera's off the edges.
+//! - A wall placed as sparse bricks shadows as the same wall dense.
 
 mod reflections_scene;
 use reflections_scene::*;
@@ -78,6 +79,48 @@ fn the_layer_matches_the_model() {
         }
         assert!(mean < 2e-3 && worst < 0.05, "mean {mean}, worst {worst}");
     }
+}
+
+/// The wall as a volume placed as sparse bricks shadows the reflections as the same
+/// volume placed dense does (the pass binds the scene's brick table and reads through
+/// it), and the dense volume as the analytic wall does.
+#[test]
+fn a_bricked_wall_shadows_reflections_as_a_dense_one() {
+    if !gpu_or_skip("a_bricked_wall_shadows_reflections_as_a_dense_one") {
+        return;
+    }
+    let layer = |wall_volume| {
+        let setup = Setup {
+            wall: true,
+            wall_volume,
+            ..default()
+        };
+        let (image, app) = render(setup);
+        let stats = app
+            .world()
+            .resource::<bevy_penumbra_df::DistanceFieldUploadStats>()
+            .clone();
+        (image, (stats.atlas_volumes, stats.atlas_bricked))
+    };
+    let (analytic, _) = layer(None);
+    let (dense, dense_stats) = layer(Some(false));
+    let (bricked, bricked_stats) = layer(Some(true));
+    assert_eq!((dense_stats, bricked_stats), ((1, 0), (1, 1)));
+    let as_model = |image: &[[f32; 4]]| -> Vec<Option<Vec4>> {
+        image.iter().map(|p| Some(Vec4::from_array(*p))).collect()
+    };
+    let (mean, worst, n, lit) = compare(&bricked, &as_model(&dense));
+    let (analytic_mean, analytic_worst, ..) = compare(&dense, &as_model(&analytic));
+    let unshadowed = render(Setup::default()).0;
+    let (shadow_mean, ..) = compare(&dense, &as_model(&unshadowed));
+    println!(
+        "{n} pixels, {lit} reflecting: |bricked − dense| mean {mean:.2e}, worst {worst:.2e}; \
+         |dense − analytic wall| mean {analytic_mean:.2e}, worst {analytic_worst:.2e}; \
+         without the wall they differ by {shadow_mean:.2e}"
+    );
+    assert!(shadow_mean > 0.01, "the wall changes the layer");
+    assert!(mean < 1e-3 && worst < 0.05, "mean {mean}, worst {worst}");
+    assert!(analytic_mean < 0.1 * shadow_mean, "{analytic_mean}");
 }
 
 /// Bevy's `F_AB` (the polynomial: Penumbra's lighting pass does not bind the DFG LUT).

@@ -21,8 +21,9 @@ use bevy_penumbra_cinematic::{
     BillboardReflections, BillboardReflectionsPlugin, ReflectionBillboard, ReflectionDebugView,
 };
 use bevy_penumbra_df::{
-    CasterSource, DeferredMsaa, DistanceFieldCaster, DistanceFieldScenePlugin, PenumbraLighting,
-    PenumbraLightingPlugin, SdfAssetPlugin,
+    CasterSource, DeferredMsaa, DistanceFieldCaster, DistanceFieldScenePlugin,
+    DistanceFieldSceneSettings, PenumbraLighting, PenumbraLightingPlugin, SdfAssetPlugin,
+    SdfVolumeAsset,
 };
 use penumbra_cinematic_core::reflections::Billboard;
 use penumbra_cinematic_core::reflections::pass::{
@@ -30,6 +31,7 @@ use penumbra_cinematic_core::reflections::pass::{
 };
 use penumbra_cinematic_core::reflections::texture::MipChain;
 use penumbra_reference::camera::PerspectiveCamera;
+use penumbra_sdf::SdfVolume;
 use penumbra_test::{CaptureFormat, HeadlessRender, KeptApp};
 
 pub const WIDTH: u32 = 128;
@@ -68,6 +70,9 @@ pub struct Setup {
     pub half_resolution: bool,
     /// The wall (a distance-field caster: reflection shadows).
     pub wall: bool,
+    /// With the wall: the wall as a volume of its exact distances ([`box_volume`]),
+    /// placed as sparse bricks (`true`) or dense, instead of an analytic cuboid.
+    pub wall_volume: Option<bool>,
     /// Billboards added behind the scene's (timing).
     pub extra_billboards: u32,
     /// `BillboardReflections::max_layers`.
@@ -95,6 +100,7 @@ impl Default for Setup {
             anisotropy: 0.0,
             half_resolution: false,
             wall: false,
+            wall_volume: None,
             extra_billboards: 0,
             max_layers: 3,
             tile_culling: true,
@@ -174,11 +180,33 @@ pub fn image_of(texels: &[Vec4]) -> Image {
 }
 
 #[allow(clippy::type_complexity, reason = "a Bevy system's parameters")]
+/// A box of half extents `half` as a volume: its exact distance every 2 cm in a grid
+/// reaching 0.5 m past it (most of the grid's 8³ bricks far from the surface: it bricks
+/// when allowed).
+pub fn box_volume(half: Vec3) -> SdfVolumeAsset {
+    let (reach, voxel) = (half + 0.5, 0.02);
+    let dims = (2.0 * reach / voxel).round().as_uvec3() + UVec3::ONE;
+    let distances = (0..dims.element_product()).map(|i| {
+        let c = UVec3::new(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y));
+        let q = (c.as_vec3() * voxel - reach).abs() - half;
+        q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+    });
+    SdfVolumeAsset {
+        volume: SdfVolume::from_distances(dims, (-reach).as_dvec3(), voxel, distances),
+    }
+}
+
+#[expect(clippy::type_complexity, reason = "a startup system's resources")]
 pub fn scene(
     setup: Setup,
-) -> impl Fn(Commands, ResMut<Assets<Mesh>>, ResMut<Assets<StandardMaterial>>, ResMut<Assets<Image>>)
-{
-    move |mut commands, mut meshes, mut materials, mut images| {
+) -> impl Fn(
+    Commands,
+    ResMut<Assets<Mesh>>,
+    ResMut<Assets<StandardMaterial>>,
+    ResMut<Assets<Image>>,
+    ResMut<Assets<SdfVolumeAsset>>,
+) {
+    move |mut commands, mut meshes, mut materials, mut images, mut sdfs| {
         commands.spawn((
             Mesh3d(
                 meshes.add(
@@ -213,7 +241,12 @@ pub fn scene(
                     })),
                     Transform::from_translation(center),
                     DistanceFieldCaster {
-                        source: CasterSource::Cuboid { half_size: half },
+                        source: match setup.wall_volume {
+                            Some(_) if center == WALL_CENTER => {
+                                CasterSource::Sdf(sdfs.add(box_volume(half)))
+                            }
+                            _ => CasterSource::Cuboid { half_size: half },
+                        },
                         ..default()
                     },
                 ));
@@ -317,6 +350,14 @@ pub fn render_with(setup: Setup, harness: &HeadlessRender) -> (penumbra_test::Ca
     app.insert_resource(DefaultOpaqueRendererMethod::deferred())
         .insert_resource(GlobalAmbientLight {
             brightness: 20.0,
+            ..default()
+        })
+        .insert_resource(DistanceFieldSceneSettings {
+            sparse_min_bytes: if setup.wall_volume == Some(true) {
+                0
+            } else {
+                u64::MAX
+            },
             ..default()
         })
         .add_systems(Startup, scene(setup));
