@@ -1,7 +1,8 @@
 //! The distance-field debug view rendered by Bevy on lavapipe equals the CPU reference
 //! (`penumbra_reference::df::debug_pixel`) of the same scene — analytic casters, a
 //! baked SDF volume in the atlas, rotation and non-uniform scale — in both modes, for
-//! LDR and HDR cameras, for a baked `Mesh3d` caster, and 10⁵ m from the origin.
+//! LDR and HDR cameras, for a baked `Mesh3d` caster, and 10⁵ m from the origin; a volume
+//! placed as sparse bricks is traced as the same volume placed dense.
 
 use bevy::prelude::*;
 use bevy_penumbra_df::{
@@ -359,5 +360,93 @@ fn far_from_the_origin_the_image_is_unchanged() {
     };
     let c = penumbra_test::compare_rgba8(&far, &near, &tolerance);
     println!("far vs near: {c:?}");
+    assert!(c.passed, "{c:?}");
+}
+
+/// A sphere of radius `r` as a volume: its exact distance every `r / 40` in a grid
+/// reaching 1.6 `r` from its centre (most of the grid's 8³ bricks far from the surface:
+/// it bricks when allowed).
+fn sphere_volume(r: f32) -> SdfVolumeAsset {
+    let (reach, voxel) = (1.6 * r, r / 40.0);
+    let n = (2.0 * reach / voxel).round() as u32 + 1;
+    let distances = (0..n * n * n).map(|i| {
+        let c = UVec3::new(i % n, (i / n) % n, i / (n * n));
+        (c.as_vec3() * voxel - reach).length() - r
+    });
+    SdfVolumeAsset {
+        volume: penumbra_sdf::SdfVolume::from_distances(
+            UVec3::splat(n),
+            bevy::math::DVec3::splat(-f64::from(reach)),
+            voxel,
+            distances,
+        ),
+    }
+}
+
+/// A sphere's volume placed as sparse bricks is traced as the same volume placed dense:
+/// the view binds the scene's brick table and reads through it.
+#[test]
+fn bricked_volumes_are_traced_as_dense_ones() {
+    if !gpu_or_skip("bricked_volumes_are_traced_as_dense_ones") {
+        return;
+    }
+    let render = HeadlessRender::new(SIZE, SIZE).frames(4);
+    let image = |sparse_min_bytes: u64| {
+        let mut app = render.app();
+        app.insert_resource(bevy_penumbra_df::DistanceFieldSceneSettings {
+            sparse_min_bytes,
+            ..default()
+        })
+        .add_plugins((
+            SdfAssetPlugin,
+            DistanceFieldScenePlugin,
+            DistanceFieldDebugPlugin,
+        ))
+        .add_systems(
+            Startup,
+            |mut commands: Commands, mut sdfs: ResMut<Assets<SdfVolumeAsset>>| {
+                commands.spawn((
+                    Camera3d::default(),
+                    camera_transform(Vec3::ZERO),
+                    DistanceFieldDebugView {
+                        mode: DistanceFieldDebugMode::Shaded,
+                        max_steps: 64,
+                        max_distance: 40.0,
+                    },
+                ));
+                let caster = |source| DistanceFieldCaster {
+                    source,
+                    ..default()
+                };
+                commands.spawn((caster(CasterSource::Plane), Transform::default()));
+                commands.spawn((
+                    caster(CasterSource::Sdf(sdfs.add(sphere_volume(0.8)))),
+                    Transform::from_xyz(0.2, 0.8, 0.0),
+                ));
+            },
+        );
+        let (capture, app) = render.run_keeping_app(app).expect("render");
+        let stats = app.world().resource::<DistanceFieldUploadStats>().clone();
+        (
+            capture.to_rgba8(),
+            (stats.atlas_volumes, stats.atlas_bricked),
+        )
+    };
+    let (dense, dense_counts) = image(u64::MAX);
+    let (bricked, bricked_counts) = image(0);
+    assert_eq!((dense_counts, bricked_counts), ((1, 0), (1, 1)));
+    let tolerance = penumbra_test::Tolerance {
+        per_pixel: 8,
+        max_differing_fraction: 0.003,
+        max_mean: 0.2,
+        max_p99: 8.0,
+    };
+    let c = penumbra_test::compare_rgba8(&bricked, &dense, &tolerance);
+    println!("bricked vs dense: {c:?}");
+    if !c.passed {
+        let dir = penumbra_test::output_dir();
+        bricked.save(dir.join("df_debug_view_bricked.actual.png")).ok();
+        dense.save(dir.join("df_debug_view_bricked.expected.png")).ok();
+    }
     assert!(c.passed, "{c:?}");
 }
