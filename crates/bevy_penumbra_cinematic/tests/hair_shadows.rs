@@ -24,7 +24,6 @@ mod hair_scene;
 use hair_scene::*;
 
 use bevy::light::GlobalAmbientLight;
-use bevy::math::DVec3;
 use bevy::prelude::*;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy_penumbra_cinematic::hair::{
@@ -39,9 +38,9 @@ use bevy_penumbra_df::{
 };
 use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind};
+use penumbra_reference::analytic_volume;
 use penumbra_reference::df::Atlas;
 use penumbra_reference::shadow_mask::pixel_visibility;
-use penumbra_sdf::SdfVolume;
 use penumbra_test::{CaptureFormat, HeadlessRender, KeptApp, gpu_or_skip};
 
 const SIZE: u32 = 64;
@@ -88,26 +87,6 @@ enum SphereAs {
     Volume { bricked: bool },
 }
 
-/// The sphere as a volume: its exact distance every 0.25 units in a box reaching 1.6
-/// radii from its centre, so that most of the grid's 8³ bricks lie far from the surface
-/// (a fifth of them are stored: it bricks when allowed).
-fn sphere_volume() -> SdfVolumeAsset {
-    let (half, voxel) = (1.6 * RADIUS, 0.25);
-    let n = (2.0 * half / voxel) as u32 + 1;
-    let distances = (0..n * n * n).map(|i| {
-        let c = UVec3::new(i % n, (i / n) % n, i / (n * n));
-        (c.as_vec3() * voxel - half).length() - RADIUS
-    });
-    SdfVolumeAsset {
-        volume: SdfVolume::from_distances(
-            UVec3::splat(n),
-            DVec3::splat(-f64::from(half)),
-            voxel,
-            distances,
-        ),
-    }
-}
-
 fn scene(
     df: bool,
     sphere: SphereAs,
@@ -150,7 +129,11 @@ fn scene(
         }
         let source = match sphere {
             SphereAs::Analytic => CasterSource::Sphere { radius: RADIUS },
-            SphereAs::Volume { .. } => CasterSource::Sdf(sdfs.add(sphere_volume())),
+            SphereAs::Volume { .. } => CasterSource::Sdf(sdfs.add(SdfVolumeAsset {
+                // Most of the grid's 8³ bricks far from the surface: it bricks when
+                // allowed.
+                volume: analytic_volume::sphere(RADIUS, 1.6 * RADIUS, 0.25),
+            })),
         };
         commands.spawn((
             DistanceFieldCaster {

@@ -12,6 +12,7 @@ use bevy_penumbra_df::{
 };
 use penumbra_df_core::cull::{self, CameraOrigin, Frustum};
 use penumbra_df_core::object::{ShapeKind, unpack_10_10_12};
+use penumbra_reference::analytic_volume;
 use penumbra_reference::df::{Atlas, DebugMode, DebugScene, debug_pixel};
 use penumbra_sdf::{BakeSettings, bake, shapes};
 use penumbra_test::{HeadlessRender, gpu_or_skip};
@@ -363,26 +364,6 @@ fn far_from_the_origin_the_image_is_unchanged() {
     assert!(c.passed, "{c:?}");
 }
 
-/// A sphere of radius `r` as a volume: its exact distance every `r / 40` in a grid
-/// reaching 1.6 `r` from its centre (most of the grid's 8³ bricks far from the surface:
-/// it bricks when allowed).
-fn sphere_volume(r: f32) -> SdfVolumeAsset {
-    let (reach, voxel) = (1.6 * r, r / 40.0);
-    let n = (2.0 * reach / voxel).round() as u32 + 1;
-    let distances = (0..n * n * n).map(|i| {
-        let c = UVec3::new(i % n, (i / n) % n, i / (n * n));
-        (c.as_vec3() * voxel - reach).length() - r
-    });
-    SdfVolumeAsset {
-        volume: penumbra_sdf::SdfVolume::from_distances(
-            UVec3::splat(n),
-            bevy::math::DVec3::splat(-f64::from(reach)),
-            voxel,
-            distances,
-        ),
-    }
-}
-
 /// A sphere's volume placed as sparse bricks is traced as the same volume placed dense:
 /// the view binds the scene's brick table and reads through it.
 #[test]
@@ -420,7 +401,11 @@ fn bricked_volumes_are_traced_as_dense_ones() {
                 };
                 commands.spawn((caster(CasterSource::Plane), Transform::default()));
                 commands.spawn((
-                    caster(CasterSource::Sdf(sdfs.add(sphere_volume(0.8)))),
+                    caster(CasterSource::Sdf(sdfs.add(SdfVolumeAsset {
+                        // Most of the grid's 8³ bricks far from the surface: it bricks
+                        // when allowed.
+                        volume: analytic_volume::sphere(0.8, 1.6 * 0.8, 0.8 / 40.0),
+                    }))),
                     Transform::from_xyz(0.2, 0.8, 0.0),
                 ));
             },
@@ -445,8 +430,12 @@ fn bricked_volumes_are_traced_as_dense_ones() {
     println!("bricked vs dense: {c:?}");
     if !c.passed {
         let dir = penumbra_test::output_dir();
-        bricked.save(dir.join("df_debug_view_bricked.actual.png")).ok();
-        dense.save(dir.join("df_debug_view_bricked.expected.png")).ok();
+        bricked
+            .save(dir.join("df_debug_view_bricked.actual.png"))
+            .ok();
+        dense
+            .save(dir.join("df_debug_view_bricked.expected.png"))
+            .ok();
     }
     assert!(c.passed, "{c:?}");
 }

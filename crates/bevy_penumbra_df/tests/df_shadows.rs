@@ -14,11 +14,13 @@ use bevy::light::GlobalAmbientLight;
 use bevy::prelude::*;
 use bevy_penumbra_df::{
     CasterSource, DistanceFieldCaster, DistanceFieldScene, DistanceFieldScenePlugin,
-    DistanceFieldShadows, DistanceFieldShadowsPlugin, PenumbraLighting, PenumbraLightingPlugin,
-    SdfAssetPlugin,
+    DistanceFieldSceneSettings, DistanceFieldShadows, DistanceFieldShadowsPlugin,
+    DistanceFieldUploadStats, PenumbraLighting, PenumbraLightingPlugin, SdfAssetPlugin,
+    SdfVolumeAsset,
 };
 use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::shadow::{ShadowLight, ShadowLightKind};
+use penumbra_reference::analytic_volume;
 use penumbra_reference::camera::PerspectiveCamera;
 use penumbra_reference::df::{Atlas, object_distance};
 use penumbra_reference::shadow_mask::pixel_visibility;
@@ -51,6 +53,11 @@ enum Sphere {
     Hidden,
     /// Hidden, with `cast_hidden_shadow`: a shadow proxy.
     HiddenProxy,
+    /// Visible, casting through a volume of its exact distances
+    /// placed as sparse bricks (`true`) or dense.
+    Volume {
+        bricked: bool,
+    },
 }
 
 fn settings(light: Light) -> DistanceFieldShadows {
@@ -78,12 +85,21 @@ fn render(light: Light, shadows: bool, sphere: Sphere) -> (Vec<[f32; 4]>, KeptAp
     .insert_resource(GlobalAmbientLight {
         brightness: 0.0,
         ..default()
+    })
+    .insert_resource(DistanceFieldSceneSettings {
+        sparse_min_bytes: if sphere == (Sphere::Volume { bricked: true }) {
+            0
+        } else {
+            u64::MAX
+        },
+        ..default()
     });
     app.add_systems(
         Startup,
         move |mut commands: Commands,
               mut meshes: ResMut<Assets<Mesh>>,
-              mut materials: ResMut<Assets<StandardMaterial>>| {
+              mut materials: ResMut<Assets<StandardMaterial>>,
+              mut sdfs: ResMut<Assets<SdfVolumeAsset>>| {
             let matte = materials.add(StandardMaterial {
                 base_color: Color::srgb(0.7, 0.7, 0.7),
                 perceptual_roughness: 1.0,
@@ -104,9 +120,16 @@ fn render(light: Light, shadows: bool, sphere: Sphere) -> (Vec<[f32; 4]>, KeptAp
                 Transform::from_xyz(-0.6, 0.8, -0.4),
                 DistanceFieldCaster {
                     cast_hidden_shadow: sphere == Sphere::HiddenProxy,
-                    ..caster(CasterSource::Sphere { radius: 0.5 })
+                    ..caster(match sphere {
+                        Sphere::Volume { .. } => CasterSource::Sdf(sdfs.add(SdfVolumeAsset {
+                            // Most of the grid's 8³ bricks far from the surface: it bricks
+                            // when allowed.
+                            volume: analytic_volume::sphere(0.5, 1.6 * 0.5, 0.5 / 40.0),
+                        })),
+                        _ => CasterSource::Sphere { radius: 0.5 },
+                    })
                 },
-                if sphere == Sphere::Visible {
+                if matches!(sphere, Sphere::Visible | Sphere::Volume { .. }) {
                     Visibility::Inherited
                 } else {
                     Visibility::Hidden
@@ -315,4 +338,48 @@ fn point_light_visibility_is_the_cpu_model() {
 #[test]
 fn spot_light_visibility_is_the_cpu_model() {
     check(Light::Spot, "spot_light_visibility_is_the_cpu_model");
+}
+
+/// The sphere as a volume placed as sparse bricks shadows as the same volume placed
+/// dense, for the sun and the lamp (the shadow pass binds the scene's brick table and
+/// reads through it).
+#[test]
+fn a_bricked_volume_shadows_as_a_dense_one() {
+    if !gpu_or_skip("a_bricked_volume_shadows_as_a_dense_one") {
+        return;
+    }
+    for light in [Light::Sun, Light::Lamp] {
+        let (lit, _) = render(light, false, Sphere::Visible);
+        let image = |bricked| {
+            let (image, app) = render(light, true, Sphere::Volume { bricked });
+            let stats = app.world().resource::<DistanceFieldUploadStats>().clone();
+            (image, (stats.atlas_volumes, stats.atlas_bricked))
+        };
+        let (dense, dense_counts) = image(false);
+        let (bricked, bricked_counts) = image(true);
+        assert_eq!((dense_counts, bricked_counts), ((1, 0), (1, 1)));
+        // Visibility (the ratio to the unshadowed render) where the unshadowed render is
+        // lit.
+        let (mut diffs, mut shadowed) = (Vec::new(), 0);
+        for ((d, b), l) in dense.iter().zip(&bricked).zip(&lit) {
+            let l = l[0] + l[1] + l[2];
+            if l > 1e-3 {
+                let (d, b) = ((d[0] + d[1] + d[2]) / l, (b[0] + b[1] + b[2]) / l);
+                shadowed += usize::from(d < 0.5);
+                diffs.push((d - b).abs());
+            }
+        }
+        let mean = diffs.iter().sum::<f32>() / diffs.len() as f32;
+        let max = diffs.iter().copied().fold(0.0, f32::max);
+        println!(
+            "{light:?}: {} lit pixels, {shadowed} shadowed: |bricked − dense| visibility mean \
+             {mean:.2e}, max {max:.2e}",
+            diffs.len()
+        );
+        assert!(shadowed > 100, "{light:?}: {shadowed}");
+        assert!(
+            mean < 2e-3 && max < 0.1,
+            "{light:?}: mean {mean}, max {max}"
+        );
+    }
 }

@@ -17,6 +17,7 @@
 //! - [`pbr`]: Bevy 0.19's `StandardMaterial` shading (Burley diffuse, GGX specular with
 //!   Bevy's multiscatter compensation, ambient light, exposure, sRGB output).
 //! - [`camera`]: perspective camera rays matching Bevy's `PerspectiveProjection`.
+//! - [`analytic_volume`]: volumes of exact analytic distances (test casters, no bake).
 //! - [`df`]: distance-field passes — object distances (atlas volumes and analytic
 //!   shapes) and the debug view's sphere tracing.
 //! - [`df_shadow`]: distance-field soft shadows (the march) and Monte Carlo area-light
@@ -38,6 +39,7 @@
 //! - [`scene`]: an analytic ray-traced scene (spheres, planes, directional lights with hard
 //!   shadows) shaded with [`pbr`], the expected image of simple GPU render tests.
 
+pub mod analytic_volume;
 pub mod bokeh;
 pub mod camera;
 pub mod df;

@@ -30,8 +30,8 @@ use penumbra_cinematic_core::reflections::pass::{
     GpuBillboard, ReflectionUniform, ShadowCasters, Surface, reflect_pixel_shadowed,
 };
 use penumbra_cinematic_core::reflections::texture::MipChain;
+use penumbra_reference::analytic_volume;
 use penumbra_reference::camera::PerspectiveCamera;
-use penumbra_sdf::SdfVolume;
 use penumbra_test::{CaptureFormat, HeadlessRender, KeptApp};
 
 pub const WIDTH: u32 = 128;
@@ -70,7 +70,7 @@ pub struct Setup {
     pub half_resolution: bool,
     /// The wall (a distance-field caster: reflection shadows).
     pub wall: bool,
-    /// With the wall: the wall as a volume of its exact distances ([`box_volume`]),
+    /// With the wall: the wall as a volume of its exact distances,
     /// placed as sparse bricks (`true`) or dense, instead of an analytic cuboid.
     pub wall_volume: Option<bool>,
     /// Billboards added behind the scene's (timing).
@@ -180,22 +180,6 @@ pub fn image_of(texels: &[Vec4]) -> Image {
 }
 
 #[allow(clippy::type_complexity, reason = "a Bevy system's parameters")]
-/// A box of half extents `half` as a volume: its exact distance every 2 cm in a grid
-/// reaching 0.5 m past it (most of the grid's 8³ bricks far from the surface: it bricks
-/// when allowed).
-pub fn box_volume(half: Vec3) -> SdfVolumeAsset {
-    let (reach, voxel) = (half + 0.5, 0.02);
-    let dims = (2.0 * reach / voxel).round().as_uvec3() + UVec3::ONE;
-    let distances = (0..dims.element_product()).map(|i| {
-        let c = UVec3::new(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y));
-        let q = (c.as_vec3() * voxel - reach).abs() - half;
-        q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
-    });
-    SdfVolumeAsset {
-        volume: SdfVolume::from_distances(dims, (-reach).as_dvec3(), voxel, distances),
-    }
-}
-
 #[expect(clippy::type_complexity, reason = "a startup system's resources")]
 pub fn scene(
     setup: Setup,
@@ -243,7 +227,10 @@ pub fn scene(
                     DistanceFieldCaster {
                         source: match setup.wall_volume {
                             Some(_) if center == WALL_CENTER => {
-                                CasterSource::Sdf(sdfs.add(box_volume(half)))
+                                CasterSource::Sdf(sdfs.add(SdfVolumeAsset {
+                                    // Most of its 8³ bricks far from the surface.
+                                    volume: analytic_volume::cuboid(half, 0.5, 0.02),
+                                }))
                             }
                             _ => CasterSource::Cuboid { half_size: half },
                         },
