@@ -4,7 +4,8 @@
 //! plane is occluded under the sphere and open far from it; with shading, only the
 //! indirect light darkens (a camera without the component renders the plane brighter
 //! under the sphere, a direct light's contribution is the same). With a global distance
-//! field the cones' far part goes through it, as the far-field model's does.
+//! field the cones' far part goes through it, as the far-field model's does. A sphere's
+//! volume placed as sparse bricks occludes as the same volume placed dense.
 
 use bevy::camera::Hdr;
 use bevy::core_pipeline::tonemapping::Tonemapping;
@@ -14,6 +15,7 @@ use penumbra::prelude::*;
 use penumbra_df_core::ao::AoTrace;
 use penumbra_df_core::cull::CameraOrigin;
 use penumbra_df_core::object::{CasterShape, ObjectDesc, encode, flags};
+use penumbra_reference::analytic_volume;
 use penumbra_reference::df::Atlas;
 use penumbra_reference::dfao::pixel_ao;
 use penumbra_test::{CaptureFormat, HeadlessRender, gpu_or_skip};
@@ -32,6 +34,9 @@ struct Setup {
     /// A terrain with a ridge beside the sphere ([`ridge`]), seen only by the
     /// distance fields.
     terrain: bool,
+    /// The sphere occludes through a volume of its exact distances placed as sparse
+    /// bricks (`Some(true)`) or dense, instead of as an analytic sphere.
+    sphere_volume: Option<bool>,
 }
 
 /// The ridge terrain: 17 × 17 heights over 6 × 6 m centred at [`RIDGE`], 0.5 m below
@@ -53,6 +58,7 @@ fn scene(
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
     mut images: ResMut<Assets<Image>>,
+    mut sdfs: ResMut<Assets<SdfVolumeAsset>>,
 ) {
     let grey = materials.add(StandardMaterial {
         base_color: Color::srgb(0.7, 0.7, 0.7),
@@ -68,7 +74,14 @@ fn scene(
         MeshMaterial3d(grey),
         Transform::from_translation(SPHERE),
         DistanceFieldCaster {
-            source: CasterSource::Sphere { radius: RADIUS },
+            source: match setup.sphere_volume {
+                Some(_) => CasterSource::Sdf(sdfs.add(SdfVolumeAsset {
+                    // Most of the grid's 8³ bricks far from the surface: it bricks when
+                    // allowed.
+                    volume: analytic_volume::sphere(RADIUS, 1.6 * RADIUS, RADIUS / 40.0),
+                })),
+                None => CasterSource::Sphere { radius: RADIUS },
+            },
             ..default()
         },
     ));
@@ -155,6 +168,7 @@ fn app(
             dfao,
             global_field,
             terrain: false,
+            sphere_volume: None,
         })
         .add_systems(Startup, scene);
     app
@@ -417,6 +431,7 @@ fn removing_dfao_removes_its_passes() {
             dfao: Some(DistanceFieldAmbientOcclusion::default()),
             global_field: None,
             terrain: false,
+            sphere_volume: None,
         })
         .add_systems(Startup, scene);
     let (_, mut app) = render.run_keeping_app(app).expect("headless render");
@@ -540,6 +555,7 @@ fn dfao_sees_terrains_near_and_through_the_global_field() {
         dfao: Some(settings.clone()),
         global_field: Some(field_settings.clone()),
         terrain: true,
+        sphere_volume: None,
     });
     let ao = render.run(app).expect("headless render").to_linear();
 
@@ -647,6 +663,7 @@ fn the_global_field_costs_nothing_without_its_component() {
                 dfao: Some(DistanceFieldAmbientOcclusion::default()),
                 global_field: field,
                 terrain: false,
+                sphere_volume: None,
             })
             .add_systems(Startup, scene);
         let (_, mut kept) = render.run_keeping_app(app).expect("headless render");
@@ -678,4 +695,63 @@ fn the_global_field_costs_nothing_without_its_component() {
         with_component.buffer_bytes >= without_plugin.buffer_bytes + (8 << 20),
         "the clipmaps were not counted"
     );
+}
+
+/// The sphere as a volume placed as sparse bricks occludes the plane as the same volume
+/// placed dense (the AO pass binds the scene's brick table and reads through it).
+#[test]
+fn a_bricked_volume_occludes_as_a_dense_one() {
+    if !gpu_or_skip("a_bricked_volume_occludes_as_a_dense_one") {
+        return;
+    }
+    let render = HeadlessRender::new(SIZE, SIZE)
+        .frames(6)
+        .format(CaptureFormat::LinearF16);
+    let ao = |bricked: bool| {
+        let mut app = render.app();
+        app.add_plugins(PenumbraPlugins)
+            .insert_resource(DefaultOpaqueRendererMethod::deferred())
+            .insert_resource(DistanceFieldSceneSettings {
+                sparse_min_bytes: if bricked { 0 } else { u64::MAX },
+                ..default()
+            })
+            .insert_resource(Setup {
+                dfao: Some(DistanceFieldAmbientOcclusion {
+                    max_occlusion_distance: MAX_DISTANCE,
+                    trace_resolution_divisor: 1,
+                    temporal_filter: false,
+                    debug_view: DistanceFieldAoDebugView::AmbientOcclusion,
+                    ..default()
+                }),
+                global_field: None,
+                terrain: false,
+                sphere_volume: Some(bricked),
+            })
+            .add_systems(Startup, scene);
+        let (capture, app) = render.run_keeping_app(app).expect("headless render");
+        let stats = app.world().resource::<DistanceFieldUploadStats>().clone();
+        (
+            capture.to_linear(),
+            (stats.atlas_volumes, stats.atlas_bricked),
+        )
+    };
+    let (dense, dense_counts) = ao(false);
+    let (bricked, bricked_counts) = ao(true);
+    assert_eq!((dense_counts, bricked_counts), ((1, 0), (1, 1)));
+    let (mut sum, mut worst, mut occluded) = (0.0f32, 0.0f32, 0);
+    let pixels = plane_pixels();
+    for &(k, _) in &pixels {
+        occluded += usize::from(dense[k][0] < 0.9);
+        let e = (dense[k][0] - bricked[k][0]).abs();
+        sum += e;
+        worst = worst.max(e);
+    }
+    let mean = sum / pixels.len() as f32;
+    eprintln!(
+        "{} plane pixels, {occluded} under 0.9: |bricked − dense| AO mean {mean:.2e}, worst \
+         {worst:.2e}",
+        pixels.len()
+    );
+    assert!(occluded > 50, "{occluded}");
+    assert!(mean < 2e-3 && worst < 0.05, "mean {mean}, worst {worst}");
 }
