@@ -33,26 +33,37 @@ fn torus_volume() -> SdfVolumeAsset {
     }
 }
 
-/// The test scene, everything shifted by `offset` (world metres).
-fn scene_app(render: &HeadlessRender, mode: DistanceFieldDebugMode, offset: Vec3) -> App {
+/// The debug view's camera, looking at the scene shifted by `offset` (world metres).
+fn debug_camera(mode: DistanceFieldDebugMode, offset: Vec3) -> impl Bundle {
+    (
+        Camera3d::default(),
+        camera_transform(offset),
+        DistanceFieldDebugView {
+            mode,
+            max_steps: 64,
+            max_distance: 40.0,
+        },
+    )
+}
+
+/// An app with the plugins the debug view needs.
+fn debug_app(render: &HeadlessRender) -> App {
     let mut app = render.app();
     app.add_plugins((
         SdfAssetPlugin,
         DistanceFieldScenePlugin,
         DistanceFieldDebugPlugin,
     ));
+    app
+}
+
+/// The test scene, everything shifted by `offset` (world metres).
+fn scene_app(render: &HeadlessRender, mode: DistanceFieldDebugMode, offset: Vec3) -> App {
+    let mut app = debug_app(render);
     app.add_systems(
         Startup,
         move |mut commands: Commands, mut sdfs: ResMut<Assets<SdfVolumeAsset>>| {
-            commands.spawn((
-                Camera3d::default(),
-                camera_transform(offset),
-                DistanceFieldDebugView {
-                    mode,
-                    max_steps: 64,
-                    max_distance: 40.0,
-                },
-            ));
+            commands.spawn(debug_camera(mode, offset));
             let caster = |source| DistanceFieldCaster {
                 source,
                 ..default()
@@ -285,15 +296,7 @@ fn mesh_casters_are_baked_and_traced() {
         .add_systems(
             Startup,
             |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
-                commands.spawn((
-                    Camera3d::default(),
-                    camera_transform(Vec3::ZERO),
-                    DistanceFieldDebugView {
-                        mode: DistanceFieldDebugMode::Shaded,
-                        max_steps: 64,
-                        max_distance: 40.0,
-                    },
-                ));
+                commands.spawn(debug_camera(DistanceFieldDebugMode::Shaded, Vec3::ZERO));
                 commands.spawn((
                     DistanceFieldCaster {
                         source: CasterSource::Plane,
@@ -373,28 +376,15 @@ fn bricked_volumes_are_traced_as_dense_ones() {
     }
     let render = HeadlessRender::new(SIZE, SIZE).frames(4);
     let image = |sparse_min_bytes: u64| {
-        let mut app = render.app();
+        let mut app = debug_app(&render);
         app.insert_resource(bevy_penumbra_df::DistanceFieldSceneSettings {
             sparse_min_bytes,
             ..default()
         })
-        .add_plugins((
-            SdfAssetPlugin,
-            DistanceFieldScenePlugin,
-            DistanceFieldDebugPlugin,
-        ))
         .add_systems(
             Startup,
             |mut commands: Commands, mut sdfs: ResMut<Assets<SdfVolumeAsset>>| {
-                commands.spawn((
-                    Camera3d::default(),
-                    camera_transform(Vec3::ZERO),
-                    DistanceFieldDebugView {
-                        mode: DistanceFieldDebugMode::Shaded,
-                        max_steps: 64,
-                        max_distance: 40.0,
-                    },
-                ));
+                commands.spawn(debug_camera(DistanceFieldDebugMode::Shaded, Vec3::ZERO));
                 let caster = |source| DistanceFieldCaster {
                     source,
                     ..default()
