@@ -53,8 +53,8 @@ enum Sphere {
     Hidden,
     /// Hidden, with `cast_hidden_shadow`: a shadow proxy.
     HiddenProxy,
-    /// Visible, casting through a volume of its exact distances
-    /// placed as sparse bricks (`true`) or dense.
+    /// Visible, casting through a volume of its exact distances placed as sparse bricks
+    /// (`true`) or dense.
     Volume {
         bricked: bool,
     },
