@@ -161,17 +161,35 @@ fn app(
     dfao: Option<DistanceFieldAmbientOcclusion>,
     global_field: Option<GlobalDistanceField>,
 ) -> App {
-    let mut app = render.app();
-    app.add_plugins(PenumbraPlugins)
-        .insert_resource(DefaultOpaqueRendererMethod::deferred())
-        .insert_resource(Setup {
+    app_with(
+        render,
+        Setup {
             dfao,
             global_field,
             terrain: false,
             sphere_volume: None,
-        })
+        },
+    )
+}
+
+/// The scene of `setup` with `PenumbraPlugins`, deferred.
+fn app_with(render: &HeadlessRender, setup: Setup) -> App {
+    let mut app = render.app();
+    app.add_plugins(PenumbraPlugins)
+        .insert_resource(DefaultOpaqueRendererMethod::deferred())
+        .insert_resource(setup)
         .add_systems(Startup, scene);
     app
+}
+
+/// Two 32³ clipmaps, 0.2 and 0.4 m texels.
+fn small_global_field() -> GlobalDistanceField {
+    GlobalDistanceField {
+        clipmap_count: 2,
+        resolution: 32,
+        first_extent: 6.4,
+        ..default()
+    }
 }
 
 /// The plane's pixels, away from the sphere's silhouette: `(index, world point)`.
@@ -315,12 +333,7 @@ fn dfao_traces_the_global_field_beyond_the_switch() {
         debug_view: DistanceFieldAoDebugView::AmbientOcclusion,
         ..default()
     };
-    let field_settings = GlobalDistanceField {
-        clipmap_count: 2,
-        resolution: 32,
-        first_extent: 6.4,
-        ..default()
-    };
+    let field_settings = small_global_field();
     let render = HeadlessRender::new(SIZE, SIZE)
         .frames(6)
         .without_pipelining()
@@ -537,12 +550,7 @@ fn dfao_sees_terrains_near_and_through_the_global_field() {
         debug_view: DistanceFieldAoDebugView::AmbientOcclusion,
         ..default()
     };
-    let field_settings = GlobalDistanceField {
-        clipmap_count: 2,
-        resolution: 32,
-        first_extent: 6.4,
-        ..default()
-    };
+    let field_settings = small_global_field();
     let render = HeadlessRender::new(SIZE, SIZE)
         .frames(6)
         .format(CaptureFormat::LinearF16);
@@ -718,14 +726,9 @@ fn a_bricked_volume_occludes_as_a_dense_one() {
 /// 32³ clipmaps; the switch at 0.3 m: most of the sphere is beyond it).
 fn check_bricked_against_dense(render: &HeadlessRender, global: bool) {
     let ao = |bricked: bool| {
-        let mut app = render.app();
-        app.add_plugins(PenumbraPlugins)
-            .insert_resource(DefaultOpaqueRendererMethod::deferred())
-            .insert_resource(DistanceFieldSceneSettings {
-                sparse_min_bytes: if bricked { 0 } else { u64::MAX },
-                ..default()
-            })
-            .insert_resource(Setup {
+        let mut app = app_with(
+            render,
+            Setup {
                 dfao: Some(DistanceFieldAmbientOcclusion {
                     max_occlusion_distance: MAX_DISTANCE,
                     trace_resolution_divisor: 1,
@@ -734,16 +737,15 @@ fn check_bricked_against_dense(render: &HeadlessRender, global: bool) {
                     debug_view: DistanceFieldAoDebugView::AmbientOcclusion,
                     ..default()
                 }),
-                global_field: global.then(|| GlobalDistanceField {
-                    clipmap_count: 2,
-                    resolution: 32,
-                    first_extent: 6.4,
-                    ..default()
-                }),
+                global_field: global.then(small_global_field),
                 terrain: false,
                 sphere_volume: Some(bricked),
-            })
-            .add_systems(Startup, scene);
+            },
+        );
+        app.insert_resource(DistanceFieldSceneSettings {
+            sparse_min_bytes: if bricked { 0 } else { u64::MAX },
+            ..default()
+        });
         let (capture, app) = render.run_keeping_app(app).expect("headless render");
         let stats = app.world().resource::<DistanceFieldUploadStats>().clone();
         (
