@@ -76,9 +76,7 @@ fn scene(
         DistanceFieldCaster {
             source: match setup.sphere_volume {
                 Some(_) => CasterSource::Sdf(sdfs.add(SdfVolumeAsset {
-                    // Most of the grid's 8³ bricks far from the surface: it bricks when
-                    // allowed.
-                    volume: analytic_volume::sphere(RADIUS, 1.6 * RADIUS, RADIUS / 40.0),
+                    volume: analytic_volume::sphere_for_bricks(RADIUS),
                 })),
                 None => CasterSource::Sphere { radius: RADIUS },
             },

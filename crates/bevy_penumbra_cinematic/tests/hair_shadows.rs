@@ -130,9 +130,7 @@ fn scene(
         let source = match sphere {
             SphereAs::Analytic => CasterSource::Sphere { radius: RADIUS },
             SphereAs::Volume { .. } => CasterSource::Sdf(sdfs.add(SdfVolumeAsset {
-                // Most of the grid's 8³ bricks far from the surface: it bricks when
-                // allowed.
-                volume: analytic_volume::sphere(RADIUS, 1.6 * RADIUS, 0.25),
+                volume: analytic_volume::sphere_for_bricks(RADIUS),
             })),
         };
         commands.spawn((

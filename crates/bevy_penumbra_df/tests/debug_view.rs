@@ -392,9 +392,7 @@ fn bricked_volumes_are_traced_as_dense_ones() {
                 commands.spawn((caster(CasterSource::Plane), Transform::default()));
                 commands.spawn((
                     caster(CasterSource::Sdf(sdfs.add(SdfVolumeAsset {
-                        // Most of the grid's 8³ bricks far from the surface: it bricks
-                        // when allowed.
-                        volume: analytic_volume::sphere(0.8, 1.6 * 0.8, 0.8 / 40.0),
+                        volume: analytic_volume::sphere_for_bricks(0.8),
                     }))),
                     Transform::from_xyz(0.2, 0.8, 0.0),
                 ));

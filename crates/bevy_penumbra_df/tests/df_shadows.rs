@@ -122,9 +122,7 @@ fn render(light: Light, shadows: bool, sphere: Sphere) -> (Vec<[f32; 4]>, KeptAp
                     cast_hidden_shadow: sphere == Sphere::HiddenProxy,
                     ..caster(match sphere {
                         Sphere::Volume { .. } => CasterSource::Sdf(sdfs.add(SdfVolumeAsset {
-                            // Most of the grid's 8³ bricks far from the surface: it bricks
-                            // when allowed.
-                            volume: analytic_volume::sphere(0.5, 1.6 * 0.5, 0.5 / 40.0),
+                            volume: analytic_volume::sphere_for_bricks(0.5),
                         })),
                         _ => CasterSource::Sphere { radius: 0.5 },
                     })

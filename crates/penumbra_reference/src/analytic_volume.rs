@@ -25,6 +25,13 @@ pub fn sphere(radius: f32, reach: f32, voxel: f32) -> SdfVolume {
     sampled(Vec3::splat(reach), voxel, |p| p.length() - radius)
 }
 
+/// A sphere of `radius` that a scene places as sparse bricks when allowed: 40 samples
+/// per radius in a grid reaching 1.6 radii, so that about a fifth of its 8³ bricks lie
+/// within the stored band of the surface (bricks at least halve it).
+pub fn sphere_for_bricks(radius: f32) -> SdfVolume {
+    sphere(radius, 1.6 * radius, radius / 40.0)
+}
+
 /// A box of half extents `half` about the origin, its grid reaching `margin` past it.
 pub fn cuboid(half: Vec3, margin: f32, voxel: f32) -> SdfVolume {
     sampled(half + margin, voxel, |p| {
@@ -47,6 +54,18 @@ mod tests {
         let at = |c: UVec3| f32::from(v.data[(c.x + 31 * (c.y + 31 * c.z)) as usize]) * 0.1;
         assert!((at(UVec3::splat(15)) + 1.0).abs() < 1e-3);
         assert!((at(UVec3::ZERO) - (3f32.sqrt() * 1.5 - 1.0)).abs() < 1e-2);
+        // Bricks at least halve the bricking sphere (the scenes' rule).
+        let v = sphere_for_bricks(2.0);
+        let b = penumbra_sdf::bricks::BrickedVolume::from_volume(
+            &v,
+            penumbra_sdf::bricks::DEFAULT_BAND_VOXELS,
+        );
+        assert!(
+            2 * b.bytes() <= b.dense_bytes(),
+            "{} of {}",
+            b.bytes(),
+            b.dense_bytes()
+        );
         let b = cuboid(Vec3::new(0.5, 0.2, 0.1), 0.3, 0.1);
         assert_eq!(b.dims, UVec3::new(17, 11, 9));
         let at = |c: UVec3| f32::from(b.data[(c.x + 17 * (c.y + 11 * c.z)) as usize]) * 0.1;
