@@ -11,7 +11,9 @@
 //!
 //! `--facing all-faces` follows the Embree oracles' convention (`../shared/tools`), to
 //! cross-check them; `raster` (default) is what Bevy draws. `--write` saves
-//! `truth_sun.npy` and `truth_ao.npy` beside the dump.
+//! `truth_sun.npy`, `truth_ao.npy`, `truth_back.npy` (1 where the camera sees a
+//! triangle's back) and `truth_normal.npy` (the normal shadows test against) beside the
+//! dump.
 
 use bevy::math::Vec3;
 use penumbra_reference::camera::PerspectiveCamera;
@@ -159,6 +161,27 @@ pub fn check_dump(dir: &Path, facing: Facing, write: bool) -> Result<DumpCheck, 
         check.back_faces = Some(scene_truth::shadowed_error_share(
             &ours, &truth, &depth, back,
         ));
+        if write {
+            let seen: Vec<f32> = (0..hits.len())
+                .map(|i| f32::from(u8::from(back(i))))
+                .collect();
+            npy::write_f32(
+                &dir.join("truth_back.npy"),
+                &[h as usize, w as usize],
+                &seen,
+            )
+            .map_err(|e| e.to_string())?;
+            let normals: Vec<f32> = hits
+                .iter()
+                .flat_map(|h| h.map_or([f32::NAN; 3], |h| h.shadow_normal.to_array()))
+                .collect();
+            npy::write_f32(
+                &dir.join("truth_normal.npy"),
+                &[h as usize, w as usize, 3],
+                &normals,
+            )
+            .map_err(|e| e.to_string())?;
+        }
         check.lit = (mean_where(&ours, surface), mean_where(&truth, surface));
         if write {
             npy::write_f32(
