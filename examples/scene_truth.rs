@@ -161,6 +161,7 @@ pub fn check_dump(dir: &Path, facing: Facing, write: bool) -> Result<DumpCheck, 
         check.back_faces = Some(scene_truth::shadowed_error_share(
             &ours, &truth, &depth, back,
         ));
+        check.lit = (mean_where(&ours, surface), mean_where(&truth, surface));
         if write {
             let seen: Vec<f32> = (0..hits.len())
                 .map(|i| f32::from(u8::from(back(i))))
@@ -181,9 +182,6 @@ pub fn check_dump(dir: &Path, facing: Facing, write: bool) -> Result<DumpCheck, 
                 &normals,
             )
             .map_err(|e| e.to_string())?;
-        }
-        check.lit = (mean_where(&ours, surface), mean_where(&truth, surface));
-        if write {
             npy::write_f32(
                 &dir.join("truth_sun.npy"),
                 &[h as usize, w as usize],
