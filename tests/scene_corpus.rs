@@ -78,7 +78,7 @@ const CORPUS: &[Case] = &[
     Case {
         file: "DepthOfFieldExample.glb",
         flags: &[],
-        bounds: b(0.05, 0.03, 0.10),
+        bounds: b(0.03, 0.03, 0.10),
     },
     Case {
         file: "PalmTree/PalmTree.gltf",
@@ -88,7 +88,7 @@ const CORPUS: &[Case] = &[
     Case {
         file: "AlienCake/cakeBirthday.glb",
         flags: &[],
-        bounds: b(0.08, 0.03, 0.05),
+        bounds: b(0.05, 0.03, 0.05),
     },
     Case {
         file: "AlienCake/alien.glb",
@@ -108,17 +108,17 @@ const CORPUS: &[Case] = &[
     Case {
         file: "FlightHelmet/FlightHelmet.gltf",
         flags: &[],
-        bounds: b(0.10, 0.03, 0.08),
+        bounds: b(0.07, 0.03, 0.08),
     },
     Case {
         file: "AnisotropyBarnLamp/AnisotropyBarnLamp.gltf",
         flags: &[],
-        bounds: b(0.10, 0.03, 0.08),
+        bounds: b(0.05, 0.03, 0.08),
     },
     Case {
         file: "terrain/terrain.glb",
         flags: &[],
-        bounds: b(0.32, 0.04, 0.09),
+        bounds: b(0.10, 0.03, 0.08),
     },
     Case {
         file: "TonemappingTest/TonemappingTest.gltf",

@@ -40,6 +40,7 @@ pub mod buffer_dump;
 #[cfg(feature = "debug_view")]
 pub mod debug_view;
 pub mod diagnostics;
+pub mod face_normals;
 pub mod global_field;
 pub mod gpu_allocations;
 pub mod lighting;
@@ -62,6 +63,7 @@ pub use buffer_dump::{
 #[cfg(feature = "debug_view")]
 pub use debug_view::{DistanceFieldDebugMode, DistanceFieldDebugPlugin, DistanceFieldDebugView};
 pub use diagnostics::PenumbraDiagnosticsPlugin;
+pub use face_normals::{FaceNormalPrepass, FaceNormalPrepassPlugin};
 pub use global_field::{
     GlobalDistanceField, GlobalDistanceFieldPlugin, GlobalDistanceFieldState,
     GlobalDistanceFieldStats,

@@ -149,9 +149,18 @@ pub fn pixel_visibility_with_terrain(
         return (1.0, 0);
     }
     let (dir, t_max, tan_half) = shadow_ray(p, light);
-    let ReceiverNormal { normal, flat, face } = normal.into();
-    let stored = normal;
-    let mut normal = facing_the_eye(normal, p);
+    let ReceiverNormal {
+        normal,
+        flat,
+        face,
+        facet,
+    } = normal.into();
+    // The pixel's triangle is known (the face-normal prepass): its plane, facing the eye
+    // (`p` is camera-relative), alone gives the own shadow, as a ray tracer's does; none
+    // of the G-buffer normal's rules below applies.
+    let facet = (facet != Vec3::ZERO).then(|| if facet.dot(p) > 0.0 { -facet } else { facet });
+    let stored = facet.unwrap_or(normal);
+    let mut normal = facet.unwrap_or_else(|| facing_the_eye(normal, p));
     // Whether `normal` is the G-buffer's as stored, facing the eye (the side seen).
     let mut as_stored = normal != Vec3::ZERO && normal == stored;
     // The surface's own shadow; where it hides the whole light, no march. Where the
@@ -167,7 +176,7 @@ pub fn pixel_visibility_with_terrain(
     // Whether the receiver's shading may part from its faces: it lies on a caster field
     // shaded apart from its faces, or on none whose normal could be read.
     let mut shaded_apart = true;
-    if normal != Vec3::ZERO && own < 1.0 {
+    if normal != Vec3::ZERO && own < 1.0 && facet.is_none() {
         let (field, reads) = receiver_field_normal_counted(records, atlas, camera, p, normal);
         evaluations += reads;
         shaded_apart = field.is_none_or(|(_, f)| f & flags::SHADING_APART != 0);
@@ -197,6 +206,7 @@ pub fn pixel_visibility_with_terrain(
     if own < 1.0
         && as_stored
         && !flat
+        && facet.is_none()
         && shaded_apart
         && face.dot(normal) >= FACE_NORMAL_MIN_AGREEMENT
     {
@@ -257,6 +267,11 @@ pub fn pixel_visibility_with_terrain(
                     (f32::NAN, f32::NAN)
                 };
                 if seen_from_inside(at, front, back, voxel) {
+                    // With the pixel's triangle known, its plane already gave the own
+                    // shadow.
+                    if facet.is_some() {
+                        continue;
+                    }
                     // `field_normal`: one read, four more where the receiver lies on it.
                     evaluations += 1;
                     if let Some((n, _)) = field_normal(r, atlas, camera, p, normal) {
@@ -346,6 +361,8 @@ pub fn pixel_visibility_with_terrain(
 /// with `flat: false` and no face normal, the pass's answer where it cannot tell (a
 /// screen axis with no neighbour on a surface, deferred MSAA's per-sample trace).
 /// [`receiver_normal`] and [`receiver_normal_in_depth`] decide both as the pass does.
+/// With the face-normal prepass, `facet` is the pixel's triangle normal and the rest is
+/// not read.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ReceiverNormal {
     /// The G-buffer's unit normal, or zero when unknown.
@@ -355,6 +372,10 @@ pub struct ReceiverNormal {
     /// The unit normal of the plane the depth buffer about the pixel lies in, on the
     /// side `normal` (turned to face the eye) faces, or zero where none is trusted.
     pub face: Vec3,
+    /// The unit normal of the triangle at the pixel centre by its winding (the
+    /// face-normal prepass, where trusted: `penumbra_df_core::shadow::
+    /// FACE_DEPTH_TOLERANCE`), or zero when unknown.
+    pub facet: Vec3,
 }
 
 impl From<Vec3> for ReceiverNormal {
@@ -363,6 +384,7 @@ impl From<Vec3> for ReceiverNormal {
             normal,
             flat: false,
             face: Vec3::ZERO,
+            facet: Vec3::ZERO,
         }
     }
 }
@@ -379,6 +401,7 @@ pub fn receiver_normal(
         normal,
         flat: flat_shaded(p, normal, neighbours),
         face: face_normal(p, normal, neighbours),
+        facet: Vec3::ZERO,
     }
 }
 

@@ -73,6 +73,7 @@ shader_files! {
     "df/particles.wgsl" => Some("penumbra::df::particles"),
     "df/rebake.wgsl" => Some("penumbra::df::rebake"),
     "df/particles_draw.wgsl" => None,
+    "df/face_normal.wgsl" => None,
     "df/global_field_debug.wgsl" => Some("penumbra::df::global_field_debug"),
     "lighting/masks.wgsl" => Some("penumbra::lighting::masks"),
     "lighting/lights.wgsl" => Some("penumbra::lighting::lights"),

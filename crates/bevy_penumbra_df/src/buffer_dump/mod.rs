@@ -23,9 +23,13 @@
 //! - `ssao`, on a camera with Bevy's `ScreenSpaceAmbientOcclusion` and no DFAO: SSAO's
 //!   spatially denoised visibility (1 open) as Bevy's lighting reads it; NaN for
 //!   background. (With both, the DFAO planes are dumped.)
+//! - `face_normal` (3 channels), on a camera with
+//!   [`FaceNormalPrepass`](crate::face_normals::FaceNormalPrepass): the world-space unit
+//!   normal of the triangle at the pixel centre, by its winding; NaN where no triangle
+//!   was drawn.
 //!
 //! Cost: nothing without the component. With it: one compute pass and a copy of
-//! `(4 + lights [+ 4 with AO]) × 4` bytes per pixel each frame, and a buffer pair per camera, kept while
+//! `(4 + lights [+ 4 with AO] [+ 3 with face normals]) × 4` bytes per pixel each frame, and a buffer pair per camera, kept while
 //! the size is unchanged. A frame whose previous read-back is still in flight is skipped.
 
 mod render;
@@ -81,8 +85,10 @@ struct RawDump {
     camera: Entity,
     size: UVec2,
     lights: Vec<Entity>,
-    /// What the AO and bent-normal planes at the end of `data` hold.
+    /// What the AO and bent-normal planes after the masks hold.
     ao: AoPlanes,
+    /// Whether the face-normal planes follow them.
+    face: bool,
     data: Vec<f32>,
 }
 
@@ -228,17 +234,32 @@ fn unpack(raw: &RawDump, name: impl Fn(Entity) -> String) -> Vec<DumpedBuffer> {
                 channels: 1,
                 data: ao,
             });
-            return buffers;
+        } else {
+            buffers.push(DumpedBuffer {
+                name: "ao".into(),
+                channels: 1,
+                data: ao,
+            });
+            buffers.push(DumpedBuffer {
+                name: "bent_normal".into(),
+                channels: 3,
+                data: bent,
+            });
+        }
+    }
+    if raw.face {
+        let base = (4 + raw.lights.len() + if raw.ao == AoPlanes::None { 0 } else { 4 }) * n;
+        let mut face = plane(base, 3 * n);
+        // No triangle drawn (the background, or only undrawn meshes): NaN.
+        for v in face.chunks_exact_mut(3) {
+            if v.iter().all(|&c| c == 0.0) {
+                v.fill(f32::NAN);
+            }
         }
         buffers.push(DumpedBuffer {
-            name: "ao".into(),
-            channels: 1,
-            data: ao,
-        });
-        buffers.push(DumpedBuffer {
-            name: "bent_normal".into(),
+            name: "face_normal".into(),
             channels: 3,
-            data: bent,
+            data: face,
         });
     }
     buffers
@@ -258,6 +279,7 @@ mod tests {
             size: UVec2::new(2, 1),
             lights: vec![sun, lamp],
             ao: AoPlanes::Dfao,
+            face: false,
             data: vec![
                 -1.0, 3.5, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.25, 1.0,
                 0.5, // depth … masks

@@ -2,6 +2,7 @@
 //! view, the dump pass, and the asynchronous read-back.
 
 use super::{AoPlanes, PenumbraBufferDump, RawDump};
+use crate::face_normals::{FaceNormalPrepass, ViewFaceNormalTexture};
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::lighting::msaa_render::{DeferredMsaaTextures, pixel_prepass};
 use crate::lighting::render::{PenumbraLightingInputs, PenumbraLightingPipeline};
@@ -37,7 +38,7 @@ struct DumpView {
     view_from_clip: Mat4,
     /// Width, height, mask layers, 1 when the G-buffer is bound.
     size: UVec4,
-    /// x: 1 when the AO texture is bound.
+    /// x: 1 when the AO texture is bound; y: 1 when the face-normal target is.
     ao: UVec4,
 }
 
@@ -62,6 +63,7 @@ type BindKey = (
     TextureViewId,
     BufferId,
     TextureViewId,
+    TextureViewId,
 );
 
 /// A dumping view's pooled buffers and its bind group.
@@ -72,6 +74,8 @@ struct ViewBufferDump {
     layers: u32,
     /// Whether the buffers hold the AO and bent-normal planes (DFAO's, else SSAO's).
     ao: bool,
+    /// Whether they hold the face-normal planes.
+    face: bool,
     /// The pass's output (storage) and its copy for mapping.
     output: Buffer,
     staging: Buffer,
@@ -85,6 +89,8 @@ struct ViewBufferDump {
     lights: Vec<Entity>,
     /// What the AO planes hold this frame.
     ao_dumped: AoPlanes,
+    /// Whether the face-normal planes are written this frame.
+    face_dumped: bool,
     /// Copied this frame, to be mapped in `Cleanup`.
     copied: Arc<AtomicBool>,
     /// The staging buffer is being mapped or read: no new copy into it.
@@ -136,6 +142,7 @@ fn init_buffer_dump_pipeline(
                 uniform_buffer::<DumpView>(false),
                 storage_buffer_sized(false, None),
                 texture_2d(TextureSampleType::Float { filterable: false }),
+                texture_2d(TextureSampleType::Float { filterable: false }),
             ),
         ),
     );
@@ -176,20 +183,23 @@ fn prepare_buffer_dumps(
             Option<&PenumbraLightingInputs>,
             Has<PenumbraAoInput>,
             Has<ScreenSpaceAmbientOcclusionResources>,
+            Has<FaceNormalPrepass>,
             Option<&ViewBufferDump>,
         ),
         (With<PenumbraBufferDump>, With<PenumbraLightingView>),
     >,
     mut warned: Local<bool>,
 ) {
-    for (entity, view, inputs, dfao, ssao, dump) in &views {
+    for (entity, view, inputs, dfao, ssao, face, dump) in &views {
         let ao = dfao || ssao;
         let size = view.viewport.zw().max(UVec2::ONE);
         let layers = inputs.map_or(0, |i| i.lights.len() as u32);
-        if dump.is_some_and(|d| d.size == size && d.layers == layers && d.ao == ao) {
+        if dump
+            .is_some_and(|d| d.size == size && d.layers == layers && d.ao == ao && d.face == face)
+        {
             continue;
         }
-        let planes = 4 + layers + if ao { 4 } else { 0 };
+        let planes = 4 + layers + if ao { 4 } else { 0 } + if face { 3 } else { 0 };
         let bytes = u64::from(size.x) * u64::from(size.y) * u64::from(planes) * 4;
         let limits = device.limits();
         if bytes
@@ -223,6 +233,7 @@ fn prepare_buffer_dumps(
             size,
             layers,
             ao,
+            face,
             output,
             staging,
             uniform: UniformBuffer::default(),
@@ -230,6 +241,7 @@ fn prepare_buffer_dumps(
             active: false,
             lights: Vec::new(),
             ao_dumped: AoPlanes::None,
+            face_dumped: false,
             copied: Arc::default(),
             busy: Arc::default(),
         });
@@ -253,6 +265,7 @@ fn prepare_buffer_dump_bind_groups(
         Option<&PenumbraLightingInputs>,
         Option<&PenumbraAoInput>,
         Option<&ScreenSpaceAmbientOcclusionResources>,
+        Option<&ViewFaceNormalTexture>,
         &mut ViewBufferDump,
         Has<PenumbraBufferDump>,
     )>,
@@ -260,7 +273,7 @@ fn prepare_buffer_dump_bind_groups(
     let (Some(pipeline), Some(lighting)) = (pipeline, lighting) else {
         return;
     };
-    for (view, prepass, msaa, inputs, dfao, ssao, mut dump, asked) in &mut views {
+    for (view, prepass, msaa, inputs, dfao, ssao, face, mut dump, asked) in &mut views {
         dump.active = false;
         // Deferred MSAA: the representative sample of each pixel.
         let (depth, gbuffer) = pixel_prepass(prepass, msaa);
@@ -269,6 +282,7 @@ fn prepare_buffer_dump_bind_groups(
             continue;
         };
         let has_gbuffer = gbuffer.is_some();
+        let face = face.filter(|_| dump.face);
         let gbuffer = gbuffer.unwrap_or(&pipeline.no_gbuffer);
         let masks = inputs.filter(|i| i.lights.len() as u32 == dump.layers);
         // DFAO's planes, else (a camera with Bevy's SSAO only) SSAO's visibility.
@@ -289,9 +303,10 @@ fn prepare_buffer_dump_bind_groups(
                 masks.map_or(0, |_| dump.layers),
                 u32::from(has_gbuffer),
             ),
-            ao: UVec4::new(u32::from(ao.is_some()), 0, 0, 0),
+            ao: UVec4::new(u32::from(ao.is_some()), u32::from(face.is_some()), 0, 0),
         };
         let dump = &mut *dump;
+        dump.face_dumped = face.is_some();
         dump.uniform.set(uniform);
         dump.uniform.write_buffer(&device, &queue);
         dump.lights = masks.map_or_else(Vec::new, |m| {
@@ -300,6 +315,7 @@ fn prepare_buffer_dump_bind_groups(
         dump.ao_dumped = ao.map_or(AoPlanes::None, |(planes, _)| planes);
         let mask_view = masks.map_or(&lighting.no_masks, |m| &m.masks);
         let ao_view = ao.map_or(&lighting.no_ao, |(_, texture)| texture);
+        let face_view = face.map_or(&lighting.no_ao, |f| &f.normal.default_view);
         let (Some(uniform), Some(uniform_buffer)) = (dump.uniform.binding(), dump.uniform.buffer())
         else {
             continue;
@@ -310,6 +326,7 @@ fn prepare_buffer_dump_bind_groups(
             mask_view.id(),
             uniform_buffer.id(),
             ao_view.id(),
+            face_view.id(),
         );
         if dump.bind_group.as_ref().is_none_or(|(k, _)| *k != key) {
             let bind_group = allocations.bind_group(
@@ -323,6 +340,7 @@ fn prepare_buffer_dump_bind_groups(
                     uniform,
                     dump.output.as_entire_binding(),
                     ao_view,
+                    face_view,
                 )),
             );
             dump.bind_group = Some((key, bind_group));
@@ -380,8 +398,13 @@ fn map_buffer_dumps(views: Query<(&MainEntity, &ViewBufferDump)>, sender: Res<Du
         let staging = dump.staging.clone();
         let busy = dump.busy.clone();
         let sender = sender.0.clone();
-        let (camera, size, lights, ao) =
-            (camera.id(), dump.size, dump.lights.clone(), dump.ao_dumped);
+        let (camera, size, lights, ao, face) = (
+            camera.id(),
+            dump.size,
+            dump.lights.clone(),
+            dump.ao_dumped,
+            dump.face_dumped,
+        );
         dump.staging
             .slice(..)
             .map_async(MapMode::Read, move |result| {
@@ -400,6 +423,7 @@ fn map_buffer_dumps(views: Query<(&MainEntity, &ViewBufferDump)>, sender: Res<Du
                         size,
                         lights,
                         ao,
+                        face,
                         data,
                     });
                 }

@@ -54,6 +54,7 @@ pub mod msaa;
 pub(crate) mod msaa_render;
 pub(crate) mod render;
 
+use crate::face_normals::FaceNormalPrepass;
 use crate::system_times::timed;
 use bevy::core_pipeline::prepass::{DeferredPrepass, DepthPrepass};
 use bevy::pbr::DefaultOpaqueRendererMethod;
@@ -107,9 +108,15 @@ struct LightingPluginSettings {
 /// Renders a camera's deferred opaque materials through Penumbra's lighting pass
 /// (module docs). Needed by every Penumbra lighting feature (distance-field shadows,
 /// later occlusion); on its own it reproduces Bevy's deferred lighting.
+///
+/// Requires [`FaceNormalPrepass`]: while a light has `DistanceFieldShadows`, the camera
+/// draws each pixel's triangle normal for the shadow masks' own-shadow term (on the scene
+/// corpus the shadows' error over shadowed pixels fell 0.240 → 0.088 on the terrain,
+/// 0.068 → 0.033 on the flight helmet). Remove it from the camera to save that pass
+/// (one draw of the visible meshes, positions only) at that cost in accuracy.
 #[derive(Component, Reflect, Clone, Debug, Default)]
 #[reflect(Component, Clone, Default)]
-#[require(Camera3d, DeferredPrepass, DepthPrepass, Msaa::Off)]
+#[require(Camera3d, DeferredPrepass, DepthPrepass, Msaa::Off, FaceNormalPrepass)]
 pub struct PenumbraLighting;
 
 /// A view's specular layer, inserted on the render-world view by a feature that traces

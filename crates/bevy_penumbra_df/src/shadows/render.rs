@@ -7,6 +7,7 @@ use super::resources::{
     CULL_VIEW_BYTES, DistanceFieldShadowResources, ShadowViewParams, UPSAMPLE_VIEW_BYTES,
     ViewTextures,
 };
+use crate::face_normals::ViewFaceNormalTexture;
 use crate::gpu_allocations::PenumbraGpuAllocations;
 use crate::lighting::msaa_render::{DeferredMsaaTextures, pixel_prepass};
 use crate::lighting::{
@@ -40,7 +41,7 @@ use penumbra_df_core::cull::{CameraOrigin, Frustum, grid_64};
 use penumbra_df_core::object::{tile_of, tile_relative};
 use penumbra_df_core::shadow::{
     SHADOW_GRID_BYTES, SHADOW_GRID_VIEW_BYTES, SHADOW_LIGHT_BYTES, SHADOW_TRACE_VIEW_BYTES,
-    ShadowLight, ShadowLightKind, half_size,
+    ShadowLight, ShadowLightKind, TRACE_FACE_NORMALS, TRACE_GBUFFER_NORMALS, half_size,
 };
 use std::num::NonZeroU64;
 
@@ -187,6 +188,9 @@ pub(super) struct ShadowPipelines {
     empty_brick_table: TextureView,
     /// Bound when the view has no deferred G-buffer (no normals: no own-shadow term).
     empty_gbuffer: TextureView,
+    /// Bound for the face normals and their depth when the view has no face-normal
+    /// prepass.
+    pub(super) empty_face: TextureView,
 }
 
 pub(super) fn build(render_app: &mut SubApp) {
@@ -265,6 +269,8 @@ fn init_shadow_pipelines(
                 storage_buffer_read_only_sized(false, None),
                 texture_2d(TextureSampleType::Float { filterable: false }),
                 texture_2d(TextureSampleType::Uint),
+                texture_2d(TextureSampleType::Float { filterable: false }),
+                texture_2d(TextureSampleType::Float { filterable: false }),
             ),
         ),
     );
@@ -356,6 +362,18 @@ fn init_shadow_pipelines(
                 sample_count: 1,
                 dimension: TextureDimension::D2,
                 format: TextureFormat::Rgba32Uint,
+                usage: TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            })
+            .create_view(&TextureViewDescriptor::default()),
+        empty_face: device
+            .create_texture(&TextureDescriptor {
+                label: Some("penumbra_df_empty_face_normals"),
+                size: Extent3d::default(),
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: TextureDimension::D2,
+                format: TextureFormat::Rgba16Float,
                 usage: TextureUsages::TEXTURE_BINDING,
                 view_formats: &[],
             })
@@ -532,7 +550,11 @@ fn prepare_distance_field_shadows(
 
 /// Writes each shadowed view's uniforms for this frame and (re)makes the bind groups
 /// whose resources changed.
-#[allow(clippy::too_many_arguments, reason = "a Bevy system")]
+#[allow(
+    clippy::too_many_arguments,
+    clippy::type_complexity,
+    reason = "a Bevy system"
+)]
 fn prepare_distance_field_shadow_bind_groups(
     device: Res<RenderDevice>,
     queue: Res<RenderQueue>,
@@ -547,6 +569,7 @@ fn prepare_distance_field_shadow_bind_groups(
         &DistanceFieldShadowMasks,
         &ViewPrepassTextures,
         Option<&DeferredMsaaTextures>,
+        Option<&ViewFaceNormalTexture>,
         &mut DistanceFieldShadowResources,
     )>,
 ) {
@@ -564,7 +587,7 @@ fn prepare_distance_field_shadow_bind_groups(
         .brick_table
         .as_ref()
         .map_or(&pipelines.empty_brick_table, |(_, view, _)| view);
-    for (view, masks, prepass, msaa, mut resources) in &mut views {
+    for (view, masks, prepass, msaa, face, mut resources) in &mut views {
         let (depth, gbuffer) = pixel_prepass(prepass, msaa);
         let samples = masks
             .samples
@@ -594,7 +617,15 @@ fn prepare_distance_field_shadow_bind_groups(
             size: masks.size,
             origin: view.viewport.xy(),
             slots: gpu.slot_count,
-            normals: gbuffer.is_some(),
+            inputs: if gbuffer.is_some() {
+                TRACE_GBUFFER_NORMALS
+            } else {
+                0
+            } | if face.is_some() {
+                TRACE_FACE_NORMALS
+            } else {
+                0
+            },
             heightfields: terrains.as_ref().map_or(0, |t| t.count),
         };
         let (terrain_records, heights) = match terrains.as_ref() {
@@ -610,6 +641,9 @@ fn prepare_distance_field_shadow_bind_groups(
             brick_table,
             depth,
             gbuffer: gbuffer.unwrap_or(&pipelines.empty_gbuffer),
+            face: face.map_or((&pipelines.empty_face, &pipelines.empty_face), |f| {
+                (&f.normal.default_view, &f.depth.default_view)
+            }),
             terrain: (&terrain_records, &heights),
             layers: &masks.layers,
             half: masks.half.as_ref(),

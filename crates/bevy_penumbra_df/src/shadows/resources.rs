@@ -88,6 +88,7 @@ struct BindKey {
     brick_table: TextureViewId,
     depth: TextureViewId,
     gbuffer: TextureViewId,
+    face: (TextureViewId, TextureViewId),
     layer: TextureViewId,
     half: Option<(TextureViewId, TextureViewId)>,
     terrain: (BufferId, TextureViewId),
@@ -102,6 +103,8 @@ pub(super) struct ViewTextures<'a> {
     pub(super) brick_table: &'a TextureView,
     pub(super) depth: &'a TextureView,
     pub(super) gbuffer: &'a TextureView,
+    /// The face-normal prepass's target and depth (or empty textures).
+    pub(super) face: (&'a TextureView, &'a TextureView),
     /// The terrains' records and heights (`GpuHeightfields`, or none).
     pub(super) terrain: (&'a Buffer, &'a TextureView),
     pub(super) layers: &'a [TextureView],
@@ -313,7 +316,7 @@ impl DistanceFieldShadowResources {
                 &view.camera,
                 size,
                 stride,
-                view.normals,
+                view.inputs,
                 view.heightfields,
                 UVec4::new(view.origin.x, view.origin.y, view.size.x, view.size.y),
             ))
@@ -363,6 +366,7 @@ impl DistanceFieldShadowResources {
                 brick_table: textures.brick_table.id(),
                 depth: textures.depth.id(),
                 gbuffer: textures.gbuffer.id(),
+                face: (textures.face.0.id(), textures.face.1.id()),
                 layer: layer.id(),
                 half: textures
                     .half
@@ -415,8 +419,8 @@ pub(super) struct ShadowViewParams {
     pub(super) size: UVec2,
     pub(super) origin: UVec2,
     pub(super) slots: u32,
-    /// Whether the G-buffer binding holds the view's normals.
-    pub(super) normals: bool,
+    /// Which normals the bindings hold (`penumbra_df_core::shadow::TRACE_*`).
+    pub(super) inputs: u32,
     /// Terrains bound.
     pub(super) heightfields: u32,
 }
@@ -489,6 +493,8 @@ fn bind_groups(
             t.terrain.0.as_entire_binding(),
             t.terrain.1,
             t.brick_table,
+            t.face.0,
+            t.face.1,
         )),
     );
     let upsample = half.map(|(_, sampled)| {

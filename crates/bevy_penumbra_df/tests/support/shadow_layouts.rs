@@ -103,6 +103,8 @@ pub fn trace_layout(gpu: &GpuCompute, samples: bool) -> wgpu::BindGroupLayout {
             float_entry(4, D::D2),
             texture_entry(12, T::Uint, D::D2, false),
             texture_entry(15, T::Uint, D::D2, false),
+            float_entry(16, D::D2),
+            float_entry(17, D::D2),
         ]);
     }
     gpu.device

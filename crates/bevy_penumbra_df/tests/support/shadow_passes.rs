@@ -12,8 +12,8 @@ use penumbra_df_core::cull::{CameraOrigin, Frustum, cull_view_words, grid_64};
 use penumbra_df_core::heightfield::{Heightfield, HeightfieldTexture};
 use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, encode, flags};
 use penumbra_df_core::shadow::{
-    SHADOW_GRID_BYTES, SHADOW_GRID_MAX_CELLS, ShadowLight, ShadowLightKind, grid_view_words,
-    trace_view_words, words_to_bytes,
+    SHADOW_GRID_BYTES, SHADOW_GRID_MAX_CELLS, ShadowLight, ShadowLightKind, TRACE_FACE_NORMALS,
+    TRACE_GBUFFER_NORMALS, grid_view_words, trace_view_words, words_to_bytes,
 };
 use penumbra_reference::df::{Atlas, object_distance};
 use penumbra_reference::shadow_mask::{
@@ -312,6 +312,27 @@ pub fn reference_mask(scene: &Scene, view: &View, light: &ShadowLight) -> Vec<f3
 /// [`reference_mask`], with the depth buffer's face normal (`ReceiverNormal::face`)
 /// or without it (`face: false`: what the other rules give).
 pub fn reference_mask_by(scene: &Scene, view: &View, light: &ShadowLight, face: bool) -> Vec<f32> {
+    reference_mask_with(scene, view, light, face, None)
+}
+
+/// [`reference_mask`] with each pixel's triangle normal from the face-normal prepass
+/// (`ReceiverNormal::facet`; zero: none), as [`MaskOptions::facets`] gives the pass.
+pub fn reference_mask_with_facets(
+    scene: &Scene,
+    view: &View,
+    light: &ShadowLight,
+    facets: &[Vec3],
+) -> Vec<f32> {
+    reference_mask_with(scene, view, light, true, Some(facets))
+}
+
+fn reference_mask_with(
+    scene: &Scene,
+    view: &View,
+    light: &ShadowLight,
+    face: bool,
+    facets: Option<&[Vec3]>,
+) -> Vec<f32> {
     let size = Vec2::new(WIDTH as f32, HEIGHT as f32);
     (0..WIDTH * HEIGHT)
         .map(|i| {
@@ -342,6 +363,9 @@ pub fn reference_mask_by(scene: &Scene, view: &View, light: &ShadowLight, face: 
             );
             if !face {
                 receiver.face = Vec3::ZERO;
+            }
+            if let Some(facets) = facets {
+                receiver.facet = facets[i as usize];
             }
             pixel_visibility_with_terrain(
                 &scene.records,
@@ -425,6 +449,9 @@ pub struct MaskOptions<'a> {
     /// Trace the samples of the pixels classed per sample instead, into a mask twice
     /// the view's size (texels of other pixels stay [`UNWRITTEN`]).
     pub samples: Option<&'a SampleTrace>,
+    /// The face-normal prepass's normal per pixel (zero: none drawn), bound with the
+    /// view's own depth (every drawn normal trusted); `None`: no prepass.
+    pub facets: Option<&'a [Vec3]>,
 }
 
 impl Default for MaskOptions<'_> {
@@ -434,6 +461,7 @@ impl Default for MaskOptions<'_> {
             use_grid: true,
             time: false,
             samples: None,
+            facets: None,
         }
     }
 }
@@ -590,7 +618,12 @@ pub fn gpu_mask_at(
             &view.camera,
             mask_size,
             stride,
-            true,
+            TRACE_GBUFFER_NORMALS
+                | if options.facets.is_some() {
+                    TRACE_FACE_NORMALS
+                } else {
+                    0
+                },
             scene.terrain.records.len() as u32,
             UVec4::new(0, 0, WIDTH, HEIGHT),
         )),
@@ -609,6 +642,28 @@ pub fn gpu_mask_at(
         view_of(&brick_table),
     ];
     let class = options.samples.map(|t| view_of(&t.class));
+    // The face-normal prepass's target (one texel when there is none).
+    let facet_bytes: Vec<u8> = match options.facets {
+        Some(f) => f
+            .iter()
+            .flat_map(|n| [n.x, n.y, n.z, if *n == Vec3::ZERO { 0.0 } else { 1.0 }])
+            .flat_map(f32::to_le_bytes)
+            .collect(),
+        None => vec![0; 16],
+    };
+    let facet_size = match options.facets {
+        Some(_) => size(WIDTH, HEIGHT, 1),
+        None => size(1, 1, 1),
+    };
+    let facet_texture = gpu.texture(
+        "facets",
+        facet_size,
+        wgpu::TextureDimension::D2,
+        wgpu::TextureFormat::Rgba32Float,
+        16,
+        &facet_bytes,
+    );
+    let facet_view = view_of(&facet_texture);
     let texture = wgpu::BindingResource::TextureView;
     let mut entries = vec![
         (0, objects.as_entire_binding()),
@@ -629,7 +684,11 @@ pub fn gpu_mask_at(
     ];
     match &class {
         Some(class) => entries.extend([(15, texture(class)), (16, texture(&views[4]))]),
-        None => entries.push((15, texture(&views[4]))),
+        None => entries.extend([
+            (15, texture(&views[4])),
+            (16, texture(&facet_view)),
+            (17, texture(&views[1])),
+        ]),
     }
     let (pipeline, layout) = match options.samples {
         Some(t) => (&t.pipeline, &t.layout),

@@ -189,6 +189,21 @@ pub const FACE_NORMAL_PLANE_SIN: f32 = 0.2;
 /// too little (lamp 0.163).
 pub const FACE_NORMAL_MIN_AGREEMENT: f32 = 0.9;
 
+/// Where the view has the face-normal prepass (`bevy_penumbra_df::face_normals`), a
+/// pixel's triangle normal is trusted where the prepass drew the same surface the
+/// G-buffer holds: its reverse-Z depth within this fraction of the G-buffer's (the
+/// same triangles rasterised twice agree to a few ulps; an alpha-masked cut-out, a
+/// culled back face or an undrawn skinned mesh differ by far more). Then that normal,
+/// turned to face the eye, alone gives the receiver's own shadow, as a ray tracer's
+/// triangle does, and the march leaves along it.
+pub const FACE_DEPTH_TOLERANCE: f32 = 1.0e-3;
+
+/// `ShadowTraceView`'s input bits (`size.w`): the G-buffer binding holds the view's
+/// normals.
+pub const TRACE_GBUFFER_NORMALS: u32 = 1;
+/// ... the face-normal bindings hold the view's face-normal prepass.
+pub const TRACE_FACE_NORMALS: u32 = 2;
+
 /// A receiver sees a solid volume caster from its inside — the back of an open surface
 /// baked solid: a terrain's or floor's underside at its cut edge, seen by a camera below
 /// its rim, the inside of an open shell closed by the winding number — where the field,
@@ -424,8 +439,8 @@ pub fn self_shadow_start(voxel: f32, two_sided: bool, normal: Vec3, dir: Vec3) -
 /// The `ShadowTraceView` uniform: the camera's `view_from_clip` (inverse projection),
 /// its world-from-view rotation (camera-relative positions need no translation), its
 /// tile origin, the mask size and its stride (`1`: full resolution; `2`: half, texel
-/// `(i, j)` traces pixel `(2i, 2j)`), whether the pass's G-buffer binding holds the
-/// view's normals (then it adds the surface's own shadow), and how many terrains
+/// `(i, j)` traces pixel `(2i, 2j)`), which normals the pass's bindings hold
+/// ([`TRACE_GBUFFER_NORMALS`], [`TRACE_FACE_NORMALS`]), and how many terrains
 /// (heightfield records bound) each pixel also marches (the tile word's `w`), and the
 /// view's viewport in the frame buffer (`x, y, width, height`, full-resolution pixels:
 /// the prepass textures are the render target's size, the mask the viewport's).
@@ -436,7 +451,7 @@ pub fn trace_view_words(
     camera: &CameraOrigin,
     size: UVec2,
     stride: u32,
-    normals: bool,
+    inputs: u32,
     heightfields: u32,
     viewport: UVec4,
 ) -> Vec<u32> {
@@ -456,7 +471,7 @@ pub fn trace_view_words(
         heightfields,
     ]);
     words.extend(camera.offset.extend(0.0).to_array().map(f32::to_bits));
-    words.extend([size.x, size.y, stride.max(1), u32::from(normals)]);
+    words.extend([size.x, size.y, stride.max(1), inputs]);
     words.extend(viewport.to_array());
     words
 }
@@ -594,6 +609,7 @@ mod tests {
             ("FLAT_SHADED_SIN", FLAT_SHADED_SIN),
             ("FACE_NORMAL_PLANE_SIN", FACE_NORMAL_PLANE_SIN),
             ("FACE_NORMAL_MIN_AGREEMENT", FACE_NORMAL_MIN_AGREEMENT),
+            ("FACE_DEPTH_TOLERANCE", FACE_DEPTH_TOLERANCE),
             ("FROM_INSIDE_MIN_DEPTH_VOXELS", FROM_INSIDE_MIN_DEPTH_VOXELS),
             ("FROM_INSIDE_PROBE_VOXELS", FROM_INSIDE_PROBE_VOXELS),
             ("FROM_INSIDE_MIN_DROP_VOXELS", FROM_INSIDE_MIN_DROP_VOXELS),

@@ -221,6 +221,9 @@ const FLAT_SHADED_SIN: f32 = 0.07;
 // `shadow_trace.wgsl`'s `depth_face_normal`).
 const FACE_NORMAL_PLANE_SIN: f32 = 0.2;
 const FACE_NORMAL_MIN_AGREEMENT: f32 = 0.9;
+// The face-normal prepass's normal is trusted where its reverse-Z depth lies within this
+// fraction of the G-buffer's (`penumbra_df_core::shadow::FACE_DEPTH_TOLERANCE`).
+const FACE_DEPTH_TOLERANCE: f32 = 0.001;
 // A receiver sees a solid volume from its inside (the back of an open surface baked
 // solid) where the field, read FROM_INSIDE_PROBE_VOXELS voxels along its normal toward
 // the eye, lies FROM_INSIDE_MIN_DEPTH_VOXELS inside and falls by FROM_INSIDE_MIN_DROP_VOXELS

@@ -16,7 +16,7 @@
 #import penumbra::df::heightfield::{HeightfieldRecord, heightfield_distance}
 #import penumbra::df::shadow::{
     FIELD_NORMAL_MIN_AGREEMENT, FIELD_NORMAL_MIN_FACING, FIELD_NORMAL_MIN_FACING_SHADED,
-    FACE_NORMAL_MIN_AGREEMENT, FACE_NORMAL_PLANE_SIN, FLAT_SHADED_SIN, NO_FIELD_NORMAL,
+    FACE_NORMAL_MIN_AGREEMENT, FACE_NORMAL_PLANE_SIN, FACE_DEPTH_TOLERANCE, FLAT_SHADED_SIN, NO_FIELD_NORMAL,
     inside_analytic, seen_from_inside,
     PENUMBRA_MIN_STEP, ShadowLight, ShadowRay, bounding_sphere, caster_field_normal, casts_shadows,
     cull_slack,
@@ -48,6 +48,11 @@ struct ShadowTraceView {
     viewport: vec4<u32>,
 }
 
+// `size.w`'s bits (`penumbra_df_core::shadow::TRACE_*`): `gbuffer` holds the view's
+// normals; `face_normals` and `face_depth` hold its face-normal prepass.
+const TRACE_GBUFFER_NORMALS: u32 = 1u;
+const TRACE_FACE_NORMALS: u32 = 2u;
+
 @group(0) @binding(0) var<storage, read> objects: array<DistanceFieldObject>;
 // The light's culled slots and (first word of) their count.
 @group(0) @binding(1) var<storage, read> light_objects: array<u32>;
@@ -65,9 +70,15 @@ struct ShadowTraceView {
 #else
 // Reverse-Z depth (the prepass depth, bound as an unfilterable float texture).
 @group(0) @binding(4) var depth_texture: texture_2d<f32>;
-// Bevy's deferred G-buffer (Rgba32Uint; the normal in `.a`), read when `view.size.w` is 1.
+// Bevy's deferred G-buffer (Rgba32Uint; the normal in `.a`), read with
+// TRACE_GBUFFER_NORMALS.
 @group(0) @binding(12) var gbuffer: texture_2d<u32>;
 @group(0) @binding(15) var brick_table: texture_2d<u32>;
+// The face-normal prepass (`bevy_penumbra_df::face_normals`): each pixel's triangle
+// normal by its winding (w 1 where drawn) and that pass's own reverse-Z depth, read with
+// TRACE_FACE_NORMALS.
+@group(0) @binding(16) var face_normals: texture_2d<f32>;
+@group(0) @binding(17) var face_depth: texture_2d<f32>;
 #endif
 @group(0) @binding(5) var<uniform> view: ShadowTraceView;
 @group(0) @binding(6) var<uniform> light: ShadowLight;
@@ -100,12 +111,14 @@ var<workgroup> tile_mode: u32;
 var<workgroup> tile_cells: vec4<i32>;
 var<workgroup> tile_large: u32;
 
-// What a thread traces: a frame-buffer point, its reverse-Z depth (0: nothing) and
-// its G-buffer normal word; `store`: whether the thread writes its mask texel.
+// What a thread traces: a frame-buffer point, its reverse-Z depth (0: nothing), its
+// G-buffer normal word and its triangle's normal (0: unknown); `store`: whether the
+// thread writes its mask texel.
 struct TracePoint {
     screen: vec2<f32>,
     depth: f32,
     normal_word: u32,
+    face: vec3<f32>,
     store: bool,
 }
 
@@ -117,12 +130,13 @@ fn trace_point(gid: vec2<u32>, inside: bool) -> TracePoint {
     let pixel = local + vec2<i32>(view.viewport.xy);
     let i = (gid.x & 1u) | ((gid.y & 1u) << 1u);
     if !inside || textureLoad(pixel_class, pixel, 0).r != 2u {
-        return TracePoint(vec2<f32>(0.0), 0.0, 0u, false);
+        return TracePoint(vec2<f32>(0.0), 0.0, 0u, vec3<f32>(0.0), false);
     }
     return TracePoint(
         vec2<f32>(local) + MSAA_SAMPLE_POSITIONS[i],
         textureLoad(depth_texture, pixel, i32(i)),
         textureLoad(gbuffer, pixel, i32(i)).a,
+        vec3<f32>(0.0),
         true,
     );
 }
@@ -132,13 +146,28 @@ fn trace_point(gid: vec2<u32>, inside: bool) -> TracePoint {
     let local = vec2<i32>(gid * max(view.size.z, 1u));
     let pixel = local + vec2<i32>(view.viewport.xy);
     if !inside {
-        return TracePoint(vec2<f32>(0.0), 0.0, 0u, false);
+        return TracePoint(vec2<f32>(0.0), 0.0, 0u, vec3<f32>(0.0), false);
     }
     var word = 0u;
-    if view.size.w == 1u {
+    if (view.size.w & TRACE_GBUFFER_NORMALS) != 0u {
         word = textureLoad(gbuffer, pixel, 0).a;
     }
-    return TracePoint(vec2<f32>(local) + 0.5, textureLoad(depth_texture, pixel, 0).r, word, true);
+    let depth = textureLoad(depth_texture, pixel, 0).r;
+    return TracePoint(vec2<f32>(local) + 0.5, depth, word, pixel_face_normal(pixel, depth), true);
+}
+
+// The triangle normal the face-normal prepass drew at `pixel`, where it drew the surface
+// the G-buffer holds (reverse-Z depths within FACE_DEPTH_TOLERANCE); else 0.
+fn pixel_face_normal(pixel: vec2<i32>, depth: f32) -> vec3<f32> {
+    if (view.size.w & TRACE_FACE_NORMALS) == 0u || depth <= 0.0 {
+        return vec3<f32>(0.0);
+    }
+    let face = textureLoad(face_normals, pixel, 0);
+    let face_depth = textureLoad(face_depth, pixel, 0).r;
+    if face.w < 0.5 || abs(face_depth - depth) > FACE_DEPTH_TOLERANCE * depth {
+        return vec3<f32>(0.0);
+    }
+    return face.xyz;
 }
 #endif
 
@@ -310,7 +339,14 @@ fn trace(
     // Whether `normal` is the G-buffer's as stored, facing the eye (the side seen).
     var as_stored = false;
     var stored = vec3<f32>(0.0);
-    if surface && view.size.w == 1u {
+    // The pixel's triangle is known (the face-normal prepass): its plane, facing the eye
+    // (`p` is camera-relative), alone gives the own shadow, as a ray tracer's does.
+    let facet = surface && any(point.face != vec3<f32>(0.0));
+    if facet {
+        normal = select(point.face, -point.face, dot(point.face, p) > 0.0);
+        as_stored = true;
+        horizon = horizon_visibility(normal, ray.dir, ray.tan_half);
+    } else if surface && (view.size.w & TRACE_GBUFFER_NORMALS) != 0u {
         stored = gbuffer_normal(point.normal_word);
         normal = facing_the_eye(stored, p);
         as_stored = all(normal == stored);
@@ -406,7 +442,7 @@ fn trace(
         var best_slot = 0xffffffffu;
         for (var base = 0u; base < total; base += TILE_PIXELS) {
             let n = list_casters(base, li, total, mode, cells, large_n, tile);
-            if surface && horizon < 1.0 {
+            if surface && horizon < 1.0 && !facet {
                 for (var i = 0u; i < n; i += 1u) {
                     let sphere = tile_spheres[i];
                     let v = p - sphere.xyz;
@@ -433,7 +469,7 @@ fn trace(
     // with the G-buffer normal as turned to face the eye or as stored (a normal map's
     // normal past a grazing view's silhouette, which `facing_the_eye` negated).
     var neighbours: array<vec4<f32>, 4>;
-    if surface && horizon < 1.0 && any(normal != vec3<f32>(0.0)) {
+    if surface && horizon < 1.0 && any(normal != vec3<f32>(0.0)) && !facet {
         neighbours = depth_neighbours(vec2<i32>(point.screen) + vec2<i32>(view.viewport.xy), point.screen, p);
     }
     let flat = flat_shaded(neighbours, normal);
@@ -441,7 +477,7 @@ fn trace(
     let field_apart = field.w < 3.0e38 && (objects[field_slot].flags & FLAG_SHADING_APART) != 0u;
     if surface && horizon < 1.0 && any(normal != vec3<f32>(0.0)) && field.w < 3.0e38
         && max(dot(field.xyz, normal), dot(field.xyz, stored)) >= FIELD_NORMAL_MIN_AGREEMENT
-        && !flat {
+        && !flat && !facet {
         let facing = dot(field.xyz, ray.dir);
         if field_apart && facing >= FIELD_NORMAL_MIN_FACING_SHADED {
             normal = field.xyz;
@@ -459,7 +495,8 @@ fn trace(
     // the terminator of facets that face the light). Not on other casters: a scanned
     // mesh's pixel-sized facets make the depth buffer's plane no face's, and its
     // G-buffer normals are its faces'.
-    if surface && horizon < 1.0 && as_stored && !flat && (field.w >= 3.0e38 || field_apart) {
+    if surface && horizon < 1.0 && as_stored && !flat && !facet
+        && (field.w >= 3.0e38 || field_apart) {
         let face = depth_face_normal(neighbours, normal);
         if dot(face, normal) >= FACE_NORMAL_MIN_AGREEMENT {
             normal = face;
@@ -490,9 +527,13 @@ fn trace(
                         continue;
                     }
                     if as_stored && seen_from_inside(o, sphere, p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas, brick_table) {
-                        let f = caster_field_normal(o, p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas, brick_table);
-                        if f.w < 3.0e38 {
-                            inside_horizon = min(inside_horizon, horizon_visibility(-f.xyz, ray.dir, ray.tan_half));
+                        // With the pixel's triangle known, its plane already gave the
+                        // own shadow.
+                        if !facet {
+                            let f = caster_field_normal(o, p, normal, view.camera_tile.xyz, view.camera_offset.xyz, atlas, brick_table);
+                            if f.w < 3.0e38 {
+                                inside_horizon = min(inside_horizon, horizon_visibility(-f.xyz, ray.dir, ray.tan_half));
+                            }
                         }
                         continue;
                     }

@@ -7,6 +7,10 @@
 // and, when the view has distance-field AO (after the L mask layers):
 //   [(4 + L) n, …)  AO before contrast and min occlusion (1 open)
 //   [(5 + L) n, …)  world-space unit bent normal, xyz interleaved
+// and, when the view has the face-normal prepass (after the planes above, A = 4 with
+// AO, else 0):
+//   [(4 + L + A) n, …)  the face-normal target's winding normal, xyz interleaved
+//                       (0: no triangle drawn)
 // with n = width × height.
 #define_import_path penumbra::lighting::buffer_dump
 
@@ -16,7 +20,8 @@ struct DumpView {
     view_from_clip: mat4x4<f32>,
     // x, y: size in pixels; z: mask layers; w: 1 when `gbuffer` holds the view's normals.
     size: vec4<u32>,
-    // x: 1 when `ambient_occlusion` holds the view's distance-field AO.
+    // x: 1 when `ambient_occlusion` holds the view's distance-field AO; y: 1 when
+    // `face_normals` holds the view's face-normal target.
     ao: vec4<u32>,
 }
 
@@ -29,6 +34,8 @@ struct DumpView {
 @group(0) @binding(4) var<storage, read_write> out: array<f32>;
 // The AO pass's full-resolution output (AO, bent normal), or one texel.
 @group(0) @binding(5) var ambient_occlusion: texture_2d<f32>;
+// The face-normal prepass's target (`bevy_penumbra_df::face_normals`), or one texel.
+@group(0) @binding(6) var face_normals: texture_2d<f32>;
 
 // View-space position of pixel `xy`'s centre at reverse-Z `depth`.
 fn view_position(xy: vec2<u32>, depth: f32) -> vec3<f32> {
@@ -67,8 +74,16 @@ fn dump(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var l = 0u; l < view.size.z; l += 1u) {
         out[(4u + l) * n + i] = textureLoad(masks, vec2<i32>(gid.xy), i32(l), 0).r;
     }
+    var base = (4u + view.size.z) * n;
     if view.ao.x != 0u {
-        dump_ao(gid.xy, i, n, (4u + view.size.z) * n);
+        dump_ao(gid.xy, i, n, base);
+        base += 4u * n;
+    }
+    if view.ao.y != 0u {
+        let face = textureLoad(face_normals, vec2<i32>(gid.xy), 0);
+        for (var k = 0u; k < 3u; k += 1u) {
+            out[base + 3u * i + k] = face[k] * face.w;
+        }
     }
 }
 
