@@ -60,16 +60,16 @@ use std::ops::Range;
 
 /// The target's format: xyz the triangle's unit winding normal (world space), w 1 where
 /// a triangle was drawn.
-pub const FACE_NORMAL_FORMAT: TextureFormat = TextureFormat::Rgba16Float;
+const FACE_NORMAL_FORMAT: TextureFormat = TextureFormat::Rgba16Float;
 /// The pass's own depth buffer (reverse-Z, cleared to 0).
-pub const FACE_DEPTH_FORMAT: TextureFormat = TextureFormat::Depth32Float;
+const FACE_DEPTH_FORMAT: TextureFormat = TextureFormat::Depth32Float;
 
 /// A face-normal view's target and depth (render world), at the camera target's size.
 #[derive(Component, Clone)]
 pub struct ViewFaceNormalTexture {
-    /// [`FACE_NORMAL_FORMAT`].
+    /// `Rgba16Float`: xyz the triangle's unit winding normal, w 1 where one was drawn.
     pub normal: CachedTexture,
-    /// [`FACE_DEPTH_FORMAT`].
+    /// `Depth32Float`, reverse-Z.
     pub depth: CachedTexture,
 }
 
