@@ -270,6 +270,13 @@ impl CachedRenderPipelinePhaseItem for FaceNormal3d {
     }
 }
 
+/// Where `mesh`'s vertices start in the mesh allocator's slab (0 when not allocated).
+fn first_vertex(allocator: &MeshAllocator, mesh: AssetId<Mesh>) -> u32 {
+    allocator
+        .mesh_vertex_slice(&mesh)
+        .map_or(0, |slice| slice.range.start)
+}
+
 impl GetBatchData for FaceNormalPipeline {
     type Param = (
         SRes<RenderMeshInstances>,
@@ -291,9 +298,7 @@ impl GetBatchData for FaceNormalPipeline {
             return None;
         };
         let mesh_instance = mesh_instances.get(&main_entity)?;
-        let first_vertex_index = mesh_allocator
-            .mesh_vertex_slice(&mesh_instance.mesh_asset_id())
-            .map_or(0, |slice| slice.range.start);
+        let first_vertex_index = first_vertex(mesh_allocator, mesh_instance.mesh_asset_id());
         let transforms = &mesh_instance.transforms;
         let (local_from_world_transpose_a, local_from_world_transpose_b) =
             transforms.world_from_local.inverse_transpose_3x3();
@@ -344,9 +349,7 @@ impl GetFullBatchData for FaceNormalPipeline {
             return None;
         };
         let mesh_instance = mesh_instances.get(&main_entity)?;
-        let first_vertex_index = mesh_allocator
-            .mesh_vertex_slice(&mesh_instance.mesh_asset_id())
-            .map_or(0, |slice| slice.range.start);
+        let first_vertex_index = first_vertex(mesh_allocator, mesh_instance.mesh_asset_id());
         Some(MeshUniform::new(
             &mesh_instance.transforms,
             first_vertex_index,
