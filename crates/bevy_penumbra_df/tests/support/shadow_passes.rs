@@ -13,7 +13,7 @@ use penumbra_df_core::heightfield::{Heightfield, HeightfieldTexture};
 use penumbra_df_core::object::{CasterShape, ObjectDesc, ObjectRecord, encode, flags};
 use penumbra_df_core::shadow::{
     SHADOW_GRID_BYTES, SHADOW_GRID_MAX_CELLS, ShadowLight, ShadowLightKind, TRACE_FACE_NORMALS,
-    TRACE_GBUFFER_NORMALS, grid_view_words, trace_view_words, words_to_bytes,
+    TRACE_GBUFFER_NORMALS, face_normal_trusted, grid_view_words, trace_view_words, words_to_bytes,
 };
 use penumbra_reference::df::{Atlas, object_distance};
 use penumbra_reference::shadow_mask::{
@@ -316,14 +316,27 @@ pub fn reference_mask_by(scene: &Scene, view: &View, light: &ShadowLight, face: 
 }
 
 /// [`reference_mask`] with each pixel's triangle normal from the face-normal prepass
-/// (`ReceiverNormal::facet`; zero: none), as [`MaskOptions::facets`] gives the pass.
+/// where its depth is trusted (`ReceiverNormal::facet`, `face_normal_trusted`), as
+/// [`MaskOptions::facets`] gives the pass.
 pub fn reference_mask_with_facets(
     scene: &Scene,
     view: &View,
     light: &ShadowLight,
-    facets: &[Vec3],
+    (facets, depths): (&[Vec3], &[f32]),
 ) -> Vec<f32> {
-    reference_mask_with(scene, view, light, true, Some(facets))
+    let trusted: Vec<Vec3> = facets
+        .iter()
+        .zip(depths)
+        .zip(&view.depth)
+        .map(|((&f, &fd), &d)| {
+            if face_normal_trusted(f != Vec3::ZERO, fd, d) {
+                f
+            } else {
+                Vec3::ZERO
+            }
+        })
+        .collect();
+    reference_mask_with(scene, view, light, true, Some(&trusted))
 }
 
 fn reference_mask_with(
@@ -449,9 +462,9 @@ pub struct MaskOptions<'a> {
     /// Trace the samples of the pixels classed per sample instead, into a mask twice
     /// the view's size (texels of other pixels stay [`UNWRITTEN`]).
     pub samples: Option<&'a SampleTrace>,
-    /// The face-normal prepass's normal per pixel (zero: none drawn), bound with the
-    /// view's own depth (every drawn normal trusted); `None`: no prepass.
-    pub facets: Option<&'a [Vec3]>,
+    /// The face-normal prepass's normal per pixel (zero: none drawn) and its reverse-Z
+    /// depth; `None`: no prepass.
+    pub facets: Option<(&'a [Vec3], &'a [f32])>,
 }
 
 impl Default for MaskOptions<'_> {
@@ -644,7 +657,7 @@ pub fn gpu_mask_at(
     let class = options.samples.map(|t| view_of(&t.class));
     // The face-normal prepass's target (one texel when there is none).
     let facet_bytes: Vec<u8> = match options.facets {
-        Some(f) => f
+        Some((f, _)) => f
             .iter()
             .flat_map(|n| [n.x, n.y, n.z, if *n == Vec3::ZERO { 0.0 } else { 1.0 }])
             .flat_map(f32::to_le_bytes)
@@ -664,6 +677,19 @@ pub fn gpu_mask_at(
         &facet_bytes,
     );
     let facet_view = view_of(&facet_texture);
+    let facet_depth_bytes: Vec<u8> = match options.facets {
+        Some((_, d)) => d.iter().flat_map(|d| d.to_le_bytes()).collect(),
+        None => vec![0; 4],
+    };
+    let facet_depth = gpu.texture(
+        "facet_depth",
+        facet_size,
+        wgpu::TextureDimension::D2,
+        wgpu::TextureFormat::R32Float,
+        4,
+        &facet_depth_bytes,
+    );
+    let facet_depth_view = view_of(&facet_depth);
     let texture = wgpu::BindingResource::TextureView;
     let mut entries = vec![
         (0, objects.as_entire_binding()),
@@ -687,7 +713,7 @@ pub fn gpu_mask_at(
         None => entries.extend([
             (15, texture(&views[4])),
             (16, texture(&facet_view)),
-            (17, texture(&views[1])),
+            (17, texture(&facet_depth_view)),
         ]),
     }
     let (pipeline, layout) = match options.samples {

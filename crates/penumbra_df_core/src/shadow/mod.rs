@@ -198,6 +198,13 @@ pub const FACE_NORMAL_MIN_AGREEMENT: f32 = 0.9;
 /// triangle does, and the march leaves along it.
 pub const FACE_DEPTH_TOLERANCE: f32 = 1.0e-3;
 
+/// Whether the face-normal prepass's pixel (its reverse-Z `face_depth`, its target's
+/// `drawn` flag) holds the surface the G-buffer's reverse-Z `depth` does
+/// ([`FACE_DEPTH_TOLERANCE`]; `shadow_trace.wgsl`'s `pixel_face_normal`).
+pub fn face_normal_trusted(drawn: bool, face_depth: f32, depth: f32) -> bool {
+    depth > 0.0 && drawn && (face_depth - depth).abs() <= FACE_DEPTH_TOLERANCE * depth
+}
+
 /// `ShadowTraceView`'s input bits (`size.w`): the G-buffer binding holds the view's
 /// normals.
 pub const TRACE_GBUFFER_NORMALS: u32 = 1;

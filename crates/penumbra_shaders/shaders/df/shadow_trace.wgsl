@@ -157,7 +157,8 @@ fn trace_point(gid: vec2<u32>, inside: bool) -> TracePoint {
 }
 
 // The triangle normal the face-normal prepass drew at `pixel`, where it drew the surface
-// the G-buffer holds (reverse-Z depths within FACE_DEPTH_TOLERANCE); else 0.
+// the G-buffer holds (reverse-Z depths within FACE_DEPTH_TOLERANCE:
+// `penumbra_df_core::shadow::face_normal_trusted`); else 0.
 fn pixel_face_normal(pixel: vec2<i32>, depth: f32) -> vec3<f32> {
     if (view.size.w & TRACE_FACE_NORMALS) == 0u || depth <= 0.0 {
         return vec3<f32>(0.0);
