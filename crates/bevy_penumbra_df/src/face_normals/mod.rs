@@ -10,11 +10,10 @@
 //! surface or enters it), and at 1080p and below a game mesh's triangles are often
 //! smaller than a pixel (the Bevy terrain example asset: about 38 triangles per pixel
 //! at 128 × 96), so neither the G-buffer nor the depth buffer's plane across the
-//! neighbouring pixels tells which facet a pixel centre lies on. On the scene corpus the
-//! distance-field shadow mask's error over shadowed pixels would drop from 0.240 to
-//! 0.155 on the terrain, 0.068 to 0.045 on the flight helmet and 0.084 to 0.061 on the
-//! barn lamp (`README.md`, "Undersides", simulated with the ray tracer's triangles) if
-//! the mask knew each pixel's facet.
+//! neighbouring pixels tells which facet a pixel centre lies on. With this pass the
+//! distance-field shadow mask's error over shadowed pixels on the scene corpus went
+//! 0.240 → 0.088 on the terrain, 0.068 → 0.033 on the flight helmet and 0.084 → 0.023
+//! on the barn lamp (`README.md`, "Facets"; `shadows` reads the target).
 //!
 //! # How
 //!
@@ -36,7 +35,10 @@
 //! Bevy's G-buffer leaves them out.
 //!
 //! Cost: one more draw of the visible meshes, positions only, and 12 bytes a pixel
-//! (the target and its depth, pooled per view size); nothing without the component.
+//! (the target and its depth, Bevy's `TextureCache`); on lavapipe at 480 × 270, 3.3 ms
+//! in the showcase's 562 ms frame and 24.5 ms in the flight helmet's 330 ms. Nothing —
+//! no phase, no texture, no draw — without the component or while no light has
+//! `DistanceFieldShadows`, its only reader.
 
 mod render;
 
