@@ -10,8 +10,17 @@
 //!   distance, NaN on background; `bent_normal` is unit and leans away from the sphere;
 //!
 //! and dumping every frame creates no GPU resource once running.
+//!
+//! And `face_normal` (the face-normal prepass) is the plane of each posed triangle: a
+//! skinned quad turned by its joint, a quad tilted by a morph target and a lightmapped
+//! quad, each against its analytic plane.
 
-use bevy::pbr::DefaultOpaqueRendererMethod;
+use bevy::asset::RenderAssetUsages;
+use bevy::camera::visibility::NoFrustumCulling;
+use bevy::mesh::morph::{MeshMorphWeights, MorphAttributes};
+use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
+use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
+use bevy::pbr::{DefaultOpaqueRendererMethod, Lightmap};
 use bevy::prelude::*;
 use penumbra::df::{PenumbraBufferDump, PenumbraBuffers, PenumbraGpuAllocations};
 use penumbra::prelude::*;
@@ -75,7 +84,12 @@ fn scene(
 
 /// The ray through the centre of pixel (i, j), as `shadow_truth.py` casts it.
 fn ray(i: u32, j: u32) -> Vec3 {
-    let forward = (Vec3::ZERO - EYE).normalize();
+    ray_from(EYE, i, j)
+}
+
+/// The ray through the centre of pixel (i, j) of a camera at `eye` looking at the origin.
+fn ray_from(eye: Vec3, i: u32, j: u32) -> Vec3 {
+    let forward = (Vec3::ZERO - eye).normalize();
     let right = forward.cross(Vec3::Y).normalize();
     let up = right.cross(forward);
     let t = (FOV_DEG.to_radians() * 0.5).tan();
@@ -210,5 +224,227 @@ fn the_dump_is_distance_normal_and_mask_per_pixel_centre() {
     assert!(
         leaning > 20 && lean > 0.02,
         "bent normals beside the sphere lean {lean} away from it ({leaning} pixels)"
+    );
+}
+
+/// The face-normal scene's camera.
+const FACETS_EYE: Vec3 = Vec3::new(0.0, 0.0, 4.0);
+/// Half a quad's side, metres.
+const QUAD: f32 = 0.4;
+/// The skinned quad's joint turns it this far about +y (radians).
+const SKIN_TURN: f32 = 0.7;
+/// The morph target pushes the quad's top edge this far back (−z), at weight 1.
+const MORPH_PUSH: f32 = 0.6;
+/// The lightmapped quad is turned this far about +y.
+const LIGHTMAPPED_TURN: f32 = -0.5;
+
+/// A quad in the xy plane, counter-clockwise seen from +z (its winding normal), with
+/// what a skinned, lightmapped `StandardMaterial` mesh needs.
+fn quad() -> Mesh {
+    let h = QUAD;
+    Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::default(),
+    )
+    .with_inserted_attribute(
+        Mesh::ATTRIBUTE_POSITION,
+        vec![[-h, -h, 0.0], [h, -h, 0.0], [h, h, 0.0], [-h, h, 0.0]],
+    )
+    .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, vec![[0.0, 0.0, 1.0f32]; 4])
+    .with_inserted_attribute(
+        Mesh::ATTRIBUTE_UV_0,
+        vec![[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0f32]],
+    )
+    .with_inserted_attribute(
+        Mesh::ATTRIBUTE_UV_1,
+        vec![[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0f32]],
+    )
+    .with_inserted_indices(Indices::U32(vec![0, 1, 2, 0, 2, 3]))
+}
+
+/// A posed quad as the test expects it: centre, in-plane axes (unit) with their half
+/// extents, and the winding normal.
+struct Posed {
+    centre: Vec3,
+    axes: [(Vec3, f32); 2],
+    normal: Vec3,
+}
+
+impl Posed {
+    /// Where the ray from the eye along `d` meets the quad, `margin` inside its edges.
+    fn hit(&self, d: Vec3, margin: f32) -> bool {
+        let t = (self.centre - FACETS_EYE).dot(self.normal) / d.dot(self.normal);
+        let p = FACETS_EYE + d * t - self.centre;
+        t > 0.0 && self.axes.iter().all(|(a, h)| p.dot(*a).abs() < h - margin)
+    }
+}
+
+/// The three quads, left to right: skinned, morphed, lightmapped.
+fn posed_quads() -> [Posed; 3] {
+    let skin = Quat::from_rotation_y(SKIN_TURN);
+    let lightmapped = Quat::from_rotation_y(LIGHTMAPPED_TURN);
+    // The morph keeps the bottom edge and moves the top one back: a plane through both.
+    let up = Vec3::new(0.0, 2.0 * QUAD, -MORPH_PUSH);
+    [
+        Posed {
+            centre: Vec3::new(-1.1, 0.0, 0.0),
+            axes: [(skin * Vec3::X, QUAD), (Vec3::Y, QUAD)],
+            normal: skin * Vec3::Z,
+        },
+        Posed {
+            centre: Vec3::new(0.0, 0.0, -0.5 * MORPH_PUSH),
+            axes: [(Vec3::X, QUAD), (up.normalize(), 0.5 * up.length())],
+            normal: Vec3::X.cross(up).normalize(),
+        },
+        Posed {
+            centre: Vec3::new(1.1, 0.0, 0.0),
+            axes: [(lightmapped * Vec3::X, QUAD), (Vec3::Y, QUAD)],
+            normal: lightmapped * Vec3::Z,
+        },
+    ]
+}
+
+fn facets_scene(
+    mut commands: Commands,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    mut bindposes: ResMut<Assets<SkinnedMeshInverseBindposes>>,
+    mut images: ResMut<Assets<Image>>,
+) {
+    let grey = materials.add(Color::srgb(0.7, 0.7, 0.7));
+    let [skinned_at, _, lightmapped_at] = posed_quads().map(|q| q.centre);
+    // Skinned: every vertex on the second joint, which turns the quad about +y.
+    let mut skinned = quad();
+    skinned.insert_attribute(
+        Mesh::ATTRIBUTE_JOINT_INDEX,
+        VertexAttributeValues::Uint16x4(vec![[1, 0, 0, 0]; 4]),
+    );
+    skinned.insert_attribute(
+        Mesh::ATTRIBUTE_JOINT_WEIGHT,
+        vec![[1.0f32, 0.0, 0.0, 0.0]; 4],
+    );
+    let root = commands
+        .spawn((
+            Transform::from_translation(skinned_at),
+            Visibility::default(),
+        ))
+        .id();
+    let turned = commands
+        .spawn((
+            Transform::from_rotation(Quat::from_rotation_y(SKIN_TURN)),
+            Visibility::default(),
+            ChildOf(root),
+        ))
+        .id();
+    commands.spawn((
+        Mesh3d(meshes.add(skinned)),
+        MeshMaterial3d(grey.clone()),
+        SkinnedMesh {
+            inverse_bindposes: bindposes.add(SkinnedMeshInverseBindposes::from(vec![
+                Mat4::IDENTITY,
+                Mat4::IDENTITY,
+            ])),
+            joints: vec![root, turned],
+        },
+        // Its bounds are the bind pose's, at the origin.
+        NoFrustumCulling,
+    ));
+    // Morphed: one target moving the top edge back, at weight 1.
+    let push = MorphAttributes::new(Vec3::new(0.0, 0.0, -MORPH_PUSH), Vec3::ZERO, Vec3::ZERO);
+    let morphed = quad().with_morph_targets(vec![
+        MorphAttributes::default(),
+        MorphAttributes::default(),
+        push,
+        push,
+    ]);
+    commands.spawn((
+        Mesh3d(meshes.add(morphed)),
+        MeshMorphWeights::Value { weights: vec![1.0] },
+        MeshMaterial3d(grey.clone()),
+        NoFrustumCulling,
+    ));
+    // Lightmapped: Bevy binds its mesh data with the lightmap's bind group.
+    commands.spawn((
+        Mesh3d(meshes.add(quad())),
+        MeshMaterial3d(grey),
+        Lightmap {
+            image: images.add(Image::default()),
+            uv_rect: Rect::new(0.0, 0.0, 1.0, 1.0),
+            bicubic_sampling: false,
+        },
+        Transform::from_translation(lightmapped_at)
+            .with_rotation(Quat::from_rotation_y(LIGHTMAPPED_TURN)),
+    ));
+    // The prepass runs while a light has distance-field shadows.
+    commands.spawn((
+        DirectionalLight::default(),
+        DistanceFieldShadows::default(),
+        Transform::default().looking_to(Vec3::new(-0.3, -1.0, -0.4), Vec3::Y),
+    ));
+    commands.spawn((
+        Camera3d::default(),
+        PenumbraLighting,
+        Projection::Perspective(PerspectiveProjection {
+            fov: FOV_DEG.to_radians(),
+            ..default()
+        }),
+        Transform::from_translation(FACETS_EYE).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+}
+
+#[test]
+fn face_normals_are_the_posed_triangles_of_skinned_morphed_and_lightmapped_meshes() {
+    let name = "face_normals_are_the_posed_triangles_of_skinned_morphed_and_lightmapped_meshes";
+    if !gpu_or_skip(name) {
+        return;
+    }
+    let render = HeadlessRender::new(SIZE, SIZE).frames(4);
+    let mut app = render.app();
+    app.add_plugins(PenumbraPlugins)
+        .insert_resource(DefaultOpaqueRendererMethod::deferred())
+        .add_systems(Startup, facets_scene);
+    let (_, mut app) = render.run_keeping_app(app).expect("headless render");
+    let camera = app
+        .world_mut()
+        .query_filtered::<Entity, With<Camera3d>>()
+        .single(app.world())
+        .unwrap();
+    app.world_mut()
+        .entity_mut(camera)
+        .insert(PenumbraBufferDump);
+    let mut dump = None;
+    for _ in 0..30 {
+        app.update();
+        dump = app.world_mut().entity_mut(camera).take::<PenumbraBuffers>();
+        if dump.is_some() {
+            break;
+        }
+    }
+    let dump = dump.expect("the dump arrived");
+    let facets = &dump.get("face_normal").expect("the face normals").data;
+    let quads = posed_quads();
+    let mut inside = [0; 3];
+    let mut background = 0;
+    for j in 0..SIZE {
+        for i in 0..SIZE {
+            let k = (j * SIZE + i) as usize;
+            let d = ray_from(FACETS_EYE, i, j);
+            let got = Vec3::from_slice(&facets[3 * k..3 * k + 3]);
+            if let Some(q) = quads.iter().position(|q| q.hit(d, 0.05)) {
+                inside[q] += 1;
+                let want = quads[q].normal;
+                assert!(
+                    got.angle_between(want).to_degrees() < 1.0,
+                    "quad {q} at ({i}, {j}): face normal {got}, its posed plane's {want}"
+                );
+            } else if !quads.iter().any(|q| q.hit(d, -0.05)) {
+                background += 1;
+                assert!(got.is_nan(), "({i}, {j}): background {got}");
+            }
+        }
+    }
+    assert!(
+        inside.iter().all(|&n| n > 40) && background > 1000,
+        "pixels checked: {inside:?} on the quads, {background} background"
     );
 }

@@ -61,7 +61,7 @@ pub fn write_dump(dir: &Path, buffers: &PenumbraBuffers, meta: &DumpMeta) -> Res
             "ao": "distance-field ambient occlusion the lighting pass reads, before contrast and min occlusion: 1 = open; NaN: background (with --ao-max-distance)",
             "ssao": "Bevy's ScreenSpaceAmbientOcclusion visibility (spatially denoised, as its lighting reads it): 1 = open; NaN: background (with --ssao and no --ao-max-distance)",
             "bent_normal": "world-space unit bent normal (mean unoccluded direction) of the distance-field AO; NaN: background (with --ao-max-distance)",
-            "face_normal": "world-space unit normal of the triangle at the pixel centre, by its winding (the face-normal prepass); NaN: no triangle drawn (background, skinned or morphed meshes)",
+            "face_normal": "world-space unit normal of the triangle at the pixel centre, by its winding (the face-normal prepass); NaN: no triangle drawn (background)",
             "rows": "row 0 is the top of the image; pixel (i, j) is sampled at its centre",
         },
         "settings": meta.settings,

@@ -27,12 +27,14 @@
 //!
 //! # Limits
 //!
-//! What the G-buffer shows and this pass does not, a reader must tell by depth
-//! (the target's own depth against the prepass's): back faces that Bevy culls but this
-//! pass draws (an open single-sided mesh seen from behind), alpha-masked cut-outs
-//! (drawn whole here), skinned and morphed meshes (not drawn: their bind pose is not
-//! what the camera sees). Alpha-blended and transmissive materials are not drawn, as
-//! Bevy's G-buffer leaves them out.
+//! Skinned and morphed meshes are drawn in the pose the camera sees (the vertex stage
+//! blends their joints and morph targets as Bevy's mesh shader does), lightmapped ones
+//! with the bind group Bevy binds for them. What the G-buffer shows and this pass does
+//! not, a reader must tell by depth (the target's own depth against the prepass's):
+//! back faces that Bevy culls but this pass draws (an open single-sided mesh seen from
+//! behind), alpha-masked cut-outs (drawn whole here), a material's own vertex shader
+//! (a custom displacement this pass does not run). Alpha-blended and transmissive
+//! materials are not drawn, as Bevy's G-buffer leaves them out.
 //!
 //! Cost: one more draw of the visible meshes, positions only, and 12 bytes a pixel
 //! (the target and its depth, Bevy's `TextureCache`); on lavapipe at 480 × 270, 3.3 ms

@@ -13,13 +13,13 @@ use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
 use bevy::ecs::entity::EntityHash;
 use bevy::ecs::system::{SystemParamItem, lifetimeless::SRes};
 use bevy::material::RenderPhaseType;
-use bevy::math::{Affine3Ext, FloatOrd};
-use bevy::mesh::{BaseMeshPipelineKey, MeshVertexBufferLayoutRef};
+use bevy::math::FloatOrd;
+use bevy::mesh::MeshVertexBufferLayoutRef;
 use bevy::pbr::{
     self, DrawMesh, MeshInputUniform, MeshPipeline, MeshPipelineKey, MeshPipelineSystems,
-    MeshPipelineViewLayoutKey, MeshUniform, PreparedMaterial, RenderMaterialInstances,
-    RenderMeshInstances, SetMeshBindGroup, SetMeshViewBindGroup, SetMeshViewEmptyBindGroup,
-    ViewKeyCache,
+    MeshPipelineViewLayoutKey, MeshUniform, MorphIndices, PreparedMaterial,
+    RenderMaterialInstances, RenderMeshInstances, SetMeshBindGroup, SetMeshViewBindGroup,
+    SetMeshViewEmptyBindGroup, SkinUniforms, ViewKeyCache, setup_morph_and_skinning_defs,
 };
 use bevy::platform::collections::HashSet;
 use bevy::prelude::*;
@@ -141,9 +141,21 @@ impl SpecializedMeshPipeline for FaceNormalPipeline {
         key: Self::Key,
         layout: &MeshVertexBufferLayoutRef,
     ) -> Result<RenderPipelineDescriptor, SpecializedMeshPipelineError> {
-        let vertex_buffer_layout = layout
-            .0
-            .get_layout(&[Mesh::ATTRIBUTE_POSITION.at_shader_location(0)])?;
+        // Skinned and morphed meshes are posed as Bevy's mesh shader poses them; the
+        // mesh bind group's layout (lightmapped, skinned, morphed, with motion vectors)
+        // is the one `SetMeshBindGroup` binds for the mesh and view.
+        let mut shader_defs = Vec::new();
+        let mut attributes = vec![Mesh::ATTRIBUTE_POSITION.at_shader_location(0)];
+        let mesh_layout = setup_morph_and_skinning_defs(
+            &self.mesh_pipeline.mesh_layouts,
+            layout,
+            1,
+            &key,
+            &mut shader_defs,
+            &mut attributes,
+            self.mesh_pipeline.skins_use_uniform_buffers,
+        );
+        let vertex_buffer_layout = layout.0.get_layout(&attributes)?;
         let view_layout = self
             .mesh_pipeline
             .get_view_layout(MeshPipelineViewLayoutKey::from(key));
@@ -152,15 +164,17 @@ impl SpecializedMeshPipeline for FaceNormalPipeline {
             layout: vec![
                 view_layout.main_layout.clone(),
                 view_layout.empty_layout.clone(),
-                self.mesh_pipeline.mesh_layouts.model_only.clone(),
+                mesh_layout,
             ],
             vertex: VertexState {
                 shader: self.shader.clone(),
+                shader_defs: shader_defs.clone(),
                 buffers: vec![vertex_buffer_layout],
                 ..default()
             },
             fragment: Some(FragmentState {
                 shader: self.shader.clone(),
+                shader_defs,
                 targets: vec![Some(ColorTargetState {
                     format: FACE_NORMAL_FORMAT,
                     blend: None,
@@ -282,48 +296,53 @@ impl GetBatchData for FaceNormalPipeline {
         SRes<RenderMeshInstances>,
         SRes<RenderAssets<RenderMesh>>,
         SRes<MeshAllocator>,
+        SRes<SkinUniforms>,
+        SRes<MorphIndices>,
     );
     type BatchSetCompareData = AssetId<Mesh>;
     type BatchCompareData = ();
     type BufferData = MeshUniform;
 
     fn get_batch_data(
-        (mesh_instances, _, mesh_allocator): &SystemParamItem<Self::Param>,
+        param: &SystemParamItem<Self::Param>,
         (_, main_entity): (Entity, MainEntity),
     ) -> Option<(
         Self::BufferData,
         Option<(Self::BatchSetCompareData, Self::BatchCompareData)>,
     )> {
-        let RenderMeshInstances::CpuBuilding(ref mesh_instances) = **mesh_instances else {
-            return None;
-        };
-        let mesh_instance = mesh_instances.get(&main_entity)?;
-        let first_vertex_index = first_vertex(mesh_allocator, mesh_instance.mesh_asset_id());
-        let transforms = &mesh_instance.transforms;
-        let (local_from_world_transpose_a, local_from_world_transpose_b) =
-            transforms.world_from_local.inverse_transpose_3x3();
-        let uniform = MeshUniform {
-            world_from_local: transforms.world_from_local.to_transpose(),
-            previous_world_from_local: transforms.previous_world_from_local.to_transpose(),
-            lightmap_uv_rect: UVec2::ZERO,
-            local_from_world_transpose_a,
-            local_from_world_transpose_b,
-            flags: transforms.flags,
-            first_vertex_index,
-            current_skin_index: u32::MAX,
-            material_and_lightmap_bind_group_slot: 0,
-            tag: 0,
-            morph_descriptor_index: u32::MAX,
-        };
-        Some((uniform, None))
+        Some((cpu_mesh_uniform(param, main_entity)?, None))
     }
+}
+
+/// The mesh's uniform when the CPU builds them (no GPU preprocessing): its transforms,
+/// first vertex, and where its joints and morph weights are, as Bevy's mesh pipeline
+/// writes it (the lightmap's slot and UV rectangle are not read here).
+fn cpu_mesh_uniform(
+    (mesh_instances, _, mesh_allocator, skins, morphs): &SystemParamItem<
+        <FaceNormalPipeline as GetBatchData>::Param,
+    >,
+    main_entity: MainEntity,
+) -> Option<MeshUniform> {
+    let RenderMeshInstances::CpuBuilding(ref mesh_instances) = **mesh_instances else {
+        return None;
+    };
+    let mesh_instance = mesh_instances.get(&main_entity)?;
+    Some(MeshUniform::new(
+        &mesh_instance.transforms,
+        first_vertex(mesh_allocator, mesh_instance.mesh_asset_id()),
+        mesh_instance.material_bindings_index().slot,
+        None,
+        skins.skin_index(main_entity),
+        morphs.morph_descriptor_index(main_entity),
+        None,
+    ))
 }
 
 impl GetFullBatchData for FaceNormalPipeline {
     type BufferInputData = MeshInputUniform;
 
     fn get_index_and_compare_data(
-        (mesh_instances, _, _): &SystemParamItem<Self::Param>,
+        (mesh_instances, ..): &SystemParamItem<Self::Param>,
         main_entity: MainEntity,
     ) -> Option<(
         NonMaxU32,
@@ -342,23 +361,10 @@ impl GetFullBatchData for FaceNormalPipeline {
     }
 
     fn get_binned_batch_data(
-        (mesh_instances, _, mesh_allocator): &SystemParamItem<Self::Param>,
+        param: &SystemParamItem<Self::Param>,
         main_entity: MainEntity,
     ) -> Option<Self::BufferData> {
-        let RenderMeshInstances::CpuBuilding(ref mesh_instances) = **mesh_instances else {
-            return None;
-        };
-        let mesh_instance = mesh_instances.get(&main_entity)?;
-        let first_vertex_index = first_vertex(mesh_allocator, mesh_instance.mesh_asset_id());
-        Some(MeshUniform::new(
-            &mesh_instance.transforms,
-            first_vertex_index,
-            mesh_instance.material_bindings_index().slot,
-            None,
-            None,
-            None,
-            None,
-        ))
+        cpu_mesh_uniform(param, main_entity)
     }
 
     fn write_batch_indirect_parameters_metadata(
@@ -417,14 +423,12 @@ fn extract_face_normal_phases(
 #[derive(Default, Deref, DerefMut, Resource)]
 pub(super) struct PendingFaceNormalQueues(PendingQueues);
 
-/// Whether the pass draws `mesh`: triangles, neither skinned nor morphed (their bind
-/// pose is not what the camera sees; the module docs' limits).
+/// Whether the pass draws `mesh`: triangles (lines and points have no face).
 fn drawn(mesh: &RenderMesh) -> bool {
     matches!(
         mesh.primitive_topology(),
         PrimitiveTopology::TriangleList | PrimitiveTopology::TriangleStrip
-    ) && !mesh.layout.0.contains(Mesh::ATTRIBUTE_JOINT_INDEX)
-        && !mesh.key_bits.contains(BaseMeshPipelineKey::MORPH_TARGETS)
+    )
 }
 
 #[allow(clippy::too_many_arguments, reason = "a Bevy system")]
@@ -499,11 +503,17 @@ fn queue_face_normal_meshes(
                 phase.remove(Entity::PLACEHOLDER, *visible_entity);
                 continue;
             }
-            let key = view_key
+            // The mesh's own bits (morph targets, topology) and its lightmap choose the
+            // mesh bind group's layout, as in Bevy's shadow phase.
+            let mut key = view_key
+                | MeshPipelineKey::from_bits_retain(mesh.key_bits.bits())
                 | MeshPipelineKey::from_primitive_topology_and_strip_index(
                     mesh.primitive_topology(),
                     mesh.index_format(),
                 );
+            if instance.shared.lightmap_slab_index().is_some() {
+                key |= MeshPipelineKey::LIGHTMAPPED;
+            }
             let id = match pipelines.specialize(&pipeline_cache, &pipeline, key, &mesh.layout) {
                 Ok(id) => id,
                 Err(err) => {

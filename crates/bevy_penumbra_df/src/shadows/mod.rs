@@ -38,8 +38,8 @@
 //! all of this: its plane, turned to face the eye, gives the own shadow and the side the
 //! march leaves from, as a ray tracer's triangle does (the scene corpus's terrain 0.240 →
 //! 0.088 over shadowed pixels against ray tracing, the flight helmet 0.068 → 0.033;
-//! `README.md`, "Facets"). The rules below are what a pixel without it gets (a skinned
-//! mesh, an alpha-masked cut-out, deferred MSAA's per-sample trace).
+//! `README.md`, "Facets"). The rules below are what a pixel without it gets (an
+//! alpha-masked cut-out, a culled back face, deferred MSAA's per-sample trace).
 //!
 //! A receiver on a two-sided caster (a terrain sheet, a floor, foliage) sits inside its
 //! own field's shell, about √3/2 voxel thick: the march through that field starts where

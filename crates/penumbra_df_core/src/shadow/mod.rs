@@ -193,7 +193,7 @@ pub const FACE_NORMAL_MIN_AGREEMENT: f32 = 0.9;
 /// pixel's triangle normal is trusted where the prepass drew the same surface the
 /// G-buffer holds: its reverse-Z depth within this fraction of the G-buffer's (the
 /// same triangles rasterised twice agree to a few ulps; an alpha-masked cut-out, a
-/// culled back face or an undrawn skinned mesh differ by far more). Then that normal,
+/// culled back face or a material's own vertex displacement differ by far more). Then that normal,
 /// turned to face the eye, alone gives the receiver's own shadow, as a ray tracer's
 /// triangle does, and the march leaves along it.
 pub const FACE_DEPTH_TOLERANCE: f32 = 1.0e-3;
