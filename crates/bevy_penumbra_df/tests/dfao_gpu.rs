@@ -631,7 +631,7 @@ fn float_texture(gpu: &GpuCompute, label: &str, values: &[Vec4]) -> wgpu::Textur
     )
 }
 
-/// The GPU's temporal pass: `(value, state)`.
+/// The GPU's temporal pass: `(value, state, filtered)`.
 #[allow(clippy::too_many_arguments, reason = "the pass's inputs")]
 fn gpu_temporal(
     gpu: &GpuCompute,
@@ -642,7 +642,7 @@ fn gpu_temporal(
     current: &[Vec4],
     history: &AoHistory,
     motion: &[glam::Vec2],
-) -> (Vec<Vec4>, Vec<Vec4>) {
+) -> (Vec<Vec4>, Vec<Vec4>, Vec<Vec4>) {
     let mut bytes = bevy::render::render_resource::encase::UniformBuffer::new(Vec::new());
     bytes.write(uniform).expect("encodes");
     let uniform_buffer = gpu.buffer("ao_temporal_view", bytes.as_ref(), BufferUsages::UNIFORM);
@@ -694,13 +694,11 @@ fn gpu_temporal(
         &bind,
         [WIDTH.div_ceil(8), HEIGHT.div_ceil(8), 1],
     );
-    let value = read_rgba16(gpu, &outputs[0]);
-    assert_eq!(
+    (
+        read_rgba16(gpu, &outputs[0]),
+        read_rgba16(gpu, &outputs[1]),
         read_rgba16(gpu, &outputs[2]),
-        value,
-        "the filtered copy differs"
-    );
-    (value, read_rgba16(gpu, &outputs[1]))
+    )
 }
 
 /// The temporal pass equals the model. The history is the model's first step on this
@@ -802,10 +800,19 @@ fn dfao_temporal_pass_matches_the_model() {
             spatial_fill: u32::from(steps.spatial_fill),
             origin: UVec2::ZERO,
         };
-        let (value, state) = gpu_temporal(
+        let (value, state, filtered) = gpu_temporal(
             &gpu, &pipelines, &scene, &view, &uniform, &current, &history, &motion,
         );
+        // The history the next frame reads, and what the lighting pass reads (the fill
+        // in place of the pixel's own value where it applies).
         let (worst, mean, angle) = compare(&value, &want.value);
+        let (shown_worst, shown_mean, shown_angle) = compare(&filtered, &want.filtered);
+        let filled = want
+            .value
+            .iter()
+            .zip(&want.filtered)
+            .filter(|(v, f)| (v.x - f.x).abs() > 0.02)
+            .count();
         let confidence = state
             .iter()
             .zip(&want.state)
@@ -830,12 +837,18 @@ fn dfao_temporal_pass_matches_the_model() {
             .count();
         eprintln!(
             "temporal {steps:?}: max |Δ| {worst:.4}, mean {mean:.5}, bent max {angle:.4} rad, \
-             confidence max |Δ| {confidence:.4}, distance max rel {distance:.5}; \
-             {rejected} pixels without history, {blended} moved by it"
+             shown max |Δ| {shown_worst:.4}, mean {shown_mean:.5}, bent max \
+             {shown_angle:.4} rad, confidence max |Δ| {confidence:.4}, distance max rel \
+             {distance:.5}; {rejected} pixels without history, {blended} moved by it, \
+             {filled} shown filled"
         );
         assert!(
-            rejected > 100 && blended > 500,
+            rejected > 100 && blended > 500 && (filled > 100) == steps.spatial_fill,
             "the case does not exercise the pass"
+        );
+        assert!(
+            shown_worst < 0.02 && shown_mean < 1e-3 && shown_angle < 0.05,
+            "the filtered output differs"
         );
         // f16 output; a lost step (no rejection, no leak test, no fill, motion ignored)
         // moves pixels by > 0.05.

@@ -386,7 +386,7 @@ fn temporal_image(scene: &Scene, c: Config, frames: u32) -> (Vec<Vec4>, u64) {
         };
         history = Some(temporal_step(&step, history.as_ref(), TemporalSteps::ALL));
     }
-    let filtered = history.map_or_else(Vec::new, |h| h.value);
+    let filtered = history.map_or_else(Vec::new, |h| h.filtered);
     (filtered, evaluations / u64::from(frames))
 }
 

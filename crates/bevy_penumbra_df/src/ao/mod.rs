@@ -49,7 +49,9 @@
 //!    blended with the previous frame's, reprojected with Bevy's motion vectors (hence
 //!    the required [`MotionVectorPrepass`]), rejected where the previous frame saw
 //!    another surface (depth), with a confidence that flushes ghosting when a caster
-//!    moves and a spatial fill of pixels with little history
+//!    moves and a spatial fill shown on pixels with little history (display only: the
+//!    history keeps each pixel's own value, so a still view converges to its own trace
+//!    whatever history it started from)
 //!    (`penumbra_reference::dfao::temporal_step` documents each step and its figures).
 //! 4. Penumbra's lighting pass reads the result: contrast, min occlusion and tint are
 //!    applied there.

@@ -18,11 +18,21 @@
 //!    is flushed in a frame or two instead of fading at 0.85 per frame; the flushed
 //!    pixels flicker more, which the fill calms). Off: the weight is [`HISTORY_WEIGHT`].
 //! 3. **Spatial fill** (on or off): a pixel whose confidence is below
-//!    [`FILL_CONFIDENCE`] (new, or flushed) takes the depth- and normal-weighted mean of
+//!    [`FILL_CONFIDENCE`] (new, or flushed) *shows* the depth- and normal-weighted mean of
 //!    the current frame over a `(2·FILL_RADIUS + 1)²` neighbourhood instead of its own
 //!    value, which is one jittered trace upsampled and flickers until history builds up.
-//! 4. `mix(current, history, weight)`, the bent normal renormalised; the pixel's distance
-//!    from the camera and its confidence are stored for the next frame.
+//! 4. `mix(current, history, weight)`, the bent normal renormalised, is the history the
+//!    next frame reads, with the pixel's distance from the camera and its confidence; what
+//!    the lighting pass reads is the same blend with the fill in place of the current
+//!    value where the fill applies.
+//!
+//! The fill is display only: kept in the history, a pixel whose own trace differs from
+//! its neighbourhood's mean by more than twice [`LEAK_TOLERANCE`] (a contact corner, a
+//! crease) compared its own value with the fill it stored, was flushed again, and showed
+//! the fill for ever in a still view — whatever history it started from. The scene
+//! corpus's DFAO then depended on the order in which casters' fields arrived (the flight
+//! helmet 0.063 with its fields baked, 0.069 read from the disk cache) and missed its own
+//! trace (the ship 0.059 against 0.028 unfiltered).
 
 use glam::{UVec2, Vec2, Vec3, Vec4};
 use penumbra_df_core::ao::{
@@ -57,10 +67,25 @@ impl TemporalSteps {
 /// A frame's filtered AO and what the next frame reprojects.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AoHistory {
-    /// `(ao, bent normal)` per pixel: the filter's output (background `(1, 0, 0, 0)`).
+    /// `(ao, bent normal)` per pixel: the blend the next frame reprojects (background
+    /// `(1, 0, 0, 0)`).
     pub value: Vec<Vec4>,
     /// `(distance from the camera, confidence, 0, 0)` per pixel (background 0).
     pub state: Vec<Vec4>,
+    /// `(ao, bent normal)` per pixel: the filter's output, what the lighting pass reads
+    /// (`value` with the spatial fill where it applies).
+    pub filtered: Vec<Vec4>,
+}
+
+impl AoHistory {
+    /// A history of `value` and `state` whose output is `value` (no fill).
+    pub fn new(value: Vec<Vec4>, state: Vec<Vec4>) -> Self {
+        Self {
+            filtered: value.clone(),
+            value,
+            state,
+        }
+    }
 }
 
 /// One frame's inputs at full resolution.
@@ -88,14 +113,30 @@ pub fn temporal_step(
     let n = (frame.size.x * frame.size.y) as usize;
     let mut value = Vec::with_capacity(n);
     let mut state = Vec::with_capacity(n);
+    let mut filtered = Vec::with_capacity(n);
     for y in 0..frame.size.y {
         for x in 0..frame.size.x {
-            let (v, s) = filter_pixel(frame, history, steps, UVec2::new(x, y));
+            let (v, s, f) = filter_pixel(frame, history, steps, UVec2::new(x, y));
             value.push(v);
             state.push(s);
+            filtered.push(f);
         }
     }
-    AoHistory { value, state }
+    AoHistory {
+        value,
+        state,
+        filtered,
+    }
+}
+
+/// `current` blended toward the history `h` by `weight`, its bent normal renormalised
+/// (the receiver's normal `n` where it vanishes), the AO clamped to `[0, 1]`.
+fn blend(current: Vec4, h: Vec4, weight: f32, n: Vec3) -> Vec4 {
+    let v = current + (h - current) * weight;
+    let bent = Vec3::new(v.y, v.z, v.w);
+    let len = bent.length();
+    let bent = if len > 1e-6 { bent / len } else { n };
+    Vec4::new(v.x.clamp(0.0, 1.0), bent.x, bent.y, bent.z)
 }
 
 fn distance_of(p: Vec3) -> f32 {
@@ -108,12 +149,13 @@ fn filter_pixel(
     history: Option<&AoHistory>,
     steps: TemporalSteps,
     xy: UVec2,
-) -> (Vec4, Vec4) {
+) -> (Vec4, Vec4, Vec4) {
     let i = (xy.y * frame.size.x + xy.x) as usize;
     let p = frame.positions[i];
     let d = distance_of(p);
     if d <= 0.0 {
-        return (Vec4::new(1.0, 0.0, 0.0, 0.0), Vec4::ZERO);
+        let open = Vec4::new(1.0, 0.0, 0.0, 0.0);
+        return (open, Vec4::ZERO, open);
     }
     let c = frame.current[i];
     let expected = (p - frame.previous_offset).length();
@@ -130,21 +172,15 @@ fn filter_pixel(
             }
         }
     };
-    let current = if steps.spatial_fill && confidence < FILL_CONFIDENCE {
-        spatial_fill(frame, xy, d)
-    } else {
-        c
-    };
-    let h = reprojected.map_or(current, |(h, _)| h);
-    let v = current + (h - current) * weight;
-    let bent = Vec3::new(v.y, v.z, v.w);
-    let len = bent.length();
     let n = frame.normals[i];
-    let bent = if len > 1e-6 { bent / len } else { n };
-    (
-        Vec4::new(v.x.clamp(0.0, 1.0), bent.x, bent.y, bent.z),
-        Vec4::new(d, confidence, 0.0, 0.0),
-    )
+    let history_value = blend(c, reprojected.map_or(c, |(h, _)| h), weight, n);
+    let filtered = if steps.spatial_fill && confidence < FILL_CONFIDENCE {
+        let fill = spatial_fill(frame, xy, d);
+        blend(fill, reprojected.map_or(fill, |(h, _)| h), weight, n)
+    } else {
+        history_value
+    };
+    (history_value, Vec4::new(d, confidence, 0.0, 0.0), filtered)
 }
 
 /// The history at pixel `xy`'s reprojected position and its confidence, from the

@@ -223,10 +223,10 @@ fn a_still_view_averages_the_jitter_positions() {
         for f in 0..24 {
             let c = &currents[(f % 4) as usize];
             let out = temporal_step(&frame(&shot, c, &still, eye), history.as_ref(), steps);
-            last = history.map_or_else(Vec::new, |h| h.value);
+            last = history.map_or_else(Vec::new, |h| h.filtered);
             history = Some(out);
         }
-        let out = history.expect("filtered").value;
+        let out = history.expect("filtered").filtered;
         let (filtered, off_mean) = (change(&out, &last), change(&out, &mean));
         println!(
             "still view {steps:?}: frame-to-frame change {filtered:.5} (unfiltered {raw:.5}), \
@@ -235,6 +235,80 @@ fn a_still_view_averages_the_jitter_positions() {
         assert!(
             filtered < 0.3 * raw && off_mean < 0.3 * raw,
             "{steps:?}: change {filtered}, from the mean {off_mean}, unfiltered {raw}"
+        );
+    }
+}
+
+/// A still view whose trace does not change (every pixel traced every frame, as in a
+/// view under `min_trace_rows` rows) shows its own trace within a few frames, whatever
+/// history it starts from: none, all open at full confidence, or its own trace darkened
+/// by 0.3. The spatial fill a low-confidence pixel shows must not become its history: a
+/// contact pixel whose trace differs from its neighbourhood's mean by more than twice
+/// the leak tolerance then compared its trace with the fill it had stored, was flushed
+/// again, and showed the fill for ever.
+#[test]
+fn a_still_view_converges_to_its_own_trace_from_any_history() {
+    let atlas = Atlas::new(glam::UVec3::ONE);
+    let records = scene(Vec3::new(0.3, 0.7, 0.0));
+    let eye = Vec3::new(0.0, 3.0, 3.5);
+    let shot = shoot(eye, Vec3::ZERO, &records, &atlas);
+    let still = vec![Vec2::ZERO; shot.positions.len()];
+    let trace = reference(&shot, &records, &atlas);
+    let c: Vec<Vec4> = trace
+        .iter()
+        .zip(&shot.normals)
+        .map(|(&ao, n)| {
+            if ao.is_nan() {
+                Vec4::new(1.0, 0.0, 0.0, 0.0)
+            } else {
+                Vec4::new(ao, n.x, n.y, n.z)
+            }
+        })
+        .collect();
+    let f = frame(&shot, &c, &still, eye);
+    // The case has pixels the fill moves by more than twice the leak tolerance.
+    let fill = temporal_step(&f, None, TemporalSteps::ALL).filtered;
+    let sharp = fill
+        .iter()
+        .zip(&trace)
+        .filter(|(v, t)| (v.x - **t).abs() > 2.0 * penumbra_df_core::ao::LEAK_TOLERANCE)
+        .count();
+    assert!(
+        sharp >= 10,
+        "{sharp} pixels where the fill departs from the trace"
+    );
+    let state: Vec<Vec4> = shot
+        .positions
+        .iter()
+        .map(|p| Vec4::new(if p.is_nan() { 0.0 } else { p.length() }, 1.0, 0.0, 0.0))
+        .collect();
+    let open = AoHistory::new(vec![Vec4::new(1.0, 0.0, 1.0, 0.0); c.len()], state.clone());
+    let darker = AoHistory::new(
+        c.iter()
+            .map(|v| Vec4::new((v.x - 0.3).max(0.0), v.y, v.z, v.w))
+            .collect(),
+        state,
+    );
+    for (name, start) in [
+        ("none", None),
+        ("open", Some(open)),
+        ("darker", Some(darker)),
+    ] {
+        let mut history = start;
+        for _ in 0..40 {
+            history = Some(temporal_step(&f, history.as_ref(), TemporalSteps::ALL));
+        }
+        let out = history.expect("filtered").filtered;
+        let worst = out
+            .iter()
+            .zip(&trace)
+            .filter(|(_, t)| !t.is_nan())
+            .map(|(v, t)| (v.x - t).abs())
+            .fold(0.0f32, f32::max);
+        println!("still view from {name} history: worst |filtered − trace| {worst:.5}");
+        assert!(
+            worst < 0.01,
+            "from {name} history: {worst} from the trace after 40 frames"
         );
     }
 }
@@ -259,10 +333,10 @@ fn depth_rejection_drops_another_surface() {
         previous_offset: Vec3::ZERO,
     };
     for (stored, kept) in [(5.0, false), (2.02, true)] {
-        let history = AoHistory {
-            value: vec![Vec4::new(0.0, 0.0, 0.0, 1.0); n],
-            state: vec![Vec4::new(stored, 1.0, 0.0, 0.0); n],
-        };
+        let history = AoHistory::new(
+            vec![Vec4::new(0.0, 0.0, 0.0, 1.0); n],
+            vec![Vec4::new(stored, 1.0, 0.0, 0.0); n],
+        );
         let out = temporal_step(&f, Some(&history), TemporalSteps::PLAIN);
         let want = if kept {
             1.0 - penumbra_df_core::ao::HISTORY_WEIGHT
@@ -329,7 +403,10 @@ fn ghosting_and_flicker_of_the_steps() {
             let c = current(&shot, &records, &atlas, f);
             let out = temporal_step(&frame(&shot, &c, &m, eye), history.as_ref(), steps);
             if f >= 12 {
-                errors.push(mean_error(&out.value, &reference(&shot, &records, &atlas)));
+                errors.push(mean_error(
+                    &out.filtered,
+                    &reference(&shot, &records, &atlas),
+                ));
             }
             history = Some(out);
             previous = Some(shot);
@@ -379,21 +456,22 @@ fn ghosting_and_flicker_of_the_steps() {
                     );
                     temporal_step(&fr, history.as_ref(), steps)
                 }
-                None => AoHistory {
-                    state: shot
-                        .positions
+                None => AoHistory::new(
+                    c.clone(),
+                    shot.positions
                         .iter()
                         .map(|p| {
                             Vec4::new(if p.is_nan() { 0.0 } else { p.length() }, 1.0, 0.0, 0.0)
                         })
                         .collect(),
-                    value: c.clone(),
-                },
+                ),
             };
             if let Some((p, prev_out)) = &previous
                 && f >= 8
             {
                 let fr = frame(&shot, &c, &m, p.eye);
+                // What the previous frame showed, reprojected.
+                let shown = AoHistory::new(prev_out.filtered.clone(), prev_out.state.clone());
                 for y in 0..shot.size.y {
                     for x in 0..shot.size.x {
                         let k = (y * shot.size.x + x) as usize;
@@ -402,8 +480,8 @@ fn ghosting_and_flicker_of_the_steps() {
                             continue;
                         }
                         let expected = (pos - fr.previous_offset).length();
-                        if let Some((h, _)) = reproject(&fr, prev_out, UVec2::new(x, y), expected) {
-                            sum += f64::from((out.value[k].x - h.x).abs());
+                        if let Some((h, _)) = reproject(&fr, &shown, UVec2::new(x, y), expected) {
+                            sum += f64::from((out.filtered[k].x - h.x).abs());
                             count += 1;
                         }
                     }

@@ -1,8 +1,9 @@
 // The DFAO temporal filter at full resolution: reprojection of the previous frame's
-// filtered AO with Bevy's motion vectors, depth rejection, a confidence that flushes
-// ghosting, a spatial fill of low-confidence pixels, and the blend. Writes the filtered
-// (AO, bent normal) the lighting pass reads and (distance from the camera, confidence)
-// for the next frame. CPU model: `penumbra_reference::dfao::temporal_step`.
+// blend with Bevy's motion vectors, depth rejection, a confidence that flushes
+// ghosting, and the blend; low-confidence pixels show a spatial fill, which the history
+// does not keep. Writes the blend and (distance from the camera, confidence) for the
+// next frame and the filtered (AO, bent normal) the lighting pass reads. CPU model:
+// `penumbra_reference::dfao::temporal_step`.
 #define_import_path penumbra::df::ao_temporal
 
 #import penumbra::df::shadow::gbuffer_normal
@@ -29,7 +30,7 @@ struct AoTemporalView {
 
 // This frame's upsampled trace (AO, bent normal).
 @group(0) @binding(0) var current_texture: texture_2d<f32>;
-// The previous frame's output and (distance, confidence).
+// The previous frame's blend and (distance, confidence).
 @group(0) @binding(1) var history_value: texture_2d<f32>;
 @group(0) @binding(2) var history_state: texture_2d<f32>;
 @group(0) @binding(3) var depth_texture: texture_2d<f32>;
@@ -45,8 +46,8 @@ struct AoTemporalView {
 @group(0) @binding(6) var<uniform> view: AoTemporalView;
 @group(0) @binding(7) var out_value: texture_storage_2d<rgba16float, write>;
 @group(0) @binding(8) var out_state: texture_storage_2d<rgba16float, write>;
-// The same filtered value in a texture that stays the same across frames (what the
-// lighting pass binds).
+// What the lighting pass reads (the blend, with the fill where it applies), in a
+// texture that stays the same across frames.
 @group(0) @binding(9) var out_filtered: texture_storage_2d<rgba16float, write>;
 
 // Camera-relative world position of pixel `xy` (w = 0: background).
@@ -135,6 +136,15 @@ fn spatial_fill(xy: vec2<i32>, d: f32, n: vec3<f32>) -> vec4<f32> {
     return sum / weights;
 }
 
+// `current` blended toward the history `h` by `weight`, its bent normal renormalised
+// (the receiver's normal `n` where it vanishes), the AO clamped to [0, 1].
+fn blend(current: vec4<f32>, h: vec4<f32>, weight: f32, n: vec3<f32>) -> vec4<f32> {
+    let v = current + (h - current) * weight;
+    let len = length(v.yzw);
+    let bent = select(n, v.yzw / len, len > 1e-6);
+    return vec4<f32>(clamp(v.x, 0.0, 1.0), bent);
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= view.full_size.x || gid.y >= view.full_size.y {
@@ -168,16 +178,15 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     let n = pixel_normal(xy);
-    var current = c;
+    // The history keeps the pixel's own value: a stored fill would be compared with the
+    // pixel's own trace next frame and, on a contact pixel, flushed for ever.
+    let value = blend(c, select(c, r.value, r.found), weight, n);
+    var filtered = value;
     if view.spatial_fill != 0u && confidence < FILL_CONFIDENCE {
-        current = spatial_fill(xy, d, n);
+        let fill = spatial_fill(xy, d, n);
+        filtered = blend(fill, select(fill, r.value, r.found), weight, n);
     }
-    let h = select(current, r.value, r.found);
-    let v = current + (h - current) * weight;
-    let len = length(v.yzw);
-    let bent = select(n, v.yzw / len, len > 1e-6);
-    let filtered = vec4<f32>(clamp(v.x, 0.0, 1.0), bent);
-    textureStore(out_value, xy, filtered);
+    textureStore(out_value, xy, value);
     textureStore(out_filtered, xy, filtered);
     textureStore(out_state, xy, vec4<f32>(d, confidence, 0.0, 0.0));
 }
