@@ -52,7 +52,14 @@ pub struct DumpCheck {
     /// triangle's back (an open double-sided sheet's underside, as at a terrain's cut
     /// edge): a solid field has its inside there. `None` without a sun.
     pub back_faces: Option<f64>,
+    /// Of the pixels where the truth meets a triangle, the share whose dumped
+    /// `face_normal` (the face-normal prepass) is that triangle's plane within
+    /// [`FACET_DEGREES`] (either side). `None` without a `face_normal` buffer.
+    pub facets: Option<f64>,
 }
+
+/// How far a dumped face normal may lie from the truth's triangle and count as its.
+pub const FACET_DEGREES: f32 = 2.0;
 
 fn vec3(v: &serde_json::Value) -> Option<Vec3> {
     let a = v.as_array()?;
@@ -190,6 +197,24 @@ pub fn check_dump(dir: &Path, facing: Facing, write: bool) -> Result<DumpCheck, 
             .map_err(|e| e.to_string())?;
         }
     }
+    if let Ok((_, faces)) = npy::read_f32(&dir.join("face_normal.npy")) {
+        let cos = FACET_DEGREES.to_radians().cos();
+        let (mut seen, mut same) = (0usize, 0usize);
+        for (i, hit) in hits.iter().enumerate() {
+            let Some(hit) = hit else { continue };
+            seen += 1;
+            let ours = faces
+                .get(3 * i..3 * i + 3)
+                .map_or(Vec3::NAN, |n| Vec3::new(n[0], n[1], n[2]));
+            // NaN (nothing drawn there) fails the comparison.
+            same += usize::from(ours.dot(hit.normal).abs() >= cos);
+        }
+        check.facets = Some(if seen == 0 {
+            1.0
+        } else {
+            same as f64 / seen as f64
+        });
+    }
     let reach = meta["settings"]["ambient_occlusion"]["max_occlusion_distance"].as_f64();
     if let (Some(reach), true) = (reach, dir.join("ao.npy").is_file()) {
         let (_, ours) = npy::read_f32(&dir.join("ao.npy"))?;
@@ -243,6 +268,7 @@ fn main() {
                     "triangles": c.triangles,
                     "atlas_used_bytes": c.atlas_used_bytes,
                     "shading_turned_away": c.shading_turned_away.map(round),
+                    "facets": c.facets.map(round),
                     "back_faces": c.back_faces.map(round),
                 })
             );
