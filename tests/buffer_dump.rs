@@ -17,6 +17,8 @@
 
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::visibility::NoFrustumCulling;
+use bevy::ecs::schedule::IntoScheduleConfigs;
+use bevy::ecs::system::ScheduleSystem;
 use bevy::mesh::morph::{MeshMorphWeights, MorphAttributes};
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
@@ -24,6 +26,7 @@ use bevy::pbr::{DefaultOpaqueRendererMethod, Lightmap};
 use bevy::prelude::*;
 use penumbra::df::{PenumbraBufferDump, PenumbraBuffers, PenumbraGpuAllocations};
 use penumbra::prelude::*;
+use penumbra_test::harness::KeptApp;
 use penumbra_test::{HeadlessRender, gpu_or_skip};
 
 const SIZE: u32 = 64;
@@ -98,11 +101,11 @@ fn ray_from(eye: Vec3, i: u32, j: u32) -> Vec3 {
     (forward + x * right + y * up).normalize()
 }
 
-#[test]
-fn the_dump_is_distance_normal_and_mask_per_pixel_centre() {
-    if !gpu_or_skip("the_dump_is_distance_normal_and_mask_per_pixel_centre") {
-        return;
-    }
+/// Renders `scene` (its `Startup` system) with `PenumbraPlugins`, deferred, then asks
+/// the camera for its buffers: the app, the camera and the first dump.
+fn render_and_dump<M>(
+    scene: impl IntoScheduleConfigs<ScheduleSystem, M>,
+) -> (KeptApp, Entity, PenumbraBuffers) {
     let render = HeadlessRender::new(SIZE, SIZE).frames(4);
     let mut app = render.app();
     app.add_plugins(PenumbraPlugins)
@@ -117,15 +120,21 @@ fn the_dump_is_distance_normal_and_mask_per_pixel_centre() {
     app.world_mut()
         .entity_mut(camera)
         .insert(PenumbraBufferDump);
-    let mut dump = None;
     for _ in 0..30 {
         app.update();
-        dump = app.world_mut().entity_mut(camera).take::<PenumbraBuffers>();
-        if dump.is_some() {
-            break;
+        if let Some(dump) = app.world_mut().entity_mut(camera).take::<PenumbraBuffers>() {
+            return (app, camera, dump);
         }
     }
-    let dump = dump.expect("the dump arrived");
+    panic!("the dump did not arrive in 30 frames");
+}
+
+#[test]
+fn the_dump_is_distance_normal_and_mask_per_pixel_centre() {
+    if !gpu_or_skip("the_dump_is_distance_normal_and_mask_per_pixel_centre") {
+        return;
+    }
+    let (mut app, camera, dump) = render_and_dump(scene);
     // Dumping every frame creates nothing new once running (pooled buffers, the bind
     // group kept while its inputs are).
     let allocations = app.world().resource::<PenumbraGpuAllocations>().clone();
@@ -398,29 +407,7 @@ fn face_normals_are_the_posed_triangles_of_skinned_morphed_and_lightmapped_meshe
     if !gpu_or_skip(name) {
         return;
     }
-    let render = HeadlessRender::new(SIZE, SIZE).frames(4);
-    let mut app = render.app();
-    app.add_plugins(PenumbraPlugins)
-        .insert_resource(DefaultOpaqueRendererMethod::deferred())
-        .add_systems(Startup, facets_scene);
-    let (_, mut app) = render.run_keeping_app(app).expect("headless render");
-    let camera = app
-        .world_mut()
-        .query_filtered::<Entity, With<Camera3d>>()
-        .single(app.world())
-        .unwrap();
-    app.world_mut()
-        .entity_mut(camera)
-        .insert(PenumbraBufferDump);
-    let mut dump = None;
-    for _ in 0..30 {
-        app.update();
-        dump = app.world_mut().entity_mut(camera).take::<PenumbraBuffers>();
-        if dump.is_some() {
-            break;
-        }
-    }
-    let dump = dump.expect("the dump arrived");
+    let (_, _, dump) = render_and_dump(facets_scene);
     let facets = &dump.get("face_normal").expect("the face normals").data;
     let quads = posed_quads();
     let mut inside = [0; 3];
