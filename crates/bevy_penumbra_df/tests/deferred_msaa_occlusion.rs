@@ -56,6 +56,27 @@ struct Setup {
     renderer: Renderer,
     /// DFAO's temporal filter (off but in `dfao_temporal_filter_runs_under_deferred_msaa`).
     temporal: bool,
+    /// The slats drift 1 cm to the right a frame (that test: a still view traced at
+    /// every pixel converges to its own trace, and the filter would change nothing to
+    /// compare; under moving casters its history lags).
+    moving: bool,
+}
+
+/// A slat and its x at frame 0.
+#[derive(Component)]
+struct Slat(f32);
+
+/// Moves the slats with the frame count (the same pose at a capture on every renderer).
+fn drift_slats(
+    setup: Res<Setup>,
+    frame: Res<bevy::diagnostic::FrameCount>,
+    mut slats: Query<(&Slat, &mut Transform)>,
+) {
+    if setup.moving {
+        for (slat, mut transform) in &mut slats {
+            transform.translation.x = slat.0 + 0.01 * frame.0 as f32;
+        }
+    }
 }
 
 fn slat_xs() -> impl Iterator<Item = f32> {
@@ -109,6 +130,7 @@ fn spawn_scene(
             Mesh3d(meshes.add(Cuboid::from_size(slat))),
             MeshMaterial3d(material(1 + (i % 2) as u8)),
             Transform::from_xyz(x, 1.0, SLAT_GAP + slat.z * 0.5).with_rotation(turn),
+            Slat(x),
             DistanceFieldCaster {
                 source: CasterSource::Cuboid {
                     half_size: slat * 0.5,
@@ -171,6 +193,7 @@ fn render(lighting: Lighting, renderer: Renderer) -> RgbaImage {
         lighting,
         renderer,
         temporal: false,
+        moving: false,
     })
 }
 
@@ -196,7 +219,8 @@ fn render_setup(setup: Setup) -> RgbaImage {
             },
             ..default()
         })
-        .add_systems(Startup, spawn_scene);
+        .add_systems(Startup, spawn_scene)
+        .add_systems(Update, drift_slats);
     if renderer != Renderer::Ids {
         app.add_plugins((
             SdfAssetPlugin,
@@ -212,7 +236,8 @@ fn render_setup(setup: Setup) -> RgbaImage {
 
 /// DFAO's temporal filter runs on a deferred MSAA view (its multisampled motion vectors
 /// read at sample 0): off the edges the image equals the single-sample camera's with the
-/// filter, which differs from both without it. Before, the filter did not run there
+/// filter, which differs from both without it (the slats move: the filter's history
+/// lags them). Before, the filter did not run there
 /// (and before that, every pixel shaded once read a filtered texture nothing wrote and
 /// went black: #46).
 #[test]
@@ -226,6 +251,7 @@ fn dfao_temporal_filter_runs_under_deferred_msaa() {
             lighting: Lighting::Sky,
             renderer,
             temporal,
+            moving: true,
         }))
     };
     let msaa = Renderer::Msaa { per_sample: true };

@@ -25,7 +25,6 @@ use bevy::platform::collections::HashSet;
 use bevy::prelude::*;
 use bevy::render::batching::gpu_preprocessing::{
     BatchedInstanceBuffers, IndirectParametersCpuMetadata, UntypedPhaseIndirectParametersBuffers,
-    batch_and_prepare_sorted_render_phase,
 };
 use bevy::render::batching::{GetBatchData, GetFullBatchData};
 use bevy::render::camera::{DirtySpecializations, ExtractedCamera, PendingQueues};
@@ -86,8 +85,8 @@ pub(super) fn build(render_app: &mut SubApp) {
             (
                 timed(queue_face_normal_meshes).in_set(RenderSystems::QueueMeshes),
                 sort_phase_system::<FaceNormal3d>.in_set(RenderSystems::PhaseSort),
-                batch_and_prepare_sorted_render_phase::<FaceNormal3d, FaceNormalPipeline>
-                    .in_set(RenderSystems::PrepareResources),
+                // Batching: `SortedRenderPhasePlugin` (in `PrepareResourcesBatchPhases`,
+                // after Bevy's skins are written).
                 timed(prepare_face_normal_textures).in_set(RenderSystems::PrepareResources),
             ),
         )
