@@ -101,6 +101,7 @@
 //! lavapipe the trace takes 34 / 68 / 386 ms for 10 / 100 / 1,000 casters with the
 //! defaults, the upsample and the temporal pass about 14–22 ms each).
 
+mod pipeline;
 mod render;
 
 use crate::lighting::{PenumbraAoInput, PenumbraLighting};

@@ -1,6 +1,7 @@
 //! Render-world side of DFAO: per-view textures, the trace and upsample passes, and the
 //! input the lighting pass reads.
 
+use super::pipeline::{AoPipelines, init_ao_pipelines, queue_sample_upsample, queue_temporal_msaa};
 use super::{DistanceFieldAoDebugView, DistanceFieldSpecularOcclusion, ExtractedDfao};
 use crate::global_field::ViewGlobalField;
 use crate::gpu_allocations::PenumbraGpuAllocations;
@@ -13,17 +14,11 @@ use bevy::core_pipeline::prepass::{MotionVectorPrepass, ViewPrepassTextures};
 use bevy::core_pipeline::schedule::Core3d;
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
-use bevy::render::render_resource::binding_types::{
-    storage_buffer_read_only_sized, texture_2d, texture_2d_multisampled, texture_3d,
-    texture_depth_2d_multisampled, texture_storage_2d, uniform_buffer_sized,
-};
 use bevy::render::render_resource::encase::UniformBuffer as EncaseBuffer;
 use bevy::render::render_resource::{
-    BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
-    BufferId, BufferUsages, CachedComputePipelineId, ComputePassDescriptor,
-    ComputePipelineDescriptor, Extent3d, PipelineCache, ShaderStages, ShaderType,
-    StorageTextureAccess, TextureDescriptor, TextureDimension, TextureFormat, TextureSampleType,
-    TextureUsages, TextureView, TextureViewDescriptor, TextureViewId,
+    BindGroup, BindGroupEntries, Buffer, BufferId, BufferUsages, ComputePassDescriptor, Extent3d,
+    PipelineCache, ShaderType, TextureDescriptor, TextureDimension, TextureFormat, TextureUsages,
+    TextureView, TextureViewDescriptor, TextureViewId,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::view::ExtractedView;
@@ -31,36 +26,13 @@ use bevy::render::{Render, RenderStartup, RenderSystems};
 use penumbra_df_core::ao::{AoTemporalView, AoTraceView, jitter, trace_size, view_divisor};
 use penumbra_df_core::cull::CameraOrigin;
 
-/// The passes' pipelines.
-#[derive(Resource)]
-struct AoPipelines {
-    trace_layout: BindGroupLayoutDescriptor,
-    trace: CachedComputePipelineId,
-    upsample_layout: BindGroupLayoutDescriptor,
-    upsample: CachedComputePipelineId,
-    /// Deferred MSAA's per-sample upsample (`PENUMBRA_SAMPLE_UPSAMPLE`): the upsample's
-    /// layout, then the multisampled depth and G-buffer and the pixels' classes; queued
-    /// for the first deferred MSAA view.
-    sample_upsample_layout: BindGroupLayoutDescriptor,
-    sample_upsample: Option<CachedComputePipelineId>,
-    temporal_layout: BindGroupLayoutDescriptor,
-    temporal: CachedComputePipelineId,
-    /// The temporal pass of deferred MSAA views (`MULTISAMPLED_MOTION`: the motion
-    /// vectors multisampled); queued for the first such view.
-    temporal_msaa_layout: BindGroupLayoutDescriptor,
-    temporal_msaa: Option<CachedComputePipelineId>,
-    /// Bound when the scene has no SDF volume (analytic casters only).
-    empty_atlas: TextureView,
-    /// Bound when no volume is placed as bricks.
-    empty_brick_table: TextureView,
-}
-
 /// A view's AO textures: the trace's (at the divisor's size), above divisor 1 the
 /// full-size upsample (otherwise the trace is full-size), and with the temporal filter
-/// two history pairs (filtered AO and bent normal; distance and confidence), written in
-/// turn: frame `f` writes pair `f mod 2` and reads the other, and the filtered AO again
-/// in `filtered`, which the lighting pass binds (one texture for every frame: its bind
-/// group stays).
+/// two history pairs (the blend of each pixel's own AO and bent normal; distance and
+/// confidence), written in turn: frame `f` writes pair `f mod 2` and reads the other,
+/// and what the lighting pass binds — that blend, with the spatial fill where a pixel's
+/// confidence is low — in `filtered` (one texture for every frame: its bind group
+/// stays).
 #[derive(Component)]
 pub struct ViewAoTextures {
     trace: TextureView,
@@ -144,161 +116,6 @@ pub(super) fn build(render_app: &mut SubApp) {
 
 pub(super) fn finish(render_app: &mut SubApp) {
     render_app.add_systems(RenderStartup, init_ao_pipelines);
-}
-
-fn init_ao_pipelines(
-    mut commands: Commands,
-    pipeline_cache: Res<PipelineCache>,
-    device: Res<RenderDevice>,
-    library: Option<Res<PenumbraShaderLibrary>>,
-) {
-    let Some(library) = library else {
-        return; // warned by the scene plugin
-    };
-    let view_bytes = AoTraceView::min_size();
-    let trace_layout = BindGroupLayoutDescriptor::new(
-        "penumbra_dfao_trace_layout",
-        &BindGroupLayoutEntries::sequential(
-            ShaderStages::COMPUTE,
-            (
-                storage_buffer_read_only_sized(false, None),
-                texture_3d(TextureSampleType::Float { filterable: false }),
-                texture_2d(TextureSampleType::Float { filterable: false }),
-                texture_2d(TextureSampleType::Uint),
-                uniform_buffer_sized(false, Some(view_bytes)),
-                texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
-                storage_buffer_read_only_sized(false, None),
-                texture_2d(TextureSampleType::Float { filterable: false }),
-                texture_2d(TextureSampleType::Uint),
-            ),
-        ),
-    );
-    let upsample_entries = (
-        texture_2d(TextureSampleType::Float { filterable: false }),
-        texture_2d(TextureSampleType::Float { filterable: false }),
-        texture_2d(TextureSampleType::Uint),
-        uniform_buffer_sized(false, Some(view_bytes)),
-        texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
-    );
-    let upsample_layout = BindGroupLayoutDescriptor::new(
-        "penumbra_dfao_upsample_layout",
-        &BindGroupLayoutEntries::sequential(ShaderStages::COMPUTE, upsample_entries),
-    );
-    let (e0, e1, e2, e3, e4) = upsample_entries;
-    let sample_upsample_layout = BindGroupLayoutDescriptor::new(
-        "penumbra_dfao_sample_upsample_layout",
-        &BindGroupLayoutEntries::sequential(
-            ShaderStages::COMPUTE,
-            (
-                e0,
-                e1,
-                e2,
-                e3,
-                e4,
-                texture_depth_2d_multisampled(),
-                texture_2d_multisampled(TextureSampleType::Uint),
-                texture_2d(TextureSampleType::Uint),
-            ),
-        ),
-    );
-    let float = || texture_2d(TextureSampleType::Float { filterable: false });
-    let temporal_layout_with = |label, motion| {
-        BindGroupLayoutDescriptor::new(
-            label,
-            &BindGroupLayoutEntries::sequential(
-                ShaderStages::COMPUTE,
-                (
-                    float(),
-                    float(),
-                    float(),
-                    float(),
-                    texture_2d(TextureSampleType::Uint),
-                    motion,
-                    uniform_buffer_sized(false, Some(AoTemporalView::min_size())),
-                    texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
-                    texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
-                    texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
-                ),
-            ),
-        )
-    };
-    let temporal_layout = temporal_layout_with("penumbra_dfao_temporal_layout", float());
-    let temporal_msaa_layout = temporal_layout_with(
-        "penumbra_dfao_temporal_msaa_layout",
-        texture_2d_multisampled(TextureSampleType::Float { filterable: false }),
-    );
-    let temporal = library.queue_compute(
-        &pipeline_cache,
-        "penumbra_dfao_temporal",
-        &temporal_layout,
-        "df/ao_temporal.wgsl",
-        "temporal",
-    );
-    // Group 1: the camera's global distance field (an empty one without).
-    let trace = library.queue_compute_layouts(
-        &pipeline_cache,
-        "penumbra_dfao_trace",
-        &[trace_layout.clone(), crate::global_field::read_layout()],
-        "df/ao_trace.wgsl",
-        "trace",
-    );
-    let upsample = library.queue_compute(
-        &pipeline_cache,
-        "penumbra_dfao_upsample",
-        &upsample_layout,
-        "df/ao_upsample.wgsl",
-        "upsample",
-    );
-    commands.insert_resource(AoPipelines {
-        trace_layout,
-        trace,
-        upsample_layout,
-        upsample,
-        sample_upsample_layout,
-        sample_upsample: None,
-        temporal_layout,
-        temporal,
-        temporal_msaa_layout,
-        temporal_msaa: None,
-        empty_atlas: crate::shader_library::empty_atlas(&device),
-        empty_brick_table: crate::shader_library::empty_brick_table(&device),
-    });
-}
-
-/// Queues deferred MSAA's per-sample upsample (once).
-fn queue_sample_upsample(
-    pipelines: &mut AoPipelines,
-    library: &PenumbraShaderLibrary,
-    pipeline_cache: &PipelineCache,
-) -> CachedComputePipelineId {
-    *pipelines.sample_upsample.get_or_insert_with(|| {
-        pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
-            label: Some("penumbra_dfao_sample_upsample".into()),
-            layout: vec![pipelines.sample_upsample_layout.clone()],
-            shader: library.handle("df/ao_upsample.wgsl"),
-            shader_defs: vec!["PENUMBRA_SAMPLE_UPSAMPLE".into()],
-            entry_point: Some("upsample_samples".into()),
-            ..default()
-        })
-    })
-}
-
-/// Queues deferred MSAA's temporal pass (once).
-fn queue_temporal_msaa(
-    pipelines: &mut AoPipelines,
-    library: &PenumbraShaderLibrary,
-    pipeline_cache: &PipelineCache,
-) -> CachedComputePipelineId {
-    *pipelines.temporal_msaa.get_or_insert_with(|| {
-        pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
-            label: Some("penumbra_dfao_temporal_msaa".into()),
-            layout: vec![pipelines.temporal_msaa_layout.clone()],
-            shader: library.handle("df/ao_temporal.wgsl"),
-            shader_defs: vec!["MULTISAMPLED_MOTION".into()],
-            entry_point: Some("temporal".into()),
-            ..default()
-        })
-    })
 }
 
 fn ao_texture(
