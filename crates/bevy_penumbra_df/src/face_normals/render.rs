@@ -502,14 +502,10 @@ fn queue_face_normal_meshes(
                 phase.remove(Entity::PLACEHOLDER, *visible_entity);
                 continue;
             }
-            // The mesh's own bits (morph targets, topology) and its lightmap choose the
-            // mesh bind group's layout, as in Bevy's shadow phase.
-            let mut key = view_key
-                | MeshPipelineKey::from_bits_retain(mesh.key_bits.bits())
-                | MeshPipelineKey::from_primitive_topology_and_strip_index(
-                    mesh.primitive_topology(),
-                    mesh.index_format(),
-                );
+            // The mesh's own bits (topology, strip index format, morph targets) and its
+            // lightmap choose the pipeline and the mesh bind group's layout, as in
+            // Bevy's shadow phase.
+            let mut key = view_key | MeshPipelineKey::from_bits_retain(mesh.key_bits.bits());
             if instance.shared.lightmap_slab_index().is_some() {
                 key |= MeshPipelineKey::LIGHTMAPPED;
             }
