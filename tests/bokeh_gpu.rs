@@ -359,22 +359,34 @@ fn sprite_pass_matches_the_model() {
         merge: false,
         ..base
     };
-    for (name, rule) in [("default", base), ("unmerged", unmerged), ("loose", loose)] {
+    let blocks_only = SpriteRule {
+        merge_groups: false,
+        ..base
+    };
+    for (name, rule) in [
+        ("default", base),
+        ("unmerged", unmerged),
+        ("blocks only", blocks_only),
+        ("loose", loose),
+    ] {
         let merge = rule.merge;
         let (want, first) = by_layer(&sprites(&half, &rule), rule.quarter_diameter());
         let got = run(&gpu, &image, &lens, &rule, 4096);
         let blocks = want.iter().filter(|s| s.weight > 1.0).count();
+        let groups = want.iter().filter(|s| s.weight > 4.0).count();
         let near = want.iter().filter(|s| s.near).count();
         eprintln!(
-            "{name}: {} sprites on the GPU, {} in the model ({blocks} blocks, {near} near)",
+            "{name}: {} sprites on the GPU, {} in the model ({blocks} blocks, {groups} of \
+             them groups, {near} near)",
             got.count,
             want.len()
         );
         eprintln!("  layers start at {first:?}");
         assert!(
-            want.len() > 300 && near >= 36 && (blocks > 100) == merge,
+            want.len() > 200 && near >= 36 && (blocks > 100) == merge,
             "{name}"
         );
+        assert_eq!(groups > 10, merge && rule.merge_groups, "{name}: groups");
         assert!(
             first.windows(2).all(|w| w[0] < w[1]) && first[3] < want.len(),
             "{name}: every layer holds sprites: {first:?}"
@@ -407,7 +419,8 @@ fn sprite_pass_matches_the_model() {
     assert_eq!(got.count, 512);
     let blocks_x = half.size.x.div_ceil(2);
     let stored_block = |s: &Sprite| {
-        let b = (s.center / 2.0).floor();
+        // The first texel of the square it stands for, then its block.
+        let b = ((s.center - 0.5 * s.spread() - 0.5) / 2.0).floor();
         (b.y as u32) * blocks_x + (b.x as u32) < 128
     };
     let stored = want.iter().take(512).filter(|s| stored_block(s)).count();

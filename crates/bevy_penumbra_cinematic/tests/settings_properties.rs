@@ -71,6 +71,7 @@ fn depth_of_field_settings_resolve_to_a_finite_lens() {
             max_depth: a.f32(),
             min_circle_of_confusion: a.f32(),
             merge_blocks: a.bool(),
+            merge_groups: a.bool(),
             merge_coc_tolerance: a.f32(),
             merge_color_tolerance: a.f32(),
             merge_depth_tolerance: a.f32(),

@@ -441,6 +441,7 @@ fn bokeh_layouts_and_constants_match() {
             "color_tolerance",
             "depth_tolerance",
             "merge",
+            "merge_groups",
             "capacity",
             "quarter_diameter",
             "origin",

@@ -18,7 +18,10 @@
 //!    and the sensor height, f-number `N`, focal distance `s`), signed: negative in front
 //!    of the focal plane. A block whose four pixels are out of focus on one side of the
 //!    focal plane and agree in circle of confusion, luminance and depth becomes **one** sprite, otherwise
-//!    each out-of-focus pixel becomes one (the 1-or-4 rule). Each block writes its own
+//!    each out-of-focus pixel becomes one (the 1-or-4 rule). A 2×2 **group** of blocks
+//!    (8×8 view pixels) whose sixteen pixels agree the same way, with a sprite drawn at
+//!    half resolution, becomes one sprite too (the blocks see each other through
+//!    workgroup memory). Each block writes its own
 //!    four slots and its count per layer (below); an exclusive prefix sum of the counts
 //!    and a copy list the sprites layer by layer, in block order within each, with no
 //!    gaps, and set each layer's indirect draw. The order — and the layers' floating-point sums — never
@@ -29,7 +32,11 @@
 //!    textured with the aperture, adds `(colour · w, w)` into a **near** or a **far**
 //!    layer (additive blending), `w` normalised by what the aperture sums to over the
 //!    texels the sprite covers (tabulated per aperture), so a pixel spreads unit weight
-//!    at any size; near sprites show the aperture point-reflected. Sprites whose
+//!    at any size; near sprites show the aperture point-reflected. A block's or a
+//!    group's quad (one or three texels wider) adds the aperture around each of its
+//!    4 or 16 pixel centres: exactly the sprites it replaces, with their mean colour,
+//!    for a quarter or a sixteenth of their fragments and blends. Fragments outside
+//!    the aperture are discarded rather than blended as zero. Sprites whose
 //!    circle of confusion reaches `quarter_resolution_coc` (32 px) go to a near and a
 //!    far layer at **quarter** resolution instead: each quarter texel adds what the
 //!    sprite adds at its four half-resolution texel centres (the half-resolution layer
@@ -71,7 +78,15 @@
 //!   sprite's quad is rasterised): a fully blurred view at the 64 px default fills about
 //!   `(w h / 4) · 32² / 16` fragments at quarter resolution (four times that with
 //!   `quarter_resolution_coc` at infinity) before the 1-or-4 rule merges agreeing blocks
-//!   (about a quarter of the sprites on smooth regions). Against the ray-traced thin
+//!   (about a quarter of the sprites on smooth regions) and groups (a sixteenth).
+//!   On Bevy's depth-of-field scene at 1920×1080 with the bench's lens (f/0.125;
+//!   `tests/bokeh_truth.rs`, `merge_rule_error_against_work`: the CPU model, equal to
+//!   the passes, on the rendered image) the scatter shades 33.2 M fragments unmerged,
+//!   10.8 M with blocks and 4.46 M with blocks and groups, each at 0.035 mean error
+//!   against the thin lens (the groups' error equal to the blocks' to 10⁻⁴ in every
+//!   mask). A group's fragment takes sixteen aperture samples where a block's takes
+//!   four, so the saving is the blending's: where sampling bounds the pass it is
+//!   smaller (lavapipe's pass at 1920×1080: 300 → 283 ms). Against the ray-traced thin
 //!   lens (`penumbra_reference::bokeh` truth tests, 256 × 160, blur up to 64 px) the
 //!   32 px default draws 0.68 of the fragments of half resolution everywhere at the same
 //!   error (0.0122 mean display error); from 24 px, 0.63 at the same error; from 16 px,
@@ -103,7 +118,8 @@
 //! every sprite's six vertices, vertex work was about 100 ms of lavapipe's time per
 //! draw, which listing the layers apart and four-vertex strips removed (the pass 757 →
 //! 544 ms). That scene's blur stays under the 32 px of the quarter-resolution layers
-//! (their draws shaded no fragment), so they save nothing there. Diagnostics: the time span `penumbra_bokeh_dof`.
+//! (their draws shaded no fragment), so they save nothing there; groups cut its
+//! fragments to 0.41 of the blocks' (above; not measured on a GPU yet). Diagnostics: the time span `penumbra_bokeh_dof`.
 
 mod pipelines;
 mod render;
@@ -193,6 +209,12 @@ pub struct BokehDepthOfField {
     /// is drawn as one sprite instead of four. Default on. Off: four times the sprites on
     /// smooth regions, with no visible gain (the rule's error is 10⁻⁴ in the unit tests).
     pub merge_blocks: bool,
+    /// With `merge_blocks`: a 2×2 group of blocks (8×8 view pixels) whose sixteen
+    /// half-resolution pixels agree, and whose blur is drawn at half resolution, is one
+    /// sprite: a sixteenth of their fragments and blends (the scatter pass's
+    /// bottleneck on GPUs short of raster output), sixteen aperture samples per
+    /// fragment. Default on. Off: a quarter of the fragments at most (blocks only).
+    pub merge_groups: bool,
     /// The 1-or-4 rule: largest spread of a block's circles of confusion, view pixels.
     /// Default 2. Must be ≥ 0 (default otherwise, with a warning).
     pub merge_coc_tolerance: f32,
@@ -225,6 +247,7 @@ impl Default for BokehDepthOfField {
             max_depth: f32::INFINITY,
             min_circle_of_confusion: rule.min_coc,
             merge_blocks: rule.merge,
+            merge_groups: rule.merge_groups,
             merge_coc_tolerance: rule.coc_tolerance,
             merge_color_tolerance: rule.color_tolerance,
             merge_depth_tolerance: rule.depth_tolerance,
@@ -350,6 +373,7 @@ impl BokehDepthOfField {
         let mut rule = SpriteRule {
             min_coc,
             merge: self.merge_blocks,
+            merge_groups: self.merge_groups,
             coc_tolerance: tolerance(
                 "merge_coc_tolerance",
                 self.merge_coc_tolerance,

@@ -77,6 +77,10 @@ pub struct SpriteRule {
     pub min_coc: f32,
     /// Whether agreeing blocks make one sprite (Samaritan's 1-or-4 rule).
     pub merge: bool,
+    /// With `merge`, whether a 2×2 group of blocks (4×4 texels) that agrees as a whole
+    /// makes one sprite drawn at half resolution: a sixteenth of the fragments and
+    /// blends of its texels' sprites, sixteen aperture samples per fragment.
+    pub merge_groups: bool,
     /// Largest spread of the block's circles of confusion, full-resolution pixels.
     pub coc_tolerance: f32,
     /// Largest spread of the block's luminance relative to its mean.
@@ -108,6 +112,7 @@ impl Default for SpriteRule {
         SpriteRule {
             min_coc: 2.0,
             merge: true,
+            merge_groups: true,
             coc_tolerance: 2.0,
             color_tolerance: 0.1,
             depth_tolerance: 0.05,
@@ -159,6 +164,8 @@ pub struct BokehView {
     pub depth_tolerance: f32,
     /// 1 when [`SpriteRule::merge`].
     pub merge: u32,
+    /// 1 when [`SpriteRule::merge`] and [`SpriteRule::merge_groups`].
+    pub merge_groups: u32,
     /// Sprite slots the sprite buffer holds, 4 per 2×2 block of half-resolution pixels
     /// ([`sprite_slots`]); sprites past it are dropped.
     pub capacity: u32,
@@ -203,6 +210,7 @@ impl BokehView {
             color_tolerance: rule.color_tolerance,
             depth_tolerance: rule.depth_tolerance,
             merge: u32::from(rule.merge),
+            merge_groups: u32::from(rule.merge && rule.merge_groups),
             capacity,
             quarter_diameter: rule.quarter_diameter(),
             origin: UVec2::ZERO,

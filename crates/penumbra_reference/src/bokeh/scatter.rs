@@ -45,12 +45,31 @@ pub struct Sprite {
     pub diameter: f32,
     /// The colour it spreads: the sum over the pixels it stands for.
     pub color: Vec3,
-    /// How many half-resolution pixels it stands for: 1, or 4 for a 2×2 block, whose
-    /// quad adds the aperture at each of the four pixel centres (the four sprites it
-    /// replaces, drawn as one quad with a quarter of the blending).
+    /// How many half-resolution pixels it stands for: 1, 4 for a 2×2 block or 16 for a
+    /// 4×4 group, whose quad adds the aperture at each of its pixel centres (the sprites
+    /// it replaces, drawn as one quad with a quarter or a sixteenth of the blending).
     pub weight: f32,
     /// In front of the focal plane (the near layer), or behind it.
     pub near: bool,
+}
+
+impl Sprite {
+    /// Texels across the square it stands for: 1, 2 for a block, 4 for a group.
+    pub fn side(&self) -> u32 {
+        if self.weight > 4.0 {
+            4
+        } else if self.weight > 1.0 {
+            2
+        } else {
+            1
+        }
+    }
+
+    /// How far apart its outermost texel centres are, half-resolution pixels: its quad
+    /// is this much wider than the aperture.
+    pub fn spread(&self) -> f32 {
+        (self.side() - 1) as f32
+    }
 }
 
 /// The scatter pass's targets: `(Σ colour, Σ weight)` per texel, a near and a far layer
@@ -134,23 +153,115 @@ fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
-/// Whether the four texels of a block agree well enough for one sprite.
-fn block_agrees(texels: &[(Vec3, f32, f32); 4], rule: &SpriteRule) -> bool {
-    let range = |f: &dyn Fn(&(Vec3, f32, f32)) -> f32| {
-        let values = texels.map(|t| f(&t));
-        let lo = values.iter().copied().fold(f32::INFINITY, f32::min);
-        let hi = values.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-        // Quarters first: four `f32::MAX` skies do not overflow.
-        (lo, hi, values.iter().map(|v| v / 4.0).sum::<f32>())
-    };
-    let (coc_lo, coc_hi, _) = range(&|t| t.1);
-    let same_side = coc_lo > 0.0 || coc_hi < 0.0;
-    let (l_lo, l_hi, l_mean) = range(&|t| luminance(t.0));
-    let (d_lo, d_hi, d_mean) = range(&|t| t.2);
-    same_side
-        && coc_hi - coc_lo <= rule.coc_tolerance
-        && l_hi - l_lo <= rule.color_tolerance * l_mean.max(1e-4)
-        && (d_hi - d_lo <= rule.depth_tolerance * d_mean || d_lo == d_hi)
+/// What the 1-or-4 rule reads of a 2×2 block of half-resolution texels, or of a 2×2
+/// group of blocks ([`GroupStats::of_blocks`]), accumulated in the sprite pass's order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct GroupStats {
+    coc_lo: f32,
+    coc_hi: f32,
+    /// Σ circle of confusion.
+    coc_sum: f32,
+    l_lo: f32,
+    l_hi: f32,
+    /// Mean luminance, summed as Σ (l / n).
+    l_mean: f32,
+    d_lo: f32,
+    d_hi: f32,
+    /// Mean distance, summed as Σ (d / n) (four `f32::MAX` skies do not overflow).
+    d_mean: f32,
+    /// Σ colour.
+    color: Vec3,
+    /// Texels it stands for: 4 or 16.
+    texels: f32,
+}
+
+impl GroupStats {
+    /// A block's four texels (colour, circle of confusion, distance).
+    fn of_texels(texels: &[(Vec3, f32, f32); 4]) -> Self {
+        let mut g = GroupStats {
+            coc_lo: texels[0].1,
+            coc_hi: texels[0].1,
+            coc_sum: 0.0,
+            l_lo: luminance(texels[0].0),
+            l_hi: luminance(texels[0].0),
+            l_mean: 0.0,
+            d_lo: texels[0].2,
+            d_hi: texels[0].2,
+            d_mean: 0.0,
+            color: Vec3::ZERO,
+            texels: 4.0,
+        };
+        for &(color, coc, distance) in texels {
+            let l = luminance(color);
+            g.coc_lo = g.coc_lo.min(coc);
+            g.coc_hi = g.coc_hi.max(coc);
+            g.coc_sum += coc;
+            g.l_lo = g.l_lo.min(l);
+            g.l_hi = g.l_hi.max(l);
+            g.l_mean += l / 4.0;
+            g.d_lo = g.d_lo.min(distance);
+            g.d_hi = g.d_hi.max(distance);
+            g.d_mean += distance / 4.0;
+            g.color += color;
+        }
+        g
+    }
+
+    /// Four blocks (row-major) as one 4×4 group.
+    fn of_blocks(blocks: &[GroupStats; 4]) -> Self {
+        let mut g = GroupStats {
+            coc_sum: 0.0,
+            l_mean: 0.0,
+            d_mean: 0.0,
+            color: Vec3::ZERO,
+            texels: 16.0,
+            ..blocks[0]
+        };
+        for b in blocks {
+            g.coc_lo = g.coc_lo.min(b.coc_lo);
+            g.coc_hi = g.coc_hi.max(b.coc_hi);
+            g.coc_sum += b.coc_sum;
+            g.l_lo = g.l_lo.min(b.l_lo);
+            g.l_hi = g.l_hi.max(b.l_hi);
+            g.l_mean += b.l_mean / 4.0;
+            g.d_lo = g.d_lo.min(b.d_lo);
+            g.d_hi = g.d_hi.max(b.d_hi);
+            g.d_mean += b.d_mean / 4.0;
+            g.color += b.color;
+        }
+        g
+    }
+
+    /// The mean circle of confusion.
+    fn coc(&self) -> f32 {
+        self.coc_sum / self.texels
+    }
+
+    /// Whether its texels may be one sprite: all out of focus on one side of the focal
+    /// plane, their circles of confusion, luminance and distances within the rule's
+    /// tolerances.
+    fn agrees(&self, rule: &SpriteRule) -> bool {
+        let same_side = self.coc_lo > 0.0 || self.coc_hi < 0.0;
+        let in_focus = self.coc_lo.abs().min(self.coc_hi.abs()) < rule.min_coc.max(1e-3);
+        same_side
+            && !in_focus
+            && self.coc_hi - self.coc_lo <= rule.coc_tolerance
+            && self.l_hi - self.l_lo <= rule.color_tolerance * self.l_mean.max(1e-4)
+            && (self.d_hi - self.d_lo <= rule.depth_tolerance * self.d_mean
+                || self.d_lo == self.d_hi)
+    }
+
+    /// The one sprite its texels make, centred at `center`.
+    fn sprite(&self, center: Vec2) -> Sprite {
+        let coc = self.coc();
+        Sprite {
+            center,
+            diameter: sprite_diameter(coc),
+            color: self.color,
+            weight: self.texels,
+            near: coc < 0.0,
+        }
+    }
 }
 
 /// The half-resolution diameter of the aperture image for a circle of confusion of
@@ -168,37 +279,53 @@ pub fn sprite_diameter(coc: f32) -> f32 {
 /// The sprites of `half`: per 2×2 block of texels, one sprite at the block's centre
 /// (the mean circle of confusion, carrying the four colours) when `rule.merge` and all
 /// four are out of focus on the same side and agree; otherwise one per texel whose
-/// circle of confusion reaches `rule.min_coc`. In block order, then
-/// texel order within the block (the GPU's order differs; the sum does not).
+/// circle of confusion reaches `rule.min_coc`. Where a 2×2 group of blocks (blocks
+/// `2i, 2i + 1` across and down) agrees as a whole and its sprite is drawn at half
+/// resolution, that one sprite stands for its sixteen texels, in its first block's
+/// place. In block order, then texel order within the block (the GPU's order differs;
+/// the sum does not).
 pub fn sprites(half: &HalfImage, rule: &SpriteRule) -> Vec<Sprite> {
     let size = half.size;
     let blocks = (size + UVec2::ONE) / 2;
     let min_coc = rule.min_coc.max(1e-3);
+    let texel = |b: UVec2, k: u32| 2 * b + UVec2::new(k & 1, k >> 1);
+    let inside = |b: UVec2| (0..4).all(|k| texel(b, k).cmplt(size).all());
+    let value = |p: UVec2| {
+        let i = (p.y * size.x + p.x) as usize;
+        (half.color[i], half.coc[i], half.distance[i])
+    };
+    let stats = |b: UVec2| GroupStats::of_texels(&[0, 1, 2, 3].map(|k| value(texel(b, k))));
+    let mut grouped = vec![false; (blocks.x * blocks.y) as usize];
     let mut out = Vec::new();
     for by in 0..blocks.y {
         for bx in 0..blocks.x {
-            let texel = |k: u32| UVec2::new(2 * bx + (k & 1), 2 * by + (k >> 1));
-            let inside = (0..4).all(|k| texel(k).cmplt(size).all());
-            let value = |p: UVec2| {
-                let i = (p.y * size.x + p.x) as usize;
-                (half.color[i], half.coc[i], half.distance[i])
-            };
-            if rule.merge && inside {
-                let texels = [0, 1, 2, 3].map(|k| value(texel(k)));
-                if texels.iter().all(|t| t.1.abs() >= min_coc) && block_agrees(&texels, rule) {
-                    let coc = texels.iter().map(|t| t.1).sum::<f32>() / 4.0;
-                    out.push(Sprite {
-                        center: (2 * UVec2::new(bx, by)).as_vec2() + 1.0,
-                        diameter: sprite_diameter(coc),
-                        color: texels.iter().map(|t| t.0).sum(),
-                        weight: 4.0,
-                        near: coc < 0.0,
-                    });
+            let block = UVec2::new(bx, by);
+            if grouped[(by * blocks.x + bx) as usize] {
+                continue;
+            }
+            if rule.merge && rule.merge_groups && bx % 2 == 0 && by % 2 == 0 {
+                let members = [0, 1, 2, 3].map(|k| block + UVec2::new(k & 1, k >> 1));
+                if members.iter().all(|&b| b.cmplt(blocks).all() && inside(b)) {
+                    let group = GroupStats::of_blocks(&members.map(stats));
+                    let sprite = group.sprite((2 * block).as_vec2() + 2.0);
+                    if group.agrees(rule) && !is_quarter(&sprite, rule.quarter_diameter()) {
+                        for b in members {
+                            grouped[(b.y * blocks.x + b.x) as usize] = true;
+                        }
+                        out.push(sprite);
+                        continue;
+                    }
+                }
+            }
+            if rule.merge && inside(block) {
+                let stats = stats(block);
+                if stats.agrees(rule) {
+                    out.push(stats.sprite((2 * block).as_vec2() + 1.0));
                     continue;
                 }
             }
             for k in 0..4 {
-                let p = texel(k);
+                let p = texel(block, k);
                 if !p.cmplt(size).all() {
                     continue;
                 }
@@ -265,14 +392,12 @@ fn sprite_quad(s: &Sprite, quarter: bool) -> (Vec2, f32) {
     if quarter {
         // The half-resolution quad (one pixel wider for a block) halved, and half a
         // quarter texel more for the samples around each texel centre.
-        let block = if s.weight > 1.0 { 1.0 } else { 0.0 };
         (
             0.5 * s.center,
-            0.5 * (quarter_diameter(s.diameter) + block) + 0.5,
+            0.5 * (quarter_diameter(s.diameter) + s.spread()) + 0.5,
         )
     } else {
-        let block = s.weight > 1.0;
-        (s.center, s.diameter + if block { 1.0 } else { 0.0 })
+        (s.center, s.diameter + s.spread())
     }
 }
 
@@ -348,14 +473,14 @@ pub fn scatter_fragments(sprites: &[Sprite], size: UVec2, quarter_diameter: f32)
 pub fn sprite_weight(s: &Sprite, aperture: &Aperture, p: Vec2) -> f32 {
     // Near highlights show the aperture point-reflected.
     let at = |center: Vec2| aperture.sprite_sample(p - center, s.diameter, s.near);
-    let sum: f32 = if s.weight > 1.0 {
-        [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)]
-            .into_iter()
-            .map(|(x, y)| at(s.center + Vec2::new(x, y)))
-            .sum()
-    } else {
-        at(s.center)
-    };
+    let side = s.side();
+    let half = 0.5 * s.spread();
+    let mut sum = 0.0;
+    for y in 0..side {
+        for x in 0..side {
+            sum += at(s.center + (Vec2::new(x as f32, y as f32) - half));
+        }
+    }
     sum / aperture.normalisation(s.diameter)
 }
 

@@ -217,6 +217,61 @@ fn merging_blocks_saves_sprites() {
     }
 }
 
+/// A 4×4 group is its sixteen sprites drawn as one quad: on a flat far field the
+/// layers' weights are those of one sprite per pixel to float rounding, for a fraction
+/// of the fragments.
+#[test]
+fn groups_spread_what_their_sixteen_sprites_spread() {
+    let lens = lens();
+    let size = UVec2::new(96, 64);
+    let n = (size.x * size.y) as usize;
+    let image = BokehImage {
+        size,
+        color: vec![Vec3::ONE; n],
+        distance: vec![20.0; n],
+    };
+    let aperture = Aperture::hexagon(64);
+    let half = downsample(&image, &lens);
+    let groups = SpriteRule {
+        quarter_coc: f32::INFINITY,
+        ..SpriteRule::default()
+    };
+    let blocks = SpriteRule {
+        merge_groups: false,
+        ..groups
+    };
+    let single = SpriteRule {
+        merge: false,
+        ..groups
+    };
+    let run = |rule: &SpriteRule| {
+        let sprites = sprites(&half, rule);
+        let fragments = scatter_fragments(&sprites, half.size, rule.quarter_diameter());
+        let layers = scatter_sprites(&sprites, &aperture, half.size, rule.quarter_diameter());
+        (sprites, fragments, layers.far)
+    };
+    let (reference, single_fragments, want) = run(&single);
+    let diameter = reference[0].diameter;
+    for (name, rule, sixteens, most) in [("blocks", blocks, 0, 0.45), ("groups", groups, 96, 0.2)] {
+        let (sprites, fragments, got) = run(&rule);
+        let count = sprites.iter().filter(|s| s.weight == 16.0).count();
+        let worst = got
+            .iter()
+            .zip(&want)
+            .map(|(g, w)| (g.w - w.w).abs())
+            .fold(0.0f32, f32::max);
+        let ratio = fragments as f32 / single_fragments as f32;
+        eprintln!(
+            "{name}: {} sprites ({count} groups) of {diameter:.1} px, {ratio:.3} of the \
+             fragments; largest weight difference {worst:.1e}",
+            sprites.len()
+        );
+        assert_eq!(count, sixteens, "{name}");
+        assert!(worst < 1e-4, "{name}: {worst}");
+        assert!(ratio < most, "{name}: {ratio}");
+    }
+}
+
 #[test]
 fn bad_aperture_images_are_rejected() {
     assert_eq!(Aperture::from_image(0, 0, &[]), Err(ApertureError::Empty));

@@ -4,8 +4,9 @@
 // resolution or, for sprites at least `view.quarter_diameter` wide, at quarter
 // resolution (`QUARTER_LAYER`) — each texel `(Σ colour · v, Σ v)`. The list holds each
 // layer's sprites together (`compact.wgsl`): each draw runs its own sprites' four
-// vertices (a triangle strip) and each fragment blends one target. A fragment adds the aperture image around the sprite's pixel, or around
-// each of a block's four, normalised by what the aperture sums to over the texels it
+// vertices (a triangle strip) and each fragment blends one target. A fragment adds the
+// aperture image around the sprite's pixel, or around each of a block's four or a
+// group's sixteen, normalised by what the aperture sums to over the texels it
 // covers, so each pixel spreads unit weight; near sprites read the aperture
 // point-reflected. A quarter texel adds what the sprite (its aperture shrunk by
 // `quarter_diameter`) adds at its four half-resolution texel centres: a quarter of the
@@ -70,18 +71,18 @@ fn vertex(@builtin(vertex_index) vertex_index: u32, @builtin(instance_index) ins
     // A triangle strip: (0, 0) (1, 0) (0, 1) (1, 1).
     let corners = array(vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 0.0), vec2<f32>(0.0, 1.0),
         vec2<f32>(1.0, 1.0));
-    let block = select(0.0, 1.0, s.shape.w > 1.0);
+    let spread = f32(side(s.shape.w) - 1u);
     var shape = s.shape;
 #ifdef QUARTER_LAYER
     // The half-resolution quad (one pixel wider for a block) halved, and half a quarter
     // texel more for the samples around each texel centre.
     shape.z = quarter_diameter(s.shape.z);
     let center = 0.5 * s.shape.xy;
-    let extent = 0.5 * (shape.z + block) + 0.5;
+    let extent = 0.5 * (shape.z + spread) + 0.5;
     let size = vec2<f32>(view.quarter_size);
 #else
     let center = s.shape.xy;
-    let extent = s.shape.z + block;
+    let extent = s.shape.z + spread;
     let size = vec2<f32>(view.half_size);
 #endif
     let p = center + (corners[vertex_index % 4u] - 0.5) * extent;
@@ -127,16 +128,25 @@ fn aperture_at(p: vec2<f32>, center: vec2<f32>, diameter: f32, near: bool) -> f3
     return textureSampleLevel(aperture, aperture_sampler, uv, 0.0).r;
 }
 
-// What the sprite adds at `p`, before normalisation (`bokeh::sprite_weight`).
+// Texels across the square a sprite of `weight` stands for: 1, 2 for a block, 4 for a
+// group (`Sprite::side`).
+fn side(weight: f32) -> u32 {
+    if weight > 4.0 {
+        return 4u;
+    }
+    return select(1u, 2u, weight > 1.0);
+}
+
+// What the sprite adds at `p`, before normalisation: the aperture around each texel
+// centre of its square (`bokeh::sprite_weight`).
 fn sprite_weight(p: vec2<f32>, shape: vec4<f32>, near: bool) -> f32 {
+    let n = side(shape.w);
+    let half = 0.5 * f32(n - 1u);
     var sum = 0.0;
-    if shape.w > 1.0 {
-        for (var k = 0u; k < 4u; k += 1u) {
-            let o = vec2<f32>(f32(k & 1u), f32(k >> 1u)) - 0.5;
-            sum += aperture_at(p, shape.xy + o, shape.z, near);
+    for (var y = 0u; y < n; y += 1u) {
+        for (var x = 0u; x < n; x += 1u) {
+            sum += aperture_at(p, shape.xy + (vec2<f32>(f32(x), f32(y)) - half), shape.z, near);
         }
-    } else {
-        sum = aperture_at(p, shape.xy, shape.z, near);
     }
     return sum;
 }
@@ -154,5 +164,10 @@ fn fragment(in: VertexOutput) -> @location(0) vec4<f32> {
 #else
     let v = sprite_weight(in.position.xy, in.shape, near) / in.norm;
 #endif
+    if v == 0.0 {
+        // Outside the aperture (the quad's corners, a hexagon's sides): adding nothing,
+        // it skips the blend, the pass's bottleneck where raster output is scarce.
+        discard;
+    }
     return vec4<f32>(in.color.rgb * v, v);
 }

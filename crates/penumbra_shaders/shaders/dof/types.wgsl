@@ -24,6 +24,8 @@ struct BokehView {
     color_tolerance: f32,
     depth_tolerance: f32,
     merge: u32,
+    // 1: a 2×2 group of blocks that agrees is one sprite (`SpriteRule::merge_groups`).
+    merge_groups: u32,
     capacity: u32,
     // Sprites at least this wide (half-resolution pixels) are drawn at quarter resolution.
     quarter_diameter: f32,
