@@ -31,7 +31,7 @@ use bevy::shader::ShaderDefVal;
 use bevy_penumbra_df::lighting::{
     DeferredMsaaTextures, MsaaShadedLightingIds, PenumbraLightingBindGroup,
     PenumbraLightingPipeline, PenumbraLightingSystems, PenumbraLightingView,
-    set_lighting_bind_groups, visible_meshes,
+    set_lighting_bind_groups, unresolved_color_attachment, visible_meshes,
 };
 use bevy_penumbra_df::system_times::timed;
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraLighting, PenumbraShaderLibrary};
@@ -733,7 +733,7 @@ pub fn subsurface_scattering(
             };
             let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
                 label: Some("penumbra_sss_plain"),
-                color_attachments: &[Some(target.get_color_attachment())],
+                color_attachments: &[Some(unresolved_color_attachment(target))],
                 depth_stencil_attachment: Some(depth),
                 timestamp_writes: None,
                 occlusion_query_set: None,
@@ -844,7 +844,7 @@ impl ScatterDraws<'_> {
         drop(pass);
         let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
             label: Some("penumbra_sss_scatter"),
-            color_attachments: &[Some(self.target.get_color_attachment())],
+            color_attachments: &[Some(unresolved_color_attachment(self.target))],
             depth_stencil_attachment: depth,
             timestamp_writes: None,
             occlusion_query_set: None,

@@ -70,7 +70,7 @@ pub use render::MsaaShadedLightingIds;
 pub use render::ShadowedLightKind;
 pub use render::{
     PenumbraAoInput, PenumbraLightingBindGroup, PenumbraLightingPipeline, PenumbraLightingSystems,
-    set_lighting_bind_groups,
+    set_lighting_bind_groups, unresolved_color_attachment,
 };
 #[cfg_attr(
     not(feature = "shadows"),

@@ -404,13 +404,7 @@ pub(crate) fn draw_msaa_lighting(
     };
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
-    // The samples only: Bevy's main opaque pass, which every 3D view runs after this one
-    // (forward materials, the sky), resolves them into the single-sample texture;
-    // resolving here as well wrote that whole texture once more per frame.
-    let color = RenderPassColorAttachment {
-        resolve_target: None,
-        ..target.get_color_attachment()
-    };
+    let color = super::unresolved_color_attachment(target);
     let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
         label: Some("penumbra_lighting"),
         color_attachments: &[Some(color)],

@@ -26,10 +26,11 @@ use bevy::render::render_resource::{
     BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries, Buffer,
     BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites, CompareFunction,
     DepthStencilState, Extent3d, FragmentState, LoadOp, Operations, PipelineCache,
-    RenderPassDepthStencilAttachment, RenderPassDescriptor, RenderPipelineDescriptor, ShaderStages,
-    ShaderType, SpecializedRenderPipeline, SpecializedRenderPipelines, StoreOp, TextureDescriptor,
-    TextureDimension, TextureFormat, TextureSampleType, TextureUsages, TextureView,
-    TextureViewDescriptor, TextureViewDimension, TextureViewId, VertexState,
+    RenderPassColorAttachment, RenderPassDepthStencilAttachment, RenderPassDescriptor,
+    RenderPipelineDescriptor, ShaderStages, ShaderType, SpecializedRenderPipeline,
+    SpecializedRenderPipelines, StoreOp, TextureDescriptor, TextureDimension, TextureFormat,
+    TextureSampleType, TextureUsages, TextureView, TextureViewDescriptor, TextureViewDimension,
+    TextureViewId, VertexState,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::view::{ExtractedView, ViewTarget};
@@ -791,6 +792,18 @@ pub(crate) fn encode_shadowed_lights(lights: &[PenumbraShadowedLight]) -> Vec<u8
         }
     }
     bytes
+}
+
+/// The view's main colour target as the passes of Bevy's main pass before its opaque
+/// pass draw into it: on an MSAA view the samples only, stored, not resolved — Bevy's
+/// main opaque pass, which every 3D view runs after them, resolves them (a resolve per
+/// pass wrote the whole single-sample texture again each time); on other views the
+/// target itself.
+pub fn unresolved_color_attachment(target: &ViewTarget) -> RenderPassColorAttachment<'_> {
+    RenderPassColorAttachment {
+        resolve_target: None,
+        ..target.get_color_attachment()
+    }
 }
 
 /// Binds the lighting pass's groups: Bevy's view (0, 1) and Penumbra's (2).
