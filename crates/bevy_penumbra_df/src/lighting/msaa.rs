@@ -10,7 +10,8 @@
 //! surface's own slope, in normal beyond a cone or in material, or where only some hold
 //! the deferred material — and the lighting pass draws twice, stencil-tested: per pixel
 //! at the pixel centre, then per sample (`@builtin(sample_index)`) on the edges. The
-//! hardware resolve at the end of Bevy's main pass is the box filter over the samples.
+//! hardware resolve at the end of Bevy's main pass is the box filter over the samples
+//! (the lighting pass stores its samples unresolved: that resolve is the only one).
 //! Forward materials, the sky and transparent meshes draw into the same multisampled
 //! target afterwards, as on a forward MSAA camera. The CPU model is
 //! `penumbra_reference::msaa`; the thresholds `penumbra_df_core::msaa::EdgeParams`.
