@@ -180,6 +180,10 @@ fn bokeh_ui(
             ui.radio_value(&mut b.aperture, BokehAperture::Circle, "circle");
         });
         ui.checkbox(&mut b.merge_blocks, "1-or-4 sprites per block");
+        ui.add_enabled(
+            b.merge_blocks,
+            egui::Checkbox::new(&mut b.merge_groups, "one sprite per agreeing 4×4 group"),
+        );
     }
 }
 
