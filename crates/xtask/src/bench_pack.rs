@@ -5,7 +5,9 @@
 //! The archive (`target/bench-pack/penumbra-bench.tar.gz`, at most [`MAX_ARCHIVE_BYTES`])
 //! unpacks to `penumbra-bench/`: the binary, `scenes/` (from `../shared/scenes`:
 //! `CornellBox.glb`, `DepthOfFieldExample.glb`, `FlightHelmet/`, `Fox.glb`), `run.sh` (runs the
-//! binary from any folder, passing its arguments; `bench_run.sh`), `lib/libvulkan.so.1`
+//! binary from any folder, passing its arguments; `bench_run.sh`), `plan.sh` (a lent
+//! GPU's short session in one command, the open questions first; `bench_plan.sh`),
+//! `lib/libvulkan.so.1`
 //! (the build machine's Vulkan loader, used only where the GPU machine has none) and
 //! `README.txt`. The dev profile is
 //! used, as the tests': dependencies at opt-level 1 (Bevy's CPU side), the GPU's work
@@ -91,6 +93,9 @@ pub fn bench_pack(cargo: &std::ffi::OsStr, args: &[String]) -> Result<(), String
     println!(
         "  tar -xzf penumbra-bench.tar.gz && penumbra-bench/run.sh --sizes 1080p,4k --frames 120 --out bench-out"
     );
+    println!(
+        "bench-pack: a short GPU session, the open questions first: penumbra-bench/plan.sh bench-out"
+    );
     Ok(())
 }
 
@@ -132,6 +137,9 @@ fn glibc_needed(binary: &Path) -> Option<String> {
 /// `run.sh`: the Vulkan loader and NVIDIA's headless driver found (see its comments).
 const RUN_SH: &str = include_str!("bench_run.sh");
 
+/// `plan.sh`: a lent GPU's short session in one command (see its comments).
+const PLAN_SH: &str = include_str!("bench_plan.sh");
+
 /// The Vulkan loader packed for machines without one (a GPU container may carry the
 /// driver but not the loader), copied from the build machine.
 const VULKAN_LOADERS: &[&str] = &[
@@ -154,12 +162,16 @@ fn write_script(stage: &Path) -> Result<(), String> {
             "bench-pack: no libvulkan.so.1 here to pack: the archive needs one on the GPU machine"
         ),
     }
-    run(Command::new("chmod").arg("+x").arg(&script))?;
+    let plan = stage.join("plan.sh");
+    std::fs::write(&plan, PLAN_SH).map_err(|e| format!("{}: {e}", plan.display()))?;
+    run(Command::new("chmod").arg("+x").arg(&script).arg(&plan))?;
     std::fs::write(
         stage.join("README.txt"),
         "Penumbra's GPU benchmark, packed by `cargo xtask bench-pack`.\n\n\
          Run: ./run.sh --sizes 1080p,4k --frames 120 --out bench-out\n\
          Options: ./run.sh --help\n\
+         A short GPU session (the open questions first, one process per scene):\n\
+         ./plan.sh bench-out, then bench-out/all.md\n\
          Writes bench-out/bench.json and bench-out/bench.md (also printed).\n\
          Needs: Linux and a GPU's Vulkan driver (its ICD); the Vulkan loader is packed\n\
          in lib/ for machines without one, and NVIDIA's driver is reached through its EGL\n\
