@@ -133,6 +133,8 @@ pub struct RunResult {
     pub systems_cpu: Vec<(String, Stats)>,
     /// The frame timer's GPU time per frame, ms.
     pub frame_gpu: Option<Stats>,
+    /// The frame's GPU time cut at the marks, ms per [`measure::SEGMENTS`] entry.
+    pub segments: Vec<(&'static str, Stats)>,
     /// Per diagnostic path (`render/<span>/elapsed_gpu|elapsed_cpu`), ms.
     pub diagnostics: Vec<(String, Stats)>,
     /// GPU memory at the end of the run.
@@ -395,6 +397,7 @@ fn measure_run(
     app.world_mut().resource_mut::<Samples>().recording = true;
     let gpu_times = app.world().resource::<measure::FrameGpuTimes>().clone();
     gpu_times.0.lock().expect("not poisoned").clear();
+    gpu_times.1.lock().expect("not poisoned").clear();
     let mut cpu = Vec::with_capacity(args.frames as usize);
     let mut systems = measure::SystemSeries::start();
     let (mut records, mut rebakes) = (Vec::new(), Vec::new());
@@ -435,6 +438,16 @@ fn measure_run(
     let samples = std::mem::take(&mut app.world_mut().resource_mut::<Samples>().series);
     let mut frame_gpu = std::mem::take(&mut *gpu_times.0.lock().expect("not poisoned"));
     frame_gpu.truncate(args.frames as usize);
+    let mut segment_times = std::mem::take(&mut *gpu_times.1.lock().expect("not poisoned"));
+    segment_times.truncate(args.frames as usize);
+    let segments = measure::SEGMENTS
+        .iter()
+        .enumerate()
+        .filter_map(|(k, name)| {
+            let v: Vec<f64> = segment_times.iter().map(|s| s[k]).collect();
+            Some((*name, Stats::of(&v)?))
+        })
+        .collect();
     if args.screenshots {
         let name = format!(
             "{}-{}-{}x{}.png",
@@ -462,6 +475,7 @@ fn measure_run(
         penumbra_cpu,
         systems_cpu,
         frame_gpu: Stats::of(&frame_gpu),
+        segments,
         diagnostics,
         memory: memory.unwrap_or_default(),
         records: Stats::of(&records),

@@ -12,6 +12,12 @@
 //!   deferred lighting, copies) counts too. (Bevy's spans cannot hold it: they nest per
 //!   thread, and the render graph's systems run on several.) Work a system submits
 //!   itself during the render graph (rare: a grown buffer's copy) falls before it.
+//! - **Segments of the frame**: four timestamps more, written into the command stream
+//!   between Bevy's passes (`mark::<I>` systems in `Core3d`), cut the frame's GPU time
+//!   into [`SEGMENTS`] — what falls outside every pass span (Bevy's shadow maps and
+//!   deferred lighting, MSAA resolves, copies) lands in one of them. The first two
+//!   meet where Penumbra's and Bevy's lighting passes start; work Bevy leaves unordered
+//!   against them (the face-normal prepass, say) may fall on either side.
 //! - **CPU time**: the wall time of each `App::update` (main world and, pipelined, the
 //!   render world of the previous frame), the CPU time Bevy's diagnostics record for
 //!   encoding each pass (`elapsed_cpu`), and each Penumbra system's own run time
@@ -25,12 +31,16 @@
 //!   summing the allocations whose label starts with `penumbra` (every Penumbra
 //!   resource's label does) against all allocations.
 
+use bevy::core_pipeline::core_3d::{main_opaque_pass_3d, main_transparent_pass_3d};
+use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
 use bevy::diagnostic::DiagnosticsStore;
+use bevy::pbr::deferred::deferred_lighting;
 use bevy::prelude::*;
 use bevy::render::renderer::{
-    RenderDevice, RenderGraph, RenderGraphSystems, RenderQueue, render_system,
+    RenderContext, RenderDevice, RenderGraph, RenderGraphSystems, RenderQueue, render_system,
 };
 use bevy::render::{Render, RenderApp, RenderSystems};
+use bevy_penumbra_df::lighting::PenumbraLightingSystems;
 use bevy_penumbra_df::system_times;
 use penumbra_test::wgpu::{
     Buffer, BufferDescriptor, BufferUsages, Features as WgpuFeatures, MapMode, PollType, QuerySet,
@@ -213,10 +223,26 @@ fn answer_memory_probe(probe: Res<MemoryProbe>, device: Res<RenderDevice>) {
     state.1 = Some(memory);
 }
 
-/// Each frame's GPU time, ms, as the frame timer reads it back (shared by both
-/// worlds; empty when the device has no timestamps inside encoders).
+/// Each frame's GPU time, ms, as the frame timer reads it back, and its
+/// [`SEGMENTS`] (shared by both worlds; empty when the device has no timestamps inside
+/// encoders).
 #[derive(Resource, Clone, Default)]
-pub struct FrameGpuTimes(pub Arc<Mutex<Vec<f64>>>);
+pub struct FrameGpuTimes(
+    pub Arc<Mutex<Vec<f64>>>,
+    pub Arc<Mutex<Vec<[f64; SEGMENTS.len()]>>>,
+);
+
+/// The parts the marks cut a frame's GPU time into, in order.
+pub const SEGMENTS: [&str; MARKS as usize + 1] = [
+    "before the main pass (prepasses, shadow maps)",
+    "main pass up to the opaque pass (deferred lighting; Penumbra's DF shadows, DFAO)",
+    "main opaque pass with its MSAA resolve",
+    "main transparent pass",
+    "post-processing and upscaling",
+];
+
+/// Timestamps written between Bevy's passes each frame.
+const MARKS: u32 = 4;
 
 /// The frame timer: two timestamps a frame, resolved into a ring of read-back buffers.
 #[derive(Resource)]
@@ -242,7 +268,7 @@ fn init_frame_timer(mut commands: Commands, device: Res<RenderDevice>, queue: Re
     let buffer = |label, usage| {
         wgpu.create_buffer(&BufferDescriptor {
             label: Some(label),
-            size: 16,
+            size: 8 * u64::from(2 + MARKS),
             usage,
             mapped_at_creation: false,
         })
@@ -251,7 +277,7 @@ fn init_frame_timer(mut commands: Commands, device: Res<RenderDevice>, queue: Re
         set: wgpu.create_query_set(&QuerySetDescriptor {
             label: Some("bench_frame_timestamps"),
             ty: QueryType::Timestamp,
-            count: 2,
+            count: 2 + MARKS,
         }),
         resolve: buffer(
             "bench_frame_resolve",
@@ -289,9 +315,22 @@ fn begin_frame_timer(timer: Option<ResMut<FrameTimer>>, times: Res<FrameGpuTimes
             buffer.unmap();
             mapped.store(false, Ordering::Release);
             *in_flight = false;
+            let ms = |from: u64, to: u64| (to - from) as f64 * period * 1e-6;
             if ticks[1] > ticks[0] {
-                let ms = (ticks[1] - ticks[0]) as f64 * period * 1e-6;
-                times.0.lock().expect("not poisoned").push(ms);
+                times
+                    .0
+                    .lock()
+                    .expect("not poisoned")
+                    .push(ms(ticks[0], ticks[1]));
+            }
+            // Start, the marks, end: in order only when every mark was written this
+            // frame (an unwritten one reads 0 or an older frame's).
+            let mut order = vec![ticks[0]];
+            order.extend(&ticks[2..]);
+            order.push(ticks[1]);
+            if order.windows(2).all(|w| w[0] <= w[1]) {
+                let segments = std::array::from_fn(|k| ms(order[k], order[k + 1]));
+                times.1.lock().expect("not poisoned").push(segments);
             }
         }
     }
@@ -333,8 +372,8 @@ fn end_frame_timer(
     let (buffer, mapped, in_flight) = &mut timer.ring[i];
     let mut encoder = device.create_command_encoder(&Default::default());
     encoder.write_timestamp(&timer.set, 1);
-    encoder.resolve_query_set(&timer.set, 0..2, &timer.resolve, 0);
-    encoder.copy_buffer_to_buffer(&timer.resolve, 0, buffer, 0, 16);
+    encoder.resolve_query_set(&timer.set, 0..2 + MARKS, &timer.resolve, 0);
+    encoder.copy_buffer_to_buffer(&timer.resolve, 0, buffer, 0, 8 * u64::from(2 + MARKS));
     let flag = mapped.clone();
     encoder.map_buffer_on_submit(buffer, MapMode::Read, .., move |result| {
         if result.is_ok() {
@@ -344,6 +383,13 @@ fn end_frame_timer(
     queue.submit([encoder.finish()]);
     *in_flight = true;
     timer.next = (i + 1) % RING;
+}
+
+/// Mark `I`: a timestamp in the command stream where this system runs in `Core3d`.
+fn mark<const I: u32>(timer: Option<Res<FrameTimer>>, mut ctx: RenderContext) {
+    if let Some(timer) = timer.filter(|t| t.open) {
+        ctx.command_encoder().write_timestamp(&timer.set, 2 + I);
+    }
 }
 
 /// Frames the GPU may lag behind the CPU. A headless app presents nothing, so nothing
@@ -400,6 +446,23 @@ pub fn add_measurement(app: &mut App) {
             .insert_resource(times)
             .init_resource::<InFlight>()
             .add_systems(bevy::render::RenderStartup, init_frame_timer)
+            .add_systems(
+                Core3d,
+                (
+                    mark::<0>
+                        .before(deferred_lighting)
+                        .before(PenumbraLightingSystems::Inputs),
+                    mark::<1>
+                        .after(deferred_lighting)
+                        .after(PenumbraLightingSystems::Lighting)
+                        .before(main_opaque_pass_3d),
+                    mark::<2>
+                        .after(main_opaque_pass_3d)
+                        .before(main_transparent_pass_3d),
+                    mark::<3>.after(main_transparent_pass_3d),
+                )
+                    .in_set(Core3dSystems::MainPass),
+            )
             .add_systems(
                 RenderGraph,
                 stamp_frame_start

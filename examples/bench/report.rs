@@ -213,6 +213,11 @@ pub fn json(meta: &Meta, results: &[RunResult]) -> Value {
                 "width": r.size.x,
                 "height": r.size.y,
                 "frame_gpu": stats_json(frame_gpu(r)),
+                "frame_gpu_segments": r
+                    .segments
+                    .iter()
+                    .map(|(name, s)| ((*name).to_owned(), stats_json(Some(*s))))
+                    .collect::<serde_json::Map<_, _>>(),
                 "frame_cpu_wall": stats_json(r.cpu_frame),
                 "penumbra_systems_cpu": stats_json(r.penumbra_cpu),
                 "systems_cpu": r
@@ -335,6 +340,15 @@ pub fn markdown(meta: &Meta, results: &[RunResult]) -> String {
             "**frame (GPU)**",
             runs.iter().map(|r| ms(frame_gpu(r))).collect(),
         );
+        for name in crate::measure::SEGMENTS {
+            let cells: Vec<String> = runs
+                .iter()
+                .map(|r| ms(r.segments.iter().find(|s| s.0 == name).map(|s| s.1)))
+                .collect();
+            if cells.iter().any(|c| c != &ms(None)) {
+                row(&mut md, &format!("  frame: {name}"), cells);
+            }
+        }
         row(
             &mut md,
             "frame (CPU wall)",
