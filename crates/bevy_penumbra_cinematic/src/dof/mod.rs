@@ -207,7 +207,8 @@ pub struct BokehDepthOfField {
     pub min_circle_of_confusion: f32,
     /// Samaritan's 1-or-4 rule: a 2×2 block of half-resolution pixels that agree (below)
     /// is drawn as one sprite instead of four. Default on. Off: four times the sprites on
-    /// smooth regions, with no visible gain (the rule's error is 10⁻⁴ in the unit tests).
+    /// smooth regions (sixteen with `merge_groups`), with no visible gain (the rule's
+    /// error is 10⁻⁴ in the unit tests).
     pub merge_blocks: bool,
     /// With `merge_blocks`: a 2×2 group of blocks (8×8 view pixels) whose sixteen
     /// half-resolution pixels agree, and whose blur is drawn at half resolution, is one
