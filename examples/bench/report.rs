@@ -151,6 +151,24 @@ pub fn comparisons(results: &[RunResult]) -> Vec<Comparison> {
              DFAO 0.077 / SSAO 0.318, DepthOfFieldExample 0.075 / 0.100",
         );
         push(
+            "lighting pass / Bevy's deferred lighting",
+            on.and_then(|r| passes_median(r, &["penumbra_lighting"]))
+                .map(|v| (v, "`penumbra_lighting`, `penumbra`".into())),
+            get(Variant::Bevy)
+                .and_then(|r| {
+                    let name = crate::measure::SEGMENTS[1];
+                    r.segments.iter().find(|s| s.0 == name)
+                })
+                .map(|(_, s)| {
+                    (
+                        s.median,
+                        "frame: main pass up to the opaque pass, `bevy`".into(),
+                    )
+                }),
+            "the same shading as Bevy's (bevy_penumbra_df/tests/lighting.rs), plus DF \
+             shadows and DFAO",
+        );
+        push(
             "scatter bokeh / Bevy's bokeh depth of field",
             delta(Variant::ScatterBokeh).map(|v| (v, "frame − `bevy`".into())),
             delta(Variant::BevyDof).map(|v| (v, "frame − `bevy`".into())),
