@@ -468,6 +468,15 @@ fn masks(distance: &[f32]) -> Vec<(&'static str, Vec<bool>)> {
     ]
 }
 
+/// The masks as a table's column headers: each name and its pixel count.
+fn mask_columns(masks: &[(&str, Vec<bool>)]) -> String {
+    masks
+        .iter()
+        .map(|(name, m)| format!("{name} ({} px)", m.iter().filter(|&&b| b).count()))
+        .collect::<Vec<_>>()
+        .join(" | ")
+}
+
 /// Mean |Δ| over `mask` relative to the truth's mean there.
 fn error(image: &[Vec3], truth: &[Vec3], mask: &[bool]) -> f64 {
     let (mut d, mut t, mut n) = (0.0f64, 0.0f64, 0usize);
@@ -528,11 +537,8 @@ fn bokeh_against_the_thin_lens_truth() {
         circuit().max_depth,
         circuit().lens().coc(circuit().max_depth, size().y)
     );
-    let header: Vec<String> = masks
-        .iter()
-        .map(|(name, m)| format!("{name} ({} px)", m.iter().filter(|&&b| b).count()))
-        .collect();
-    println!("| method | {} |", header.join(" | "));
+    let header = mask_columns(&masks);
+    println!("| method | {header} |");
     let mut table = HashMap::new();
     for ((name, _), image) in METHODS.iter().zip(&images) {
         let row: Vec<f64> = masks.iter().map(|(_, m)| error(image, &truth, m)).collect();
@@ -606,14 +612,8 @@ fn merge_rule_error_against_work() {
     let aperture = Aperture::hexagon(64);
     let half = bokeh::downsample(&input, &lens);
     let blocks = f64::from(half.size.x.div_ceil(2) * half.size.y.div_ceil(2));
-    let header: Vec<String> = masks
-        .iter()
-        .map(|(name, m)| format!("{name} ({} px)", m.iter().filter(|&&b| b).count()))
-        .collect();
-    println!(
-        "| rule | fragments | merged blocks | {} |",
-        header.join(" | ")
-    );
+    let header = mask_columns(&masks);
+    println!("| rule | fragments | merged blocks | {header} |");
     let mut rows = Vec::new();
     let mut rules = vec![
         (
