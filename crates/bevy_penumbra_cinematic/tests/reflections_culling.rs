@@ -59,6 +59,105 @@ fn tile_culling_changes_no_pixel() {
     }
 }
 
+/// Where a tile's caster list overflows (a crowd of 800 sphere casters between the floor
+/// and the signs), its pixels gather each segment's casters from the caster grid: the
+/// layer equals the one gathering from every object (no tile culling), bit for bit, and
+/// the crowd's shadows show in it. The CPU model of the tiles (the floor's analytic
+/// G-buffer, `cull::tile_casters`) confirms that most reflecting pixels lie in tiles whose
+/// list overflows.
+#[test]
+fn the_caster_grid_changes_no_pixel() {
+    if !gpu_or_skip("the_caster_grid_changes_no_pixel") {
+        return;
+    }
+    let setup = Setup {
+        crowd: 800,
+        perceptual_roughness: 0.3,
+        ..default()
+    };
+    let (overflowing, reflecting_model) = overflowing_tile_pixels(setup);
+    println!(
+        "the model: {overflowing} of {reflecting_model} reflecting pixels in tiles over their list"
+    );
+    assert!(
+        overflowing * 2 > reflecting_model,
+        "{overflowing} of {reflecting_model} pixels in overflowing tiles"
+    );
+    let (grid, app) = render(setup);
+    drop(app);
+    let (every, app) = render(Setup {
+        tile_culling: false,
+        ..setup
+    });
+    drop(app);
+    let (open, _app) = render(Setup { crowd: 0, ..setup });
+    let reflecting = every.iter().filter(|p| p[3] > 0.0).count();
+    let differ = grid.iter().zip(&every).filter(|(a, b)| a != b).count();
+    let shadowed = every.iter().zip(&open).filter(|(a, b)| a != b).count();
+    println!(
+        "caster grid: {reflecting} reflecting pixels, {differ} differ, {shadowed} shadowed by the crowd"
+    );
+    if differ > 0 {
+        save("caster_grid_grid", &grid);
+        save("caster_grid_every", &every);
+    }
+    assert!(reflecting > 1000, "{reflecting} reflecting pixels");
+    assert!(
+        shadowed > reflecting / 10,
+        "the crowd dims {shadowed} pixels"
+    );
+    assert_eq!(differ, 0, "the caster grid changed {differ} pixels");
+}
+
+/// The model's count of reflecting floor pixels in tiles whose caster list overflows
+/// (over 128), and of all reflecting floor pixels.
+fn overflowing_tile_pixels(setup: Setup) -> (usize, usize) {
+    use penumbra_cinematic_core::reflections::cull::{
+        TILE, TileBounds, tile_casters, tile_march_length, tile_shadow_cone,
+    };
+    use penumbra_cinematic_core::reflections::pass::{FOOTPRINT_SLOPE, Surface, lobe};
+    let spheres: Vec<_> = crowd(setup.crowd)
+        .into_iter()
+        .map(|c| Some((c, CROWD_RADIUS)))
+        .collect();
+    let billboards = model_billboards();
+    let settings = penumbra_cinematic_core::reflections::pass::ReflectionUniform::new(3, IMAGE, 1);
+    let (mut overflowing, mut reflecting) = (0, 0);
+    for ty in 0..HEIGHT.div_ceil(TILE) {
+        for tx in 0..WIDTH.div_ceil(TILE) {
+            let surfaces: Vec<Surface> = (0..TILE * TILE)
+                .filter_map(|k| {
+                    let pixel =
+                        IVec2::new((tx * TILE + k % TILE) as i32, (ty * TILE + k / TILE) as i32);
+                    let (position, normal, _, dir) = analytic_surface(pixel, false)?;
+                    Some(Surface {
+                        position,
+                        normal,
+                        view: -dir,
+                        perceptual_roughness: setup.perceptual_roughness,
+                    })
+                })
+                .collect();
+            let Some(bounds) = TileBounds::from_pixels(surfaces.iter().map(|s| {
+                let l = lobe(s, 0.0, FOOTPRINT_SLOPE);
+                (s.position, l.dir, l.major.length() + l.minor.length())
+            })) else {
+                continue;
+            };
+            let length = tile_march_length(&bounds, &billboards, settings.max_distance);
+            if length.is_nan() || length <= 0.0 {
+                continue;
+            }
+            let cone = tile_shadow_cone(&bounds, settings.shadow_cone, settings.shadow_softness);
+            reflecting += surfaces.len();
+            if tile_casters(&bounds, &spheres, length, cone, 128).is_none() {
+                overflowing += surfaces.len();
+            }
+        }
+    }
+    (overflowing, reflecting)
+}
+
 /// Lavapipe's frame time against the billboard count and the settings (a measurement):
 /// 384 × 288, the median of 10 frames after 4, 3 runs. `cargo test -p
 /// bevy_penumbra_cinematic --test reflections_plugin reflections_against_time --

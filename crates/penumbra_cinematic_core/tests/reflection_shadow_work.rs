@@ -3,8 +3,10 @@
 //! signs, a glossy ground seen from (0, 7, 38). The pixels (casters and ground), their
 //! tiles' caster lists (`reflections::cull::tile_casters`) and
 //! each pixel's march (`reflect_pixel_in_tile`) with and without its tile's list,
-//! counting distance evaluations — a measure of the pass's work that does not depend on
-//! the device. The casters are spheres of their shapes' bounding radius × 0.7.
+//! counting distance evaluations, and the sphere tests of the gathers in tiles whose list
+//! overflows, from every object and from the caster grid (`reflections::grid`) — measures
+//! of the pass's work that do not depend on the device. The casters are spheres of their
+//! shapes' bounding radius × 0.7.
 //!
 //! `cargo test --release -p penumbra_cinematic_core --test reflection_shadow_work --
 //! --ignored --nocapture`
@@ -14,9 +16,10 @@ use penumbra_cinematic_core::reflections::Billboard;
 use penumbra_cinematic_core::reflections::cull::{
     TILE, TileBounds, tile_casters, tile_march_length, tile_shadow_cone,
 };
+use penumbra_cinematic_core::reflections::grid::CasterGrid;
 use penumbra_cinematic_core::reflections::pass::{
-    FOOTPRINT_SLOPE, GpuBillboard, ReflectionUniform, ShadowCasters, Surface, lobe,
-    reflect_pixel_in_tile,
+    FOOTPRINT_SLOPE, Gather, GpuBillboard, ReflectionUniform, ShadowCasters, Surface, lobe,
+    reflect_pixel_gathered, reflect_pixel_in_tile,
 };
 use penumbra_cinematic_core::reflections::texture::MipChain;
 use std::cell::Cell;
@@ -141,8 +144,12 @@ fn stress_scene_reflection_shadow_work() {
     let mut settings = ReflectionUniform::new(billboards.len() as u32, UVec2::ONE, 1);
     settings.shadow_steps = 32;
     settings.object_count = spheres.len() as u32;
+    let grid = CasterGrid::new(&spheres);
     for size in [UVec2::new(320, 180), UVec2::new(640, 360)] {
         let pixels = surfaces(size, &spheres);
+        let (mut grid_evaluations, mut overflow_pixels) = (0u64, 0usize);
+        grid.tested.set(0);
+        grid.gathers.set(0);
         let tiles = UVec2::new(size.x.div_ceil(TILE), size.y.div_ceil(TILE));
         let (mut listed, mut overflowing, mut with_list, mut lists) = (0usize, 0, 0, 0);
         let (mut all, mut tiled, mut reflecting) = (0u64, 0u64, 0usize);
@@ -175,8 +182,28 @@ fn stress_scene_reflection_shadow_work() {
             for s in &members {
                 let v = reflect_pixel_in_tile(s, &billboards, &images, &settings, &shadow, None);
                 all += evaluations.replace(0);
-                reflect_pixel_in_tile(s, &billboards, &images, &settings, &shadow, list.as_deref());
+                let tiled_v = reflect_pixel_in_tile(
+                    s,
+                    &billboards,
+                    &images,
+                    &settings,
+                    &shadow,
+                    list.as_deref(),
+                );
                 tiled += evaluations.replace(0);
+                if list.is_none() {
+                    let from_grid = reflect_pixel_gathered(
+                        s,
+                        &billboards,
+                        &images,
+                        &settings,
+                        &shadow,
+                        Gather::Grid(&grid),
+                    );
+                    grid_evaluations += evaluations.replace(0);
+                    overflow_pixels += 1;
+                    assert_eq!(from_grid, tiled_v, "the grid changed a pixel");
+                }
                 reflecting += usize::from(v.w > 0.0);
                 with_list += usize::from(list.is_some());
             }
@@ -191,6 +218,20 @@ fn stress_scene_reflection_shadow_work() {
             listed as f64 / lists.max(1) as f64,
             all as f64 / pixels.iter().flatten().count() as f64,
             tiled as f64 / pixels.iter().flatten().count() as f64,
+        );
+        let per_pixel = |n: u64| n as f64 / overflow_pixels.max(1) as f64;
+        println!(
+            "  {overflow_pixels} pixels in overflowing tiles: sphere tests per pixel {:.0} from every \
+             object, {:.1} from the grid ({} × {} × {} cells of {:.2} m, {} large); distance \
+             evaluations per pixel {:.1} (as without it)",
+            per_pixel(grid.gathers.get() * spheres.len() as u64),
+            per_pixel(grid.tested.get()),
+            grid.dims.x,
+            grid.dims.y,
+            grid.dims.z,
+            grid.cell,
+            grid.large.len(),
+            per_pixel(grid_evaluations),
         );
     }
 }

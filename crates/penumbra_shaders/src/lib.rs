@@ -31,6 +31,7 @@ macro_rules! shader_files {
 
 shader_files! {
     "common/math.wgsl" => Some("penumbra::math"),
+    "common/scan.wgsl" => Some("penumbra::common::scan"),
     "dof/types.wgsl" => Some("penumbra::dof::types"),
     "dof/sprites.wgsl" => Some("penumbra::dof::sprites"),
     "dof/scatter.wgsl" => Some("penumbra::dof::scatter"),

@@ -504,6 +504,7 @@ fn reflection_layouts_match() {
             "shadow_cone",
             "caster_capacity",
             "view_layers",
+            "caster_grid",
         ]
     );
     let (_, billboard) = struct_layout(&m, "GpuBillboard");

@@ -40,6 +40,7 @@ use bevy_penumbra_df::scene::DistanceFieldGpu;
 use bevy_penumbra_df::system_times::timed;
 use bevy_penumbra_df::{PenumbraGpuAllocations, PenumbraShaderLibrary};
 use penumbra_cinematic_core::reflections::cull::TILE;
+use penumbra_cinematic_core::reflections::grid::grid_words;
 use penumbra_cinematic_core::reflections::pass::{GpuBillboard, ReflectionUniform};
 use penumbra_df_core::cull::CameraOrigin;
 use std::num::NonZeroU64;
@@ -497,13 +498,19 @@ fn prepare_reflection_bind_groups(
             } else {
                 0
             };
-        let words = u64::from(tiles.x * tiles.y) * u64::from(record);
+        let tile_words = u64::from(tiles.x * tiles.y) * u64::from(record);
+        // More casters than a tile's list holds: the caster grid after the tiles' records
+        // (where a tile's list overflows, its pixels gather from it).
+        let grid = (caster_capacity > 0 && object_count > MAX_TILE_CASTERS)
+            .then(|| u32::try_from(tile_words).ok())
+            .flatten();
+        let words = tile_words + grid.map_or(0, |_| grid_words(object_count));
         let lists = |words: u64| {
             allocations.sized_buffer(
                 &device,
                 "penumbra_reflection_tile_lists",
                 words.next_power_of_two().max(4) * 4,
-                BufferUsages::STORAGE,
+                BufferUsages::STORAGE | BufferUsages::COPY_DST,
             )
         };
         let mut fresh = None;
@@ -542,6 +549,7 @@ fn prepare_reflection_bind_groups(
             caster_capacity,
             trace_size: draw.trace_size,
             view_layers: view_layer_bits,
+            caster_grid: grid.unwrap_or(0),
             ..ReflectionUniform::new(count, images.size, gpu.mip_count)
         };
         let mut bytes = EncaseBuffer::new(Vec::new());
@@ -555,9 +563,9 @@ fn prepare_reflection_bind_groups(
             &device,
             &pipeline_cache,
             &pipelines.spheres,
-            &group.uniform,
-            objects,
+            (&group.uniform, objects, &group.tile_lists),
             if shadow_steps > 0 { object_count } else { 0 },
+            grid,
         );
         let key = (
             [

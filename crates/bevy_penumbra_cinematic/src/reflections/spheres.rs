@@ -3,6 +3,11 @@
 //! camera-relative bounding sphere into a pooled buffer, read by the tile cull and the
 //! trace (16 bytes and a compare per object where they tested the record and its
 //! transform). Nothing without reflection shadows or distance-field objects.
+//!
+//! With more casters than a tile's list holds, the caster grid follows
+//! (`penumbra_cinematic_core::reflections::grid`): its header and counts cleared, then
+//! three more dispatches (count, a one-workgroup scan, fill) in the same compute pass,
+//! into the view's list buffer after the tiles' records.
 
 use bevy::prelude::*;
 use bevy::render::render_resource::binding_types::{
@@ -15,6 +20,7 @@ use bevy::render::render_resource::{
 };
 use bevy::render::renderer::RenderDevice;
 use bevy_penumbra_df::PenumbraGpuAllocations;
+use penumbra_cinematic_core::reflections::grid::{GRID_CELLS, GRID_HEADER_WORDS};
 use penumbra_cinematic_core::reflections::pass::ReflectionUniform;
 use std::num::NonZeroU64;
 
@@ -25,11 +31,14 @@ const GROUP: u32 = 64;
 /// Most workgroups along one dispatch dimension.
 const MAX_GROUPS_X: u32 = 65_535;
 
-/// The pass's layout and pipeline.
+/// The pass's layout and pipelines: the spheres, then the grid's count, scan and fill.
 pub(super) struct SpheresPipeline {
     layout: BindGroupLayoutDescriptor,
-    pipeline: CachedComputePipelineId,
+    pipelines: [CachedComputePipelineId; 4],
 }
+
+/// The entry points, in dispatch order.
+const ENTRY_POINTS: [&str; 4] = ["spheres_main", "grid_count", "grid_scan", "grid_fill"];
 
 impl SpheresPipeline {
     /// Queues the pipeline.
@@ -45,17 +54,20 @@ impl SpheresPipeline {
                         NonZeroU64::new(super::render::OBJECT_BYTES),
                     ),
                     storage_buffer_sized(false, NonZeroU64::new(SPHERE_BYTES)),
+                    storage_buffer_sized(false, NonZeroU64::new(4)),
                 ),
             ),
         );
-        let pipeline = pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
-            label: Some("penumbra_reflection_spheres".into()),
-            layout: vec![layout.clone()],
-            shader,
-            entry_point: Some("spheres_main".into()),
-            ..default()
+        let pipelines = ENTRY_POINTS.map(|entry| {
+            pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
+                label: Some(format!("penumbra_reflection_{entry}").into()),
+                layout: vec![layout.clone()],
+                shader: shader.clone(),
+                entry_point: Some(entry.into()),
+                ..default()
+            })
         });
-        SpheresPipeline { layout, pipeline }
+        SpheresPipeline { layout, pipelines }
     }
 }
 
@@ -64,9 +76,12 @@ pub(super) struct ViewCasterSpheres {
     pub(super) buffer: Buffer,
     /// Spheres the buffer holds.
     slots: u64,
-    group: Option<(BindGroup, [BufferId; 3])>,
+    group: Option<(BindGroup, [BufferId; 4])>,
     /// Slots to write this frame (0: no pass).
     count: u32,
+    /// This frame's caster grid: the list buffer and the bytes to clear (its header and
+    /// counts) from where it starts.
+    grid: Option<(Buffer, u64, u64)>,
 }
 
 impl ViewCasterSpheres {
@@ -87,11 +102,13 @@ impl ViewCasterSpheres {
             slots,
             group: None,
             count: 0,
+            grid: None,
         }
     }
 
-    /// Grows the buffer to `count` slots if needed and binds it with `uniform` and
-    /// `objects`; `count` 0: no pass this frame.
+    /// Grows the buffer to `count` slots if needed and binds it with `uniform`,
+    /// `objects` and the view's `lists`; `count` 0: no pass this frame. `grid`: where the
+    /// caster grid starts in `lists`, words (`None`: no grid this frame).
     #[allow(clippy::too_many_arguments, reason = "the pass's inputs")]
     pub(super) fn prepare(
         &mut self,
@@ -99,11 +116,15 @@ impl ViewCasterSpheres {
         device: &RenderDevice,
         pipeline_cache: &PipelineCache,
         pipeline: &SpheresPipeline,
-        uniform: &Buffer,
-        objects: &Buffer,
+        (uniform, objects, lists): (&Buffer, &Buffer, &Buffer),
         count: u32,
+        grid: Option<u32>,
     ) {
         self.count = count;
+        self.grid = grid.filter(|_| count > 0).map(|start| {
+            let cleared = u64::from(GRID_HEADER_WORDS + GRID_CELLS) * 4;
+            (lists.clone(), u64::from(start) * 4, cleared)
+        });
         if count == 0 {
             return;
         }
@@ -111,7 +132,7 @@ impl ViewCasterSpheres {
             *self = ViewCasterSpheres::new(allocations, device, count);
             self.count = count;
         }
-        let key = [uniform.id(), objects.id(), self.buffer.id()];
+        let key = [uniform.id(), objects.id(), self.buffer.id(), lists.id()];
         if self.group.as_ref().map(|(_, k)| k) != Some(&key) {
             let group = allocations.bind_group(
                 device,
@@ -121,6 +142,7 @@ impl ViewCasterSpheres {
                     uniform.as_entire_binding(),
                     objects.as_entire_binding(),
                     self.buffer.as_entire_binding(),
+                    lists.as_entire_binding(),
                 )),
             );
             self.group = Some((group, key));
@@ -137,26 +159,36 @@ impl ViewCasterSpheres {
         if self.count == 0 {
             return Some(false);
         }
-        pipeline_cache
-            .get_compute_pipeline(pipeline.pipeline)
-            .map(|_| self.group.is_some())
+        let compiled = pipeline
+            .pipelines
+            .iter()
+            .all(|id| pipeline_cache.get_compute_pipeline(*id).is_some());
+        compiled.then_some(self.group.is_some())
     }
 
-    /// Records the pass (when [`Self::ready`]).
+    /// Records the pass and, with a grid, the grid's (when [`Self::ready`]).
     pub(super) fn dispatch(
         &self,
         encoder: &mut CommandEncoder,
         pipeline_cache: &PipelineCache,
         pipeline: &SpheresPipeline,
     ) {
-        let (Some(compute), Some((group, _))) = (
-            pipeline_cache.get_compute_pipeline(pipeline.pipeline),
-            self.group.as_ref(),
-        ) else {
+        let Some((group, _)) = self.group.as_ref() else {
+            return;
+        };
+        let Some(compute) = pipeline
+            .pipelines
+            .iter()
+            .map(|id| pipeline_cache.get_compute_pipeline(*id))
+            .collect::<Option<Vec<_>>>()
+        else {
             return;
         };
         if self.count == 0 {
             return;
+        }
+        if let Some((lists, offset, bytes)) = &self.grid {
+            encoder.clear_buffer(lists, *offset, Some(*bytes));
         }
         let groups = self.count.div_ceil(GROUP);
         let x = groups.min(MAX_GROUPS_X);
@@ -164,8 +196,15 @@ impl ViewCasterSpheres {
             label: Some("penumbra_reflection_spheres"),
             timestamp_writes: None,
         });
-        pass.set_pipeline(compute);
         pass.set_bind_group(0, group, &[]);
-        pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+        let passes = if self.grid.is_some() { 4 } else { 1 };
+        for (k, compute) in compute.iter().enumerate().take(passes) {
+            pass.set_pipeline(compute);
+            if ENTRY_POINTS[k] == "grid_scan" {
+                pass.dispatch_workgroups(1, 1, 1);
+            } else {
+                pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+            }
+        }
     }
 }

@@ -88,6 +88,9 @@ pub struct Setup {
     pub camera_sees_layer_1: bool,
     /// `DeferredMsaa` on the camera (otherwise `Msaa::Off`).
     pub msaa: bool,
+    /// Small sphere casters (no mesh) in a lattice between the floor and the signs
+    /// ([`crowd`]): more than a tile's caster list holds.
+    pub crowd: u32,
 }
 
 impl Default for Setup {
@@ -108,6 +111,7 @@ impl Default for Setup {
             billboard_layer: 0,
             camera_sees_layer_1: false,
             msaa: false,
+            crowd: 0,
         }
     }
 }
@@ -239,6 +243,17 @@ pub fn scene(
                 ));
             }
         }
+        for center in crowd(setup.crowd) {
+            commands.spawn((
+                Transform::from_translation(center),
+                DistanceFieldCaster {
+                    source: CasterSource::Sphere {
+                        radius: CROWD_RADIUS,
+                    },
+                    ..default()
+                },
+            ));
+        }
         if setup.billboards {
             let mut handles = Vec::new();
             let mut list = billboards();
@@ -361,6 +376,27 @@ pub fn test_camera() -> PerspectiveCamera {
     )
 }
 
+/// The crowd's spheres' radius, metres.
+pub const CROWD_RADIUS: f32 = 0.02;
+
+/// `n` sphere casters' centres in a lattice filling the space between the floor and the
+/// signs (x in ±2 m, y 0.1–1.3 m, z −4.3 to −0.5 m), where every reflecting tile's rays
+/// pass: many within reach of each tile, few near each ray.
+pub fn crowd(n: u32) -> Vec<Vec3> {
+    let (nx, ny) = (16, 5);
+    (0..n)
+        .map(|i| {
+            let (x, y, z) = (i % nx, i / nx % ny, i / (nx * ny));
+            let layers = n.div_ceil(nx * ny).max(1);
+            Vec3::new(
+                -2.0 + 4.0 * (x as f32 + 0.5) / nx as f32,
+                0.1 + 1.2 * (y as f32 + 0.5) / ny as f32,
+                -4.3 + 3.8 * (z as f32 + 0.5) / layers as f32,
+            )
+        })
+        .collect()
+}
+
 /// The boxes in the scene (centre, half size): the box, and the wall when asked for.
 pub fn boxes(wall: bool) -> Vec<(Vec3, Vec3)> {
     let mut v = vec![(BOX_CENTER, Vec3::splat(BOX_HALF))];
@@ -423,6 +459,25 @@ pub fn casters() -> ShadowCasters<'static, fn(usize, Vec3) -> f32> {
     }
 }
 
+/// The scene's billboards as the pass lists them (layer `i`: the `i`-th image).
+pub fn model_billboards() -> Vec<GpuBillboard> {
+    billboards()
+        .into_iter()
+        .enumerate()
+        .map(|(i, (transform, size, _))| {
+            let quad = Billboard::from_transform(transform.to_matrix(), size).unwrap();
+            GpuBillboard {
+                center: quad.center,
+                layer: i as u32,
+                half_x: quad.half_x,
+                emissive: EMISSIVE,
+                half_y: quad.half_y,
+                layers: u32::MAX,
+            }
+        })
+        .collect()
+}
+
 /// The layer the model predicts at every pixel (the floor's analytic G-buffer; `None`
 /// where the pixel sees the sky).
 pub fn model(setup: Setup) -> Vec<Option<Vec4>> {
@@ -431,20 +486,11 @@ pub fn model(setup: Setup) -> Vec<Option<Vec4>> {
 
 /// [`model`], with or without reflection shadows.
 pub fn model_with(setup: Setup, shadows: bool) -> Vec<Option<Vec4>> {
-    let mut gpu = Vec::new();
-    let mut images = Vec::new();
-    for (transform, size, texels) in billboards() {
-        let quad = Billboard::from_transform(transform.to_matrix(), size).unwrap();
-        gpu.push(GpuBillboard {
-            center: quad.center,
-            layer: images.len() as u32,
-            half_x: quad.half_x,
-            emissive: EMISSIVE,
-            half_y: quad.half_y,
-            layers: u32::MAX,
-        });
-        images.push(MipChain::from_straight_alpha(IMAGE.x, IMAGE.y, &texels));
-    }
+    let gpu = model_billboards();
+    let images: Vec<MipChain> = billboards()
+        .into_iter()
+        .map(|(_, _, texels)| MipChain::from_straight_alpha(IMAGE.x, IMAGE.y, &texels))
+        .collect();
     let mut settings =
         ReflectionUniform::new(gpu.len() as u32, IMAGE, images[0].levels.len() as u32);
     settings.anisotropy = setup.anisotropy;

@@ -16,10 +16,13 @@
 //! - [`pass`]: one pixel of the pass — the GGX footprint, its taps, the composite, the
 //!   reflection-shadow march, the half-resolution upsample — and the uniform.
 //! - [`cull`]: the conservative per-tile billboard test.
+//! - [`grid`]: the uniform grid reflection shadows gather their casters from where a
+//!   tile's caster list overflows.
 
 use glam::{Mat4, Vec2, Vec3};
 
 pub mod cull;
+pub mod grid;
 pub mod pass;
 pub mod texture;
 

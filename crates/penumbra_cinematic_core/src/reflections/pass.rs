@@ -21,6 +21,7 @@ use encase::ShaderType;
 use glam::{IVec2, IVec3, UVec2, Vec2, Vec3, Vec4};
 
 use super::Billboard;
+use super::grid::{CasterGrid, GridGather};
 use super::texture::MipChain;
 
 /// The footprint's half-width per unit of roughness per metre travelled, `k`. GGX's
@@ -137,6 +138,9 @@ pub struct ReflectionUniform {
     /// The render-layer groups the view sees ([`GpuBillboard::layers`]); a billboard
     /// sharing none is neither listed nor traced.
     pub view_layers: u32,
+    /// Where the caster grid ([`super::grid`]) starts in the view's list buffer, words
+    /// (0: no grid; a tile whose caster list overflows gathers from every object).
+    pub caster_grid: u32,
 }
 
 impl ReflectionUniform {
@@ -164,6 +168,7 @@ impl ReflectionUniform {
             shadow_cone: SHADOW_CONE,
             caster_capacity: 0,
             view_layers: u32::MAX,
+            caster_grid: 0,
         }
     }
 }
@@ -414,11 +419,7 @@ pub fn shadow_casters(
     let end = origin + dir * t1;
     let mut kept = Vec::new();
     for i in candidate_indices(candidates, spheres.len()) {
-        let keep = spheres[i].is_none_or(|(center, radius)| {
-            let reach = radius + cone * t1;
-            segment_distance(center, start, end) < reach + cull_slack(reach)
-        });
-        if keep {
+        if keeps_caster(spheres[i], start, end, cone * t1) {
             if kept.len() == MAX_SHADOW_CASTERS {
                 return None;
             }
@@ -426,6 +427,16 @@ pub fn shadow_casters(
         }
     }
     Some(kept)
+}
+
+/// Whether a gather of the segment `a`–`b` keeps the object of bounding `sphere`
+/// (`None`: unbounded, always kept): its sphere comes within `reach` (the cone's
+/// `cone · t1`) of the segment (`reflections/trace.wgsl`'s `keeps_caster`).
+pub fn keeps_caster(sphere: Option<(Vec3, f32)>, a: Vec3, b: Vec3, reach: f32) -> bool {
+    sphere.is_none_or(|(center, radius)| {
+        let reach = radius + reach;
+        segment_distance(center, a, b) < reach + cull_slack(reach)
+    })
 }
 
 /// The tile's caster list, or every object's index below `count`.
@@ -481,6 +492,36 @@ pub fn reflect_pixel_in_tile<F: Fn(usize, Vec3) -> f32>(
     casters: &ShadowCasters<'_, F>,
     tile_casters: Option<&[usize]>,
 ) -> Vec4 {
+    let from = tile_casters.map_or(Gather::Every, Gather::Tile);
+    reflect_pixel_gathered(s, billboards, images, settings, casters, from)
+}
+
+/// Where a pixel's shadow march gathers each segment's casters from.
+#[derive(Clone, Copy, Debug)]
+pub enum Gather<'a> {
+    /// Every object.
+    Every,
+    /// Its tile's caster list ([`super::cull::tile_casters`]).
+    Tile(&'a [usize]),
+    /// The caster grid (a tile whose list overflowed): the same objects as
+    /// [`Gather::Every`], found in the cells near each segment.
+    Grid(&'a CasterGrid),
+}
+
+/// [`reflect_pixel_in_tile`] with the segments' casters gathered `from` a tile's list,
+/// the caster grid or every object (`reflections/trace.wgsl`'s `gather_casters`).
+pub fn reflect_pixel_gathered<F: Fn(usize, Vec3) -> f32>(
+    s: &Surface,
+    billboards: &[GpuBillboard],
+    images: &[MipChain],
+    settings: &ReflectionUniform,
+    casters: &ShadowCasters<'_, F>,
+    from: Gather<'_>,
+) -> Vec4 {
+    let tile_casters = match from {
+        Gather::Tile(list) => Some(list),
+        Gather::Every | Gather::Grid(_) => None,
+    };
     let lobe = lobe(s, settings.anisotropy, settings.footprint_slope);
     let k = settings.max_layers.clamp(1, super::MAX_LAYERS as u32) as usize;
     let mut hits: Vec<FootprintHit> = Vec::with_capacity(k + 1);
@@ -523,6 +564,13 @@ pub fn reflect_pixel_in_tile<F: Fn(usize, Vec3) -> f32>(
     let scene_distance = |k: usize, p: Vec3| {
         let kept = gathered[k].get_or_insert_with(|| {
             let t0 = if k == 0 { 0.0 } else { ends[k - 1] };
+            if let Gather::Grid(grid) = from {
+                match grid.gather(casters.spheres, s.position, lobe.dir, t0, ends[k], cone) {
+                    GridGather::Kept(kept) => return Some(kept),
+                    GridGather::Overflow => return None,
+                    GridGather::TooWide => {}
+                }
+            }
             shadow_casters(
                 casters.spheres,
                 tile_casters,

@@ -9,6 +9,7 @@
     grid_frame, grid_light, light_space_disc, order_key, range_cells,
 }
 #import penumbra::df::shadow::bounding_sphere
+#import penumbra::common::scan::workgroup_exclusive_scan
 
 @group(0) @binding(0) var<storage, read> objects: array<DistanceFieldObject>;
 @group(0) @binding(1) var<storage, read> light_objects: array<u32>;
@@ -84,8 +85,6 @@ fn grid_count(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-var<workgroup> partial: array<u32, 256>;
-
 // Exclusive prefix sums of the 1024 cell counts into `offsets` (one workgroup).
 @compute @workgroup_size(256)
 fn grid_scan(@builtin(local_invocation_index) li: u32) {
@@ -95,25 +94,13 @@ fn grid_scan(@builtin(local_invocation_index) li: u32) {
         local[k] = sum;
         sum += atomicLoad(&grid.counts[li * 4u + k]);
     }
-    partial[li] = sum;
-    workgroupBarrier();
-    // Hillis–Steele inclusive scan of the 256 partial sums.
-    for (var step = 1u; step < 256u; step *= 2u) {
-        var add = 0u;
-        if li >= step {
-            add = partial[li - step];
-        }
-        workgroupBarrier();
-        partial[li] += add;
-        workgroupBarrier();
-    }
-    let before = partial[li] - sum;
+    let scan = workgroup_exclusive_scan(li, sum);
     for (var k = 0u; k < 4u; k += 1u) {
-        grid.offsets[li * 4u + k] = before + local[k];
+        grid.offsets[li * 4u + k] = scan.x + local[k];
     }
     if li == 255u {
-        grid.offsets[GRID_CELLS] = partial[li];
-        grid.item_count = partial[li];
+        grid.offsets[GRID_CELLS] = scan.y;
+        grid.item_count = scan.y;
     }
 }
 

@@ -7,14 +7,18 @@
 // soft march along the mirror ray through the distance-field scene's objects dims each
 // hit by its visibility.
 // Each pixel tests only its tile's billboards (`reflections/cull.wgsl`), which changes
-// no result, and its shadow march gathers from its tile's casters. CPU model: `penumbra_cinematic_core::reflections::pass::reflect_pixel`.
+// no result, and its shadow march gathers from its tile's casters, or from the caster
+// grid (`reflections/spheres.wgsl`) where the tile's list overflowed. CPU model: `penumbra_cinematic_core::reflections::pass::reflect_pixel`.
 
 #import penumbra::reflections::common::{
     Lobe, MAX_LAYERS, MAX_TAPS, MIN_SHADOW_STEP, TILE, atlas, billboards, brick_table, camera_position,
     caster_record, casts, images, images_sampler, objects, settings, spheres,
     surface_sample, tile_lists, tile_record,
 }
-#import penumbra::reflections::types::GpuBillboard
+#import penumbra::reflections::types::{
+    GRID_FRAME_CELL, GRID_FRAME_DIMS, GRID_FRAME_LO, GRID_LARGE_COUNT, GRID_MAX_RADIUS,
+    GpuBillboard, grid_items, grid_large, grid_offsets,
+}
 #import penumbra::df::distance::object_distance
 
 // Most objects one segment of a pixel's reflection-shadow march keeps after its cull;
@@ -228,10 +232,28 @@ fn candidate(c: Candidates, m: u32) -> u32 {
     return m;
 }
 
+// Whether the caster of camera-relative `sphere` (w −1: unbounded; −2: no caster) comes
+// within `reach` of the segment from `a` along `ab` (`pass::keeps_caster`).
+fn keeps_caster(sphere: vec4<f32>, a: vec3<f32>, ab: vec3<f32>, reach: f32) -> bool {
+    if sphere.w < -1.5 {
+        return false;
+    }
+    if sphere.w < 0.0 {
+        return true;
+    }
+    let r = sphere.w + reach;
+    let l2 = dot(ab, ab);
+    var h = 0.0;
+    if l2 > 0.0 {
+        h = clamp(dot(sphere.xyz - a, ab) / l2, 0.0, 1.0);
+    }
+    return length(sphere.xyz - a - ab * h) < r + (r * 1e-4 + 1e-4);
+}
+
 // The live shadow-casting candidates whose bounding sphere comes within `cone · t1` of
 // the ray between `t0` and `t1` (`pass::shadow_casters`): farther, an object never dims
 // a hit there. Returns how many (in `list`), or MAX_SHADOW_CASTERS + 1: march every
-// candidate.
+// candidate. A tile without a list gathers from the caster grid when there is one.
 fn gather_casters(
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -243,29 +265,106 @@ fn gather_casters(
 ) -> u32 {
     let a = (origin + dir * t0) - camera_position();
     let ab = (origin + dir * t1) - (origin + dir * t0);
-    let l2 = dot(ab, ab);
+    if !c.listed && settings.caster_grid != 0u {
+        let n = gather_from_grid(a, ab, cone * t1, list);
+        if n != GRID_TOO_WIDE {
+            return n;
+        }
+    }
     var n = 0u;
     for (var m = 0u; m < c.count; m += 1u) {
         let i = candidate(c, m);
-        let sphere = spheres[i];
-        if sphere.w < -1.5 {
-            continue; // not a live shadow caster
-        }
-        if sphere.w >= 0.0 {
-            let reach = sphere.w + cone * t1;
-            var h = 0.0;
-            if l2 > 0.0 {
-                h = clamp(dot(sphere.xyz - a, ab) / l2, 0.0, 1.0);
-            }
-            if length(sphere.xyz - a - ab * h) >= reach + (reach * 1e-4 + 1e-4) {
-                continue;
-            }
+        if !keeps_caster(spheres[i], a, ab, cone * t1) {
+            continue;
         }
         if n == MAX_SHADOW_CASTERS {
             return MAX_SHADOW_CASTERS + 1u;
         }
         (*list)[n] = i;
         n += 1u;
+    }
+    return n;
+}
+
+// `gather_from_grid`: the segment's box spans more cells than there are objects.
+const GRID_TOO_WIDE: u32 = 0xffffffffu;
+
+// Adds object `i` to `list` if kept; false once more than MAX_SHADOW_CASTERS are.
+fn keep_from_grid(
+    i: u32,
+    a: vec3<f32>,
+    ab: vec3<f32>,
+    reach: f32,
+    list: ptr<function, array<u32, MAX_SHADOW_CASTERS>>,
+    n: ptr<function, u32>,
+) -> bool {
+    if !keeps_caster(spheres[i], a, ab, reach) {
+        return true;
+    }
+    if *n == MAX_SHADOW_CASTERS {
+        return false;
+    }
+    (*list)[*n] = i;
+    *n += 1u;
+    return true;
+}
+
+// The segment's casters from the caster grid (`grid::CasterGrid::gather`): the large
+// ones, then those listed in the cells of the segment's box widened by `reach` and the
+// largest listed radius. The same set as from every object, in another order.
+fn gather_from_grid(
+    a: vec3<f32>,
+    ab: vec3<f32>,
+    reach: f32,
+    list: ptr<function, array<u32, MAX_SHADOW_CASTERS>>,
+) -> u32 {
+    let g = settings.caster_grid;
+    let dims = vec3(tile_lists[g + GRID_FRAME_DIMS], tile_lists[g + GRID_FRAME_DIMS + 1u], tile_lists[g + GRID_FRAME_DIMS + 2u]);
+    let lo = vec3(bitcast<f32>(tile_lists[g + GRID_FRAME_LO]), bitcast<f32>(tile_lists[g + GRID_FRAME_LO + 1u]), bitcast<f32>(tile_lists[g + GRID_FRAME_LO + 2u]));
+    let cell = bitcast<f32>(tile_lists[g + GRID_FRAME_CELL]);
+    let widen = (bitcast<f32>(tile_lists[g + GRID_MAX_RADIUS]) + reach) * 1.001 + 1e-3;
+    let b = a + ab;
+    let lo_f = (min(a, b) - widen - lo) / cell;
+    let hi_f = (max(a, b) + widen - lo) / cell;
+    let d = vec3<f32>(dims);
+    // No cell: none listed, or the box is off the grid (NaN compares false: too wide).
+    let empty = dims.x == 0u || any(hi_f < vec3(0.0)) || any(lo_f >= d);
+    var first = vec3(0u);
+    var last = vec3(0u);
+    if !empty {
+        if !(all(lo_f == lo_f) && all(hi_f == hi_f)) {
+            return GRID_TOO_WIDE;
+        }
+        first = vec3<u32>(max(lo_f, vec3(0.0)));
+        last = min(vec3<u32>(min(hi_f, d - 1.0)), dims - 1u);
+        let span = vec3<f32>(last - first + 1u);
+        if span.x * span.y * span.z > f32(settings.object_count) {
+            return GRID_TOO_WIDE;
+        }
+    }
+    var n = 0u;
+    let large = grid_large(g, settings.object_count);
+    for (var k = 0u; k < tile_lists[g + GRID_LARGE_COUNT]; k += 1u) {
+        if !keep_from_grid(tile_lists[large + k], a, ab, reach, list, &n) {
+            return MAX_SHADOW_CASTERS + 1u;
+        }
+    }
+    if empty {
+        return n;
+    }
+    let offsets = grid_offsets(g);
+    let items = grid_items(g);
+    for (var z = first.z; z <= last.z; z += 1u) {
+        for (var y = first.y; y <= last.y; y += 1u) {
+            let row = (z * dims.y + y) * dims.x;
+            // A row's cells are consecutive: their items too.
+            let end = tile_lists[offsets + row + last.x + 1u];
+            for (var m = tile_lists[offsets + row + first.x]; m < end; m += 1u) {
+                if !keep_from_grid(tile_lists[items + m], a, ab, reach, list, &n) {
+                    return MAX_SHADOW_CASTERS + 1u;
+                }
+            }
+        }
     }
     return n;
 }
