@@ -87,9 +87,16 @@ enum SphereAs {
     Volume { bricked: bool },
 }
 
+/// Small spheres between the sun and the strands, besides the big one: `CROWD` of them
+/// on a grid over the hair, `CROWD_RADIUS` each, at `CROWD_HEIGHT`.
+const CROWD: u32 = 81;
+const CROWD_RADIUS: f32 = 1.2;
+const CROWD_HEIGHT: f32 = 6.0;
+
 fn scene(
     df: bool,
     sphere: SphereAs,
+    crowd: bool,
 ) -> impl FnMut(Commands, ResMut<Assets<HairStrands>>, ResMut<Assets<SdfVolumeAsset>>) {
     move |mut commands, mut strands, mut sdfs| {
         let mut hairs = [Entity::PLACEHOLDER; 2];
@@ -140,6 +147,21 @@ fn scene(
             },
             Transform::from_translation(SPHERE),
         ));
+        for i in (0..CROWD).filter(|_| crowd) {
+            let at = to_world(
+                Vec2::new(6.0 + 6.5 * (i % 9) as f32, 6.0 + 6.5 * (i / 9) as f32),
+                SIZE,
+            );
+            commands.spawn((
+                DistanceFieldCaster {
+                    source: CasterSource::Sphere {
+                        radius: CROWD_RADIUS,
+                    },
+                    ..default()
+                },
+                Transform::from_translation(at.with_z(CROWD_HEIGHT)),
+            ));
+        }
         commands.spawn(pixel_camera(SIZE, SIZE));
     }
 }
@@ -170,11 +192,16 @@ fn word(bytes: &[u8], i: usize) -> u32 {
 }
 
 fn render(df: bool) -> (Vec<[f32; 4]>, KeptApp) {
-    render_with(df, true, SphereAs::Analytic)
+    render_with(df, true, SphereAs::Analytic, false)
 }
 
 /// [`render`]; `pipelined: false` keeps the render world reachable.
-fn render_with(df: bool, pipelined: bool, sphere: SphereAs) -> (Vec<[f32; 4]>, KeptApp) {
+fn render_with(
+    df: bool,
+    pipelined: bool,
+    sphere: SphereAs,
+    crowd: bool,
+) -> (Vec<[f32; 4]>, KeptApp) {
     let mut harness = HeadlessRender::new(SIZE, SIZE)
         .format(CaptureFormat::LinearF16)
         .frames(4);
@@ -209,7 +236,7 @@ fn render_with(df: bool, pipelined: bool, sphere: SphereAs) -> (Vec<[f32; 4]>, K
         ..default()
     })
     .init_resource::<ReadBack>()
-    .add_systems(Startup, scene(df, sphere))
+    .add_systems(Startup, scene(df, sphere, crowd))
     .add_systems(Update, read_back);
     let (capture, app) = harness.run_keeping_app(app).expect("renders");
     (capture.to_linear(), app)
@@ -358,6 +385,45 @@ fn hair_takes_distance_field_shadows() {
     assert!(mean < 2e-3 && diffs[n - 1] < 0.02, "mean {mean}");
 }
 
+/// Each workgroup of 64 points lists the casters that can meet any of its points'
+/// cones, and its points march those: with 81 small spheres over the strands besides the
+/// big one (many in each workgroup's list, each shadowing a few points, some at a
+/// workgroup's edge), the traced visibilities still equal the model's, which marches
+/// every object for every point.
+#[test]
+fn workgroups_list_the_casters_their_points_see() {
+    if !gpu_or_skip("workgroups_list_the_casters_their_points_see") {
+        return;
+    }
+    let (_, app) = render_with(true, true, SphereAs::Analytic, true);
+    let traced = traced_points(&app);
+    let first_rows: Vec<u32> = ROWS.iter().step_by(2).copied().collect();
+    let model: Vec<f32> = first_rows
+        .iter()
+        .flat_map(|&row| model_row(&app, row))
+        .collect();
+    assert_eq!(traced.len(), model.len());
+    // Points the crowd dims (the big sphere's shadow aside).
+    let (_, alone) = render_with(true, true, SphereAs::Analytic, false);
+    let without: Vec<f32> = traced_points(&alone);
+    let dimmed = traced
+        .iter()
+        .zip(&without)
+        .filter(|(a, b)| **a < **b - 0.05)
+        .count();
+    let max = traced
+        .iter()
+        .zip(&model)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f32::max);
+    println!(
+        "{} points, {dimmed} dimmed by the crowd: |gpu − model| max {max:.2e}",
+        traced.len()
+    );
+    assert!(dimmed >= 20, "{dimmed}");
+    assert!(max < 1e-3, "max {max}");
+}
+
 /// The first hair entity's traced visibilities (its points, strand by strand).
 fn traced_points(app: &App) -> Vec<f32> {
     let bytes = app
@@ -385,8 +451,8 @@ fn hair_reads_bricked_volumes() {
             .resource::<DistanceFieldUploadStats>()
             .atlas_bricked
     };
-    let (_, dense_app) = render_with(true, true, SphereAs::Volume { bricked: false });
-    let (_, bricked_app) = render_with(true, true, SphereAs::Volume { bricked: true });
+    let (_, dense_app) = render_with(true, true, SphereAs::Volume { bricked: false }, false);
+    let (_, bricked_app) = render_with(true, true, SphereAs::Volume { bricked: true }, false);
     assert_eq!((bricked_of(&dense_app), bricked_of(&bricked_app)), (0, 1));
     let (dense, bricked) = (traced_points(&dense_app), traced_points(&bricked_app));
     assert_eq!(dense.len(), bricked.len());
@@ -425,7 +491,7 @@ fn still_hair_is_not_traced_again() {
     if !gpu_or_skip("still_hair_is_not_traced_again") {
         return;
     }
-    let (_, mut app) = render_with(true, false, SphereAs::Analytic);
+    let (_, mut app) = render_with(true, false, SphereAs::Analytic, false);
     let traces = |app: &App| {
         app.sub_app(bevy::render::RenderApp)
             .world()

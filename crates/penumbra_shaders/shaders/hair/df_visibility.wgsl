@@ -2,6 +2,11 @@
 // per centre-line point): for each of its distance-field-shadowed lights, the march of
 // Penumbra's shadow-mask pass (`penumbra::df::shadow`) from the point toward the light
 // through every shadow-casting object whose bounding sphere meets the light's cone.
+// Each workgroup first lists, together, the objects that can meet the cone of any of its
+// 64 points (`group_in_cone`: a superset of each point's `object_in_cone`), with their
+// bounding spheres, so that each point tests those rather than every object slot — 1/64
+// of the slots' bounding spheres per thread; a workgroup whose list would pass
+// GROUP_CASTERS tests every slot, as before. The same objects, so the same visibility.
 // Positions are relative to the hair's origin (its tile and offset), as the mask pass's
 // are to the camera. No own-shadow term: a strand has no tangent plane. CPU model:
 // `penumbra_reference::shadow_mask::pixel_visibility` with a zero normal, per point.
@@ -9,8 +14,9 @@
 
 #import penumbra::df::object::DistanceFieldObject
 #import penumbra::df::shadow::{
-    ShadowLight, bounding_sphere, casts_shadows, finish_visibility, march_object,
-    object_in_cone, shadow_ray, traces_point,
+    ShadowLight, bounding_sphere, casts_shadows, cull_slack, finish_visibility,
+    is_directional, march_object, object_in_cone, round_cone_distance, shadow_ray,
+    traces_point,
 }
 #import penumbra::hair::shadows::{HairShadows, MAX_HAIR_SHADOW_LIGHTS}
 
@@ -38,25 +44,114 @@ struct HairShadowParams {
 @group(0) @binding(4) var<uniform> params: HairShadowParams;
 @group(0) @binding(5) var<uniform> lights: array<ShadowLight, 4>;
 
+// Threads (points) per workgroup.
+const GROUP: u32 = 64u;
+// Most objects a workgroup lists per light; more: its points test every slot.
+const GROUP_CASTERS: u32 = 128u;
+
+// The workgroup's points (w: 1 for a point, 0 past the last).
+var<workgroup> group_points: array<vec4<f32>, 64>;
+// This light's list: how many, their slots and origin-relative bounding spheres.
+var<workgroup> group_count: atomic<u32>;
+var<workgroup> group_slots: array<u32, 128>;
+var<workgroup> group_spheres: array<vec4<f32>, 128>;
+
+// A sphere (centre, radius) around the workgroup's points; w < 0: it has none.
+fn group_bounds() -> vec4<f32> {
+    var lo = vec3(3.4e38);
+    var hi = vec3(-3.4e38);
+    var any = false;
+    for (var k = 0u; k < GROUP; k += 1u) {
+        let q = group_points[k];
+        if q.w > 0.0 {
+            lo = min(lo, q.xyz);
+            hi = max(hi, q.xyz);
+            any = true;
+        }
+    }
+    if !any {
+        return vec4(0.0, 0.0, 0.0, -1.0);
+    }
+    return vec4((lo + hi) * 0.5, length(hi - lo) * 0.5);
+}
+
+// Whether the object (bounding sphere `sphere`) can meet the cone toward `light` of some
+// point within `bounds` (`object_in_cone` there). Toward a directional light each
+// point's cone is the centre's moved by at most the bounds' radius: the centre's cone
+// widened by it holds them all. Toward a point or spot light, a point's cone ends on a
+// disc of radius at most the light's source radius, centred that far from the light
+// (`shadow_ray`): the convex hull of the bounds and the light's ball widened √2 (1.5
+// here) holds them all.
+fn group_in_cone(sphere: vec4<f32>, bounds: vec4<f32>, light: ShadowLight) -> bool {
+    if sphere.w < 0.0 {
+        return true;
+    }
+    var end = light.position_or_direction.xyz;
+    var end_radius = 1.5 * light.source;
+    if is_directional(light) {
+        let ray = shadow_ray(bounds.xyz, light);
+        end = bounds.xyz + ray.dir * ray.t_max;
+        end_radius = bounds.w + ray.t_max * ray.tan_half;
+    }
+    // Rounding never drops an object: the points' test has its own errors.
+    let margin = 1e-3 * (1.0 + bounds.w) + 1e-5 * length(end - bounds.xyz);
+    return round_cone_distance(sphere.xyz, bounds.xyz, end, bounds.w, end_radius)
+        < sphere.w + cull_slack(sphere.w) + margin;
+}
+
+// Lists this light's objects for the workgroup (every thread, uniform control flow).
+fn list_group_casters(local: u32, bounds: vec4<f32>, light: ShadowLight) {
+    if local == 0u {
+        atomicStore(&group_count, 0u);
+    }
+    workgroupBarrier();
+    if bounds.w >= 0.0 {
+        for (var m = local; m < params.object_count; m += GROUP) {
+            let o = objects[m];
+            if !casts_shadows(o) {
+                continue;
+            }
+            let sphere = bounding_sphere(o, params.origin_tile.xyz, params.origin_offset.xyz);
+            if group_in_cone(sphere, bounds, light) {
+                let at = atomicAdd(&group_count, 1u);
+                if at < GROUP_CASTERS {
+                    group_slots[at] = m;
+                    group_spheres[at] = sphere;
+                }
+            }
+        }
+    }
+    workgroupBarrier();
+}
+
 // The light's visibility from origin-relative `p` (the mask pass's, without the
-// surface's own shadow).
-fn point_visibility(p: vec3<f32>, light: ShadowLight) -> f32 {
+// surface's own shadow), through the workgroup's `listed` objects (more than
+// GROUP_CASTERS: every slot).
+fn point_visibility(p: vec3<f32>, light: ShadowLight, listed: u32) -> f32 {
     if !traces_point(light, p) {
         return 1.0;
     }
     let ray = shadow_ray(p, light);
+    let every = listed > GROUP_CASTERS;
+    let count = select(listed, params.object_count, every);
     var v = 1.0;
-    for (var i = 0u; i < params.object_count; i += 1u) {
-        let o = objects[i];
-        if !casts_shadows(o) {
-            continue;
+    for (var k = 0u; k < count; k += 1u) {
+        var i = k;
+        var sphere: vec4<f32>;
+        if every {
+            if !casts_shadows(objects[i]) {
+                continue;
+            }
+            sphere = bounding_sphere(objects[i], params.origin_tile.xyz, params.origin_offset.xyz);
+        } else {
+            i = group_slots[k];
+            sphere = group_spheres[k];
         }
-        let sphere = bounding_sphere(o, params.origin_tile.xyz, params.origin_offset.xyz);
         if object_in_cone(sphere, p, ray) {
             // A hair point has no surface of its own: the light's bias, no self-shadow
             // offset.
             v = min(v, march_object(
-                o, sphere, p, ray, light, light.bias, params.origin_tile.xyz,
+                objects[i], sphere, p, ray, light, light.bias, params.origin_tile.xyz,
                 params.origin_offset.xyz,
                 atlas, brick_table,
             ));
@@ -72,14 +167,26 @@ fn hair_df_visibility(
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) local: u32,
 ) {
-    let i = (group.y * groups.x + group.x) * 64u + local;
-    if i >= params.point_count {
-        return;
+    let i = (group.y * groups.x + group.x) * GROUP + local;
+    let valid = i < params.point_count;
+    var p = vec3(0.0);
+    if valid {
+        p = (params.origin_from_local * vec4(points[i].xyz, 1.0)).xyz;
     }
-    let p = (params.origin_from_local * vec4(points[i].xyz, 1.0)).xyz;
+    group_points[local] = vec4(p, select(0.0, 1.0, valid));
+    workgroupBarrier();
+    let bounds = group_bounds();
     var out = vec4(1.0);
     for (var l = 0u; l < min(params.light_count, MAX_HAIR_SHADOW_LIGHTS); l += 1u) {
-        out[l] = point_visibility(p, lights[l]);
+        list_group_casters(local, bounds, lights[l]);
+        let listed = atomicLoad(&group_count);
+        if valid {
+            out[l] = point_visibility(p, lights[l], listed);
+        }
+        // The next light's list overwrites this one.
+        workgroupBarrier();
     }
-    shadows.points[i] = out;
+    if valid {
+        shadows.points[i] = out;
+    }
 }
