@@ -42,11 +42,8 @@ pub fn grid_words(slots: u32) -> u64 {
 pub fn grid_frame(lo: Vec3, hi: Vec3) -> (f32, UVec3) {
     let extent = (hi - lo).max(Vec3::ZERO);
     let cell = (extent.max_element() / GRID_DIM as f32).max(1e-4);
-    let dims = UVec3::new(
-        ((extent.x / cell) as u32 + 1).min(GRID_DIM),
-        ((extent.y / cell) as u32 + 1).min(GRID_DIM),
-        ((extent.z / cell) as u32 + 1).min(GRID_DIM),
-    );
+    let cells = |e: f32| (e / cell).min((GRID_DIM - 1) as f32) as u32 + 1;
+    let dims = UVec3::new(cells(extent.x), cells(extent.y), cells(extent.z));
     (cell, dims)
 }
 

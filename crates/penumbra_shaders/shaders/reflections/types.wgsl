@@ -77,8 +77,10 @@ struct GridFrame {
 fn grid_frame(lo: vec3<f32>, hi: vec3<f32>) -> GridFrame {
     let extent = max(hi - lo, vec3(0.0));
     let cell = max(max(extent.x, max(extent.y, extent.z)) / f32(GRID_DIM), 1e-4);
-    let dims = min(vec3<u32>(extent / cell) + 1u, vec3(GRID_DIM));
-    return GridFrame(lo, cell, dims);
+    // At most GRID_DIM cells (a NaN box, which no live caster gives: one), never zero.
+    let q = extent / cell;
+    let cells = select(vec3(0.0), min(q, vec3(f32(GRID_DIM - 1u))), q == q);
+    return GridFrame(lo, cell, vec3<u32>(cells) + 1u);
 }
 
 // The cell holding camera-relative point `p`, clamped into the grid.
