@@ -7,6 +7,7 @@ use reflections_scene::*;
 
 use bevy::prelude::*;
 use bevy_penumbra_cinematic::ReflectionDebugView;
+use penumbra_cinematic_core::reflections::grid::GRID_OVER_LIST;
 use penumbra_test::{HeadlessRender, gpu_or_skip};
 
 /// Tile culling changes no pixel: the layer with it equals the layer testing every
@@ -75,13 +76,14 @@ fn the_caster_grid_changes_no_pixel() {
         perceptual_roughness: 0.3,
         ..default()
     };
-    let (overflowing, reflecting_model) = overflowing_tile_pixels(setup);
+    let (overflowing, long, reflecting_model) = overflowing_tile_pixels(setup);
     println!(
-        "the model: {overflowing} of {reflecting_model} reflecting pixels in tiles over their list"
+        "the model: {overflowing} of {reflecting_model} reflecting pixels in tiles over their \
+         list, {long} in tiles listing over {GRID_OVER_LIST} (the grid too)"
     );
     assert!(
-        overflowing * 2 > reflecting_model,
-        "{overflowing} of {reflecting_model} pixels in overflowing tiles"
+        overflowing * 2 > reflecting_model && long > 0,
+        "{overflowing} of {reflecting_model} pixels in overflowing tiles, {long} in long lists"
     );
     let (grid, app) = render(setup);
     drop(app);
@@ -110,8 +112,8 @@ fn the_caster_grid_changes_no_pixel() {
 }
 
 /// The model's count of reflecting floor pixels in tiles whose caster list overflows
-/// (over 128), and of all reflecting floor pixels.
-fn overflowing_tile_pixels(setup: Setup) -> (usize, usize) {
+/// (over 128), in tiles listing over `GRID_OVER_LIST`, and of all reflecting floor pixels.
+fn overflowing_tile_pixels(setup: Setup) -> (usize, usize, usize) {
     use penumbra_cinematic_core::reflections::cull::{
         TILE, TileBounds, tile_casters, tile_march_length, tile_shadow_cone,
     };
@@ -122,7 +124,7 @@ fn overflowing_tile_pixels(setup: Setup) -> (usize, usize) {
         .collect();
     let billboards = model_billboards();
     let settings = penumbra_cinematic_core::reflections::pass::ReflectionUniform::new(3, IMAGE, 1);
-    let (mut overflowing, mut reflecting) = (0, 0);
+    let (mut overflowing, mut long, mut reflecting) = (0, 0, 0);
     for ty in 0..HEIGHT.div_ceil(TILE) {
         for tx in 0..WIDTH.div_ceil(TILE) {
             let surfaces: Vec<Surface> = (0..TILE * TILE)
@@ -150,12 +152,14 @@ fn overflowing_tile_pixels(setup: Setup) -> (usize, usize) {
             }
             let cone = tile_shadow_cone(&bounds, settings.shadow_cone, settings.shadow_softness);
             reflecting += surfaces.len();
-            if tile_casters(&bounds, &spheres, length, cone, 128).is_none() {
-                overflowing += surfaces.len();
+            match tile_casters(&bounds, &spheres, length, cone, 128) {
+                None => overflowing += surfaces.len(),
+                Some(list) if list.len() > GRID_OVER_LIST => long += surfaces.len(),
+                Some(_) => {}
             }
         }
     }
-    (overflowing, reflecting)
+    (overflowing, long, reflecting)
 }
 
 /// Lavapipe's frame time against the billboard count and the settings (a measurement):

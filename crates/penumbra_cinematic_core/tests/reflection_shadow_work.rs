@@ -16,7 +16,7 @@ use penumbra_cinematic_core::reflections::Billboard;
 use penumbra_cinematic_core::reflections::cull::{
     TILE, TileBounds, tile_casters, tile_march_length, tile_shadow_cone,
 };
-use penumbra_cinematic_core::reflections::grid::CasterGrid;
+use penumbra_cinematic_core::reflections::grid::{CasterGrid, GRID_OVER_LIST};
 use penumbra_cinematic_core::reflections::pass::{
     FOOTPRINT_SLOPE, Gather, GpuBillboard, ReflectionUniform, ShadowCasters, Surface, lobe,
     reflect_pixel_gathered, reflect_pixel_in_tile,
@@ -148,6 +148,9 @@ fn stress_scene_reflection_shadow_work() {
     for size in [UVec2::new(320, 180), UVec2::new(640, 360)] {
         let pixels = surfaces(size, &spheres);
         let (mut grid_evaluations, mut overflow_pixels) = (0u64, 0usize);
+        let (mut long_list_pixels, mut long_list_tests, mut long_list_grid_tests) =
+            (0usize, 0u64, 0u64);
+        let (mut overflow_tests, mut overflow_every) = (0u64, 0u64);
         grid.tested.set(0);
         grid.gathers.set(0);
         let tiles = UVec2::new(size.x.div_ceil(TILE), size.y.div_ceil(TILE));
@@ -191,18 +194,25 @@ fn stress_scene_reflection_shadow_work() {
                     list.as_deref(),
                 );
                 tiled += evaluations.replace(0);
-                if list.is_none() {
-                    let from_grid = reflect_pixel_gathered(
-                        s,
-                        &billboards,
-                        &images,
-                        &settings,
-                        &shadow,
-                        Gather::Grid(&grid),
-                    );
-                    grid_evaluations += evaluations.replace(0);
-                    overflow_pixels += 1;
-                    assert_eq!(from_grid, tiled_v, "the grid changed a pixel");
+                let (tested, gathers) = (grid.tested.get(), grid.gathers.get());
+                let from = Gather::for_tile(list.as_deref(), Some(&grid));
+                let shader =
+                    reflect_pixel_gathered(s, &billboards, &images, &settings, &shadow, from);
+                assert_eq!(shader, tiled_v, "the grid changed a pixel");
+                match from {
+                    Gather::Grid(_) => {
+                        grid_evaluations += evaluations.replace(0);
+                        overflow_pixels += 1;
+                        overflow_tests += grid.tested.get() - tested;
+                        overflow_every += (grid.gathers.get() - gathers) * spheres.len() as u64;
+                    }
+                    Gather::TileGrid(l, _) => {
+                        long_list_pixels += 1;
+                        long_list_tests += 8 * l.len() as u64;
+                        long_list_grid_tests += grid.tested.get() - tested;
+                        evaluations.set(0);
+                    }
+                    _ => evaluations.set(0),
                 }
                 reflecting += usize::from(v.w > 0.0);
                 with_list += usize::from(list.is_some());
@@ -224,14 +234,21 @@ fn stress_scene_reflection_shadow_work() {
             "  {overflow_pixels} pixels in overflowing tiles: sphere tests per pixel {:.0} from every \
              object, {:.1} from the grid ({} × {} × {} cells of {:.2} m, {} large); distance \
              evaluations per pixel {:.1} (as without it)",
-            per_pixel(grid.gathers.get() * spheres.len() as u64),
-            per_pixel(grid.tested.get()),
+            per_pixel(overflow_every),
+            per_pixel(overflow_tests),
             grid.dims.x,
             grid.dims.y,
             grid.dims.z,
             grid.cell,
             grid.large.len(),
             per_pixel(grid_evaluations),
+        );
+        let per = |n: u64| n as f64 / long_list_pixels.max(1) as f64;
+        println!(
+            "  {long_list_pixels} pixels in tiles listing over {GRID_OVER_LIST}: sphere tests per \
+             pixel at most {:.0} from the list, {:.1} from the grid",
+            per(long_list_tests),
+            per(long_list_grid_tests),
         );
     }
 }

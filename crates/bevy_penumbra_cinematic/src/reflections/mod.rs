@@ -87,9 +87,10 @@
 //!   of 160 tiles at 320 × 180 are over 128. With more than 128 casters the same pass
 //!   therefore also sorts their centres into a uniform grid (at most 32³ cells over their
 //!   box; 256 KiB and 8 bytes per object of the view's list buffer), and a pixel of an
-//!   overflowing tile gathers each segment's casters from the cells near it — the same
-//!   casters, no pixel changed (`penumbra_cinematic_core::reflections::grid`): 34 sphere
-//!   tests per pixel on that model instead of 3,156. On lavapipe the pass there takes
+//!   overflowing tile, or of one listing more than 64, gathers each segment's casters
+//!   from the cells near it — the same casters, no pixel changed
+//!   (`penumbra_cinematic_core::reflections::grid`): 34 sphere tests per pixel on that
+//!   model instead of 3,156. On lavapipe the pass there takes
 //!   0.3 s (1.7 s with every object tested, 8.5 s before the spheres, the lists and 8
 //!   segments; 5 frames at 320 × 180). Casters much larger than the rest (wider than a
 //!   cell) are tested by every gather; a scene whose casters spread over kilometres

@@ -506,6 +506,26 @@ pub enum Gather<'a> {
     /// The caster grid (a tile whose list overflowed): the same objects as
     /// [`Gather::Every`], found in the cells near each segment.
     Grid(&'a CasterGrid),
+    /// The caster grid for a tile with a long list: the same objects as
+    /// [`Gather::Tile`] (the list holds every object its segments can keep); a segment
+    /// gathering too many marches the list.
+    TileGrid(&'a [usize], &'a CasterGrid),
+}
+
+impl<'a> Gather<'a> {
+    /// Where the shader gathers a pixel's casters from: its tile's list (`None`: the
+    /// list overflowed), or the grid where there is one and the list is missing or
+    /// longer than [`super::grid::GRID_OVER_LIST`].
+    pub fn for_tile(list: Option<&'a [usize]>, grid: Option<&'a CasterGrid>) -> Self {
+        match (list, grid) {
+            (None, None) => Gather::Every,
+            (None, Some(grid)) => Gather::Grid(grid),
+            (Some(list), Some(grid)) if list.len() > super::grid::GRID_OVER_LIST => {
+                Gather::TileGrid(list, grid)
+            }
+            (Some(list), _) => Gather::Tile(list),
+        }
+    }
 }
 
 /// [`reflect_pixel_in_tile`] with the segments' casters gathered `from` a tile's list,
@@ -518,9 +538,11 @@ pub fn reflect_pixel_gathered<F: Fn(usize, Vec3) -> f32>(
     casters: &ShadowCasters<'_, F>,
     from: Gather<'_>,
 ) -> Vec4 {
-    let tile_casters = match from {
-        Gather::Tile(list) => Some(list),
-        Gather::Every | Gather::Grid(_) => None,
+    let (tile_casters, grid) = match from {
+        Gather::Every => (None, None),
+        Gather::Tile(list) => (Some(list), None),
+        Gather::Grid(grid) => (None, Some(grid)),
+        Gather::TileGrid(list, grid) => (Some(list), Some(grid)),
     };
     let lobe = lobe(s, settings.anisotropy, settings.footprint_slope);
     let k = settings.max_layers.clamp(1, super::MAX_LAYERS as u32) as usize;
@@ -564,7 +586,7 @@ pub fn reflect_pixel_gathered<F: Fn(usize, Vec3) -> f32>(
     let scene_distance = |k: usize, p: Vec3| {
         let kept = gathered[k].get_or_insert_with(|| {
             let t0 = if k == 0 { 0.0 } else { ends[k - 1] };
-            if let Gather::Grid(grid) = from {
+            if let Some(grid) = grid {
                 match grid.gather(casters.spheres, s.position, lobe.dir, t0, ends[k], cone) {
                     GridGather::Kept(kept) => return Some(kept),
                     GridGather::Overflow => return None,

@@ -253,7 +253,8 @@ fn keeps_caster(sphere: vec4<f32>, a: vec3<f32>, ab: vec3<f32>, reach: f32) -> b
 // The live shadow-casting candidates whose bounding sphere comes within `cone · t1` of
 // the ray between `t0` and `t1` (`pass::shadow_casters`): farther, an object never dims
 // a hit there. Returns how many (in `list`), or MAX_SHADOW_CASTERS + 1: march every
-// candidate. A tile without a list gathers from the caster grid when there is one.
+// candidate. A tile without a list, or with a long one, gathers from the caster grid
+// when there is one.
 fn gather_casters(
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -265,7 +266,9 @@ fn gather_casters(
 ) -> u32 {
     let a = (origin + dir * t0) - camera_position();
     let ab = (origin + dir * t1) - (origin + dir * t0);
-    if !c.listed && settings.caster_grid != 0u {
+    // The grid where the tile has no list, or a long one (the same set either way: the
+    // list holds every object a segment of the tile can keep).
+    if settings.caster_grid != 0u && (!c.listed || c.count > GRID_OVER_LIST) {
         let n = gather_from_grid(a, ab, cone * t1, list);
         if n != GRID_TOO_WIDE {
             return n;
@@ -285,6 +288,9 @@ fn gather_casters(
     }
     return n;
 }
+
+// A tile listing more casters than this gathers from the grid (`grid::GRID_OVER_LIST`).
+const GRID_OVER_LIST: u32 = 64u;
 
 // `gather_from_grid`: the segment's box spans more cells than there are objects.
 const GRID_TOO_WIDE: u32 = 0xffffffffu;
