@@ -500,7 +500,7 @@ fn prepare_reflection_bind_groups(
             };
         let tile_words = u64::from(tiles.x * tiles.y) * u64::from(record);
         // More casters than a tile's list holds: the caster grid after the tiles' records
-        // (where a tile's list overflows, its pixels gather from it).
+        // (where a tile's list overflows or is long, its pixels gather from it).
         let grid = (caster_capacity > 0 && object_count > MAX_TILE_CASTERS)
             .then(|| u32::try_from(tile_words).ok())
             .flatten();

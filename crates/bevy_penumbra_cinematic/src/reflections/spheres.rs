@@ -176,11 +176,9 @@ impl ViewCasterSpheres {
         let Some((group, _)) = self.group.as_ref() else {
             return;
         };
-        let Some(compute) = pipeline
+        let [Some(spheres), Some(count), Some(scan), Some(fill)] = pipeline
             .pipelines
-            .iter()
-            .map(|id| pipeline_cache.get_compute_pipeline(*id))
-            .collect::<Option<Vec<_>>>()
+            .map(|id| pipeline_cache.get_compute_pipeline(id))
         else {
             return;
         };
@@ -192,19 +190,21 @@ impl ViewCasterSpheres {
         }
         let groups = self.count.div_ceil(GROUP);
         let x = groups.min(MAX_GROUPS_X);
+        let y = groups.div_ceil(x);
         let mut pass = encoder.begin_compute_pass(&ComputePassDescriptor {
             label: Some("penumbra_reflection_spheres"),
             timestamp_writes: None,
         });
         pass.set_bind_group(0, group, &[]);
-        let passes = if self.grid.is_some() { 4 } else { 1 };
-        for (k, compute) in compute.iter().enumerate().take(passes) {
-            pass.set_pipeline(compute);
-            if ENTRY_POINTS[k] == "grid_scan" {
-                pass.dispatch_workgroups(1, 1, 1);
-            } else {
-                pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
-            }
+        pass.set_pipeline(spheres);
+        pass.dispatch_workgroups(x, y, 1);
+        if self.grid.is_some() {
+            pass.set_pipeline(count);
+            pass.dispatch_workgroups(x, y, 1);
+            pass.set_pipeline(scan);
+            pass.dispatch_workgroups(1, 1, 1);
+            pass.set_pipeline(fill);
+            pass.dispatch_workgroups(x, y, 1);
         }
     }
 }
