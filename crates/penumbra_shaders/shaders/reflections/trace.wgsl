@@ -8,7 +8,7 @@
 // hit by its visibility.
 // Each pixel tests only its tile's billboards (`reflections/cull.wgsl`), which changes
 // no result, and its shadow march gathers from its tile's casters, or from the caster
-// grid (`reflections/spheres.wgsl`) where the tile's list overflowed. CPU model: `penumbra_cinematic_core::reflections::pass::reflect_pixel`.
+// grid (`reflections/spheres.wgsl`) where the tile's list overflowed or is long. CPU model: `penumbra_cinematic_core::reflections::pass::reflect_pixel`.
 
 #import penumbra::reflections::common::{
     Lobe, MAX_LAYERS, MAX_TAPS, MIN_SHADOW_STEP, TILE, atlas, billboards, brick_table, camera_position,
