@@ -88,8 +88,9 @@ enum SphereAs {
 }
 
 /// Small spheres between the sun and the strands, besides the big one: `CROWD` of them
-/// on a grid over the hair, `CROWD_RADIUS` each, at `CROWD_HEIGHT`.
-const CROWD: u32 = 81;
+/// on a 9 × 9 grid over the hair, `CROWD_RADIUS` each, in three layers from
+/// `CROWD_HEIGHT` up, 3 apart (more than a workgroup lists at a time).
+const CROWD: u32 = 243;
 const CROWD_RADIUS: f32 = 1.2;
 const CROWD_HEIGHT: f32 = 6.0;
 
@@ -149,9 +150,10 @@ fn scene(
         ));
         for i in (0..CROWD).filter(|_| crowd) {
             let at = to_world(
-                Vec2::new(6.0 + 6.5 * (i % 9) as f32, 6.0 + 6.5 * (i / 9) as f32),
+                Vec2::new(6.0 + 6.5 * (i % 9) as f32, 6.0 + 6.5 * (i / 9 % 9) as f32),
                 SIZE,
             );
+            let height = CROWD_HEIGHT + 3.0 * (i / 81) as f32;
             commands.spawn((
                 DistanceFieldCaster {
                     source: CasterSource::Sphere {
@@ -159,7 +161,7 @@ fn scene(
                     },
                     ..default()
                 },
-                Transform::from_translation(at.with_z(CROWD_HEIGHT)),
+                Transform::from_translation(at.with_z(height)),
             ));
         }
         commands.spawn(pixel_camera(SIZE, SIZE));
@@ -385,11 +387,11 @@ fn hair_takes_distance_field_shadows() {
     assert!(mean < 2e-3 && diffs[n - 1] < 0.02, "mean {mean}");
 }
 
-/// Each workgroup of 64 points lists the casters that can meet any of its points'
-/// cones, and its points march those: with 81 small spheres over the strands besides the
-/// big one (many in each workgroup's list, each shadowing a few points, some at a
-/// workgroup's edge), the traced visibilities still equal the model's, which marches
-/// every object for every point.
+/// Each workgroup of 64 points lists, 128 slots at a time, the casters that can meet any
+/// of its points' cones, and its points march those: with 243 small spheres over the
+/// strands besides the big one (two lists per light, many casters in each, each
+/// shadowing a few points, some at a workgroup's edge), the traced visibilities still
+/// equal the model's, which marches every object for every point.
 #[test]
 fn workgroups_list_the_casters_their_points_see() {
     if !gpu_or_skip("workgroups_list_the_casters_their_points_see") {

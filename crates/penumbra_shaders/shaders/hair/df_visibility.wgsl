@@ -2,11 +2,11 @@
 // per centre-line point): for each of its distance-field-shadowed lights, the march of
 // Penumbra's shadow-mask pass (`penumbra::df::shadow`) from the point toward the light
 // through every shadow-casting object whose bounding sphere meets the light's cone.
-// Each workgroup first lists, together, the objects that can meet the cone of any of its
-// 64 points (`group_in_cone`: a superset of each point's `object_in_cone`), with their
-// bounding spheres, so that each point tests those rather than every object slot — 1/64
-// of the slots' bounding spheres per thread; a workgroup whose list would pass
-// GROUP_CASTERS tests every slot, as before. The same objects, so the same visibility.
+// Each workgroup goes through the object slots GROUP_CASTERS at a time: together its
+// threads list those that can meet the cone of any of its 64 points (`group_in_cone`: a
+// superset of each point's `object_in_cone`), with their bounding spheres, and each
+// point marches those of them in its own cone — 1/64 of the slots' bounding spheres per
+// thread. The same objects, so the same visibility (a minimum: order-free).
 // Positions are relative to the hair's origin (its tile and offset), as the mask pass's
 // are to the camera. No own-shadow term: a strand has no tangent plane. CPU model:
 // `penumbra_reference::shadow_mask::pixel_visibility` with a zero normal, per point.
@@ -14,7 +14,7 @@
 
 #import penumbra::df::object::DistanceFieldObject
 #import penumbra::df::shadow::{
-    ShadowLight, bounding_sphere, casts_shadows, cull_slack, finish_visibility,
+    ShadowLight, ShadowRay, bounding_sphere, casts_shadows, cull_slack, finish_visibility,
     is_directional, march_object, object_in_cone, round_cone_distance, shadow_ray,
     traces_point,
 }
@@ -46,12 +46,13 @@ struct HairShadowParams {
 
 // Threads (points) per workgroup.
 const GROUP: u32 = 64u;
-// Most objects a workgroup lists per light; more: its points test every slot.
+// Object slots a workgroup lists from at a time (so its list never overflows).
 const GROUP_CASTERS: u32 = 128u;
 
 // The workgroup's points (w: 1 for a point, 0 past the last).
 var<workgroup> group_points: array<vec4<f32>, 64>;
-// This light's list: how many, their slots and origin-relative bounding spheres.
+// This light's list from the current slots: how many, their slots and origin-relative
+// bounding spheres.
 var<workgroup> group_count: atomic<u32>;
 var<workgroup> group_slots: array<u32, 128>;
 var<workgroup> group_spheres: array<vec4<f32>, 128>;
@@ -99,14 +100,16 @@ fn group_in_cone(sphere: vec4<f32>, bounds: vec4<f32>, light: ShadowLight) -> bo
         < sphere.w + cull_slack(sphere.w) + margin;
 }
 
-// Lists this light's objects for the workgroup (every thread, uniform control flow).
-fn list_group_casters(local: u32, bounds: vec4<f32>, light: ShadowLight) {
+// Lists, for the workgroup, the objects of slots `base` to `base + GROUP_CASTERS` that
+// can meet this light's cone (every thread, uniform control flow); returns how many.
+fn list_group_casters(local: u32, bounds: vec4<f32>, light: ShadowLight, base: u32) -> u32 {
     if local == 0u {
         atomicStore(&group_count, 0u);
     }
     workgroupBarrier();
+    let end = min(base + GROUP_CASTERS, params.object_count);
     if bounds.w >= 0.0 {
-        for (var m = local; m < params.object_count; m += GROUP) {
+        for (var m = base + local; m < end; m += GROUP) {
             let o = objects[m];
             if !casts_shadows(o) {
                 continue;
@@ -114,50 +117,32 @@ fn list_group_casters(local: u32, bounds: vec4<f32>, light: ShadowLight) {
             let sphere = bounding_sphere(o, params.origin_tile.xyz, params.origin_offset.xyz);
             if group_in_cone(sphere, bounds, light) {
                 let at = atomicAdd(&group_count, 1u);
-                if at < GROUP_CASTERS {
-                    group_slots[at] = m;
-                    group_spheres[at] = sphere;
-                }
+                group_slots[at] = m;
+                group_spheres[at] = sphere;
             }
         }
     }
     workgroupBarrier();
+    return atomicLoad(&group_count);
 }
 
-// The light's visibility from origin-relative `p` (the mask pass's, without the
-// surface's own shadow), through the workgroup's `listed` objects (more than
-// GROUP_CASTERS: every slot).
-fn point_visibility(p: vec3<f32>, light: ShadowLight, listed: u32) -> f32 {
-    if !traces_point(light, p) {
-        return 1.0;
-    }
-    let ray = shadow_ray(p, light);
-    let every = listed > GROUP_CASTERS;
-    let count = select(listed, params.object_count, every);
-    var v = 1.0;
-    for (var k = 0u; k < count; k += 1u) {
-        var i = k;
-        var sphere: vec4<f32>;
-        if every {
-            if !casts_shadows(objects[i]) {
-                continue;
-            }
-            sphere = bounding_sphere(objects[i], params.origin_tile.xyz, params.origin_offset.xyz);
-        } else {
-            i = group_slots[k];
-            sphere = group_spheres[k];
-        }
+// The running minimum `v` of the light's visibility from origin-relative `p` (the mask
+// pass's, without the surface's own shadow) over the workgroup's `listed` objects.
+fn march_listed(p: vec3<f32>, ray: ShadowRay, light: ShadowLight, listed: u32, v: f32) -> f32 {
+    var out = v;
+    for (var k = 0u; k < listed; k += 1u) {
+        let sphere = group_spheres[k];
         if object_in_cone(sphere, p, ray) {
             // A hair point has no surface of its own: the light's bias, no self-shadow
             // offset.
-            v = min(v, march_object(
-                objects[i], sphere, p, ray, light, light.bias, params.origin_tile.xyz,
-                params.origin_offset.xyz,
+            out = min(out, march_object(
+                objects[group_slots[k]], sphere, p, ray, light, light.bias,
+                params.origin_tile.xyz, params.origin_offset.xyz,
                 atlas, brick_table,
             ));
         }
     }
-    return finish_visibility(v, light.shaping);
+    return out;
 }
 
 // Dispatched in rows of at most 65,535 groups (`penumbra_cinematic_core::dispatch`).
@@ -178,13 +163,22 @@ fn hair_df_visibility(
     let bounds = group_bounds();
     var out = vec4(1.0);
     for (var l = 0u; l < min(params.light_count, MAX_HAIR_SHADOW_LIGHTS); l += 1u) {
-        list_group_casters(local, bounds, lights[l]);
-        let listed = atomicLoad(&group_count);
-        if valid {
-            out[l] = point_visibility(p, lights[l], listed);
+        let light = lights[l];
+        let traced = valid && traces_point(light, p);
+        let ray = shadow_ray(p, light);
+        var v = 1.0;
+        // The slots GROUP_CASTERS at a time: a list never overflows.
+        for (var base = 0u; base < params.object_count; base += GROUP_CASTERS) {
+            let listed = list_group_casters(local, bounds, light, base);
+            if traced {
+                v = march_listed(p, ray, light, listed, v);
+            }
+            // The next chunk's list overwrites this one.
+            workgroupBarrier();
         }
-        // The next light's list overwrites this one.
-        workgroupBarrier();
+        if traced {
+            out[l] = finish_visibility(v, light.shaping);
+        }
     }
     if valid {
         shadows.points[i] = out;
