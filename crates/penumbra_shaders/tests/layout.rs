@@ -509,4 +509,13 @@ fn reflection_layouts_match() {
     );
     let (_, billboard) = struct_layout(&m, "GpuBillboard");
     assert_eq!(u64::from(billboard), GpuBillboard::min_size().get());
+    // The caster grid's layout in the view's list buffer (`grid::grid_words`).
+    use penumbra_cinematic_core::reflections::grid;
+    assert_eq!(constant(&m, "GRID_DIM") as u32, grid::GRID_DIM);
+    assert_eq!(constant(&m, "GRID_CELLS") as u32, grid::GRID_CELLS);
+    assert_eq!(constant(&m, "GRID_HEADER") as u32, grid::GRID_HEADER_WORDS);
+    assert_eq!(
+        constant(&m, "GRID_OVER_LIST") as usize,
+        grid::GRID_OVER_LIST
+    );
 }

@@ -384,10 +384,10 @@ pub const CROWD_RADIUS: f32 = 0.02;
 /// pass: many within reach of each tile, few near each ray.
 pub fn crowd(n: u32) -> Vec<Vec3> {
     let (nx, ny) = (16, 5);
+    let layers = n.div_ceil(nx * ny).max(1);
     (0..n)
         .map(|i| {
             let (x, y, z) = (i % nx, i / nx % ny, i / (nx * ny));
-            let layers = n.div_ceil(nx * ny).max(1);
             Vec3::new(
                 -2.0 + 4.0 * (x as f32 + 0.5) / nx as f32,
                 0.1 + 1.2 * (y as f32 + 0.5) / ny as f32,

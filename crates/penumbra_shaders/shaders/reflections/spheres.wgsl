@@ -125,7 +125,8 @@ fn grid_count(
     }
 }
 
-const CELLS_PER_THREAD: u32 = 128u; // GRID_CELLS / 256 threads
+// The scan's 256 threads each sum a run of cells.
+const CELLS_PER_THREAD: u32 = GRID_CELLS / 256u;
 
 // Exclusive prefix sums of the cells' counts into their offsets, the counts zeroed
 // (the fill's cursors), and the frame written for the trace (one workgroup).

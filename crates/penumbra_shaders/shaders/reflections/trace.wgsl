@@ -17,7 +17,7 @@
 }
 #import penumbra::reflections::types::{
     GRID_FRAME_CELL, GRID_FRAME_DIMS, GRID_FRAME_LO, GRID_LARGE_COUNT, GRID_MAX_RADIUS,
-    GpuBillboard, grid_items, grid_large, grid_offsets,
+    GRID_OVER_LIST, GpuBillboard, grid_items, grid_large, grid_offsets,
 }
 #import penumbra::df::distance::object_distance
 
@@ -288,9 +288,6 @@ fn gather_casters(
     }
     return n;
 }
-
-// A tile listing more casters than this gathers from the grid (`grid::GRID_OVER_LIST`).
-const GRID_OVER_LIST: u32 = 64u;
 
 // `gather_from_grid`: the segment's box spans more cells than there are objects.
 const GRID_TOO_WIDE: u32 = 0xffffffffu;

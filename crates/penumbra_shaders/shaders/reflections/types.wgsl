@@ -55,6 +55,8 @@ struct ReflectionUniform {
 const GRID_DIM: u32 = 32u;
 const GRID_CELLS: u32 = 32768u;
 const GRID_HEADER: u32 = 16u;
+// A tile listing more casters than this gathers from the grid (`grid::GRID_OVER_LIST`).
+const GRID_OVER_LIST: u32 = 64u;
 // Header words: order keys of the centres' box (lowest corner inverted, so that both
 // grow from zero), the largest listed radius's bits, the large casters' count, and the
 // frame the scan resolves from them for the trace.
